@@ -1,0 +1,124 @@
+"""The controller's own model of one arm: H, C(q,v)v, D, g, φ and J_φ of (1)–(2).
+
+The controller (13) and the observers (15)–(16), (22) are model based. Their model is a
+single-arm :class:`~pydrake.multibody.plant.MultibodyPlant` parsed from the controller's URDF
+(the simulated arm's URDF by default, a perturbed one in robustness studies), with the base
+welded at the robot's pose in the palm frame, so that gravity, ``φ`` and ``J_φ`` are expressed
+exactly as in the paper's Section IV. It never reads the simulated plant's context.
+
+Quantities (robot ``i``, ``n = 3`` joints, ``m = 1`` constraint):
+
+* ``H(q)`` inertia matrix, including the reflected rotor inertia ``N² J_m`` of the gears;
+* ``C(q, v) v`` Coriolis and centrifugal forces (Drake's bias term, evaluated at ``v``);
+* ``D`` diagonal viscous friction (the joints' damping);
+* ``g(q)`` gravity torques on the left-hand side of (1) (``g = −τ_g`` in Drake's sign);
+* ``φ(q) = s (x(q) − b)`` and ``J_φ = ∂φ/∂q`` (1×n), ``J̇_φ`` along a direction by AutoDiff.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, InitializeAutoDiff
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import JacobianWrtVariable
+
+from drake_coop.arms import Arm
+
+
+class ArmModel:
+    """Rigid-body model of one arm for the controller and the observers.
+
+    Parameters
+    ----------
+    arm : Arm
+        The robot (base pose, constraint plane and normal).
+    urdf : Path, optional
+        The model to use; defaults to ``arm.controller_urdf_path``.
+    """
+
+    def __init__(self, arm: Arm, urdf: Path | None = None):
+        self.arm = arm
+        self.urdf = Path(urdf) if urdf is not None else arm.controller_urdf_path
+        plant = MultibodyPlant(0.0)
+        Parser(plant).AddModels(str(self.urdf))
+        X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"), X_WB)
+        plant.Finalize()
+        self.plant = plant
+        self.n = plant.num_positions()
+        self.context = plant.CreateDefaultContext()
+        self.ee_frame = plant.GetFrameByName("pad")
+        self.D = np.diag([plant.get_joint(j).default_damping()
+                          for j in plant.GetJointIndices() if plant.get_joint(j).num_velocities()])
+        self.plant_ad = plant.ToAutoDiffXd()
+        self.context_ad = self.plant_ad.CreateDefaultContext()
+        self.ee_frame_ad = self.plant_ad.GetFrameByName("pad")
+        self._selector = np.zeros((1, 3))
+        self._selector[0, 0] = arm.s   # φ = s (x − b): picks s·(x row) of the Jacobian
+
+    # -------------------------------------------------------------------------- helpers
+    def _set(self, q: np.ndarray, v: np.ndarray | None = None) -> None:
+        self.plant.SetPositions(self.context, q)
+        self.plant.SetVelocities(self.context, np.zeros(self.n) if v is None else v)
+
+    # ------------------------------------------------------------------------- dynamics
+    def H(self, q: np.ndarray) -> np.ndarray:
+        """Inertia matrix ``H(q)`` (n×n)."""
+        self._set(q)
+        return self.plant.CalcMassMatrix(self.context)
+
+    def Cv(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``C(q, v) v`` (n,)."""
+        self._set(q, v)
+        return self.plant.CalcBiasTerm(self.context)
+
+    def g(self, q: np.ndarray) -> np.ndarray:
+        """Gravity vector ``g(q)`` of (1) (left-hand side), n-vector."""
+        self._set(q)
+        return -self.plant.CalcGravityGeneralizedForces(self.context)
+
+    def inverse_dynamics_terms(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """``H(q) a + C(q, v) v + D v + g(q)``: the model part of (13) and (21)."""
+        self._set(q, v)
+        H = self.plant.CalcMassMatrix(self.context)
+        Cv = self.plant.CalcBiasTerm(self.context)
+        g = -self.plant.CalcGravityGeneralizedForces(self.context)
+        return H @ a + Cv + self.D @ v + g
+
+    # ----------------------------------------------------------------------- kinematics
+    def ee_position(self, q: np.ndarray) -> np.ndarray:
+        """End-effector point (pad centre) in the palm frame."""
+        self._set(q)
+        return self.ee_frame.CalcPoseInWorld(self.context).translation()
+
+    def phi(self, q: np.ndarray) -> float:
+        """Constraint (2), ``φ = s (x − b)`` (m)."""
+        return self.arm.s * (self.ee_position(q)[0] - self.arm.b)
+
+    def J_phi(self, q: np.ndarray) -> np.ndarray:
+        """Constraint Jacobian ``J_φ = ∂φ/∂q`` (1×n)."""
+        self._set(q)
+        Jv = self.plant.CalcJacobianTranslationalVelocity(
+            self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
+            self.plant.world_frame(), self.plant.world_frame())
+        return self._selector @ Jv
+
+    def J_phi_and_derivative(self, q: np.ndarray, direction: np.ndarray
+                             ) -> tuple[np.ndarray, np.ndarray]:
+        """``J_φ(q)`` and its exact directional derivative ``Σ_k ∂J_φ/∂q_k · direction_k``.
+
+        Forward-mode AutoDiff with one derivative component seeded with ``direction``.
+        """
+        q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
+        self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))
+        Jv = self.plant_ad.CalcJacobianTranslationalVelocity(
+            self.context_ad, JacobianWrtVariable.kV, self.ee_frame_ad, np.zeros(3),
+            self.plant_ad.world_frame(), self.plant_ad.world_frame())
+        row = Jv[0, :]
+        value = np.array([r.value() for r in row]) * self.arm.s
+        deriv = np.array([r.derivatives()[0] if r.derivatives().size else 0.0 for r in row])
+        return value.reshape(1, -1), (self.arm.s * deriv).reshape(1, -1)

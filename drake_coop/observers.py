@@ -1,0 +1,160 @@
+"""The joint-velocity observer (15)–(16) and the force observer (22) as Drake LeafSystems.
+
+Both run with periodic discrete updates every ``h`` (9 ms in the paper) and read the measured
+joint positions ``q`` only. Their updates are forward-Euler steps of the paper's continuous
+observers (the paper ran them "in a PC computer" at ``h``; Euler is our reading of that).
+
+Timing: at tick ``k`` every system of a robot reads the same sample ``q(k)`` and the same
+observer state; the state outputs (``q_hat``, ``Delta_F_tilde``) hold the values of tick ``k``
+until the update at tick ``k`` takes them to ``k + 1``. No signal is one sample old.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+from drake_coop.finger import FingerLaw, Reference
+from drake_coop.references import REFERENCE_SIZE
+
+
+class VelocityObserver(LeafSystem):
+    """Model-based joint-velocity observer (15)–(16) of one robot.
+
+    State ``[q̂, q̇̂_o]`` (2n). With ``z = q − q̂``:
+
+    .. math::
+        \\frac{d}{dt}\\hat q = \\dot{\\hat q}_o + \\Lambda z + k_d z \\qquad (15)
+
+        \\frac{d}{dt}\\dot{\\hat q}_o = \\ddot{\\hat q}_r + k_d \\Lambda z \\qquad (16)
+
+    discretized as ``x(k+1) = x(k) + h f(x(k), q(k), q̈̂_r(k))``.
+
+    Input ports
+    -----------
+    q : n-vector
+        Measured joint positions.
+    qddot_r_hat : n-vector
+        ``q̈̂_r(k)`` of (11) from the controller, same tick.
+
+    Output ports
+    ------------
+    q_hat : n-vector
+        The estimate ``q̂`` (state only).
+    qdot_hat : n-vector
+        Its derivative estimate ``d/dt q̂`` (15) (depends on ``q``).
+    qdot_o : n-vector
+        ``q̇_o = d/dt q̂ − Λ z`` of (8) (depends on ``q``).
+    """
+
+    def __init__(self, law: FingerLaw, period: float):
+        super().__init__()
+        self._law = law
+        self._h = period
+        n = law.n
+        self._n = n
+        self._q = self.DeclareVectorInputPort("q", n)
+        self._qddot_r = self.DeclareVectorInputPort("qddot_r_hat", n)
+        self._state = self.DeclareDiscreteState(2 * n)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_observer)
+        state_only = {self.xd_ticket()}
+        depends_on_q = {self.xd_ticket(), self._q.ticket()}
+        self.DeclareVectorOutputPort("q_hat", n, self._calc_q_hat,
+                                     prerequisites_of_calc=state_only)
+        self.DeclareVectorOutputPort("qdot_hat", n, self._calc_qdot_hat,
+                                     prerequisites_of_calc=depends_on_q)
+        self.DeclareVectorOutputPort("qdot_o", n, self._calc_qdot_o,
+                                     prerequisites_of_calc=depends_on_q)
+
+    def set_initial_state(self, context: Context, q_hat: np.ndarray,
+                          qdot_hat_o: np.ndarray | None = None) -> None:
+        """``q̂(0)`` and ``q̇̂_o(0)`` (default zero) in this system's context."""
+        x = np.concatenate([q_hat, np.zeros(self._n) if qdot_hat_o is None else qdot_hat_o])
+        context.SetDiscreteState(self._state, x)
+
+    def _split(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        x = context.get_discrete_state(self._state).value()
+        return x[: self._n], x[self._n:]
+
+    def _derivatives(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        q_hat, qdot_hat_o = self._split(context)
+        return self._law.observer_derivative(self._q.Eval(context), q_hat, qdot_hat_o)
+
+    def _calc_q_hat(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._split(context)[0])
+
+    def _calc_qdot_hat(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._derivatives(context)[0])
+
+    def _calc_qdot_o(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._derivatives(context)[1])
+
+    def _update_observer(self, context: Context, discrete_state: DiscreteValues) -> None:
+        q = self._q.Eval(context)
+        q_hat, qdot_hat_o = self._split(context)
+        qdot_hat, _ = self._law.observer_derivative(q, q_hat, qdot_hat_o)
+        qddot_hat_o = self._law.observer_acceleration(q, q_hat, self._qddot_r.Eval(context))
+        discrete_state.set_value(self._state, np.concatenate(
+            [q_hat + self._h * qdot_hat, qdot_hat_o + self._h * qddot_hat_o]))
+
+
+class ForceObserver(LeafSystem):
+    """Contact-force observer (22) of one robot, with the force integral ΔF̃ (6) as state.
+
+    .. math::
+        \\hat\\lambda = \\frac{1}{1+\\zeta}\\Big[J^{+T}(q) K_R(\\dot q_o - \\dot q_r)
+                        - k_F \\Delta\\tilde F\\Big] + \\lambda_d \\qquad (22)
+
+    (22) is (21) with the controller (13) substituted and solved for ``λ̂``: it needs no torque,
+    so observer and controller form no algebraic loop. ``ΔF̃(k+1) = ΔF̃(k) + h (λ̂(k) − λ_d(k))``
+    while the object is held; before the grasp and after the release ``λ̂ = 0`` and ``ΔF̃`` is
+    reset to 0 (the integral (6) starts at the grasp).
+
+    Input ports
+    -----------
+    q, q_hat, qdot_o : n-vectors
+        Measured positions and the velocity observer's outputs.
+    reference : 11-vector
+        ``[q_d, q̇_d, q̈_d, λ_d, held]``.
+
+    Output ports
+    ------------
+    lambda_hat : 1-vector
+        ``λ̂(k)`` (depends on the inputs of tick k).
+    Delta_F_tilde : 1-vector
+        ``ΔF̃(k)`` (state only).
+    """
+
+    def __init__(self, law: FingerLaw, period: float):
+        super().__init__()
+        self._law = law
+        self._h = period
+        n = law.n
+        self._q = self.DeclareVectorInputPort("q", n)
+        self._q_hat = self.DeclareVectorInputPort("q_hat", n)
+        self._qdot_o = self.DeclareVectorInputPort("qdot_o", n)
+        self._reference = self.DeclareVectorInputPort("reference", REFERENCE_SIZE)
+        self._state = self.DeclareDiscreteState(1)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
+        self.DeclareVectorOutputPort("lambda_hat", 1, self._calc_lambda_hat)
+        self.DeclareVectorOutputPort("Delta_F_tilde", 1, self._calc_Delta_F_tilde,
+                                     prerequisites_of_calc={self.xd_ticket()})
+
+    def _lambda_hat(self, context: Context) -> tuple[float, Reference]:
+        ref = Reference.unpack(self._reference.Eval(context))
+        DF = float(context.get_discrete_state(self._state).GetAtIndex(0))
+        lam = self._law.force_estimate(self._q.Eval(context), self._q_hat.Eval(context),
+                                       self._qdot_o.Eval(context), ref, DF)
+        return lam, ref
+
+    def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._lambda_hat(context)[0])
+
+    def _calc_Delta_F_tilde(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._state).value())
+
+    def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
+        lam, ref = self._lambda_hat(context)
+        DF = float(context.get_discrete_state(self._state).GetAtIndex(0))
+        new = DF + self._h * (lam - ref.lambda_d) if ref.held else 0.0
+        discrete_state.set_value(self._state, [new])

@@ -1,0 +1,150 @@
+"""Joint-space orthogonalization: the pure math of the paper's Section III (NumPy only).
+
+Notation (per robot, ``n`` joints, ``m`` constraints):
+
+* ``J_phi`` (m×n): the constraint Jacobian ``∂φ/∂q`` of (2).
+* ``J_pinv`` (n×m): ``J⁺ = J_φᵀ (J_φ J_φᵀ)⁻¹``, the right pseudo-inverse (Property 1).
+* ``Q`` (n×n): ``Q = I − J⁺ J_φ``, the projector onto the tangent space of the constraint
+  (Property 1: ``Q J⁺ = 0``, ``Q J_φᵀ = 0``, ``rank Q = n − m``).
+* ``Q_dot``, ``J_pinv_dot``: the directional derivatives ``Q̂̇(q, q̇_o)`` and ``Ĵ⁺̇(q, q̇_o)`` of
+  (7) — the time derivatives of ``Q`` and ``J⁺`` with the observer velocity ``q̇_o`` in place of
+  the unmeasured ``q̇``. They are exact: given ``J̇_φ`` (the derivative of ``J_φ`` along the
+  same direction) they follow from differentiating the definitions above.
+* ``qdot_r``: the reference velocity (4); ``qddot_r_hat``: its estimated derivative (11).
+
+With ``J_phi = 0`` (free motion, Section IV "force part set to zero") use
+:func:`free_motion_projections`: ``Q = I``, ``J⁺ = 0``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def projections(J_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``J⁺`` and ``Q`` of Property 1.
+
+    .. math:: J^+ = J_\\varphi^T (J_\\varphi J_\\varphi^T)^{-1}, \\qquad Q = I - J^+ J_\\varphi
+
+    Parameters
+    ----------
+    J_phi : ndarray, shape (m, n)
+        Full-rank constraint Jacobian.
+
+    Returns
+    -------
+    J_pinv : ndarray, shape (n, m)
+    Q : ndarray, shape (n, n)
+    """
+    J_phi = np.atleast_2d(J_phi)
+    A = J_phi @ J_phi.T
+    J_pinv = np.linalg.solve(A, J_phi).T
+    Q = np.eye(J_phi.shape[1]) - J_pinv @ J_phi
+    return J_pinv, Q
+
+
+def free_motion_projections(n: int, m: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """``J⁺ = 0`` (n×m) and ``Q = I`` (n×n): the controller with its force part set to zero."""
+    return np.zeros((n, m)), np.eye(n)
+
+
+def projection_derivatives(
+    J_phi: np.ndarray, J_phi_dot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Directional derivatives ``Ĵ⁺̇`` and ``Q̂̇`` of (7) from ``J_φ`` and its derivative.
+
+    With ``A = J_φ J_φᵀ`` and ``Ȧ = J̇_φ J_φᵀ + J_φ J̇_φᵀ``:
+
+    .. math::
+        \\dot J^+ = \\dot J_\\varphi^T A^{-1} - J_\\varphi^T A^{-1} \\dot A A^{-1},
+        \\qquad \\dot Q = -(\\dot J^+ J_\\varphi + J^+ \\dot J_\\varphi)
+
+    Parameters
+    ----------
+    J_phi : ndarray, shape (m, n)
+    J_phi_dot : ndarray, shape (m, n)
+        Derivative of ``J_φ(q)`` along the direction of interest (``q̇_o`` in (7)).
+
+    Returns
+    -------
+    J_pinv_dot : ndarray, shape (n, m)
+    Q_dot : ndarray, shape (n, n)
+    """
+    J_phi = np.atleast_2d(J_phi)
+    J_phi_dot = np.atleast_2d(J_phi_dot)
+    A = J_phi @ J_phi.T
+    A_inv = np.linalg.inv(A)
+    A_dot = J_phi_dot @ J_phi.T + J_phi @ J_phi_dot.T
+    J_pinv = J_phi.T @ A_inv
+    J_pinv_dot = J_phi_dot.T @ A_inv - J_phi.T @ A_inv @ A_dot @ A_inv
+    Q_dot = -(J_pinv_dot @ J_phi + J_pinv @ J_phi_dot)
+    return J_pinv_dot, Q_dot
+
+
+def reference_velocity(
+    Q: np.ndarray,
+    J_pinv: np.ndarray,
+    *,
+    q_hat: np.ndarray,
+    q_d: np.ndarray,
+    qdot_d: np.ndarray,
+    Lambda: float,
+    Delta_p: np.ndarray,
+    beta: float,
+    xi: float,
+    Delta_F_tilde: np.ndarray,
+    pdot_d: np.ndarray | float = 0.0,
+) -> np.ndarray:
+    """The reference velocity ``q̇_r`` of (4).
+
+    .. math::
+        \\dot q_r = Q\\big(\\dot q_d - \\Lambda(\\hat q - q_d)\\big)
+                  + J^+\\big(\\dot p_d - \\beta\\,\\Delta p + \\xi\\,\\Delta\\tilde F\\big)
+
+    ``Delta_p = φ(q) − p_d`` with ``p_d = 0``; ``Delta_F_tilde`` is the integral (6) of
+    ``Δλ̃ = λ̂ − λ_d``. ``Lambda`` and ``xi`` are the scalars of ``Λ = k I`` and ``ξ``.
+    """
+    motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
+    force = pdot_d - beta * np.asarray(Delta_p) + xi * np.asarray(Delta_F_tilde)
+    return Q @ motion + J_pinv @ np.atleast_1d(force)
+
+
+def reference_acceleration(
+    Q: np.ndarray,
+    J_pinv: np.ndarray,
+    Q_dot: np.ndarray,
+    J_pinv_dot: np.ndarray,
+    *,
+    q_hat: np.ndarray,
+    qdot_hat: np.ndarray,
+    q_d: np.ndarray,
+    qdot_d: np.ndarray,
+    qddot_d: np.ndarray,
+    Lambda: float,
+    Delta_p: np.ndarray,
+    beta: float,
+    xi: float,
+    Delta_F_tilde: np.ndarray,
+    Delta_lambda_tilde: np.ndarray,
+    pdot: np.ndarray | float = 0.0,
+    pdot_d: np.ndarray | float = 0.0,
+    pddot_d: np.ndarray | float = 0.0,
+) -> np.ndarray:
+    """The estimated reference acceleration ``q̈̂_r`` of (11).
+
+    .. math::
+        \\ddot{\\hat q}_r = Q\\big(\\ddot q_d - \\Lambda(\\dot{\\hat q} - \\dot q_d)\\big)
+          + J^+\\big(\\ddot p_d - \\beta(\\dot p - \\dot p_d) + \\xi\\Delta\\tilde\\lambda\\big)
+          + \\dot{\\hat Q}\\big(\\dot q_d - \\Lambda(\\hat q - q_d)\\big)
+          + \\dot{\\hat J}^+\\big(\\dot p_d - \\beta\\Delta p + \\xi\\Delta\\tilde F\\big)
+
+    The paper sets ``ṗ = ṗ_d = p̈_d = 0`` (``ṗ`` is not measured); they are arguments so that a
+    test can check (11) against the exact derivative of (4). ``qdot_hat`` is the observer's
+    derivative estimate ``d/dt q̂`` of (15).
+    """
+    motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
+    motion_dot = np.asarray(qddot_d) - Lambda * (np.asarray(qdot_hat) - np.asarray(qdot_d))
+    force = pdot_d - beta * np.asarray(Delta_p) + xi * np.asarray(Delta_F_tilde)
+    force_dot = pddot_d - beta * (np.asarray(pdot) - pdot_d) + xi * np.asarray(Delta_lambda_tilde)
+    return (Q @ motion_dot + J_pinv @ np.atleast_1d(force_dot)
+            + Q_dot @ motion + J_pinv_dot @ np.atleast_1d(force))

@@ -1,0 +1,374 @@
+"""The cooperative plant: both arms and the object in one discrete MultibodyPlant (SAP).
+
+The world frame *is* the paper's palm frame: origin at the base of the A465 (robot 1), x axis
+towards the A255 (robot 2). Object modes (``PlantSettings.object_mode``):
+
+``planes`` (default, the paper's model exactly)
+    End effector i is held on its plane ``x = b_i`` and free in y and z: per arm, a light
+    "slider" body on prismatic y and z joints (gravity off) hangs from an anchor welded to the
+    world, and ``AddBallConstraint`` ties the end-effector point to it. The constraint force is
+    along x only (up to the slider's negligible inertia).
+``rigid``
+    One rigid object (``object_mass``) with its contact faces ``b_2 − b_1 = 0.2192 m`` apart,
+    moving in y–z at fixed x on prismatic joints, ball-constrained to both end effectors: the
+    arms carry it together and feel each other through it.
+``contact``
+    A box on a stand, held by friction at the two hydroelastic pads (see :mod:`drake_coop.grasp`).
+``none``
+    Free arms.
+
+The constraints exist only while the object is held: :meth:`CoopPlant.set_held` switches them
+on (moving the sliders/object onto the end effectors first) and off, between simulation
+segments. While released, the slider/object joints are locked.
+
+Ground-truth force sensing: :class:`ForceSensor` (one per robot) reads the reaction force of
+the weld between the last link and the force-sensor body, removes the sensor and pad's own
+weight and inertia, and outputs the force the object exerts on the end effector in the palm
+frame and its component ``λ = n_i · F`` along the object's outward normal (positive = squeeze).
+The controllers never read it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.geometry import Box, SceneGraph
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import (
+    AddMultibodyPlant,
+    MultibodyPlant,
+    MultibodyPlantConfig,
+)
+from pydrake.multibody.tree import (
+    Joint,
+    ModelInstanceIndex,
+    PrismaticJoint,
+    RigidBody,
+    SpatialInertia,
+    UnitInertia,
+)
+from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
+
+from drake_coop.arms import Arm
+from drake_coop.scenario import Scenario
+
+#: Mass of the planes-mode sliders and of the object carriage (kg): negligible against the
+#: end effectors but large enough for a well-conditioned SAP problem.
+LIGHT_MASS = 1e-3
+
+
+@dataclass
+class ArmHandles:
+    """One arm inside the cooperative plant."""
+
+    arm: Arm
+    instance: ModelInstanceIndex
+    ee_body: RigidBody
+    sensor_weld: Joint
+    sensor_bodies: list[RigidBody]
+
+
+@dataclass
+class CoopPlant:
+    """The cooperative plant and what the rest of the package needs to reach in it.
+
+    Attributes
+    ----------
+    plant, scene_graph
+        The MultibodyPlant (discrete, SAP) and its SceneGraph.
+    arms : list[ArmHandles]
+    mode : str
+        The object mode.
+    constraint_ids : list
+        Ball constraints (one per arm in ``planes`` and ``rigid``), inactive by default.
+    slider_joints : list[list[PrismaticJoint]]
+        Per constraint body: its ``[y, z]`` joints (planes: one pair per arm; rigid: one pair).
+    slider_bodies : list[RigidBody]
+        The bodies the end effectors are tied to (planes: one per arm; rigid: the object).
+    object_body : RigidBody or None
+        The carried object (``rigid`` and ``contact``).
+    """
+
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    arms: list[ArmHandles]
+    mode: str
+    constraint_ids: list = field(default_factory=list)
+    slider_joints: list = field(default_factory=list)
+    slider_bodies: list = field(default_factory=list)
+    object_body: RigidBody | None = None
+    grasp: object | None = None   # contact-mode helper (drake_coop.grasp.ContactObject)
+
+    # ------------------------------------------------------------------ state helpers
+    def arm_positions(self, context: Context, i: int) -> np.ndarray:
+        """Joint positions of arm i from a plant context."""
+        return self.plant.GetPositions(context, self.arms[i].instance)
+
+    def set_arm_state(self, context: Context, i: int, q: np.ndarray,
+                      v: np.ndarray | None = None) -> None:
+        """Set joint positions (and velocities, default zero) of arm i."""
+        inst = self.arms[i].instance
+        self.plant.SetPositions(context, inst, q)
+        self.plant.SetVelocities(context, inst, np.zeros(3) if v is None else v)
+
+    def ee_position(self, context: Context, i: int) -> np.ndarray:
+        """End-effector point of arm i in the palm frame."""
+        return self.plant.EvalBodyPoseInWorld(context, self.arms[i].ee_body).translation()
+
+    def ee_velocity(self, context: Context, i: int) -> np.ndarray:
+        """Translational velocity of the end-effector point of arm i."""
+        return self.plant.EvalBodySpatialVelocityInWorld(
+            context, self.arms[i].ee_body).translational()
+
+    def is_held(self, context: Context) -> bool:
+        """Whether the grasp constraints are active."""
+        return bool(self.constraint_ids) and self.plant.GetConstraintActiveStatus(
+            context, self.constraint_ids[0])
+
+    def set_held(self, context: Context, held: bool) -> None:
+        """Switch the grasp on (sliders/object moved onto the end effectors) or off.
+
+        In ``planes`` and ``rigid`` modes this activates/deactivates the ball constraints and
+        unlocks/locks the slider joints; in ``contact`` and ``none`` modes it does nothing (the
+        grasp is physical or absent).
+        """
+        if not self.constraint_ids:
+            return
+        plant = self.plant
+        if held:
+            p = [self.ee_position(context, i) for i in range(len(self.arms))]
+            v = [self.ee_velocity(context, i) for i in range(len(self.arms))]
+            if self.mode == "planes":
+                targets = [(p[i][1:], v[i][1:]) for i in range(len(self.arms))]
+            else:  # rigid: one object between both end effectors
+                targets = [(0.5 * (p[0][1:] + p[1][1:]), 0.5 * (v[0][1:] + v[1][1:]))]
+            for joints, (pos, vel) in zip(self.slider_joints, targets):
+                for joint, x, xd in zip(joints, pos, vel):
+                    joint.Unlock(context)
+                    joint.set_translation(context, x)
+                    joint.set_translation_rate(context, xd)
+        else:
+            for joints in self.slider_joints:
+                for joint in joints:
+                    joint.set_translation_rate(context, 0.0)
+                    joint.Lock(context)
+        for cid in self.constraint_ids:
+            plant.SetConstraintActiveStatus(context, cid, held)
+
+
+def _light_inertia(mass: float = LIGHT_MASS, radius: float = 0.01) -> SpatialInertia:
+    return SpatialInertia(mass, np.zeros(3), UnitInertia.SolidSphere(radius))
+
+
+def _add_slider(plant: MultibodyPlant, name: str, x: float, body_inertia: SpatialInertia,
+                instance: ModelInstanceIndex) -> tuple[RigidBody, list[PrismaticJoint]]:
+    """A body moving in y and z at fixed x: anchor (welded) → carriage (y) → body (z)."""
+    anchor = plant.AddRigidBody(f"{name}_anchor", instance, _light_inertia())
+    plant.WeldFrames(plant.world_frame(), anchor.body_frame(),
+                     RigidTransform(np.array([x, 0.0, 0.0])))
+    carriage = plant.AddRigidBody(f"{name}_carriage", instance, _light_inertia())
+    body = plant.AddRigidBody(f"{name}", instance, body_inertia)
+    jy = plant.AddJoint(PrismaticJoint(f"{name}_y", anchor.body_frame(),
+                                       carriage.body_frame(), [0.0, 1.0, 0.0]))
+    jz = plant.AddJoint(PrismaticJoint(f"{name}_z", carriage.body_frame(),
+                                       body.body_frame(), [0.0, 0.0, 1.0]))
+    return body, [jy, jz]
+
+
+def add_arms(plant: MultibodyPlant, scene_graph: SceneGraph | None,
+             scenario: Scenario) -> list[ArmHandles]:
+    """Parse both arms, weld their bases at their poses in the palm frame."""
+    handles = []
+    for robot in scenario.robots:
+        arm = Arm(robot)
+        parser = Parser(plant, scene_graph, model_name_prefix=robot.name)
+        (instance,) = parser.AddModels(str(arm.urdf_path))
+        X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
+        plant.WeldFrames(plant.world_frame(),
+                         plant.GetFrameByName("base_link", instance), X_WB)
+        handles.append(ArmHandles(
+            arm=arm,
+            instance=instance,
+            ee_body=plant.GetBodyByName("pad", instance),
+            sensor_weld=plant.GetJointByName("flange_sensor_weld", instance),
+            sensor_bodies=[plant.GetBodyByName("force_sensor", instance),
+                           plant.GetBodyByName("pad", instance)],
+        ))
+    return handles
+
+
+def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
+    """Add the cooperative plant (with its SceneGraph) to ``builder``.
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+    scenario : Scenario
+        Uses ``scenario.plant`` (time step, object mode, object mass, friction) and the robots.
+
+    Returns
+    -------
+    CoopPlant
+        Finalized plant with handles to arms, constraints and object.
+    """
+    settings = scenario.plant
+    config = MultibodyPlantConfig(
+        time_step=settings.time_step,
+        discrete_contact_approximation="sap",
+        contact_model="hydroelastic_with_fallback" if settings.object_mode == "contact"
+        else "point",
+    )
+    plant, scene_graph = AddMultibodyPlant(config, builder)
+    plant.set_name("plant")
+    scene_graph.set_name("scene_graph")
+    arms = add_arms(plant, scene_graph, scenario)
+    coop = CoopPlant(plant=plant, scene_graph=scene_graph, arms=arms,
+                     mode=settings.object_mode)
+
+    mode = settings.object_mode
+    if mode == "planes":
+        for h in arms:
+            inst = plant.AddModelInstance(f"{h.arm.name}_plane")
+            body, joints = _add_slider(plant, f"{h.arm.name}_plane_slider", h.arm.b,
+                                       _light_inertia(), inst)
+            plant.set_gravity_enabled(inst, False)
+            coop.slider_bodies.append(body)
+            coop.slider_joints.append(joints)
+            # A translucent picture of the plane, for the 3D replay.
+            anchor = plant.GetBodyByName(f"{h.arm.name}_plane_slider_anchor", inst)
+            plant.RegisterVisualGeometry(
+                anchor, RigidTransform(np.array([0.0, 0.0, scenario.task.circle_top_z
+                                                 - scenario.task.circle_radius])),
+                Box(0.002, 0.3, 0.3), f"{h.arm.name}_plane", np.array([0.3, 0.6, 1.0, 0.25]))
+            coop.constraint_ids.append(plant.AddBallConstraint(
+                h.ee_body, np.zeros(3), body, np.zeros(3)))
+    elif mode == "rigid":
+        inst = plant.AddModelInstance("object")
+        b1, b2 = (h.arm.b for h in arms)
+        xc = 0.5 * (b1 + b2)
+        width = abs(b2 - b1)
+        m = settings.object_mass
+        inertia = SpatialInertia(m, np.zeros(3), UnitInertia.SolidBox(width, 0.08, 0.08))
+        body, joints = _add_slider(plant, "object", xc, inertia, inst)
+        plant.RegisterVisualGeometry(body, RigidTransform(), Box(width - 0.03, 0.08, 0.08),
+                                     "object_visual", np.array([0.8, 0.6, 0.2, 1.0]))
+        coop.object_body = body
+        coop.slider_bodies.append(body)
+        coop.slider_joints.append(joints)
+        for h in arms:
+            p_OP = np.array([h.arm.b - xc, 0.0, 0.0])
+            coop.constraint_ids.append(plant.AddBallConstraint(h.ee_body, np.zeros(3), body, p_OP))
+    elif mode == "contact":
+        from drake_coop.grasp import add_contact_object
+
+        coop.grasp = add_contact_object(plant, scene_graph, scenario)
+        coop.object_body = coop.grasp.box
+    plant.Finalize()
+    return coop
+
+
+def initialize_plant_context(coop: CoopPlant, context: Context, q0: list[np.ndarray],
+                             z_grasp: float) -> None:
+    """Arms at rest at ``q0``, constraints off, sliders/object locked at the grasp height."""
+    plant = coop.plant
+    for i, q in enumerate(q0):
+        coop.set_arm_state(context, i, q)
+    for joints in coop.slider_joints:
+        joints[0].set_translation(context, 0.0)
+        joints[1].set_translation(context, z_grasp)
+        for j in joints:
+            j.set_translation_rate(context, 0.0)
+            j.Lock(context)
+    for cid in coop.constraint_ids:
+        plant.SetConstraintActiveStatus(context, cid, False)
+    if coop.grasp is not None:
+        coop.grasp.initialize(plant, context)
+
+
+class ForceSensor(LeafSystem):
+    """Ground-truth wrist force of one arm: the force the object exerts on the end effector.
+
+    Newton's law for the sensor body and pad (both welded after the flange) gives
+    ``F_obj = Σ m_b (a_b − g) − F_weld``, where ``F_weld`` is the reaction force the last link
+    exerts on the sensor body through the ``flange_sensor_weld`` joint (Drake reports it on the
+    child body, in the joint's child frame; SAP constraint impulses are included). The plant's
+    output ports are sampled: the values belong to the last plant step.
+
+    Input ports
+    -----------
+    reaction_forces, body_poses, body_spatial_velocities, body_spatial_accelerations
+        The plant's ports of the same names.
+
+    Output ports
+    ------------
+    F_meas : 3-vector
+        Force of the object on the end effector, palm frame (N).
+    lambda_meas : 1-vector
+        ``n_i · F_meas``, ``n_i`` the object's outward normal: positive when squeezing (N).
+    """
+
+    def __init__(self, plant: MultibodyPlant, handles: ArmHandles):
+        super().__init__()
+        self._weld_index = int(handles.sensor_weld.index())
+        self._child_body_index = int(handles.sensor_weld.child_body().index())
+        self._R_BJc = handles.sensor_weld.frame_on_child().GetFixedPoseInBodyFrame().rotation()
+        self._bodies = [(int(b.index()), b.default_mass(),
+                         b.default_com()) for b in handles.sensor_bodies]
+        self._g = plant.gravity_field().gravity_vector()
+        self._normal = handles.arm.normal
+        self._reaction = self.DeclareAbstractInputPort(
+            "reaction_forces", plant.get_reaction_forces_output_port().Allocate())
+        self._poses = self.DeclareAbstractInputPort(
+            "body_poses", plant.get_body_poses_output_port().Allocate())
+        self._velocities = self.DeclareAbstractInputPort(
+            "body_spatial_velocities", plant.get_body_spatial_velocities_output_port().Allocate())
+        self._accelerations = self.DeclareAbstractInputPort(
+            "body_spatial_accelerations",
+            plant.get_body_spatial_accelerations_output_port().Allocate())
+        self.DeclareVectorOutputPort("F_meas", 3, self._calc_force)
+        self.DeclareVectorOutputPort("lambda_meas", 1, self._calc_lambda)
+
+    def force(self, context: Context) -> np.ndarray:
+        """The measured force vector (palm frame)."""
+        reactions = self._reaction.Eval(context)
+        poses = self._poses.Eval(context)
+        velocities = self._velocities.Eval(context)
+        accelerations = self._accelerations.Eval(context)
+        X_WB = poses[self._child_body_index]
+        R_WJc = X_WB.rotation().multiply(self._R_BJc)
+        F_weld = R_WJc.multiply(reactions[self._weld_index].translational())
+        inertial = np.zeros(3)
+        for index, mass, p_BoBcm_B in self._bodies:
+            R_WB = poses[index].rotation()
+            p = R_WB.multiply(p_BoBcm_B)
+            w = velocities[index].rotational()
+            A = accelerations[index]
+            a_com = A.translational() + np.cross(A.rotational(), p) + np.cross(w, np.cross(w, p))
+            inertial += mass * (a_com - self._g)
+        return inertial - F_weld
+
+    def _calc_force(self, context: Context, output) -> None:
+        output.SetFromVector(self.force(context))
+
+    def _calc_lambda(self, context: Context, output) -> None:
+        output.SetAtIndex(0, float(self._normal @ self.force(context)))
+
+
+def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant) -> list[ForceSensor]:
+    """One :class:`ForceSensor` per arm, named ``<robot>_force_sensor``, wired to the plant."""
+    sensors = []
+    plant = coop.plant
+    for h in coop.arms:
+        sensor = builder.AddSystem(ForceSensor(plant, h))
+        sensor.set_name(f"{h.arm.name}_force_sensor")
+        builder.Connect(plant.get_reaction_forces_output_port(),
+                        sensor.GetInputPort("reaction_forces"))
+        builder.Connect(plant.get_body_poses_output_port(), sensor.GetInputPort("body_poses"))
+        builder.Connect(plant.get_body_spatial_velocities_output_port(),
+                        sensor.GetInputPort("body_spatial_velocities"))
+        builder.Connect(plant.get_body_spatial_accelerations_output_port(),
+                        sensor.GetInputPort("body_spatial_accelerations"))
+        sensors.append(sensor)
+    return sensors

@@ -1,0 +1,242 @@
+"""References of Section IV: Cartesian paths (28), joint references, force profile (29).
+
+Every phase moves the end-effector point along a Cartesian path, rest to rest, with the
+quintic time scaling ``σ(τ) = 10τ³ − 15τ⁴ + 6τ⁵`` (zero velocity and acceleration at both
+ends), so that the whole reference is C² in time:
+
+====================  =====================================  ======================================
+phase                 time                                   path of robot i
+====================  =====================================  ======================================
+free (approach)       ``[0, t_pregrasp]``                    home → pre-grasp (straight line)
+free (approach)       ``[t_pregrasp, t_grasp]``              pre-grasp → grasp, along the normal
+lift                  ``[t_grasp, t_circle_start]``          grasp → circle start, 0.1 m up
+circle (28)           ``[t_circle_start, t_circle_end]``     ``y = R sin θ``, ``z = z_top − R + R cos θ``
+put-down              ``[t_circle_end, t_release]``          circle start → grasp
+return                ``[t_release, t_release + Δ]``         grasp → pre-grasp
+return                ``[t_release + Δ, t_end]``             pre-grasp → home
+====================  =====================================  ======================================
+
+with ``θ(t) = 2π σ((t − t_i)/(t_f − t_i))`` on the circle (``θ̇ = θ̈ = 0`` at ``t_i``, ``t_f``),
+``Δ = t_grasp − t_pregrasp``, the grasp point ``(b_i, 0, z_top − lift)`` and the pre-grasp point
+moved out along the object's outward normal by ``pregrasp_distance``.
+
+Joint references come from the closed-form inverse kinematics:
+``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)``.
+
+The desired squeeze force (29): ``f_mean (t − t_grasp)/(t_circle_start − t_grasp)`` on the
+lift, ``f_mean + f_amp sin(ω (t − t_circle_start))`` on the circle and
+``f_mean (1 − (t − t_circle_end)/(t_release − t_circle_end))`` on the put-down; zero otherwise.
+With the paper's numbers this is ``16(t − 15)/5``, ``32 + 18 sin(3π(t − 25)/40)`` and
+``32 − 16(t − 65)/5``.
+
+The object is held (constraint active, controller in its constrained form) on the control
+ticks ``k`` with ``k_grasp ≤ k < k_release``, ``k_grasp = ⌈t_grasp/h⌉``: integer tick indices,
+so the switch never depends on rounding of ``k·h``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.trajectories import PiecewisePolynomial
+
+from drake_coop.arms import Arm
+from drake_coop.scenario import Robot, Scenario, ScenarioError, Task
+
+#: Rows of the reference vector fed to each robot's controller and observers.
+REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
+REFERENCE_SIZE = 3 + 3 + 3 + 1 + 1
+
+
+def quintic(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quintic time scaling σ(τ) and its first two derivatives, τ clipped to [0, 1]."""
+    tau = np.clip(tau, 0.0, 1.0)
+    s = tau ** 3 * (10 - 15 * tau + 6 * tau ** 2)
+    ds = 30 * tau ** 2 * (1 - tau) ** 2
+    dds = 60 * tau * (1 - tau) * (1 - 2 * tau)
+    return s, ds, dds
+
+
+def waypoints(task: Task, robot: Robot) -> dict[str, np.ndarray]:
+    """Home, pre-grasp, grasp and circle-start points of one robot (palm frame, m)."""
+    z_top = task.circle_top_z
+    grasp = np.array([robot.plane_b, 0.0, z_top - task.lift_height])
+    return {
+        "home": np.asarray(robot.home, dtype=float),
+        "pregrasp": grasp + np.array([robot.normal_sign * task.pregrasp_distance, 0.0, 0.0]),
+        "grasp": grasp,
+        "circle_start": np.array([robot.plane_b, 0.0, z_top]),
+    }
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A rest-to-rest straight line from ``a`` to ``b`` during ``[t0, t1]``."""
+
+    t0: float
+    t1: float
+    a: np.ndarray
+    b: np.ndarray
+
+
+def segments(task: Task, robot: Robot) -> list[Segment]:
+    """The straight-line segments of the path (the circle is handled apart)."""
+    w = waypoints(task, robot)
+    back = task.t_release + (task.t_grasp - task.t_pregrasp)
+    return [
+        Segment(0.0, task.t_pregrasp, w["home"], w["pregrasp"]),
+        Segment(task.t_pregrasp, task.t_grasp, w["pregrasp"], w["grasp"]),
+        Segment(task.t_grasp, task.t_circle_start, w["grasp"], w["circle_start"]),
+        Segment(task.t_circle_end, task.t_release, w["circle_start"], w["grasp"]),
+        Segment(task.t_release, back, w["grasp"], w["pregrasp"]),
+        Segment(back, task.t_end, w["pregrasp"], w["home"]),
+    ]
+
+
+def cartesian_reference(task: Task, robot: Robot, t: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Desired end-effector position, velocity and acceleration at times ``t``.
+
+    Returns
+    -------
+    x_d, xdot_d, xddot_d : ndarray, shape (N, 3)
+    """
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    x = np.zeros((t.size, 3))
+    xd = np.zeros_like(x)
+    xdd = np.zeros_like(x)
+    w = waypoints(task, robot)
+    x[:] = w["home"]
+    for seg in segments(task, robot):
+        T = seg.t1 - seg.t0
+        sel = t >= seg.t0
+        s, ds, dds = quintic((t[sel] - seg.t0) / T)
+        d = seg.b - seg.a
+        x[sel] = seg.a + s[:, None] * d
+        xd[sel] = (ds / T)[:, None] * d
+        xdd[sel] = (dds / T ** 2)[:, None] * d
+    # The circle (28) overrides [t_circle_start, t_circle_end).
+    T = task.t_circle_end - task.t_circle_start
+    sel = (t >= task.t_circle_start) & (t < task.t_circle_end)
+    s, ds, dds = quintic((t[sel] - task.t_circle_start) / T)
+    th, thd, thdd = 2 * np.pi * s, 2 * np.pi * ds / T, 2 * np.pi * dds / T ** 2
+    R = task.circle_radius
+    x[sel, 0] = robot.plane_b
+    x[sel, 1] = R * np.sin(th)
+    x[sel, 2] = task.circle_top_z - R + R * np.cos(th)
+    xd[sel, 0] = 0.0
+    xd[sel, 1] = R * np.cos(th) * thd
+    xd[sel, 2] = -R * np.sin(th) * thd
+    xdd[sel, 0] = 0.0
+    xdd[sel, 1] = -R * np.sin(th) * thd ** 2 + R * np.cos(th) * thdd
+    xdd[sel, 2] = -R * np.cos(th) * thd ** 2 - R * np.sin(th) * thdd
+    return x, xd, xdd
+
+
+def force_reference(task: Task, t: np.ndarray) -> np.ndarray:
+    """Desired squeeze force λ_d of (29) (N) at times ``t``."""
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    f = np.zeros_like(t)
+    up = (t >= task.t_grasp) & (t < task.t_circle_start)
+    f[up] = task.force_mean * (t[up] - task.t_grasp) / (task.t_circle_start - task.t_grasp)
+    circle = (t >= task.t_circle_start) & (t < task.t_circle_end)
+    f[circle] = task.force_mean + task.force_amplitude * np.sin(
+        task.force_omega * (t[circle] - task.t_circle_start))
+    down = (t >= task.t_circle_end) & (t <= task.t_release)
+    f[down] = task.force_mean * (1.0 - (t[down] - task.t_circle_end)
+                                 / (task.t_release - task.t_circle_end))
+    return f
+
+
+def tick_index(t: float, h: float) -> int:
+    """Index ``k`` of the control tick at (or just before, within rounding) time ``t``."""
+    return int(math.floor(t / h + 1e-6))
+
+
+def grasp_ticks(task: Task, h: float) -> tuple[int, int]:
+    """First held tick and first released tick: ``(⌈t_grasp/h⌉, ⌈t_release/h⌉)``."""
+    return (int(math.ceil(task.t_grasp / h - 1e-6)), int(math.ceil(task.t_release / h - 1e-6)))
+
+
+def num_ticks(task: Task, h: float) -> int:
+    """Number of control samples in ``[0, t_end]`` (tick 0 included)."""
+    return int(math.floor(task.t_end / h + 1e-6)) + 1
+
+
+def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the closed-form IK."""
+    q = arm.ik(x)
+    J = arm.jacobian(q)
+    qd = np.linalg.solve(J, xd[..., None])[..., 0]
+    Jd = arm.jacobian_dot(q, qd)
+    qdd = np.linalg.solve(J, (xdd - (Jd @ qd[..., None])[..., 0])[..., None])[..., 0]
+    return q, qd, qdd
+
+
+def reference_samples(scenario: Scenario, index: int) -> tuple[np.ndarray, np.ndarray]:
+    """Reference vector of robot ``index`` at every control tick.
+
+    Returns
+    -------
+    t : ndarray, shape (K,)
+        Tick times ``k h``.
+    r : ndarray, shape (K, 11)
+        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (see :data:`REFERENCE_ROWS`).
+    """
+    h = scenario.control_period
+    task = scenario.task
+    robot = scenario.robots[index]
+    k = np.arange(num_ticks(task, h))
+    t = k * h
+    x, xd, xdd = cartesian_reference(task, robot, t)
+    q, qd, qdd = joint_reference(Arm(robot), x, xd, xdd)
+    k_grasp, k_release = grasp_ticks(task, h)
+    held = ((k >= k_grasp) & (k < k_release)).astype(float)
+    lam = force_reference(task, t)
+    return t, np.hstack([q, qd, qdd, lam[:, None], held[:, None]])
+
+
+def reference_trajectory(scenario: Scenario, index: int) -> PiecewisePolynomial:
+    """The tick samples as a first-order-hold :class:`PiecewisePolynomial`.
+
+    Evaluated at a tick time it returns that tick's sample exactly; the controller and the
+    observers only read it at their ticks.
+    """
+    t, r = reference_samples(scenario, index)
+    return PiecewisePolynomial.FirstOrderHold(t, r.T)
+
+
+def check_reachable(scenario: Scenario, margin: float = 0.97) -> None:
+    """Raise :class:`ScenarioError` if a target of the task is out of an arm's reach.
+
+    Every Cartesian target (sampled every 0.05 s) must lie within ``margin`` of the arm's full
+    reach, away from the inner singularity, and give joint angles within the limits.
+    """
+    task = scenario.task
+    t = np.arange(0.0, task.t_end + 1e-9, 0.05)
+    for i, robot in enumerate(scenario.robots):
+        arm = Arm(robot)
+        x, _, _ = cartesian_reference(task, robot, t)
+        ratio = arm.reach_ratio(x)
+        g = arm.geometry
+        inner = abs(g.L3 - g.L2) / (g.L2 + g.L3)
+        worst = int(np.argmax(ratio))
+        if ratio[worst] > margin or ratio.min() < inner + 0.05:
+            bad = worst if ratio[worst] > margin else int(np.argmin(ratio))
+            raise ScenarioError(
+                f"robots[{i}] ({robot.name}): target {np.round(x[bad], 4).tolist()} at t = "
+                f"{t[bad]:.2f} s is out of reach (distance/reach = {ratio[bad]:.3f}, allowed "
+                f"{inner + 0.05:.3f} to {margin}); check robots[{i}].home, base_xyz, plane_b and "
+                "the task's circle")
+        q = arm.ik(x)
+        lo, hi = np.array(g.q_min), np.array(g.q_max)
+        out = (q < lo) | (q > hi)
+        if out.any():
+            row, j = np.argwhere(out)[0]
+            raise ScenarioError(
+                f"robots[{i}] ({robot.name}): target at t = {t[row]:.2f} s needs joint{j + 1} = "
+                f"{math.degrees(q[row, j]):.1f} deg, outside its limits "
+                f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg")

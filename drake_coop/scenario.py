@@ -1,0 +1,413 @@
+"""Scenario: every number of an experiment, as typed dataclasses loaded from YAML.
+
+A scenario is the single source of truth of a run: the plant (time step, object mode), the
+two robots (model, base pose, constraint plane, home point, gains), the task of Section IV of
+the paper (phase times, circle (28), force profile (29)) and the simulation guards.
+``scenarios/paper.yaml`` holds the paper's experiment; :func:`default_scenario` returns the
+same numbers from code.
+
+Loading goes through :func:`pydrake.common.yaml.yaml_load_typed` (unknown keys and wrong types
+are rejected there) and then :func:`validate`, which checks ranges and consistency. Every
+problem is reported as a :class:`ScenarioError` whose message names the field and what is
+allowed.
+"""
+
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+OBJECT_MODES = ("planes", "rigid", "contact", "none")
+ARM_MODELS = ("crs_a465", "crs_a255")
+
+
+class ScenarioError(ValueError):
+    """A scenario field is missing, of the wrong type, or out of its allowed range."""
+
+
+@dataclass
+class Gains:
+    """Gains of the controller (13) and observers (15)-(16), (22) of one robot.
+
+    Attributes
+    ----------
+    Lambda : float
+        k of the paper's ``Lambda = k I`` (1/s): the gain of q̃ in q̇_r (4) and of z in (8).
+    K_R : list[float]
+        Diagonal of ``K_R`` (N·m·s/rad), the velocity-error gain of (13).
+    k_d : float
+        Observer gain of (15)-(16) (1/s).
+    k_F : float
+        Gain of the force integral ΔF̃ in (13) (dimensionless).
+    xi : float
+        ``xi`` of (4) (m×m, here scalar), weight of ΔF̃ in the reference velocity.
+    zeta : float
+        ``zeta`` of (13), weight of Δλ̃ (dimensionless).
+    beta : float
+        ``beta`` of (4), position-constraint gain (1/s). Not given by the paper.
+    """
+
+    Lambda: float = 35.0
+    K_R: list[float] = field(default_factory=lambda: [120.0, 120.0, 120.0])
+    k_d: float = 40.0
+    k_F: float = 0.05
+    xi: float = 1e-5
+    zeta: float = 1e-3
+    beta: float = 10.0
+
+
+@dataclass
+class Robot:
+    """One arm ("finger") of the cooperative system.
+
+    Attributes
+    ----------
+    name : str
+        Model-instance and subsystem prefix (``robot1``, ``robot2``).
+    model : str
+        ``crs_a465`` or ``crs_a255`` (file ``urdf/<model>_3dof.urdf``).
+    controller_model : str
+        URDF file (relative to ``urdf/`` or absolute) of the controller's own model of the arm;
+        empty means the same URDF as the simulated arm (exact model knowledge).
+    base_xyz : list[float]
+        Position of the robot's base in the palm frame (m).
+    base_yaw_deg : float
+        Rotation of the base about the palm z axis (degrees).
+    plane_b : float
+        ``b_i`` of the constraint ``x_i = b_i`` (m): the x coordinate of the contact point.
+    normal_sign : float
+        x component (±1) of the object's outward normal at this contact. With
+        ``phi_i = normal_sign * (x_i - b_i)`` a positive λ squeezes the object.
+    home : list[float]
+        Cartesian start and end point of the end effector (m, palm frame).
+    gains : Gains
+        The robot's controller and observer gains.
+    """
+
+    name: str = "robot1"
+    model: str = "crs_a465"
+    controller_model: str = ""
+    base_xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    base_yaw_deg: float = 0.0
+    plane_b: float = 0.6
+    normal_sign: float = -1.0
+    home: list[float] = field(default_factory=lambda: [0.5, 0.0, 0.6])
+    gains: Gains = field(default_factory=Gains)
+
+
+@dataclass
+class PlantSettings:
+    """The simulated cooperative plant.
+
+    Attributes
+    ----------
+    time_step : float
+        Discrete step of the MultibodyPlant (s); must divide the control period.
+    object_mode : str
+        ``planes`` (the paper's model), ``rigid``, ``contact`` or ``none``.
+    object_mass : float
+        Mass of the carried object in ``rigid`` and ``contact`` modes (kg).
+    friction : float
+        Coulomb friction coefficient between pads and box (``contact``).
+    """
+
+    time_step: float = 0.001
+    object_mode: str = "planes"
+    object_mass: float = 0.5
+    friction: float = 1.0
+
+
+@dataclass
+class Task:
+    """The experiment of Section IV: phases, paths (28) and force profile (29).
+
+    Phases: free motion ``[0, t_grasp)`` (home → pre-grasp → grasp), lift
+    ``[t_grasp, t_circle_start)``, circle ``[t_circle_start, t_circle_end)``, put-down
+    ``[t_circle_end, t_release)``, return ``[t_release, t_end]``.
+
+    Attributes
+    ----------
+    t_grasp, t_circle_start, t_circle_end, t_release, t_end : float
+        Phase boundaries (s). The paper: 15, 25, 65, 75, 90.
+    t_pregrasp : float
+        End of the approach to the pre-grasp point (s); also the return's retreat time is
+        ``t_release + (t_grasp - t_pregrasp)``.
+    pregrasp_distance : float
+        Distance of the pre-grasp point from the grasp point along the outward normal (m).
+    circle_top_z : float
+        z of the circle's start point, 0.635 m in (28).
+    circle_radius : float
+        Radius of the circle (28), 0.05 m.
+    lift_height : float
+        Height of the lift from the grasp point to the circle's start (m).
+    force_mean, force_amplitude : float
+        32 N and 18 N of (29).
+    force_omega : float
+        Angular frequency of (29), 3π/40 rad/s.
+    """
+
+    t_pregrasp: float = 10.0
+    t_grasp: float = 15.0
+    t_circle_start: float = 25.0
+    t_circle_end: float = 65.0
+    t_release: float = 75.0
+    t_end: float = 90.0
+    pregrasp_distance: float = 0.05
+    circle_top_z: float = 0.635
+    circle_radius: float = 0.05
+    lift_height: float = 0.1
+    force_mean: float = 32.0
+    force_amplitude: float = 18.0
+    force_omega: float = 3.0 * math.pi / 40.0
+
+
+@dataclass
+class Guards:
+    """Divergence guards of the simulation.
+
+    Attributes
+    ----------
+    max_force : float
+        Bound on |λ̂| and on the measured force (N); beyond it the run stops.
+    joint_limit_margin_deg : float
+        A joint passing its URDF limit by more than this stops the run (degrees).
+    check_period : float
+        How often the guards are evaluated (s of simulated time).
+    """
+
+    max_force: float = 500.0
+    joint_limit_margin_deg: float = 0.0
+    check_period: float = 0.09
+
+
+@dataclass
+class Scenario:
+    """A complete experiment.
+
+    Attributes
+    ----------
+    control_period : float
+        Sampling time h of the controllers and observers (s), 9 ms in the paper.
+    plant : PlantSettings
+    robots : list[Robot]
+        Exactly two robots; robot 1 on the left (normal_sign = -1), robot 2 on the right.
+    task : Task
+    guards : Guards
+    """
+
+    control_period: float = 0.009
+    plant: PlantSettings = field(default_factory=PlantSettings)
+    robots: list[Robot] = field(default_factory=list)
+    task: Task = field(default_factory=Task)
+    guards: Guards = field(default_factory=Guards)
+
+
+def paper_robots() -> list[Robot]:
+    """The two robots of Section IV with the paper's gains (β is ours)."""
+    return [
+        Robot(
+            name="robot1",
+            model="crs_a465",
+            base_xyz=[0.0, 0.0, 0.0],
+            base_yaw_deg=0.0,
+            plane_b=0.6,
+            normal_sign=-1.0,
+            home=[0.5, 0.0, 0.6],
+            gains=Gains(Lambda=35.0, K_R=[120.0] * 3, k_d=40.0, k_F=0.05, xi=1e-5, zeta=1e-3,
+                        beta=10.0),
+        ),
+        Robot(
+            name="robot2",
+            model="crs_a255",
+            base_xyz=[1.16, 0.0, 0.0],
+            base_yaw_deg=180.0,
+            plane_b=0.8192,
+            normal_sign=1.0,
+            home=[0.9, 0.0, 0.6],
+            gains=Gains(Lambda=26.0, K_R=[100.0] * 3, k_d=40.0, k_F=0.05, xi=1e-5, zeta=1e-3,
+                        beta=10.0),
+        ),
+    ]
+
+
+def default_scenario() -> Scenario:
+    """The paper's experiment (the numbers of ``scenarios/paper.yaml``)."""
+    return Scenario(robots=paper_robots())
+
+
+# --------------------------------------------------------------------------- loading
+
+
+def load_scenario(path: str | Path | None = None, *, data: str | None = None) -> Scenario:
+    """Load and validate a scenario from a YAML file (or a YAML string).
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        YAML file. ``None`` with ``data=None`` gives :func:`default_scenario`.
+    data : str, optional
+        YAML text instead of a file.
+
+    Returns
+    -------
+    Scenario
+        The validated scenario.
+
+    Raises
+    ------
+    ScenarioError
+        With a one-line message naming the offending field and what is allowed.
+    """
+    from pydrake.common.yaml import yaml_load_typed
+
+    if path is None and data is None:
+        scenario = default_scenario()
+    else:
+        if path is not None:
+            path = Path(path)
+            if not path.is_file():
+                raise ScenarioError(f"scenario file not found: {path}")
+            data = path.read_text()
+        try:
+            scenario = yaml_load_typed(
+                schema=Scenario, data=data, allow_schema_with_no_yaml=True
+            )
+        except Exception as exc:  # yaml_load_typed raises plain RuntimeError/TypeError
+            raise ScenarioError(_yaml_message(exc)) from None
+        if not scenario.robots:
+            scenario.robots = paper_robots()
+    validate(scenario)
+    return scenario
+
+
+def _yaml_message(exc: Exception) -> str:
+    text = " ".join(str(exc).split())
+    return f"invalid scenario: {text}"
+
+
+def dump_scenario(scenario: Scenario) -> str:
+    """The scenario as YAML text (round-trips through :func:`load_scenario`)."""
+    from pydrake.common.yaml import yaml_dump_typed
+
+    return yaml_dump_typed(scenario)
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _finite(value: float, name: str) -> None:
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+        raise ScenarioError(f"{name} must be a finite number, got {value!r}")
+
+
+def _positive(value: float, name: str) -> None:
+    _finite(value, name)
+    if value <= 0:
+        raise ScenarioError(f"{name} must be > 0, got {value!r}")
+
+
+def _vector(value: list[float], n: int, name: str) -> None:
+    if len(value) != n:
+        raise ScenarioError(f"{name} must have {n} entries, got {len(value)}")
+    for i, v in enumerate(value):
+        _finite(v, f"{name}[{i}]")
+
+
+def _is_multiple(period: float, step: float) -> bool:
+    ratio = period / step
+    return abs(ratio - round(ratio)) < 1e-9 * max(1.0, ratio)
+
+
+def validate(scenario: Scenario) -> None:
+    """Check ranges and consistency of a scenario.
+
+    Raises
+    ------
+    ScenarioError
+        On the first problem found, naming the field and the allowed values.
+    """
+    _positive(scenario.control_period, "control_period")
+    if scenario.control_period > 0.1:
+        raise ScenarioError(
+            f"control_period must be in (0, 0.1] s, got {scenario.control_period}")
+
+    p = scenario.plant
+    _positive(p.time_step, "plant.time_step")
+    if p.time_step > scenario.control_period * (1 + 1e-12):
+        raise ScenarioError(
+            f"plant.time_step ({p.time_step}) must not exceed control_period "
+            f"({scenario.control_period})")
+    if not _is_multiple(scenario.control_period, p.time_step):
+        raise ScenarioError(
+            f"control_period ({scenario.control_period}) must be an integer multiple of "
+            f"plant.time_step ({p.time_step}); e.g. 0.001, 0.003, 0.0045 or 0.009 for h = 0.009")
+    if p.object_mode not in OBJECT_MODES:
+        raise ScenarioError(
+            f"plant.object_mode must be one of {', '.join(OBJECT_MODES)}, got {p.object_mode!r}")
+    _positive(p.object_mass, "plant.object_mass")
+    if p.object_mass > 20:
+        raise ScenarioError(f"plant.object_mass must be in (0, 20] kg, got {p.object_mass}")
+    _positive(p.friction, "plant.friction")
+
+    if len(scenario.robots) != 2:
+        raise ScenarioError(f"robots must list exactly 2 robots, got {len(scenario.robots)}")
+    names = [r.name for r in scenario.robots]
+    if len(set(names)) != 2:
+        raise ScenarioError(f"robots[].name must be distinct, got {names}")
+    for i, r in enumerate(scenario.robots):
+        where = f"robots[{i}]"
+        if not r.name.isidentifier():
+            raise ScenarioError(f"{where}.name must be an identifier, got {r.name!r}")
+        if r.model not in ARM_MODELS:
+            raise ScenarioError(
+                f"{where}.model must be one of {', '.join(ARM_MODELS)}, got {r.model!r}")
+        _vector(r.base_xyz, 3, f"{where}.base_xyz")
+        _finite(r.base_yaw_deg, f"{where}.base_yaw_deg")
+        _finite(r.plane_b, f"{where}.plane_b")
+        if r.normal_sign not in (-1.0, 1.0):
+            raise ScenarioError(f"{where}.normal_sign must be -1 or 1, got {r.normal_sign}")
+        _vector(r.home, 3, f"{where}.home")
+        g = r.gains
+        for name in ("Lambda", "k_d", "k_F", "xi", "zeta", "beta"):
+            _positive(getattr(g, name), f"{where}.gains.{name}")
+        _vector(g.K_R, 3, f"{where}.gains.K_R")
+        for j, k in enumerate(g.K_R):
+            _positive(k, f"{where}.gains.K_R[{j}]")
+    if scenario.robots[0].normal_sign == scenario.robots[1].normal_sign:
+        raise ScenarioError("robots[].normal_sign must differ (one contact on each side)")
+
+    t = scenario.task
+    for f in dataclasses.fields(Task):
+        _finite(getattr(t, f.name), f"task.{f.name}")
+    times = ["t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end"]
+    prev_name, prev = "0", 0.0
+    for name in times:
+        value = getattr(t, name)
+        if value <= prev:
+            raise ScenarioError(f"task.{name} must be > {prev_name} ({prev}), got {value}")
+        prev_name, prev = f"task.{name}", value
+    if t.t_release + (t.t_grasp - t.t_pregrasp) >= t.t_end:
+        raise ScenarioError(
+            "task.t_end must leave time for the retreat: t_end > t_release + "
+            f"(t_grasp - t_pregrasp) = {t.t_release + t.t_grasp - t.t_pregrasp}")
+    for name in ("pregrasp_distance", "circle_radius", "lift_height"):
+        _positive(getattr(t, name), f"task.{name}")
+    if t.force_mean < 0 or t.force_amplitude < 0 or t.force_omega < 0:
+        raise ScenarioError("task.force_mean, force_amplitude, force_omega must be >= 0")
+    if t.force_amplitude > t.force_mean:
+        raise ScenarioError(
+            f"task.force_amplitude ({t.force_amplitude}) must not exceed task.force_mean "
+            f"({t.force_mean}): the squeeze force must stay >= 0")
+
+    gd = scenario.guards
+    _positive(gd.max_force, "guards.max_force")
+    _finite(gd.joint_limit_margin_deg, "guards.joint_limit_margin_deg")
+    if gd.joint_limit_margin_deg < 0:
+        raise ScenarioError("guards.joint_limit_margin_deg must be >= 0")
+    _positive(gd.check_period, "guards.check_period")
+
+    # Reachability of every Cartesian target (imported late: arms imports this module).
+    from drake_coop.references import check_reachable
+
+    check_reachable(scenario)

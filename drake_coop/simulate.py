@@ -1,0 +1,196 @@
+"""Run an experiment: initial state, grasp/release segments, divergence guards, logs.
+
+The simulation advances in chunks of ``guards.check_period``. The grasp constraints are
+switched on exactly at the first held control tick ``k_grasp h`` and off at ``k_release h``
+(between two ``AdvanceTo`` calls, before that tick's updates), so the plant and the
+controllers change form at the same instant. After every chunk the guards check for a
+non-finite state, a joint past its limit and a force beyond ``guards.max_force``; a tripped
+guard (or an exception inside Drake) ends the run with ``status = "diverged"`` and whatever was
+logged so far.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+
+from drake_coop.diagram import Experiment, build_experiment
+from drake_coop.references import cartesian_reference, grasp_ticks, reference_samples
+from drake_coop.scenario import Scenario, dump_scenario
+
+
+class Diverged(RuntimeError):
+    """The closed loop left its safe region (see :mod:`drake_coop.simulate`)."""
+
+
+@dataclass
+class RunResult:
+    """Logs of a run (schema of :mod:`drake_coop.results.logs`) and its metadata."""
+
+    logs: dict[str, dict[str, np.ndarray]]
+    meta: dict
+    wall_time: float = 0.0
+    experiment: Experiment | None = field(default=None, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.meta["status"] == "ok"
+
+
+def phases(scenario: Scenario) -> list[list]:
+    """``[name, t_start, t_end]`` of the five phases of Section IV."""
+    t = scenario.task
+    return [["free", 0.0, t.t_grasp], ["lift", t.t_grasp, t.t_circle_start],
+            ["circle", t.t_circle_start, t.t_circle_end],
+            ["put_down", t.t_circle_end, t.t_release], ["return", t.t_release, t.t_end]]
+
+
+def initialize(exp: Experiment, context) -> None:
+    """Arms at rest at ``q_d(0)``, observers at ``q̂(0) = q(0)``, ``q̇̂_o(0) = 0``, no grasp."""
+    scenario = exp.scenario
+    coop = exp.coop
+    plant_context = coop.plant.GetMyMutableContextFromRoot(context)
+    q0 = [reference_samples(scenario, i)[1][0, 0:3] for i in range(len(exp.robots))]
+    z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
+    from drake_coop.plant import initialize_plant_context
+
+    initialize_plant_context(coop, plant_context, q0, z_grasp)
+    for rs, q in zip(exp.robots, q0):
+        rs.velocity_observer.set_initial_state(
+            rs.velocity_observer.GetMyMutableContextFromRoot(context), q)
+
+
+def _check_guards(exp: Experiment, context) -> str | None:
+    """A message if a guard trips, else None."""
+    g = exp.scenario.guards
+    plant = exp.coop.plant
+    pc = plant.GetMyContextFromRoot(context)
+    x = plant.GetPositionsAndVelocities(pc)
+    if not np.all(np.isfinite(x)):
+        return "non-finite plant state"
+    margin = math.radians(g.joint_limit_margin_deg)
+    for i, rs in enumerate(exp.robots):
+        geom = exp.coop.arms[i].arm.geometry
+        q = exp.coop.arm_positions(pc, i)
+        lo, hi = np.array(geom.q_min) - margin, np.array(geom.q_max) + margin
+        bad = np.flatnonzero((q < lo - 1e-6) | (q > hi + 1e-6))
+        if bad.size:
+            j = int(bad[0])
+            return (f"{rs.name} joint{j + 1} = {math.degrees(q[j]):.1f} deg passed its limit "
+                    f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg")
+        lam_hat = rs.control.GetOutputPort("lambda_hat").Eval(
+            rs.control.GetMyContextFromRoot(context))[0]
+        lam = rs.force_sensor.GetOutputPort("F_meas").Eval(
+            rs.force_sensor.GetMyContextFromRoot(context))
+        for label, value in (("estimated force", abs(lam_hat)),
+                             ("measured force", float(np.linalg.norm(lam)))):
+            if not math.isfinite(value) or value > g.max_force:
+                return (f"{rs.name} {label} {value:.1f} N exceeds guards.max_force = "
+                        f"{g.max_force} N")
+    return None
+
+
+def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
+    """The loggers' data in the schema of :mod:`drake_coop.results.logs`."""
+    logs = {}
+    task = exp.scenario.task
+    for i, rs in enumerate(exp.robots):
+        raw = {k: lg.FindLog(context) for k, lg in rs.loggers.items()}
+        n = min(r.num_samples() for r in raw.values())
+        t = raw["q"].sample_times()[:n]
+        data = {k: r.data()[:, :n].T for k, r in raw.items()}
+        arm = exp.coop.arms[i].arm
+        robot = exp.scenario.robots[i]
+        ref = data["reference"]
+        logs[rs.name] = {
+            "t": t.copy(),
+            "q": data["q"],
+            "q_hat": data["q_hat"],
+            "q_d": ref[:, 0:3].copy(),
+            "x": arm.fk(data["q"]),
+            "x_d": cartesian_reference(task, robot, t)[0],
+            "F_meas": data["F_meas"],
+            "lambda_meas": data["lambda_meas"][:, 0].copy(),
+            "lambda_hat": data["lambda_hat"][:, 0].copy(),
+            "lambda_d": ref[:, 9].copy(),
+            "tau": data["tau"],
+        }
+    return logs
+
+
+def simulate(scenario: Scenario, *, t_end: float | None = None,
+             progress: Callable[[float, float, float], None] | None = None,
+             before_build=None, on_start=None) -> RunResult:
+    """Simulate the experiment and return its logs.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated scenario.
+    t_end : float, optional
+        Stop earlier than ``scenario.task.t_end``.
+    progress : callable, optional
+        ``progress(t, t_end, wall_seconds)`` after every chunk.
+    before_build : callable, optional
+        Passed to :func:`~drake_coop.diagram.build_experiment` (visualizers).
+    on_start : callable, optional
+        ``on_start(experiment, simulator)`` just before the first step (start recordings).
+
+    Returns
+    -------
+    RunResult
+        ``meta["status"]`` is ``"ok"`` or ``"diverged"`` with ``meta["message"]``.
+    """
+    exp = build_experiment(scenario, before_build=before_build)
+    simulator = Simulator(exp.diagram)
+    context = simulator.get_mutable_context()
+    initialize(exp, context)
+    simulator.Initialize()
+    if on_start is not None:
+        on_start(exp, simulator)
+    h = scenario.control_period
+    T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
+    k_grasp, k_release = grasp_ticks(scenario.task, h)
+    switches = {k_grasp * h: True, k_release * h: False}
+    step = scenario.guards.check_period
+    stops = sorted({*np.arange(step, T, step).tolist(), *[s for s in switches if s < T], T})
+    status, message = "ok", ""
+    plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
+    start = time.perf_counter()
+    for stop in stops:
+        try:
+            simulator.AdvanceTo(stop)
+        except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
+            status, message = "diverged", f"simulation failed at t = {context.get_time():.3f} s: " \
+                                          f"{' '.join(str(exc).split())[:300]}"
+            break
+        reason = _check_guards(exp, context)
+        if reason is not None:
+            status, message = "diverged", f"diverged at t = {stop:.3f} s: {reason}"
+            break
+        for t_switch, held in switches.items():
+            if abs(stop - t_switch) < 1e-12:
+                exp.coop.set_held(plant_context, held)
+        if progress is not None:
+            progress(stop, T, time.perf_counter() - start)
+    wall = time.perf_counter() - start
+    logs = collect_logs(exp, context)
+    meta = {
+        "status": status,
+        "message": message or f"completed {T:g} s",
+        "phases": phases(scenario),
+        "robots": [rs.name for rs in exp.robots],
+        "control_period": h,
+        "plant_time_step": scenario.plant.time_step,
+        "object_mode": scenario.plant.object_mode,
+        "t_end": float(context.get_time()),
+        "wall_time_s": wall,
+        "realtime_factor": float(context.get_time()) / wall if wall > 0 else None,
+        "scenario_yaml": dump_scenario(scenario),
+    }
+    return RunResult(logs=logs, meta=meta, wall_time=wall, experiment=exp)
