@@ -28,7 +28,7 @@ from drake_coop.finger import FingerLaw
 from drake_coop.observers import ForceObserver, VelocityObserver
 from drake_coop.plant import CoopPlant, ForceSensor, add_force_sensors, build_plant
 from drake_coop.references import reference_trajectory
-from drake_coop.scenario import Scenario
+from drake_coop.scenario import Scenario, aligned_periods
 
 #: Signals logged at every control tick, per robot: (log name, size).
 LOGGED = ("q", "q_hat", "reference", "lambda_hat", "Delta_F_tilde", "tau", "F_meas",
@@ -108,7 +108,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     before_build : callable, optional
         ``before_build(builder, coop)`` called just before ``Build()`` (visualizers).
     """
-    h = scenario.control_period
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     b = builder or DiagramBuilder()
     coop = build_plant(b, scenario)
     plant = coop.plant

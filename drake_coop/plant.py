@@ -52,7 +52,7 @@ from pydrake.multibody.tree import (
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
 from drake_coop.arms import Arm
-from drake_coop.scenario import Scenario
+from drake_coop.scenario import Scenario, aligned_periods
 
 #: Mass of the planes-mode sliders and of the object carriage (kg): negligible against the
 #: end effectors but large enough for a well-conditioned SAP problem.
@@ -214,8 +214,9 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
         Finalized plant with handles to arms, constraints and object.
     """
     settings = scenario.plant
+    _, time_step = aligned_periods(scenario.control_period, settings.time_step)
     config = MultibodyPlantConfig(
-        time_step=settings.time_step,
+        time_step=time_step,
         discrete_contact_approximation="sap",
         contact_model="hydroelastic_with_fallback" if settings.object_mode == "contact"
         else "point",
@@ -223,6 +224,13 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
     plant, scene_graph = AddMultibodyPlant(config, builder)
     plant.set_name("plant")
     scene_graph.set_name("scene_graph")
+    # Live (not sampled) output ports. With sampled ports (the default in Drake 1.51) the
+    # plant's step is an unrestricted update that runs *before* the controllers' discrete
+    # updates at the same instant, so a controller ticking with the plant would read the state
+    # one plant step ahead. Live ports make the step a discrete update, simultaneous with the
+    # controllers' (all read x(t_k)); the force sensor then reports the forces of the step
+    # that starts at t_k, under the torque τ(k) of that tick.
+    plant.SetUseSampledOutputPorts(False)
     arms = add_arms(plant, scene_graph, scenario)
     coop = CoopPlant(plant=plant, scene_graph=scene_graph, arms=arms,
                      mode=settings.object_mode)
@@ -294,7 +302,7 @@ class ForceSensor(LeafSystem):
     ``F_obj = Σ m_b (a_b − g) − F_weld``, where ``F_weld`` is the reaction force the last link
     exerts on the sensor body through the ``flange_sensor_weld`` joint (Drake reports it on the
     child body, in the joint's child frame; SAP constraint impulses are included). The plant's
-    output ports are sampled: the values belong to the last plant step.
+    output ports are live: at time t the values belong to the plant step that starts at t.
 
     Input ports
     -----------

@@ -43,7 +43,7 @@ import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.arms import Arm
-from drake_coop.scenario import Robot, Scenario, ScenarioError, Task
+from drake_coop.scenario import Robot, Scenario, ScenarioError, Task, aligned_periods
 
 #: Rows of the reference vector fed to each robot's controller and observers.
 REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
@@ -165,6 +165,11 @@ def num_ticks(task: Task, h: float) -> int:
     return int(math.floor(task.t_end / h + 1e-6)) + 1
 
 
+def num_ticks_until(t: float, h: float) -> int:
+    """Index of the last control tick at or before ``t``."""
+    return int(math.floor(t / h + 1e-6))
+
+
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the closed-form IK."""
@@ -182,11 +187,11 @@ def reference_samples(scenario: Scenario, index: int) -> tuple[np.ndarray, np.nd
     Returns
     -------
     t : ndarray, shape (K,)
-        Tick times ``k h``.
+        Tick times ``k h`` (``h`` from :func:`~drake_coop.scenario.aligned_periods`).
     r : ndarray, shape (K, 11)
         Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (see :data:`REFERENCE_ROWS`).
     """
-    h = scenario.control_period
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     task = scenario.task
     robot = scenario.robots[index]
     k = np.arange(num_ticks(task, h))

@@ -236,6 +236,35 @@ def default_scenario() -> Scenario:
     return Scenario(robots=paper_robots())
 
 
+# --------------------------------------------------------------------------- timing
+
+
+def aligned_periods(control_period: float, time_step: float) -> tuple[float, float]:
+    """Control period ``h`` and plant step ``dt`` adjusted so that their event times coincide.
+
+    Drake schedules a periodic event at ``k * period`` (floating point). With ``h = 0.009`` and
+    ``dt = 0.001``, ``k * 0.009`` and ``(9 k) * 0.001`` differ by one rounding now and then, and
+    the simulator takes spurious ~1e-17 s steps between the plant's step and the controller's
+    tick (drake issue 15021) — with the plant stepping *before* the controller reads its state.
+    Rounding ``dt`` to ``53 − ceil(log2 N)`` significant bits (a relative change below 1e-14)
+    makes ``h = N dt`` exact, and then ``k h`` and ``(N k) dt`` are the same real number rounded
+    once: every control tick falls exactly on a plant step.
+
+    Returns
+    -------
+    (h, dt) : tuple[float, float]
+        With ``h == N * dt`` exactly, ``N = round(control_period / time_step)``.
+    """
+    N = int(round(control_period / time_step))
+    if N == 1:
+        return float(control_period), float(control_period)
+    bits = 53 - math.ceil(math.log2(N))
+    _, exponent = math.frexp(time_step)
+    scale = 2.0 ** (bits - exponent)
+    dt = round(time_step * scale) / scale
+    return N * dt, dt
+
+
 # --------------------------------------------------------------------------- loading
 
 
@@ -269,6 +298,7 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
             if not path.is_file():
                 raise ScenarioError(f"scenario file not found: {path}")
             data = path.read_text()
+        _check_structure(_load_untyped(data), Scenario, "")
         try:
             scenario = yaml_load_typed(
                 schema=Scenario, data=data, allow_schema_with_no_yaml=True
@@ -279,6 +309,48 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
             scenario.robots = paper_robots()
     validate(scenario)
     return scenario
+
+
+def _load_untyped(data: str):
+    from pydrake.common.yaml import yaml_load
+
+    try:
+        return yaml_load(data=data)
+    except Exception as exc:
+        raise ScenarioError(f"invalid YAML: {' '.join(str(exc).split())}") from None
+
+
+def _check_structure(data, schema, path: str) -> None:
+    """Unknown keys and wrong types, reported with the field's dotted path."""
+    import typing
+
+    where = path or "scenario"
+    if dataclasses.is_dataclass(schema):
+        if data is None:
+            return
+        if not isinstance(data, dict):
+            raise ScenarioError(f"{where} must be a mapping of fields, got {data!r}")
+        hints = typing.get_type_hints(schema)
+        for key, value in data.items():
+            if key not in hints:
+                allowed = ", ".join(hints)
+                raise ScenarioError(f"{path + '.' if path else ''}{key} is not a known field "
+                                    f"of {where}; allowed: {allowed}")
+            _check_structure(value, hints[key], f"{path + '.' if path else ''}{key}")
+        return
+    origin = typing.get_origin(schema)
+    if origin is list:
+        if not isinstance(data, list):
+            raise ScenarioError(f"{where} must be a list, got {data!r}")
+        (item,) = typing.get_args(schema)
+        for i, value in enumerate(data):
+            _check_structure(value, item, f"{path}[{i}]")
+    elif schema is float:
+        if isinstance(data, bool) or not isinstance(data, (int, float)):
+            raise ScenarioError(f"{where} must be a number, got {data!r}")
+    elif schema is str:
+        if not isinstance(data, str):
+            raise ScenarioError(f"{where} must be a string, got {data!r}")
 
 
 def _yaml_message(exc: Exception) -> str:

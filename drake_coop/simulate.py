@@ -20,8 +20,8 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from drake_coop.diagram import Experiment, build_experiment
-from drake_coop.references import cartesian_reference, grasp_ticks, reference_samples
-from drake_coop.scenario import Scenario, dump_scenario
+from drake_coop.references import cartesian_reference, grasp_ticks, num_ticks_until, reference_samples
+from drake_coop.scenario import Scenario, aligned_periods, dump_scenario
 
 
 class Diverged(RuntimeError):
@@ -153,16 +153,20 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     simulator.Initialize()
     if on_start is not None:
         on_start(exp, simulator)
-    h = scenario.control_period
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
+    k_end = num_ticks_until(T, h)
     k_grasp, k_release = grasp_ticks(scenario.task, h)
-    switches = {k_grasp * h: True, k_release * h: False}
-    step = scenario.guards.check_period
-    stops = sorted({*np.arange(step, T, step).tolist(), *[s for s in switches if s < T], T})
+    switches = {k_grasp: True, k_release: False}
+    # Stop only at control ticks (k h, computed as Drake computes event times): a stop
+    # between two events would add a step boundary that is not a tick.
+    chunk = max(1, int(round(scenario.guards.check_period / h)))
+    stops = sorted({*range(chunk, k_end, chunk), *[k for k in switches if k < k_end], k_end})
     status, message = "ok", ""
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
     start = time.perf_counter()
-    for stop in stops:
+    for k_stop in stops:
+        stop = k_stop * h
         try:
             simulator.AdvanceTo(stop)
         except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
@@ -173,9 +177,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         if reason is not None:
             status, message = "diverged", f"diverged at t = {stop:.3f} s: {reason}"
             break
-        for t_switch, held in switches.items():
-            if abs(stop - t_switch) < 1e-12:
-                exp.coop.set_held(plant_context, held)
+        if k_stop in switches:
+            exp.coop.set_held(plant_context, switches[k_stop])
         if progress is not None:
             progress(stop, T, time.perf_counter() - start)
     wall = time.perf_counter() - start

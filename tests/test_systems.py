@@ -1,0 +1,215 @@
+"""The controller (13) and the observers (15)-(16), (22) as Drake systems in the diagram.
+
+* the control block reads measured joint positions only (velocities, constraint state and
+  forces in the plant's context do not change the next torque sample);
+* (21), evaluated with the torque the controller outputs at a sample, equals (22);
+* events fire at k·h, the plant makes no spurious tiny steps, logs are at the ticks;
+* no algebraic loop, state-only outputs declared as such;
+* a plain NumPy loop written here from equations.md, fed the logged q(k), reproduces the
+  diagram's τ(k), q̂(k) and λ̂(k) to 1e-9.
+"""
+
+import numpy as np
+import pytest
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.systems.analysis import Simulator
+
+from drake_coop.diagram import build_experiment
+from drake_coop.references import grasp_ticks, reference_samples
+from drake_coop.scenario import aligned_periods
+from drake_coop.simulate import initialize, simulate
+from tests.conftest import short_scenario
+
+
+@pytest.fixture(scope="module")
+def short_run():
+    """0–3 s of the compressed scenario: free motion, grasp at 1.008 s, lift."""
+    scenario = short_scenario("planes", 0.003)
+    return scenario, simulate(scenario, t_end=3.0)
+
+
+def _advance_to_tick(scenario, k):
+    """A simulator stopped exactly at tick k (events of tick k not yet processed)."""
+    exp = build_experiment(scenario, log=False)
+    sim = Simulator(exp.diagram)
+    ctx = sim.get_mutable_context()
+    initialize(exp, ctx)
+    sim.Initialize()
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    k_grasp, _ = grasp_ticks(scenario.task, h)
+    sim.AdvanceTo(k_grasp * h)
+    exp.coop.set_held(exp.coop.plant.GetMyMutableContextFromRoot(ctx), True)
+    sim.AdvanceTo(k * h)
+    return exp, sim, ctx
+
+
+def test_next_torque_ignores_plant_velocities_and_constraint_state():
+    scenario = short_scenario("planes", 0.003)
+    k_grasp, _ = grasp_ticks(scenario.task, scenario.control_period)
+    exp, sim, ctx = _advance_to_tick(scenario, k_grasp + 40)
+    plant = exp.coop.plant
+    pc = plant.GetMyMutableContextFromRoot(ctx)
+    taus = [rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx)).copy()
+            for rs in exp.robots]
+    forces = [rs.force_sensor.GetOutputPort("F_meas").Eval(
+        rs.force_sensor.GetMyContextFromRoot(ctx)).copy() for rs in exp.robots]
+    assert np.linalg.norm(forces[0]) > 1.0       # the object is squeezed at this tick
+    # Change everything the controller must not see: velocities, constraint, forces.
+    rng = np.random.default_rng(0)
+    plant.SetVelocities(pc, rng.normal(size=plant.num_velocities()))
+    exp.coop.set_held(pc, False)
+    for rs, tau in zip(exp.robots, taus):
+        new = rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx))
+        np.testing.assert_array_equal(new, tau)
+    # ...while the plant's ground truth did change.
+    changed = exp.robots[0].force_sensor.GetOutputPort("F_meas").Eval(
+        exp.robots[0].force_sensor.GetMyContextFromRoot(ctx))
+    assert plant.num_velocities() > 6 and not exp.coop.is_held(pc)
+    del changed  # sampled port: the sensor changes only after the next plant step
+
+
+def test_force_observer_22_equals_21_with_the_controllers_torque():
+    scenario = short_scenario("planes", 0.003)
+    k_grasp, _ = grasp_ticks(scenario.task, scenario.control_period)
+    for k in (k_grasp + 5, k_grasp + 60):
+        exp, sim, ctx = _advance_to_tick(scenario, k)
+        for rs in exp.robots:
+            cc = rs.control.GetMyContextFromRoot(ctx)
+            lam_22 = rs.control.GetOutputPort("lambda_hat").Eval(cc)[0]
+            terms = rs.controller.terms(rs.controller.GetMyContextFromRoot(ctx))
+            tau = rs.control.GetOutputPort("tau").Eval(cc)
+            np.testing.assert_array_equal(tau, terms["tau"])
+            q = exp.coop.arm_positions(exp.coop.plant.GetMyContextFromRoot(ctx),
+                                       exp.robots.index(rs))
+            lam_21 = rs.law.force_estimate_21(q, terms["qdot_r"], terms["qddot_r_hat"], tau,
+                                              True)
+            assert abs(lam_21 - lam_22) < 1e-9, (lam_21, lam_22)
+            assert lam_22 > 0.1    # a real squeeze estimate, not a trivial zero
+
+
+def test_control_block_has_no_direct_feedthrough_on_state_outputs():
+    scenario = short_scenario()
+    exp = build_experiment(scenario, log=False)
+    rs = exp.robots[0]
+    vel, force = rs.velocity_observer, rs.force_observer
+    q_in = vel.GetInputPort("q").get_index()
+    qdd_in = vel.GetInputPort("qddot_r_hat").get_index()
+    assert not vel.HasDirectFeedthrough(q_in, vel.GetOutputPort("q_hat").get_index())
+    assert not vel.HasDirectFeedthrough(qdd_in, vel.GetOutputPort("qdot_o").get_index())
+    assert vel.HasDirectFeedthrough(q_in, vel.GetOutputPort("qdot_o").get_index())
+    for port in ("q", "q_hat", "qdot_o", "reference"):
+        assert not force.HasDirectFeedthrough(
+            force.GetInputPort(port).get_index(), force.GetOutputPort("Delta_F_tilde").get_index())
+
+
+def test_events_fire_at_ticks_without_tiny_steps():
+    scenario = short_scenario("planes", 0.001)
+    exp = build_experiment(scenario, log=False)
+    sim = Simulator(exp.diagram)
+    ctx = sim.get_mutable_context()
+    initialize(exp, ctx)
+    times = []
+    sim.set_monitor(lambda c: times.append(c.get_time()) or None)
+    sim.Initialize()
+    sim.AdvanceTo(0.5)
+    steps = np.diff(times)
+    steps = steps[steps > 0]
+    # Every step is one plant step (1 ms): no ~1e-17 s steps from 0.009 vs 0.001.
+    assert steps.min() > 0.001 * (1 - 1e-9), steps.min()
+    assert steps.max() < 0.001 * (1 + 1e-9), steps.max()
+    # The controller latched one torque per tick: last latched tick is that of t = 0.495 s.
+    latch = exp.robots[0].controller.GetMyContextFromRoot(ctx).get_discrete_state(0).value()
+    assert int(latch[-1]) == 55
+
+
+def test_logs_are_sampled_at_the_ticks(short_run):
+    scenario, result = short_run
+    t = result.logs["robot1"]["t"]
+    k = np.arange(t.size)
+    np.testing.assert_allclose(t, k * scenario.control_period, rtol=0, atol=1e-12)
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    np.testing.assert_array_equal(t, k * h)   # exactly the event times
+
+
+# ------------------------------------------------------------------------ replay
+def _dynamics_plant(robot):
+    """A fresh single-arm plant for H, C, g (independent of drake_coop.arm_model)."""
+    from drake_coop.arms import Arm
+
+    arm = Arm(robot)
+    plant = MultibodyPlant(0.0)
+    Parser(plant).AddModels(str(arm.urdf_path))
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"),
+                     RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base))
+    plant.Finalize()
+    return arm, plant, plant.CreateDefaultContext()
+
+
+def _replay(scenario, index, q_log):
+    """Equations (4), (8), (11), (13), (15)-(16), (22) as a plain loop (equations.md)."""
+    robot = scenario.robots[index]
+    g = robot.gains
+    h = scenario.control_period
+    arm, plant, pc = _dynamics_plant(robot)
+    D = np.diag([plant.get_joint(j).default_damping() for j in plant.GetJointIndices()
+                 if plant.get_joint(j).num_velocities() == 1])
+    Lam, KR, kd, kF, xi, zeta, beta = (g.Lambda, np.diag(g.K_R), g.k_d, g.k_F, g.xi, g.zeta,
+                                       g.beta)
+    _, ref = reference_samples(scenario, index)
+    q_hat = q_log[0].copy()
+    qdot_hat_o = np.zeros(3)
+    DF = 0.0
+    out = {"tau": [], "q_hat": [], "lambda_hat": []}
+    for k, q in enumerate(q_log):
+        q_d, qdot_d, qddot_d, lam_d, held = ref[k, 0:3], ref[k, 3:6], ref[k, 6:9], ref[k, 9], \
+            ref[k, 10] > 0.5
+        z = q - q_hat
+        qdot_hat = qdot_hat_o + Lam * z + kd * z              # (15)
+        qdot_o = qdot_hat - Lam * z                           # (8)
+        if held:
+            J = arm.s * arm.jacobian(q)[0]                    # J_φ, 1×3 as a vector
+            phi = arm.s * (arm.fk(q)[0] - arm.b)
+            nJ = J @ J
+            Jp = J / nJ                                       # J⁺ for m = 1
+            Q = np.eye(3) - np.outer(Jp, J)
+            qdot_r = Q @ (qdot_d - Lam * (q_hat - q_d)) + Jp * (-beta * phi + xi * DF)   # (4)
+            lam_hat = ((Jp @ KR @ (qdot_o - qdot_r)) - kF * DF) / (1 + zeta) + lam_d     # (22)
+            dlt = lam_hat - lam_d
+            Jd = arm.s * arm.jacobian_dot(q, qdot_o)[0]       # J̇_φ along q̇_o
+            Jpd = Jd / nJ - J * 2 * (Jd @ J) / nJ ** 2
+            Qd = -(np.outer(Jpd, J) + np.outer(Jp, Jd))
+            qddot_r = (Q @ (qddot_d - Lam * (qdot_hat - qdot_d)) + Jp * (xi * dlt)
+                       + Qd @ (qdot_d - Lam * (q_hat - q_d)) + Jpd * (-beta * phi + xi * DF))  # (11)
+            force_term = J * (lam_d - kF * DF - zeta * dlt)
+        else:
+            qdot_r = qdot_d - Lam * (q_hat - q_d)
+            qddot_r = qddot_d - Lam * (qdot_hat - qdot_d)
+            lam_hat, force_term = 0.0, np.zeros(3)
+        plant.SetPositions(pc, q)
+        plant.SetVelocities(pc, qdot_r)
+        H = plant.CalcMassMatrix(pc)
+        Cv = plant.CalcBiasTerm(pc)
+        grav = -plant.CalcGravityGeneralizedForces(pc)
+        tau = H @ qddot_r + Cv + D @ qdot_r + grav - KR @ (qdot_o - qdot_r) - force_term  # (13)
+        out["tau"].append(tau)
+        out["q_hat"].append(q_hat.copy())
+        out["lambda_hat"].append(lam_hat)
+        # Forward-Euler updates of (15), (16) and (6).
+        q_hat = q_hat + h * qdot_hat
+        qdot_hat_o = qdot_hat_o + h * (qddot_r + kd * Lam * z)
+        DF = DF + h * (lam_hat - lam_d) if held else 0.0
+    return {k: np.array(v) for k, v in out.items()}
+
+
+@pytest.mark.parametrize("index", [0, 1], ids=["robot1", "robot2"])
+def test_numpy_replay_reproduces_logged_torque_and_estimates(short_run, index):
+    scenario, result = short_run
+    log = result.logs[scenario.robots[index].name]
+    replay = _replay(scenario, index, log["q"])
+    held = reference_samples(scenario, index)[1][: log["t"].size, 10] > 0.5
+    assert held.sum() > 100 and (~held).sum() > 100      # both forms are exercised
+    np.testing.assert_allclose(replay["q_hat"], log["q_hat"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(replay["lambda_hat"], log["lambda_hat"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(replay["tau"], log["tau"], rtol=0, atol=1e-9)
