@@ -94,7 +94,7 @@ def build_control_block(name: str, law: FingerLaw, period: float
 
 
 def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = None,
-                     log: bool = True, before_build=None) -> Experiment:
+                     log: bool = True, before_build=None, references=None) -> Experiment:
     """Build the experiment's Diagram from a scenario.
 
     Parameters
@@ -107,6 +107,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         Add a :class:`VectorLogSink` per logged signal, sampling every control period.
     before_build : callable, optional
         ``before_build(builder, coop)`` called just before ``Build()`` (visualizers).
+    references : list of Trajectory, optional
+        One 11-row reference trajectory per robot instead of the scenario's (studies and
+        tests, e.g. a constant posture for Theorem 1).
     """
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     b = builder or DiagramBuilder()
@@ -119,8 +122,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         law = FingerLaw(ArmModel(handles.arm), scenario.robots[i].gains)
         control, vel, force, ctrl = build_control_block(name, law, h)
         b.AddSystem(control)
-        ref = b.AddNamedSystem(f"{name}_reference",
-                               TrajectorySource(reference_trajectory(scenario, i)))
+        trajectory = (reference_trajectory(scenario, i) if references is None
+                      else references[i])
+        ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
         n = law.n
         encoder = b.AddNamedSystem(
             f"{name}_encoders", MatrixGain(np.hstack([np.eye(n), np.zeros((n, n))])))
