@@ -8,6 +8,8 @@
     Exit codes: 0 done, 1 the run diverged (what was logged is still written), 2 bad input.
 ``drake-coop plot DIR``
     Redraw the figures and metrics from the logs in DIR.
+``drake-coop diagram [SCENARIO.yaml] [--out diagrams]``
+    Draw the block diagram (top level, and robot 1's control block) without loggers.
 ``drake-coop bench``
     Realtime factor and cost per controller tick (see ``bench/benchmark.py``).
 """
@@ -17,6 +19,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from drake_coop.scenario import ScenarioError, dump_scenario, load_scenario
@@ -104,8 +107,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     plot_figures(result.logs, result.meta, out)
     fig_references(result.logs, result.meta, out)
     exp = result.experiment
-    write_diagram(exp.diagram, out, "system_diagram", max_depth=1)
-    write_subsystem_diagram(exp.robots[0].control, out, f"{exp.robots[0].name}_control_diagram")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        write_diagram(exp.diagram, out, "system_diagram", max_depth=1)
+        write_subsystem_diagram(exp.robots[0].control, out,
+                                f"{exp.robots[0].name}_control_diagram")
+    if caught and not args.quiet:
+        print(f"drake-coop: note: {caught[0].message}", file=sys.stderr)
     if replay is not None:
         replay.finish(out / "replay.html")
     if not args.quiet:
@@ -129,6 +137,30 @@ def cmd_plot(args: argparse.Namespace) -> int:
         return _error(str(exc))
     if not args.quiet:
         print(f"drake-coop: wrote {len(paths)} files to {args.dir}", file=sys.stderr)
+    return 0
+
+
+def cmd_diagram(args: argparse.Namespace) -> int:
+    """Draw the experiment's block diagram (no loggers or visualizer) and one control block."""
+    from drake_coop.diagram import build_experiment
+    from drake_coop.results.export import write_diagram, write_subsystem_diagram
+
+    try:
+        scenario = load_scenario(args.scenario)
+    except ScenarioError as exc:
+        return _error(str(exc))
+    exp = build_experiment(scenario, log=False)
+    out = Path(args.out)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        files = write_diagram(exp.diagram, out, "experiment", max_depth=1)
+        files2 = write_subsystem_diagram(exp.robots[0].control, out,
+                                         f"{exp.robots[0].name}_control")
+    if caught:
+        print(f"drake-coop: note: {caught[0].message}", file=sys.stderr)
+    if not args.quiet:
+        written = [str(p) for f in (files, files2) for p in f.values() if p is not None]
+        print("drake-coop: wrote " + ", ".join(written), file=sys.stderr)
     return 0
 
 
@@ -160,6 +192,12 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("dir")
     plot.add_argument("--quiet", action="store_true")
     plot.set_defaults(func=cmd_plot)
+    diagram = sub.add_parser("diagram", help="draw the block diagram (top level and robot 1's "
+                                             "control block)")
+    diagram.add_argument("scenario", nargs="?", default=None)
+    diagram.add_argument("--out", default="diagrams")
+    diagram.add_argument("--quiet", action="store_true")
+    diagram.set_defaults(func=cmd_diagram)
     bench = sub.add_parser("bench", help="realtime factor and cost per controller tick")
     bench.add_argument("--t-end", type=float, default=90.0)
     bench.add_argument("--repeats", type=int, default=1)

@@ -1,0 +1,95 @@
+"""The ``drake-coop`` command: outputs of a run, exit codes, errors without tracebacks."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drake_coop.cli import main
+from drake_coop.scenario import dump_scenario
+from tests.conftest import short_scenario
+
+FIGURES = ["fig2_tracking_errors", "fig3_force_tracking", "fig4_force_estimate",
+           "fig5_aux_force_error", "fig6_observation_errors"]
+
+
+def _write(tmp_path, scenario, name="scenario.yaml"):
+    path = tmp_path / name
+    path.write_text(dump_scenario(scenario))
+    return path
+
+
+@pytest.fixture(scope="module")
+def short_run_dir(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("run")
+    path = _write(tmp, short_scenario("planes", 0.003))
+    out = tmp / "out"
+    code = main(["run", str(path), "--out", str(out), "--quiet"])
+    return code, out
+
+
+def test_run_writes_logs_metrics_figures_diagrams_and_replay(short_run_dir):
+    code, out = short_run_dir
+    assert code == 0
+    for robot in ("robot1", "robot2"):
+        data = np.load(out / f"{robot}.npz")
+        assert data["t"].size == 889 and data["q"].shape == (889, 3)
+        header = (out / f"{robot}.csv").read_text().splitlines()[0]
+        assert header.startswith("t,")
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "ok"
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(metrics["robot1"]) >= {"free", "lift", "circle", "put_down", "return"}
+    for fig in FIGURES:
+        assert (out / f"{fig}.png").stat().st_size > 10_000
+        assert (out / f"{fig}.svg").read_text().lstrip().startswith(("<?xml", "<svg"))
+    assert "robot1_controller" in (out / "robot1_control_diagram.dot").read_text()
+    top = (out / "system_diagram.dot").read_text()
+    assert "robot1_control" in top and "plant" in top
+    if shutil.which("dot"):
+        assert (out / "system_diagram.svg").exists()
+    html = (out / "replay.html").read_text()
+    assert "<html" in html.lower() and len(html) > 10_000
+    assert not list(out.glob("*.tmp*"))        # nothing half-written left behind
+
+
+def test_plot_redraws_figures_from_the_logs(short_run_dir):
+    _, out = short_run_dir
+    for fig in FIGURES:
+        (out / f"{fig}.png").unlink()
+    assert main(["plot", str(out), "--quiet"]) == 0
+    assert all((out / f"{fig}.png").exists() for fig in FIGURES)
+
+
+def test_bad_scenario_exits_2_with_one_line_naming_the_field(tmp_path, capsys):
+    path = tmp_path / "bad.yaml"
+    path.write_text("plant: {time_step: 0.002}\n")
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "plant.time_step" in err and "Traceback" not in err
+
+
+def test_diverging_run_exits_1_and_keeps_what_it_logged(tmp_path, capsys):
+    s = short_scenario("none", 0.003)
+    for r in s.robots:
+        r.gains.K_R = [3000.0] * 3
+    out = tmp_path / "o"
+    code = main(["run", str(_write(tmp_path, s)), "--out", str(out), "--quiet", "--no-replay"])
+    assert code == 1
+    assert "diverged" in capsys.readouterr().err
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "diverged"
+    t = np.load(out / "robot1.npz")["t"]
+    assert 0 < t[-1] < 8.0
+    assert (out / "fig3_force_tracking.png").exists()
+
+
+def test_console_script_entry_point_reports_errors_without_traceback(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "drake_coop", "run", "missing.yaml",
+                           "--out", str(tmp_path)], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "not found" in proc.stderr and "Traceback" not in proc.stderr
