@@ -1,0 +1,34 @@
+"""The tutorials run top to bottom (nbclient) and print what they promise."""
+
+from pathlib import Path
+
+import nbformat
+import pytest
+from nbclient import NotebookClient
+
+TUTORIALS = Path(__file__).resolve().parents[1] / "tutorials"
+
+
+def _run(name):
+    nb = nbformat.read(TUTORIALS / name, as_version=4)
+    NotebookClient(nb, timeout=600, kernel_name="python3",
+                   resources={"metadata": {"path": str(TUTORIALS)}}).execute()
+    return "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code"
+                   for o in c.outputs)
+
+
+def test_tutorial_01_plant_measures_the_commanded_push():
+    text = _run("01_plant.ipynb")
+    assert "planes  robot1: measured λ =  20.00" in text
+    assert "moved" in text
+
+
+def test_tutorial_02_observers_shows_21_equals_22():
+    text = _run("02_observers.ipynb")
+    assert "completed 26 s" in text and "difference" in text
+
+
+@pytest.mark.slow
+def test_tutorial_03_runs_the_paper_experiment():
+    text = _run("03_paper_experiment.ipynb")
+    assert "completed 90 s" in text and "force_error" in text
