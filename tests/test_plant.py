@@ -20,11 +20,13 @@ G = 9.81
 
 
 class TorqueSource(LeafSystem):
-    """τ = g(q) − J_φᵀ f − Jᵀ w + K (q_ref(t) − q) − B q̇ (PD terms optional)."""
+    """τ = g(q) − J_φᵀ f − Jᵀ w + PD, with an optional PD: in joint space to ``q_ref(t)``, or
+    in Cartesian space to ``x_ref(t)`` along y and z only (tangent to the contact)."""
 
-    def __init__(self, model, f, carry=0.0, q_ref=None, kp=0.0, kd=0.0):
+    def __init__(self, model, f, carry=0.0, q_ref=None, kp=0.0, kd=0.0, x_ref=None):
         super().__init__()
         self.model, self.f, self.q_ref, self.kp, self.kd = model, f, q_ref, kp, kd
+        self.x_ref = x_ref
         self.w = np.array([0.0, 0.0, -carry])
         self.DeclareVectorInputPort("state", 6)
         self.DeclareVectorOutputPort("tau", 3, self._calc)
@@ -34,6 +36,10 @@ class TorqueSource(LeafSystem):
         tau = self.model.g(q) - self.model.J_phi(q)[0] * self.f - J.T @ self.w
         if self.q_ref is not None:
             tau += self.kp * (self.q_ref(t) - q) - self.kd * v
+        if self.x_ref is not None:
+            F = self.kp * (self.x_ref(t) - self.model.arm.fk(q)) - self.kd * (J @ v)
+            F[0] = 0.0
+            tau += J.T @ F
         return tau
 
     def _calc(self, context, out):
@@ -41,7 +47,8 @@ class TorqueSource(LeafSystem):
         out.SetFromVector(self.tau(x[:3], x[3:], context.get_time()))
 
 
-def build(mode, f, carry=0.0, time_step=0.003, held=True, q_refs=None, kp=0.0, kd=0.0):
+def build(mode, f, carry=0.0, time_step=0.003, held=True, q_refs=None, kp=0.0, kd=0.0,
+          x_refs=None):
     s = default_scenario()
     s.plant.object_mode = mode
     s.plant.time_step = time_step
@@ -51,7 +58,8 @@ def build(mode, f, carry=0.0, time_step=0.003, held=True, q_refs=None, kp=0.0, k
     ctrls = []
     for i, h in enumerate(coop.arms):
         ctrl = b.AddSystem(TorqueSource(ArmModel(h.arm), f, carry,
-                                       None if q_refs is None else q_refs[i], kp, kd))
+                                        None if q_refs is None else q_refs[i], kp, kd,
+                                        None if x_refs is None else x_refs[i]))
         b.Connect(coop.plant.get_state_output_port(h.instance), ctrl.get_input_port())
         b.Connect(ctrl.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
         ctrls.append(ctrl)
