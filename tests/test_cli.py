@@ -1,6 +1,7 @@
 """The ``drake-coop`` command: outputs of a run, exit codes, errors without tracebacks."""
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -54,6 +55,7 @@ def test_run_writes_logs_metrics_figures_diagrams_and_replay(short_run_dir):
         assert (out / "system_diagram.svg").exists()
     html = (out / "replay.html").read_text()
     assert "<html" in html.lower() and len(html) > 10_000
+    assert re.search(r"<script[^>]*\bsrc=", html) is None    # viewer inlined: opens offline
     assert not list(out.glob("*.tmp*"))        # nothing half-written left behind
 
 

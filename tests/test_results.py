@@ -105,3 +105,33 @@ def test_figures_are_valid_png_and_svg(tmp_path, t_end):
             assert width >= 1000 and height >= 300
         else:
             assert ET.parse(p).getroot().tag.endswith("svg")
+
+
+def test_diagram_without_graphviz_still_writes_the_dot_and_says_so(tmp_path, monkeypatch):
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    from drake_coop.results import export
+
+    b = DiagramBuilder()
+    b.AddNamedSystem("source", ConstantVectorSource([1.0]))
+    diagram = b.Build()
+    monkeypatch.setattr(export.shutil, "which", lambda name: None)
+    with pytest.warns(UserWarning, match="graphviz"):
+        files = export.write_diagram(diagram, tmp_path, "d")
+    assert files["svg"] is None and "source" in files["dot"].read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.dot"]
+
+
+def test_progress_bar_reports_simulated_time_and_realtime_factor():
+    import io
+
+    from drake_coop.cli import ProgressBar
+
+    stream = io.StringIO()
+    bar = ProgressBar(stream)
+    for t in (9.0, 45.0, 90.0):
+        bar(t, 90.0, t / 6.0)
+    lines = stream.getvalue().splitlines()
+    assert lines[-1].strip().startswith("90.00/90 s") and "realtime x6.00" in lines[-1]
+    assert len(lines) == 3
