@@ -99,3 +99,33 @@ def test_diverging_run_stops_with_a_message_and_keeps_its_logs():
     t = result.logs["robot1"]["t"]
     assert 0.0 < t[-1] < 5.0 and t.size > 10
     assert np.all(np.isfinite(result.logs["robot1"]["q"][:-1]))
+
+
+def test_controller_can_use_its_own_perturbed_model(tmp_path):
+    """A controller model 30 % heavier than the simulated arms: stable, but no longer exact."""
+    import re
+
+    from drake_coop.arms import urdf_dir
+
+    s = short_scenario("planes", 0.003)
+    exact = simulate(s, t_end=4.0).logs
+    for r in s.robots:
+        text = (urdf_dir() / f"{r.model}_3dof.urdf").read_text()
+        heavier = re.sub(r'<mass value="([0-9.e-]+)"/>',
+                         lambda m: f'<mass value="{1.3 * float(m.group(1)):.6g}"/>', text)
+        path = tmp_path / f"{r.model}_heavy.urdf"
+        path.write_text(heavier)
+        r.controller_model = str(path)
+    perturbed = simulate(s, t_end=4.0)
+    assert perturbed.ok
+    for name in exact:
+        e_exact = np.abs(exact[name]["x"] - exact[name]["x_d"]).max()
+        e_pert = np.abs(perturbed.logs[name]["x"] - perturbed.logs[name]["x_d"]).max()
+        held = exact[name]["lambda_d"] > 0
+        f_exact = np.abs(exact[name]["lambda_meas"] - exact[name]["lambda_hat"])[held].max()
+        log = perturbed.logs[name]
+        f_pert = np.abs(log["lambda_meas"] - log["lambda_hat"])[held].max()
+        print(f"{name}: position error {e_exact:.2e} -> {e_pert:.2e} m, "
+              f"estimate error {f_exact:.3f} -> {f_pert:.3f} N")
+        assert 3 * e_exact < e_pert < 5e-3
+        assert f_pert > f_exact
