@@ -137,17 +137,22 @@ class Arm:
         local = np.stack([r * np.cos(q1), r * np.sin(q1), z], axis=-1)
         return local @ self.R_base.T + self.p_base
 
-    def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """Translational Jacobian ∂E/∂q in the palm frame, shape (..., 3, 3)."""
+    def _terms(self, q: np.ndarray):
+        """sin q1, cos q1 and the planar terms r = L2 s2 + L3 s23, a = ∂r/∂q2, b = ∂r/∂q3,
+        e = L3 s23 shared by the Jacobian and its derivative."""
         g = self.geometry
         q = np.asarray(q, dtype=float)
         q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
-        s1, c1 = np.sin(q1), np.cos(q1)
-        r = g.L2 * np.sin(q2) + g.L3 * np.sin(q2 + q3)
-        a = g.L2 * np.cos(q2) + g.L3 * np.cos(q2 + q3)
         b = g.L3 * np.cos(q2 + q3)
         e = g.L3 * np.sin(q2 + q3)
-        zero = np.zeros_like(q1)
+        r = g.L2 * np.sin(q2) + e
+        a = g.L2 * np.cos(q2) + b
+        return np.sin(q1), np.cos(q1), r, a, b, e
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Translational Jacobian ∂E/∂q in the palm frame, shape (..., 3, 3)."""
+        s1, c1, r, a, b, e = self._terms(q)
+        zero = np.zeros_like(s1)
         J = np.stack([
             np.stack([-r * s1, a * c1, b * c1], axis=-1),
             np.stack([r * c1, a * s1, b * s1], axis=-1),
@@ -157,21 +162,15 @@ class Arm:
 
     def jacobian_dot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Time derivative of :meth:`jacobian` along joint velocity v, shape (..., 3, 3)."""
-        g = self.geometry
-        q = np.asarray(q, dtype=float)
+        s1, c1, r, a, b, e = self._terms(q)
         v = np.asarray(v, dtype=float)
-        q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
         v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
-        s1, c1 = np.sin(q1), np.cos(q1)
-        r = g.L2 * np.sin(q2) + g.L3 * np.sin(q2 + q3)
-        a = g.L2 * np.cos(q2) + g.L3 * np.cos(q2 + q3)
-        b = g.L3 * np.cos(q2 + q3)
-        e = g.L3 * np.sin(q2 + q3)
+        q2 = np.asarray(q, dtype=float)[..., 1]
         rd = a * v2 + b * v3
-        ad = -g.L2 * np.sin(q2) * v2 - e * (v2 + v3)
+        ad = -self.geometry.L2 * np.sin(q2) * v2 - e * (v2 + v3)
         bd = -e * (v2 + v3)
         ed = b * (v2 + v3)
-        zero = np.zeros_like(q1)
+        zero = np.zeros_like(s1)
         Jd = np.stack([
             np.stack([-rd * s1 - r * c1 * v1, ad * c1 - a * s1 * v1, bd * c1 - b * s1 * v1],
                      axis=-1),
