@@ -20,12 +20,14 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from drake_coop.diagram import Experiment, build_experiment
-from drake_coop.references import cartesian_reference, grasp_ticks, num_ticks_until, reference_samples
+from drake_coop.plant import initialize_plant_context
+from drake_coop.references import (
+    cartesian_reference,
+    grasp_ticks,
+    joint_reference,
+    num_ticks_until,
+)
 from drake_coop.scenario import Scenario, aligned_periods, dump_scenario
-
-
-class Diverged(RuntimeError):
-    """The closed loop left its safe region (see :mod:`drake_coop.simulate`)."""
 
 
 @dataclass
@@ -55,10 +57,9 @@ def initialize(exp: Experiment, context) -> None:
     scenario = exp.scenario
     coop = exp.coop
     plant_context = coop.plant.GetMyMutableContextFromRoot(context)
-    q0 = [reference_samples(scenario, i)[1][0, 0:3] for i in range(len(exp.robots))]
+    q0 = [joint_reference(h.arm, *cartesian_reference(scenario.task, robot, [0.0]))[0][0]
+          for h, robot in zip(coop.arms, scenario.robots)]
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
-    from drake_coop.plant import initialize_plant_context
-
     initialize_plant_context(coop, plant_context, q0, z_grasp)
     for rs, q in zip(exp.robots, q0):
         rs.velocity_observer.set_initial_state(
