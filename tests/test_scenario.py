@@ -85,3 +85,9 @@ def test_aligned_periods_make_every_tick_a_plant_step(h, dt):
     assert abs(H - h) < 1e-14 and abs(D - dt) < 1e-14
     # Drake schedules events at k * period: every control tick coincides with a plant step.
     assert all(k * H == (N * k) * D for k in range(0, 100001))
+
+
+@pytest.mark.parametrize("path", sorted(PAPER.parent.glob("*.yaml")), ids=lambda p: p.name)
+def test_every_shipped_scenario_loads(path):
+    s = load_scenario(path)
+    assert len(s.robots) == 2 and s.robots[0].gains.K_R == [120.0] * 3
