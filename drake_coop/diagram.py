@@ -25,7 +25,7 @@ from pydrake.systems.primitives import LogVectorOutput, MatrixGain, TrajectorySo
 from drake_coop.arm_model import ArmModel
 from drake_coop.controller import Controller
 from drake_coop.finger import FingerLaw
-from drake_coop.observers import ForceObserver, VelocityObserver
+from drake_coop.observers import ForceObserver, MeasuredVelocity, VelocityObserver
 from drake_coop.plant import CoopPlant, ForceSensor, add_force_sensors, build_plant
 from drake_coop.references import reference_trajectory
 from drake_coop.scenario import Scenario, aligned_periods
@@ -42,7 +42,7 @@ class RobotSystems:
     name: str
     law: FingerLaw
     control: Diagram
-    velocity_observer: VelocityObserver
+    velocity_observer: VelocityObserver | MeasuredVelocity
     force_observer: ForceObserver
     controller: Controller
     force_sensor: ForceSensor
@@ -59,15 +59,21 @@ class Experiment:
     robots: list[RobotSystems]
 
 
-def build_control_block(name: str, law: FingerLaw, period: float
-                        ) -> tuple[Diagram, VelocityObserver, ForceObserver, Controller]:
+def build_control_block(name: str, law: FingerLaw, period: float,
+                        velocity_source: str = "observer"
+                        ) -> tuple[Diagram, VelocityObserver | MeasuredVelocity, ForceObserver,
+                                   Controller]:
     """One robot's observers and controller, wired as in the paper, as a sub-Diagram.
 
-    Exported inputs: ``q``, ``reference``. Exported outputs: ``tau``, ``q_hat``, ``qdot_hat``,
-    ``qdot_o``, ``lambda_hat``, ``Delta_F_tilde``, ``qddot_r_hat``.
+    Exported inputs: ``q``, ``reference`` (and ``state`` for the ``measured`` baseline).
+    Exported outputs: ``tau``, ``q_hat``, ``qdot_hat``, ``qdot_o``, ``lambda_hat``,
+    ``Delta_F_tilde``, ``qddot_r_hat``.
     """
     b = DiagramBuilder()
-    vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law, period))
+    if velocity_source == "measured":
+        vel = b.AddNamedSystem(f"{name}_measured_velocity", MeasuredVelocity(law.n))
+    else:
+        vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law, period))
     force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
     for port in ("q_hat", "qdot_hat", "qdot_o"):
@@ -76,9 +82,13 @@ def build_control_block(name: str, law: FingerLaw, period: float
     b.Connect(vel.GetOutputPort("qdot_o"), force.GetInputPort("qdot_o"))
     b.Connect(force.GetOutputPort("lambda_hat"), ctrl.GetInputPort("lambda_hat"))
     b.Connect(force.GetOutputPort("Delta_F_tilde"), ctrl.GetInputPort("Delta_F_tilde"))
-    b.Connect(ctrl.GetOutputPort("qddot_r_hat"), vel.GetInputPort("qddot_r_hat"))
-    b.ExportInput(vel.GetInputPort("q"), "q")
-    b.ConnectInput("q", force.GetInputPort("q"))
+    if velocity_source == "measured":
+        b.ExportInput(vel.GetInputPort("state"), "state")
+        b.ExportInput(force.GetInputPort("q"), "q")
+    else:
+        b.Connect(ctrl.GetOutputPort("qddot_r_hat"), vel.GetInputPort("qddot_r_hat"))
+        b.ExportInput(vel.GetInputPort("q"), "q")
+        b.ConnectInput("q", force.GetInputPort("q"))
     b.ConnectInput("q", ctrl.GetInputPort("q"))
     b.ExportInput(ctrl.GetInputPort("reference"), "reference")
     b.ConnectInput("reference", force.GetInputPort("reference"))
@@ -120,7 +130,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         law = FingerLaw(ArmModel(handles.arm), scenario.robots[i].gains)
-        control, vel, force, ctrl = build_control_block(name, law, h)
+        velocity_source = scenario.robots[i].velocity_source
+        control, vel, force, ctrl = build_control_block(name, law, h, velocity_source)
         b.AddSystem(control)
         trajectory = (reference_trajectory(scenario, i) if references is None
                       else references[i])
@@ -130,6 +141,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             f"{name}_encoders", MatrixGain(np.hstack([np.eye(n), np.zeros((n, n))])))
         b.Connect(plant.get_state_output_port(handles.instance), encoder.get_input_port())
         b.Connect(encoder.get_output_port(), control.GetInputPort("q"))
+        if velocity_source == "measured":   # the comparison baseline, not the paper's scheme
+            b.Connect(plant.get_state_output_port(handles.instance),
+                      control.GetInputPort("state"))
         b.Connect(ref.get_output_port(), control.GetInputPort("reference"))
         b.Connect(control.GetOutputPort("tau"), plant.get_actuation_input_port(handles.instance))
         rs = RobotSystems(name=name, law=law, control=control, velocity_observer=vel,

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
+VELOCITY_SOURCES = ("observer", "measured")
 ARM_MODELS = ("crs_a465", "crs_a255")
 
 
@@ -83,6 +84,9 @@ class Robot:
         Cartesian start and end point of the end effector (m, palm frame).
     gains : Gains
         The robot's controller and observer gains.
+    velocity_source : str
+        ``observer`` (the paper's scheme: the velocity observer (15)–(16)) or ``measured`` (a
+        baseline for comparisons: the controller is given the true joint velocities).
     """
 
     name: str = "robot1"
@@ -94,6 +98,7 @@ class Robot:
     normal_sign: float = -1.0
     home: list[float] = field(default_factory=lambda: [0.5, 0.0, 0.6])
     gains: Gains = field(default_factory=Gains)
+    velocity_source: str = "observer"
 
 
 @dataclass
@@ -440,6 +445,10 @@ def validate(scenario: Scenario) -> None:
         if r.normal_sign not in (-1.0, 1.0):
             raise ScenarioError(f"{where}.normal_sign must be -1 or 1, got {r.normal_sign}")
         _vector(r.home, 3, f"{where}.home")
+        if r.velocity_source not in VELOCITY_SOURCES:
+            raise ScenarioError(
+                f"{where}.velocity_source must be one of {', '.join(VELOCITY_SOURCES)}, got "
+                f"{r.velocity_source!r}")
         g = r.gains
         for name in ("Lambda", "k_d", "k_F", "xi", "zeta", "beta"):
             _positive(getattr(g, name), f"{where}.gains.{name}")
