@@ -31,6 +31,7 @@ The controllers never read it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.geometry import Box, SceneGraph
@@ -44,6 +45,7 @@ from pydrake.multibody.plant import (
 from pydrake.multibody.tree import (
     Joint,
     ModelInstanceIndex,
+    MultibodyConstraintId,
     PrismaticJoint,
     RigidBody,
     SpatialInertia,
@@ -54,6 +56,9 @@ from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem, Value
 
 from drake_coop.arms import Arm
 from drake_coop.scenario import Scenario, aligned_periods
+
+if TYPE_CHECKING:
+    from drake_coop.grasp import ContactObject
 
 #: Mass of the planes-mode sliders and of the object carriage (kg): negligible against the
 #: end effectors but large enough for a well-conditioned SAP problem.
@@ -96,11 +101,11 @@ class CoopPlant:
     scene_graph: SceneGraph
     arms: list[ArmHandles]
     mode: str
-    constraint_ids: list = field(default_factory=list)
-    slider_joints: list = field(default_factory=list)
-    slider_bodies: list = field(default_factory=list)
+    constraint_ids: list[MultibodyConstraintId] = field(default_factory=list)
+    slider_joints: list[list[PrismaticJoint]] = field(default_factory=list)
+    slider_bodies: list[RigidBody] = field(default_factory=list)
     object_body: RigidBody | None = None
-    grasp: object | None = None   # contact-mode helper (drake_coop.grasp.ContactObject)
+    grasp: ContactObject | None = None    # the contact mode's box and stand
 
     # ------------------------------------------------------------------ state helpers
     def arm_positions(self, context: Context, i: int) -> np.ndarray:
