@@ -30,11 +30,6 @@ from drake_coop.plant import CoopPlant, ForceSensor, add_force_sensors, build_pl
 from drake_coop.references import reference_trajectory
 from drake_coop.scenario import Scenario, aligned_periods
 
-#: Signals logged at every control tick, per robot: (log name, size).
-LOGGED = ("q", "q_hat", "reference", "lambda_hat", "Delta_F_tilde", "tau", "F_meas",
-          "lambda_meas")
-
-
 @dataclass
 class RobotSystems:
     """The systems of one robot inside the experiment diagram."""

@@ -150,19 +150,9 @@ def force_reference(task: Task, t: np.ndarray) -> np.ndarray:
     return f
 
 
-def tick_index(t: float, h: float) -> int:
-    """Index ``k`` of the control tick at (or just before, within rounding) time ``t``."""
-    return int(math.floor(t / h + 1e-6))
-
-
 def grasp_ticks(task: Task, h: float) -> tuple[int, int]:
     """First held tick and first released tick: ``(⌈t_grasp/h⌉, ⌈t_release/h⌉)``."""
     return (int(math.ceil(task.t_grasp / h - 1e-6)), int(math.ceil(task.t_release / h - 1e-6)))
-
-
-def num_ticks(task: Task, h: float) -> int:
-    """Number of control samples in ``[0, t_end]`` (tick 0 included)."""
-    return int(math.floor(task.t_end / h + 1e-6)) + 1
 
 
 def num_ticks_until(t: float, h: float) -> int:
@@ -194,7 +184,7 @@ def reference_samples(scenario: Scenario, index: int) -> tuple[np.ndarray, np.nd
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     task = scenario.task
     robot = scenario.robots[index]
-    k = np.arange(num_ticks(task, h))
+    k = np.arange(num_ticks_until(task.t_end, h) + 1)
     t = k * h
     x, xd, xdd = cartesian_reference(task, robot, t)
     q, qd, qdd = joint_reference(Arm(robot), x, xd, xdd)
