@@ -5,7 +5,8 @@
     (``robot1.npz``/``.csv``, ``robot2.*``, ``run.json``), ``metrics.json``, Figures 2–6 (PNG and
     SVG), the reference figure, the system diagram (``.dot``, ``.svg`` when graphviz is
     installed) and a self-contained Meshcat replay ``replay.html``.
-    Exit codes: 0 done, 1 the run diverged (what was logged is still written), 2 bad input.
+    Exit codes: 0 done, 1 the run diverged (what was logged is still written), 2 bad input,
+    130 interrupted with Ctrl-C (what was logged is still written).
 ``drake-coop plot DIR``
     Redraw the figures and metrics from the logs in DIR.
 ``drake-coop diagram [SCENARIO.yaml] [--out diagrams]``
@@ -123,7 +124,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not result.ok:
         print(f"drake-coop: {result.meta['message']} (logs up to the stop are in {out})",
               file=sys.stderr)
-        return 1
+        return 130 if result.meta["status"] == "interrupted" else 1
     return 0
 
 

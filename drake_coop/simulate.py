@@ -145,7 +145,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     Returns
     -------
     RunResult
-        ``meta["status"]`` is ``"ok"`` or ``"diverged"`` with ``meta["message"]``.
+        ``meta["status"]`` is ``"ok"``, ``"diverged"`` or ``"interrupted"`` (Ctrl-C), with
+        ``meta["message"]``; the logs hold everything up to the stop.
     """
     exp = build_experiment(scenario, before_build=before_build)
     simulator = Simulator(exp.diagram)
@@ -173,6 +174,9 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
             status, message = "diverged", f"simulation failed at t = {context.get_time():.3f} s: " \
                                           f"{' '.join(str(exc).split())[:300]}"
+            break
+        except KeyboardInterrupt:     # Ctrl-C: stop, keep what was logged
+            status, message = "interrupted", f"interrupted at t = {context.get_time():.3f} s"
             break
         reason = _check_guards(exp, context)
         if reason is not None:
