@@ -95,3 +95,21 @@ def test_console_script_entry_point_reports_errors_without_traceback(tmp_path):
                            "--out", str(tmp_path)], capture_output=True, text=True)
     assert proc.returncode == 2
     assert "not found" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_ctrl_c_stops_the_run_and_still_writes_the_logs(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "o"
+    proc = subprocess.Popen([sys.executable, "-m", "drake_coop", "run", "--out", str(out),
+                             "--quiet", "--no-replay"], stderr=subprocess.PIPE, text=True)
+    time.sleep(5.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "interrupted at t =" in err and "Traceback" not in err
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "interrupted"
+    t = np.load(out / "robot1.npz")["t"]
+    assert 0.0 < t[-1] < 90.0
