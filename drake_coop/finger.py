@@ -94,12 +94,17 @@ class FingerLaw:
         return qddot_r_hat + self.k_d * self.Lambda * (q - q_hat)
 
     # ------------------------------------------------------------------ constraint
-    def constraint(self, q: np.ndarray, held: bool) -> Constraint:
-        """Projections of Property 1 at ``q`` (free-motion form when not held)."""
+    def constraint(self, q: np.ndarray, held: bool, J_phi: np.ndarray | None = None
+                   ) -> Constraint:
+        """Projections of Property 1 at ``q`` (free-motion form when not held).
+
+        ``J_phi`` may be passed when already computed at ``q``.
+        """
         if not held:
             J_pinv, Q = orthogonal.free_motion_projections(self.n)
             return Constraint(np.zeros((1, self.n)), J_pinv, Q, 0.0)
-        J_phi = self.model.J_phi(q)
+        if J_phi is None:
+            J_phi = self.model.J_phi(q)
         J_pinv, Q = orthogonal.projections(J_phi)
         return Constraint(J_phi, J_pinv, Q, self.model.phi(q))
 
@@ -146,14 +151,15 @@ class FingerLaw:
         dict
             ``tau``, ``qdot_r`` (4), ``qddot_r_hat`` (11), ``Delta_lambda_tilde``.
         """
-        c = self.constraint(q, ref.held)
-        qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)
-        Delta_lambda_tilde = (lambda_hat - ref.lambda_d) if ref.held else 0.0
         if ref.held:
             J_phi, J_phi_dot = self.model.J_phi_and_derivative(q, qdot_o)
             J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot)
+            c = self.constraint(q, True, J_phi)
         else:
             J_pinv_dot, Q_dot = np.zeros((self.n, 1)), np.zeros((self.n, self.n))
+            c = self.constraint(q, False)
+        qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)
+        Delta_lambda_tilde = (lambda_hat - ref.lambda_d) if ref.held else 0.0
         qddot_r_hat = orthogonal.reference_acceleration(
             c.Q, c.J_pinv, Q_dot, J_pinv_dot, q_hat=q_hat, qdot_hat=qdot_hat, q_d=ref.q_d,
             qdot_d=ref.qdot_d, qddot_d=ref.qddot_d, Lambda=self.Lambda, Delta_p=c.Delta_p,
