@@ -57,6 +57,21 @@ def _error(message: str) -> int:
     return 2
 
 
+def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: bool
+                          ) -> list[Path]:
+    """The top-level diagram (one level deep) and robot 1's control block, .dot and .svg;
+    a missing graphviz is reported once, as a note."""
+    from drake_coop.results.export import write_diagram, write_subsystem_diagram
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        files = [write_diagram(experiment.diagram, out, top, max_depth=1),
+                 write_subsystem_diagram(experiment.robots[0].control, out, control)]
+    if caught and not quiet:
+        print(f"drake-coop: note: {caught[0].message}", file=sys.stderr)
+    return [p for f in files for p in f.values() if p is not None]
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """Simulate, then write logs, metrics, figures, diagrams and the replay."""
     from drake_coop.results import (
@@ -66,7 +81,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         save_logs,
         write_metrics,
     )
-    from drake_coop.results.export import MeshcatReplay, write_diagram, write_subsystem_diagram
+    from drake_coop.results.export import MeshcatReplay
     from drake_coop.results.io import atomic_write_text
     from drake_coop.simulate import simulate
 
@@ -108,13 +123,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     plot_figures(result.logs, result.meta, out)
     fig_references(result.logs, result.meta, out)
     exp = result.experiment
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        write_diagram(exp.diagram, out, "system_diagram", max_depth=1)
-        write_subsystem_diagram(exp.robots[0].control, out,
-                                f"{exp.robots[0].name}_control_diagram")
-    if caught and not args.quiet:
-        print(f"drake-coop: note: {caught[0].message}", file=sys.stderr)
+    _write_block_diagrams(exp, out, "system_diagram", f"{exp.robots[0].name}_control_diagram",
+                          args.quiet)
     if replay is not None:
         replay.finish(out / "replay.html")
     if not args.quiet:
@@ -144,24 +154,16 @@ def cmd_plot(args: argparse.Namespace) -> int:
 def cmd_diagram(args: argparse.Namespace) -> int:
     """Draw the experiment's block diagram (no loggers or visualizer) and one control block."""
     from drake_coop.diagram import build_experiment
-    from drake_coop.results.export import write_diagram, write_subsystem_diagram
 
     try:
         scenario = load_scenario(args.scenario)
     except ScenarioError as exc:
         return _error(str(exc))
     exp = build_experiment(scenario, log=False)
-    out = Path(args.out)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        files = write_diagram(exp.diagram, out, "experiment", max_depth=1)
-        files2 = write_subsystem_diagram(exp.robots[0].control, out,
-                                         f"{exp.robots[0].name}_control")
-    if caught:
-        print(f"drake-coop: note: {caught[0].message}", file=sys.stderr)
+    written = _write_block_diagrams(exp, Path(args.out), "experiment",
+                                    f"{exp.robots[0].name}_control", args.quiet)
     if not args.quiet:
-        written = [str(p) for f in (files, files2) for p in f.values() if p is not None]
-        print("drake-coop: wrote " + ", ".join(written), file=sys.stderr)
+        print("drake-coop: wrote " + ", ".join(map(str, written)), file=sys.stderr)
     return 0
 
 
