@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import logging
 import shutil
 import subprocess
 import warnings
@@ -64,7 +65,14 @@ def shared_meshcat():
     if _MESHCAT is None:
         from pydrake.geometry import Meshcat
 
-        _MESHCAT = Meshcat()
+        # No "Meshcat listening for connections" line: here it only records.
+        logger = logging.getLogger("drake")
+        previous = logger.level
+        logger.setLevel(logging.WARNING)
+        try:
+            _MESHCAT = Meshcat()
+        finally:
+            logger.setLevel(previous)
     return _MESHCAT
 
 
