@@ -34,6 +34,7 @@ class ProgressBar:
         self.width = width
         self.tty = hasattr(self.stream, "isatty") and self.stream.isatty()
         self._last_report = -1
+        self._open = False
 
     def __call__(self, t: float, t_end: float, wall: float) -> None:
         frac = min(1.0, t / t_end) if t_end > 0 else 1.0
@@ -42,14 +43,20 @@ class ProgressBar:
             filled = int(round(frac * self.width))
             bar = "#" * filled + "." * (self.width - filled)
             self.stream.write(f"\r[{bar}] {t:6.2f}/{t_end:g} s  realtime x{rtf:5.2f}")
-            if frac >= 1.0:
-                self.stream.write("\n")
+            self._open = True
         else:  # a log file: one line every 10 %
             decile = int(frac * 10)
             if decile > self._last_report:
                 self._last_report = decile
                 self.stream.write(f"{t:6.2f}/{t_end:g} s  realtime x{rtf:.2f}\n")
         self.stream.flush()
+
+    def close(self) -> None:
+        """End the bar's line (on a terminal)."""
+        if self._open:
+            self.stream.write("\n")
+            self.stream.flush()
+            self._open = False
 
 
 def _error(message: str) -> int:
@@ -116,6 +123,8 @@ def cmd_run(args: argparse.Namespace) -> int:
               f"{scenario.plant.time_step * 1e3:g} ms) -> {out}", file=sys.stderr)
     result = simulate(scenario, t_end=args.t_end, progress=progress,
                       before_build=before_build, on_start=on_start)
+    if progress is not None:
+        progress.close()
     started = time.perf_counter()
     atomic_write_text(out / "scenario.yaml", dump_scenario(scenario))
     save_logs(out, result.logs, result.meta)
