@@ -5,7 +5,11 @@
   without it, a warning says so and the ``.dot`` is still written.
 * :class:`MeshcatReplay` records the simulation with a ``MeshcatVisualizer`` and writes
   ``Meshcat.StaticHtml()``: one HTML file with the scene, the animation and the viewer's
-  JavaScript inlined, which opens offline in a browser (no server, no network).
+  JavaScript inlined (no ``<script src=...>``; the scene and the animation are embedded as a
+  base64 ``data:`` URI), which opens offline in a browser (no server, no network).
+
+Every file is written atomically (temporary file beside the target, then ``os.replace``): a
+failure leaves neither a partial target nor a temporary file behind.
 """
 
 from __future__ import annotations
@@ -15,52 +19,118 @@ import shutil
 import subprocess
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from drake_coop.results.io import atomic_path, atomic_write_text
 
-_MESHCAT = None
+if TYPE_CHECKING:
+    from pydrake.geometry import Meshcat, MeshcatVisualizer, SceneGraph
+    from pydrake.systems.framework import DiagramBuilder, System
+
+__all__ = ["MeshcatReplay", "add_meshcat", "shared_meshcat", "write_diagram",
+           "write_subsystem_diagram"]
+
+DOT_TIMEOUT = 60.0
+"""Seconds allowed to graphviz's ``dot`` for one rendering."""
+
+_MESHCAT: Meshcat | None = None
 
 
 def _render_svg(dot_text: str, path: Path) -> Path | None:
-    exe = shutil.which("dot")
-    if exe is None:
-        warnings.warn("graphviz's `dot` is missing: wrote the .dot only, no .svg "
-                      "(install the Debian package graphviz)", stacklevel=3)
-        return None
-    with atomic_path(path) as tmp:
-        subprocess.run([exe, "-Tsvg", "-o", str(tmp)], input=dot_text.encode(), check=True,
-                       timeout=60, capture_output=True)
-    return path
-
-
-def write_diagram(system, out_dir: str | Path, name: str = "system_diagram",
-                  max_depth: int | None = None) -> dict[str, Path | None]:
-    """Write a System's diagram as ``<name>.dot`` and, with graphviz, ``<name>.svg``.
+    """Render ``dot_text`` to ``path`` with graphviz's ``dot``; None (and a warning) without it.
 
     Parameters
     ----------
-    system : pydrake.systems.framework.System
+    dot_text : str
+        Graphviz source.
+    path : Path
+        Target ``.svg``; written atomically.
+
+    Returns
+    -------
+    Path or None
+        ``path``, or None when ``dot`` is not installed.
+
+    Raises
+    ------
+    RuntimeError
+        If ``dot`` fails or times out (no ``.svg`` is left behind).
+    """
+    exe = shutil.which("dot")
+    if exe is None:
+        warnings.warn(f"graphviz's `dot` is missing: wrote the .dot only, {path.name} was not "
+                      "drawn (install the Debian package graphviz)", UserWarning, stacklevel=3)
+        return None
+    with atomic_path(path) as tmp:
+        try:
+            subprocess.run([exe, "-Tsvg", "-o", str(tmp)], input=dot_text.encode("utf-8"),
+                           check=True, timeout=DOT_TIMEOUT, capture_output=True)
+        except subprocess.CalledProcessError as exc:
+            err = exc.stderr.decode("utf-8", "replace").strip()
+            raise RuntimeError(f"graphviz's dot failed on {path.name}: {err}") from exc
+        except subprocess.TimeoutExpired as exc:
+            raise RuntimeError(f"graphviz's dot took over {DOT_TIMEOUT:g} s on {path.name}"
+                               ) from exc
+    return path
+
+
+def write_diagram(diagram: System, out_dir: str | Path, name: str = "system_diagram",
+                  max_depth: int | None = None) -> dict[str, Path | None]:
+    """Write a diagram as ``<name>.dot`` and, with graphviz, ``<name>.svg``.
+
+    Parameters
+    ----------
+    diagram : pydrake.systems.framework.System
         A Diagram (or any System).
-    out_dir : path
+    out_dir : str or Path
+        Output directory (created if needed).
     name : str
         File stem.
     max_depth : int, optional
         Depth of sub-diagrams to expand (None: all).
+
+    Returns
+    -------
+    dict
+        ``{"dot": Path, "svg": Path or None}``; ``svg`` is None when graphviz's ``dot`` is
+        missing, in which case a ``UserWarning`` is emitted.
     """
     out = Path(out_dir)
-    text = (system.GetGraphvizString() if max_depth is None
-            else system.GetGraphvizString(max_depth=max_depth))
+    text = (diagram.GetGraphvizString() if max_depth is None
+            else diagram.GetGraphvizString(max_depth=max_depth))
     dot = atomic_write_text(out / f"{name}.dot", text)
     return {"dot": dot, "svg": _render_svg(text, out / f"{name}.svg")}
 
 
-def write_subsystem_diagram(system, out_dir: str | Path, name: str) -> dict[str, Path | None]:
-    """:func:`write_diagram` of a sub-diagram (e.g. one robot's control block), fully expanded."""
+def write_subsystem_diagram(system: System, out_dir: str | Path, name: str
+                            ) -> dict[str, Path | None]:
+    """:func:`write_diagram` of one subsystem (a sub-diagram or a LeafSystem), fully expanded.
+
+    Parameters
+    ----------
+    system : pydrake.systems.framework.System
+        E.g. one robot's control block, taken from the built diagram.
+    out_dir : str or Path
+        Output directory.
+    name : str
+        File stem.
+
+    Returns
+    -------
+    dict
+        As :func:`write_diagram`.
+    """
     return write_diagram(system, out_dir, name, max_depth=None)
 
 
-def shared_meshcat():
-    """One Meshcat per process (each opens a loopback port); cleared for every new replay."""
+def shared_meshcat() -> Meshcat:
+    """The process's one Meshcat, created on first use (it opens a loopback port).
+
+    Returns
+    -------
+    pydrake.geometry.Meshcat
+        Reused by every replay; :meth:`MeshcatReplay.add_to_builder` clears it.
+    """
     global _MESHCAT
     if _MESHCAT is None:
         from pydrake.geometry import Meshcat
@@ -76,37 +146,97 @@ def shared_meshcat():
     return _MESHCAT
 
 
+def _add_visualizer(builder: DiagramBuilder, scene_graph: SceneGraph, publish_period: float
+                    ) -> tuple[Meshcat, MeshcatVisualizer]:
+    from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
+
+    meshcat = shared_meshcat()
+    meshcat.Delete()            # the previous run's scene
+    meshcat.DeleteRecording()   # and its frames
+    params = MeshcatVisualizerParams()
+    params.publish_period = publish_period
+    params.role = Role.kIllustration
+    visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
+    return meshcat, visualizer
+
+
+def add_meshcat(builder: DiagramBuilder, scene_graph: SceneGraph, *,
+                publish_period: float = 1 / 30) -> Meshcat:
+    """Add a MeshcatVisualizer (illustration geometry) on the shared headless Meshcat.
+
+    Parameters
+    ----------
+    builder : pydrake.systems.framework.DiagramBuilder
+        Not yet built.
+    scene_graph : pydrake.geometry.SceneGraph
+        The SceneGraph in ``builder``.
+    publish_period : float
+        Seconds between published frames.
+
+    Returns
+    -------
+    pydrake.geometry.Meshcat
+        The shared Meshcat (cleared of any previous scene and recording).
+    """
+    return _add_visualizer(builder, scene_graph, publish_period)[0]
+
+
 class MeshcatReplay:
     """Record a simulation in Meshcat and save it as a self-contained HTML file.
 
     Use: ``replay = MeshcatReplay.add_to_builder(builder, scene_graph)`` before ``Build()``,
-    ``replay.start()`` before simulating, ``replay.finish(path)`` after.
+    ``replay.start()`` before simulating, ``replay.finish(path)`` after. All replays share the
+    process's Meshcat (:func:`shared_meshcat`), so record one simulation at a time.
+
+    Parameters
+    ----------
+    meshcat : pydrake.geometry.Meshcat
+        Where the frames are recorded.
+    visualizer : pydrake.geometry.MeshcatVisualizer
+        The visualizer in the diagram.
     """
 
-    def __init__(self, meshcat, visualizer):
+    def __init__(self, meshcat: Meshcat, visualizer: MeshcatVisualizer) -> None:
         self.meshcat = meshcat
         self.visualizer = visualizer
 
     @classmethod
-    def add_to_builder(cls, builder, scene_graph, publish_period: float = 1 / 30
-                       ) -> "MeshcatReplay":
-        """Add a MeshcatVisualizer (illustration geometry) to ``builder``."""
-        from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams
+    def add_to_builder(cls, builder: DiagramBuilder, scene_graph: SceneGraph,
+                       publish_period: float = 1 / 30) -> MeshcatReplay:
+        """Add a MeshcatVisualizer (illustration geometry) to ``builder``.
 
-        meshcat = shared_meshcat()
-        meshcat.Delete()
-        meshcat.DeleteRecording()
-        params = MeshcatVisualizerParams()
-        params.publish_period = publish_period
-        visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
-        return cls(meshcat, visualizer)
+        Parameters
+        ----------
+        builder : pydrake.systems.framework.DiagramBuilder
+            Not yet built.
+        scene_graph : pydrake.geometry.SceneGraph
+            The SceneGraph in ``builder``.
+        publish_period : float
+            Seconds between recorded frames.
+
+        Returns
+        -------
+        MeshcatReplay
+        """
+        return cls(*_add_visualizer(builder, scene_graph, publish_period))
 
     def start(self) -> None:
         """Start recording (frames are kept, not streamed)."""
         self.visualizer.StartRecording(set_transforms_while_recording=False)
 
     def finish(self, path: str | Path) -> Path:
-        """Stop recording, publish it and write the self-contained HTML atomically."""
+        """Stop recording, publish it and write the self-contained HTML atomically.
+
+        Parameters
+        ----------
+        path : str or Path
+            Target ``.html`` (parent directories are created).
+
+        Returns
+        -------
+        Path
+            ``path``.
+        """
         self.visualizer.StopRecording()
         self.visualizer.PublishRecording()
         return atomic_write_text(path, self.meshcat.StaticHtml())
