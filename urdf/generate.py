@@ -1,4 +1,4 @@
-"""Write the two arm URDFs and the parameter table of urdf/README.md from one place.
+"""Write the two arm URDFs from one place (urdf/README.md tabulates the same numbers).
 
 Run ``python urdf/generate.py`` after changing a number below; the tests check the written
 files against the published lengths and against these parameters.
