@@ -167,25 +167,26 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     status, message = "ok", ""
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
     start = time.perf_counter()
-    for k_stop in stops:
-        stop = k_stop * h
-        try:
-            simulator.AdvanceTo(stop)
-        except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
-            status, message = "diverged", f"simulation failed at t = {context.get_time():.3f} s: " \
-                                          f"{' '.join(str(exc).split())[:300]}"
-            break
-        except KeyboardInterrupt:     # Ctrl-C: stop, keep what was logged
-            status, message = "interrupted", f"interrupted at t = {context.get_time():.3f} s"
-            break
-        reason = _check_guards(exp, context)
-        if reason is not None:
-            status, message = "diverged", f"diverged at t = {stop:.3f} s: {reason}"
-            break
-        if k_stop in switches:
-            exp.coop.set_held(plant_context, switches[k_stop])
-        if progress is not None:
-            progress(stop, T, time.perf_counter() - start)
+    try:
+        for k_stop in stops:
+            stop = k_stop * h
+            try:
+                simulator.AdvanceTo(stop)
+            except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
+                status, message = "diverged", (
+                    f"simulation failed at t = {context.get_time():.3f} s: "
+                    f"{' '.join(str(exc).split())[:300]}")
+                break
+            reason = _check_guards(exp, context)
+            if reason is not None:
+                status, message = "diverged", f"diverged at t = {stop:.3f} s: {reason}"
+                break
+            if k_stop in switches:
+                exp.coop.set_held(plant_context, switches[k_stop])
+            if progress is not None:
+                progress(stop, T, time.perf_counter() - start)
+    except KeyboardInterrupt:     # Ctrl-C, wherever it lands: stop, keep what was logged
+        status, message = "interrupted", f"interrupted at t = {context.get_time():.3f} s"
     wall = time.perf_counter() - start
     logs = collect_logs(exp, context)
     meta = {
