@@ -18,10 +18,24 @@ array           shape      meaning
 ``tau``         (N, 3)     joint torques (N·m)
 ==============  =========  ==================================================================
 
-CSV columns: ``t, q1..q3, q_hat1..q_hat3, q_d1..q_d3, x, y, z, x_d, y_d, z_d, Fx, Fy, Fz,
-lambda_meas, lambda_hat, lambda_d, tau1..tau3`` with every float written with ``repr``
-precision (the CSV round-trips bit for bit). ``run.json`` holds the metadata: status, message,
-phases ``[name, t_start, t_end]``, robots, timing and the scenario as YAML.
+Files in the run directory:
+
+* ``<robot>.npz`` — every array of the robot's log under its name (``np.savez``, no pickle;
+  arrays beyond the schema are kept too). This is what :func:`load_logs` reads.
+* ``<robot>.csv`` — the schema's arrays, one row per sample, comma separated, one header line::
+
+      t,q1,q2,q3,q_hat1,q_hat2,q_hat3,q_d1,q_d2,q_d3,x,y,z,x_d,y_d,z_d,Fx,Fy,Fz,
+      lambda_meas,lambda_hat,lambda_d,tau1,tau2,tau3
+
+  (a single line in the file). Vector columns are numbered from 1 (joints) or named by axis
+  (positions ``x, y, z``, desired ``x_d, y_d, z_d``, forces ``Fx, Fy, Fz``). Every value is
+  written with ``repr(float)``, the shortest text that reads back to the same double, so
+  ``np.loadtxt(path, delimiter=",", skiprows=1)`` returns the logged values bit for bit
+  (``nan`` and ``inf`` included).
+* ``run.json`` — the metadata: status, message, phases ``[name, t_start, t_end]``, robots,
+  timing and the scenario as YAML.
+
+Each file is written atomically (:mod:`drake_coop.results.io`).
 """
 
 from __future__ import annotations
@@ -33,6 +47,8 @@ from pathlib import Path
 import numpy as np
 
 from drake_coop.results.io import atomic_path, atomic_write_text
+
+__all__ = ["COLUMNS", "csv_header", "load_logs", "save_logs"]
 
 #: Arrays of a robot's log and their CSV column names.
 COLUMNS: dict[str, list[str]] = {
@@ -50,69 +66,145 @@ COLUMNS: dict[str, list[str]] = {
 }
 
 
-def _table(log: dict[str, np.ndarray]) -> np.ndarray:
-    n = log["t"].size
-    return np.hstack([np.asarray(log[k], dtype=float).reshape(n, -1) for k in COLUMNS])
+def csv_header() -> str:
+    """The CSV header line (without newline): the column names of :data:`COLUMNS`, in order."""
+    return ",".join(c for names in COLUMNS.values() for c in names)
+
+
+def _check_log(where: str, log: dict[str, np.ndarray]) -> None:
+    """Raise ValueError (naming ``where``) unless ``log`` follows the schema."""
+    missing = [k for k in COLUMNS if k not in log]
+    if missing:
+        raise ValueError(f"{where} lacks arrays {missing}")
+    n = np.shape(log["t"])[0] if np.ndim(log["t"]) == 1 else None
+    if n is None:
+        raise ValueError(f"{where}: 't' must have shape (N,), has {np.shape(log['t'])}")
+    for key, names in COLUMNS.items():
+        expected = (n,) if len(names) == 1 else (n, len(names))
+        if np.shape(log[key]) != expected:
+            raise ValueError(f"{where}: '{key}' has shape {np.shape(log[key])}, "
+                             f"expected {expected}")
+
+
+def _json_default(value):
+    """Numpy scalars and arrays as plain JSON numbers and lists."""
+    if isinstance(value, (np.generic, np.ndarray)):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def _csv_text(log: dict[str, np.ndarray]) -> str:
+    n = log["t"].shape[0]
+    table = np.hstack([np.asarray(log[k], dtype=float).reshape(n, -1) for k in COLUMNS])
+    buffer = io.StringIO()
+    buffer.write(csv_header() + "\n")
+    for row in table.tolist():
+        buffer.write(",".join(map(repr, row)) + "\n")
+    return buffer.getvalue()
 
 
 def save_logs(out_dir: str | Path, logs: dict[str, dict[str, np.ndarray]], meta: dict
               ) -> list[Path]:
     """Write ``<robot>.npz``, ``<robot>.csv`` and ``run.json`` to ``out_dir``, atomically.
 
+    Parameters
+    ----------
+    out_dir : str or Path
+        Run directory; created if needed.
+    logs : dict
+        ``logs[robot][array]`` in the schema of this module.
+    meta : dict
+        Run metadata (JSON-serialisable; numpy scalars and arrays are converted).
+
     Returns
     -------
     list of Path
-        The files written.
+        The files written: per robot its ``.npz`` and ``.csv``, then ``run.json``.
+
+    Raises
+    ------
+    ValueError
+        If a log lacks an array of the schema, an array has the wrong shape, or an array
+        would need pickling (object dtype).
     """
     out = Path(out_dir)
+    arrays = {robot: {k: np.asarray(v) for k, v in log.items()} for robot, log in logs.items()}
+    for robot, log in arrays.items():
+        _check_log(f"log of {robot}", log)
+        objects = [k for k, v in log.items() if v.dtype.hasobject]
+        if objects:
+            raise ValueError(f"log of {robot}: arrays {objects} hold Python objects")
+    meta_text = json.dumps(meta, indent=2, default=_json_default)
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    for robot, log in logs.items():
-        missing = [k for k in COLUMNS if k not in log]
-        if missing:
-            raise ValueError(f"log of {robot} lacks {missing}")
+    for robot, log in arrays.items():
         with atomic_path(out / f"{robot}.npz") as tmp:
             with open(tmp, "wb") as f:
-                np.savez(f, **{k: np.asarray(log[k]) for k in COLUMNS})
+                np.savez(f, **log)
         written.append(out / f"{robot}.npz")
-        buffer = io.StringIO()
-        buffer.write(",".join(c for k in COLUMNS for c in COLUMNS[k]) + "\n")
-        for row in _table(log):
-            buffer.write(",".join(repr(float(v)) for v in row) + "\n")
-        written.append(atomic_write_text(out / f"{robot}.csv", buffer.getvalue()))
-    written.append(atomic_write_text(out / "run.json", json.dumps(meta, indent=2)))
+        written.append(atomic_write_text(out / f"{robot}.csv", _csv_text(log)))
+    written.append(atomic_write_text(out / "run.json", meta_text))
     return written
 
 
+def _load_meta(path: Path) -> dict:
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} not found: not a drake-coop run directory")
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path} is not valid JSON: {exc}") from None
+    if not isinstance(meta, dict):
+        raise ValueError(f"{path} must hold a JSON object, holds {type(meta).__name__}")
+    robots = meta.get("robots")
+    if not (isinstance(robots, list) and robots and all(isinstance(r, str) for r in robots)):
+        raise ValueError(f"{path}: 'robots' must be a non-empty list of names, is {robots!r}")
+    return meta
+
+
+def _check_phases(path: Path, meta: dict) -> None:
+    phases = meta.get("phases")
+    if not (isinstance(phases, list) and all(
+            isinstance(p, list) and len(p) == 3 and isinstance(p[0], str)
+            and all(isinstance(v, (int, float)) for v in p[1:]) for p in phases)):
+        raise ValueError(f"{path}: 'phases' must be a list of [name, t_start, t_end], "
+                         f"is {phases!r}")
+
+
 def load_logs(out_dir: str | Path) -> tuple[dict[str, dict[str, np.ndarray]], dict]:
-    """Read the logs and metadata written by :func:`save_logs`.
+    """Read the logs and metadata written by :func:`save_logs` (from the ``.npz`` files).
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Run directory.
+
+    Returns
+    -------
+    logs : dict
+        ``logs[robot][array]``, every array stored in the robot's ``.npz``.
+    meta : dict
+        The content of ``run.json``.
 
     Raises
     ------
     FileNotFoundError
-        If ``run.json`` or a robot's ``.npz`` is missing.
+        If ``run.json`` or a robot's ``.npz`` is missing (the file is named).
     ValueError
-        If a file is malformed.
+        If a file is malformed (the file is named).
     """
     out = Path(out_dir)
-    meta_path = out / "run.json"
-    if not meta_path.is_file():
-        raise FileNotFoundError(f"{meta_path} not found: not a drake-coop run directory")
-    try:
-        meta = json.loads(meta_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{meta_path} is not valid JSON: {exc}") from None
+    meta = _load_meta(out / "run.json")
     logs = {}
-    for robot in meta.get("robots", []):
+    for robot in meta["robots"]:
         path = out / f"{robot}.npz"
         if not path.is_file():
             raise FileNotFoundError(f"{path} not found")
         try:
             with np.load(path, allow_pickle=False) as data:
                 logs[robot] = {k: data[k] for k in data.files}
-        except Exception as exc:  # zipfile/format errors
+        except Exception as exc:  # zipfile, format and pickle errors
             raise ValueError(f"{path} is not a valid log: {exc}") from None
-        missing = [k for k in COLUMNS if k not in logs[robot]]
-        if missing:
-            raise ValueError(f"{path} lacks arrays {missing}")
+        _check_log(str(path), logs[robot])
+    _check_phases(out / "run.json", meta)
     return logs, meta

@@ -1,7 +1,8 @@
 """Error metrics of Figures 2–6: RMS and max per robot, per phase and overall.
 
-``metrics[robot][phase][error] = {"rms": ..., "max": ..., "unit": ...}`` with phases ``free``,
-``lift``, ``circle``, ``put_down``, ``return`` and ``all``, and errors
+``metrics[robot][phase][error] = {"rms": ..., "max": ..., "unit": ...}`` with the phases of
+``meta["phases"]`` (``free``, ``lift``, ``circle``, ``put_down``, ``return``) and ``all``, and
+errors
 
 * ``x_tilde``, ``y_tilde``, ``z_tilde`` — Cartesian tracking errors ``x − x_d`` (Fig. 2), m;
 * ``force_error`` — ``λ − λ_d``, measured minus desired squeeze (Fig. 3), N;
@@ -9,7 +10,12 @@
 * ``aux_force_error`` — ``λ̂ − λ_d`` (Fig. 5), N;
 * ``z1``, ``z2``, ``z3`` — observation errors ``q − q̂`` (Fig. 6), rad.
 
-Non-finite samples (a diverged run) are left out and counted in ``n_nonfinite``.
+A phase ``[name, a, b]`` holds the samples with ``a <= t < b`` (the last phase also ``t = b``);
+``all`` holds every sample. Besides the errors, ``metrics[robot][phase]`` has ``n_samples``
+(samples in the phase) and ``n_nonfinite`` (samples where at least one error is NaN or
+infinite, as at the end of a diverged run). Each error's RMS and max use its finite samples
+only; an error with none is left out, and so is a phase with no samples (a run stopped before
+it).
 """
 
 from __future__ import annotations
@@ -21,56 +27,125 @@ import numpy as np
 
 from drake_coop.results.io import atomic_write_text
 
+__all__ = ["compute_metrics", "error_signals", "phase_masks", "write_metrics"]
+
 
 def error_signals(log: dict[str, np.ndarray]) -> dict[str, tuple[np.ndarray, str]]:
-    """The errors of Figures 2–6 of one robot's log, with their units."""
-    e = log["x"] - log["x_d"]
-    z = log["q"] - log["q_hat"]
+    """The errors of Figures 2–6 of one robot's log, with their units.
+
+    Parameters
+    ----------
+    log : dict
+        One robot's log (schema of :mod:`drake_coop.results.logs`).
+
+    Returns
+    -------
+    dict
+        ``name -> (samples (N,), unit)`` for the errors listed in the module docstring.
+    """
+    e = np.asarray(log["x"], dtype=float) - np.asarray(log["x_d"], dtype=float)
+    z = np.asarray(log["q"], dtype=float) - np.asarray(log["q_hat"], dtype=float)
+    lam = np.asarray(log["lambda_meas"], dtype=float)
+    lam_hat = np.asarray(log["lambda_hat"], dtype=float)
+    lam_d = np.asarray(log["lambda_d"], dtype=float)
     return {
         "x_tilde": (e[:, 0], "m"), "y_tilde": (e[:, 1], "m"), "z_tilde": (e[:, 2], "m"),
-        "force_error": (log["lambda_meas"] - log["lambda_d"], "N"),
-        "estimate_error": (log["lambda_meas"] - log["lambda_hat"], "N"),
-        "aux_force_error": (log["lambda_hat"] - log["lambda_d"], "N"),
+        "force_error": (lam - lam_d, "N"),
+        "estimate_error": (lam - lam_hat, "N"),
+        "aux_force_error": (lam_hat - lam_d, "N"),
         "z1": (z[:, 0], "rad"), "z2": (z[:, 1], "rad"), "z3": (z[:, 2], "rad"),
     }
 
 
-def _phase_masks(t: np.ndarray, phases: list) -> dict[str, np.ndarray]:
+def phase_masks(t: np.ndarray, phases: list) -> dict[str, np.ndarray]:
+    """Boolean masks of the samples of each phase, and ``all``.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Sample times.
+    phases : list
+        ``[name, t_start, t_end]`` in order; intervals are half-open except the last.
+
+    Returns
+    -------
+    dict
+        ``name -> mask (N,)``, then ``"all"``.
+    """
+    t = np.asarray(t, dtype=float)
     masks = {}
     for i, (name, a, b) in enumerate(phases):
-        last = i == len(phases) - 1
-        masks[name] = (t >= a) & ((t <= b) if last else (t < b))
-    masks["all"] = np.ones_like(t, dtype=bool)
+        upper = t <= b if i == len(phases) - 1 else t < b
+        masks[str(name)] = (t >= a) & upper
+    masks["all"] = np.ones(t.shape, dtype=bool)
     return masks
 
 
+def _rms_max(x: np.ndarray) -> tuple[float, float]:
+    """RMS and max |x| of finite samples, scaled so that squaring cannot overflow."""
+    peak = float(np.max(np.abs(x)))
+    if peak == 0.0:
+        return 0.0, 0.0
+    return peak * float(np.sqrt(np.mean((x / peak) ** 2))), peak
+
+
 def compute_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict) -> dict:
-    """RMS and max-abs of every error of Figures 2–6, per robot and per phase."""
+    """RMS and max-abs of every error of Figures 2–6, per robot and per phase.
+
+    Parameters
+    ----------
+    logs : dict
+        ``logs[robot][array]`` (schema of :mod:`drake_coop.results.logs`).
+    meta : dict
+        Run metadata; ``meta["phases"]`` is used.
+
+    Returns
+    -------
+    dict
+        ``metrics[robot][phase][error] = {"rms": float, "max": float, "unit": str}`` plus
+        ``metrics[robot][phase]["n_samples"]`` and ``["n_nonfinite"]`` (see the module
+        docstring). Every float is finite.
+    """
     result = {}
     for robot, log in logs.items():
         signals = error_signals(log)
+        finite = np.column_stack([np.isfinite(x) for x, _ in signals.values()])
         per_phase = {}
-        for phase, mask in _phase_masks(np.asarray(log["t"]), meta["phases"]).items():
+        for phase, mask in phase_masks(log["t"], meta["phases"]).items():
             if not mask.any():
                 continue
-            entry = {}
-            nonfinite = 0
-            for name, (x, unit) in signals.items():
-                x = np.asarray(x)[mask]
-                ok = np.isfinite(x)
-                nonfinite = max(nonfinite, int((~ok).sum()))
-                x = x[ok]
-                if x.size == 0:
-                    continue
-                entry[name] = {"rms": float(np.sqrt(np.mean(x * x))),
-                               "max": float(np.max(np.abs(x))), "unit": unit}
+            entry: dict = {}
+            for (name, (x, unit)), ok in zip(signals.items(), finite.T):
+                values = x[mask & ok]
+                if values.size:
+                    rms, peak = _rms_max(values)
+                    entry[name] = {"rms": rms, "max": peak, "unit": unit}
             entry["n_samples"] = int(mask.sum())
-            entry["n_nonfinite"] = nonfinite
+            entry["n_nonfinite"] = int((mask & ~finite.all(axis=1)).sum())
             per_phase[phase] = entry
         result[robot] = per_phase
     return result
 
 
 def write_metrics(out_dir: str | Path, metrics: dict) -> Path:
-    """Write ``metrics.json`` atomically."""
-    return atomic_write_text(Path(out_dir) / "metrics.json", json.dumps(metrics, indent=2))
+    """Write ``metrics.json`` (indent 2, floats as JSON numbers) atomically.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Run directory.
+    metrics : dict
+        As returned by :func:`compute_metrics`.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Raises
+    ------
+    ValueError
+        If ``metrics`` holds a NaN or infinity (not valid JSON); nothing is written.
+    """
+    text = json.dumps(metrics, indent=2, allow_nan=False)
+    return atomic_write_text(Path(out_dir) / "metrics.json", text + "\n")
