@@ -20,7 +20,6 @@ positive λ is the object pushing the end effector outwards, i.e. a squeeze.
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,11 +29,11 @@ from drake_coop.scenario import Robot
 
 
 def urdf_dir() -> Path:
-    """Folder of the robot and object models (``$DRAKE_COOP_URDF_DIR`` or ``<repo>/urdf``)."""
-    env = os.environ.get("DRAKE_COOP_URDF_DIR")
-    if env:
-        return Path(env)
-    return Path(__file__).resolve().parents[1] / "urdf"
+    """Folder of the robot models: ``$DRAKE_COOP_URDF_DIR``, else the shipped ``urdf/``
+    (installed package data or the checkout's folder, see :mod:`drake_coop.resources`)."""
+    from drake_coop.resources import urdf_dir as _urdf_dir
+
+    return _urdf_dir()
 
 
 @dataclass(frozen=True)

@@ -279,7 +279,9 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
     Parameters
     ----------
     path : str or Path, optional
-        YAML file. ``None`` with ``data=None`` gives :func:`default_scenario`.
+        YAML file. ``None`` with ``data=None`` loads the shipped ``paper.yaml`` (the numbers
+        of :func:`default_scenario`). Model files are checked and resolved by
+        :func:`drake_coop.resources.resolve_models`.
     data : str, optional
         YAML text instead of a file.
 
@@ -295,8 +297,10 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
     """
     from pydrake.common.yaml import yaml_load_typed
 
+    from drake_coop.resources import default_scenario_path, resolve_models
+
     if path is None and data is None:
-        scenario = default_scenario()
+        return load_scenario(default_scenario_path())   # the shipped paper.yaml
     else:
         if path is not None:
             path = Path(path)
@@ -313,6 +317,7 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
         if not scenario.robots:
             scenario.robots = paper_robots()
     validate(scenario)
+    resolve_models(scenario, Path(path).resolve().parent if path is not None else Path.cwd())
     return scenario
 
 
