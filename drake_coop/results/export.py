@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from pydrake.geometry import Meshcat, MeshcatVisualizer, SceneGraph
     from pydrake.systems.framework import DiagramBuilder, System
 
-__all__ = ["MeshcatReplay", "add_meshcat", "shared_meshcat", "write_diagram",
+__all__ = ["MeshcatReplay", "add_meshcat", "live_meshcat", "shared_meshcat", "write_diagram",
            "write_subsystem_diagram"]
 
 DOT_TIMEOUT = 60.0
@@ -146,6 +146,31 @@ def shared_meshcat() -> Meshcat:
     return _MESHCAT
 
 
+def live_meshcat() -> Meshcat:
+    """A Meshcat server for watching a run live (``drake-coop run --meshcat``).
+
+    Created with :func:`pydrake.geometry.StartMeshcat` (which also serves Deepnote) and made
+    the process's shared Meshcat, so that the HTML replay records the same scene.
+
+    Returns
+    -------
+    pydrake.geometry.Meshcat
+        Its ``web_url()`` is the address to open; nothing waits for a browser.
+    """
+    global _MESHCAT
+    if _MESHCAT is None:
+        from pydrake.geometry import StartMeshcat
+
+        logger = logging.getLogger("drake")
+        previous = logger.level
+        logger.setLevel(logging.WARNING)   # the caller prints the URL itself
+        try:
+            _MESHCAT = StartMeshcat()
+        finally:
+            logger.setLevel(previous)
+    return _MESHCAT
+
+
 def _add_visualizer(builder: DiagramBuilder, scene_graph: SceneGraph, publish_period: float
                     ) -> tuple[Meshcat, MeshcatVisualizer]:
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
@@ -194,15 +219,19 @@ class MeshcatReplay:
         Where the frames are recorded.
     visualizer : pydrake.geometry.MeshcatVisualizer
         The visualizer in the diagram.
+    live : bool
+        Also draw the recorded frames as they come (a live Meshcat, see :func:`live_meshcat`).
     """
 
-    def __init__(self, meshcat: Meshcat, visualizer: MeshcatVisualizer) -> None:
+    def __init__(self, meshcat: Meshcat, visualizer: MeshcatVisualizer, live: bool = False
+                 ) -> None:
         self.meshcat = meshcat
         self.visualizer = visualizer
+        self.live = live
 
     @classmethod
     def add_to_builder(cls, builder: DiagramBuilder, scene_graph: SceneGraph,
-                       publish_period: float = 1 / 30) -> MeshcatReplay:
+                       publish_period: float = 1 / 30, live: bool = False) -> MeshcatReplay:
         """Add a MeshcatVisualizer (illustration geometry) to ``builder``.
 
         Parameters
@@ -213,16 +242,18 @@ class MeshcatReplay:
             The SceneGraph in ``builder``.
         publish_period : float
             Seconds between recorded frames.
+        live : bool
+            Draw the frames live too (on the shared Meshcat, see :func:`live_meshcat`).
 
         Returns
         -------
         MeshcatReplay
         """
-        return cls(*_add_visualizer(builder, scene_graph, publish_period))
+        return cls(*_add_visualizer(builder, scene_graph, publish_period), live=live)
 
     def start(self) -> None:
-        """Start recording (frames are kept, not streamed)."""
-        self.visualizer.StartRecording(set_transforms_while_recording=False)
+        """Start recording (frames are kept, and streamed only when ``live``)."""
+        self.visualizer.StartRecording(set_transforms_while_recording=self.live)
 
     def finish(self, path: str | Path) -> Path:
         """Stop recording, publish it and write the self-contained HTML atomically.

@@ -1,0 +1,276 @@
+"""What Meshcat shows beyond the plant's geometry: force arrows and the held object.
+
+:class:`ForceArrows` is a LeafSystem that publishes (30 Hz by default), for each robot i, three
+arrows at its end-effector point ``p_E = fk(q)``:
+
+* desired ``−λ_d n_i`` (green), from the reference (29);
+* measured ``−F_meas`` (red), the ground-truth wrist force (never read by the controllers);
+* estimated ``−λ̂ n_i`` (blue), the force observer (22);
+
+each the force the end effector exerts *on the object* (palm frame): ``n_i = (s_i, 0, 0)`` is
+the object's outward normal at contact i and ``λ n_i`` the object's force on the end effector
+(Decision 1), so a squeeze (λ > 0) draws arrows pointing into the object. An arrow of force F
+starts at ``p_E + o_k`` (``o_k`` a small vertical offset per kind so the three stay apart)
+and its tip is at ``p_E + o_k + scale · F``. In ``planes`` mode it also draws a translucent box between the two
+pads while the reference says the object is held.
+
+Each Meshcat call passes the context time as ``time_in_recording``: when the Meshcat records
+(the HTML replay), the arrows are recorded in the same animation as the arms; otherwise they
+are drawn live.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from pydrake.geometry import Box, Cylinder, MeshcatCone, Rgba
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+from drake_coop.arms import Arm
+
+if TYPE_CHECKING:
+    from pydrake.geometry import Meshcat
+    from pydrake.systems.framework import Context, OutputPort
+
+    from drake_coop.plant import CoopPlant
+
+__all__ = ["ARROW_KINDS", "ForceArrows", "add_force_arrows", "arrow_pose", "frame_workspace",
+           "held_box_pose", "workspace_camera"]
+
+#: name: (colour RGBA, vertical offset of the tail from p_E in m).
+ARROW_KINDS: dict[str, tuple[tuple[float, float, float, float], float]] = {
+    "desired": ((0.1, 0.75, 0.2, 0.9), 0.025),
+    "measured": ((0.9, 0.15, 0.1, 0.9), 0.0),
+    "estimated": ((0.15, 0.35, 0.95, 0.9), -0.025),
+}
+ROOT = "/drake_coop"
+HEAD_LENGTH = 0.015
+"""Length of an arrow's head (m); the shaft is the rest of ``scale · |F|``."""
+SHAFT_RADIUS = 0.004
+MIN_LENGTH = 1e-3
+"""Arrows shorter than this (m) are hidden."""
+BOX_SECTION = 0.06
+"""Height and depth of the planes mode's held box (m)."""
+
+
+def arrow_pose(p_tail: np.ndarray, F: np.ndarray, scale: float
+               ) -> tuple[RigidTransform, float]:
+    """Pose and length of an arrow drawn along its frame's +z axis.
+
+    Parameters
+    ----------
+    p_tail : ndarray, shape (3,)
+        Where the arrow starts (palm frame, m).
+    F : ndarray, shape (3,)
+        The force (N).
+    scale : float
+        Metres per newton.
+
+    Returns
+    -------
+    (X_WA, L) : (RigidTransform, float)
+        ``X_WA`` has its origin at ``p_tail`` and its z axis along ``F``; the tip is at
+        ``X_WA · (0, 0, L)`` with ``L = scale |F|``.
+    """
+    F = np.asarray(F, dtype=float)
+    L = scale * float(np.linalg.norm(F))
+    if L == 0.0:
+        return RigidTransform(np.asarray(p_tail, dtype=float)), 0.0
+    return RigidTransform(RotationMatrix.MakeFromOneVector(F / np.linalg.norm(F), 2),
+                          np.asarray(p_tail, dtype=float)), L
+
+
+def held_box_pose(p_E1: np.ndarray, p_E2: np.ndarray, r_pad: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Centre and size of the box held between two pads facing each other along x.
+
+    The box spans the gap between the pads' surfaces: its x size is ``|x_2 − x_1| − 2 r_pad``,
+    its centre is the midpoint of the two end-effector points (``planes`` mode: the pads'
+    centres lie on the planes ``x = b_i``).
+
+    Returns
+    -------
+    (centre, size) : (ndarray, ndarray), each shape (3,)
+    """
+    p1, p2 = np.asarray(p_E1, dtype=float), np.asarray(p_E2, dtype=float)
+    width = max(abs(p2[0] - p1[0]) - 2 * r_pad, 1e-3)
+    return 0.5 * (p1 + p2), np.array([width, BOX_SECTION, BOX_SECTION])
+
+
+def workspace_camera(arms: list[Arm], z_target: float) -> tuple[np.ndarray, np.ndarray]:
+    """A camera position and target that frame both arms and the space between them.
+
+    The target is the midpoint of the bases at height ``z_target``; the camera looks from the
+    front-right (−y, +x), above, at a distance proportional to the bases' spread.
+
+    Returns
+    -------
+    (camera_in_world, target_in_world) : (ndarray, ndarray)
+    """
+    bases = np.array([a.p_base for a in arms])
+    target = bases.mean(axis=0)
+    target[2] = z_target
+    spread = max(float(np.ptp(bases[:, 0])), 0.5)
+    return target + spread * np.array([0.35, -0.95, 0.35]), target
+
+
+class ForceArrows(LeafSystem):
+    """Draws force arrows at each end effector (and the held box) in Meshcat.
+
+    Input ports (per robot ``<name>``)
+    ----------------------------------
+    <name>_state : 2n-vector
+        The arm's plant state ``[q, v]`` (the end-effector point is ``fk(q)``).
+    <name>_reference : 11-vector
+        The robot's reference (``λ_d`` at row 9, the held flag at row 10).
+    <name>_F_meas : 3-vector
+        Ground-truth force on the end effector (N).
+    <name>_lambda_hat : 1-vector
+        The force observer's estimate λ̂ (N).
+
+    Parameters
+    ----------
+    meshcat : pydrake.geometry.Meshcat
+    arms : list[Arm]
+    scale : float
+        Metres of arrow per newton.
+    show_held_box : bool
+        Draw the translucent box between the pads while held (``planes`` mode).
+    publish_period : float
+        Seconds between drawings.
+    """
+
+    def __init__(self, meshcat: Meshcat, arms: list[Arm], *, scale: float = 0.002,
+                 show_held_box: bool = False, publish_period: float = 1 / 30) -> None:
+        super().__init__()
+        self._meshcat = meshcat
+        self._arms = arms
+        self._scale = scale
+        self._show_held_box = show_held_box
+        self._ports = []
+        for arm in arms:
+            self._ports.append({
+                "state": self.DeclareVectorInputPort(f"{arm.name}_state", 6),
+                "reference": self.DeclareVectorInputPort(f"{arm.name}_reference", 11),
+                "F_meas": self.DeclareVectorInputPort(f"{arm.name}_F_meas", 3),
+                "lambda_hat": self.DeclareVectorInputPort(f"{arm.name}_lambda_hat", 1),
+            })
+        self.DeclarePeriodicPublishEvent(publish_period, 0.0, self._publish)
+        self.DeclareInitializationPublishEvent(self._publish)
+        self._set_objects()
+
+    # ------------------------------------------------------------------ scene
+    def _set_objects(self) -> None:
+        """Unit geometry, scaled and posed at each publish: per arrow a shaft (a unit
+        cylinder from z = 0 to 1 under a node scaled along z) and a head (a cone)."""
+        m = self._meshcat
+        m.Delete(ROOT)
+        for arm in self._arms:
+            for kind, (rgba, _) in ARROW_KINDS.items():
+                path = f"{ROOT}/forces/{arm.name}/{kind}"
+                colour = Rgba(*rgba)
+                m.SetObject(f"{path}/shaft/unit", Cylinder(SHAFT_RADIUS, 1.0), colour)
+                m.SetTransform(f"{path}/shaft/unit", RigidTransform([0.0, 0.0, 0.5]))
+                m.SetObject(f"{path}/head/cone", MeshcatCone(HEAD_LENGTH, 2.5 * SHAFT_RADIUS,
+                                                             2.5 * SHAFT_RADIUS), colour)
+                # The cone's apex is at its origin, opening along +z: flip it to point up.
+                m.SetTransform(f"{path}/head/cone", RigidTransform(
+                    RollPitchYaw(np.pi, 0.0, 0.0), [0.0, 0.0, 0.0]))
+                m.SetProperty(path, "visible", False)
+        if self._show_held_box:
+            m.SetObject(f"{ROOT}/held_object/scaled/unit", Box(1.0, 1.0, 1.0),
+                        Rgba(0.85, 0.65, 0.25, 0.45))
+            m.SetProperty(f"{ROOT}/held_object", "visible", False)
+
+    # ------------------------------------------------------------------ publishing
+    def forces(self, context: Context, i: int) -> dict[str, np.ndarray]:
+        """Robot i's force on the object (N, palm frame): desired ``−λ_d n_i``, measured
+        ``−F_meas``, estimated ``−λ̂ n_i``."""
+        ports = self._ports[i]
+        n = self._arms[i].normal
+        lambda_d = float(ports["reference"].Eval(context)[9])
+        return {"desired": -lambda_d * n,
+                "measured": -np.asarray(ports["F_meas"].Eval(context), dtype=float),
+                "estimated": -float(ports["lambda_hat"].Eval(context)[0]) * n}
+
+    def ee_point(self, context: Context, i: int) -> np.ndarray:
+        """End-effector point ``fk(q)`` of robot i (palm frame)."""
+        return self._arms[i].fk(self._ports[i]["state"].Eval(context)[:3])
+
+    def _publish(self, context: Context) -> None:
+        m, t = self._meshcat, context.get_time()
+        points = []
+        for i, arm in enumerate(self._arms):
+            p_E = self.ee_point(context, i)
+            points.append(p_E)
+            for kind, F in self.forces(context, i).items():
+                path = f"{ROOT}/forces/{arm.name}/{kind}"
+                offset = np.array([0.0, 0.0, ARROW_KINDS[kind][1]])
+                X, L = arrow_pose(p_E + offset, F, self._scale)
+                visible = L >= MIN_LENGTH
+                m.SetProperty(path, "visible", visible, t)
+                if not visible:
+                    continue
+                shaft = max(L - HEAD_LENGTH, 1e-6)
+                m.SetTransform(path, X, t)
+                m.SetProperty(f"{path}/shaft", "scale", [1.0, 1.0, shaft], t)
+                m.SetTransform(f"{path}/head", RigidTransform([0.0, 0.0, L]), t)
+        if self._show_held_box:
+            held = bool(self._ports[0]["reference"].Eval(context)[10] > 0.5)
+            m.SetProperty(f"{ROOT}/held_object", "visible", held, t)
+            if held:
+                centre, size = held_box_pose(points[0], points[1],
+                                             self._arms[0].geometry.r_pad)
+                m.SetTransform(f"{ROOT}/held_object", RigidTransform(centre), t)
+                m.SetProperty(f"{ROOT}/held_object/scaled", "scale", list(size), t)
+
+
+def _logged_source(builder: DiagramBuilder, logger_name: str) -> OutputPort:
+    """The output port that feeds the logger named ``logger_name``."""
+    logger = builder.GetSubsystemByName(logger_name)
+    for (system, index), (source, out_index) in builder.connection_map().items():
+        if system is logger and int(index) == 0:
+            return source.get_output_port(out_index)
+    raise KeyError(f"{logger_name} is not connected")
+
+
+def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat, *,
+                     scale: float = 0.002, publish_period: float = 1 / 30) -> ForceArrows:
+    """Add :class:`ForceArrows` to an experiment's builder, fed by the robots' logged signals.
+
+    Call it from ``build_experiment``'s ``before_build`` hook (the loggers
+    ``<robot>_log_reference``, ``_F_meas`` and ``_lambda_hat`` must exist, i.e. ``log=True``).
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The experiment's builder, not yet built.
+    coop : CoopPlant
+        The cooperative plant (arms, object mode).
+    meshcat : pydrake.geometry.Meshcat
+    scale : float
+        Metres of arrow per newton.
+    publish_period : float
+        Seconds between drawings.
+    """
+    arms = [h.arm for h in coop.arms]
+    arrows = builder.AddNamedSystem("force_arrows", ForceArrows(
+        meshcat, arms, scale=scale, show_held_box=coop.mode == "planes",
+        publish_period=publish_period))
+    for h in coop.arms:
+        name = h.arm.name
+        builder.Connect(coop.plant.get_state_output_port(h.instance),
+                        arrows.GetInputPort(f"{name}_state"))
+        for key in ("reference", "F_meas", "lambda_hat"):
+            builder.Connect(_logged_source(builder, f"{name}_log_{key}"),
+                            arrows.GetInputPort(f"{name}_{key}"))
+    return arrows
+
+
+def frame_workspace(meshcat: Meshcat, arms: list[Arm], z_target: float) -> None:
+    """Point Meshcat's camera at both arms and the space between them
+    (:func:`workspace_camera`); the HTML replay opens with this view."""
+    camera, target = workspace_camera(arms, z_target)
+    meshcat.SetCameraPose(camera, target)
