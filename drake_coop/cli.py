@@ -1,12 +1,18 @@
-"""Command line: ``drake-coop run | plot | bench`` (also ``python -m drake_coop``).
+"""Command line: ``drake-coop run | scenarios | plot | diagram | bench`` (also
+``python -m drake_coop``).
 
-``drake-coop run [SCENARIO.yaml] --out DIR``
-    Simulate the experiment (the paper's without a scenario) and write to DIR: the logs
+``drake-coop run [SCENARIO] --out DIR [--meshcat]``
+    Simulate the experiment (SCENARIO: a YAML file or a shipped scenario's name; the shipped
+    ``paper.yaml`` without one) and write to DIR: the logs
     (``robot1.npz``/``.csv``, ``robot2.*``, ``run.json``), ``metrics.json``, Figures 2–6 (PNG and
     SVG), the reference figure, the system diagram (``.dot``, ``.svg`` when graphviz is
     installed) and a self-contained Meshcat replay ``replay.html``.
     Exit codes: 0 done, 1 the run diverged (what was logged is still written), 2 bad input,
-    130 interrupted with Ctrl-C (what was logged is still written).
+    130 interrupted with Ctrl-C (what was logged is still written). ``--meshcat`` also shows
+    the run live in Meshcat (its URL is printed; paced at real time unless
+    ``--realtime-rate`` says otherwise).
+``drake-coop scenarios [NAME]``
+    List the shipped scenarios (name and first comment line), or print one to copy and edit.
 ``drake-coop plot DIR``
     Redraw the figures and metrics from the logs in DIR.
 ``drake-coop diagram [SCENARIO.yaml] [--out diagrams]``
@@ -23,6 +29,7 @@ import time
 import warnings
 from pathlib import Path
 
+from drake_coop.resources import find_scenario, scenario_summary, shipped_scenarios
 from drake_coop.scenario import ScenarioError, dump_scenario, load_scenario
 
 
@@ -88,16 +95,19 @@ def cmd_run(args: argparse.Namespace) -> int:
         save_logs,
         write_metrics,
     )
-    from drake_coop.results.export import MeshcatReplay
+    from drake_coop.results.export import MeshcatReplay, add_meshcat, live_meshcat
     from drake_coop.results.io import atomic_write_text
     from drake_coop.simulate import simulate
+    from drake_coop.viz import add_force_arrows, frame_workspace
 
     try:
-        scenario = load_scenario(args.scenario)
+        scenario = load_scenario(args.scenario and find_scenario(args.scenario))
     except ScenarioError as exc:
         return _error(str(exc))
     if args.t_end is not None and not (args.t_end > 0):
         return _error(f"--t-end must be > 0, got {args.t_end}")
+    if args.realtime_rate is not None and not (args.realtime_rate >= 0):
+        return _error(f"--realtime-rate must be >= 0, got {args.realtime_rate}")
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -108,12 +118,22 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     def before_build(builder, coop):
         nonlocal replay
+        if args.meshcat:
+            print(f"drake-coop: Meshcat live at {live_meshcat().web_url()}", file=sys.stderr,
+                  flush=True)
         if not args.no_replay:
-            replay = MeshcatReplay.add_to_builder(builder, coop.scene_graph)
+            replay = MeshcatReplay.add_to_builder(builder, coop.scene_graph, live=args.meshcat)
+        if args.meshcat or replay is not None:
+            meshcat = replay.meshcat if replay else add_meshcat(builder, coop.scene_graph)
+            add_force_arrows(builder, coop, meshcat)
+            frame_workspace(meshcat, [h.arm for h in coop.arms],
+                            scenario.task.circle_top_z - scenario.task.circle_radius)
 
     def on_start(experiment, simulator):
         if replay is not None:
             replay.start()
+        rate = args.realtime_rate if args.realtime_rate is not None else float(args.meshcat)
+        simulator.set_target_realtime_rate(rate)
 
     progress = None if args.quiet else ProgressBar()
     label = args.scenario or "the paper's scenario"
@@ -160,12 +180,27 @@ def cmd_plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_scenarios(args: argparse.Namespace) -> int:
+    """List the shipped scenarios, or print one."""
+    shipped = shipped_scenarios()
+    if args.name is None:
+        width = max(map(len, shipped))
+        for name, path in shipped.items():
+            print(f"{name:<{width}}  {scenario_summary(path)}")
+        return 0
+    name = args.name[:-5] if args.name.endswith(".yaml") else args.name
+    if name not in shipped:
+        return _error(f"unknown scenario {args.name!r}; shipped: {', '.join(shipped)}")
+    sys.stdout.write(shipped[name].read_text(encoding="utf-8"))
+    return 0
+
+
 def cmd_diagram(args: argparse.Namespace) -> int:
     """Draw the experiment's block diagram (no loggers or visualizer) and one control block."""
     from drake_coop.diagram import build_experiment
 
     try:
-        scenario = load_scenario(args.scenario)
+        scenario = load_scenario(args.scenario and find_scenario(args.scenario))
     except ScenarioError as exc:
         return _error(str(exc))
     exp = build_experiment(scenario, log=False)
@@ -193,13 +228,21 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="simulate an experiment and write its outputs")
     run.add_argument("scenario", nargs="?", default=None,
-                     help="scenario YAML (default: the paper's, scenarios/paper.yaml)")
+                     help="scenario YAML file or shipped scenario name (default: paper)")
     run.add_argument("--out", required=True, help="output directory")
     run.add_argument("--quiet", action="store_true", help="no progress bar or messages")
     run.add_argument("--no-replay", action="store_true", help="skip the Meshcat HTML replay")
     run.add_argument("--t-end", type=float, default=None,
                      help="stop the simulation earlier (s)")
+    run.add_argument("--meshcat", action="store_true",
+                     help="watch the run live in Meshcat (prints its URL)")
+    run.add_argument("--realtime-rate", type=float, default=None,
+                     help="pace the simulation (1 = real time, 0 = as fast as possible; "
+                          "default 1 with --meshcat, else 0)")
     run.set_defaults(func=cmd_run)
+    scen = sub.add_parser("scenarios", help="list the shipped scenarios, or print one")
+    scen.add_argument("name", nargs="?", default=None, help="print this scenario's YAML")
+    scen.set_defaults(func=cmd_scenarios)
     plot = sub.add_parser("plot", help="redraw figures and metrics from a run directory")
     plot.add_argument("dir")
     plot.add_argument("--quiet", action="store_true")

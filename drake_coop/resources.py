@@ -111,8 +111,16 @@ def find_scenario(name_or_path: str | Path) -> Path:
                         f"{', '.join(shipped)})")
 
 
-def _check_model_file(field_name: str, path: Path) -> Path:
-    """Raise a one-line ScenarioError unless ``path`` is a readable URDF/SDF Drake parses."""
+#: Bodies and joints the package reads by name in an arm model: the controller's model needs
+#: the base and the pad; the simulated arm also its wrist force sensor.
+CONTROLLER_MODEL_NEEDS = ("base_link", "pad")
+SIMULATED_MODEL_NEEDS = ("base_link", "pad", "force_sensor", "flange_sensor_weld")
+
+
+def _check_model_file(field_name: str, path: Path,
+                      needs: tuple[str, ...] = CONTROLLER_MODEL_NEEDS) -> Path:
+    """Raise a one-line ScenarioError unless ``path`` is a readable model Drake parses, with
+    the named bodies/joints ``needs`` and three actuated joints."""
     from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import MultibodyPlant
 
@@ -130,6 +138,12 @@ def _check_model_file(field_name: str, path: Path) -> Path:
         first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), "")
         raise ScenarioError(f"{field_name}: model file {path} is not a valid model: "
                             f"{first}") from None
+    missing = [n for n in needs if not (plant.HasBodyNamed(n) or plant.HasJointNamed(n))]
+    if missing or plant.num_actuators() != 3:
+        raise ScenarioError(
+            f"{field_name}: model file {path} is not a 3-joint arm model like urdf/*.urdf "
+            f"(needs bodies/joints {', '.join(needs)} and 3 actuators; missing "
+            f"{', '.join(missing) or 'none'}, {plant.num_actuators()} actuators)")
     return path
 
 
@@ -184,7 +198,8 @@ def resolve_models(scenario: Scenario, base_dir: Path | None = None) -> None:
             folder = urdf_dir()
         except FileNotFoundError as exc:
             raise ScenarioError(f"robots[{i}].model: {exc}") from None
-        _check_model_file(f"robots[{i}].model", folder / f"{robot.model}_3dof.urdf")
+        _check_model_file(f"robots[{i}].model", folder / f"{robot.model}_3dof.urdf",
+                          SIMULATED_MODEL_NEEDS)
         if robot.controller_model:
             value = robot.controller_model
             found = resolve_model(f"robots[{i}].controller_model", value, base_dir)
