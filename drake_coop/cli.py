@@ -73,14 +73,15 @@ def _error(message: str) -> int:
 
 def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: bool
                           ) -> list[Path]:
-    """The top-level diagram (one level deep) and robot 1's control block, .dot and .svg;
-    a missing graphviz is reported once, as a note."""
+    """The top-level diagram (one level deep) and robot 1's control block, .dot and .svg,
+    connected ports only; a missing graphviz is reported once, as a note."""
     from drake_coop.results.export import write_diagram, write_subsystem_diagram
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        files = [write_diagram(experiment.diagram, out, top, max_depth=1),
-                 write_subsystem_diagram(experiment.robots[0].control, out, control)]
+        files = [write_diagram(experiment.diagram, out, top, style="connected"),
+                 write_subsystem_diagram(experiment.robots[0].control, out, control,
+                                         style="connected")]
     if caught and not quiet:
         print(f"drake-coop: note: {caught[0].message}", file=sys.stderr)
     return [p for f in files for p in f.values() if p is not None]

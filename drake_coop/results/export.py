@@ -1,8 +1,10 @@
 """Exports of a run: the system diagram (Graphviz) and a self-contained Meshcat replay.
 
-* :func:`write_diagram` writes ``<name>.dot`` from ``System.GetGraphvizString`` and renders
-  ``<name>.svg`` with graphviz's ``dot`` when it is installed (Debian package ``graphviz``);
-  without it, a warning says so and the ``.dot`` is still written.
+* :func:`write_diagram` writes ``<name>.dot`` — Drake's ``System.GetGraphvizString`` or, with
+  ``style="connected"``, :func:`~drake_coop.results.graph.connected_graphviz` (connected ports
+  only, left to right) — and renders ``<name>.svg`` with graphviz's ``dot`` when it is
+  installed (Debian package ``graphviz``); without it, a warning says so and the ``.dot`` is
+  still written.
 * :class:`MeshcatReplay` records the simulation with a ``MeshcatVisualizer`` and writes
   ``Meshcat.StaticHtml()``: one HTML file with the scene, the animation and the viewer's
   JavaScript inlined (no ``<script src=...>``; the scene and the animation are embedded as a
@@ -75,7 +77,8 @@ def _render_svg(dot_text: str, path: Path) -> Path | None:
 
 
 def write_diagram(diagram: System, out_dir: str | Path, name: str = "system_diagram",
-                  max_depth: int | None = None) -> dict[str, Path | None]:
+                  max_depth: int | None = None, style: str = "drake"
+                  ) -> dict[str, Path | None]:
     """Write a diagram as ``<name>.dot`` and, with graphviz, ``<name>.svg``.
 
     Parameters
@@ -87,7 +90,11 @@ def write_diagram(diagram: System, out_dir: str | Path, name: str = "system_diag
     name : str
         File stem.
     max_depth : int, optional
-        Depth of sub-diagrams to expand (None: all).
+        Depth of sub-diagrams to expand (None: all), for ``style="drake"``.
+    style : str
+        ``"drake"`` (every port, Drake's picture) or ``"connected"`` (a Diagram one level
+        deep, connected ports only, each loop left to right; see
+        :mod:`drake_coop.results.graph`).
 
     Returns
     -------
@@ -96,14 +103,21 @@ def write_diagram(diagram: System, out_dir: str | Path, name: str = "system_diag
         missing, in which case a ``UserWarning`` is emitted.
     """
     out = Path(out_dir)
-    text = (diagram.GetGraphvizString() if max_depth is None
-            else diagram.GetGraphvizString(max_depth=max_depth))
+    if style == "connected":
+        from drake_coop.results.graph import connected_graphviz
+
+        text = connected_graphviz(diagram)
+    elif style == "drake":
+        text = (diagram.GetGraphvizString() if max_depth is None
+                else diagram.GetGraphvizString(max_depth=max_depth))
+    else:
+        raise ValueError(f"style must be 'drake' or 'connected', got {style!r}")
     dot = atomic_write_text(out / f"{name}.dot", text)
     return {"dot": dot, "svg": _render_svg(text, out / f"{name}.svg")}
 
 
-def write_subsystem_diagram(system: System, out_dir: str | Path, name: str
-                            ) -> dict[str, Path | None]:
+def write_subsystem_diagram(system: System, out_dir: str | Path, name: str,
+                            style: str = "drake") -> dict[str, Path | None]:
     """:func:`write_diagram` of one subsystem (a sub-diagram or a LeafSystem), fully expanded.
 
     Parameters
@@ -114,13 +128,15 @@ def write_subsystem_diagram(system: System, out_dir: str | Path, name: str
         Output directory.
     name : str
         File stem.
+    style : str
+        As :func:`write_diagram` (``"connected"`` needs a Diagram).
 
     Returns
     -------
     dict
         As :func:`write_diagram`.
     """
-    return write_diagram(system, out_dir, name, max_depth=None)
+    return write_diagram(system, out_dir, name, max_depth=None, style=style)
 
 
 def shared_meshcat() -> Meshcat:
