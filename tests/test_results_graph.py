@@ -1,0 +1,128 @@
+"""The connected-ports block diagram (``results/graph.py``), checked against the connection map."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import (
+    Adder,
+    ConstantVectorSource,
+    Demultiplexer,
+    Gain,
+    Integrator,
+    LogVectorOutput,
+    MatrixGain,
+)
+
+from drake_coop.results.graph import connected_graphviz
+
+
+def loop_diagram():
+    """ref → sum → controller → plant → demux(3) → sensor → sum (feedback); demux outputs 1 and
+    2 unconnected; a logger on the plant (a sink)."""
+    b = DiagramBuilder()
+    ref = b.AddNamedSystem("loop_reference", ConstantVectorSource([1.0]))
+    total = b.AddNamedSystem("loop_sum", Adder(2, 1))
+    ctrl = b.AddNamedSystem("loop_controller", Gain(2.0, 1))
+    plant = b.AddNamedSystem("plant", Integrator(3))
+    demux = b.AddNamedSystem("plant_outputs", Demultiplexer(3))
+    sensor = b.AddNamedSystem("loop_sensor", Gain(-1.0, 1))
+    b.Connect(ref.get_output_port(), total.get_input_port(0))
+    b.Connect(total.get_output_port(), ctrl.get_input_port())
+    mux_in = b.AddNamedSystem("loop_spread", MatrixGain(np.ones((3, 1))))
+    b.Connect(ctrl.get_output_port(), mux_in.get_input_port())
+    b.Connect(mux_in.get_output_port(), plant.get_input_port())
+    b.Connect(plant.get_output_port(), demux.get_input_port())
+    b.Connect(demux.get_output_port(0), sensor.get_input_port())
+    b.Connect(sensor.get_output_port(), total.get_input_port(1))
+    LogVectorOutput(plant.get_output_port(), b).set_name("plant_logger")
+    diagram = b.Build()
+    diagram.set_name("loop")
+    return diagram
+
+
+def parse(dot: str):
+    """Nodes' drawn port cells, edges (with their attributes), from the DOT text."""
+    nodes = {}
+    for node, label in re.findall(r"^\s*(s\d+) \[shape=plaintext, label=<(.*)>\];$", dot, re.M):
+        name = re.search(r"<B>(.*?)</B>", label).group(1)
+        nodes[node] = (name, set(re.findall(r'PORT="([uy]\d+)"', label)))
+    edges = re.findall(r"^\s*(\S+) -> (\S+?)( \[constraint=false\])?;$", dot, re.M)
+    return nodes, edges
+
+
+def expected_ports(diagram):
+    """Per subsystem name, the ports a connection between non-sink systems uses."""
+    drawn = {id(s) for s in diagram.GetSystems() if s.num_output_ports() > 0}
+    ports = {s.get_name(): set() for s in diagram.GetSystems() if id(s) in drawn}
+    for (dst, i), (src, o) in diagram.connection_map().items():
+        if id(dst) in drawn and id(src) in drawn:
+            ports[dst.get_name()].add(f"u{int(i)}")
+            ports[src.get_name()].add(f"y{int(o)}")
+    return ports
+
+
+def test_only_connected_ports_are_drawn_and_sinks_are_counted():
+    diagram = loop_diagram()
+    dot = connected_graphviz(diagram)
+    nodes, edges = parse(dot)
+    assert {name: ports for name, ports in nodes.values()} == expected_ports(diagram)
+    assert nodes and all(name != "plant_logger" for name, _ in nodes.values())
+    assert "not drawn: 1 VectorLogSink" in dot
+    # Demultiplexer: 3 outputs, only y0 is connected.
+    assert dict(nodes.values())["plant_outputs"] == {"u0", "y0"}
+    assert len(edges) == sum(1 for (dst, _), (src, _) in diagram.connection_map().items()
+                             if dst.num_output_ports() and src.num_output_ports())
+
+
+def test_the_feedback_edge_does_not_constrain_the_left_to_right_order():
+    nodes, edges = parse(connected_graphviz(loop_diagram()))
+    node_of = {name: node for node, (name, _) in nodes.items()}
+    unconstrained = {(a.split(":")[0], b.split(":")[0]) for a, b, flag in edges if flag}
+    assert unconstrained == {(node_of["loop_sensor"], node_of["loop_sum"])}
+
+
+def test_name_prefixes_group_and_exported_ports_sit_at_the_ends():
+    inner = loop_diagram()
+    sub = DiagramBuilder()
+    gain = sub.AddNamedSystem("k", Gain(3.0, 1))
+    sub.ExportInput(gain.get_input_port(), "u")
+    sub.ExportOutput(gain.get_output_port(), "y")
+    block = sub.Build()
+    block.set_name("block")
+    dot = connected_graphviz(block)
+    assert re.search(r'"in_u" \[shape=cds', dot) and re.search(r'"out_y" \[shape=cds', dot)
+    assert "{ rank=source; \"in_u\"; }" in dot and "{ rank=sink; \"out_y\"; }" in dot
+    assert "cluster" not in dot               # one system: no group box
+    outer = connected_graphviz(inner)
+    assert 'subgraph "cluster_loop" { label="loop"' in outer   # loop_* grouped
+    assert 'cluster_plant"' in outer          # plant and plant_outputs
+
+
+@pytest.mark.skipif(shutil.which("dot") is None, reason="graphviz's dot is not installed")
+def test_graphviz_renders_it():
+    svg = subprocess.run(["dot", "-Tsvg"], input=connected_graphviz(loop_diagram()), text=True,
+                         capture_output=True, check=True).stdout
+    assert "<svg" in svg and "loop_controller" in svg
+
+
+def test_experiment_picture_hides_the_plants_unconnected_ports():
+    from drake_coop.diagram import build_experiment
+    from drake_coop.scenario import default_scenario
+
+    exp = build_experiment(default_scenario(), log=True)
+    plant = exp.coop.plant
+    dot = connected_graphviz(exp.diagram)
+    nodes, _ = parse(dot)
+    drawn = dict(nodes.values())
+    assert drawn == expected_ports(exp.diagram)
+    n_plant_ports = plant.num_input_ports() + plant.num_output_ports()
+    assert len(drawn["plant"]) < n_plant_ports / 3          # most of Drake's ports are idle
+    assert "WorldModelInstance" not in dot and "VectorLogSink" in dot
+    for name in ("robot1_reference", "robot1_control", "robot2_control", "scene_graph"):
+        assert name in drawn
