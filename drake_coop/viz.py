@@ -11,8 +11,8 @@ each the force the end effector exerts *on the object* (palm frame): ``n_i = (s_
 the object's outward normal at contact i and ``λ n_i`` the object's force on the end effector
 (Decision 1), so a squeeze (λ > 0) draws arrows pointing into the object. An arrow of force F
 starts at ``p_E + o_k`` (``o_k`` a small vertical offset per kind so the three stay apart)
-and its tip is at ``p_E + o_k + scale · F``. In ``planes`` mode it also draws a translucent box between the two
-pads while the reference says the object is held.
+and its tip is at ``p_E + o_k + scale · F``. In ``planes`` mode it also draws a translucent
+box between the two pads while the reference says the object is held.
 
 Each Meshcat call passes the context time as ``time_in_recording``: when the Meshcat records
 (the HTML replay), the arrows are recorded in the same animation as the arms; otherwise they
@@ -45,7 +45,8 @@ ARROW_KINDS: dict[str, tuple[tuple[float, float, float, float], float]] = {
     "measured": ((0.9, 0.15, 0.1, 0.9), 0.0),
     "estimated": ((0.15, 0.35, 0.95, 0.9), -0.025),
 }
-ROOT = "/drake_coop"
+ROOT = "/drake/coop"
+"""Meshcat path of the drawings (under ``/drake``, so ``Meshcat.Delete()`` clears them)."""
 HEAD_LENGTH = 0.015
 """Length of an arrow's head (m); the shaft is the rest of ``scale · |F|``."""
 SHAFT_RADIUS = 0.004

@@ -109,7 +109,7 @@ def test_published_arrows_and_box_match_the_inputs(held):
         expected = {"desired": -lambda_d[i] * n, "measured": -F_meas[i],
                     "estimated": -lambda_hat[i] * n}
         for kind, F in expected.items():
-            path = f"/drake_coop/forces/{arm.name}/{kind}"
+            path = f"/drake/coop/forces/{arm.name}/{kind}"
             visible = _last(scene, "set_property", path, "visible")["value"]
             L = 0.002 * np.linalg.norm(F)
             assert visible == (L > 1e-3)
@@ -123,9 +123,9 @@ def test_published_arrows_and_box_match_the_inputs(held):
             assert head[14] == pytest.approx(L)          # the tip at tail + 0.002 F
             scale = _last(scene, "set_property", f"{path}/shaft", "scale")["value"]
             assert scale == pytest.approx([1.0, 1.0, L - HEAD_LENGTH])
-    box_visible = _last(scene, "set_property", "/drake_coop/held_object", "visible")["value"]
-    assert box_visible == held
+    box = "/drake/coop/held_object"
+    assert _last(scene, "set_property", box, "visible")["value"] == held
     if held:
-        M = np.array(_last(scene, "set_transform", "/drake_coop/held_object")["matrix"])
+        M = np.array(_last(scene, "set_transform", box)["matrix"])
         np.testing.assert_allclose(M[12:15], (arms[0].fk(q[0]) + arms[1].fk(q[1])) / 2,
                                    atol=1e-12)
