@@ -13,6 +13,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import site
 import subprocess
 import sys
 import time
@@ -47,7 +48,16 @@ def _run(cmd, cwd, check=True, **kw) -> subprocess.CompletedProcess:
 
 
 def _venv(path: Path) -> Path:
+    """A fresh virtual environment that sees this interpreter's packages (drake) after its own.
+
+    ``--system-site-packages`` gives the base interpreter's; when the tests themselves run in
+    a virtual environment, a ``.pth`` file adds that environment's site-packages too.
+    """
     _run([sys.executable, "-m", "venv", "--system-site-packages", path], cwd=path.parent)
+    if sys.prefix != sys.base_prefix:
+        version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+        (path / "lib" / version / "site-packages" / "host_packages.pth").write_text(
+            "\n".join(site.getsitepackages()) + "\n")
     return path / "bin"
 
 
