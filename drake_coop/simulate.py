@@ -26,8 +26,9 @@ from drake_coop.references import (
     grasp_ticks,
     joint_reference,
     num_ticks_until,
+    reference_trajectory,
 )
-from drake_coop.scenario import Scenario, aligned_periods, dump_scenario
+from drake_coop.scenario import Scenario, aligned_periods, check_run_size, dump_scenario
 
 
 @dataclass
@@ -147,8 +148,18 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     RunResult
         ``meta["status"]`` is ``"ok"``, ``"diverged"`` or ``"interrupted"`` (Ctrl-C), with
         ``meta["message"]``; the logs hold everything up to the stop.
+
+    Raises
+    ------
+    ScenarioError
+        If the run's work exceeds :data:`~drake_coop.scenario.MAX_TICKS` or
+        :data:`~drake_coop.scenario.MAX_PLANT_STEPS` (checked before anything is built).
     """
-    exp = build_experiment(scenario, before_build=before_build)
+    T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
+    check_run_size(scenario, T)
+    # References only to the run's end: a long task stopped early stays cheap.
+    references = [reference_trajectory(scenario, i, T) for i in range(len(scenario.robots))]
+    exp = build_experiment(scenario, before_build=before_build, references=references)
     simulator = Simulator(exp.diagram)
     context = simulator.get_mutable_context()
     initialize(exp, context)
@@ -156,7 +167,6 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     if on_start is not None:
         on_start(exp, simulator)
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
-    T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
     k_end = num_ticks_until(T, h)
     k_grasp, k_release = grasp_ticks(scenario.task, h)
     switches = {k_grasp: True, k_release: False}
