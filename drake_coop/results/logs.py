@@ -48,7 +48,7 @@ import numpy as np
 
 from drake_coop.results.io import atomic_path, atomic_write_text
 
-__all__ = ["COLUMNS", "csv_header", "load_logs", "save_logs"]
+__all__ = ["COLUMNS", "csv_header", "load_logs", "save_logs", "write_meta"]
 
 #: Arrays of a robot's log and their CSV column names.
 COLUMNS: dict[str, list[str]] = {
@@ -103,6 +103,15 @@ def _csv_text(log: dict[str, np.ndarray]) -> str:
     return buffer.getvalue()
 
 
+def _meta_text(meta: dict) -> str:
+    return json.dumps(meta, indent=2, default=_json_default)
+
+
+def write_meta(out_dir: str | Path, meta: dict) -> Path:
+    """(Re)write ``run.json`` alone, atomically (e.g. to mark outputs cut short)."""
+    return atomic_write_text(Path(out_dir) / "run.json", _meta_text(meta))
+
+
 def save_logs(out_dir: str | Path, logs: dict[str, dict[str, np.ndarray]], meta: dict
               ) -> list[Path]:
     """Write ``<robot>.npz``, ``<robot>.csv`` and ``run.json`` to ``out_dir``, atomically.
@@ -134,7 +143,7 @@ def save_logs(out_dir: str | Path, logs: dict[str, dict[str, np.ndarray]], meta:
         objects = [k for k, v in log.items() if v.dtype.hasobject]
         if objects:
             raise ValueError(f"log of {robot}: arrays {objects} hold Python objects")
-    meta_text = json.dumps(meta, indent=2, default=_json_default)
+    meta_text = _meta_text(meta)
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for robot, log in arrays.items():
