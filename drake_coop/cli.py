@@ -202,8 +202,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if result.meta.get("outputs_incomplete"):
         print(f"drake-coop: {result.meta['outputs_incomplete']}", file=sys.stderr)
     if result.meta["status"] == "interrupted" or SIGNALS.received is not None:
-        print(f"drake-coop: {result.meta['message']} (logs up to the stop are in {out})",
-              file=sys.stderr)
+        print(f"drake-coop: {result.meta['message']} ({SIGNALS.name}; logs up to the stop "
+              f"are in {out})", file=sys.stderr)
         return SIGNALS.exit_code()
     if not result.ok:
         print(f"drake-coop: {result.meta['message']} (logs up to the stop are in {out})",
