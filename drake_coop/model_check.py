@@ -57,13 +57,14 @@ def check_model_file(path: str | Path, field: str) -> None:
         ``"<field>: <path> <problem>"``.
     """
     path = Path(path)
+    shown = one_line(path, 120)
     try:
         st = os.stat(path)
     except OSError as exc:
-        raise ScenarioError(f"{field}: {path} {_why(exc)}") from None
+        raise ScenarioError(f"{field}: {shown} {_why(exc)}") from None
     problem = _check_cached(str(path), st.st_mtime_ns, st.st_size)
     if problem:
-        raise ScenarioError(f"{field}: {path} {problem}")
+        raise ScenarioError(f"{field}: {shown} {problem}")
 
 
 def _why(exc: OSError) -> str:

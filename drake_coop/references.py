@@ -216,6 +216,11 @@ def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = N
     return PiecewisePolynomial.FirstOrderHold(t, r.T)
 
 
+def _fields_to_check(i: int) -> str:
+    return (f"check robots[{i}].model, home, base_xyz, base_yaw_deg, plane_b and "
+            "task.circle_top_z, circle_radius, lift_height, pregrasp_distance")
+
+
 def check_reachable(scenario: Scenario, margin: float = 0.97) -> None:
     """Raise :class:`ScenarioError` if a target of the task is out of an arm's reach.
 
@@ -234,11 +239,9 @@ def check_reachable(scenario: Scenario, margin: float = 0.97) -> None:
         if ratio[worst] > margin or ratio.min() < inner + 0.05:
             bad = worst if ratio[worst] > margin else int(np.argmin(ratio))
             raise ScenarioError(
-                f"robots[{i}] ({robot.name}): target {np.round(x[bad], 4).tolist()} at t = "
+                f"robots[{i}] ({robot.name}): target {np.round(x[bad], 3).tolist()} at t = "
                 f"{t[bad]:.2f} s is out of reach (distance/reach = {ratio[bad]:.3f}, allowed "
-                f"{inner + 0.05:.3f} to {margin}); check robots[{i}].home, base_xyz, "
-                "base_yaw_deg, plane_b and task.circle_top_z, circle_radius, lift_height, "
-                "pregrasp_distance")
+                f"{inner + 0.05:.3f} to {margin}); {_fields_to_check(i)}")
         q = arm.ik(x)
         lo, hi = np.array(g.q_min), np.array(g.q_max)
         out = (q < lo) | (q > hi)
@@ -247,5 +250,5 @@ def check_reachable(scenario: Scenario, margin: float = 0.97) -> None:
             raise ScenarioError(
                 f"robots[{i}] ({robot.name}): target at t = {t[row]:.2f} s needs joint{j + 1} = "
                 f"{math.degrees(q[row, j]):.1f} deg, outside its limits "
-                f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg; check "
-                f"robots[{i}].home, base_xyz, base_yaw_deg, plane_b and the task's points")
+                f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg; "
+                f"{_fields_to_check(i)}")
