@@ -259,7 +259,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     try:
         paths = replot(Path(args.dir))
-    except (FileNotFoundError, ValueError) as exc:
+    except (OSError, ValueError) as exc:   # missing, unreadable, malformed; read-only folder
         return _error(str(exc))
     if not args.quiet:
         print(f"drake-coop: wrote {len(paths)} files to {args.dir}", file=sys.stderr)

@@ -66,7 +66,21 @@ def test_a_folder_with_foreign_files_is_refused_and_kept(tmp_path, entry):
     assert (out / entry).exists() and _leftovers(tmp_path, "mine") == []
 
 
-def test_out_that_is_a_file_or_under_a_file_is_refused(tmp_path):
+def test_a_previous_folder_with_stray_temporary_files_is_replaced(tmp_path):
+    out = tmp_path / "run"
+    _previous_run(out)
+    (out / ".robot1.npz.0123abcd.tmp").write_bytes(b"half-written by a killed writer")
+    folder = RunFolder(out)
+    folder.prepare(ticks=1)
+    folder.commit()
+    assert list(out.iterdir()) == []
+
+
+def test_out_that_is_a_file_a_link_or_under_a_file_is_refused(tmp_path):
+    (tmp_path / "real").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "real")
+    with pytest.raises(OutputFolderError, match="is a symbolic link"):
+        RunFolder(tmp_path / "link").prepare(ticks=1)
     (tmp_path / "f").write_text("x")
     with pytest.raises(OutputFolderError, match="exists and is not a folder"):
         RunFolder(tmp_path / "f").prepare(ticks=1)

@@ -25,6 +25,8 @@ __all__ = ["OutputFolderError", "RunFolder"]
 #: Files a run writes (names or suffixes); an existing folder holding anything else is kept.
 RUN_FILES = {"run.json", "metrics.json", "scenario.yaml"}
 RUN_SUFFIXES = {".npz", ".csv", ".png", ".svg", ".dot", ".html"}
+#: Temporary files of :func:`drake_coop.results.io.atomic_path` left by a killed writer.
+ATOMIC_TEMP = re.compile(r"\..+\.[0-9a-f]{8}\.tmp")
 #: Room kept free for a run: per control tick (logs of both robots, CSV included) and fixed
 #: (figures, diagrams, replay).
 BYTES_PER_TICK = 3_000
@@ -50,7 +52,8 @@ def _is_run_folder(path: Path) -> tuple[bool, str]:
     entries = list(path.iterdir())
     for e in entries:
         if not (e.is_file() and not e.is_symlink()
-                and (e.name in RUN_FILES or e.suffix in RUN_SUFFIXES)):
+                and (e.name in RUN_FILES or e.suffix in RUN_SUFFIXES
+                     or ATOMIC_TEMP.fullmatch(e.name))):
             return False, e.name
     if entries and not any(e.name == "run.json" or e.suffix == ".npz" for e in entries):
         return False, entries[0].name
@@ -91,7 +94,9 @@ class RunFolder:
         if out.name in ("", ".", ".."):
             raise OutputFolderError(f"--out {out}: name a folder for the run, not '{out}'")
         try:
-            if out.is_symlink() or (out.exists() and not out.is_dir()):
+            if out.is_symlink():
+                raise OutputFolderError(f"--out {out} is a symbolic link; give the folder itself")
+            if out.exists() and not out.is_dir():
                 raise OutputFolderError(f"--out {out} exists and is not a folder")
             if out.is_dir():
                 usable, foreign = _is_run_folder(out)
