@@ -120,7 +120,18 @@ class _GuardedLoader(_SchemaLoader):
         return super().construct_yaml_int(node)
 
 
+    def construct_tagged(self, tag, node):
+        """A ``!Tag {…}`` mapping as a dict with ``_tag``, as Drake's loader reads variants."""
+        if not isinstance(node, yaml.MappingNode):
+            raise YamlInputError(f"the tag {_cut(tag)!r} at line {node.start_mark.line + 1} "
+                                 "must mark a mapping")
+        result = self.construct_mapping(node)
+        result.update({"_tag": tag})
+        return result
+
+
 _GuardedLoader.add_constructor("tag:yaml.org,2002:int", _GuardedLoader.construct_yaml_int)
+_GuardedLoader.add_multi_constructor("", _GuardedLoader.construct_tagged)
 
 
 def _cut(text: str, n: int = 40) -> str:
@@ -145,8 +156,9 @@ def load_untrusted(text: str):
         Syntax errors, alias expansions beyond :data:`MAX_NODES`, duplicate keys and over-long
         integers, with a one-line message.
     """
-    loader = _GuardedLoader(text)
+    loader = None
     try:
+        loader = _GuardedLoader(text)
         node = loader.get_single_node()
         if node is None:
             return None
@@ -157,10 +169,11 @@ def load_untrusted(text: str):
         data = loader.construct_document(node)
     except YamlInputError:
         raise
-    except (yaml.YAMLError, RecursionError, ValueError, TypeError) as exc:
+    except Exception as exc:   # YAMLError, RecursionError, ValueError, TypeError, ...
         raise YamlInputError(f"invalid YAML: {_cut(exc, 200)}") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
     if isinstance(data, dict):
         for key in [k for k in data if isinstance(k, str) and k.startswith("_")]:
             del data[key]

@@ -237,3 +237,17 @@ def test_references_are_built_only_to_the_end_of_the_run():
     assert time.perf_counter() - started < 5.0 and t.size == 7   # ticks 0 .. 6 of h = 9 ms
     t_full, r_full = reference_samples(load_scenario(), 0)
     assert (r == r_full[:7]).all() and (t == t_full[:7]).all()
+
+
+@pytest.mark.parametrize("text, start", [
+    ('control_period: !!python/object/apply:os.system ["echo hi"]', "the tag "),
+    ("plant: !Variant {a: 1}", "plant.a is not a known field of plant"),
+    ("control_period: 0.009\x00", "invalid YAML: unacceptable character"),
+    ("[" * 100_000, "invalid YAML"),
+    ("a: 1\n---\nb: 2", "invalid YAML: expected a single document"),
+    ("? [1, 2]\n: 3", "invalid YAML"),
+    ("x: &a [*a]", "invalid YAML: an alias refers to its own anchor"),
+    ("- 1\n- 2", "scenario must be a mapping of fields"),
+])
+def test_garbage_documents_are_one_line_errors(text, start):
+    assert _refused(text).startswith(start)
