@@ -180,7 +180,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                   f"h = {scenario.control_period * 1e3:g} ms, plant step "
                   f"{scenario.plant.time_step * 1e3:g} ms) -> {out}", file=sys.stderr)
         result = simulate(scenario, t_end=args.t_end, progress=progress,
-                          before_build=before_build, on_start=on_start)
+                          before_build=before_build, on_start=on_start,
+                          hold_signals=SIGNALS.deferred)
         if progress is not None:
             progress.close()
         if result.meta["status"] == "interrupted":

@@ -11,10 +11,11 @@ logged so far.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, ContextManager
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
@@ -127,7 +128,8 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
 
 def simulate(scenario: Scenario, *, t_end: float | None = None,
              progress: Callable[[float, float, float], None] | None = None,
-             before_build=None, on_start=None) -> RunResult:
+             before_build=None, on_start=None,
+             hold_signals: Callable[[], ContextManager] | None = None) -> RunResult:
     """Simulate the experiment and return its logs.
 
     Parameters
@@ -142,6 +144,10 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         Passed to :func:`~drake_coop.diagram.build_experiment` (visualizers).
     on_start : callable, optional
         ``on_start(experiment, simulator)`` just before the first step (start recordings).
+    hold_signals : callable, optional
+        A context manager factory entered once the loop has stopped, around the collection of
+        the logs (the command line defers SIGINT/SIGTERM there, so that a second Ctrl-C cannot
+        lose what was logged).
 
     Returns
     -------
@@ -198,7 +204,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     except KeyboardInterrupt:     # Ctrl-C, wherever it lands: stop, keep what was logged
         status, message = "interrupted", f"interrupted at t = {context.get_time():.3f} s"
     wall = time.perf_counter() - start
-    logs = collect_logs(exp, context)
+    with hold_signals() if hold_signals is not None else contextlib.nullcontext():
+        logs = collect_logs(exp, context)
     meta = {
         "status": status,
         "message": message or f"completed {T:g} s",
