@@ -5,9 +5,10 @@ A table maps a *dotted field pattern* to a :class:`Bound`::
     {"control_period": Bound(1e-4, 0.1, "s"),
      "robots[].gains.K_R[]": Bound(0, 1e4, "N·m·s/rad", lo_open=True)}
 
-``[]`` stands for any list index. :func:`check_numbers` walks a dataclass instance, and for
-every ``float`` (or ``list[float]``) field checks that it is a finite number, inside its bound
-when the table has one, and that a list has the length of the ``lengths`` table. The first
+``[]`` stands for any list index. :func:`check_numbers` walks a dataclass instance (nested
+dataclasses, lists of them) and for every number field (``float`` or ``int``, ``X | None`` when
+set, lists of them) checks that it is a finite number, inside its bound when the table has one,
+and that a list has the length of the ``lengths`` table. The first
 problem raises the given error class with one line naming the concrete field
 (``robots[1].gains.K_R[2]``), the allowed range with its unit, and the value (cut short).
 
@@ -22,7 +23,7 @@ import reprlib
 import typing
 from dataclasses import dataclass
 
-__all__ = ["Bound", "check_numbers", "numeric_fields", "one_line", "show"]
+__all__ = ["Bound", "check_numbers", "numeric_fields", "one_line", "optional_of", "show"]
 
 #: Longest message of a user-facing error (characters).
 MAX_MESSAGE = 300
@@ -78,10 +79,11 @@ def _is_number(value: object) -> bool:
 
 
 def _check_number(value: object, name: str, pattern: str, bounds: dict[str, Bound],
-                  error: type[Exception]) -> None:
+                  error: type[Exception], integer: bool = False) -> None:
     bound = bounds.get(pattern)
-    allowed = f"a finite number in {bound}" if bound else "a finite number"
-    if not _is_number(value):
+    kind = "an integer" if integer else "a finite number"
+    allowed = f"{kind} in {bound}" if bound else kind
+    if not _is_number(value) or (integer and not isinstance(value, int)):
         raise error(f"{name} must be {allowed}, got {show(value)}")
     try:
         finite = math.isfinite(value)
@@ -94,7 +96,7 @@ def _check_number(value: object, name: str, pattern: str, bounds: dict[str, Boun
 def check_numbers(obj: object, bounds: dict[str, Bound], lengths: dict[str, int], *,
                   error: type[Exception] = ValueError, path: str = "", pattern: str = ""
                   ) -> None:
-    """Check every ``float`` and ``list[float]`` field of a dataclass tree.
+    """Check every number field of a dataclass tree (see the module's docstring).
 
     Parameters
     ----------
@@ -117,16 +119,19 @@ def check_numbers(obj: object, bounds: dict[str, Bound], lengths: dict[str, int]
         value = getattr(obj, f.name)
         name = f"{path}.{f.name}" if path else f.name
         pat = f"{pattern}.{f.name}" if pattern else f.name
-        schema = hints[f.name]
-        if schema is float:
-            _check_number(value, name, pat, bounds, error)
+        schema = optional_of(hints[f.name])
+        if value is None and schema is not hints[f.name]:
+            continue                                # an optional field left unset
+        if schema in (float, int):
+            _check_number(value, name, pat, bounds, error, integer=schema is int)
         elif typing.get_origin(schema) is list:
             (item,) = typing.get_args(schema)
             if pat in lengths and len(value) != lengths[pat]:
                 raise error(f"{name} must have {lengths[pat]} entries, got {len(value)}")
             for i, v in enumerate(value):
-                if item is float:
-                    _check_number(v, f"{name}[{i}]", f"{pat}[]", bounds, error)
+                if item in (float, int):
+                    _check_number(v, f"{name}[{i}]", f"{pat}[]", bounds, error,
+                                  integer=item is int)
                 elif dataclasses.is_dataclass(item):
                     check_numbers(v, bounds, lengths, error=error, path=f"{name}[{i}]",
                                   pattern=f"{pat}[]")
@@ -134,18 +139,27 @@ def check_numbers(obj: object, bounds: dict[str, Bound], lengths: dict[str, int]
             check_numbers(value, bounds, lengths, error=error, path=name, pattern=pat)
 
 
+def optional_of(schema):
+    """``X`` for ``X | None`` (``Optional[X]``), else ``schema`` itself."""
+    args = typing.get_args(schema)
+    if type(None) in args and len(args) == 2:
+        return next(a for a in args if a is not type(None))
+    return schema
+
+
 def numeric_fields(schema: type, pattern: str = "") -> list[str]:
-    """Patterns of every ``float`` / ``list[float]`` entry of a dataclass schema."""
+    """Patterns of every number (``float``, ``int``, optional or in lists) of a dataclass
+    schema: the keys its bounds table should have."""
     out = []
     hints = typing.get_type_hints(schema)
     for f in dataclasses.fields(schema):
         pat = f"{pattern}.{f.name}" if pattern else f.name
-        t = hints[f.name]
-        if t is float:
+        t = optional_of(hints[f.name])
+        if t in (float, int):
             out.append(pat)
         elif typing.get_origin(t) is list:
             (item,) = typing.get_args(t)
-            if item is float:
+            if item in (float, int):
                 out.append(f"{pat}[]")
             elif dataclasses.is_dataclass(item):
                 out += numeric_fields(item, f"{pat}[]")

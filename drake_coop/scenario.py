@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from drake_coop.bounds import Bound, check_numbers, one_line, show
+from drake_coop.bounds import Bound, check_numbers, one_line, optional_of, show
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
 VELOCITY_SOURCES = ("observer", "measured")
@@ -425,6 +425,10 @@ def _check_structure(data, schema, path: str) -> None:
     import typing
 
     where = path or "scenario"
+    if optional_of(schema) is not schema:       # X | None: null allowed
+        if data is None:
+            return
+        schema = optional_of(schema)
     if dataclasses.is_dataclass(schema):
         hints = typing.get_type_hints(schema)
         if not isinstance(data, dict):
@@ -456,6 +460,10 @@ def _check_structure(data, schema, path: str) -> None:
             raise ScenarioError(f"{where} must be a finite number, got {show(data)}") from None
         except ValueError:
             raise ScenarioError(f"{where} must be a number, got {show(data)}") from None
+    elif schema is int:
+        if isinstance(data, bool) or not (isinstance(data, int) or (
+                isinstance(data, float) and data.is_integer())):
+            raise ScenarioError(f"{where} must be an integer, got {show(data)}")
     elif schema is str:
         if not isinstance(data, str):
             raise ScenarioError(f"{where} must be a string, got {show(data)}")

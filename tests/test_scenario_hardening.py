@@ -251,3 +251,31 @@ def test_references_are_built_only_to_the_end_of_the_run():
 ])
 def test_garbage_documents_are_one_line_errors(text, start):
     assert _refused(text).startswith(start)
+
+
+def test_the_range_machinery_covers_ints_optionals_and_nested_lists():
+    from dataclasses import dataclass, field
+
+    from drake_coop.bounds import check_numbers
+
+    @dataclass
+    class Sensor:
+        bits: int = 12
+        noise: float | None = None
+
+    @dataclass
+    class Rig:
+        sensors: list[Sensor] = field(default_factory=lambda: [Sensor(), Sensor()])
+
+    bounds = {"sensors[].bits": Bound(1, 32, "bit"), "sensors[].noise": Bound(0.0, 1.0, "rad")}
+    rig = Rig()
+    check_numbers(rig, bounds, {})                     # unset optional: not checked
+    rig.sensors[1].noise = 2.0
+    with pytest.raises(ValueError, match=r"^sensors\[1\]\.noise must be a finite number in "
+                                         r"\[0, 1\] rad, got 2\.0$"):
+        check_numbers(rig, bounds, {})
+    rig.sensors[1].noise, rig.sensors[0].bits = 0.5, 12.5
+    with pytest.raises(ValueError, match=r"^sensors\[0\]\.bits must be an integer in "
+                                         r"\[1, 32\] bit, got 12\.5$"):
+        check_numbers(rig, bounds, {})
+    assert numeric_fields(Rig) == ["sensors[].bits", "sensors[].noise"]
