@@ -7,10 +7,12 @@
     (``robot1.npz``/``.csv``, ``robot2.*``, ``run.json``), ``metrics.json``, Figures 2–6 (PNG and
     SVG), the reference figure, the system diagram (``.dot``, ``.svg`` when graphviz is
     installed) and a self-contained Meshcat replay ``replay.html``.
-    Exit codes: 0 done, 1 the run diverged (what was logged is still written), 2 bad input,
-    130 interrupted with Ctrl-C (what was logged is still written). ``--meshcat`` also shows
-    the run live in Meshcat (its URL is printed; paced at real time unless
-    ``--realtime-rate`` says otherwise).
+    Exit codes: 0 done, 1 the run diverged (what was logged is still written), 2 bad input
+    (scenario, model files, ``--out``), 130 interrupted with Ctrl-C (SIGINT), 143 stopped by
+    SIGTERM (in both cases what was logged is still written). The outputs are staged in a
+    hidden sibling of DIR and renamed into place at the end (:mod:`drake_coop.results.run_folder`).
+    ``--meshcat`` also shows the run live in Meshcat (its URL is printed; paced at real time
+    unless ``--realtime-rate`` says otherwise).
 ``drake-coop scenarios [NAME]``
     List the shipped scenarios (name and first comment line), or print one to copy and edit.
 ``drake-coop plot DIR``
@@ -24,13 +26,61 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
 import time
 import warnings
 from pathlib import Path
 
 from drake_coop.resources import find_scenario, scenario_summary, shipped_scenarios
-from drake_coop.scenario import ScenarioError, dump_scenario, load_scenario
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C's KeyboardInterrupt: the same code stops the run and keeps
+    what was logged."""
+
+
+class Signals:
+    """SIGINT and SIGTERM of the command: raised as :class:`KeyboardInterrupt` /
+    :class:`Terminated`, or only recorded inside :meth:`deferred` (start-up, writing)."""
+
+    EXIT_CODES = {signal.SIGINT: 130, signal.SIGTERM: 143}
+
+    def __init__(self):
+        self.received: int | None = None
+        self.count = 0
+        self._defer = 0
+
+    def handler(self, signum, frame) -> None:
+        """The signal handler: record, then raise unless deferred."""
+        self.count += 1
+        if self.received is None:
+            self.received = signum
+        if not self._defer:
+            raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+    @contextlib.contextmanager
+    def deferred(self):
+        """Signals inside the block are recorded only (see :attr:`received`)."""
+        self._defer += 1
+        try:
+            yield self
+        finally:
+            self._defer -= 1
+
+    def exit_code(self, exc: BaseException | None = None) -> int:
+        """130 for SIGINT, 143 for SIGTERM."""
+        if isinstance(exc, Terminated):
+            return 143
+        return self.EXIT_CODES.get(self.received, 130)
+
+    @property
+    def name(self) -> str:
+        return "SIGTERM" if self.received == signal.SIGTERM else "Ctrl-C"
+
+
+#: The signals of the running command (installed by :func:`main`).
+SIGNALS = Signals()
 
 
 class ProgressBar:
@@ -67,7 +117,9 @@ class ProgressBar:
 
 
 def _error(message: str) -> int:
-    print(f"drake-coop: error: {message}", file=sys.stderr)
+    from drake_coop.bounds import one_line
+
+    print(f"drake-coop: error: {one_line(message)}", file=sys.stderr)
     return 2
 
 
@@ -88,84 +140,141 @@ def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: 
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Simulate, then write logs, metrics, figures, diagrams and the replay."""
-    from drake_coop.results import (
-        compute_metrics,
-        fig_references,
-        plot_figures,
-        save_logs,
-        write_metrics,
-    )
-    from drake_coop.results.export import MeshcatReplay, add_meshcat, live_meshcat
-    from drake_coop.results.io import atomic_write_text
-    from drake_coop.simulate import simulate
-    from drake_coop.viz import add_force_arrows, frame_workspace
+    """Simulate, then write logs, metrics, figures, diagrams and the replay.
 
+    Everything before the simulation (imports, scenario, model files, run size, ``--out``)
+    runs with signals deferred; the outputs are written into a staging folder that is renamed
+    onto ``--out`` at the end, also with signals deferred (see :func:`_write_outputs`).
+    """
+    with SIGNALS.deferred():
+        from drake_coop.results.export import MeshcatReplay, add_meshcat, live_meshcat
+        from drake_coop.results.run_folder import OutputFolderError, RunFolder
+        from drake_coop.scenario import ScenarioError, check_run_size, load_scenario, run_size
+        from drake_coop.simulate import simulate
+        from drake_coop.viz import add_force_arrows, frame_workspace
+
+        if args.t_end is not None and not (0 < args.t_end < float("inf")):
+            return _error(f"--t-end must be a finite number > 0, got {args.t_end}")
+        if args.realtime_rate is not None and not (0 <= args.realtime_rate < float("inf")):
+            return _error(f"--realtime-rate must be a finite number >= 0, got "
+                          f"{args.realtime_rate}")
+        try:
+            scenario = load_scenario(args.scenario and find_scenario(args.scenario))
+            check_run_size(scenario, args.t_end)
+        except ScenarioError as exc:
+            return _error(str(exc))
+        folder = RunFolder(args.out)
+        try:
+            staging = folder.prepare(run_size(scenario, args.t_end)[0])
+        except OutputFolderError as exc:
+            return _error(str(exc))
     try:
-        scenario = load_scenario(args.scenario and find_scenario(args.scenario))
-    except ScenarioError as exc:
-        return _error(str(exc))
-    if args.t_end is not None and not (args.t_end > 0):
-        return _error(f"--t-end must be > 0, got {args.t_end}")
-    if args.realtime_rate is not None and not (args.realtime_rate >= 0):
-        return _error(f"--realtime-rate must be >= 0, got {args.realtime_rate}")
-    out = Path(args.out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return _error(f"--out {out}: {exc.strerror}")
+        if SIGNALS.received is not None:
+            print(f"drake-coop: interrupted ({SIGNALS.name}) before the simulation started",
+                  file=sys.stderr)
+            return SIGNALS.exit_code()
+        out = folder.out
+        replay = None
 
-    replay = None
+        def before_build(builder, coop):
+            nonlocal replay
+            if args.meshcat:
+                print(f"drake-coop: Meshcat live at {live_meshcat().web_url()}",
+                      file=sys.stderr, flush=True)
+            if not args.no_replay:
+                replay = MeshcatReplay.add_to_builder(builder, coop.scene_graph,
+                                                      live=args.meshcat)
+            if args.meshcat or replay is not None:
+                meshcat = replay.meshcat if replay else add_meshcat(builder, coop.scene_graph)
+                add_force_arrows(builder, coop, meshcat)
+                frame_workspace(meshcat, [h.arm for h in coop.arms],
+                                scenario.task.circle_top_z - scenario.task.circle_radius)
 
-    def before_build(builder, coop):
-        nonlocal replay
-        if args.meshcat:
-            print(f"drake-coop: Meshcat live at {live_meshcat().web_url()}", file=sys.stderr,
-                  flush=True)
-        if not args.no_replay:
-            replay = MeshcatReplay.add_to_builder(builder, coop.scene_graph, live=args.meshcat)
-        if args.meshcat or replay is not None:
-            meshcat = replay.meshcat if replay else add_meshcat(builder, coop.scene_graph)
-            add_force_arrows(builder, coop, meshcat)
-            frame_workspace(meshcat, [h.arm for h in coop.arms],
-                            scenario.task.circle_top_z - scenario.task.circle_radius)
+        def on_start(experiment, simulator):
+            if replay is not None:
+                replay.start()
+            rate = args.realtime_rate if args.realtime_rate is not None else float(args.meshcat)
+            simulator.set_target_realtime_rate(rate)
 
-    def on_start(experiment, simulator):
-        if replay is not None:
-            replay.start()
-        rate = args.realtime_rate if args.realtime_rate is not None else float(args.meshcat)
-        simulator.set_target_realtime_rate(rate)
-
-    progress = None if args.quiet else ProgressBar()
-    label = args.scenario or "the paper's scenario"
-    if not args.quiet:
-        print(f"drake-coop: simulating {label} ({scenario.plant.object_mode} mode, "
-              f"h = {scenario.control_period * 1e3:g} ms, plant step "
-              f"{scenario.plant.time_step * 1e3:g} ms) -> {out}", file=sys.stderr)
-    result = simulate(scenario, t_end=args.t_end, progress=progress,
-                      before_build=before_build, on_start=on_start)
-    if progress is not None:
-        progress.close()
-    started = time.perf_counter()
-    atomic_write_text(out / "scenario.yaml", dump_scenario(scenario))
-    save_logs(out, result.logs, result.meta)
-    write_metrics(out, compute_metrics(result.logs, result.meta))
-    plot_figures(result.logs, result.meta, out)
-    fig_references(result.logs, result.meta, out)
-    exp = result.experiment
-    _write_block_diagrams(exp, out, "system_diagram", f"{exp.robots[0].name}_control_diagram",
-                          args.quiet)
-    if replay is not None:
-        replay.finish(out / "replay.html")
+        progress = None if args.quiet else ProgressBar()
+        label = args.scenario or "the paper's scenario"
+        if not args.quiet:
+            print(f"drake-coop: simulating {label} ({scenario.plant.object_mode} mode, "
+                  f"h = {scenario.control_period * 1e3:g} ms, plant step "
+                  f"{scenario.plant.time_step * 1e3:g} ms) -> {out}", file=sys.stderr)
+        result = simulate(scenario, t_end=args.t_end, progress=progress,
+                          before_build=before_build, on_start=on_start,
+                          hold_signals=SIGNALS.deferred)
+        if progress is not None:
+            progress.close()
+        if result.meta["status"] == "interrupted":
+            result.meta["signal"] = SIGNALS.name
+        with SIGNALS.deferred():
+            started = time.perf_counter()
+            try:
+                _write_outputs(args, scenario, result, replay, staging)
+                folder.commit()
+            except OSError as exc:
+                return _error(f"--out {out}: writing the outputs failed "
+                              f"({exc.strerror or exc}); nothing was replaced")
+    finally:
+        folder.discard()
     if not args.quiet:
         print(f"drake-coop: {result.meta['message']}; simulated in {result.wall_time:.1f} s "
-              f"(realtime x{result.meta['realtime_factor']:.2f}), outputs written in "
+              f"(realtime x{result.meta['realtime_factor'] or 0:.2f}), outputs written in "
               f"{time.perf_counter() - started:.1f} s to {out}", file=sys.stderr)
+    if result.meta.get("outputs_incomplete"):
+        print(f"drake-coop: {result.meta['outputs_incomplete']}", file=sys.stderr)
+    if result.meta["status"] == "interrupted" or SIGNALS.received is not None:
+        print(f"drake-coop: {result.meta['message']} ({SIGNALS.name}; logs up to the stop "
+              f"are in {out})", file=sys.stderr)
+        return SIGNALS.exit_code()
     if not result.ok:
         print(f"drake-coop: {result.meta['message']} (logs up to the stop are in {out})",
               file=sys.stderr)
-        return 130 if result.meta["status"] == "interrupted" else 1
+        return 1
     return 0
+
+
+def _write_outputs(args, scenario, result, replay, staging: Path) -> None:
+    """Logs, ``run.json``, metrics, then figures, diagrams and the replay into ``staging``.
+
+    Runs with signals deferred: the logs, ``run.json`` and metrics are always written whole;
+    a signal received meanwhile skips the figures, diagrams and replay still to come, and
+    ``run.json`` then says so (``outputs_incomplete``).
+    """
+    from drake_coop.results import compute_metrics, fig_references, plot_figures, save_logs
+    from drake_coop.results import write_metrics
+    from drake_coop.results.io import atomic_write_text
+    from drake_coop.results.logs import write_meta
+    from drake_coop.scenario import dump_scenario
+
+    meta = result.meta
+    signals_before = SIGNALS.count
+    atomic_write_text(staging / "scenario.yaml", dump_scenario(scenario))
+    save_logs(staging, result.logs, meta)
+    write_metrics(staging, compute_metrics(result.logs, meta))
+    exp = result.experiment
+    optional = [
+        ("figures", lambda: plot_figures(result.logs, meta, staging)),
+        ("reference figure", lambda: fig_references(result.logs, meta, staging)),
+        ("diagrams", lambda: _write_block_diagrams(
+            exp, staging, "system_diagram", f"{exp.robots[0].name}_control_diagram",
+            args.quiet)),
+    ]
+    if replay is not None:
+        optional.append(("replay", lambda: replay.finish(staging / "replay.html")))
+    skipped = []
+    for name, write in optional:
+        if SIGNALS.count > signals_before:
+            skipped.append(name)
+            continue
+        write()
+    if skipped:
+        meta["outputs_incomplete"] = (
+            f"{', '.join(skipped)} skipped after {SIGNALS.name} while writing; "
+            f"`drake-coop plot {args.out}` redraws the figures")
+        write_meta(staging, meta)
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
@@ -174,7 +283,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
 
     try:
         paths = replot(Path(args.dir))
-    except (FileNotFoundError, ValueError) as exc:
+    except (OSError, ValueError) as exc:   # missing, unreadable, malformed; read-only folder
         return _error(str(exc))
     if not args.quiet:
         print(f"drake-coop: wrote {len(paths)} files to {args.dir}", file=sys.stderr)
@@ -199,6 +308,7 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
 def cmd_diagram(args: argparse.Namespace) -> int:
     """Draw the experiment's block diagram (no loggers or visualizer) and one control block."""
     from drake_coop.diagram import build_experiment
+    from drake_coop.scenario import ScenarioError, load_scenario
 
     try:
         scenario = load_scenario(args.scenario and find_scenario(args.scenario))
@@ -262,10 +372,32 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``drake-coop`` console script."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    return args.func(args)
+    """Entry point of the ``drake-coop`` console script.
+
+    Installs the SIGINT/SIGTERM handlers of :data:`SIGNALS` (restored on return) so that a
+    signal at any moment ends the command with 130 (SIGINT) or 143 (SIGTERM), one message and
+    no traceback.
+    """
+    global SIGNALS
+    SIGNALS = Signals()
+    previous = {}
+    try:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, SIGNALS.handler)
+    except ValueError:          # not the main thread: leave the handlers alone
+        pass
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        return args.func(args)
+    except KeyboardInterrupt as exc:
+        code = SIGNALS.exit_code(exc)
+        print(f"drake-coop: interrupted ({'SIGTERM' if code == 143 else 'Ctrl-C'})",
+              file=sys.stderr)
+        return code
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 if __name__ == "__main__":

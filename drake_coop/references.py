@@ -171,8 +171,15 @@ def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
     return q, qd, qdd
 
 
-def reference_samples(scenario: Scenario, index: int) -> tuple[np.ndarray, np.ndarray]:
+def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """Reference vector of robot ``index`` at every control tick.
+
+    Parameters
+    ----------
+    t_end : float, optional
+        Last time needed (a run stopped early): the samples end at the first tick at or after
+        ``min(t_end, task.t_end)``; the ticks before are the same as the full run's.
 
     Returns
     -------
@@ -184,7 +191,10 @@ def reference_samples(scenario: Scenario, index: int) -> tuple[np.ndarray, np.nd
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     task = scenario.task
     robot = scenario.robots[index]
-    k = np.arange(num_ticks_until(task.t_end, h) + 1)
+    k_last = num_ticks_until(task.t_end, h)
+    if t_end is not None:
+        k_last = max(1, min(k_last, num_ticks_until(t_end, h) + 1))
+    k = np.arange(k_last + 1)
     t = k * h
     x, xd, xdd = cartesian_reference(task, robot, t)
     q, qd, qdd = joint_reference(Arm(robot), x, xd, xdd)
@@ -194,14 +204,21 @@ def reference_samples(scenario: Scenario, index: int) -> tuple[np.ndarray, np.nd
     return t, np.hstack([q, qd, qdd, lam[:, None], held[:, None]])
 
 
-def reference_trajectory(scenario: Scenario, index: int) -> PiecewisePolynomial:
+def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = None
+                         ) -> PiecewisePolynomial:
     """The tick samples as a first-order-hold :class:`PiecewisePolynomial`.
 
     Evaluated at a tick time it returns that tick's sample exactly; the controller and the
-    observers only read it at their ticks.
+    observers only read it at their ticks. ``t_end`` limits it to a shorter run (see
+    :func:`reference_samples`).
     """
-    t, r = reference_samples(scenario, index)
+    t, r = reference_samples(scenario, index, t_end)
     return PiecewisePolynomial.FirstOrderHold(t, r.T)
+
+
+def _fields_to_check(i: int) -> str:
+    return (f"check robots[{i}].model, home, base_xyz, base_yaw_deg, plane_b and "
+            "task.circle_top_z, circle_radius, lift_height, pregrasp_distance")
 
 
 def check_reachable(scenario: Scenario, margin: float = 0.97) -> None:
@@ -222,10 +239,9 @@ def check_reachable(scenario: Scenario, margin: float = 0.97) -> None:
         if ratio[worst] > margin or ratio.min() < inner + 0.05:
             bad = worst if ratio[worst] > margin else int(np.argmin(ratio))
             raise ScenarioError(
-                f"robots[{i}] ({robot.name}): target {np.round(x[bad], 4).tolist()} at t = "
+                f"robots[{i}] ({robot.name}): target {np.round(x[bad], 3).tolist()} at t = "
                 f"{t[bad]:.2f} s is out of reach (distance/reach = {ratio[bad]:.3f}, allowed "
-                f"{inner + 0.05:.3f} to {margin}); check robots[{i}].home, base_xyz, plane_b and "
-                "the task's circle")
+                f"{inner + 0.05:.3f} to {margin}); {_fields_to_check(i)}")
         q = arm.ik(x)
         lo, hi = np.array(g.q_min), np.array(g.q_max)
         out = (q < lo) | (q > hi)
@@ -234,4 +250,5 @@ def check_reachable(scenario: Scenario, margin: float = 0.97) -> None:
             raise ScenarioError(
                 f"robots[{i}] ({robot.name}): target at t = {t[row]:.2f} s needs joint{j + 1} = "
                 f"{math.degrees(q[row, j]):.1f} deg, outside its limits "
-                f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg")
+                f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg; "
+                f"{_fields_to_check(i)}")

@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     from drake_coop.scenario import Scenario
 
 __all__ = ["data_dir", "urdf_dir", "scenarios_dir", "shipped_scenarios", "scenario_summary",
-           "find_scenario", "default_scenario_path", "resolve_model", "resolve_models"]
+           "find_scenario", "default_scenario_path", "resolve_models"]
 
 #: A file each data folder must hold (tells a real folder from a stray one).
 _MARKERS = {"urdf": "crs_a465_3dof.urdf", "scenarios": "paper.yaml"}
@@ -111,97 +111,19 @@ def find_scenario(name_or_path: str | Path) -> Path:
                         f"{', '.join(shipped)})")
 
 
-#: Bodies and joints the package reads by name in an arm model: the controller's model needs
-#: the base and the pad; the simulated arm also its wrist force sensor.
-CONTROLLER_MODEL_NEEDS = ("base_link", "pad")
-SIMULATED_MODEL_NEEDS = ("base_link", "pad", "force_sensor", "flange_sensor_weld")
-
-
-def _check_model_file(field_name: str, path: Path,
-                      needs: tuple[str, ...] = CONTROLLER_MODEL_NEEDS) -> Path:
-    """Raise a one-line ScenarioError unless ``path`` is a readable model Drake parses, with
-    the named bodies/joints ``needs`` and three actuated joints."""
-    from pydrake.multibody.parsing import Parser
-    from pydrake.multibody.plant import MultibodyPlant
-
-    if not path.is_file():
-        raise ScenarioError(f"{field_name}: model file not found: {path}")
-    try:
-        path.read_bytes()
-    except OSError as exc:
-        raise ScenarioError(f"{field_name}: model file {path} cannot be read: "
-                            f"{exc.strerror}") from None
-    try:
-        plant = MultibodyPlant(0.0)
-        Parser(plant).AddModels(str(path))
-    except Exception as exc:  # Drake's parser raises RuntimeError with a multi-line text
-        first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), "")
-        raise ScenarioError(f"{field_name}: model file {path} is not a valid model: "
-                            f"{first}") from None
-    missing = [n for n in needs if not (plant.HasBodyNamed(n) or plant.HasJointNamed(n))]
-    if missing or plant.num_actuators() != 3:
-        raise ScenarioError(
-            f"{field_name}: model file {path} is not a 3-joint arm model like urdf/*.urdf "
-            f"(needs bodies/joints {', '.join(needs)} and 3 actuators; missing "
-            f"{', '.join(missing) or 'none'}, {plant.num_actuators()} actuators)")
-    return path
-
-
-def resolve_model(field_name: str, value: str, base_dir: Path | None = None) -> Path:
-    """The model file a scenario field names, checked.
-
-    Parameters
-    ----------
-    field_name : str
-        The field, for the message (e.g. ``robots[1].controller_model``).
-    value : str
-        An absolute path, or a path relative to ``base_dir`` (the scenario file's folder) or
-        to :func:`urdf_dir` (the shipped models), tried in that order.
-    base_dir : Path, optional
-        Folder of the scenario file.
-
-    Returns
-    -------
-    Path
-        The existing, readable and parseable model file.
-
-    Raises
-    ------
-    ScenarioError
-        One line naming the field and the path.
-    """
-    p = Path(value).expanduser()
-    if p.is_absolute():
-        return _check_model_file(field_name, p)
-    candidates = ([base_dir / p] if base_dir is not None else []) + [urdf_dir() / p]
-    for c in candidates:
-        if c.is_file():
-            return _check_model_file(field_name, c)
-    raise ScenarioError(f"{field_name}: model file not found: {value} (looked in "
-                        f"{', '.join(str(c.parent) for c in candidates)})")
-
-
 def resolve_models(scenario: Scenario, base_dir: Path | None = None) -> None:
-    """Check every robot's model files; make controller models beside the scenario absolute.
+    """Make a relative ``controller_model`` found beside the scenario file absolute.
 
-    The simulated arm is ``<urdf_dir>/<model>_3dof.urdf``. A relative ``controller_model``
-    found beside the scenario file is rewritten as an absolute path (the arms look relative
-    paths up in :func:`urdf_dir`), so a run's saved ``scenario.yaml`` still finds it.
-
-    Raises
-    ------
-    ScenarioError
-        A missing, unreadable or unparseable model file, naming the field and the path.
+    The arms look relative model paths up in :func:`urdf_dir` (the shipped models); a file
+    beside the scenario file (``base_dir``) wins and is rewritten as an absolute path, so that
+    a run's saved ``scenario.yaml`` still finds it. The files themselves are checked by
+    :func:`drake_coop.model_check.check_models` when the scenario is validated.
     """
-    for i, robot in enumerate(scenario.robots):
-        try:
-            folder = urdf_dir()
-        except FileNotFoundError as exc:
-            raise ScenarioError(f"robots[{i}].model: {exc}") from None
-        _check_model_file(f"robots[{i}].model", folder / f"{robot.model}_3dof.urdf",
-                          SIMULATED_MODEL_NEEDS)
-        if robot.controller_model:
-            value = robot.controller_model
-            found = resolve_model(f"robots[{i}].controller_model", value, base_dir)
-            if not Path(value).is_absolute() and found != folder / value:
-                robot.controller_model = str(found.resolve())
+    if base_dir is None:
+        return
+    for robot in scenario.robots:
+        value = robot.controller_model
+        if value and not Path(value).expanduser().is_absolute():
+            beside = base_dir / Path(value).expanduser()
+            if beside.is_file():
+                robot.controller_model = str(beside.resolve())

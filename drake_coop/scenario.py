@@ -6,10 +6,13 @@ the paper (phase times, circle (28), force profile (29)) and the simulation guar
 ``scenarios/paper.yaml`` holds the paper's experiment; :func:`default_scenario` returns the
 same numbers from code.
 
-Loading goes through :func:`pydrake.common.yaml.yaml_load_typed` (unknown keys and wrong types
-are rejected there) and then :func:`validate`, which checks ranges and consistency. Every
-problem is reported as a :class:`ScenarioError` whose message names the field and what is
-allowed.
+Loading reads the file as bytes with a size limit and parses it with bounded aliases and no
+duplicate keys (:mod:`drake_coop.safe_yaml`), checks its structure (unknown keys, wrong types,
+``null`` sections), fills the dataclasses with :func:`pydrake.common.yaml.yaml_load_typed` and
+then runs :func:`validate`: every number against its range in :data:`BOUNDS`
+(:mod:`drake_coop.bounds`), the cross-field rules, reachability and the model files. Every
+problem is reported as a :class:`ScenarioError` whose one-line message (at most 300
+characters) names the field and what is allowed.
 """
 
 
@@ -18,13 +21,21 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from drake_coop.bounds import Bound, check_numbers, one_line, optional_of, show
+
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
 VELOCITY_SOURCES = ("observer", "measured")
 ARM_MODELS = ("crs_a465", "crs_a255")
 
 
 class ScenarioError(ValueError):
-    """A scenario field is missing, of the wrong type, or out of its allowed range."""
+    """A scenario field is missing, of the wrong type, or out of its allowed range.
+
+    The message is always one line of at most 300 characters.
+    """
+
+    def __init__(self, message: str):
+        super().__init__(one_line(message))
 
 
 @dataclass
@@ -270,6 +281,80 @@ def aligned_periods(control_period: float, time_step: float) -> tuple[float, flo
     return N * dt, dt
 
 
+# --------------------------------------------------------------------------- ranges
+
+_POS = dict(lo_open=True)
+#: Allowed range of every number of a scenario, by dotted field (``[]``: any index). A new
+#: ``float`` or ``list[float]`` field gets its entry here (``tests/test_scenario_bounds.py``
+#: checks that every numeric field has one); :func:`validate` then checks it, and the message
+#: states the bound.
+BOUNDS: dict[str, Bound] = {
+    "control_period": Bound(1e-4, 0.1, "s"),
+    "plant.time_step": Bound(1e-5, 0.1, "s"),
+    "plant.object_mass": Bound(0.0, 20.0, "kg", **_POS),
+    "plant.friction": Bound(0.0, 5.0, "", **_POS),
+    "robots[].base_xyz[]": Bound(-5.0, 5.0, "m"),
+    "robots[].base_yaw_deg": Bound(-360.0, 360.0, "deg"),
+    "robots[].plane_b": Bound(-5.0, 5.0, "m"),
+    "robots[].normal_sign": Bound(-1.0, 1.0),
+    "robots[].home[]": Bound(-5.0, 5.0, "m"),
+    "robots[].gains.Lambda": Bound(0.0, 1e3, "1/s", **_POS),
+    "robots[].gains.K_R[]": Bound(0.0, 1e4, "N·m·s/rad", **_POS),
+    "robots[].gains.k_d": Bound(0.0, 1e4, "1/s", **_POS),
+    "robots[].gains.k_F": Bound(0.0, 100.0, "", **_POS),
+    "robots[].gains.xi": Bound(0.0, 1.0, "", **_POS),
+    "robots[].gains.zeta": Bound(0.0, 100.0, "", **_POS),
+    "robots[].gains.beta": Bound(0.0, 1e3, "1/s", **_POS),
+    **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
+        "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
+    "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
+    "task.circle_top_z": Bound(-5.0, 5.0, "m"),
+    "task.circle_radius": Bound(0.0, 1.0, "m", **_POS),
+    "task.lift_height": Bound(0.0, 1.0, "m", **_POS),
+    "task.force_mean": Bound(0.0, 1e3, "N"),
+    "task.force_amplitude": Bound(0.0, 1e3, "N"),
+    "task.force_omega": Bound(0.0, 100.0, "rad/s"),
+    "guards.max_force": Bound(0.0, 1e5, "N", **_POS),
+    "guards.joint_limit_margin_deg": Bound(0.0, 180.0, "deg"),
+    "guards.check_period": Bound(0.0, 100.0, "s", **_POS),
+}
+#: Length of every list of numbers.
+LENGTHS: dict[str, int] = {"robots[].base_xyz": 3, "robots[].home": 3,
+                           "robots[].gains.K_R": 3}
+
+#: Largest run (control ticks of ``h``, and plant steps) accepted: the references and the
+#: logs cost about 5 kB per tick (1 GB at the limit), a plant step about 50 µs.
+MAX_TICKS = 200_000
+MAX_PLANT_STEPS = 20_000_000
+
+
+def run_size(scenario: Scenario, t_end: float | None = None) -> tuple[int, int]:
+    """Control ticks and plant steps of a run to ``min(t_end, task.t_end)``."""
+    h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
+    return int(T / h) + 1, int(T / dt)
+
+
+def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
+    """Refuse a run whose work (ticks, plant steps) exceeds :data:`MAX_TICKS` or
+    :data:`MAX_PLANT_STEPS`, before anything is built.
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``task.t_end`` and the period, with the limit.
+    """
+    ticks, steps = run_size(scenario, t_end)
+    if ticks > MAX_TICKS:
+        raise ScenarioError(
+            f"task.t_end / control_period gives {ticks} control ticks, at most {MAX_TICKS} "
+            f"(memory of the references and logs); shorten task.t_end or use --t-end")
+    if steps > MAX_PLANT_STEPS:
+        raise ScenarioError(
+            f"task.t_end / plant.time_step gives {steps} plant steps, at most "
+            f"{MAX_PLANT_STEPS}; shorten task.t_end, use --t-end or a larger plant.time_step")
+
+
 # --------------------------------------------------------------------------- loading
 
 
@@ -279,16 +364,17 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
     Parameters
     ----------
     path : str or Path, optional
-        YAML file. ``None`` with ``data=None`` loads the shipped ``paper.yaml`` (the numbers
-        of :func:`default_scenario`). Model files are checked and resolved by
-        :func:`drake_coop.resources.resolve_models`.
+        YAML file (UTF-8, at most :data:`drake_coop.safe_yaml.MAX_BYTES`). ``None`` with
+        ``data=None`` loads the shipped ``paper.yaml`` (the numbers of
+        :func:`default_scenario`). A relative ``controller_model`` is looked up beside the
+        file first (:func:`drake_coop.resources.resolve_models`), then among the shipped models.
     data : str, optional
         YAML text instead of a file.
 
     Returns
     -------
     Scenario
-        The validated scenario.
+        The validated scenario. Without a ``robots`` key, the paper's two robots.
 
     Raises
     ------
@@ -298,74 +384,97 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
     from pydrake.common.yaml import yaml_load_typed
 
     from drake_coop.resources import default_scenario_path, resolve_models
+    from drake_coop.safe_yaml import MAX_BYTES, YamlInputError, read_text_file
 
     if path is None and data is None:
         return load_scenario(default_scenario_path())   # the shipped paper.yaml
     else:
-        if path is not None:
-            path = Path(path)
-            if not path.is_file():
-                raise ScenarioError(f"scenario file not found: {path}")
-            data = path.read_text()
-        _check_structure(_load_untyped(data), Scenario, "")
+        try:
+            if path is not None:
+                data = read_text_file(path)
+            elif len(data) > MAX_BYTES:
+                raise YamlInputError(f"scenario text is longer than {MAX_BYTES} characters")
+        except YamlInputError as exc:
+            raise ScenarioError(str(exc)) from None
+        untyped = _load_untyped(data)
+        if untyped is None:
+            raise ScenarioError("the scenario is empty: it must be a mapping of fields "
+                                f"({', '.join(f.name for f in dataclasses.fields(Scenario))})")
+        _check_structure(untyped, Scenario, "")
         try:
             scenario = yaml_load_typed(
                 schema=Scenario, data=data, allow_schema_with_no_yaml=True
             )
         except Exception as exc:  # yaml_load_typed raises plain RuntimeError/TypeError
             raise ScenarioError(_yaml_message(exc)) from None
-        if not scenario.robots:
+        if "robots" not in untyped:
             scenario.robots = paper_robots()
-    validate(scenario)
     resolve_models(scenario, Path(path).resolve().parent if path is not None else Path.cwd())
+    validate(scenario)
     return scenario
 
 
 def _load_untyped(data: str):
-    from pydrake.common.yaml import yaml_load
+    """The YAML document as plain data, with bounded aliases and no duplicate keys."""
+    from drake_coop.safe_yaml import YamlInputError, load_untrusted
 
     try:
-        return yaml_load(data=data)
-    except Exception as exc:
-        raise ScenarioError(f"invalid YAML: {' '.join(str(exc).split())}") from None
+        return load_untrusted(data)
+    except YamlInputError as exc:
+        raise ScenarioError(str(exc)) from None
 
 
 def _check_structure(data, schema, path: str) -> None:
-    """Unknown keys and wrong types, reported with the field's dotted path."""
+    """Unknown keys, wrong types and ``null`` sections, reported with the field's dotted path."""
     import typing
 
     where = path or "scenario"
-    if dataclasses.is_dataclass(schema):
+    if optional_of(schema) is not schema:       # X | None: null allowed
         if data is None:
             return
-        if not isinstance(data, dict):
-            raise ScenarioError(f"{where} must be a mapping of fields, got {data!r}")
+        schema = optional_of(schema)
+    if dataclasses.is_dataclass(schema):
         hints = typing.get_type_hints(schema)
+        if not isinstance(data, dict):
+            raise ScenarioError(f"{where} must be a mapping of fields ({', '.join(hints)}), "
+                                f"got {show(data)}")
         for key, value in data.items():
             if key not in hints:
                 allowed = ", ".join(hints)
-                raise ScenarioError(f"{path + '.' if path else ''}{key} is not a known field "
-                                    f"of {where}; allowed: {allowed}")
+                key_text = one_line(key if isinstance(key, str) else show(key), 60)
+                raise ScenarioError(f"{path + '.' if path else ''}{key_text} is not a known "
+                                    f"field of {where}; allowed: {allowed}")
             _check_structure(value, hints[key], f"{path + '.' if path else ''}{key}")
         return
     origin = typing.get_origin(schema)
     if origin is list:
         if not isinstance(data, list):
-            raise ScenarioError(f"{where} must be a list, got {data!r}")
+            raise ScenarioError(f"{where} must be a list, got {show(data)}")
         (item,) = typing.get_args(schema)
         for i, value in enumerate(data):
             _check_structure(value, item, f"{path}[{i}]")
     elif schema is float:
-        if isinstance(data, bool) or not isinstance(data, (int, float)):
-            raise ScenarioError(f"{where} must be a number, got {data!r}")
+        # As yaml_load_typed: ints and floats, and strings that Python's float() reads
+        # (YAML 1.1 reads '1e-3' as a string). The range is checked by validate().
+        if isinstance(data, bool) or not isinstance(data, (int, float, str)):
+            raise ScenarioError(f"{where} must be a number, got {show(data)}")
+        try:
+            float(data)
+        except OverflowError:
+            raise ScenarioError(f"{where} must be a finite number, got {show(data)}") from None
+        except ValueError:
+            raise ScenarioError(f"{where} must be a number, got {show(data)}") from None
+    elif schema is int:
+        if isinstance(data, bool) or not (isinstance(data, int) or (
+                isinstance(data, float) and data.is_integer())):
+            raise ScenarioError(f"{where} must be an integer, got {show(data)}")
     elif schema is str:
         if not isinstance(data, str):
-            raise ScenarioError(f"{where} must be a string, got {data!r}")
+            raise ScenarioError(f"{where} must be a string, got {show(data)}")
 
 
 def _yaml_message(exc: Exception) -> str:
-    text = " ".join(str(exc).split())
-    return f"invalid scenario: {text}"
+    return f"invalid scenario: {one_line(exc, 200)}"
 
 
 def dump_scenario(scenario: Scenario) -> str:
@@ -378,44 +487,33 @@ def dump_scenario(scenario: Scenario) -> str:
 # --------------------------------------------------------------------------- validation
 
 
-def _finite(value: float, name: str) -> None:
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-        raise ScenarioError(f"{name} must be a finite number, got {value!r}")
-
-
-def _positive(value: float, name: str) -> None:
-    _finite(value, name)
-    if value <= 0:
-        raise ScenarioError(f"{name} must be > 0, got {value!r}")
-
-
-def _vector(value: list[float], n: int, name: str) -> None:
-    if len(value) != n:
-        raise ScenarioError(f"{name} must have {n} entries, got {len(value)}")
-    for i, v in enumerate(value):
-        _finite(v, f"{name}[{i}]")
-
-
 def _is_multiple(period: float, step: float) -> bool:
     ratio = period / step
     return abs(ratio - round(ratio)) < 1e-9 * max(1.0, ratio)
 
 
+def _choice(value: object, allowed: tuple[str, ...], name: str) -> None:
+    if value not in allowed:
+        raise ScenarioError(f"{name} must be one of {', '.join(allowed)}, got {show(value)}")
+
+
 def validate(scenario: Scenario) -> None:
     """Check ranges and consistency of a scenario.
+
+    In order: every number finite and within its :data:`BOUNDS` (lists of their
+    :data:`LENGTHS`), the choices (modes, models, names), the cross-field rules (periods,
+    phase order, force profile), the reachability of every target and the model files.
 
     Raises
     ------
     ScenarioError
         On the first problem found, naming the field and the allowed values.
     """
-    _positive(scenario.control_period, "control_period")
-    if scenario.control_period > 0.1:
-        raise ScenarioError(
-            f"control_period must be in (0, 0.1] s, got {scenario.control_period}")
+    if len(scenario.robots) != 2:
+        raise ScenarioError(f"robots must list exactly 2 robots, got {len(scenario.robots)}")
+    check_numbers(scenario, BOUNDS, LENGTHS, error=ScenarioError)
 
     p = scenario.plant
-    _positive(p.time_step, "plant.time_step")
     if p.time_step > scenario.control_period * (1 + 1e-12):
         raise ScenarioError(
             f"plant.time_step ({p.time_step}) must not exceed control_period "
@@ -424,48 +522,24 @@ def validate(scenario: Scenario) -> None:
         raise ScenarioError(
             f"control_period ({scenario.control_period}) must be an integer multiple of "
             f"plant.time_step ({p.time_step}); e.g. 0.001, 0.003, 0.0045 or 0.009 for h = 0.009")
-    if p.object_mode not in OBJECT_MODES:
-        raise ScenarioError(
-            f"plant.object_mode must be one of {', '.join(OBJECT_MODES)}, got {p.object_mode!r}")
-    _positive(p.object_mass, "plant.object_mass")
-    if p.object_mass > 20:
-        raise ScenarioError(f"plant.object_mass must be in (0, 20] kg, got {p.object_mass}")
-    _positive(p.friction, "plant.friction")
+    _choice(p.object_mode, OBJECT_MODES, "plant.object_mode")
 
-    if len(scenario.robots) != 2:
-        raise ScenarioError(f"robots must list exactly 2 robots, got {len(scenario.robots)}")
     names = [r.name for r in scenario.robots]
-    if len(set(names)) != 2:
-        raise ScenarioError(f"robots[].name must be distinct, got {names}")
     for i, r in enumerate(scenario.robots):
         where = f"robots[{i}]"
-        if not r.name.isidentifier():
-            raise ScenarioError(f"{where}.name must be an identifier, got {r.name!r}")
-        if r.model not in ARM_MODELS:
-            raise ScenarioError(
-                f"{where}.model must be one of {', '.join(ARM_MODELS)}, got {r.model!r}")
-        _vector(r.base_xyz, 3, f"{where}.base_xyz")
-        _finite(r.base_yaw_deg, f"{where}.base_yaw_deg")
-        _finite(r.plane_b, f"{where}.plane_b")
+        if not (isinstance(r.name, str) and r.name.isidentifier() and len(r.name) <= 40):
+            raise ScenarioError(f"{where}.name must be an identifier of at most 40 characters, "
+                                f"got {show(r.name)}")
+        _choice(r.model, ARM_MODELS, f"{where}.model")
         if r.normal_sign not in (-1.0, 1.0):
-            raise ScenarioError(f"{where}.normal_sign must be -1 or 1, got {r.normal_sign}")
-        _vector(r.home, 3, f"{where}.home")
-        if r.velocity_source not in VELOCITY_SOURCES:
-            raise ScenarioError(
-                f"{where}.velocity_source must be one of {', '.join(VELOCITY_SOURCES)}, got "
-                f"{r.velocity_source!r}")
-        g = r.gains
-        for name in ("Lambda", "k_d", "k_F", "xi", "zeta", "beta"):
-            _positive(getattr(g, name), f"{where}.gains.{name}")
-        _vector(g.K_R, 3, f"{where}.gains.K_R")
-        for j, k in enumerate(g.K_R):
-            _positive(k, f"{where}.gains.K_R[{j}]")
+            raise ScenarioError(f"{where}.normal_sign must be -1 or 1, got {show(r.normal_sign)}")
+        _choice(r.velocity_source, VELOCITY_SOURCES, f"{where}.velocity_source")
+    if len(set(names)) != 2:
+        raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
     if scenario.robots[0].normal_sign == scenario.robots[1].normal_sign:
         raise ScenarioError("robots[].normal_sign must differ (one contact on each side)")
 
     t = scenario.task
-    for f in dataclasses.fields(Task):
-        _finite(getattr(t, f.name), f"task.{f.name}")
     times = ["t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end"]
     prev_name, prev = "0", 0.0
     for name in times:
@@ -477,23 +551,14 @@ def validate(scenario: Scenario) -> None:
         raise ScenarioError(
             "task.t_end must leave time for the retreat: t_end > t_release + "
             f"(t_grasp - t_pregrasp) = {t.t_release + t.t_grasp - t.t_pregrasp}")
-    for name in ("pregrasp_distance", "circle_radius", "lift_height"):
-        _positive(getattr(t, name), f"task.{name}")
-    if t.force_mean < 0 or t.force_amplitude < 0 or t.force_omega < 0:
-        raise ScenarioError("task.force_mean, force_amplitude, force_omega must be >= 0")
     if t.force_amplitude > t.force_mean:
         raise ScenarioError(
             f"task.force_amplitude ({t.force_amplitude}) must not exceed task.force_mean "
             f"({t.force_mean}): the squeeze force must stay >= 0")
 
-    gd = scenario.guards
-    _positive(gd.max_force, "guards.max_force")
-    _finite(gd.joint_limit_margin_deg, "guards.joint_limit_margin_deg")
-    if gd.joint_limit_margin_deg < 0:
-        raise ScenarioError("guards.joint_limit_margin_deg must be >= 0")
-    _positive(gd.check_period, "guards.check_period")
-
-    # Reachability of every Cartesian target (imported late: arms imports this module).
+    # Imported late: arms imports this module.
+    from drake_coop.model_check import check_models
     from drake_coop.references import check_reachable
 
     check_reachable(scenario)
+    check_models(scenario)

@@ -11,10 +11,11 @@ logged so far.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, ContextManager
 
 import numpy as np
 from pydrake.systems.analysis import Simulator
@@ -26,8 +27,9 @@ from drake_coop.references import (
     grasp_ticks,
     joint_reference,
     num_ticks_until,
+    reference_trajectory,
 )
-from drake_coop.scenario import Scenario, aligned_periods, dump_scenario
+from drake_coop.scenario import Scenario, aligned_periods, check_run_size, dump_scenario
 
 
 @dataclass
@@ -126,7 +128,8 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
 
 def simulate(scenario: Scenario, *, t_end: float | None = None,
              progress: Callable[[float, float, float], None] | None = None,
-             before_build=None, on_start=None) -> RunResult:
+             before_build=None, on_start=None,
+             hold_signals: Callable[[], ContextManager] | None = None) -> RunResult:
     """Simulate the experiment and return its logs.
 
     Parameters
@@ -141,14 +144,28 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         Passed to :func:`~drake_coop.diagram.build_experiment` (visualizers).
     on_start : callable, optional
         ``on_start(experiment, simulator)`` just before the first step (start recordings).
+    hold_signals : callable, optional
+        A context manager factory entered once the loop has stopped, around the collection of
+        the logs (the command line defers SIGINT/SIGTERM there, so that a second Ctrl-C cannot
+        lose what was logged).
 
     Returns
     -------
     RunResult
         ``meta["status"]`` is ``"ok"``, ``"diverged"`` or ``"interrupted"`` (Ctrl-C), with
         ``meta["message"]``; the logs hold everything up to the stop.
+
+    Raises
+    ------
+    ScenarioError
+        If the run's work exceeds :data:`~drake_coop.scenario.MAX_TICKS` or
+        :data:`~drake_coop.scenario.MAX_PLANT_STEPS` (checked before anything is built).
     """
-    exp = build_experiment(scenario, before_build=before_build)
+    T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
+    check_run_size(scenario, T)
+    # References only to the run's end: a long task stopped early stays cheap.
+    references = [reference_trajectory(scenario, i, T) for i in range(len(scenario.robots))]
+    exp = build_experiment(scenario, before_build=before_build, references=references)
     simulator = Simulator(exp.diagram)
     context = simulator.get_mutable_context()
     initialize(exp, context)
@@ -156,7 +173,6 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     if on_start is not None:
         on_start(exp, simulator)
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
-    T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
     k_end = num_ticks_until(T, h)
     k_grasp, k_release = grasp_ticks(scenario.task, h)
     switches = {k_grasp: True, k_release: False}
@@ -188,7 +204,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     except KeyboardInterrupt:     # Ctrl-C, wherever it lands: stop, keep what was logged
         status, message = "interrupted", f"interrupted at t = {context.get_time():.3f} s"
     wall = time.perf_counter() - start
-    logs = collect_logs(exp, context)
+    with hold_signals() if hold_signals is not None else contextlib.nullcontext():
+        logs = collect_logs(exp, context)
     meta = {
         "status": status,
         "message": message or f"completed {T:g} s",

@@ -96,10 +96,10 @@ def _scenario_with_controller_model(tmp_path: Path, value: str) -> Path:
 
 
 @pytest.mark.parametrize("content, message", [
-    (None, "robots[1].controller_model: model file not found: arm.urdf"),
-    ("<robot", "robots[1].controller_model: model file {path} is not a valid model"),
+    (None, "robots[1].controller_model: {urdf_dir}/arm.urdf not found"),
+    ("<robot", "robots[1].controller_model: {path} is not valid XML"),
     ('<robot name="x"><link name="a"/></robot>',
-     "robots[1].controller_model: model file {path} is not a 3-joint arm model"),
+     "robots[1].controller_model: {path} has no link named 'base_link'"),
 ])
 def test_bad_controller_model_exits_2_with_one_line(tmp_path, capsys, content, message):
     path = _scenario_with_controller_model(tmp_path, "arm.urdf")
@@ -108,7 +108,7 @@ def test_bad_controller_model_exits_2_with_one_line(tmp_path, capsys, content, m
     code = main(["run", str(path), "--out", str(tmp_path / "out"), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2
-    assert message.format(path=tmp_path / "arm.urdf") in err
+    assert message.format(path=tmp_path.resolve() / "arm.urdf", urdf_dir=urdf_dir()) in err
     assert err.count("\n") == 1 and "Traceback" not in err
 
 
@@ -117,7 +117,7 @@ def test_missing_arm_model_exits_2_naming_field_and_path(tmp_path, capsys, monke
     code = main(["run", "--out", str(tmp_path / "out"), "--quiet"])
     err = capsys.readouterr().err
     assert code == 2
-    assert f"robots[0].model: model file not found: {tmp_path / 'crs_a465_3dof.urdf'}" in err
+    assert f"robots[0].model: {tmp_path / 'crs_a465_3dof.urdf'} not found" in err
     assert err.count("\n") == 1
 
 

@@ -40,21 +40,21 @@ def test_dump_and_load_round_trip():
 
 
 @pytest.mark.parametrize("text, field", [
-    ("control_period: -1", "control_period must be > 0"),
-    ("control_period: .nan", "control_period must be a finite number"),
+    ("control_period: -1", "control_period must be a finite number in [0.0001, 0.1] s"),
+    ("control_period: .nan", "control_period must be a finite number in [0.0001, 0.1] s, got nan"),
     ("plant: {time_step: 0.002}", "integer multiple of plant.time_step"),
     ("plant: {time_step: 0.018}", "plant.time_step (0.018) must not exceed control_period"),
     ("plant: {object_mode: glue}", "plant.object_mode must be one of planes, rigid, contact"),
-    ("plant: {object_mass: -0.5}", "plant.object_mass must be > 0"),
+    ("plant: {object_mass: -0.5}", "plant.object_mass must be a finite number in (0, 20] kg"),
     ("colour: red", "colour is not a known field of scenario"),
     ("plant: {stepsize: 1}", "plant.stepsize is not a known field of plant"),
     ("task: {t_grasp: soon}", "task.t_grasp must be a number"),
     ("task: {t_grasp: 30}", "task.t_circle_start must be > task.t_grasp"),
     ("robots: [{name: a, gains: {K_R: [1, 2]}}, {name: b, normal_sign: 1}]",
      "robots[0].gains.K_R must have 3 entries"),
-    ("robots: [{gains: {beta: 0}}, {name: b, normal_sign: 1}]", "robots[0].gains.beta must be > 0"),
+    ("robots: [{gains: {beta: 0}}, {name: b, normal_sign: 1}]", "robots[0].gains.beta must be a finite number in (0, 1000] 1/s"),
     ("robots: [{gains: {K_R: [1, -1, 1]}}, {name: b, normal_sign: 1}]",
-     "robots[0].gains.K_R[1] must be > 0"),
+     "robots[0].gains.K_R[1] must be a finite number in (0, 10000]"),
     ("robots: [{}]", "robots must list exactly 2 robots"),
     ("task: {circle_radius: 0.5}", "out of reach"),
     ("robots: [{home: [2.0, 0, 0.5]}, {name: b, model: crs_a255, base_xyz: [1.16, 0, 0], "

@@ -42,13 +42,15 @@ from __future__ import annotations
 
 import io
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from drake_coop.bounds import one_line, show
 from drake_coop.results.io import atomic_path, atomic_write_text
 
-__all__ = ["COLUMNS", "csv_header", "load_logs", "save_logs"]
+__all__ = ["COLUMNS", "csv_header", "load_logs", "save_logs", "write_meta"]
 
 #: Arrays of a robot's log and their CSV column names.
 COLUMNS: dict[str, list[str]] = {
@@ -103,6 +105,15 @@ def _csv_text(log: dict[str, np.ndarray]) -> str:
     return buffer.getvalue()
 
 
+def _meta_text(meta: dict) -> str:
+    return json.dumps(meta, indent=2, default=_json_default)
+
+
+def write_meta(out_dir: str | Path, meta: dict) -> Path:
+    """(Re)write ``run.json`` alone, atomically (e.g. to mark outputs cut short)."""
+    return atomic_write_text(Path(out_dir) / "run.json", _meta_text(meta))
+
+
 def save_logs(out_dir: str | Path, logs: dict[str, dict[str, np.ndarray]], meta: dict
               ) -> list[Path]:
     """Write ``<robot>.npz``, ``<robot>.csv`` and ``run.json`` to ``out_dir``, atomically.
@@ -134,7 +145,7 @@ def save_logs(out_dir: str | Path, logs: dict[str, dict[str, np.ndarray]], meta:
         objects = [k for k, v in log.items() if v.dtype.hasobject]
         if objects:
             raise ValueError(f"log of {robot}: arrays {objects} hold Python objects")
-    meta_text = json.dumps(meta, indent=2, default=_json_default)
+    meta_text = _meta_text(meta)
     out.mkdir(parents=True, exist_ok=True)
     written = []
     for robot, log in arrays.items():
@@ -147,19 +158,60 @@ def save_logs(out_dir: str | Path, logs: dict[str, dict[str, np.ndarray]], meta:
     return written
 
 
-def _load_meta(path: Path) -> dict:
+#: Bounds of what :func:`load_logs` reads: ``run.json`` (bytes), robots, arrays per ``.npz``
+#: and their uncompressed size (the longest run, 200 000 ticks, needs ~45 MB per robot).
+MAX_META_BYTES = 16_000_000
+MAX_ROBOTS = 8
+MAX_MEMBERS = 64
+MAX_NPZ_BYTES = 128_000_000
+
+
+def _inside(out: Path, name: str, what: str) -> Path:
+    """``out / name`` if it is a regular file directly inside ``out`` (no symlink out)."""
+    path = out / name
     if not path.is_file():
-        raise FileNotFoundError(f"{path} not found: not a drake-coop run directory")
+        raise FileNotFoundError(f"{path} not found" + (
+            ": not a drake-coop run directory" if name == "run.json" else ""))
+    if path.is_symlink() or path.resolve().parent != out.resolve():
+        raise ValueError(f"{path}: {what} must be a regular file inside the run folder")
+    return path
+
+
+def _load_meta(out: Path) -> dict:
+    path = _inside(out, "run.json", "run.json")
+    if path.stat().st_size > MAX_META_BYTES:
+        raise ValueError(f"{path} is larger than {MAX_META_BYTES} bytes")
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
+        meta = json.loads(path.read_bytes().decode("utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path} is not valid JSON: {exc}") from None
+        raise ValueError(f"{path} is not valid JSON: {one_line(exc, 120)}") from None
+    except RecursionError:
+        raise ValueError(f"{path} is nested too deeply to be a run's metadata") from None
     if not isinstance(meta, dict):
         raise ValueError(f"{path} must hold a JSON object, holds {type(meta).__name__}")
     robots = meta.get("robots")
-    if not (isinstance(robots, list) and robots and all(isinstance(r, str) for r in robots)):
-        raise ValueError(f"{path}: 'robots' must be a non-empty list of names, is {robots!r}")
+    if not (isinstance(robots, list) and 0 < len(robots) <= MAX_ROBOTS
+            and all(isinstance(r, str) and r.isidentifier() and len(r) <= 40 for r in robots)
+            and len(set(robots)) == len(robots)):
+        raise ValueError(f"{path}: 'robots' must be a list of 1 to {MAX_ROBOTS} distinct "
+                         f"identifiers (robot names), is {show(robots)}")
     return meta
+
+
+def _check_npz_sizes(path: Path) -> None:
+    """Refuse an archive whose members would unpack beyond :data:`MAX_NPZ_BYTES` (declared
+    sizes from the zip directory, read before anything is unpacked)."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            infos = archive.infolist()
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        raise ValueError(f"{path} is not a valid log: {one_line(exc, 120)}") from None
+    if len(infos) > MAX_MEMBERS:
+        raise ValueError(f"{path} holds {len(infos)} arrays, at most {MAX_MEMBERS}")
+    total = sum(i.file_size for i in infos)
+    if total > MAX_NPZ_BYTES:
+        raise ValueError(f"{path} would unpack to {total / 1e6:.0f} MB, at most "
+                         f"{MAX_NPZ_BYTES / 1e6:.0f} MB")
 
 
 def _check_phases(path: Path, meta: dict) -> None:
@@ -168,7 +220,7 @@ def _check_phases(path: Path, meta: dict) -> None:
             isinstance(p, list) and len(p) == 3 and isinstance(p[0], str)
             and all(isinstance(v, (int, float)) for v in p[1:]) for p in phases)):
         raise ValueError(f"{path}: 'phases' must be a list of [name, t_start, t_end], "
-                         f"is {phases!r}")
+                         f"is {show(phases)}")
 
 
 def load_logs(out_dir: str | Path) -> tuple[dict[str, dict[str, np.ndarray]], dict]:
@@ -191,20 +243,22 @@ def load_logs(out_dir: str | Path) -> tuple[dict[str, dict[str, np.ndarray]], di
     FileNotFoundError
         If ``run.json`` or a robot's ``.npz`` is missing (the file is named).
     ValueError
-        If a file is malformed (the file is named).
+        If a file is malformed (the file is named): robot names that are not identifiers
+        (only files directly inside ``out_dir`` are read, no symlinks), a ``run.json`` too
+        large or too deeply nested, an ``.npz`` that would unpack beyond
+        :data:`MAX_NPZ_BYTES`, arrays of the wrong shape.
     """
     out = Path(out_dir)
-    meta = _load_meta(out / "run.json")
+    meta = _load_meta(out)
     logs = {}
     for robot in meta["robots"]:
-        path = out / f"{robot}.npz"
-        if not path.is_file():
-            raise FileNotFoundError(f"{path} not found")
+        path = _inside(out, f"{robot}.npz", f"{robot}.npz")
+        _check_npz_sizes(path)
         try:
             with np.load(path, allow_pickle=False) as data:
                 logs[robot] = {k: data[k] for k in data.files}
         except Exception as exc:  # zipfile, format and pickle errors
-            raise ValueError(f"{path} is not a valid log: {exc}") from None
+            raise ValueError(f"{path} is not a valid log: {one_line(exc, 120)}") from None
         _check_log(str(path), logs[robot])
     _check_phases(out / "run.json", meta)
     return logs, meta

@@ -1,0 +1,161 @@
+"""A run's output folder, written whole: staged in a hidden sibling, renamed into place.
+
+A run never writes into its ``--out`` folder directly. :meth:`RunFolder.prepare` checks the
+target before anything is simulated (an existing folder must be empty or hold only a previous
+run's files; the parent must be writable and have room for the outputs) and creates a hidden
+sibling ``.<name>.drake-coop-<pid>-<token>.tmp``; the run writes everything there, and
+:meth:`RunFolder.commit` renames it onto ``--out`` (the previous run's folder, if any, is
+renamed aside first and removed after). So the folder holds one complete run, or one
+interrupted/diverged run marked as such in its ``run.json`` — never files of two runs.
+:meth:`RunFolder.discard` removes the staging folder of a run that stops before its outputs;
+folders left by killed processes (their pid no longer runs) are removed by the next run
+into the same place.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import secrets
+import shutil
+from pathlib import Path
+
+__all__ = ["OutputFolderError", "RunFolder"]
+
+#: Files a run writes (names or suffixes); an existing folder holding anything else is kept.
+RUN_FILES = {"run.json", "metrics.json", "scenario.yaml"}
+RUN_SUFFIXES = {".npz", ".csv", ".png", ".svg", ".dot", ".html"}
+#: Temporary files of :func:`drake_coop.results.io.atomic_path` left by a killed writer.
+ATOMIC_TEMP = re.compile(r"\..+\.[0-9a-f]{8}\.tmp")
+#: Room kept free for a run: per control tick (logs of both robots, CSV included) and fixed
+#: (figures, diagrams, replay).
+BYTES_PER_TICK = 3_000
+BYTES_FIXED = 50_000_000
+
+
+class OutputFolderError(ValueError):
+    """The output folder cannot be used; the message names it and says why (one line)."""
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _is_run_folder(path: Path) -> tuple[bool, str]:
+    """(usable, first foreign entry): empty, or only the files of a previous run."""
+    entries = list(path.iterdir())
+    for e in entries:
+        if not (e.is_file() and not e.is_symlink()
+                and (e.name in RUN_FILES or e.suffix in RUN_SUFFIXES
+                     or ATOMIC_TEMP.fullmatch(e.name))):
+            return False, e.name
+    if entries and not any(e.name == "run.json" or e.suffix == ".npz" for e in entries):
+        return False, entries[0].name
+    return True, ""
+
+
+class RunFolder:
+    """The staging folder of one run and its target.
+
+    Parameters
+    ----------
+    out : str or Path
+        The ``--out`` folder.
+    """
+
+    def __init__(self, out: str | Path):
+        self.out = Path(out)
+        self.staging: Path | None = None
+
+    def _pattern(self) -> re.Pattern:
+        return re.compile(rf"\.{re.escape(self.out.name)}\.drake-coop-(\d+)-[0-9a-f]+\.(tmp|old)")
+
+    def prepare(self, ticks: int) -> Path:
+        """Check the target and create the staging folder; return it.
+
+        Parameters
+        ----------
+        ticks : int
+            Control ticks of the run (for the free-space estimate).
+
+        Raises
+        ------
+        OutputFolderError
+            The target is a file, holds foreign files, or its parent cannot be created,
+            written or has too little free space.
+        """
+        out = self.out
+        if out.name in ("", ".", ".."):
+            raise OutputFolderError(f"--out {out}: name a folder for the run, not '{out}'")
+        try:
+            if out.is_symlink():
+                raise OutputFolderError(f"--out {out} is a symbolic link; give the folder itself")
+            if out.exists() and not out.is_dir():
+                raise OutputFolderError(f"--out {out} exists and is not a folder")
+            if out.is_dir():
+                usable, foreign = _is_run_folder(out)
+                if not usable:
+                    raise OutputFolderError(
+                        f"--out {out} holds '{foreign[:60]}', which is not a drake-coop output; "
+                        "choose a new or empty folder (a previous run's folder is replaced)")
+            out.parent.mkdir(parents=True, exist_ok=True)
+            self._remove_stale()
+            staging = out.parent / f".{out.name}.drake-coop-{os.getpid()}-" \
+                                   f"{secrets.token_hex(4)}.tmp"
+            staging.mkdir()
+            self.staging = staging
+            (staging / ".write-test").write_bytes(b"drake-coop")
+            (staging / ".write-test").unlink()
+            need = BYTES_FIXED + BYTES_PER_TICK * ticks
+            free = shutil.disk_usage(staging).free
+        except OSError as exc:
+            self.discard()
+            raise OutputFolderError(f"--out {out}: cannot write there "
+                                    f"({exc.strerror or exc})") from None
+        if free < need:
+            self.discard()
+            raise OutputFolderError(f"--out {out}: {free / 1e6:.0f} MB free on its disk, the "
+                                    f"run needs about {need / 1e6:.0f} MB")
+        return staging
+
+    def _remove_stale(self) -> None:
+        """Staging folders of this target left by processes that no longer run."""
+        pattern = self._pattern()
+        for e in self.out.parent.iterdir():
+            m = pattern.fullmatch(e.name)
+            if m and e.is_dir() and not e.is_symlink() and not _pid_alive(int(m.group(1))):
+                shutil.rmtree(e, ignore_errors=True)
+
+    def commit(self) -> Path:
+        """Rename the staging folder onto the target (replacing a previous run's folder).
+
+        Call with SIGINT/SIGTERM deferred: between the two renames the target is briefly
+        absent (the previous run is in ``.<name>.drake-coop-…old``, removed right after).
+        """
+        assert self.staging is not None, "prepare() first"
+        old = None
+        if self.out.is_dir():
+            old = self.staging.with_suffix(".old")
+            os.rename(self.out, old)
+        try:
+            os.rename(self.staging, self.out)
+        except OSError:
+            if old is not None:
+                os.rename(old, self.out)
+            raise
+        self.staging = None
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+        return self.out
+
+    def discard(self) -> None:
+        """Remove the staging folder (a run that stopped before its outputs)."""
+        if self.staging is not None:
+            shutil.rmtree(self.staging, ignore_errors=True)
+            self.staging = None
