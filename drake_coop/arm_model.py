@@ -20,7 +20,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, InitializeAutoDiff
+from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
@@ -57,6 +57,8 @@ class ArmModel:
         self.plant_ad = plant.ToAutoDiffXd()
         self.context_ad = self.plant_ad.CreateDefaultContext()
         self.ee_frame_ad = self.plant_ad.GetFrameByName("pad")
+        self._world_ad = self.plant_ad.world_frame()
+        self._zero_ad = np.zeros(3)
         self._selector = np.zeros((1, 3))
         self._selector[0, 0] = arm.s   # φ = s (x − b): picks s·(x row) of the Jacobian
 
@@ -116,9 +118,11 @@ class ArmModel:
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))
         Jv = self.plant_ad.CalcJacobianTranslationalVelocity(
-            self.context_ad, JacobianWrtVariable.kV, self.ee_frame_ad, np.zeros(3),
-            self.plant_ad.world_frame(), self.plant_ad.world_frame())
-        row = Jv[0, :]
-        value = np.array([r.value() for r in row]) * self.arm.s
-        deriv = np.array([r.derivatives()[0] if r.derivatives().size else 0.0 for r in row])
-        return value.reshape(1, -1), (self.arm.s * deriv).reshape(1, -1)
+            self.context_ad, JacobianWrtVariable.kV, self.ee_frame_ad, self._zero_ad,
+            self._world_ad, self._world_ad)
+        row = Jv[0:1, :]   # the x row; φ = s (x − b)
+        # Vectorised extraction (C++), the same doubles as reading each entry in Python.
+        value = ExtractValue(row).reshape(1, -1) * self.arm.s
+        deriv = ExtractGradient(row.reshape(-1, 1))   # an entry without derivatives gives 0
+        deriv = deriv.reshape(1, -1) if deriv.size == self.n else np.zeros((1, self.n))
+        return value, self.arm.s * deriv
