@@ -301,12 +301,6 @@ def initialize_plant_context(coop: CoopPlant, context: Context, q0: list[np.ndar
         coop.grasp.initialize(plant, context)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """3-vector cross product (np.cross is ~20x slower on single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
-
-
 class ForceSensor(LeafSystem):
     """Ground-truth wrist force of one arm: the force the object exerts on the end effector.
 
