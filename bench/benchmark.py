@@ -1,7 +1,9 @@
 """Benchmark of drake_coop: ``python bench/benchmark.py [--t-end 90] [--out bench.json]``.
 
-Reports the realtime factor of the paper's experiment, the plant-alone floor and the cost
-per controller tick (see :mod:`drake_coop.bench`).
+Reports the paper experiment's wall and CPU time against the plant alone (ratios, spread over
+``--repeats`` alternated pairs), the ground-truth force log's share, a per-system breakdown per
+tick, the scaling with the plant step and per robot, and optionally another scenario's
+realtime factor (``--scenario scenarios/contact.yaml``); see :mod:`drake_coop.bench`.
 """
 
 import argparse
@@ -13,5 +15,13 @@ if __name__ == "__main__":
     parser.add_argument("--t-end", type=float, default=90.0)
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--out", default=None, help="write the numbers as JSON")
+    parser.add_argument("--t-scaling", type=float, default=20.0,
+                        help="simulated seconds of each plant-step scaling run (0 skips them)")
+    parser.add_argument("--scenario", default=None,
+                        help="also measure this scenario's realtime factor "
+                             "(e.g. scenarios/contact.yaml)")
+    parser.add_argument("--t-scenario", type=float, default=None,
+                        help="simulated seconds of that run (default: its whole task)")
     args = parser.parse_args()
-    run_benchmark(args.t_end, args.repeats, args.out)
+    run_benchmark(args.t_end, args.repeats, args.out, t_scaling=args.t_scaling,
+                  extra_scenario=args.scenario, t_extra=args.t_scenario)

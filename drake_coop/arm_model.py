@@ -20,7 +20,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from pydrake.autodiffutils import AutoDiffXd, ExtractGradient, InitializeAutoDiff
+from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
@@ -57,18 +57,40 @@ class ArmModel:
         self.plant_ad = plant.ToAutoDiffXd()
         self.context_ad = self.plant_ad.CreateDefaultContext()
         self.ee_frame_ad = self.plant_ad.GetFrameByName("pad")
+        self._world_ad = self.plant_ad.world_frame()
+        self._zero_ad = np.zeros(3)
         self._selector = np.zeros((1, 3))
         self._selector[0, 0] = arm.s   # φ = s (x − b): picks s·(x row) of the Jacobian
+        self._zero_v = np.zeros(self.n)
+        self._q_key = self._v_key = b""   # what the context holds (see _set_q)
 
     # -------------------------------------------------------------------------- helpers
+    def _set_q(self, q: np.ndarray) -> None:
+        """Positions into the model's context, only when they changed.
+
+        At a tick the force observer and the controller evaluate the model at the same
+        ``q``; keeping the context untouched keeps Drake's kinematics cache (the same doubles
+        as recomputing them).
+        """
+        q = np.asarray(q, dtype=float)
+        key = q.tobytes()
+        if key != self._q_key:
+            self.plant.SetPositions(self.context, q)
+            self._q_key = key
+
     def _set(self, q: np.ndarray, v: np.ndarray | None = None) -> None:
-        self.plant.SetPositions(self.context, q)
-        self.plant.SetVelocities(self.context, np.zeros(self.n) if v is None else v)
+        """Positions and velocities (default zero) into the model's context."""
+        self._set_q(q)
+        v = self._zero_v if v is None else np.asarray(v, dtype=float)
+        key = v.tobytes()
+        if key != self._v_key:
+            self.plant.SetVelocities(self.context, v)
+            self._v_key = key
 
     # ------------------------------------------------------------------------- dynamics
     def H(self, q: np.ndarray) -> np.ndarray:
         """Inertia matrix ``H(q)`` (n×n)."""
-        self._set(q)
+        self._set_q(q)
         return self.plant.CalcMassMatrix(self.context)
 
     def Cv(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -78,7 +100,7 @@ class ArmModel:
 
     def g(self, q: np.ndarray) -> np.ndarray:
         """Gravity vector ``g(q)`` of (1) (left-hand side), n-vector."""
-        self._set(q)
+        self._set_q(q)
         return -self.plant.CalcGravityGeneralizedForces(self.context)
 
     def inverse_dynamics_terms(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -92,7 +114,7 @@ class ArmModel:
     # ----------------------------------------------------------------------- kinematics
     def ee_position(self, q: np.ndarray) -> np.ndarray:
         """End-effector point (pad centre) in the palm frame."""
-        self._set(q)
+        self._set_q(q)
         return self.ee_frame.CalcPoseInWorld(self.context).translation()
 
     def phi(self, q: np.ndarray) -> float:
@@ -101,7 +123,7 @@ class ArmModel:
 
     def J_phi(self, q: np.ndarray) -> np.ndarray:
         """Constraint Jacobian ``J_φ = ∂φ/∂q`` (1×n)."""
-        self._set(q)
+        self._set_q(q)
         Jv = self.plant.CalcJacobianTranslationalVelocity(
             self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
             self.plant.world_frame(), self.plant.world_frame())
@@ -116,9 +138,11 @@ class ArmModel:
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))
         Jv = self.plant_ad.CalcJacobianTranslationalVelocity(
-            self.context_ad, JacobianWrtVariable.kV, self.ee_frame_ad, np.zeros(3),
-            self.plant_ad.world_frame(), self.plant_ad.world_frame())
-        row = Jv[0, :]
-        value = np.array([r.value() for r in row]) * self.arm.s
-        deriv = np.array([r.derivatives()[0] if r.derivatives().size else 0.0 for r in row])
-        return value.reshape(1, -1), (self.arm.s * deriv).reshape(1, -1)
+            self.context_ad, JacobianWrtVariable.kV, self.ee_frame_ad, self._zero_ad,
+            self._world_ad, self._world_ad)
+        row = Jv[0:1, :]   # the x row; φ = s (x − b)
+        # Vectorised extraction (C++), the same doubles as reading each entry in Python.
+        value = ExtractValue(row).reshape(1, -1) * self.arm.s
+        deriv = ExtractGradient(row.reshape(-1, 1))   # an entry without derivatives gives 0
+        deriv = deriv.reshape(1, -1) if deriv.size == self.n else np.zeros((1, self.n))
+        return value, self.arm.s * deriv

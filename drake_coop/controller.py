@@ -103,9 +103,12 @@ class Controller(LeafSystem):
 
     # ------------------------------------------------------------------ outputs
     def _calc_tau(self, context: Context, output: BasicVector) -> None:
+        # Called at every plant step: the test of "a tick not latched yet" is inlined
+        # (tick_of's arithmetic) to keep the held case to three framework calls.
+        t = context.get_time()
+        k = round(t / self._h)
         x = context.get_discrete_state(self._state).value()
-        k = self.tick_of(context)
-        if k is not None and int(x[-1]) != k:
+        if x[-1] != k and abs(t - k * self._h) <= 1e-9 * max(1.0, t):
             output.SetFromVector(self.terms(context)["tau"])   # τ(k), not latched yet
         else:
             output.SetFromVector(x[: self._n])                  # held τ(k)

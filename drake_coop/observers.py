@@ -12,7 +12,14 @@ until the update at tick ``k`` takes them to ``k + 1``. No signal is one sample 
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiscreteValues,
+    LeafSystem,
+    ValueProducer,
+)
 
 from drake_coop.finger import FingerLaw, Reference
 from drake_coop.references import REFERENCE_SIZE
@@ -21,7 +28,7 @@ from drake_coop.references import REFERENCE_SIZE
 class VelocityObserver(LeafSystem):
     """Model-based joint-velocity observer (15)–(16) of one robot.
 
-    State ``[q̂, q̇̂_o]`` (2n). With ``z = q − q̂``:
+    State ``q̂`` (group 0, n) and ``q̇̂_o`` (group 1, n). With ``z = q − q̂``:
 
     .. math::
         \\frac{d}{dt}\\hat q = \\dot{\\hat q}_o + \\Lambda z + k_d z \\qquad (15)
@@ -29,6 +36,9 @@ class VelocityObserver(LeafSystem):
         \\frac{d}{dt}\\dot{\\hat q}_o = \\ddot{\\hat q}_r + k_d \\Lambda z \\qquad (16)
 
     discretized as ``x(k+1) = x(k) + h f(x(k), q(k), q̈̂_r(k))``.
+
+    Cost: ``d/dt q̂`` and ``q̇_o`` are computed once per tick into a cache entry that both
+    outputs and the update read; ``q_hat`` is a state output port (no Python call).
 
     Input ports
     -----------
@@ -55,47 +65,49 @@ class VelocityObserver(LeafSystem):
         self._n = n
         self._q = self.DeclareVectorInputPort("q", n)
         self._qddot_r = self.DeclareVectorInputPort("qddot_r_hat", n)
-        self._state = self.DeclareDiscreteState(2 * n)
+        self._q_hat_state = self.DeclareDiscreteState(n)
+        self._qdot_hat_o_state = self.DeclareDiscreteState(n)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_observer)
-        state_only = {self.xd_ticket()}
         depends_on_q = {self.xd_ticket(), self._q.ticket()}
-        self.DeclareVectorOutputPort("q_hat", n, self._calc_q_hat,
-                                     prerequisites_of_calc=state_only)
+        self._signals = self.DeclareCacheEntry(
+            "d/dt q_hat (15) and qdot_o (8)",
+            ValueProducer(allocate=AbstractValue.Make((np.zeros(n), np.zeros(n))).Clone,
+                          calc=self._calc_signals),
+            depends_on_q)
+        self.DeclareStateOutputPort("q_hat", self._q_hat_state)
         self.DeclareVectorOutputPort("qdot_hat", n, self._calc_qdot_hat,
-                                     prerequisites_of_calc=depends_on_q)
+                                     prerequisites_of_calc={self._signals.ticket()})
         self.DeclareVectorOutputPort("qdot_o", n, self._calc_qdot_o,
-                                     prerequisites_of_calc=depends_on_q)
+                                     prerequisites_of_calc={self._signals.ticket()})
 
     def set_initial_state(self, context: Context, q_hat: np.ndarray,
                           qdot_hat_o: np.ndarray | None = None) -> None:
         """``q̂(0)`` and ``q̇̂_o(0)`` (default zero) in this system's context."""
-        x = np.concatenate([q_hat, np.zeros(self._n) if qdot_hat_o is None else qdot_hat_o])
-        context.SetDiscreteState(self._state, x)
+        context.SetDiscreteState(self._q_hat_state, q_hat)
+        context.SetDiscreteState(self._qdot_hat_o_state,
+                                 np.zeros(self._n) if qdot_hat_o is None else qdot_hat_o)
 
     def _split(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
-        x = context.get_discrete_state(self._state).value()
-        return x[: self._n], x[self._n:]
+        return (context.get_discrete_state(self._q_hat_state).value(),
+                context.get_discrete_state(self._qdot_hat_o_state).value())
 
-    def _derivatives(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+    def _calc_signals(self, context: Context, value: AbstractValue) -> None:
         q_hat, qdot_hat_o = self._split(context)
-        return self._law.observer_derivative(self._q.Eval(context), q_hat, qdot_hat_o)
-
-    def _calc_q_hat(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._split(context)[0])
+        value.set_value(self._law.observer_derivative(self._q.Eval(context), q_hat, qdot_hat_o))
 
     def _calc_qdot_hat(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._derivatives(context)[0])
+        output.SetFromVector(self._signals.Eval(context)[0])
 
     def _calc_qdot_o(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._derivatives(context)[1])
+        output.SetFromVector(self._signals.Eval(context)[1])
 
     def _update_observer(self, context: Context, discrete_state: DiscreteValues) -> None:
         q = self._q.Eval(context)
         q_hat, qdot_hat_o = self._split(context)
-        qdot_hat, _ = self._law.observer_derivative(q, q_hat, qdot_hat_o)
+        qdot_hat = self._signals.Eval(context)[0]
         qddot_hat_o = self._law.observer_acceleration(q, q_hat, self._qddot_r.Eval(context))
-        discrete_state.set_value(self._state, np.concatenate(
-            [q_hat + self._h * qdot_hat, qdot_hat_o + self._h * qddot_hat_o]))
+        discrete_state.set_value(self._q_hat_state, q_hat + self._h * qdot_hat)
+        discrete_state.set_value(self._qdot_hat_o_state, qdot_hat_o + self._h * qddot_hat_o)
 
 
 class ForceObserver(LeafSystem):
@@ -136,27 +148,31 @@ class ForceObserver(LeafSystem):
         self._reference = self.DeclareVectorInputPort("reference", REFERENCE_SIZE)
         self._state = self.DeclareDiscreteState(1)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
-        self.DeclareVectorOutputPort("lambda_hat", 1, self._calc_lambda_hat)
-        self.DeclareVectorOutputPort("Delta_F_tilde", 1, self._calc_Delta_F_tilde,
-                                     prerequisites_of_calc={self.xd_ticket()})
+        # λ̂(k) once per tick: the output and the update of ΔF̃ read the same cache entry.
+        self._estimate = self.DeclareCacheEntry(
+            "lambda_hat (22)",
+            ValueProducer(allocate=AbstractValue.Make((0.0, 0.0, False)).Clone,
+                          calc=self._calc_estimate),
+            {self.xd_ticket(), self.all_input_ports_ticket()})
+        self.DeclareVectorOutputPort("lambda_hat", 1, self._calc_lambda_hat,
+                                     prerequisites_of_calc={self._estimate.ticket()})
+        self.DeclareStateOutputPort("Delta_F_tilde", self._state)
 
-    def _lambda_hat(self, context: Context) -> tuple[float, Reference]:
+    def _calc_estimate(self, context: Context, value: AbstractValue) -> None:
+        """``(λ̂(k), λ_d(k), held)`` from the inputs and ``ΔF̃(k)``."""
         ref = Reference.unpack(self._reference.Eval(context))
         DF = float(context.get_discrete_state(self._state).GetAtIndex(0))
         lam = self._law.force_estimate(self._q.Eval(context), self._q_hat.Eval(context),
                                        self._qdot_o.Eval(context), ref, DF)
-        return lam, ref
+        value.set_value((lam, ref.lambda_d, ref.held))
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._lambda_hat(context)[0])
-
-    def _calc_Delta_F_tilde(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._state).value())
+        output.SetAtIndex(0, self._estimate.Eval(context)[0])
 
     def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
-        lam, ref = self._lambda_hat(context)
+        lam, lambda_d, held = self._estimate.Eval(context)
         DF = float(context.get_discrete_state(self._state).GetAtIndex(0))
-        new = DF + self._h * (lam - ref.lambda_d) if ref.held else 0.0
+        new = DF + self._h * (lam - lambda_d) if held else 0.0
         discrete_state.set_value(self._state, [new])
 
 

@@ -18,7 +18,36 @@ With ``J_phi = 0`` (free motion, Section IV "force part set to zero") use
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
+
+
+@functools.lru_cache(maxsize=None)
+def _identity(n: int) -> np.ndarray:
+    """A shared read-only ``n×n`` identity (allocating one per tick costs more than the math)."""
+    eye = np.eye(n)
+    eye.flags.writeable = False
+    return eye
+
+
+def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``A⁻¹ B`` for a small SPD ``A``; one constraint (m = 1): ``B · (1/a)``.
+
+    For m = 1 this is what LAPACK's ``gesv`` computes through OpenBLAS (the reciprocal of the
+    pivot, then a product), bit for bit, without NumPy's per-call overhead; the test suite
+    checks the equality on random Jacobians.
+    """
+    if A.shape == (1, 1):
+        return B * (1.0 / A[0, 0])
+    return np.linalg.solve(A, B)
+
+
+def _inverse(A: np.ndarray) -> np.ndarray:
+    """``A⁻¹`` for a small SPD ``A``; one constraint (m = 1): ``1/a`` (as ``getri``, bit for bit)."""
+    if A.shape == (1, 1):
+        return 1.0 / A
+    return np.linalg.inv(A)
 
 
 def projections(J_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -38,14 +67,14 @@ def projections(J_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     J_phi = np.atleast_2d(J_phi)
     A = J_phi @ J_phi.T
-    J_pinv = np.linalg.solve(A, J_phi).T
-    Q = np.eye(J_phi.shape[1]) - J_pinv @ J_phi
+    J_pinv = _solve(A, J_phi).T
+    Q = _identity(J_phi.shape[1]) - J_pinv @ J_phi
     return J_pinv, Q
 
 
 def free_motion_projections(n: int, m: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """``J⁺ = 0`` (n×m) and ``Q = I`` (n×n): the controller with its force part set to zero."""
-    return np.zeros((n, m)), np.eye(n)
+    return np.zeros((n, m)), _identity(n)
 
 
 def projection_derivatives(
@@ -73,7 +102,7 @@ def projection_derivatives(
     J_phi = np.atleast_2d(J_phi)
     J_phi_dot = np.atleast_2d(J_phi_dot)
     A = J_phi @ J_phi.T
-    A_inv = np.linalg.inv(A)
+    A_inv = _inverse(A)
     A_dot = J_phi_dot @ J_phi.T + J_phi @ J_phi_dot.T
     J_pinv = J_phi.T @ A_inv
     J_pinv_dot = J_phi_dot.T @ A_inv - J_phi.T @ A_inv @ A_dot @ A_inv

@@ -301,12 +301,6 @@ def initialize_plant_context(coop: CoopPlant, context: Context, q0: list[np.ndar
         coop.grasp.initialize(plant, context)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """3-vector cross product (np.cross is ~20x slower on single vectors)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
-
-
 class ForceSensor(LeafSystem):
     """Ground-truth wrist force of one arm: the force the object exerts on the end effector.
 
@@ -337,6 +331,7 @@ class ForceSensor(LeafSystem):
         self._bodies = [(int(b.index()), b.default_mass(),
                          b.default_com()) for b in handles.sensor_bodies]
         self._g = plant.gravity_field().gravity_vector()
+        self._g_list = self._g.tolist()
         self._normal = handles.arm.normal
         self._reaction = self.DeclareAbstractInputPort(
             "reaction_forces", plant.get_reaction_forces_output_port().Allocate())
@@ -362,6 +357,12 @@ class ForceSensor(LeafSystem):
         value.set_value(self._compute_force(context))
 
     def _compute_force(self, context: Context) -> np.ndarray:
+        """``F_obj = Σ_b m_b (a_b − g) − F_weld`` with ``a_b = a_Bo + α × p + ω × (ω × p)``.
+
+        Scalar arithmetic on Python floats (a 3-vector per NumPy call costs more than the
+        math), in the operation order of the vector formula, so the result is the same to the
+        last bit.
+        """
         reactions = self._reaction.Eval(context)
         poses = self._poses.Eval(context)
         velocities = self._velocities.Eval(context)
@@ -369,15 +370,19 @@ class ForceSensor(LeafSystem):
         X_WB = poses[self._child_body_index]
         R_WJc = X_WB.rotation().multiply(self._R_BJc)
         F_weld = R_WJc.multiply(reactions[self._weld_index].translational())
-        inertial = np.zeros(3)
+        gx, gy, gz = self._g_list
+        fx = fy = fz = 0.0
         for index, mass, p_BoBcm_B in self._bodies:
-            R_WB = poses[index].rotation()
-            p = R_WB.multiply(p_BoBcm_B)
-            w = velocities[index].rotational()
+            px, py, pz = poses[index].rotation().multiply(p_BoBcm_B).tolist()
+            wx, wy, wz = velocities[index].rotational().tolist()
             A = accelerations[index]
-            a_com = A.translational() + _cross(A.rotational(), p) + _cross(w, _cross(w, p))
-            inertial += mass * (a_com - self._g)
-        return inertial - F_weld
+            ax, ay, az = A.rotational().tolist()
+            tx, ty, tz = A.translational().tolist()
+            cx, cy, cz = wy * pz - wz * py, wz * px - wx * pz, wx * py - wy * px   # ω × p
+            fx += mass * ((tx + (ay * pz - az * py) + (wy * cz - wz * cy)) - gx)
+            fy += mass * ((ty + (az * px - ax * pz) + (wz * cx - wx * cz)) - gy)
+            fz += mass * ((tz + (ax * py - ay * px) + (wx * cy - wy * cx)) - gz)
+        return np.array([fx, fy, fz]) - F_weld
 
     def _calc_force(self, context: Context, output) -> None:
         output.SetFromVector(self.force(context))

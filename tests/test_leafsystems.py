@@ -38,8 +38,11 @@ def _reference(q_d, held, lam_d=12.0, moving=True):
 
 
 def _update(system, context):
-    """The state after the system's periodic discrete update at the context's time."""
-    return system.EvalUniquePeriodicDiscreteUpdate(context).get_vector(0).CopyToVector()
+    """The state after the system's periodic discrete update at the context's time (all its
+    discrete state groups, concatenated)."""
+    values = system.EvalUniquePeriodicDiscreteUpdate(context)
+    return np.concatenate([values.get_vector(i).CopyToVector()
+                           for i in range(values.num_groups())])
 
 
 def test_velocity_observer_outputs_follow_15_and_8(law, posture):

@@ -114,3 +114,19 @@ def test_reference_acceleration_is_time_derivative_of_reference_velocity(model):
         numeric = (qdot_r(t + eps) - qdot_r(t - eps)) / (2 * eps)
         assert np.linalg.norm(qddot_r_hat - numeric) <= 1e-6 * np.linalg.norm(numeric), (
             qddot_r_hat, numeric)
+
+
+def test_one_constraint_shortcuts_are_lapacks_solve_and_inverse_bit_for_bit(model):
+    """For m = 1, ``J⁺`` and ``A⁻¹`` skip NumPy's LAPACK wrappers: the results must be the
+    very doubles ``np.linalg.solve`` and ``np.linalg.inv`` give (the golden run depends on it)."""
+    rng = np.random.default_rng(3)
+    for q in random_postures(model, count=200, seed=4):
+        J_phi = model.J_phi(q) * rng.uniform(0.2, 5.0)
+        A = J_phi @ J_phi.T
+        J_pinv, _ = orthogonal.projections(J_phi)
+        np.testing.assert_array_equal(J_pinv, np.linalg.solve(A, J_phi).T)
+        np.testing.assert_array_equal(orthogonal._inverse(A), np.linalg.inv(A))
+    # More than one constraint goes through LAPACK itself.
+    J2 = rng.normal(size=(2, 3))
+    np.testing.assert_allclose(orthogonal.projections(J2)[0], np.linalg.pinv(J2),
+                               rtol=1e-12, atol=1e-12)
