@@ -1,0 +1,122 @@
+"""Engines: run a study's cases, each in a fresh process, locally or on Ray.
+
+Both engines call :func:`run_case` on the scenario's YAML text (the diagram is built inside the
+worker; no pydrake object crosses a process boundary) and hand each result to ``on_result`` as
+soon as it arrives, in completion order.
+
+* :func:`run_local` — a ``ProcessPoolExecutor`` with the ``spawn`` start method and
+  ``max_tasks_per_child=1``: one fresh process per case (Python LeafSystems keep memory alive
+  across runs in one process). Workers ignore SIGINT; on Ctrl-C/SIGTERM the parent cancels the
+  queue and terminates the running workers.
+* :func:`run_ray` — each case a ``@ray.remote(max_calls=1)`` task (a worker process is not
+  reused after one case) on a local instance (``ray.init(num_cpus=workers)``) or an existing
+  cluster (``ray.init(address=...)``). Every node needs ``drake_coop`` importable.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Callable
+
+from drake_coop.studies.expand import Case
+
+__all__ = ["run_case", "run_local", "run_ray"]
+
+OnResult = Callable[[Case, dict], None]
+
+
+def run_case(scenario_yaml: str, t_end: float | None) -> dict:
+    """Simulate one case and return its record (never raises).
+
+    Returns
+    -------
+    dict
+        ``status`` (``ok``, ``diverged``, ``error`` or ``interrupted``), ``message``,
+        ``t_reached`` (s), ``wall_time_s`` and ``metrics`` (as in ``metrics.json``; empty on
+        ``error``).
+    """
+    from drake_coop.sweep import run_one
+
+    start = time.perf_counter()
+    try:
+        result = run_one(scenario_yaml, t_end)
+    except Exception as exc:          # a failure to build or run: recorded, not fatal
+        return {"status": "error", "message": f"{type(exc).__name__}: "
+                f"{' '.join(str(exc).split())[:300]}", "t_reached": 0.0,
+                "wall_time_s": time.perf_counter() - start, "metrics": {}}
+    meta = result["meta"]
+    return {"status": meta["status"], "message": meta["message"],
+            "t_reached": meta["t_end"], "wall_time_s": time.perf_counter() - start,
+            "metrics": result["metrics"]}
+
+
+def _ignore_sigint() -> None:
+    """Pool worker initializer: Ctrl-C is the parent's business (it terminates workers)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
+              workers: int = 2) -> None:
+    """Run ``cases`` on a local pool of ``workers`` processes, one fresh process per case.
+
+    An exception in the parent (Ctrl-C, SIGTERM, ``on_result`` failing) cancels the queued
+    cases, terminates the running ones and propagates.
+    """
+    context = multiprocessing.get_context("spawn")
+    pool = ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context,
+                               max_tasks_per_child=1, initializer=_ignore_sigint)
+    try:
+        futures = {pool.submit(run_case, c.scenario_yaml, t_end): c for c in cases}
+        for future in as_completed(futures):
+            on_result(futures[future], future.result())
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        for child in multiprocessing.active_children():
+            child.terminate()
+        for child in multiprocessing.active_children():
+            child.join(timeout=5)
+        raise
+    pool.shutdown(wait=True)
+
+
+def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
+            address: str | None = None, workers: int = 2) -> None:
+    """Run ``cases`` as Ray tasks; ``address=None`` starts a local instance of ``workers``
+    CPUs (shut down afterwards), otherwise connects to the cluster at ``address``.
+
+    Raises
+    ------
+    ImportError
+        If ray is not installed (``pip install "drake_coop[ray]"``).
+    """
+    import ray
+
+    started = False
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    if not ray.is_initialized():
+        if address is None:
+            ray.init(num_cpus=max(1, workers), include_dashboard=False, log_to_driver=False,
+                     configure_logging=False)
+        else:
+            ray.init(address=address, log_to_driver=False, configure_logging=False)
+        started = True
+    for signum, handler in saved.items():      # ray.init installs its own; keep the caller's
+        signal.signal(signum, handler)
+    task = ray.remote(max_calls=1, num_cpus=1)(run_case)
+    refs = {task.remote(c.scenario_yaml, t_end): c for c in cases}
+    pending = list(refs)
+    try:
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for ref in done:
+                on_result(refs[ref], ray.get(ref))
+    except BaseException:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        raise
+    finally:
+        if started:
+            ray.shutdown()
