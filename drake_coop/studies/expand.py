@@ -12,6 +12,11 @@ Lists of numbers (``K_R``, ``base_xyz``) are set **as a whole or element-wise**:
 * a single number at a list path (``robots.0.gains.K_R: [60, 120]``) sets every element to it;
 * ``robots.0.gains.K_R.2`` or ``…K_R.*`` addresses elements.
 
+A grid value that is a mapping at a path that names a mapping is a **variant**: it sets the
+fields it lists and keeps the others, so fields that only make sense together vary together
+(``robots.*: [{velocity_source: observer}, {velocity_source: difference,
+difference_cutoff_hz: 20}]``).
+
 In a grid, ``*`` gives every matched element the same value. In Monte Carlo, ``*`` draws
 **independently** for every matched element (``robots.*.model_error.mass_scale`` gives each arm
 its own draw); a path without ``*`` draws once: ``{scale_uniform: [lo, hi]}`` at a list path
@@ -137,8 +142,11 @@ def get_value(data: dict, keys: tuple[Key, ...]):
 
 
 def set_value(data: dict, keys: tuple[Key, ...], value) -> None:
-    """Set the value at a concrete key path in place; a number at a list of numbers sets every
-    element (broadcast)."""
+    """Set the value at a concrete key path in place.
+
+    A number at a list of numbers sets every element (broadcast); a mapping at a mapping
+    updates the fields it names and keeps the others (a *variant*, see :func:`expand`).
+    """
     node = data
     for k in keys[:-1]:
         if isinstance(k, str) and (k not in node or node[k] is None):
@@ -146,6 +154,10 @@ def set_value(data: dict, keys: tuple[Key, ...], value) -> None:
         node = node[k]
     last = keys[-1]
     old = node.get(last) if isinstance(node, dict) else node[last]
+    if isinstance(value, dict) and isinstance(old, dict):
+        for k, v in value.items():
+            set_value(old, (k,), v)
+        return
     if isinstance(old, list) and not isinstance(value, list):
         value = [value] * len(old)
     node[last] = copy.deepcopy(value)

@@ -33,12 +33,18 @@ def _numeric(values: list) -> bool:
     return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
 
 
+def _label(value) -> str:
+    """A grid value as text: a variant mapping as ``k=v k=v``."""
+    if isinstance(value, dict):
+        return " ".join(f"{k}={_label(v)}" for k, v in value.items())
+    return str(value)
+
+
 def _slug(path: str) -> str:
     return path.replace("robots.*.", "").replace(".*", "").replace(".", "_")
 
 
 def _save(fig: Figure, path: Path) -> Path:
-    fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=DPI)
     return path
@@ -67,7 +73,7 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
     split = next((k for k in _swept(doc) if k != param and not _numeric(doc["grid"][k])), None)
     groups = list(dict.fromkeys(json.dumps(c["params"][split]) for c in cases)) if split else [
         None]
-    fig = Figure(figsize=(7.5, 2.6 * len(metrics)), dpi=DPI)
+    fig = Figure(figsize=(7.5, 2.6 * len(metrics)), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(len(metrics), 1, sharex=True, squeeze=False)[:, 0]
     for ax, metric in zip(axes, metrics):
@@ -84,14 +90,17 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
                 lo.append(y.min() if y.size else math.nan)
                 hi.append(y.max() if y.size else math.nan)
                 n_div.append(sum(c["status"] == "diverged" for c in at))
-            label = "median" if group is None else f"{split} = {json.loads(group)}"
+            label = "median" if group is None else _label(json.loads(group))
             line, = ax.plot(xs, med, "o-", ms=3, label=label)
             ax.fill_between(xs, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
             top += [v for v in hi if np.isfinite(v)]
             for x, n in zip(xs, n_div):
                 if n:
-                    ax.annotate(f"✕{n}", (x, 1.0), xycoords=("data", "axes fraction"),
-                                ha="center", va="top", color=line.get_color(), fontsize=7)
+                    ax.plot([x], [0.97], "x", color=line.get_color(), ms=7,
+                            transform=ax.get_xaxis_transform())
+                    ax.annotate(f"{n}", (x, 0.9), xycoords=("data", "axes fraction"),
+                                ha="center", va="top", color=line.get_color(), fontsize=7,
+                                annotation_clip=False)
         finite = np.array(top)
         if _log_scale(finite):
             ax.set_yscale("log")
@@ -100,12 +109,16 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
         if split is not None or len(groups) > 1:
             ax.legend(fontsize=7)
     if not numeric:
-        axes[-1].set_xticks(xs, [str(x) for x in xs_raw])
-    elif _log_scale(xs):
+        axes[-1].set_xticks(xs, [_label(x) for x in xs_raw], fontsize=7)
+    if numeric and _log_scale(xs):
         axes[-1].set_xscale("log")
+        axes[-1].set_xlim(xs.min() / 1.2, xs.max() * 1.2)
+    else:
+        pad = 0.05 * (xs.max() - xs.min()) or 0.5
+        axes[-1].set_xlim(xs.min() - pad, xs.max() + pad)
     axes[-1].set_xlabel(param)
     fig.suptitle(f"{doc['name']}: median and min–max over the other parameters "
-                 f"(phase {doc['phase']}; ✕n: n cases diverged)", fontsize=9)
+                 f"(phase {doc['phase']}; ✕ n: n cases diverged)", fontsize=9)
     return _save(fig, out / f"{doc['name']}_vs_{_slug(param)}.png")
 
 
@@ -113,7 +126,7 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
     cases, metrics = doc["cases"], doc["metrics"]
     xs = list(dict.fromkeys(json.dumps(v) for v in doc["grid"][px]))
     ys = list(dict.fromkeys(json.dumps(v) for v in doc["grid"][py]))
-    fig = Figure(figsize=(6.2 * len(metrics), 5.0), dpi=DPI)
+    fig = Figure(figsize=(6.2 * len(metrics), 5.0), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(metrics), squeeze=False)[0]
     xv = np.array([json.loads(v) for v in xs], dtype=float)
@@ -168,7 +181,7 @@ def _plot_hist(doc: dict, out: Path) -> Path:
     cases, metrics = doc["cases"], doc["metrics"]
     n_div = sum(c["status"] == "diverged" for c in cases)
     n_done = sum(c["status"] in ("ok", "diverged", "error") for c in cases)
-    fig = Figure(figsize=(4.2 * len(metrics), 3.4), dpi=DPI)
+    fig = Figure(figsize=(4.2 * len(metrics), 3.4), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(metrics), squeeze=False)[0]
     for ax, metric in zip(axes, metrics):

@@ -14,7 +14,8 @@ after every finished case.
 Summary columns (of the study's ``phase``): ``<robot>.<error>.<rms|max>`` for the errors of
 :mod:`drake_coop.results.metrics`, plus ``position_error`` (RMS of ``|x − x_d|``, i.e.
 ``sqrt(rms_x² + rms_y² + rms_z²)``; max = the largest single-axis max) and ``observation_error``
-(the same over ``z1 … z3``), and ``worst.<error>.<stat>``, the largest over the robots.
+(the same over ``z1 … z3``), ``velocity_error`` when the run logs it (the sensing alternatives),
+and ``worst.<error>.<stat>``, the largest over the robots.
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from drake_coop.studies.spec import Study
 __all__ = ["ERRORS", "ResultStore", "check_metric_names", "summary_columns"]
 
 ERRORS = ("x_tilde", "y_tilde", "z_tilde", "position_error", "force_error", "estimate_error",
-          "aux_force_error", "z1", "z2", "z3", "observation_error")
+          "aux_force_error", "z1", "z2", "z3", "observation_error", "velocity_error")
 _GROUPS = {"position_error": ("x_tilde", "y_tilde", "z_tilde"),
            "observation_error": ("z1", "z2", "z3")}
 STATS = ("rms", "max")
@@ -161,4 +162,6 @@ def _cell(value) -> str:
         return repr(value)
     if isinstance(value, list):
         return " ".join(_cell(v) for v in value)
+    if isinstance(value, dict):
+        return " ".join(f"{k}={_cell(v)}" for k, v in value.items())
     return str(value)
