@@ -179,3 +179,26 @@ def test_base_is_relative_to_the_study_file_or_inline(tmp_path):
     (s,) = _scenarios(expand(_study("base: {control_period: 0.003}\n"
                                     "grid: {plant.time_step: [0.001]}")))
     assert (s.control_period, s.plant.time_step) == (0.003, 0.001)
+
+
+def test_mapping_values_are_variants_that_update_only_the_fields_they_name():
+    cases = expand(_study("""
+grid:
+  robots.*:
+    - {velocity_source: measured}
+    - {gains: {k_d: 20}}
+  control_period: [0.003, 0.009]
+"""))
+    assert len(cases) == 4
+    s = _scenarios(cases)
+    paper = default_scenario()
+    for r, p in zip(s[0].robots, paper.robots):
+        assert r.velocity_source == "measured" and r.gains == p.gains and r.home == p.home
+    for r, p in zip(s[2].robots, paper.robots):
+        assert r.velocity_source == "observer" and r.gains.k_d == 20
+        assert r.gains.K_R == p.gains.K_R and r.gains.Lambda == p.gains.Lambda
+    assert [x.control_period for x in s] == [0.003, 0.009, 0.003, 0.009]
+    with pytest.raises(StudyError) as info:
+        expand(_study("grid: {robots.*: [{speed: 1}]}"))
+    assert str(info.value).startswith("grid.robots.* = {'speed': 1}: robots[0].speed is not a "
+                                      "known field"), str(info.value)

@@ -135,6 +135,7 @@ def cmd_study(args: argparse.Namespace) -> int:
 
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     code = 0
+    started = time.perf_counter()
     try:
         if args.ray is None:
             from drake_coop.studies.engines import run_local
@@ -151,6 +152,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         code = 1
     finally:
         signal.signal(signal.SIGTERM, previous)
+    elapsed = time.perf_counter() - started
     store.write_tables(study, cases, records, engine)
     done = sum(c.hash in records for c in cases)
     if code:
@@ -161,8 +163,9 @@ def cmd_study(args: argparse.Namespace) -> int:
     paths = plot_study(out)
     if not args.quiet:
         bad = sum(records[c.hash]["status"] != "ok" for c in cases)
-        print(f"drake-coop study: {done} cases finished ({bad} diverged or failed); wrote "
-              f"results.csv, study.json and {len(paths)} figures to {out}", file=sys.stderr)
+        print(f"drake-coop study: {done} cases finished ({bad} diverged or failed), "
+              f"{len(todo)} run in {elapsed:.1f} s; wrote results.csv, study.json and "
+              f"{len(paths)} figures to {out}", file=sys.stderr)
     return 0
 
 

@@ -4,10 +4,13 @@ Both engines call :func:`run_case` on the scenario's YAML text (the diagram is b
 worker; no pydrake object crosses a process boundary) and hand each result to ``on_result`` as
 soon as it arrives, in completion order.
 
-* :func:`run_local` — a ``ProcessPoolExecutor`` with the ``spawn`` start method and
-  ``max_tasks_per_child=1``: one fresh process per case (Python LeafSystems keep memory alive
-  across runs in one process). Workers ignore SIGINT; on Ctrl-C/SIGTERM the parent cancels the
-  queue and terminates the running workers.
+* :func:`run_local` — at most ``workers`` processes (``spawn`` start method), a fresh one per
+  case (Python LeafSystems keep memory alive across runs in one process), each sending its
+  record back through a pipe. The engine starts and joins them itself rather than through
+  ``ProcessPoolExecutor(max_tasks_per_child=1)``: after its workers were terminated on SIGTERM,
+  that executor hung the interpreter's exit (Python 3.11.7). Workers ignore SIGINT; on
+  Ctrl-C/SIGTERM the parent terminates the running cases. A worker that dies without a record
+  (a crash) gives an ``error`` record.
 * :func:`run_ray` — each case a ``@ray.remote(max_calls=1)`` task (a worker process is not
   reused after one case) on a local instance (``ray.init(num_cpus=workers)``) or an existing
   cluster (``ray.init(address=...)``). Every node needs ``drake_coop`` importable.
@@ -16,9 +19,9 @@ soon as it arrives, in completion order.
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.connection
 import signal
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Callable
 
 from drake_coop.studies.expand import Case
@@ -53,33 +56,52 @@ def run_case(scenario_yaml: str, t_end: float | None) -> dict:
             "metrics": result["metrics"]}
 
 
-def _ignore_sigint() -> None:
-    """Pool worker initializer: Ctrl-C is the parent's business (it terminates workers)."""
+def _child(conn, scenario_yaml: str, t_end: float | None) -> None:
+    """Worker process: run one case, send its record, exit (Ctrl-C is the parent's business)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    conn.send(run_case(scenario_yaml, t_end))
+    conn.close()
 
 
 def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
               workers: int = 2) -> None:
-    """Run ``cases`` on a local pool of ``workers`` processes, one fresh process per case.
+    """Run ``cases`` in at most ``workers`` parallel processes, one fresh process per case.
 
-    An exception in the parent (Ctrl-C, SIGTERM, ``on_result`` failing) cancels the queued
-    cases, terminates the running ones and propagates.
+    An exception in the parent (Ctrl-C, SIGTERM, ``on_result`` failing) terminates the running
+    cases and propagates; queued cases are not started.
     """
     context = multiprocessing.get_context("spawn")
-    pool = ProcessPoolExecutor(max_workers=max(1, workers), mp_context=context,
-                               max_tasks_per_child=1, initializer=_ignore_sigint)
+    queue = list(cases)
+    running: dict = {}                   # receiving end of the pipe -> (process, case)
     try:
-        futures = {pool.submit(run_case, c.scenario_yaml, t_end): c for c in cases}
-        for future in as_completed(futures):
-            on_result(futures[future], future.result())
-    except BaseException:
-        pool.shutdown(wait=False, cancel_futures=True)
-        for child in multiprocessing.active_children():
-            child.terminate()
-        for child in multiprocessing.active_children():
-            child.join(timeout=5)
-        raise
-    pool.shutdown(wait=True)
+        while queue or running:
+            while queue and len(running) < max(1, workers):
+                case = queue.pop(0)
+                receiver, sender = context.Pipe(duplex=False)
+                process = context.Process(target=_child, name=f"case-{case.hash}",
+                                          args=(sender, case.scenario_yaml, t_end),
+                                          daemon=True)
+                process.start()
+                sender.close()
+                running[receiver] = (process, case)
+            for receiver in multiprocessing.connection.wait(list(running)):
+                process, case = running.pop(receiver)
+                try:
+                    result = receiver.recv()
+                except EOFError:
+                    process.join()
+                    result = {"status": "error", "message": "the case's process died "
+                              f"(exit code {process.exitcode})", "t_reached": 0.0,
+                              "wall_time_s": 0.0, "metrics": {}}
+                receiver.close()
+                process.join()
+                on_result(case, result)
+    finally:
+        for receiver, (process, _) in running.items():
+            process.terminate()
+        for receiver, (process, _) in running.items():
+            process.join(timeout=10)
+            receiver.close()
 
 
 def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
