@@ -78,7 +78,7 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
     axes = fig.subplots(len(metrics), 1, sharex=True, squeeze=False)[:, 0]
     for ax, metric in zip(axes, metrics):
         top = []
-        for group in groups:
+        for g_index, group in enumerate(groups):
             members = [c for c in cases if split is None or json.dumps(c["params"][split]) ==
                        group]
             med, lo, hi, n_div = [], [], [], []
@@ -96,9 +96,10 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
             top += [v for v in hi if np.isfinite(v)]
             for x, n in zip(xs, n_div):
                 if n:
-                    ax.plot([x], [0.97], "x", color=line.get_color(), ms=7,
+                    level = 0.96 - 0.12 * g_index      # one row of marks per curve
+                    ax.plot([x], [level], "x", color=line.get_color(), ms=7,
                             transform=ax.get_xaxis_transform())
-                    ax.annotate(f"{n}", (x, 0.9), xycoords=("data", "axes fraction"),
+                    ax.annotate(f"{n}", (x, level - 0.03), xycoords=("data", "axes fraction"),
                                 ha="center", va="top", color=line.get_color(), fontsize=7,
                                 annotation_clip=False)
         finite = np.array(top)
