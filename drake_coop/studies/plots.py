@@ -127,7 +127,7 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
     cases, metrics = doc["cases"], doc["metrics"]
     xs = list(dict.fromkeys(json.dumps(v) for v in doc["grid"][px]))
     ys = list(dict.fromkeys(json.dumps(v) for v in doc["grid"][py]))
-    fig = Figure(figsize=(6.2 * len(metrics), 5.0), dpi=DPI, layout="constrained")
+    fig = Figure(figsize=(6.2 * len(metrics), 5.8), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(metrics), squeeze=False)[0]
     xv = np.array([json.loads(v) for v in xs], dtype=float)
@@ -172,7 +172,7 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
         ax.set_ylabel(py)
         ax.set_title(metric, fontsize=9)
         if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7, loc="best")
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2)
     fig.suptitle(f"{doc['name']}: median over other parameters (phase {doc['phase']})",
                  fontsize=9)
     return _save(fig, out / f"{doc['name']}_map.png")
