@@ -214,7 +214,7 @@ def _validated(data: dict, where: str) -> str:
 
 
 def _samples(study: Study, base: dict) -> list[dict[tuple[Key, ...], object]]:
-    """Monte Carlo draws per sample: concrete key path -> value (empty list: no MC)."""
+    """Monte Carlo draws per sample: concrete key path -> value (one empty sample: no MC)."""
     mc = study.monte_carlo
     if mc is None:
         return [{}]
