@@ -21,6 +21,8 @@
     Draw the block diagram (top level, and robot 1's control block) without loggers.
 ``drake-coop bench``
     Realtime factor and cost per controller tick (see ``bench/benchmark.py``).
+``drake-coop study STUDY.yaml --out DIR`` / ``drake-coop study --plot DIR``
+    Parameter studies and Monte Carlo (see :mod:`drake_coop.studies.cli`).
 """
 
 from __future__ import annotations
@@ -368,6 +370,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--t-end", type=float, default=90.0)
     bench.add_argument("--repeats", type=int, default=1)
     bench.set_defaults(func=cmd_bench)
+    from drake_coop.studies.cli import add_study_parser
+    add_study_parser(sub)
     return parser
 
 

@@ -1,0 +1,246 @@
+"""Study file: typed dataclasses of a parameter study, YAML loading and validation.
+
+A study file is YAML with these top-level keys (all optional except that a study needs at
+least one ``grid`` entry or a ``monte_carlo`` block)::
+
+    name: h_sweep                  # default: the file's stem
+    base: ../scenarios/paper.yaml  # scenario file (relative to the study file) or inline
+                                   # mapping; default: the paper's scenario
+    t_end: 35.0                    # stop every case here (s); default: the scenario's t_end
+    grid:                          # dotted scenario paths -> lists of values (Cartesian product)
+      control_period: [0.003, 0.009]
+      robots.*.gains.k_d: [20, 40, 80]
+    monte_carlo:                   # n random samples per grid point
+      n: 50
+      seed: 1
+      perturb:
+        robots.*.gains.K_R: {scale_uniform: [0.9, 1.1]}
+    phase: circle                  # phase whose metrics go into results.csv and the plots
+    metrics: [worst.force_error.rms, worst.position_error.max]   # plotted columns
+    guides:                        # straight lines y = slope x + intercept on the 2-D maps
+      - {label: "(26), robot 1", slope: 0.639, intercept: 0}
+
+Every problem is a :class:`StudyError` whose message starts with the field's dotted name,
+e.g. ``grid.robots.0.gains.k_x: no such field``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["DISTRIBUTIONS", "Guide", "MonteCarlo", "Perturbation", "Study", "StudyError",
+           "load_study"]
+
+#: Monte Carlo distributions: name -> meaning of its two parameters ``[a, b]``.
+DISTRIBUTIONS = {
+    "uniform": "[lo, hi]: value ~ U(lo, hi)",
+    "normal": "[mean, std]: value ~ N(mean, std^2)",
+    "scale_uniform": "[lo, hi]: value = base value * U(lo, hi)",
+}
+PHASES = ("free", "lift", "circle", "put_down", "return", "all")
+_TOP_KEYS = ("name", "description", "base", "t_end", "grid", "monte_carlo", "phase", "metrics",
+             "guides")
+
+
+class StudyError(ValueError):
+    """A study file field is missing, of the wrong type, or out of its allowed range."""
+
+
+@dataclass
+class Perturbation:
+    """One Monte Carlo perturbation: ``path`` drawn from ``distribution(a, b)``.
+
+    Attributes
+    ----------
+    path : str
+        Dotted scenario path; a ``*`` draws independently for every element it matches.
+    distribution : str
+        A key of :data:`DISTRIBUTIONS`.
+    a, b : float
+        Its two parameters (``lo, hi`` or ``mean, std``).
+    """
+
+    path: str
+    distribution: str
+    a: float
+    b: float
+
+
+@dataclass
+class MonteCarlo:
+    """``n`` samples drawn with ``numpy.random.default_rng(seed)``."""
+
+    n: int
+    seed: int
+    perturb: list[Perturbation] = field(default_factory=list)
+
+
+@dataclass
+class Guide:
+    """A line ``y = slope x + intercept`` drawn on every 2-D map (e.g. condition (26))."""
+
+    label: str
+    slope: float
+    intercept: float = 0.0
+
+
+@dataclass
+class Study:
+    """A parsed, structurally valid study (its scenarios are checked by expansion).
+
+    Attributes
+    ----------
+    name : str
+    description : str
+    base_yaml : str or None
+        The base scenario as YAML text; None means the paper's scenario.
+    t_end : float or None
+        Simulation stop of every case (s).
+    grid : dict[str, list]
+        Dotted path -> values, in file order.
+    monte_carlo : MonteCarlo or None
+    phase : str
+        Phase of the summary metrics (``circle`` by default).
+    metrics : list[str]
+        Summary columns to plot.
+    guides : list[Guide]
+    """
+
+    name: str
+    description: str = ""
+    base_yaml: str | None = None
+    t_end: float | None = None
+    grid: dict[str, list] = field(default_factory=dict)
+    monte_carlo: MonteCarlo | None = None
+    phase: str = "circle"
+    metrics: list[str] = field(default_factory=lambda: [
+        "worst.position_error.max", "worst.force_error.rms", "worst.estimate_error.rms"])
+    guides: list[Guide] = field(default_factory=list)
+
+
+def _number(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise StudyError(f"{where}: must be a finite number, got {value!r}")
+    return float(value)
+
+
+def _integer(value, where: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise StudyError(f"{where}: must be an integer >= {minimum}, got {value!r}")
+    return value
+
+
+def _perturbation(path: str, spec, where: str) -> Perturbation:
+    if not isinstance(spec, dict) or len(spec) != 1:
+        raise StudyError(f"{where}: must be one of {{uniform: [lo, hi]}}, {{normal: [mean, "
+                         f"std]}}, {{scale_uniform: [lo, hi]}}, got {spec!r}")
+    (kind, params), = spec.items()
+    if kind not in DISTRIBUTIONS:
+        raise StudyError(f"{where}: unknown distribution {kind!r}; allowed: "
+                         f"{', '.join(DISTRIBUTIONS)}")
+    if not isinstance(params, list) or len(params) != 2:
+        raise StudyError(f"{where}.{kind}: must be a list of 2 numbers "
+                         f"{DISTRIBUTIONS[kind].split(':')[0]}, got {params!r}")
+    a, b = (_number(p, f"{where}.{kind}") for p in params)
+    if kind == "normal" and b < 0:
+        raise StudyError(f"{where}.normal: std must be >= 0, got {b}")
+    if kind != "normal" and b < a:
+        raise StudyError(f"{where}.{kind}: needs lo <= hi, got [{a}, {b}]")
+    return Perturbation(path=path, distribution=kind, a=a, b=b)
+
+
+def _monte_carlo(data) -> MonteCarlo:
+    if not isinstance(data, dict):
+        raise StudyError(f"monte_carlo: must be a mapping with n, seed, perturb; got {data!r}")
+    for key in data:
+        if key not in ("n", "seed", "perturb"):
+            raise StudyError(f"monte_carlo.{key}: no such field; allowed: n, seed, perturb")
+    if "n" not in data or "seed" not in data:
+        raise StudyError("monte_carlo: needs n (samples) and seed (integer)")
+    n = _integer(data["n"], "monte_carlo.n", 1)
+    seed = _integer(data["seed"], "monte_carlo.seed", 0)
+    perturb = data.get("perturb") or {}
+    if not isinstance(perturb, dict) or not perturb:
+        raise StudyError("monte_carlo.perturb: must map scenario paths to distributions")
+    return MonteCarlo(n=n, seed=seed, perturb=[
+        _perturbation(str(p), s, f"monte_carlo.perturb.{p}") for p, s in perturb.items()])
+
+
+def _base_yaml(base, folder: Path) -> str | None:
+    from pydrake.common.yaml import yaml_dump
+
+    if base is None:
+        return None
+    if isinstance(base, dict):
+        return yaml_dump(base)
+    if isinstance(base, str):
+        path = Path(base) if Path(base).is_absolute() else folder / base
+        if not path.is_file():
+            raise StudyError(f"base: scenario file not found: {path}")
+        return path.read_text()
+    raise StudyError(f"base: must be a scenario file path or an inline scenario, got {base!r}")
+
+
+def load_study(path: str | Path | None = None, *, data: str | None = None,
+               folder: str | Path = ".") -> Study:
+    """Parse a study file (or YAML text with relative paths taken from ``folder``).
+
+    Raises
+    ------
+    StudyError
+        With a one-line message starting with the offending field's name.
+    """
+    from pydrake.common.yaml import yaml_load
+
+    name = "study"
+    if path is not None:
+        path = Path(path)
+        if not path.is_file():
+            raise StudyError(f"study file not found: {path}")
+        data, folder, name = path.read_text(), path.parent, path.stem
+    try:
+        raw = yaml_load(data=data or "")
+    except Exception as exc:
+        raise StudyError(f"invalid YAML: {' '.join(str(exc).split())}") from None
+    if not isinstance(raw, dict):
+        raise StudyError(f"study: must be a mapping of fields ({', '.join(_TOP_KEYS)})")
+    for key in raw:
+        if key not in _TOP_KEYS:
+            raise StudyError(f"{key}: no such field; allowed: {', '.join(_TOP_KEYS)}")
+    study = Study(name=str(raw.get("name", name)), description=str(raw.get("description", "")))
+    study.base_yaml = _base_yaml(raw.get("base"), Path(folder))
+    if raw.get("t_end") is not None:
+        study.t_end = _number(raw["t_end"], "t_end")
+        if study.t_end <= 0:
+            raise StudyError(f"t_end: must be > 0, got {study.t_end}")
+    grid = raw.get("grid") or {}
+    if not isinstance(grid, dict):
+        raise StudyError(f"grid: must map scenario paths to lists of values, got {grid!r}")
+    for key, values in grid.items():
+        if not isinstance(values, list) or not values:
+            raise StudyError(f"grid.{key}: must be a non-empty list of values, got {values!r}")
+        study.grid[str(key)] = values
+    if raw.get("monte_carlo") is not None:
+        study.monte_carlo = _monte_carlo(raw["monte_carlo"])
+    if not study.grid and study.monte_carlo is None:
+        raise StudyError("grid: a study needs a grid, a monte_carlo block, or both")
+    study.phase = str(raw.get("phase", study.phase))
+    if study.phase not in PHASES:
+        raise StudyError(f"phase: must be one of {', '.join(PHASES)}, got {study.phase!r}")
+    if "metrics" in raw:
+        metrics = raw["metrics"]
+        if not isinstance(metrics, list) or not metrics or not all(
+                isinstance(m, str) for m in metrics):
+            raise StudyError(f"metrics: must be a non-empty list of column names, got "
+                             f"{metrics!r}")
+        study.metrics = list(metrics)
+    for i, g in enumerate(raw.get("guides") or []):
+        where = f"guides.{i}"
+        if not isinstance(g, dict) or not {"label", "slope"} <= set(g) or not set(g) <= {
+                "label", "slope", "intercept"}:
+            raise StudyError(f"{where}: must be {{label, slope, intercept}}, got {g!r}")
+        study.guides.append(Guide(label=str(g["label"]), slope=_number(g["slope"], where),
+                                  intercept=_number(g.get("intercept", 0.0), where)))
+    return study

@@ -1,0 +1,167 @@
+"""Results store of a study directory, and the summary columns of ``results.csv``.
+
+Layout of ``DIR``::
+
+    cases/<hash>.json   one file per finished case, written atomically when it finishes
+    results.csv         one row per case: index, hash, swept parameters, status, summary metrics
+    study.json          the study (grid, Monte Carlo, metrics, guides), engine, counts, cases
+
+A case file holds the full metrics (every robot, phase and error of ``metrics.json``), the
+scenario YAML, status and message. Resuming skips every case whose hash has a file; a case that
+was interrupted is never written. ``results.csv`` and ``study.json`` are rewritten (atomically)
+after every finished case.
+
+Summary columns (of the study's ``phase``): ``<robot>.<error>.<rms|max>`` for the errors of
+:mod:`drake_coop.results.metrics`, plus ``position_error`` (RMS of ``|x − x_d|``, i.e.
+``sqrt(rms_x² + rms_y² + rms_z²)``; max = the largest single-axis max) and ``observation_error``
+(the same over ``z1 … z3``), ``velocity_error`` when the run logs it (the sensing alternatives),
+and ``worst.<error>.<stat>``, the largest over the robots.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from dataclasses import asdict
+from pathlib import Path
+
+from drake_coop.results.io import atomic_write_text
+from drake_coop.studies.expand import Case
+from drake_coop.studies.spec import Study
+
+__all__ = ["ERRORS", "ResultStore", "check_metric_names", "summary_columns"]
+
+ERRORS = ("x_tilde", "y_tilde", "z_tilde", "position_error", "force_error", "estimate_error",
+          "aux_force_error", "z1", "z2", "z3", "observation_error", "velocity_error")
+_GROUPS = {"position_error": ("x_tilde", "y_tilde", "z_tilde"),
+           "observation_error": ("z1", "z2", "z3")}
+STATS = ("rms", "max")
+
+
+def _robot_summary(phase_metrics: dict) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for error in ERRORS:
+        if error in _GROUPS:
+            parts = [phase_metrics.get(e) for e in _GROUPS[error]]
+            if all(parts):
+                out[f"{error}.rms"] = math.sqrt(sum(p["rms"] ** 2 for p in parts))
+                out[f"{error}.max"] = max(p["max"] for p in parts)
+        elif error in phase_metrics:
+            out[f"{error}.rms"] = phase_metrics[error]["rms"]
+            out[f"{error}.max"] = phase_metrics[error]["max"]
+    return out
+
+
+def summary_columns(metrics: dict, phase: str) -> dict[str, float]:
+    """Summary metrics of one case for ``phase`` (missing when the run never reached it)."""
+    out: dict[str, float] = {}
+    worst: dict[str, float] = {}
+    for robot, phases in metrics.items():
+        if phase not in phases:
+            continue
+        for name, value in _robot_summary(phases[phase]).items():
+            out[f"{robot}.{name}"] = value
+            worst[name] = max(worst.get(name, value), value)
+    out.update({f"worst.{k}": v for k, v in worst.items()})
+    return out
+
+
+def metric_names(robots: list[str]) -> list[str]:
+    """Every summary column name for the given robot names."""
+    return [f"{r}.{e}.{s}" for r in [*robots, "worst"] for e in ERRORS for s in STATS]
+
+
+def check_metric_names(names: list[str], robots: list[str]) -> str | None:
+    """The first unknown metric name as an error message, or None."""
+    known = metric_names(robots)
+    for name in names:
+        if name not in known:
+            return (f"metrics: unknown column {name!r}; use <robot|worst>.<error>.<rms|max> "
+                    f"with robot in {', '.join(robots)} and error in {', '.join(ERRORS)}")
+    return None
+
+
+class ResultStore:
+    """The case files of a study directory (see the module docstring)."""
+
+    def __init__(self, out: str | Path):
+        self.out = Path(out)
+        self.cases_dir = self.out / "cases"
+
+    def load(self) -> dict[str, dict]:
+        """Finished case records by hash (unreadable files are ignored: their case reruns)."""
+        records = {}
+        if self.cases_dir.is_dir():
+            for path in sorted(self.cases_dir.glob("*.json")):
+                try:
+                    record = json.loads(path.read_text())
+                except (OSError, ValueError):
+                    continue
+                if isinstance(record, dict) and record.get("hash") == path.stem:
+                    records[path.stem] = record
+        return records
+
+    def save(self, case: Case, result: dict, t_end: float | None) -> dict:
+        """Write one finished case's record atomically and return it."""
+        record = {"hash": case.hash, "index": case.index, "params": case.params,
+                  "t_end": t_end, **result, "scenario_yaml": case.scenario_yaml}
+        text = json.dumps(record, indent=1, allow_nan=False)
+        atomic_write_text(self.cases_dir / f"{case.hash}.json", text + "\n")
+        return record
+
+    def write_tables(self, study: Study, cases: list[Case], records: dict[str, dict],
+                     engine: str) -> None:
+        """Rewrite ``results.csv`` and ``study.json`` (atomically) from the records so far."""
+        param_keys: list[str] = []
+        for case in cases:
+            param_keys += [k for k in case.params if k not in param_keys]
+        rows, metric_keys = [], []
+        for case in cases:
+            record = records.get(case.hash)
+            summary = summary_columns(record["metrics"], study.phase) if record else {}
+            metric_keys += [k for k in summary if k not in metric_keys]
+            rows.append((case, record, summary))
+        head = ["index", "hash", *param_keys, "status", "t_reached", "wall_time_s"]
+        buffer = io.StringIO()
+        writer = csv.writer(buffer, lineterminator="\n")
+        writer.writerow([*head, *metric_keys, "message"])
+        for case, record, summary in rows:
+            record = record or {"status": "pending", "message": ""}
+            writer.writerow([case.index, case.hash, *[_cell(case.params.get(k))
+                                                      for k in param_keys],
+                             record["status"], _cell(record.get("t_reached")),
+                             _cell(record.get("wall_time_s")),
+                             *[_cell(summary.get(k)) for k in metric_keys],
+                             record["message"]])
+        atomic_write_text(self.out / "results.csv", buffer.getvalue())
+        counts: dict[str, int] = {}
+        for _, record, _ in rows:
+            status = record["status"] if record else "pending"
+            counts[status] = counts.get(status, 0) + 1
+        doc = {
+            "name": study.name, "description": study.description, "t_end": study.t_end,
+            "phase": study.phase, "grid": study.grid,
+            "monte_carlo": asdict(study.monte_carlo) if study.monte_carlo else None,
+            "metrics": study.metrics, "guides": [asdict(g) for g in study.guides],
+            "engine": engine, "n_cases": len(cases), "counts": counts,
+            "cases": [{"index": c.index, "hash": c.hash, "params": c.params,
+                       "status": (r or {}).get("status", "pending"),
+                       "message": (r or {}).get("message", ""), "summary": s}
+                      for c, r, s in rows],
+        }
+        atomic_write_text(self.out / "study.json",
+                          json.dumps(doc, indent=1, allow_nan=False) + "\n")
+
+
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, list):
+        return " ".join(_cell(v) for v in value)
+    if isinstance(value, dict):
+        return " ".join(f"{k}={_cell(v)}" for k, v in value.items())
+    return str(value)
