@@ -134,7 +134,7 @@ def test_grid_times_monte_carlo_uses_the_same_draws_at_every_grid_point():
     ("grid: {robots.5.gains.k_d: [1]}", "grid.robots.5.gains.k_d: 'robots.5' is not an index of a list of 2"),
     ("grid: {control_period.x: [1]}", "grid.control_period.x: no such field"),
     ("grid: {control_period: [-0.009]}",
-     "grid.control_period = -0.009: control_period must be > 0"),
+     "grid.control_period = -0.009: control_period must be a finite number in"),
     ("grid: {robots.*.gains.k_d: [40, abc]}", "grid.robots.*.gains.k_d = 'abc':"),
     ("grid: {control_period: []}", "grid.control_period: must be a non-empty list"),
     ("grids: {control_period: [0.009]}", "grids: no such field"),
