@@ -17,9 +17,11 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Optional
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
-VELOCITY_SOURCES = ("observer", "measured")
+VELOCITY_SOURCES = ("observer", "measured", "difference")
+FORCE_SOURCES = ("observer", "sensor", "none")
 ARM_MODELS = ("crs_a465", "crs_a255")
 
 
@@ -59,6 +61,109 @@ class Gains:
 
 
 @dataclass
+class Encoders:
+    """Joint-position sensors of one robot (:class:`drake_coop.sensing.encoders.Encoders`).
+
+    The reading at tick ``k`` is ``δ round((q(t_{k-d}) + w_{k-d}) / δ)`` with ``δ = 2π /
+    counts_per_rev`` (no rounding when ``counts_per_rev`` is null), ``w`` white Gaussian noise
+    and ``d = delay_samples``. Defaults: an ideal sensor (the exact ``q(t_k)``).
+
+    Attributes
+    ----------
+    counts_per_rev : int or None
+        Resolution in counts per joint revolution (>= 1; for an incremental encoder on the motor
+        behind a gear of ratio N: motor counts × N). Null: no quantization.
+    noise_std : float
+        Standard deviation of the additive white noise ``w`` (rad, >= 0).
+    delay_samples : int
+        Delay ``d`` in whole samples ``h`` (>= 0).
+    seed : int
+        Seed of the noise (>= 0); the noise is a deterministic function of (seed, robot, tick,
+        joint), so runs are reproducible.
+    """
+
+    counts_per_rev: Optional[int] = None
+    noise_std: float = 0.0
+    delay_samples: int = 0
+    seed: int = 0
+
+
+@dataclass
+class ForceSensorModel:
+    """A wrist force/torque sensor measuring the squeeze λ, sampled at ``h``
+    (:class:`drake_coop.sensing.force_sensor.FTSensor`).
+
+    ``λ_s(k) = y(k) + bias + v_k`` with ``y`` the first-order low-pass
+    ``y(k) = y(k-1) + α (λ(t_k^-) − y(k-1))``, ``α = 1 − exp(−2π f_c h)`` (``α = 1`` without
+    cutoff), ``λ(t_k^-)`` the true squeeze just before the tick and ``v`` white Gaussian noise.
+    Used by the controller only with ``force_source: sensor``; always logged as
+    ``lambda_sensor``.
+
+    Attributes
+    ----------
+    noise_std : float
+        Standard deviation of ``v`` (N, >= 0).
+    bias : float
+        Constant offset along the contact normal, i.e. on λ (N).
+    cutoff_hz : float or None
+        Cutoff ``f_c`` of the low-pass (Hz), ``0 < f_c < 1/(2h)`` (Nyquist). Null: no filter.
+    seed : int
+        Seed of the noise (>= 0).
+    """
+
+    noise_std: float = 0.0
+    bias: float = 0.0
+    cutoff_hz: Optional[float] = None
+    seed: int = 0
+
+
+@dataclass
+class Actuators:
+    """The motors of one robot (``robotN_actuators``, a Drake ``Saturation``).
+
+    Attributes
+    ----------
+    torque_limits : list[float] or None
+        Per-joint limits ``|τ_j| <= τ_max,j`` (N·m at the joint, > 0), one per joint; the
+        applied (saturated) torque is logged as ``tau``, the commanded one as ``tau_cmd``.
+        Null: unlimited.
+    """
+
+    torque_limits: Optional[list[float]] = None
+
+
+@dataclass
+class ModelError:
+    """What the controller's model gets wrong (:mod:`drake_coop.sensing.model_error`).
+
+    The controller's model is the URDF of the simulated arm (or ``controller_model``) with
+    every link's mass multiplied by ``mass_scale``, every link's rotational inertia and every
+    rotor inertia by ``inertia_scale`` and every joint damping by ``damping_scale``. The
+    simulated arm additionally carries ``payload_mass`` and suffers Coulomb friction, both
+    unknown to the controller. Defaults: an exact model.
+
+    Attributes
+    ----------
+    mass_scale, inertia_scale, damping_scale : float
+        Scales of the controller's link masses, inertias (links and rotors) and joint damping
+        (> 0).
+    payload_mass : float
+        A point mass (kg, >= 0) welded to the simulated arm's tool flange (the origin of the
+        force sensor's body, ``L_forearm + L_flange`` from the elbow, on the wrist side of the
+        force sensor, so the sensor does not weigh it).
+    coulomb_friction : list[float]
+        Coulomb friction torque of each simulated joint (N·m, >= 0), ``−f_c tanh(q̇/v_s)``
+        with ``v_s = 0.01 rad/s``.
+    """
+
+    mass_scale: float = 1.0
+    inertia_scale: float = 1.0
+    damping_scale: float = 1.0
+    payload_mass: float = 0.0
+    coulomb_friction: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+@dataclass
 class Robot:
     """One arm ("finger") of the cooperative system.
 
@@ -85,8 +190,23 @@ class Robot:
     gains : Gains
         The robot's controller and observer gains.
     velocity_source : str
-        ``observer`` (the paper's scheme: the velocity observer (15)–(16)) or ``measured`` (a
-        baseline for comparisons: the controller is given the true joint velocities).
+        ``observer`` (the paper's scheme: the velocity observer (15)–(16)), ``measured`` (a
+        baseline: the true joint velocities) or ``difference`` (the backward difference of the
+        encoder signal at ``h``, optionally low-passed).
+    difference_cutoff_hz : float or None
+        ``difference`` only: cutoff of a first-order low-pass of the difference (Hz),
+        ``0 < f < 1/(2h)``; null: the raw difference.
+    force_source : str
+        ``observer`` (the paper's (22)), ``sensor`` (the F/T sensor model's λ in (13) and (6))
+        or ``none`` (``λ̂ := λ_d``, ``ΔF̃ ≡ 0``: the implicit force control of reference [9]).
+    encoders : Encoders
+        The joint-position sensors.
+    force_sensor : ForceSensorModel
+        The wrist F/T sensor model.
+    actuators : Actuators
+        Torque limits.
+    model_error : ModelError
+        The controller's model error, payload and joint friction of the simulated arm.
     """
 
     name: str = "robot1"
@@ -99,6 +219,12 @@ class Robot:
     home: list[float] = field(default_factory=lambda: [0.5, 0.0, 0.6])
     gains: Gains = field(default_factory=Gains)
     velocity_source: str = "observer"
+    difference_cutoff_hz: Optional[float] = None
+    force_source: str = "observer"
+    encoders: Encoders = field(default_factory=Encoders)
+    force_sensor: ForceSensorModel = field(default_factory=ForceSensorModel)
+    actuators: Actuators = field(default_factory=Actuators)
+    model_error: ModelError = field(default_factory=ModelError)
 
 
 @dataclass
@@ -344,6 +470,12 @@ def _check_structure(data, schema, path: str) -> None:
             _check_structure(value, hints[key], f"{path + '.' if path else ''}{key}")
         return
     origin = typing.get_origin(schema)
+    if origin is typing.Union:   # Optional[X]: null or an X
+        if data is None:
+            return
+        (inner,) = [a for a in typing.get_args(schema) if a is not type(None)]
+        _check_structure(data, inner, path)
+        return
     if origin is list:
         if not isinstance(data, list):
             raise ScenarioError(f"{where} must be a list, got {data!r}")
@@ -353,6 +485,9 @@ def _check_structure(data, schema, path: str) -> None:
     elif schema is float:
         if isinstance(data, bool) or not isinstance(data, (int, float)):
             raise ScenarioError(f"{where} must be a number, got {data!r}")
+    elif schema is int:
+        if isinstance(data, bool) or not isinstance(data, int):
+            raise ScenarioError(f"{where} must be a whole number, got {data!r}")
     elif schema is str:
         if not isinstance(data, str):
             raise ScenarioError(f"{where} must be a string, got {data!r}")
@@ -445,10 +580,7 @@ def validate(scenario: Scenario) -> None:
         if r.normal_sign not in (-1.0, 1.0):
             raise ScenarioError(f"{where}.normal_sign must be -1 or 1, got {r.normal_sign}")
         _vector(r.home, 3, f"{where}.home")
-        if r.velocity_source not in VELOCITY_SOURCES:
-            raise ScenarioError(
-                f"{where}.velocity_source must be one of {', '.join(VELOCITY_SOURCES)}, got "
-                f"{r.velocity_source!r}")
+        _validate_sensing(r, where, scenario.control_period)
         g = r.gains
         for name in ("Lambda", "k_d", "k_F", "xi", "zeta", "beta"):
             _positive(getattr(g, name), f"{where}.gains.{name}")
@@ -492,3 +624,73 @@ def validate(scenario: Scenario) -> None:
     from drake_coop.references import check_reachable
 
     check_reachable(scenario)
+
+
+# --------------------------------------------------------------------------- sensing
+
+
+def _whole(value, name: str, minimum: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ScenarioError(f"{name} must be a whole number >= {minimum}, got {value!r}")
+
+
+def _non_negative(value: float, name: str) -> None:
+    _finite(value, name)
+    if value < 0:
+        raise ScenarioError(f"{name} must be >= 0, got {value!r}")
+
+
+def _cutoff(value: float | None, name: str, h: float) -> None:
+    """A low-pass cutoff: null or ``0 < f < 1/(2h)`` (the Nyquist frequency of sampling h)."""
+    if value is None:
+        return
+    _finite(value, name)
+    nyquist = 1.0 / (2.0 * h)
+    if not 0.0 < value < nyquist:
+        raise ScenarioError(f"{name} must be null or in (0, {nyquist:g}) Hz (below the "
+                            f"Nyquist frequency 1/(2h) for h = {h:g} s), got {value!r}")
+
+
+def _validate_sensing(robot: Robot, where: str, h: float) -> None:
+    """Sources, sensors, actuators and model error of one robot (issue 7).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the field (``where`` is e.g. ``robots[0]``) and what is allowed.
+    """
+    if robot.velocity_source not in VELOCITY_SOURCES:
+        raise ScenarioError(
+            f"{where}.velocity_source must be one of {', '.join(VELOCITY_SOURCES)}, got "
+            f"{robot.velocity_source!r}")
+    if robot.force_source not in FORCE_SOURCES:
+        raise ScenarioError(
+            f"{where}.force_source must be one of {', '.join(FORCE_SOURCES)}, got "
+            f"{robot.force_source!r}")
+    _cutoff(robot.difference_cutoff_hz, f"{where}.difference_cutoff_hz", h)
+    if robot.difference_cutoff_hz is not None and robot.velocity_source != "difference":
+        raise ScenarioError(f"{where}.difference_cutoff_hz applies to velocity_source: "
+                            f"difference only; set it to null or use difference")
+    e = robot.encoders
+    if e.counts_per_rev is not None:
+        _whole(e.counts_per_rev, f"{where}.encoders.counts_per_rev", 1)
+    _non_negative(e.noise_std, f"{where}.encoders.noise_std")
+    _whole(e.delay_samples, f"{where}.encoders.delay_samples", 0)
+    _whole(e.seed, f"{where}.encoders.seed", 0)
+    f = robot.force_sensor
+    _non_negative(f.noise_std, f"{where}.force_sensor.noise_std")
+    _finite(f.bias, f"{where}.force_sensor.bias")
+    _cutoff(f.cutoff_hz, f"{where}.force_sensor.cutoff_hz", h)
+    _whole(f.seed, f"{where}.force_sensor.seed", 0)
+    limits = robot.actuators.torque_limits
+    if limits is not None:
+        _vector(limits, 3, f"{where}.actuators.torque_limits")
+        for j, value in enumerate(limits):
+            _positive(value, f"{where}.actuators.torque_limits[{j}]")
+    m = robot.model_error
+    for name in ("mass_scale", "inertia_scale", "damping_scale"):
+        _positive(getattr(m, name), f"{where}.model_error.{name}")
+    _non_negative(m.payload_mass, f"{where}.model_error.payload_mass")
+    _vector(m.coulomb_friction, 3, f"{where}.model_error.coulomb_friction")
+    for j, value in enumerate(m.coulomb_friction):
+        _non_negative(value, f"{where}.model_error.coulomb_friction[{j}]")

@@ -64,6 +64,8 @@ def initialize(exp: Experiment, context) -> None:
     for rs, q in zip(exp.robots, q0):
         rs.velocity_observer.set_initial_state(
             rs.velocity_observer.GetMyMutableContextFromRoot(context), q)
+        if rs.encoders is not None:   # the delay line holds the reading at rest
+            rs.encoders.set_initial_state(rs.encoders.GetMyMutableContextFromRoot(context), q)
 
 
 def _check_guards(exp: Experiment, context) -> str | None:
@@ -106,6 +108,7 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
         t = raw["q"].sample_times()[:n]
         data = {k: r.data()[:, :n].T for k, r in raw.items()}
         arm = exp.coop.arms[i].arm
+        arm_dofs = rs.law.n
         robot = exp.scenario.robots[i]
         ref = data["reference"]
         logs[rs.name] = {
@@ -121,6 +124,14 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
             "lambda_d": ref[:, 9].copy(),
             "tau": data["tau"],
         }
+        optional = {   # issue 7: sensors, velocity estimate, commanded torque
+            "qdot": data["state"][:, arm_dofs:] if "state" in data else None,
+            "qdot_hat": data.get("qdot_hat"),
+            "lambda_sensor": data["lambda_sensor"][:, 0].copy() if "lambda_sensor" in data
+            else None,
+            "tau_cmd": data.get("tau_cmd"),
+        }
+        logs[rs.name].update({k: v for k, v in optional.items() if v is not None})
     return logs
 
 
