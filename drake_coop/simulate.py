@@ -53,7 +53,10 @@ def phases(scenario: Scenario) -> list[list]:
 
 
 def initialize(exp: Experiment, context) -> None:
-    """Arms at rest at ``q_d(0)``, observers at ``q̂(0) = q(0)``, ``q̇̂_o(0) = 0``, no grasp."""
+    """Arms at rest at ``q_d(0)``, observers at ``q̂(0) = q(0)``, ``q̇̂_o(0) = 0``, no grasp.
+
+    ``q(0)`` as the encoders read it at rest (quantized, no noise; the exact ``q(0)`` with
+    ideal encoders)."""
     scenario = exp.scenario
     coop = exp.coop
     plant_context = coop.plant.GetMyMutableContextFromRoot(context)
@@ -62,10 +65,11 @@ def initialize(exp: Experiment, context) -> None:
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
     initialize_plant_context(coop, plant_context, q0, z_grasp)
     for rs, q in zip(exp.robots, q0):
-        rs.velocity_observer.set_initial_state(
-            rs.velocity_observer.GetMyMutableContextFromRoot(context), q)
         if rs.encoders is not None:   # the delay line holds the reading at rest
             rs.encoders.set_initial_state(rs.encoders.GetMyMutableContextFromRoot(context), q)
+            q = rs.encoders.initial_reading(q)   # what the controller knows of q(0)
+        rs.velocity_observer.set_initial_state(
+            rs.velocity_observer.GetMyMutableContextFromRoot(context), q)
 
 
 def _check_guards(exp: Experiment, context) -> str | None:

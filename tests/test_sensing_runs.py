@@ -124,10 +124,6 @@ def test_harsh_raw_difference_of_a_coarse_encoder_diverges_exit_1_logs_kept(tmp_
         "robot1"]["free"]
 
 
-def _circle(result):
-    return compute_metrics(result.logs, result.meta)
-
-
 @pytest.mark.slow
 def test_filtered_difference_with_force_sensor_completes_under_realistic_sensing():
     s = _scenario("difference", "sensor", counts_per_rev=200000)

@@ -91,9 +91,13 @@ class Encoders(LeafSystem):
         noise = white_noise(self._seed, self._robot, ENCODER_STREAM, k, self._std, self._n)
         return quantize(np.asarray(q, dtype=float) + noise, self._counts)
 
+    def initial_reading(self, q0: np.ndarray) -> np.ndarray:
+        """The noiseless reading of the posture at rest ``q0`` (``q0`` itself when ideal)."""
+        return quantize(q0, self._counts)
+
     def set_initial_state(self, context: Context, q0: np.ndarray) -> None:
-        """Fill the delay line with the noiseless reading of the initial posture ``q0``."""
-        r0 = quantize(q0, self._counts)
+        """Fill the delay line with :meth:`initial_reading` of the initial posture ``q0``."""
+        r0 = self.initial_reading(q0)
         context.SetDiscreteState(self._state, np.concatenate([[-1.0], np.tile(r0, self._d + 1)]))
 
     def _buffer(self, context: Context) -> tuple[int, np.ndarray]:
