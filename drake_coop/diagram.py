@@ -6,29 +6,37 @@
     (TrajectorySource)├─ reference ─────▶│ robotN_velocity_observer (15)-(16)               │
                       │                  │ robotN_force_observer (22)                        │──tau─▶ plant
     plant ─state─▶ robotN_encoders ─ q ─▶│ robotN_controller (13)                            │
-      │            (MatrixGain [I 0])    └───────────────────────────────────────────────────┘
-      └─ reaction forces, body poses ─▶ robotN_force_sensor (ground truth, logged only)
+      │            (sensing.Encoders)    └───────────────────────────────────────────────────┘
+      │                                          tau ─▶ robotN_actuators (Saturation) ─▶ plant
+      └─ reaction forces, body poses ─▶ robotN_force_sensor (ground truth)
+                                          └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
 
-The encoders pass on the joint positions only: the control block never sees a velocity or a
-force. Each control block is a sub-Diagram whose inputs are ``q`` and ``reference`` and whose
-outputs are ``tau`` and the observers' signals (for logging).
+The encoders pass on (quantized, noisy, delayed) joint positions only: with the paper's
+observers the control block never sees a velocity or a force. The alternatives of
+:mod:`drake_coop.sources` replace the observers inside the block: ``measured`` also reads the
+plant's state (true velocities), ``sensor`` the F/T sensor model's λ. Each control block is a
+sub-Diagram whose inputs are ``q`` and ``reference`` (plus ``state`` / ``lambda_sensor`` for
+those alternatives) and whose outputs are ``tau`` and the sources' signals (for logging).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import LogVectorOutput, MatrixGain, TrajectorySource, VectorLogSink
+from pydrake.systems.primitives import LogVectorOutput, Saturation, TrajectorySource, VectorLogSink
 
-from drake_coop.arm_model import ArmModel
 from drake_coop.controller import Controller
 from drake_coop.finger import FingerLaw
-from drake_coop.observers import ForceObserver, MeasuredVelocity, VelocityObserver
+from drake_coop.observers import ForceObserver, VelocityObserver
 from drake_coop.plant import CoopPlant, ForceSensor, add_force_sensors, build_plant
 from drake_coop.references import reference_trajectory
 from drake_coop.scenario import Scenario, aligned_periods
+from drake_coop.sensing.actuators import add_actuators
+from drake_coop.sensing.encoders import Encoders
+from drake_coop.sensing.force_sensor import FTSensor
+from drake_coop.sensing.model_error import controller_arm_model
+from drake_coop.sources import DifferenceVelocity, MeasuredVelocity, NoForceEstimate, SensedForce
 
 @dataclass
 class RobotSystems:
@@ -37,10 +45,13 @@ class RobotSystems:
     name: str
     law: FingerLaw
     control: Diagram
-    velocity_observer: VelocityObserver | MeasuredVelocity
-    force_observer: ForceObserver
+    velocity_observer: VelocityObserver | MeasuredVelocity | DifferenceVelocity
+    force_observer: ForceObserver | SensedForce | NoForceEstimate
     controller: Controller
     force_sensor: ForceSensor
+    encoders: Encoders | None = None
+    ft_sensor: FTSensor | None = None
+    actuators: Saturation | None = None
     loggers: dict[str, VectorLogSink] = field(default_factory=dict)
 
 
@@ -54,39 +65,57 @@ class Experiment:
     robots: list[RobotSystems]
 
 
-def build_control_block(name: str, law: FingerLaw, period: float,
-                        velocity_source: str = "observer"
-                        ) -> tuple[Diagram, VelocityObserver | MeasuredVelocity, ForceObserver,
-                                   Controller]:
-    """One robot's observers and controller, wired as in the paper, as a sub-Diagram.
+VelocitySource = VelocityObserver | MeasuredVelocity | DifferenceVelocity
+ForceSource = ForceObserver | SensedForce | NoForceEstimate
 
-    Exported inputs: ``q``, ``reference`` (and ``state`` for the ``measured`` baseline).
+
+def build_control_block(name: str, law: FingerLaw, period: float,
+                        velocity_source: str = "observer", force_source: str = "observer",
+                        difference_cutoff_hz: float | None = None
+                        ) -> tuple[Diagram, VelocitySource, ForceSource, Controller]:
+    """One robot's velocity source, force source and controller, wired as in the paper.
+
+    The sources are the paper's observers (``observer``) or the alternatives of
+    :mod:`drake_coop.sources`, with the same port names, so only the blocks change.
+
+    Exported inputs: ``q``, ``reference``; ``state`` for ``velocity_source = measured`` (the
+    true velocities); ``lambda_sensor`` for ``force_source = sensor``.
     Exported outputs: ``tau``, ``q_hat``, ``qdot_hat``, ``qdot_o``, ``lambda_hat``,
     ``Delta_F_tilde``, ``qddot_r_hat``.
     """
     b = DiagramBuilder()
     if velocity_source == "measured":
         vel = b.AddNamedSystem(f"{name}_measured_velocity", MeasuredVelocity(law.n))
+    elif velocity_source == "difference":
+        vel = b.AddNamedSystem(f"{name}_difference_velocity",
+                               DifferenceVelocity(law.n, period, difference_cutoff_hz))
     else:
         vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law, period))
-    force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
+    if force_source == "sensor":
+        force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period))
+    elif force_source == "none":
+        force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate())
+    else:
+        force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
     for port in ("q_hat", "qdot_hat", "qdot_o"):
         b.Connect(vel.GetOutputPort(port), ctrl.GetInputPort(port))
-    b.Connect(vel.GetOutputPort("q_hat"), force.GetInputPort("q_hat"))
-    b.Connect(vel.GetOutputPort("qdot_o"), force.GetInputPort("qdot_o"))
     b.Connect(force.GetOutputPort("lambda_hat"), ctrl.GetInputPort("lambda_hat"))
     b.Connect(force.GetOutputPort("Delta_F_tilde"), ctrl.GetInputPort("Delta_F_tilde"))
+    b.ExportInput(ctrl.GetInputPort("q"), "q")
     if velocity_source == "measured":
         b.ExportInput(vel.GetInputPort("state"), "state")
-        b.ExportInput(force.GetInputPort("q"), "q")
-    else:
+    if velocity_source == "observer":
         b.Connect(ctrl.GetOutputPort("qddot_r_hat"), vel.GetInputPort("qddot_r_hat"))
-        b.ExportInput(vel.GetInputPort("q"), "q")
-        b.ConnectInput("q", force.GetInputPort("q"))
-    b.ConnectInput("q", ctrl.GetInputPort("q"))
+    b.ConnectInput("q", vel.GetInputPort("q"))
     b.ExportInput(ctrl.GetInputPort("reference"), "reference")
     b.ConnectInput("reference", force.GetInputPort("reference"))
+    if force_source == "observer":
+        b.ConnectInput("q", force.GetInputPort("q"))
+        b.Connect(vel.GetOutputPort("q_hat"), force.GetInputPort("q_hat"))
+        b.Connect(vel.GetOutputPort("qdot_o"), force.GetInputPort("qdot_o"))
+    elif force_source == "sensor":
+        b.ExportInput(force.GetInputPort("lambda_sensor"), "lambda_sensor")
     b.ExportOutput(ctrl.GetOutputPort("tau"), "tau")
     for port in ("q_hat", "qdot_hat", "qdot_o"):
         b.ExportOutput(vel.GetOutputPort(port), port)
@@ -116,7 +145,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         One 11-row reference trajectory per robot instead of the scenario's (studies and
         tests, e.g. a constant posture for Theorem 1).
     """
-    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
     b = builder or DiagramBuilder()
     coop = build_plant(b, scenario)
     plant = coop.plant
@@ -124,35 +153,49 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     robots = []
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
-        law = FingerLaw(ArmModel(handles.arm), scenario.robots[i].gains)
-        velocity_source = scenario.robots[i].velocity_source
-        control, vel, force, ctrl = build_control_block(name, law, h, velocity_source)
+        robot = scenario.robots[i]
+        law = FingerLaw(controller_arm_model(handles.arm, robot.model_error), robot.gains)
+        n = law.n
+        control, vel, force, ctrl = build_control_block(
+            name, law, h, robot.velocity_source, robot.force_source, robot.difference_cutoff_hz)
         b.AddSystem(control)
         trajectory = (reference_trajectory(scenario, i) if references is None
                       else references[i])
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
-        n = law.n
-        encoder = b.AddNamedSystem(
-            f"{name}_encoders", MatrixGain(np.hstack([np.eye(n), np.zeros((n, n))])))
-        b.Connect(plant.get_state_output_port(handles.instance), encoder.get_input_port())
-        b.Connect(encoder.get_output_port(), control.GetInputPort("q"))
-        if velocity_source == "measured":   # the comparison baseline, not the paper's scheme
-            b.Connect(plant.get_state_output_port(handles.instance),
-                      control.GetInputPort("state"))
+        state = plant.get_state_output_port(handles.instance)
+        # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
+        encoder = b.AddNamedSystem(f"{name}_encoders", Encoders(n, h, robot.encoders, i))
+        b.Connect(state, encoder.GetInputPort("state"))
+        b.Connect(encoder.GetOutputPort("q"), control.GetInputPort("q"))
+        ft = b.AddNamedSystem(f"{name}_ft_sensor", FTSensor(h, dt, robot.force_sensor, i))
+        b.Connect(sensors[i].GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
+        if robot.velocity_source == "measured":   # the comparison baseline, not the paper's
+            b.Connect(state, control.GetInputPort("state"))
+        if robot.force_source == "sensor":        # classical force feedback
+            b.Connect(ft.GetOutputPort("lambda_sensor"), control.GetInputPort("lambda_sensor"))
         b.Connect(ref.get_output_port(), control.GetInputPort("reference"))
-        b.Connect(control.GetOutputPort("tau"), plant.get_actuation_input_port(handles.instance))
+        # Actuators: control block → saturation (+ joint friction) → plant.
+        actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
+                                           robot.model_error.coulomb_friction, state)
+        b.Connect(control.GetOutputPort("tau"), actuators.get_input_port())
+        b.Connect(applied, plant.get_actuation_input_port(handles.instance))
         rs = RobotSystems(name=name, law=law, control=control, velocity_observer=vel,
-                          force_observer=force, controller=ctrl, force_sensor=sensors[i])
+                          force_observer=force, controller=ctrl, force_sensor=sensors[i],
+                          encoders=encoder, ft_sensor=ft, actuators=actuators)
         if log:
             sources = {
-                "q": encoder.get_output_port(),
+                "q": encoder.GetOutputPort("q"),
                 "q_hat": control.GetOutputPort("q_hat"),
                 "reference": ref.get_output_port(),
                 "lambda_hat": control.GetOutputPort("lambda_hat"),
                 "Delta_F_tilde": control.GetOutputPort("Delta_F_tilde"),
-                "tau": control.GetOutputPort("tau"),
+                "tau": actuators.get_output_port(),
+                "tau_cmd": control.GetOutputPort("tau"),
                 "F_meas": sensors[i].GetOutputPort("F_meas"),
                 "lambda_meas": sensors[i].GetOutputPort("lambda_meas"),
+                "lambda_sensor": ft.GetOutputPort("lambda_sensor"),
+                "qdot_hat": control.GetOutputPort("qdot_hat"),
+                "state": state,
             }
             for key, port in sources.items():
                 logger = LogVectorOutput(port, b, publish_period=h)

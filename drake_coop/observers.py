@@ -23,6 +23,7 @@ from pydrake.systems.framework import (
 
 from drake_coop.finger import FingerLaw, Reference
 from drake_coop.references import REFERENCE_SIZE
+from drake_coop.sources import MeasuredVelocity  # noqa: F401  (moved there; old import path)
 
 
 class VelocityObserver(LeafSystem):
@@ -175,39 +176,3 @@ class ForceObserver(LeafSystem):
         new = DF + self._h * (lam - lambda_d) if held else 0.0
         discrete_state.set_value(self._state, [new])
 
-
-class MeasuredVelocity(LeafSystem):
-    """Baseline for comparisons, *not* the paper's scheme: the true joint velocities.
-
-    Stands in for :class:`VelocityObserver` when a robot's ``velocity_source`` is ``measured``:
-    ``q̂ = q``, ``d/dt q̂ = q̇`` and ``q̇_o = q̇`` from the plant's state, so that ``z = 0`` and
-    ``r = 0``. Comparing a run with it against the paper's run isolates what the velocity
-    observer costs.
-
-    Input ports
-    -----------
-    state : 2n-vector
-        The arm's ``[q, q̇]`` from the plant.
-
-    Output ports
-    ------------
-    q_hat, qdot_hat, qdot_o : n-vectors
-    """
-
-    def __init__(self, n: int):
-        super().__init__()
-        self._n = n
-        self._state = self.DeclareVectorInputPort("state", 2 * n)
-        self.DeclareVectorOutputPort("q_hat", n, self._calc_q)
-        self.DeclareVectorOutputPort("qdot_hat", n, self._calc_v)
-        self.DeclareVectorOutputPort("qdot_o", n, self._calc_v)
-
-    def set_initial_state(self, context: Context, q_hat: np.ndarray,
-                          qdot_hat_o: np.ndarray | None = None) -> None:
-        """Nothing to initialize (stateless); kept for the same interface as the observer."""
-
-    def _calc_q(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._state.Eval(context)[: self._n])
-
-    def _calc_v(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._state.Eval(context)[self._n:])

@@ -20,11 +20,13 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Optional
 
 from drake_coop.bounds import Bound, check_numbers, one_line, optional_of, show
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
-VELOCITY_SOURCES = ("observer", "measured")
+VELOCITY_SOURCES = ("observer", "measured", "difference")
+FORCE_SOURCES = ("observer", "sensor", "none")
 ARM_MODELS = ("crs_a465", "crs_a255")
 
 
@@ -70,6 +72,109 @@ class Gains:
 
 
 @dataclass
+class Encoders:
+    """Joint-position sensors of one robot (:class:`drake_coop.sensing.encoders.Encoders`).
+
+    The reading at tick ``k`` is ``δ round((q(t_{k-d}) + w_{k-d}) / δ)`` with ``δ = 2π /
+    counts_per_rev`` (no rounding when ``counts_per_rev`` is null), ``w`` white Gaussian noise
+    and ``d = delay_samples``. Defaults: an ideal sensor (the exact ``q(t_k)``).
+
+    Attributes
+    ----------
+    counts_per_rev : int or None
+        Resolution in counts per joint revolution (>= 1; for an incremental encoder on the motor
+        behind a gear of ratio N: motor counts × N). Null: no quantization.
+    noise_std : float
+        Standard deviation of the additive white noise ``w`` (rad, >= 0).
+    delay_samples : int
+        Delay ``d`` in whole samples ``h`` (>= 0).
+    seed : int
+        Seed of the noise (>= 0); the noise is a deterministic function of (seed, robot, tick,
+        joint), so runs are reproducible.
+    """
+
+    counts_per_rev: Optional[int] = None
+    noise_std: float = 0.0
+    delay_samples: int = 0
+    seed: int = 0
+
+
+@dataclass
+class ForceSensorModel:
+    """A wrist force/torque sensor measuring the squeeze λ, sampled at ``h``
+    (:class:`drake_coop.sensing.force_sensor.FTSensor`).
+
+    ``λ_s(k) = y(k) + bias + v_k`` with ``y`` the first-order low-pass
+    ``y(k) = y(k-1) + α (λ(t_k^-) − y(k-1))``, ``α = 1 − exp(−2π f_c h)`` (``α = 1`` without
+    cutoff), ``λ(t_k^-)`` the true squeeze just before the tick and ``v`` white Gaussian noise.
+    Used by the controller only with ``force_source: sensor``; always logged as
+    ``lambda_sensor``.
+
+    Attributes
+    ----------
+    noise_std : float
+        Standard deviation of ``v`` (N, >= 0).
+    bias : float
+        Constant offset along the contact normal, i.e. on λ (N).
+    cutoff_hz : float or None
+        Cutoff ``f_c`` of the low-pass (Hz), ``0 < f_c < 1/(2h)`` (Nyquist). Null: no filter.
+    seed : int
+        Seed of the noise (>= 0).
+    """
+
+    noise_std: float = 0.0
+    bias: float = 0.0
+    cutoff_hz: Optional[float] = None
+    seed: int = 0
+
+
+@dataclass
+class Actuators:
+    """The motors of one robot (``robotN_actuators``, a Drake ``Saturation``).
+
+    Attributes
+    ----------
+    torque_limits : list[float] or None
+        Per-joint limits ``|τ_j| <= τ_max,j`` (N·m at the joint, > 0), one per joint; the
+        applied (saturated) torque is logged as ``tau``, the commanded one as ``tau_cmd``.
+        Null: unlimited.
+    """
+
+    torque_limits: Optional[list[float]] = None
+
+
+@dataclass
+class ModelError:
+    """What the controller's model gets wrong (:mod:`drake_coop.sensing.model_error`).
+
+    The controller's model is the URDF of the simulated arm (or ``controller_model``) with
+    every link's mass multiplied by ``mass_scale``, every link's rotational inertia and every
+    rotor inertia by ``inertia_scale`` and every joint damping by ``damping_scale``. The
+    simulated arm additionally carries ``payload_mass`` and suffers Coulomb friction, both
+    unknown to the controller. Defaults: an exact model.
+
+    Attributes
+    ----------
+    mass_scale, inertia_scale, damping_scale : float
+        Scales of the controller's link masses, inertias (links and rotors) and joint damping
+        (> 0).
+    payload_mass : float
+        A point mass (kg, >= 0) welded to the simulated arm's tool flange (the origin of the
+        force sensor's body, ``L_forearm + L_flange`` from the elbow, on the wrist side of the
+        force sensor, so the sensor does not weigh it).
+    coulomb_friction : list[float]
+        Coulomb friction torque of each simulated joint (N·m, >= 0), ``−f_c tanh(q̇/v_s)``
+        with ``v_s = 0.01 rad/s``.
+    """
+
+    mass_scale: float = 1.0
+    inertia_scale: float = 1.0
+    damping_scale: float = 1.0
+    payload_mass: float = 0.0
+    coulomb_friction: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+@dataclass
 class Robot:
     """One arm ("finger") of the cooperative system.
 
@@ -96,8 +201,23 @@ class Robot:
     gains : Gains
         The robot's controller and observer gains.
     velocity_source : str
-        ``observer`` (the paper's scheme: the velocity observer (15)–(16)) or ``measured`` (a
-        baseline for comparisons: the controller is given the true joint velocities).
+        ``observer`` (the paper's scheme: the velocity observer (15)–(16)), ``measured`` (a
+        baseline: the true joint velocities) or ``difference`` (the backward difference of the
+        encoder signal at ``h``, optionally low-passed).
+    difference_cutoff_hz : float or None
+        ``difference`` only: cutoff of a first-order low-pass of the difference (Hz),
+        ``0 < f < 1/(2h)``; null: the raw difference.
+    force_source : str
+        ``observer`` (the paper's (22)), ``sensor`` (the F/T sensor model's λ in (13) and (6))
+        or ``none`` (``λ̂ := λ_d``, ``ΔF̃ ≡ 0``: the implicit force control of reference [9]).
+    encoders : Encoders
+        The joint-position sensors.
+    force_sensor : ForceSensorModel
+        The wrist F/T sensor model.
+    actuators : Actuators
+        Torque limits.
+    model_error : ModelError
+        The controller's model error, payload and joint friction of the simulated arm.
     """
 
     name: str = "robot1"
@@ -110,6 +230,12 @@ class Robot:
     home: list[float] = field(default_factory=lambda: [0.5, 0.0, 0.6])
     gains: Gains = field(default_factory=Gains)
     velocity_source: str = "observer"
+    difference_cutoff_hz: Optional[float] = None
+    force_source: str = "observer"
+    encoders: Encoders = field(default_factory=Encoders)
+    force_sensor: ForceSensorModel = field(default_factory=ForceSensorModel)
+    actuators: Actuators = field(default_factory=Actuators)
+    model_error: ModelError = field(default_factory=ModelError)
 
 
 @dataclass
@@ -305,6 +431,21 @@ BOUNDS: dict[str, Bound] = {
     "robots[].gains.xi": Bound(0.0, 1.0, "", **_POS),
     "robots[].gains.zeta": Bound(0.0, 100.0, "", **_POS),
     "robots[].gains.beta": Bound(0.0, 1e3, "1/s", **_POS),
+    "robots[].difference_cutoff_hz": Bound(0.0, 1e6, "Hz", **_POS),
+    "robots[].encoders.counts_per_rev": Bound(1, 1e12, "counts"),
+    "robots[].encoders.noise_std": Bound(0.0, 1.0, "rad"),
+    "robots[].encoders.delay_samples": Bound(0, 1000, "samples"),
+    "robots[].encoders.seed": Bound(0, 2**63 - 1),
+    "robots[].force_sensor.noise_std": Bound(0.0, 1e3, "N"),
+    "robots[].force_sensor.bias": Bound(-1e3, 1e3, "N"),
+    "robots[].force_sensor.cutoff_hz": Bound(0.0, 1e6, "Hz", **_POS),
+    "robots[].force_sensor.seed": Bound(0, 2**63 - 1),
+    "robots[].actuators.torque_limits[]": Bound(0.0, 1e4, "N·m", **_POS),
+    "robots[].model_error.mass_scale": Bound(0.0, 100.0, "", **_POS),
+    "robots[].model_error.inertia_scale": Bound(0.0, 100.0, "", **_POS),
+    "robots[].model_error.damping_scale": Bound(0.0, 100.0, "", **_POS),
+    "robots[].model_error.payload_mass": Bound(0.0, 20.0, "kg"),
+    "robots[].model_error.coulomb_friction[]": Bound(0.0, 1e3, "N·m"),
     **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
         "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
@@ -320,7 +461,8 @@ BOUNDS: dict[str, Bound] = {
 }
 #: Length of every list of numbers.
 LENGTHS: dict[str, int] = {"robots[].base_xyz": 3, "robots[].home": 3,
-                           "robots[].gains.K_R": 3}
+                           "robots[].gains.K_R": 3, "robots[].actuators.torque_limits": 3,
+                           "robots[].model_error.coulomb_friction": 3}
 
 #: Largest run (control ticks of ``h``, and plant steps) accepted: the references and the
 #: logs cost about 5 kB per tick (1 GB at the limit), a plant step about 50 µs.
@@ -533,7 +675,7 @@ def validate(scenario: Scenario) -> None:
         _choice(r.model, ARM_MODELS, f"{where}.model")
         if r.normal_sign not in (-1.0, 1.0):
             raise ScenarioError(f"{where}.normal_sign must be -1 or 1, got {show(r.normal_sign)}")
-        _choice(r.velocity_source, VELOCITY_SOURCES, f"{where}.velocity_source")
+        _validate_sensing(r, where, scenario.control_period)
     if len(set(names)) != 2:
         raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
     if scenario.robots[0].normal_sign == scenario.robots[1].normal_sign:
@@ -562,3 +704,34 @@ def validate(scenario: Scenario) -> None:
 
     check_reachable(scenario)
     check_models(scenario)
+
+
+# --------------------------------------------------------------------------- sensing
+
+
+def _cutoff(value: float | None, name: str, h: float) -> None:
+    """A low-pass cutoff: null or ``0 < f < 1/(2h)`` (the Nyquist frequency of sampling h)."""
+    if value is None:
+        return
+    nyquist = 1.0 / (2.0 * h)
+    if not 0.0 < value < nyquist:
+        raise ScenarioError(f"{name} must be null or in (0, {nyquist:g}) Hz (below the "
+                            f"Nyquist frequency 1/(2h) for h = {h:g} s), got {show(value)}")
+
+
+def _validate_sensing(robot: Robot, where: str, h: float) -> None:
+    """Sources and the cutoffs of one robot's sensing (issue 7); the numbers' ranges are in
+    :data:`BOUNDS`.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the field (``where`` is e.g. ``robots[0]``) and what is allowed.
+    """
+    _choice(robot.velocity_source, VELOCITY_SOURCES, f"{where}.velocity_source")
+    _choice(robot.force_source, FORCE_SOURCES, f"{where}.force_source")
+    _cutoff(robot.difference_cutoff_hz, f"{where}.difference_cutoff_hz", h)
+    if robot.difference_cutoff_hz is not None and robot.velocity_source != "difference":
+        raise ScenarioError(f"{where}.difference_cutoff_hz applies to velocity_source: "
+                            f"difference only; set it to null or use difference")
+    _cutoff(robot.force_sensor.cutoff_hz, f"{where}.force_sensor.cutoff_hz", h)

@@ -55,7 +55,10 @@ def phases(scenario: Scenario) -> list[list]:
 
 
 def initialize(exp: Experiment, context) -> None:
-    """Arms at rest at ``q_d(0)``, observers at ``q̂(0) = q(0)``, ``q̇̂_o(0) = 0``, no grasp."""
+    """Arms at rest at ``q_d(0)``, observers at ``q̂(0) = q(0)``, ``q̇̂_o(0) = 0``, no grasp.
+
+    ``q(0)`` as the encoders read it at rest (quantized, no noise; the exact ``q(0)`` with
+    ideal encoders)."""
     scenario = exp.scenario
     coop = exp.coop
     plant_context = coop.plant.GetMyMutableContextFromRoot(context)
@@ -64,6 +67,9 @@ def initialize(exp: Experiment, context) -> None:
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
     initialize_plant_context(coop, plant_context, q0, z_grasp)
     for rs, q in zip(exp.robots, q0):
+        if rs.encoders is not None:   # the delay line holds the reading at rest
+            rs.encoders.set_initial_state(rs.encoders.GetMyMutableContextFromRoot(context), q)
+            q = rs.encoders.initial_reading(q)   # what the controller knows of q(0)
         rs.velocity_observer.set_initial_state(
             rs.velocity_observer.GetMyMutableContextFromRoot(context), q)
 
@@ -108,6 +114,7 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
         t = raw["q"].sample_times()[:n]
         data = {k: r.data()[:, :n].T for k, r in raw.items()}
         arm = exp.coop.arms[i].arm
+        arm_dofs = rs.law.n
         robot = exp.scenario.robots[i]
         ref = data["reference"]
         logs[rs.name] = {
@@ -123,6 +130,14 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
             "lambda_d": ref[:, 9].copy(),
             "tau": data["tau"],
         }
+        optional = {   # issue 7: sensors, velocity estimate, commanded torque
+            "qdot": data["state"][:, arm_dofs:] if "state" in data else None,
+            "qdot_hat": data.get("qdot_hat"),
+            "lambda_sensor": data["lambda_sensor"][:, 0].copy() if "lambda_sensor" in data
+            else None,
+            "tau_cmd": data.get("tau_cmd"),
+        }
+        logs[rs.name].update({k: v for k, v in optional.items() if v is not None})
     return logs
 
 

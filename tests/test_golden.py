@@ -32,7 +32,7 @@ def _numbers(tree, prefix=""):
 def test_paper_run_circle_metrics_equal_the_golden_record(fresh_and_golden):
     fresh, golden = fresh_and_golden
     got, want = _numbers(fresh["circle_metrics"]), _numbers(golden["circle_metrics"])
-    assert got.keys() == want.keys()
+    assert want.keys() <= got.keys()    # metrics added later (velocity_error) are not pinned
     for key, value in want.items():
         if isinstance(value, str):
             assert got[key] == value, key

@@ -11,6 +11,9 @@ file                         content (panels as in the paper)
 ``fig5_aux_force_error``     auxiliary force errors λ̂ − λ_d, robots 1 (a) and 2 (b)
 ``fig6_observation_errors``  observation errors z = q − q̂ (rad) of the three joints, robot 1
                              (a–c) and robot 2 (d–f)
+``fig7_velocity_estimate``   velocity-estimate errors q̇ − q̇̂ (rad/s) of the three joints,
+                             robot 1 (a–c) and robot 2 (d–f); only for logs holding ``qdot``
+                             and ``qdot_hat`` (runs since issue 7)
 ``fig_references``           the designed references: x_d, y_d, z_d of each robot, the y_d–z_d
                              path and λ_d
 ===========================  ===================================================================
@@ -216,6 +219,13 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
              for j in range(3)],
             r"Fig. 6 — observation errors $z = q - \hat q$", sci=(0, 0)),
     }
+    if all("qdot" in logs[r] and "qdot_hat" in logs[r] for r in meta["robots"]):
+        figures["fig7_velocity_estimate"] = _grid(
+            logs, meta,
+            [(f"$\\dot q_{{#{j + 1}}} - \\hat{{\\dot q}}_{{#{j + 1}}}$", "[rad/s]",
+              _difference("qdot", "qdot_hat", j)) for j in range(3)],
+            r"Velocity-estimate errors $\dot q - \hat{\dot q}$ (the controller's estimate)",
+            sci=(-2, 3))
     paths = []
     for name, fig in figures.items():
         paths += _save(fig, out, name, formats)

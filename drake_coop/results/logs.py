@@ -15,8 +15,21 @@ array           shape      meaning
 ``lambda_meas`` (N,)       measured squeeze ``n_i · F_meas`` (N)
 ``lambda_hat``  (N,)       force-observer estimate λ̂ (22) (N)
 ``lambda_d``    (N,)       desired squeeze (29) (N)
-``tau``         (N, 3)     joint torques (N·m)
+``tau``         (N, 3)     applied joint torques, after the actuators' saturation (N·m)
 ==============  =========  ==================================================================
+
+Optional arrays (runs since issue 7; older logs lack them and still load and plot):
+
+=================  =========  ===============================================================
+array              shape      meaning
+=================  =========  ===============================================================
+``qdot``           (N, 3)     true joint velocities q̇ (rad/s)
+``qdot_hat``       (N, 3)     the controller's velocity estimate: d/dt q̂ (15) of the
+                              observer, the true q̇ (``measured``) or the filtered difference
+                              (``difference``) (rad/s)
+``lambda_sensor``  (N,)       the F/T sensor model's squeeze λ_s (N)
+``tau_cmd``        (N, 3)     torques commanded by the controller (13), before saturation (N·m)
+=================  =========  ===============================================================
 
 Files in the run directory:
 
@@ -27,7 +40,8 @@ Files in the run directory:
       t,q1,q2,q3,q_hat1,q_hat2,q_hat3,q_d1,q_d2,q_d3,x,y,z,x_d,y_d,z_d,Fx,Fy,Fz,
       lambda_meas,lambda_hat,lambda_d,tau1,tau2,tau3
 
-  (a single line in the file). Vector columns are numbered from 1 (joints) or named by axis
+  (a single line in the file), followed by the optional arrays' columns when the log has all
+  of them: ``qdot1..3,qdot_hat1..3,lambda_sensor,tau_cmd1..3``. Vector columns are numbered from 1 (joints) or named by axis
   (positions ``x, y, z``, desired ``x_d, y_d, z_d``, forces ``Fx, Fy, Fz``). Every value is
   written with ``repr(float)``, the shortest text that reads back to the same double, so
   ``np.loadtxt(path, delimiter=",", skiprows=1)`` returns the logged values bit for bit
@@ -50,7 +64,7 @@ import numpy as np
 from drake_coop.bounds import one_line, show
 from drake_coop.results.io import atomic_path, atomic_write_text
 
-__all__ = ["COLUMNS", "csv_header", "load_logs", "save_logs", "write_meta"]
+__all__ = ["COLUMNS", "OPTIONAL_COLUMNS", "csv_header", "load_logs", "save_logs", "write_meta"]
 
 #: Arrays of a robot's log and their CSV column names.
 COLUMNS: dict[str, list[str]] = {
@@ -67,10 +81,26 @@ COLUMNS: dict[str, list[str]] = {
     "tau": ["tau1", "tau2", "tau3"],
 }
 
+#: Optional arrays (sensing, issue 7) and their CSV column names; written when all present.
+OPTIONAL_COLUMNS: dict[str, list[str]] = {
+    "qdot": ["qdot1", "qdot2", "qdot3"],
+    "qdot_hat": ["qdot_hat1", "qdot_hat2", "qdot_hat3"],
+    "lambda_sensor": ["lambda_sensor"],
+    "tau_cmd": ["tau_cmd1", "tau_cmd2", "tau_cmd3"],
+}
 
-def csv_header() -> str:
-    """The CSV header line (without newline): the column names of :data:`COLUMNS`, in order."""
-    return ",".join(c for names in COLUMNS.values() for c in names)
+
+def _csv_columns(log: dict[str, np.ndarray] | None) -> dict[str, list[str]]:
+    """The schema's columns, plus the optional ones when ``log`` has all of them."""
+    if log is not None and all(k in log for k in OPTIONAL_COLUMNS):
+        return {**COLUMNS, **OPTIONAL_COLUMNS}
+    return COLUMNS
+
+
+def csv_header(log: dict[str, np.ndarray] | None = None) -> str:
+    """The CSV header line (without newline): the column names of :data:`COLUMNS`, in order,
+    then those of :data:`OPTIONAL_COLUMNS` when ``log`` has all of them."""
+    return ",".join(c for names in _csv_columns(log).values() for c in names)
 
 
 def _check_log(where: str, log: dict[str, np.ndarray]) -> None:
@@ -81,9 +111,9 @@ def _check_log(where: str, log: dict[str, np.ndarray]) -> None:
     n = np.shape(log["t"])[0] if np.ndim(log["t"]) == 1 else None
     if n is None:
         raise ValueError(f"{where}: 't' must have shape (N,), has {np.shape(log['t'])}")
-    for key, names in COLUMNS.items():
+    for key, names in {**COLUMNS, **OPTIONAL_COLUMNS}.items():
         expected = (n,) if len(names) == 1 else (n, len(names))
-        if np.shape(log[key]) != expected:
+        if key in log and np.shape(log[key]) != expected:
             raise ValueError(f"{where}: '{key}' has shape {np.shape(log[key])}, "
                              f"expected {expected}")
 
@@ -97,9 +127,10 @@ def _json_default(value):
 
 def _csv_text(log: dict[str, np.ndarray]) -> str:
     n = log["t"].shape[0]
-    table = np.hstack([np.asarray(log[k], dtype=float).reshape(n, -1) for k in COLUMNS])
+    columns = _csv_columns(log)
+    table = np.hstack([np.asarray(log[k], dtype=float).reshape(n, -1) for k in columns])
     buffer = io.StringIO()
-    buffer.write(csv_header() + "\n")
+    buffer.write(csv_header(log) + "\n")
     for row in table.tolist():
         buffer.write(",".join(map(repr, row)) + "\n")
     return buffer.getvalue()

@@ -8,7 +8,10 @@ errors
 * ``force_error`` — ``λ − λ_d``, measured minus desired squeeze (Fig. 3), N;
 * ``estimate_error`` — ``λ − λ̂``, measured minus estimated (Fig. 4), N;
 * ``aux_force_error`` — ``λ̂ − λ_d`` (Fig. 5), N;
-* ``z1``, ``z2``, ``z3`` — observation errors ``q − q̂`` (Fig. 6), rad.
+* ``z1``, ``z2``, ``z3`` — observation errors ``q − q̂`` (Fig. 6), rad;
+* ``velocity_error`` — ``max_j |q̇_j − q̇̂_j|``, the worst joint's error of the controller's
+  velocity estimate (``d/dt q̂`` of the observer, or the alternative source's), rad/s; only
+  for logs that hold ``qdot`` and ``qdot_hat`` (runs since issue 7).
 
 A phase ``[name, a, b]`` holds the samples with ``a <= t < b`` (the last phase also ``t = b``);
 ``all`` holds every sample. Besides the errors, ``metrics[robot][phase]`` has ``n_samples``
@@ -48,13 +51,17 @@ def error_signals(log: dict[str, np.ndarray]) -> dict[str, tuple[np.ndarray, str
     lam = np.asarray(log["lambda_meas"], dtype=float)
     lam_hat = np.asarray(log["lambda_hat"], dtype=float)
     lam_d = np.asarray(log["lambda_d"], dtype=float)
-    return {
+    signals = {
         "x_tilde": (e[:, 0], "m"), "y_tilde": (e[:, 1], "m"), "z_tilde": (e[:, 2], "m"),
         "force_error": (lam - lam_d, "N"),
         "estimate_error": (lam - lam_hat, "N"),
         "aux_force_error": (lam_hat - lam_d, "N"),
         "z1": (z[:, 0], "rad"), "z2": (z[:, 1], "rad"), "z3": (z[:, 2], "rad"),
     }
+    if "qdot" in log and "qdot_hat" in log:
+        dv = np.asarray(log["qdot"], dtype=float) - np.asarray(log["qdot_hat"], dtype=float)
+        signals["velocity_error"] = (np.abs(dv).max(axis=1), "rad/s")
+    return signals
 
 
 def phase_masks(t: np.ndarray, phases: list) -> dict[str, np.ndarray]:

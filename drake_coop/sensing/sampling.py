@@ -1,0 +1,48 @@
+"""What the sampled sensor models share: tick index, seeded white noise, first-order low-pass.
+
+All sensors are sampled at the control period ``h``. Their noise is a deterministic function
+of ``(seed, stream, tick)``, so a run is reproducible and a sensor read twice at the same tick
+(e.g. by the controller and by a logger) returns the same value.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Noise streams: one per robot and sensor, so that equal seeds give independent noises.
+ENCODER_STREAM = 0
+FORCE_SENSOR_STREAM = 1
+
+
+def tick_of(t: float, h: float) -> int | None:
+    """The tick index ``k`` if ``t`` is a sampling instant ``k h`` (to 1e-9 relative), else None."""
+    k = round(t / h)
+    return k if abs(t - k * h) <= 1e-9 * max(1.0, t) else None
+
+
+def white_noise(seed: int, robot: int, stream: int, k: int, std: float, size: int
+                ) -> np.ndarray:
+    """Samples of zero-mean Gaussian white noise of standard deviation ``std`` at tick ``k``.
+
+    Drawn from a generator seeded with ``[seed, robot, stream, k]`` (NumPy's ``SeedSequence``
+    mixes them), so the value depends on nothing else: reproducible, independent across
+    ticks, robots and sensors.
+    """
+    if std == 0.0:
+        return np.zeros(size)
+    rng = np.random.default_rng([int(seed), int(robot), int(stream), int(k)])
+    return std * rng.standard_normal(size)
+
+
+def lowpass_alpha(cutoff_hz: float | None, h: float) -> float:
+    """Gain ``α`` of the sampled first-order low-pass ``y(k) = y(k−1) + α (u(k) − y(k−1))``.
+
+    ``α = 1 − exp(−2π f_c h)``: the exact (step-invariant) discretization of
+    ``T ẏ = u − y``, ``T = 1/(2π f_c)``, for an input held over each sample. ``α = 1`` (no
+    filter) when ``cutoff_hz`` is None.
+    """
+    if cutoff_hz is None:
+        return 1.0
+    return 1.0 - math.exp(-2.0 * math.pi * cutoff_hz * h)

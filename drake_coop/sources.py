@@ -1,0 +1,224 @@
+"""Alternatives to the paper's observers, with the same output ports (a control block swaps them).
+
+Velocity sources (outputs ``q_hat``, ``qdot_hat``, ``qdot_o``, as
+:class:`~drake_coop.observers.VelocityObserver`):
+
+* :class:`MeasuredVelocity` — the true joint velocities (a baseline: a perfect tachometer);
+* :class:`DifferenceVelocity` — the backward difference of the encoder signal at ``h``,
+  optionally low-passed: the numerical differentiation that the paper's references [7]–[10]
+  compare against.
+
+Both set ``q̂ = q`` (the encoder reading), so ``z = 0`` and ``d/dt q̂ = q̇_o`` = the velocity
+estimate.
+
+Force sources (outputs ``lambda_hat``, ``Delta_F_tilde``, as
+:class:`~drake_coop.observers.ForceObserver`):
+
+* :class:`SensedForce` — classical force feedback: the F/T sensor's ``λ_s`` used in place of
+  ``λ̂`` in (13) and in the integral (6);
+* :class:`NoForceEstimate` — no force information: ``λ̂ := λ_d`` and ``ΔF̃ ≡ 0``, the implicit
+  force control of reference [9] that relies on the constraint alone.
+
+As for the observers, ``λ̂ = 0`` and ``ΔF̃ = 0`` in free motion.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+
+from drake_coop.finger import Reference
+from drake_coop.references import REFERENCE_SIZE
+from drake_coop.sensing.sampling import lowpass_alpha
+
+
+class MeasuredVelocity(LeafSystem):
+    """Baseline for comparisons, *not* the paper's scheme: the true joint velocities.
+
+    ``q̂ = q`` (the encoder reading), ``d/dt q̂ = q̇_o = q̇`` from the plant's state, so that
+    ``z = 0``. With ideal encoders a run with it isolates what the velocity observer costs.
+
+    Input ports
+    -----------
+    state : 2n-vector
+        The arm's ``[q, q̇]`` from the plant (only ``q̇`` is read when ``q`` is connected).
+    q : n-vector, optional
+        The encoder reading; when not connected ``q̂`` is the plant's ``q``.
+
+    Output ports
+    ------------
+    q_hat, qdot_hat, qdot_o : n-vectors
+    """
+
+    def __init__(self, n: int):
+        super().__init__()
+        self._n = n
+        self._state = self.DeclareVectorInputPort("state", 2 * n)
+        self._q = self.DeclareVectorInputPort("q", n)
+        self.DeclareVectorOutputPort("q_hat", n, self._calc_q)
+        self.DeclareVectorOutputPort("qdot_hat", n, self._calc_v)
+        self.DeclareVectorOutputPort("qdot_o", n, self._calc_v)
+
+    def set_initial_state(self, context: Context, q_hat: np.ndarray,
+                          qdot_hat_o: np.ndarray | None = None) -> None:
+        """Nothing to initialize (stateless); kept for the same interface as the observer."""
+
+    def _calc_q(self, context: Context, output: BasicVector) -> None:
+        if self._q.HasValue(context):
+            output.SetFromVector(self._q.Eval(context))
+        else:
+            output.SetFromVector(self._state.Eval(context)[: self._n])
+
+    def _calc_v(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._state.Eval(context)[self._n:])
+
+
+class DifferenceVelocity(LeafSystem):
+    """Backward difference of the encoder signal, with an optional first-order low-pass.
+
+    .. math::
+        u(k) = \\frac{q(k) - q(k-1)}{h}, \\qquad
+        \\dot{\\hat q}(k) = \\dot{\\hat q}(k-1) + \\alpha\\,(u(k) - \\dot{\\hat q}(k-1))
+
+    with ``α = 1 − exp(−2π f_c h)`` (``α = 1``, the raw difference, without a cutoff). State
+    ``[q(k−1), q̇̂(k−1)]``; at tick ``k`` the outputs use the current input ``q(k)`` (no sample
+    of delay beyond the difference's own); the update stores ``q(k)`` and ``q̇̂(k)``.
+    Initially ``q(−1) = q(0)`` and ``q̇̂(−1) = 0``.
+
+    Input ports
+    -----------
+    q : n-vector
+        Encoder reading.
+
+    Output ports
+    ------------
+    q_hat : n-vector
+        ``q(k)``.
+    qdot_hat, qdot_o : n-vectors
+        ``q̇̂(k)``.
+    """
+
+    def __init__(self, n: int, period: float, cutoff_hz: float | None = None):
+        super().__init__()
+        self._n = n
+        self._h = period
+        self._alpha = lowpass_alpha(cutoff_hz, period)
+        self._q = self.DeclareVectorInputPort("q", n)
+        self._state = self.DeclareDiscreteState(2 * n)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_difference)
+        self.DeclareVectorOutputPort("q_hat", n, self._calc_q_hat,
+                                     prerequisites_of_calc={self._q.ticket()})
+        self.DeclareVectorOutputPort("qdot_hat", n, self._calc_velocity)
+        self.DeclareVectorOutputPort("qdot_o", n, self._calc_velocity)
+
+    @property
+    def alpha(self) -> float:
+        """The low-pass gain ``α``."""
+        return self._alpha
+
+    def set_initial_state(self, context: Context, q_hat: np.ndarray,
+                          qdot_hat_o: np.ndarray | None = None) -> None:
+        """``q(−1) = q_hat`` (the initial reading) and ``q̇̂(−1)`` (default zero)."""
+        v = np.zeros(self._n) if qdot_hat_o is None else qdot_hat_o
+        context.SetDiscreteState(self._state, np.concatenate([q_hat, v]))
+
+    def _velocity(self, context: Context) -> np.ndarray:
+        x = context.get_discrete_state(self._state).value()
+        q_prev, v_prev = x[: self._n], x[self._n:]
+        u = (self._q.Eval(context) - q_prev) / self._h
+        return v_prev + self._alpha * (u - v_prev)
+
+    def _calc_q_hat(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._q.Eval(context))
+
+    def _calc_velocity(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._velocity(context))
+
+    def _update_difference(self, context: Context, discrete_state: DiscreteValues) -> None:
+        discrete_state.set_value(self._state, np.concatenate(
+            [self._q.Eval(context), self._velocity(context)]))
+
+
+class SensedForce(LeafSystem):
+    """Classical force feedback: the sensor's ``λ_s`` in place of ``λ̂`` in (13) and (6).
+
+    ``λ̂(k) = λ_s(k)`` while held (0 in free motion) and
+    ``ΔF̃(k+1) = ΔF̃(k) + h (λ_s(k) − λ_d(k))`` while held, reset to 0 otherwise (as the force
+    observer's integral).
+
+    Input ports
+    -----------
+    lambda_sensor : 1-vector
+        The F/T sensor model's reading.
+    reference : 11-vector
+        ``[q_d, q̇_d, q̈_d, λ_d, held]``.
+
+    Output ports
+    ------------
+    lambda_hat : 1-vector
+    Delta_F_tilde : 1-vector
+        State only.
+    """
+
+    def __init__(self, period: float):
+        super().__init__()
+        self._h = period
+        self._lambda = self.DeclareVectorInputPort("lambda_sensor", 1)
+        self._reference = self.DeclareVectorInputPort("reference", REFERENCE_SIZE)
+        self._state = self.DeclareDiscreteState(1)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
+        self.DeclareVectorOutputPort("lambda_hat", 1, self._calc_lambda_hat)
+        self.DeclareVectorOutputPort("Delta_F_tilde", 1, self._calc_Delta_F_tilde,
+                                     prerequisites_of_calc={self.xd_ticket()})
+
+    def set_initial_state(self, context: Context, Delta_F_tilde: float = 0.0) -> None:
+        context.SetDiscreteState(self._state, [Delta_F_tilde])
+
+    def _lambda_hat(self, context: Context) -> tuple[float, Reference]:
+        ref = Reference.unpack(self._reference.Eval(context))
+        return (float(self._lambda.Eval(context)[0]) if ref.held else 0.0), ref
+
+    def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._lambda_hat(context)[0])
+
+    def _calc_Delta_F_tilde(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(context.get_discrete_state(self._state).value())
+
+    def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
+        lam, ref = self._lambda_hat(context)
+        DF = float(context.get_discrete_state(self._state).GetAtIndex(0))
+        discrete_state.set_value(self._state,
+                                 [DF + self._h * (lam - ref.lambda_d) if ref.held else 0.0])
+
+
+class NoForceEstimate(LeafSystem):
+    """No force information (implicit force control, reference [9]): ``λ̂ := λ_d``, ``ΔF̃ ≡ 0``.
+
+    Then ``Δλ̃ = 0`` and (13) applies the feedforward ``J_φᵀ λ_d``; the force error is left to
+    the constraint and the position loop. ``λ̂ = 0`` in free motion.
+
+    Input ports
+    -----------
+    reference : 11-vector
+
+    Output ports
+    ------------
+    lambda_hat : 1-vector
+        ``λ_d`` while held, else 0.
+    Delta_F_tilde : 1-vector
+        Always 0.
+    """
+
+    def __init__(self):
+        super().__init__()
+        self._reference = self.DeclareVectorInputPort("reference", REFERENCE_SIZE)
+        self.DeclareVectorOutputPort("lambda_hat", 1, self._calc_lambda_hat)
+        self.DeclareVectorOutputPort("Delta_F_tilde", 1, self._calc_Delta_F_tilde,
+                                     prerequisites_of_calc={self.nothing_ticket()})
+
+    def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
+        ref = Reference.unpack(self._reference.Eval(context))
+        output.SetAtIndex(0, ref.lambda_d if ref.held else 0.0)
+
+    def _calc_Delta_F_tilde(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, 0.0)
