@@ -42,10 +42,11 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_coop.arms import Arm
-from drake_coop.scenario import Robot, Scenario, ScenarioError, Task, aligned_periods
+from drake_coop.plant.arms import Arm
+from drake_coop.scenario.schema import Robot, Scenario, ScenarioError, Task
 
 #: Rows of the reference vector fed to each robot's controller and observers.
+from drake_coop.scenario.timing import aligned_periods
 REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
 REFERENCE_SIZE = 3 + 3 + 3 + 1 + 1
 
