@@ -27,6 +27,11 @@ from drake_coop.control import orthogonal
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.scenario.schema import Gains
 
+#: Rows of the reference vector fed to each robot's controller and observers (built by
+#: :mod:`drake_coop.experiment.references`, read by :meth:`Reference.unpack`).
+REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
+REFERENCE_SIZE = 3 + 3 + 3 + 1 + 1
+
 
 @dataclass
 class Reference:

@@ -21,8 +21,7 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_coop.control.finger import FingerLaw, Reference
-from drake_coop.experiment.references import REFERENCE_SIZE
+from drake_coop.control.finger import REFERENCE_SIZE, FingerLaw, Reference
 
 
 class VelocityObserver(LeafSystem):

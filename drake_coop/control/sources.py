@@ -27,8 +27,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from drake_coop.control.finger import Reference
-from drake_coop.experiment.references import REFERENCE_SIZE
+from drake_coop.control.finger import REFERENCE_SIZE, Reference
 from drake_coop.sensing.sampling import lowpass_alpha
 
 
