@@ -2,7 +2,7 @@
 
 ``python bench/sources_table.py [--scenario scenarios/realistic.yaml] [--workers 2]
 [--t-end 90] [--out sources.json]`` runs the nine combinations (both robots switched together;
-two runs at a time, each in its own process, :func:`drake_coop.sweep.sweep`) and prints the
+two runs at a time, each in its own process, :func:`drake_coop.studies.sweep.sweep`) and prints the
 circle-phase errors (25–65 s) as a Markdown table: RMS / max over the phase of λ − λ_d,
 λ̂ − λ (the controller's force value against the true squeeze), the worst Cartesian axis of
 x − x_d and the worst joint of q̇ − q̇̂, for robot 1 / robot 2. A run that diverged is reported
@@ -17,7 +17,7 @@ import json
 from pathlib import Path
 
 from drake_coop.scenario import FORCE_SOURCES, VELOCITY_SOURCES, load_scenario
-from drake_coop.sweep import sweep
+from drake_coop.studies.sweep import sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 

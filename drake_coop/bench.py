@@ -44,9 +44,9 @@ def _plant_alone(scenario, t_end: float) -> tuple[float, float]:
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource
 
-    from drake_coop.arm_model import ArmModel
-    from drake_coop.plant import build_plant, initialize_plant_context
-    from drake_coop.references import reference_samples
+    from drake_coop.control.arm_model import ArmModel
+    from drake_coop.plant.cooperative import build_plant, initialize_plant_context
+    from drake_coop.experiment.references import reference_samples
 
     b = DiagramBuilder()
     coop = build_plant(b, scenario)
@@ -67,8 +67,8 @@ def _plant_alone(scenario, t_end: float) -> tuple[float, float]:
 
 
 def _experiment(scenario, t_end: float) -> tuple[float, float]:
-    """Wall and CPU seconds of the simulation loop of :func:`~drake_coop.simulate.simulate`."""
-    from drake_coop.simulate import simulate
+    """Wall and CPU seconds of the simulation loop of :func:`~drake_coop.experiment.simulate.simulate`."""
+    from drake_coop.experiment.simulate import simulate
 
     start: list[float] = []
     result = simulate(scenario, t_end=t_end,
@@ -82,8 +82,8 @@ def _experiment(scenario, t_end: float) -> tuple[float, float]:
 @contextlib.contextmanager
 def _force_log_from_constants():
     """Build experiments whose ``F_meas``/``lambda_meas`` loggers read a constant instead."""
-    import drake_coop.diagram as diagram
-    from drake_coop.plant import ForceSensor
+    import drake_coop.experiment.diagram as diagram
+    from drake_coop.plant.cooperative import ForceSensor
     from pydrake.systems.primitives import ConstantVectorSource
 
     original = diagram.LogVectorOutput
@@ -102,14 +102,14 @@ def _force_log_from_constants():
 
 # ----------------------------------------------------------------------- per-system timing
 _TIMED = {
-    "velocity observer (15)-(16)": ("drake_coop.observers", "VelocityObserver",
+    "velocity observer (15)-(16)": ("drake_coop.control.observers", "VelocityObserver",
                                     ("_calc_signals", "_calc_qdot_hat", "_calc_qdot_o",
                                      "_update_observer")),
-    "force observer (22)": ("drake_coop.observers", "ForceObserver",
+    "force observer (22)": ("drake_coop.control.observers", "ForceObserver",
                             ("_calc_estimate", "_calc_lambda_hat", "_update_integral")),
-    "controller (13)": ("drake_coop.controller", "Controller",
+    "controller (13)": ("drake_coop.control.controller", "Controller",
                         ("_calc_terms", "_calc_tau", "_calc_qddot_r_hat", "_update_latch")),
-    "force sensor (ground truth)": ("drake_coop.plant", "ForceSensor",
+    "force sensor (ground truth)": ("drake_coop.plant.cooperative", "ForceSensor",
                                     ("_calc_force_cache", "_calc_force", "_calc_lambda")),
 }
 
@@ -164,10 +164,10 @@ def _tick_costs(scenario) -> dict[str, float]:
     keeps its kinematics while ``q`` is unchanged). The last entry is one whole tick of the
     robot: (15)/(8), (22), (13) and (16) at the same sample.
     """
-    from drake_coop.arm_model import ArmModel
-    from drake_coop.arms import Arm
-    from drake_coop.finger import FingerLaw, Reference
-    from drake_coop.references import reference_samples
+    from drake_coop.control.arm_model import ArmModel
+    from drake_coop.plant.arms import Arm
+    from drake_coop.control.finger import FingerLaw, Reference
+    from drake_coop.experiment.references import reference_samples
 
     robot = scenario.robots[0]
     law = FingerLaw(ArmModel(Arm(robot)), robot.gains)
@@ -233,8 +233,10 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
     t_extra : float, optional
         Simulated seconds of that run (default: the scenario's whole task).
     """
-    from drake_coop.references import num_ticks_until
-    from drake_coop.scenario import aligned_periods, default_scenario, load_scenario
+    from drake_coop.experiment.references import num_ticks_until
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.schema import default_scenario
+    from drake_coop.scenario.timing import aligned_periods
 
     scenario = default_scenario()
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)

@@ -35,7 +35,7 @@ import time
 import warnings
 from pathlib import Path
 
-from drake_coop.resources import find_scenario, scenario_summary, shipped_scenarios
+from drake_coop.scenario.resources import find_scenario, scenario_summary, shipped_scenarios
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised like Ctrl-C's KeyboardInterrupt: the same code stops the run and keeps
@@ -119,7 +119,7 @@ class ProgressBar:
 
 
 def _error(message: str) -> int:
-    from drake_coop.bounds import one_line
+    from drake_coop.scenario.bounds import one_line
 
     print(f"drake-coop: error: {one_line(message)}", file=sys.stderr)
     return 2
@@ -151,9 +151,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     with SIGNALS.deferred():
         from drake_coop.results.export import MeshcatReplay, add_meshcat, live_meshcat
         from drake_coop.results.run_folder import OutputFolderError, RunFolder
-        from drake_coop.scenario import ScenarioError, check_run_size, load_scenario, run_size
-        from drake_coop.simulate import simulate
-        from drake_coop.viz import add_force_arrows, frame_workspace
+        from drake_coop.scenario.loading import load_scenario
+        from drake_coop.scenario.schema import ScenarioError
+        from drake_coop.scenario.timing import check_run_size, run_size
+        from drake_coop.experiment.simulate import simulate
+        from drake_coop.results.viz import add_force_arrows, frame_workspace
 
         if args.t_end is not None and not (0 < args.t_end < float("inf")):
             return _error(f"--t-end must be a finite number > 0, got {args.t_end}")
@@ -249,7 +251,7 @@ def _write_outputs(args, scenario, result, replay, staging: Path) -> None:
     from drake_coop.results import write_metrics
     from drake_coop.results.io import atomic_write_text
     from drake_coop.results.logs import write_meta
-    from drake_coop.scenario import dump_scenario
+    from drake_coop.scenario.loading import dump_scenario
 
     meta = result.meta
     signals_before = SIGNALS.count
@@ -309,8 +311,9 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
 
 def cmd_diagram(args: argparse.Namespace) -> int:
     """Draw the experiment's block diagram (no loggers or visualizer) and one control block."""
-    from drake_coop.diagram import build_experiment
-    from drake_coop.scenario import ScenarioError, load_scenario
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.schema import ScenarioError
 
     try:
         scenario = load_scenario(args.scenario and find_scenario(args.scenario))

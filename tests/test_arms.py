@@ -1,7 +1,7 @@
 """Kinematics and dynamics of the two arms.
 
-Closed forms of :class:`drake_coop.arms.Arm` against the published lengths, finite differences
-and the MultibodyPlant built from the URDF (:class:`drake_coop.arm_model.ArmModel`); inverse
+Closed forms of :class:`drake_coop.plant.arms.Arm` against the published lengths, finite differences
+and the MultibodyPlant built from the URDF (:class:`drake_coop.control.arm_model.ArmModel`); inverse
 kinematics; the properties of H, C, g and J_φ used by the controller; reachability of the paper's
 whole reference path; the URDF files against ``urdf/generate.py``.
 """
@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_coop.arm_model import ArmModel
-from drake_coop.arms import GEOMETRY, Arm, urdf_dir
-from drake_coop.references import cartesian_reference
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import GEOMETRY, Arm, urdf_dir
+from drake_coop.experiment.references import cartesian_reference
 from drake_coop.scenario import default_scenario, paper_robots
 
 ROBOTS = paper_robots()

@@ -4,9 +4,9 @@ plus determinism and the divergence guard on short runs."""
 import numpy as np
 import pytest
 
-from drake_coop.references import force_reference
+from drake_coop.experiment.references import force_reference
 from drake_coop.scenario import default_scenario
-from drake_coop.simulate import simulate
+from drake_coop.experiment.simulate import simulate
 from tests.conftest import short_scenario
 
 
@@ -105,7 +105,7 @@ def test_controller_can_use_its_own_perturbed_model(tmp_path):
     """A controller model 30 % heavier than the simulated arms: stable, but no longer exact."""
     import re
 
-    from drake_coop.arms import urdf_dir
+    from drake_coop.plant.arms import urdf_dir
 
     s = short_scenario("planes", 0.003)
     exact = simulate(s, t_end=4.0).logs

@@ -106,7 +106,7 @@ def test_wheel_carries_the_models_and_shipped_scenarios(wheel):
 
 
 def test_installed_package_is_imported_from_the_venv_with_its_data(installed, tmp_path):
-    code = ("import drake_coop, drake_coop.resources as r; print(drake_coop.__file__); "
+    code = ("import drake_coop, drake_coop.scenario.resources as r; print(drake_coop.__file__); "
             "print(r.urdf_dir()); print(r.default_scenario_path())")
     module, urdf, paper = _run([installed / "python", "-c", code], cwd=tmp_path).stdout.split()
     site = installed.parent / "lib"
@@ -143,9 +143,9 @@ def test_editable_install_reads_the_checkout(source, tmp_path):
     bin_dir = _venv(tmp_path / "env")
     _run([bin_dir / "python", "-m", "pip", "install", "--no-deps", "-q", "-e", source],
          cwd=tmp_path)
-    code = "import drake_coop.resources as r; print(r.__file__); print(r.urdf_dir())"
+    code = "import drake_coop.scenario.resources as r; print(r.__file__); print(r.urdf_dir())"
     module, urdf = _run([bin_dir / "python", "-c", code], cwd=tmp_path).stdout.split()
-    assert Path(module) == source / "drake_coop" / "resources.py"
+    assert Path(module) == source / "drake_coop" / "scenario" / "resources.py"
     assert Path(urdf) == source / "urdf"
 
 

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from drake_coop import resources
-from drake_coop.arms import urdf_dir
+from drake_coop.scenario import resources
+from drake_coop.plant.arms import urdf_dir
 from drake_coop.cli import main
 from drake_coop.scenario import ScenarioError, default_scenario, dump_scenario, load_scenario
 
@@ -40,12 +40,12 @@ def test_installed_package_data_wins_over_the_checkout(tmp_path, monkeypatch):
                     ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copytree(REPO / "urdf", site / "drake_coop" / "data" / "urdf")
     shutil.copytree(REPO / "scenarios", site / "drake_coop" / "data" / "scenarios")
-    code = ("import drake_coop.resources as r; print(r.__file__); print(r.urdf_dir()); "
+    code = ("import drake_coop.scenario.resources as r; print(r.__file__); print(r.urdf_dir()); "
             "print(r.scenarios_dir())")
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, check=True, text=True,
                          capture_output=True, env={"PYTHONPATH": str(site), "PATH": ""}).stdout
     module, urdf, scenarios = out.split()
-    assert module == str(site / "drake_coop" / "resources.py")
+    assert module == str(site / "drake_coop" / "scenario" / "resources.py")
     assert urdf == str(site / "drake_coop" / "data" / "urdf")
     assert scenarios == str(site / "drake_coop" / "data" / "scenarios")
 

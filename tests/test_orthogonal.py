@@ -8,9 +8,9 @@ derivative of the reference velocity (4).
 import numpy as np
 import pytest
 
-from drake_coop import orthogonal
-from drake_coop.arm_model import ArmModel
-from drake_coop.arms import Arm
+from drake_coop.control import orthogonal
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import Arm
 from drake_coop.scenario import paper_robots
 
 ROBOTS = paper_robots()

@@ -15,16 +15,16 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
-from drake_coop.arm_model import ArmModel
-from drake_coop.arms import Arm
-from drake_coop.plant import (
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import Arm
+from drake_coop.plant.cooperative import (
     CoopPlant,
     ForceSensor,
     add_force_sensors,
     build_plant,
     initialize_plant_context,
 )
-from drake_coop.references import cartesian_reference, waypoints
+from drake_coop.experiment.references import cartesian_reference, waypoints
 from drake_coop.scenario import Task, default_scenario
 
 SQUEEZE = 20.0          # N, the push of the static tests

@@ -112,7 +112,7 @@ def test_graphviz_renders_it():
 
 
 def test_experiment_picture_hides_the_plants_unconnected_ports():
-    from drake_coop.diagram import build_experiment
+    from drake_coop.experiment.diagram import build_experiment
     from drake_coop.scenario import default_scenario
 
     exp = build_experiment(default_scenario(), log=True)

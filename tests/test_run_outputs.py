@@ -91,11 +91,11 @@ def test_out_that_is_a_file_a_link_or_under_a_file_is_refused(tmp_path):
 def test_a_full_disk_is_found_before_simulating(tmp_path, monkeypatch, capsys):
     import shutil
 
-    import drake_coop.simulate
+    import drake_coop.experiment.simulate
 
     usage = shutil.disk_usage(tmp_path)
     monkeypatch.setattr(shutil, "disk_usage", lambda p: usage._replace(free=10_000_000))
-    monkeypatch.setattr(drake_coop.simulate, "simulate",
+    monkeypatch.setattr(drake_coop.experiment.simulate, "simulate",
                         lambda *a, **k: pytest.fail("simulated before checking --out"))
     out = tmp_path / "o"
     assert main(["run", "--out", str(out), "--quiet"]) == 2

@@ -19,7 +19,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drake_coop.bounds import MAX_MESSAGE
+from drake_coop.scenario.bounds import MAX_MESSAGE
 from drake_coop.scenario import BOUNDS, ScenarioError, load_scenario
 
 PAPER = Path(__file__).resolve().parents[1] / "scenarios" / "paper.yaml"
@@ -120,7 +120,7 @@ def test_console_script_refuses_mutations_without_traceback(tmp_path, place, val
 
 @pytest.mark.parametrize("gain", ["Lambda", "k_d", "K_R"])
 def test_gains_at_their_upper_bound_run_or_diverge_cleanly(gain):
-    from drake_coop.simulate import simulate
+    from drake_coop.experiment.simulate import simulate
 
     s = load_scenario()
     for r in s.robots:

@@ -12,8 +12,8 @@ import tracemalloc
 
 import pytest
 
-from drake_coop.bounds import MAX_MESSAGE, Bound, numeric_fields
-from drake_coop.references import reference_samples
+from drake_coop.scenario.bounds import MAX_MESSAGE, Bound, numeric_fields
+from drake_coop.experiment.references import reference_samples
 from drake_coop.scenario import (
     BOUNDS,
     LENGTHS,
@@ -23,7 +23,7 @@ from drake_coop.scenario import (
     check_run_size,
     load_scenario,
 )
-from drake_coop.safe_yaml import MAX_BYTES
+from drake_coop.scenario.safe_yaml import MAX_BYTES
 
 ROBOT2 = "{name: robot2, model: crs_a255, base_xyz: [1.16, 0, 0], base_yaw_deg: 180, " \
          "plane_b: 0.8192, normal_sign: 1, home: [0.9, 0, 0.6]}"
@@ -76,7 +76,7 @@ def test_controller_model_must_be_a_urdf_file():
 
 
 def test_controller_model_with_the_wrong_number_of_joints(tmp_path):
-    from drake_coop.arms import urdf_dir
+    from drake_coop.plant.arms import urdf_dir
 
     text = (urdf_dir() / "crs_a465_3dof.urdf").read_text()
     path = tmp_path / "two_joints.urdf"
@@ -85,7 +85,7 @@ def test_controller_model_with_the_wrong_number_of_joints(tmp_path):
 
 
 def test_a_perturbed_but_valid_controller_model_is_accepted(tmp_path):
-    from drake_coop.arms import urdf_dir
+    from drake_coop.plant.arms import urdf_dir
 
     text = (urdf_dir() / "crs_a465_3dof.urdf").read_text()
     path = tmp_path / "heavier.urdf"
@@ -256,7 +256,7 @@ def test_garbage_documents_are_one_line_errors(text, start):
 def test_the_range_machinery_covers_ints_optionals_and_nested_lists():
     from dataclasses import dataclass, field
 
-    from drake_coop.bounds import check_numbers
+    from drake_coop.scenario.bounds import check_numbers
 
     @dataclass
     class Sensor:

@@ -12,7 +12,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.framework import DiagramBuilder
 
-from drake_coop.arms import Arm
+from drake_coop.plant.arms import Arm
 from drake_coop.scenario import Encoders as EncoderSettings
 from drake_coop.scenario import ForceSensorModel, ModelError, paper_robots
 from drake_coop.sensing.actuators import FRICTION_VELOCITY, add_actuators

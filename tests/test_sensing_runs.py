@@ -16,12 +16,12 @@ import pytest
 from pydrake.systems.analysis import Simulator
 
 from drake_coop.cli import main
-from drake_coop.diagram import build_experiment
-from drake_coop.references import grasp_ticks
+from drake_coop.experiment.diagram import build_experiment
+from drake_coop.experiment.references import grasp_ticks
 from drake_coop.results.logs import COLUMNS, OPTIONAL_COLUMNS, load_logs, save_logs
 from drake_coop.results.metrics import compute_metrics
 from drake_coop.scenario import aligned_periods, dump_scenario
-from drake_coop.simulate import initialize, simulate
+from drake_coop.experiment.simulate import initialize, simulate
 from tests.conftest import short_scenario
 
 

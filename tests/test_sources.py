@@ -1,4 +1,4 @@
-"""The alternatives to the observers (:mod:`drake_coop.sources`), each alone, against closed
+"""The alternatives to the observers (:mod:`drake_coop.control.sources`), each alone, against closed
 forms: the backward difference and its low-pass, the sensed force's integral (6), the
 implicit force control's constant outputs, the measured-velocity baseline."""
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drake_coop.sources import DifferenceVelocity, MeasuredVelocity, NoForceEstimate, SensedForce
+from drake_coop.control.sources import DifferenceVelocity, MeasuredVelocity, NoForceEstimate, SensedForce
 
 H = 0.009
 

@@ -3,7 +3,7 @@
 import pytest
 
 from drake_coop.scenario import ScenarioError
-from drake_coop.sweep import sweep
+from drake_coop.studies.sweep import sweep
 from tests.conftest import short_scenario
 
 

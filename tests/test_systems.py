@@ -16,10 +16,10 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.systems.analysis import Simulator
 
-from drake_coop.diagram import build_experiment
-from drake_coop.references import grasp_ticks, reference_samples
+from drake_coop.experiment.diagram import build_experiment
+from drake_coop.experiment.references import grasp_ticks, reference_samples
 from drake_coop.scenario import aligned_periods
-from drake_coop.simulate import initialize, simulate
+from drake_coop.experiment.simulate import initialize, simulate
 from tests.conftest import short_scenario
 
 
@@ -135,8 +135,8 @@ def test_logs_are_sampled_at_the_ticks(short_run):
 
 # ------------------------------------------------------------------------ replay
 def _dynamics_plant(robot):
-    """A fresh single-arm plant for H, C, g (independent of drake_coop.arm_model)."""
-    from drake_coop.arms import Arm
+    """A fresh single-arm plant for H, C, g (independent of drake_coop.control.arm_model)."""
+    from drake_coop.plant.arms import Arm
 
     arm = Arm(robot)
     plant = MultibodyPlant(0.0)

@@ -1,4 +1,4 @@
-"""Force arrows, the held box and the replay's camera (``drake_coop/viz.py``)."""
+"""Force arrows, the held box and the replay's camera (``drake_coop/results/viz.py``)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from drake_coop.arms import Arm
+from drake_coop.plant.arms import Arm
 from drake_coop.results.export import shared_meshcat
 from drake_coop.scenario import default_scenario
-from drake_coop.viz import (
+from drake_coop.results.viz import (
     ARROW_KINDS,
     HEAD_LENGTH,
     ForceArrows,

@@ -25,7 +25,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from drake_coop.scenario import Encoders as EncoderSettings
+from drake_coop.scenario.schema import Encoders as EncoderSettings
 from drake_coop.sensing.sampling import ENCODER_STREAM, tick_of, white_noise
 
 

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from drake_coop.scenario import ForceSensorModel
+from drake_coop.scenario.schema import ForceSensorModel
 from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
 
 

@@ -1,6 +1,6 @@
 """Model error without hand-written URDFs: the controller's scaled model, the simulated payload.
 
-The controller's model (:class:`~drake_coop.arm_model.ArmModel`) is parsed from the simulated
+The controller's model (:class:`~drake_coop.control.arm_model.ArmModel`) is parsed from the simulated
 arm's URDF (or the robot's ``controller_model``) after :func:`scaled_urdf_text` multiplied
 
 * every link's ``<mass>`` by ``mass_scale``,
@@ -23,9 +23,9 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody, SpatialInertia, UnitInertia
 
-from drake_coop.arm_model import ArmModel
-from drake_coop.arms import Arm
-from drake_coop.scenario import ModelError
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import Arm
+from drake_coop.scenario.schema import ModelError
 
 DRAKE_NS = "http://drake.mit.edu"
 #: Radius of the payload's inertia (a small solid sphere around its centre), m.

@@ -170,7 +170,7 @@ def cmd_study(args: argparse.Namespace) -> int:
 
 
 def _robot_names(case: Case) -> list[str]:
-    from drake_coop.scenario import load_scenario
+    from drake_coop.scenario.loading import load_scenario
 
     return [r.name for r in load_scenario(data=case.scenario_yaml).robots]
 

@@ -41,7 +41,7 @@ def run_case(scenario_yaml: str, t_end: float | None) -> dict:
         ``t_reached`` (s), ``wall_time_s`` and ``metrics`` (as in ``metrics.json``; empty on
         ``error``).
     """
-    from drake_coop.sweep import run_one
+    from drake_coop.studies.sweep import run_one
 
     start = time.perf_counter()
     try:

@@ -42,7 +42,9 @@ from dataclasses import dataclass, is_dataclass
 
 import numpy as np
 
-from drake_coop.scenario import Scenario, ScenarioError, dump_scenario, load_scenario
+from drake_coop.scenario.loading import dump_scenario, load_scenario
+
+from drake_coop.scenario.schema import Scenario, ScenarioError
 from drake_coop.studies.spec import Perturbation, Study, StudyError
 
 __all__ = ["Case", "case_hash", "draw", "expand", "get_value", "resolve", "set_value"]

@@ -21,9 +21,7 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_coop.finger import FingerLaw, Reference
-from drake_coop.references import REFERENCE_SIZE
-from drake_coop.sources import MeasuredVelocity  # noqa: F401  (moved there; old import path)
+from drake_coop.control.finger import REFERENCE_SIZE, FingerLaw, Reference
 
 
 class VelocityObserver(LeafSystem):

@@ -7,7 +7,7 @@ process (``max_tasks_per_child=1``); runs go in parallel on ``workers`` cores.
 Example
 -------
 >>> from drake_coop.scenario import default_scenario
->>> from drake_coop.sweep import sweep
+>>> from drake_coop.studies.sweep import sweep
 >>> studies = []
 >>> for h in (0.003, 0.009):
 ...     s = default_scenario(); s.control_period = h; studies.append(s)
@@ -20,13 +20,15 @@ from __future__ import annotations
 import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 
-from drake_coop.scenario import Scenario, dump_scenario, load_scenario
+from drake_coop.scenario.loading import dump_scenario, load_scenario
+
+from drake_coop.scenario.schema import Scenario
 
 
 def run_one(scenario_yaml: str, t_end: float | None = None) -> dict:
     """Simulate one scenario (given as YAML) and return its metadata and metrics."""
     from drake_coop.results.metrics import compute_metrics
-    from drake_coop.simulate import simulate
+    from drake_coop.experiment.simulate import simulate
 
     scenario = load_scenario(data=scenario_yaml)
     result = simulate(scenario, t_end=t_end)

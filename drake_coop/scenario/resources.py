@@ -21,10 +21,10 @@ from importlib import resources as _resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from drake_coop.scenario import ScenarioError
+from drake_coop.scenario.schema import ScenarioError
 
 if TYPE_CHECKING:
-    from drake_coop.scenario import Scenario
+    from drake_coop.scenario.schema import Scenario
 
 __all__ = ["data_dir", "urdf_dir", "scenarios_dir", "shipped_scenarios", "scenario_summary",
            "find_scenario", "default_scenario_path", "resolve_models"]
@@ -53,7 +53,7 @@ def data_dir(kind: str) -> Path:
     """
     marker = _MARKERS[kind]
     packaged = Path(str(_resources.files("drake_coop") / "data" / kind))
-    checkout = Path(__file__).resolve().parents[1] / kind
+    checkout = Path(__file__).resolve().parents[2] / kind
     for folder in (packaged, checkout):
         if (folder / marker).is_file():
             return folder
@@ -117,7 +117,7 @@ def resolve_models(scenario: Scenario, base_dir: Path | None = None) -> None:
     The arms look relative model paths up in :func:`urdf_dir` (the shipped models); a file
     beside the scenario file (``base_dir``) wins and is rewritten as an absolute path, so that
     a run's saved ``scenario.yaml`` still finds it. The files themselves are checked by
-    :func:`drake_coop.model_check.check_models` when the scenario is validated.
+    :func:`drake_coop.scenario.model_check.check_models` when the scenario is validated.
     """
     if base_dir is None:
         return

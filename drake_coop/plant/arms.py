@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_coop.scenario import Robot
+from drake_coop.scenario.schema import Robot
 
 
 def urdf_dir() -> Path:
     """Folder of the robot models: ``$DRAKE_COOP_URDF_DIR``, else the shipped ``urdf/``
-    (installed package data or the checkout's folder, see :mod:`drake_coop.resources`)."""
-    from drake_coop.resources import urdf_dir as _urdf_dir
+    (installed package data or the checkout's folder, see :mod:`drake_coop.scenario.resources`)."""
+    from drake_coop.scenario.resources import urdf_dir as _urdf_dir
 
     return _urdf_dir()
 

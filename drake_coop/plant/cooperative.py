@@ -13,7 +13,7 @@ towards the A255 (robot 2). Object modes (``PlantSettings.object_mode``):
     moving in y–z at fixed x on prismatic joints, ball-constrained to both end effectors: the
     arms carry it together and feel each other through it.
 ``contact``
-    A box on a stand, held by friction at the two hydroelastic pads (see :mod:`drake_coop.grasp`).
+    A box on a stand, held by friction at the two hydroelastic pads (see :mod:`drake_coop.plant.grasp`).
 ``none``
     Free arms.
 
@@ -54,11 +54,12 @@ from pydrake.multibody.tree import (
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem, ValueProducer
 
-from drake_coop.arms import Arm
-from drake_coop.scenario import Scenario, aligned_periods
+from drake_coop.plant.arms import Arm
+from drake_coop.scenario.schema import Scenario
+from drake_coop.scenario.timing import aligned_periods
 
 if TYPE_CHECKING:
-    from drake_coop.grasp import ContactObject
+    from drake_coop.plant.grasp import ContactObject
 
 #: Mass of the planes-mode sliders and of the object carriage (kg): negligible against the
 #: end effectors but large enough for a well-conditioned SAP problem.
@@ -279,7 +280,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
             p_OP = np.array([h.arm.b - xc, 0.0, 0.0])
             coop.constraint_ids.append(plant.AddBallConstraint(h.ee_body, np.zeros(3), body, p_OP))
     elif mode == "contact":
-        from drake_coop.grasp import add_contact_object
+        from drake_coop.plant.grasp import add_contact_object
 
         coop.grasp = add_contact_object(plant, scene_graph, scenario)
         coop.object_body = coop.grasp.box

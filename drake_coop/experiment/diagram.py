@@ -13,7 +13,7 @@
 
 The encoders pass on (quantized, noisy, delayed) joint positions only: with the paper's
 observers the control block never sees a velocity or a force. The alternatives of
-:mod:`drake_coop.sources` replace the observers inside the block: ``measured`` also reads the
+:mod:`drake_coop.control.sources` replace the observers inside the block: ``measured`` also reads the
 plant's state (true velocities), ``sensor`` the F/T sensor model's λ. Each control block is a
 sub-Diagram whose inputs are ``q`` and ``reference`` (plus ``state`` / ``lambda_sensor`` for
 those alternatives) and whose outputs are ``tau`` and the sources' signals (for logging).
@@ -26,17 +26,18 @@ from dataclasses import dataclass, field
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput, Saturation, TrajectorySource, VectorLogSink
 
-from drake_coop.controller import Controller
-from drake_coop.finger import FingerLaw
-from drake_coop.observers import ForceObserver, VelocityObserver
-from drake_coop.plant import CoopPlant, ForceSensor, add_force_sensors, build_plant
-from drake_coop.references import reference_trajectory
-from drake_coop.scenario import Scenario, aligned_periods
+from drake_coop.control.controller import Controller
+from drake_coop.control.finger import FingerLaw
+from drake_coop.control.observers import ForceObserver, VelocityObserver
+from drake_coop.plant.cooperative import CoopPlant, ForceSensor, add_force_sensors, build_plant
+from drake_coop.experiment.references import reference_trajectory
+from drake_coop.scenario.schema import Scenario
+from drake_coop.scenario.timing import aligned_periods
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.sensing.force_sensor import FTSensor
 from drake_coop.sensing.model_error import controller_arm_model
-from drake_coop.sources import DifferenceVelocity, MeasuredVelocity, NoForceEstimate, SensedForce
+from drake_coop.control.sources import DifferenceVelocity, MeasuredVelocity, NoForceEstimate, SensedForce
 
 @dataclass
 class RobotSystems:
@@ -76,7 +77,7 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     """One robot's velocity source, force source and controller, wired as in the paper.
 
     The sources are the paper's observers (``observer``) or the alternatives of
-    :mod:`drake_coop.sources`, with the same port names, so only the blocks change.
+    :mod:`drake_coop.control.sources`, with the same port names, so only the blocks change.
 
     Exported inputs: ``q``, ``reference``; ``state`` for ``velocity_source = measured`` (the
     true velocities); ``lambda_sensor`` for ``force_source = sensor``.

@@ -30,8 +30,7 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_coop.finger import FingerLaw, Reference
-from drake_coop.references import REFERENCE_SIZE
+from drake_coop.control.finger import REFERENCE_SIZE, FingerLaw, Reference
 
 
 class Controller(LeafSystem):

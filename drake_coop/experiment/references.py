@@ -42,12 +42,9 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_coop.arms import Arm
-from drake_coop.scenario import Robot, Scenario, ScenarioError, Task, aligned_periods
-
-#: Rows of the reference vector fed to each robot's controller and observers.
-REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
-REFERENCE_SIZE = 3 + 3 + 3 + 1 + 1
+from drake_coop.plant.arms import Arm
+from drake_coop.scenario.schema import Robot, Scenario, ScenarioError, Task
+from drake_coop.scenario.timing import aligned_periods
 
 
 def quintic(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -186,7 +183,7 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     t : ndarray, shape (K,)
         Tick times ``k h`` (``h`` from :func:`~drake_coop.scenario.aligned_periods`).
     r : ndarray, shape (K, 11)
-        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (see :data:`REFERENCE_ROWS`).
+        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (see :data:`drake_coop.control.finger.REFERENCE_ROWS`).
     """
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     task = scenario.task

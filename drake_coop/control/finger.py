@@ -1,7 +1,7 @@
 """The control law of one robot ("finger") at one sample: (4), (8), (11), (13), (21), (22).
 
 :class:`FingerLaw` evaluates the paper's equations from one sample of the signals; the Drake
-systems of :mod:`drake_coop.observers` and :mod:`drake_coop.controller` are thin wrappers
+systems of :mod:`drake_coop.control.observers` and :mod:`drake_coop.control.controller` are thin wrappers
 around it, so that the three systems of a robot share one implementation of each equation.
 
 Symbols (per robot, ``n = 3``, ``m = 1``):
@@ -23,14 +23,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from drake_coop import orthogonal
-from drake_coop.arm_model import ArmModel
-from drake_coop.scenario import Gains
+from drake_coop.control import orthogonal
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.scenario.schema import Gains
+
+#: Rows of the reference vector fed to each robot's controller and observers (built by
+#: :mod:`drake_coop.experiment.references`, read by :meth:`Reference.unpack`).
+REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
+REFERENCE_SIZE = 3 + 3 + 3 + 1 + 1
 
 
 @dataclass
 class Reference:
-    """One sample of a robot's reference vector (see :mod:`drake_coop.references`)."""
+    """One sample of a robot's reference vector (see :mod:`drake_coop.experiment.references`)."""
 
     q_d: np.ndarray
     qdot_d: np.ndarray

@@ -26,7 +26,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_coop.arms import Arm
+from drake_coop.plant.arms import Arm
 
 
 class ArmModel:

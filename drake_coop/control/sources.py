@@ -1,7 +1,7 @@
 """Alternatives to the paper's observers, with the same output ports (a control block swaps them).
 
 Velocity sources (outputs ``q_hat``, ``qdot_hat``, ``qdot_o``, as
-:class:`~drake_coop.observers.VelocityObserver`):
+:class:`~drake_coop.control.observers.VelocityObserver`):
 
 * :class:`MeasuredVelocity` — the true joint velocities (a baseline: a perfect tachometer);
 * :class:`DifferenceVelocity` — the backward difference of the encoder signal at ``h``,
@@ -12,7 +12,7 @@ Both set ``q̂ = q`` (the encoder reading), so ``z = 0`` and ``d/dt q̂ = q̇_o`
 estimate.
 
 Force sources (outputs ``lambda_hat``, ``Delta_F_tilde``, as
-:class:`~drake_coop.observers.ForceObserver`):
+:class:`~drake_coop.control.observers.ForceObserver`):
 
 * :class:`SensedForce` — classical force feedback: the F/T sensor's ``λ_s`` used in place of
   ``λ̂`` in (13) and in the integral (6);
@@ -27,8 +27,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from drake_coop.finger import Reference
-from drake_coop.references import REFERENCE_SIZE
+from drake_coop.control.finger import REFERENCE_SIZE, Reference
 from drake_coop.sensing.sampling import lowpass_alpha
 
 

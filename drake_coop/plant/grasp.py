@@ -59,8 +59,8 @@ from pydrake.multibody.plant import ContactResults, CoulombFriction, MultibodyPl
 from pydrake.multibody.tree import ModelInstanceIndex, RigidBody, SpatialInertia, UnitInertia
 from pydrake.systems.framework import Context
 
-from drake_coop.arms import GEOMETRY
-from drake_coop.scenario import Scenario
+from drake_coop.plant.arms import GEOMETRY
+from drake_coop.scenario.schema import Scenario
 
 #: y (depth) and z (height) size of the box (m).
 BOX_DEPTH, BOX_HEIGHT = 0.08, 0.10

@@ -3,12 +3,12 @@
 Each arm's URDF (``urdf/<model>_3dof.urdf``) and each ``controller_model`` must be a readable
 regular ``.urdf`` file of at most :data:`MAX_MODEL_BYTES`, parse as XML with a ``<robot>``
 root (no DTD: no entity expansion), and load into a single-arm ``MultibodyPlant`` exactly as
-:class:`~drake_coop.arm_model.ArmModel` loads it (``base_link`` welded to the world), with the
+:class:`~drake_coop.control.arm_model.ArmModel` loads it (``base_link`` welded to the world), with the
 ``pad`` frame and :data:`NUM_JOINTS` revolute joints. A failure raises
 :class:`~drake_coop.scenario.ScenarioError` with one line naming the field and the path.
 
 Paths are resolved as the arms resolve them (relative to
-:func:`drake_coop.arms.urdf_dir`). A file already checked is not parsed again while its size
+:func:`drake_coop.plant.arms.urdf_dir`). A file already checked is not parsed again while its size
 and modification time are unchanged.
 """
 
@@ -20,8 +20,8 @@ import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from drake_coop.bounds import one_line
-from drake_coop.scenario import Scenario, ScenarioError
+from drake_coop.scenario.bounds import one_line
+from drake_coop.scenario.schema import Scenario, ScenarioError
 
 __all__ = ["MAX_MODEL_BYTES", "NUM_JOINTS", "check_model_file", "check_models"]
 
@@ -39,7 +39,7 @@ def check_models(scenario: Scenario) -> None:
     ScenarioError
         ``robots[i].controller_model`` (or ``robots[i].model``), the path and the problem.
     """
-    from drake_coop.arms import Arm
+    from drake_coop.plant.arms import Arm
 
     for i, robot in enumerate(scenario.robots):
         arm = Arm(robot)
@@ -105,7 +105,7 @@ def _check_cached(path: str, mtime_ns: int, size: int) -> str:
 
 
 def _drake_problem(path: Path) -> str:
-    """Load the file as :class:`~drake_coop.arm_model.ArmModel` does; '' if Drake accepts it."""
+    """Load the file as :class:`~drake_coop.control.arm_model.ArmModel` does; '' if Drake accepts it."""
     from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import MultibodyPlant
 

@@ -28,13 +28,13 @@ from pydrake.geometry import Box, Cylinder, MeshcatCone, Rgba
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
-from drake_coop.arms import Arm
+from drake_coop.plant.arms import Arm
 
 if TYPE_CHECKING:
     from pydrake.geometry import Meshcat
     from pydrake.systems.framework import Context, OutputPort
 
-    from drake_coop.plant import CoopPlant
+    from drake_coop.plant.cooperative import CoopPlant
 
 __all__ = ["ARROW_KINDS", "ForceArrows", "add_force_arrows", "arrow_pose", "frame_workspace",
            "held_box_pose", "workspace_camera"]

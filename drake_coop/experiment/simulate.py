@@ -20,16 +20,18 @@ from typing import Callable, ContextManager
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from drake_coop.diagram import Experiment, build_experiment
-from drake_coop.plant import initialize_plant_context
-from drake_coop.references import (
+from drake_coop.experiment.diagram import Experiment, build_experiment
+from drake_coop.plant.cooperative import initialize_plant_context
+from drake_coop.experiment.references import (
     cartesian_reference,
     grasp_ticks,
     joint_reference,
     num_ticks_until,
     reference_trajectory,
 )
-from drake_coop.scenario import Scenario, aligned_periods, check_run_size, dump_scenario
+from drake_coop.scenario.loading import dump_scenario
+from drake_coop.scenario.schema import Scenario
+from drake_coop.scenario.timing import aligned_periods, check_run_size
 
 
 @dataclass
@@ -156,7 +158,7 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     progress : callable, optional
         ``progress(t, t_end, wall_seconds)`` after every chunk.
     before_build : callable, optional
-        Passed to :func:`~drake_coop.diagram.build_experiment` (visualizers).
+        Passed to :func:`~drake_coop.experiment.diagram.build_experiment` (visualizers).
     on_start : callable, optional
         ``on_start(experiment, simulator)`` just before the first step (start recordings).
     hold_signals : callable, optional

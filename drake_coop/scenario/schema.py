@@ -1,0 +1,372 @@
+"""A scenario's typed dataclasses: every number of an experiment, and the paper's own.
+
+A scenario is the single source of truth of a run: the plant (time step, object mode), the
+two robots (model, base pose, constraint plane, home point, gains), the task of Section IV of
+the paper (phase times, circle (28), force profile (29)) and the simulation guards.
+``scenarios/paper.yaml`` holds the paper's experiment; :func:`default_scenario` returns the
+same numbers from code. Loading is in :mod:`drake_coop.scenario.loading`, the ranges and rules
+in :mod:`drake_coop.scenario.validation`. This module imports only the leaf
+:mod:`drake_coop.scenario.bounds` (for the one-line message of :class:`ScenarioError`).
+"""
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+from drake_coop.scenario.bounds import one_line
+
+OBJECT_MODES = ("planes", "rigid", "contact", "none")
+VELOCITY_SOURCES = ("observer", "measured", "difference")
+FORCE_SOURCES = ("observer", "sensor", "none")
+ARM_MODELS = ("crs_a465", "crs_a255")
+
+
+class ScenarioError(ValueError):
+    """A scenario field is missing, of the wrong type, or out of its allowed range.
+
+    The message is always one line of at most 300 characters.
+    """
+
+    def __init__(self, message: str):
+        super().__init__(one_line(message))
+
+
+@dataclass
+class Gains:
+    """Gains of the controller (13) and observers (15)-(16), (22) of one robot.
+
+    Attributes
+    ----------
+    Lambda : float
+        k of the paper's ``Lambda = k I`` (1/s): the gain of q̃ in q̇_r (4) and of z in (8).
+    K_R : list[float]
+        Diagonal of ``K_R`` (N·m·s/rad), the velocity-error gain of (13).
+    k_d : float
+        Observer gain of (15)-(16) (1/s).
+    k_F : float
+        Gain of the force integral ΔF̃ in (13) (dimensionless).
+    xi : float
+        ``xi`` of (4) (m×m, here scalar), weight of ΔF̃ in the reference velocity.
+    zeta : float
+        ``zeta`` of (13), weight of Δλ̃ (dimensionless).
+    beta : float
+        ``beta`` of (4), position-constraint gain (1/s). Not given by the paper.
+    """
+
+    Lambda: float = 35.0
+    K_R: list[float] = field(default_factory=lambda: [120.0, 120.0, 120.0])
+    k_d: float = 40.0
+    k_F: float = 0.05
+    xi: float = 1e-5
+    zeta: float = 1e-3
+    beta: float = 10.0
+
+
+@dataclass
+class Encoders:
+    """Joint-position sensors of one robot (:class:`drake_coop.sensing.encoders.Encoders`).
+
+    The reading at tick ``k`` is ``δ round((q(t_{k-d}) + w_{k-d}) / δ)`` with ``δ = 2π /
+    counts_per_rev`` (no rounding when ``counts_per_rev`` is null), ``w`` white Gaussian noise
+    and ``d = delay_samples``. Defaults: an ideal sensor (the exact ``q(t_k)``).
+
+    Attributes
+    ----------
+    counts_per_rev : int or None
+        Resolution in counts per joint revolution (>= 1; for an incremental encoder on the motor
+        behind a gear of ratio N: motor counts × N). Null: no quantization.
+    noise_std : float
+        Standard deviation of the additive white noise ``w`` (rad, >= 0).
+    delay_samples : int
+        Delay ``d`` in whole samples ``h`` (>= 0).
+    seed : int
+        Seed of the noise (>= 0); the noise is a deterministic function of (seed, robot, tick,
+        joint), so runs are reproducible.
+    """
+
+    counts_per_rev: Optional[int] = None
+    noise_std: float = 0.0
+    delay_samples: int = 0
+    seed: int = 0
+
+
+@dataclass
+class ForceSensorModel:
+    """A wrist force/torque sensor measuring the squeeze λ, sampled at ``h``
+    (:class:`drake_coop.sensing.force_sensor.FTSensor`).
+
+    ``λ_s(k) = y(k) + bias + v_k`` with ``y`` the first-order low-pass
+    ``y(k) = y(k-1) + α (λ(t_k^-) − y(k-1))``, ``α = 1 − exp(−2π f_c h)`` (``α = 1`` without
+    cutoff), ``λ(t_k^-)`` the true squeeze just before the tick and ``v`` white Gaussian noise.
+    Used by the controller only with ``force_source: sensor``; always logged as
+    ``lambda_sensor``.
+
+    Attributes
+    ----------
+    noise_std : float
+        Standard deviation of ``v`` (N, >= 0).
+    bias : float
+        Constant offset along the contact normal, i.e. on λ (N).
+    cutoff_hz : float or None
+        Cutoff ``f_c`` of the low-pass (Hz), ``0 < f_c < 1/(2h)`` (Nyquist). Null: no filter.
+    seed : int
+        Seed of the noise (>= 0).
+    """
+
+    noise_std: float = 0.0
+    bias: float = 0.0
+    cutoff_hz: Optional[float] = None
+    seed: int = 0
+
+
+@dataclass
+class Actuators:
+    """The motors of one robot (``robotN_actuators``, a Drake ``Saturation``).
+
+    Attributes
+    ----------
+    torque_limits : list[float] or None
+        Per-joint limits ``|τ_j| <= τ_max,j`` (N·m at the joint, > 0), one per joint; the
+        applied (saturated) torque is logged as ``tau``, the commanded one as ``tau_cmd``.
+        Null: unlimited.
+    """
+
+    torque_limits: Optional[list[float]] = None
+
+
+@dataclass
+class ModelError:
+    """What the controller's model gets wrong (:mod:`drake_coop.sensing.model_error`).
+
+    The controller's model is the URDF of the simulated arm (or ``controller_model``) with
+    every link's mass multiplied by ``mass_scale``, every link's rotational inertia and every
+    rotor inertia by ``inertia_scale`` and every joint damping by ``damping_scale``. The
+    simulated arm additionally carries ``payload_mass`` and suffers Coulomb friction, both
+    unknown to the controller. Defaults: an exact model.
+
+    Attributes
+    ----------
+    mass_scale, inertia_scale, damping_scale : float
+        Scales of the controller's link masses, inertias (links and rotors) and joint damping
+        (> 0).
+    payload_mass : float
+        A point mass (kg, >= 0) welded to the simulated arm's tool flange (the origin of the
+        force sensor's body, ``L_forearm + L_flange`` from the elbow, on the wrist side of the
+        force sensor, so the sensor does not weigh it).
+    coulomb_friction : list[float]
+        Coulomb friction torque of each simulated joint (N·m, >= 0), ``−f_c tanh(q̇/v_s)``
+        with ``v_s = 0.01 rad/s``.
+    """
+
+    mass_scale: float = 1.0
+    inertia_scale: float = 1.0
+    damping_scale: float = 1.0
+    payload_mass: float = 0.0
+    coulomb_friction: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+@dataclass
+class Robot:
+    """One arm ("finger") of the cooperative system.
+
+    Attributes
+    ----------
+    name : str
+        Model-instance and subsystem prefix (``robot1``, ``robot2``).
+    model : str
+        ``crs_a465`` or ``crs_a255`` (file ``urdf/<model>_3dof.urdf``).
+    controller_model : str
+        URDF file (relative to ``urdf/`` or absolute) of the controller's own model of the arm;
+        empty means the same URDF as the simulated arm (exact model knowledge).
+    base_xyz : list[float]
+        Position of the robot's base in the palm frame (m).
+    base_yaw_deg : float
+        Rotation of the base about the palm z axis (degrees).
+    plane_b : float
+        ``b_i`` of the constraint ``x_i = b_i`` (m): the x coordinate of the contact point.
+    normal_sign : float
+        x component (±1) of the object's outward normal at this contact. With
+        ``phi_i = normal_sign * (x_i - b_i)`` a positive λ squeezes the object.
+    home : list[float]
+        Cartesian start and end point of the end effector (m, palm frame).
+    gains : Gains
+        The robot's controller and observer gains.
+    velocity_source : str
+        ``observer`` (the paper's scheme: the velocity observer (15)–(16)), ``measured`` (a
+        baseline: the true joint velocities) or ``difference`` (the backward difference of the
+        encoder signal at ``h``, optionally low-passed).
+    difference_cutoff_hz : float or None
+        ``difference`` only: cutoff of a first-order low-pass of the difference (Hz),
+        ``0 < f < 1/(2h)``; null: the raw difference.
+    force_source : str
+        ``observer`` (the paper's (22)), ``sensor`` (the F/T sensor model's λ in (13) and (6))
+        or ``none`` (``λ̂ := λ_d``, ``ΔF̃ ≡ 0``: the implicit force control of reference [9]).
+    encoders : Encoders
+        The joint-position sensors.
+    force_sensor : ForceSensorModel
+        The wrist F/T sensor model.
+    actuators : Actuators
+        Torque limits.
+    model_error : ModelError
+        The controller's model error, payload and joint friction of the simulated arm.
+    """
+
+    name: str = "robot1"
+    model: str = "crs_a465"
+    controller_model: str = ""
+    base_xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    base_yaw_deg: float = 0.0
+    plane_b: float = 0.6
+    normal_sign: float = -1.0
+    home: list[float] = field(default_factory=lambda: [0.5, 0.0, 0.6])
+    gains: Gains = field(default_factory=Gains)
+    velocity_source: str = "observer"
+    difference_cutoff_hz: Optional[float] = None
+    force_source: str = "observer"
+    encoders: Encoders = field(default_factory=Encoders)
+    force_sensor: ForceSensorModel = field(default_factory=ForceSensorModel)
+    actuators: Actuators = field(default_factory=Actuators)
+    model_error: ModelError = field(default_factory=ModelError)
+
+
+@dataclass
+class PlantSettings:
+    """The simulated cooperative plant.
+
+    Attributes
+    ----------
+    time_step : float
+        Discrete step of the MultibodyPlant (s); must divide the control period.
+    object_mode : str
+        ``planes`` (the paper's model), ``rigid``, ``contact`` or ``none``.
+    object_mass : float
+        Mass of the carried object in ``rigid`` and ``contact`` modes (kg).
+    friction : float
+        Coulomb friction coefficient between pads and box (``contact``).
+    """
+
+    time_step: float = 0.001
+    object_mode: str = "planes"
+    object_mass: float = 0.5
+    friction: float = 1.0
+
+
+@dataclass
+class Task:
+    """The experiment of Section IV: phases, paths (28) and force profile (29).
+
+    Phases: free motion ``[0, t_grasp)`` (home → pre-grasp → grasp), lift
+    ``[t_grasp, t_circle_start)``, circle ``[t_circle_start, t_circle_end)``, put-down
+    ``[t_circle_end, t_release)``, return ``[t_release, t_end]``.
+
+    Attributes
+    ----------
+    t_grasp, t_circle_start, t_circle_end, t_release, t_end : float
+        Phase boundaries (s). The paper: 15, 25, 65, 75, 90.
+    t_pregrasp : float
+        End of the approach to the pre-grasp point (s); also the return's retreat time is
+        ``t_release + (t_grasp - t_pregrasp)``.
+    pregrasp_distance : float
+        Distance of the pre-grasp point from the grasp point along the outward normal (m).
+    circle_top_z : float
+        z of the circle's start point, 0.635 m in (28).
+    circle_radius : float
+        Radius of the circle (28), 0.05 m.
+    lift_height : float
+        Height of the lift from the grasp point to the circle's start (m).
+    force_mean, force_amplitude : float
+        32 N and 18 N of (29).
+    force_omega : float
+        Angular frequency of (29), 3π/40 rad/s.
+    """
+
+    t_pregrasp: float = 10.0
+    t_grasp: float = 15.0
+    t_circle_start: float = 25.0
+    t_circle_end: float = 65.0
+    t_release: float = 75.0
+    t_end: float = 90.0
+    pregrasp_distance: float = 0.05
+    circle_top_z: float = 0.635
+    circle_radius: float = 0.05
+    lift_height: float = 0.1
+    force_mean: float = 32.0
+    force_amplitude: float = 18.0
+    force_omega: float = 3.0 * math.pi / 40.0
+
+
+@dataclass
+class Guards:
+    """Divergence guards of the simulation.
+
+    Attributes
+    ----------
+    max_force : float
+        Bound on |λ̂| and on the measured force (N); beyond it the run stops.
+    joint_limit_margin_deg : float
+        A joint passing its URDF limit by more than this stops the run (degrees).
+    check_period : float
+        How often the guards are evaluated (s of simulated time).
+    """
+
+    max_force: float = 500.0
+    joint_limit_margin_deg: float = 0.0
+    check_period: float = 0.09
+
+
+@dataclass
+class Scenario:
+    """A complete experiment.
+
+    Attributes
+    ----------
+    control_period : float
+        Sampling time h of the controllers and observers (s), 9 ms in the paper.
+    plant : PlantSettings
+    robots : list[Robot]
+        Exactly two robots; robot 1 on the left (normal_sign = -1), robot 2 on the right.
+    task : Task
+    guards : Guards
+    """
+
+    control_period: float = 0.009
+    plant: PlantSettings = field(default_factory=PlantSettings)
+    robots: list[Robot] = field(default_factory=list)
+    task: Task = field(default_factory=Task)
+    guards: Guards = field(default_factory=Guards)
+
+
+def paper_robots() -> list[Robot]:
+    """The two robots of Section IV with the paper's gains (β is ours)."""
+    return [
+        Robot(
+            name="robot1",
+            model="crs_a465",
+            base_xyz=[0.0, 0.0, 0.0],
+            base_yaw_deg=0.0,
+            plane_b=0.6,
+            normal_sign=-1.0,
+            home=[0.5, 0.0, 0.6],
+            gains=Gains(Lambda=35.0, K_R=[120.0] * 3, k_d=40.0, k_F=0.05, xi=1e-5, zeta=1e-3,
+                        beta=10.0),
+        ),
+        Robot(
+            name="robot2",
+            model="crs_a255",
+            base_xyz=[1.16, 0.0, 0.0],
+            base_yaw_deg=180.0,
+            plane_b=0.8192,
+            normal_sign=1.0,
+            home=[0.9, 0.0, 0.6],
+            gains=Gains(Lambda=26.0, K_R=[100.0] * 3, k_d=40.0, k_F=0.05, xi=1e-5, zeta=1e-3,
+                        beta=10.0),
+        ),
+    ]
+
+
+def default_scenario() -> Scenario:
+    """The paper's experiment (the numbers of ``scenarios/paper.yaml``)."""
+    return Scenario(robots=paper_robots())
+
+
+# --------------------------------------------------------------------------- timing

@@ -1,0 +1,176 @@
+"""Validating a scenario: every number against its range, the choices, the cross-field rules.
+
+:func:`validate` checks every number against its range in :data:`BOUNDS`
+(:mod:`drake_coop.scenario.bounds`), lists against :data:`LENGTHS`, then the choices, the
+cross-field rules, reachability and the model files (the last two import the plant's
+kinematics late, so that this package imports nothing outside it at import time).
+"""
+
+from drake_coop.scenario.bounds import Bound, check_numbers, show
+from drake_coop.scenario.schema import (
+    ARM_MODELS, FORCE_SOURCES, OBJECT_MODES, VELOCITY_SOURCES, Robot, Scenario, ScenarioError,
+)
+
+
+_POS = dict(lo_open=True)
+#: Allowed range of every number of a scenario, by dotted field (``[]``: any index). A new
+#: ``float`` or ``list[float]`` field gets its entry here (``tests/test_scenario_bounds.py``
+#: checks that every numeric field has one); :func:`validate` then checks it, and the message
+#: states the bound.
+BOUNDS: dict[str, Bound] = {
+    "control_period": Bound(1e-4, 0.1, "s"),
+    "plant.time_step": Bound(1e-5, 0.1, "s"),
+    "plant.object_mass": Bound(0.0, 20.0, "kg", **_POS),
+    "plant.friction": Bound(0.0, 5.0, "", **_POS),
+    "robots[].base_xyz[]": Bound(-5.0, 5.0, "m"),
+    "robots[].base_yaw_deg": Bound(-360.0, 360.0, "deg"),
+    "robots[].plane_b": Bound(-5.0, 5.0, "m"),
+    "robots[].normal_sign": Bound(-1.0, 1.0),
+    "robots[].home[]": Bound(-5.0, 5.0, "m"),
+    "robots[].gains.Lambda": Bound(0.0, 1e3, "1/s", **_POS),
+    "robots[].gains.K_R[]": Bound(0.0, 1e4, "N·m·s/rad", **_POS),
+    "robots[].gains.k_d": Bound(0.0, 1e4, "1/s", **_POS),
+    "robots[].gains.k_F": Bound(0.0, 100.0, "", **_POS),
+    "robots[].gains.xi": Bound(0.0, 1.0, "", **_POS),
+    "robots[].gains.zeta": Bound(0.0, 100.0, "", **_POS),
+    "robots[].gains.beta": Bound(0.0, 1e3, "1/s", **_POS),
+    "robots[].difference_cutoff_hz": Bound(0.0, 1e6, "Hz", **_POS),
+    "robots[].encoders.counts_per_rev": Bound(1, 1e12, "counts"),
+    "robots[].encoders.noise_std": Bound(0.0, 1.0, "rad"),
+    "robots[].encoders.delay_samples": Bound(0, 1000, "samples"),
+    "robots[].encoders.seed": Bound(0, 2**63 - 1),
+    "robots[].force_sensor.noise_std": Bound(0.0, 1e3, "N"),
+    "robots[].force_sensor.bias": Bound(-1e3, 1e3, "N"),
+    "robots[].force_sensor.cutoff_hz": Bound(0.0, 1e6, "Hz", **_POS),
+    "robots[].force_sensor.seed": Bound(0, 2**63 - 1),
+    "robots[].actuators.torque_limits[]": Bound(0.0, 1e4, "N·m", **_POS),
+    "robots[].model_error.mass_scale": Bound(0.0, 100.0, "", **_POS),
+    "robots[].model_error.inertia_scale": Bound(0.0, 100.0, "", **_POS),
+    "robots[].model_error.damping_scale": Bound(0.0, 100.0, "", **_POS),
+    "robots[].model_error.payload_mass": Bound(0.0, 20.0, "kg"),
+    "robots[].model_error.coulomb_friction[]": Bound(0.0, 1e3, "N·m"),
+    **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
+        "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
+    "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
+    "task.circle_top_z": Bound(-5.0, 5.0, "m"),
+    "task.circle_radius": Bound(0.0, 1.0, "m", **_POS),
+    "task.lift_height": Bound(0.0, 1.0, "m", **_POS),
+    "task.force_mean": Bound(0.0, 1e3, "N"),
+    "task.force_amplitude": Bound(0.0, 1e3, "N"),
+    "task.force_omega": Bound(0.0, 100.0, "rad/s"),
+    "guards.max_force": Bound(0.0, 1e5, "N", **_POS),
+    "guards.joint_limit_margin_deg": Bound(0.0, 180.0, "deg"),
+    "guards.check_period": Bound(0.0, 100.0, "s", **_POS),
+}
+#: Length of every list of numbers.
+LENGTHS: dict[str, int] = {"robots[].base_xyz": 3, "robots[].home": 3,
+                           "robots[].gains.K_R": 3, "robots[].actuators.torque_limits": 3,
+                           "robots[].model_error.coulomb_friction": 3}
+
+
+def _is_multiple(period: float, step: float) -> bool:
+    ratio = period / step
+    return abs(ratio - round(ratio)) < 1e-9 * max(1.0, ratio)
+
+
+def _choice(value: object, allowed: tuple[str, ...], name: str) -> None:
+    if value not in allowed:
+        raise ScenarioError(f"{name} must be one of {', '.join(allowed)}, got {show(value)}")
+
+
+def validate(scenario: Scenario) -> None:
+    """Check ranges and consistency of a scenario.
+
+    In order: every number finite and within its :data:`BOUNDS` (lists of their
+    :data:`LENGTHS`), the choices (modes, models, names), the cross-field rules (periods,
+    phase order, force profile), the reachability of every target and the model files.
+
+    Raises
+    ------
+    ScenarioError
+        On the first problem found, naming the field and the allowed values.
+    """
+    if len(scenario.robots) != 2:
+        raise ScenarioError(f"robots must list exactly 2 robots, got {len(scenario.robots)}")
+    check_numbers(scenario, BOUNDS, LENGTHS, error=ScenarioError)
+
+    p = scenario.plant
+    if p.time_step > scenario.control_period * (1 + 1e-12):
+        raise ScenarioError(
+            f"plant.time_step ({p.time_step}) must not exceed control_period "
+            f"({scenario.control_period})")
+    if not _is_multiple(scenario.control_period, p.time_step):
+        raise ScenarioError(
+            f"control_period ({scenario.control_period}) must be an integer multiple of "
+            f"plant.time_step ({p.time_step}); e.g. 0.001, 0.003, 0.0045 or 0.009 for h = 0.009")
+    _choice(p.object_mode, OBJECT_MODES, "plant.object_mode")
+
+    names = [r.name for r in scenario.robots]
+    for i, r in enumerate(scenario.robots):
+        where = f"robots[{i}]"
+        if not (isinstance(r.name, str) and r.name.isidentifier() and len(r.name) <= 40):
+            raise ScenarioError(f"{where}.name must be an identifier of at most 40 characters, "
+                                f"got {show(r.name)}")
+        _choice(r.model, ARM_MODELS, f"{where}.model")
+        if r.normal_sign not in (-1.0, 1.0):
+            raise ScenarioError(f"{where}.normal_sign must be -1 or 1, got {show(r.normal_sign)}")
+        _validate_sensing(r, where, scenario.control_period)
+    if len(set(names)) != 2:
+        raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
+    if scenario.robots[0].normal_sign == scenario.robots[1].normal_sign:
+        raise ScenarioError("robots[].normal_sign must differ (one contact on each side)")
+
+    t = scenario.task
+    times = ["t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end"]
+    prev_name, prev = "0", 0.0
+    for name in times:
+        value = getattr(t, name)
+        if value <= prev:
+            raise ScenarioError(f"task.{name} must be > {prev_name} ({prev}), got {value}")
+        prev_name, prev = f"task.{name}", value
+    if t.t_release + (t.t_grasp - t.t_pregrasp) >= t.t_end:
+        raise ScenarioError(
+            "task.t_end must leave time for the retreat: t_end > t_release + "
+            f"(t_grasp - t_pregrasp) = {t.t_release + t.t_grasp - t.t_pregrasp}")
+    if t.force_amplitude > t.force_mean:
+        raise ScenarioError(
+            f"task.force_amplitude ({t.force_amplitude}) must not exceed task.force_mean "
+            f"({t.force_mean}): the squeeze force must stay >= 0")
+
+    # Imported late: the plant's kinematics (arms) import the scenario package.
+    from drake_coop.scenario.model_check import check_models
+    from drake_coop.experiment.references import check_reachable
+
+    check_reachable(scenario)
+    check_models(scenario)
+
+
+# --------------------------------------------------------------------------- sensing
+
+
+def _cutoff(value: float | None, name: str, h: float) -> None:
+    """A low-pass cutoff: null or ``0 < f < 1/(2h)`` (the Nyquist frequency of sampling h)."""
+    if value is None:
+        return
+    nyquist = 1.0 / (2.0 * h)
+    if not 0.0 < value < nyquist:
+        raise ScenarioError(f"{name} must be null or in (0, {nyquist:g}) Hz (below the "
+                            f"Nyquist frequency 1/(2h) for h = {h:g} s), got {show(value)}")
+
+
+def _validate_sensing(robot: Robot, where: str, h: float) -> None:
+    """Sources and the cutoffs of one robot's sensing (issue 7); the numbers' ranges are in
+    :data:`BOUNDS`.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the field (``where`` is e.g. ``robots[0]``) and what is allowed.
+    """
+    _choice(robot.velocity_source, VELOCITY_SOURCES, f"{where}.velocity_source")
+    _choice(robot.force_source, FORCE_SOURCES, f"{where}.force_source")
+    _cutoff(robot.difference_cutoff_hz, f"{where}.difference_cutoff_hz", h)
+    if robot.difference_cutoff_hz is not None and robot.velocity_source != "difference":
+        raise ScenarioError(f"{where}.difference_cutoff_hz applies to velocity_source: "
+                            f"difference only; set it to null or use difference")
+    _cutoff(robot.force_sensor.cutoff_hz, f"{where}.force_sensor.cutoff_hz", h)
