@@ -21,3 +21,29 @@ def short_scenario(mode: str = "planes", time_step: float = 0.001, **task):
 @pytest.fixture
 def make_short_scenario():
     return short_scenario
+
+
+def advance_to_tick(scenario, k: int):
+    """The experiment's simulator stopped exactly at control tick ``k`` (its events not yet
+    processed), with the grasp switched on at its tick as :func:`simulate` does.
+
+    Returns ``(experiment, simulator, context)``.
+    """
+    from pydrake.systems.analysis import Simulator
+
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.references import grasp_ticks
+    from drake_coop.experiment.simulate import initialize
+    from drake_coop.scenario import aligned_periods
+
+    exp = build_experiment(scenario, log=False)
+    sim = Simulator(exp.diagram)
+    ctx = sim.get_mutable_context()
+    initialize(exp, ctx)
+    sim.Initialize()
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    k_grasp, _ = grasp_ticks(scenario.task, h)
+    sim.AdvanceTo(k_grasp * h)
+    exp.coop.set_held(exp.coop.plant.GetMyMutableContextFromRoot(ctx), True)
+    sim.AdvanceTo(k * h)
+    return exp, sim, ctx

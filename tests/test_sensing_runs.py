@@ -13,7 +13,6 @@ import json
 
 import numpy as np
 import pytest
-from pydrake.systems.analysis import Simulator
 
 from drake_coop.cli import main
 from drake_coop.experiment.diagram import build_experiment
@@ -21,8 +20,8 @@ from drake_coop.experiment.references import grasp_ticks
 from drake_coop.results.logs import COLUMNS, OPTIONAL_COLUMNS, load_logs, save_logs
 from drake_coop.results.metrics import compute_metrics
 from drake_coop.scenario import aligned_periods, dump_scenario
-from drake_coop.experiment.simulate import initialize, simulate
-from tests.conftest import short_scenario
+from drake_coop.experiment.simulate import simulate
+from tests.conftest import advance_to_tick, short_scenario
 
 
 def _scenario(velocity_source, force_source, **encoders):
@@ -50,17 +49,10 @@ def test_diagram_reads_plant_sensors_control_actuators_plant():
 
 def _tau_before_and_after_perturbation(scenario):
     """τ(k) at a held tick, then after changing the plant's velocities and contact force."""
-    exp = build_experiment(scenario, log=False)
-    sim = Simulator(exp.diagram)
-    ctx = sim.get_mutable_context()
-    initialize(exp, ctx)
-    sim.Initialize()
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     k_grasp, _ = grasp_ticks(scenario.task, h)
-    sim.AdvanceTo(k_grasp * h)
+    exp, sim, ctx = advance_to_tick(scenario, k_grasp + 40)
     pc = exp.coop.plant.GetMyMutableContextFromRoot(ctx)
-    exp.coop.set_held(pc, True)
-    sim.AdvanceTo((k_grasp + 40) * h)
 
     def taus():
         return [rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx)).copy()

@@ -20,7 +20,7 @@ from drake_coop.experiment.diagram import build_experiment
 from drake_coop.experiment.references import grasp_ticks, reference_samples
 from drake_coop.scenario import aligned_periods
 from drake_coop.experiment.simulate import initialize, simulate
-from tests.conftest import short_scenario
+from tests.conftest import advance_to_tick, short_scenario
 
 
 @pytest.fixture(scope="module")
@@ -30,25 +30,10 @@ def short_run():
     return scenario, simulate(scenario, t_end=3.0)
 
 
-def _advance_to_tick(scenario, k):
-    """A simulator stopped exactly at tick k (events of tick k not yet processed)."""
-    exp = build_experiment(scenario, log=False)
-    sim = Simulator(exp.diagram)
-    ctx = sim.get_mutable_context()
-    initialize(exp, ctx)
-    sim.Initialize()
-    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
-    k_grasp, _ = grasp_ticks(scenario.task, h)
-    sim.AdvanceTo(k_grasp * h)
-    exp.coop.set_held(exp.coop.plant.GetMyMutableContextFromRoot(ctx), True)
-    sim.AdvanceTo(k * h)
-    return exp, sim, ctx
-
-
 def test_next_torque_ignores_plant_velocities_and_constraint_state():
     scenario = short_scenario("planes", 0.003)
     k_grasp, _ = grasp_ticks(scenario.task, scenario.control_period)
-    exp, sim, ctx = _advance_to_tick(scenario, k_grasp + 40)
+    exp, sim, ctx = advance_to_tick(scenario, k_grasp + 40)
     plant = exp.coop.plant
     pc = plant.GetMyMutableContextFromRoot(ctx)
     taus = [rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx)).copy()
@@ -74,7 +59,7 @@ def test_force_observer_22_equals_21_with_the_controllers_torque():
     scenario = short_scenario("planes", 0.003)
     k_grasp, _ = grasp_ticks(scenario.task, scenario.control_period)
     for k in (k_grasp + 5, k_grasp + 60):
-        exp, sim, ctx = _advance_to_tick(scenario, k)
+        exp, sim, ctx = advance_to_tick(scenario, k)
         for rs in exp.robots:
             cc = rs.control.GetMyContextFromRoot(ctx)
             lam_22 = rs.control.GetOutputPort("lambda_hat").Eval(cc)[0]

@@ -163,7 +163,7 @@ def connected_graphviz(diagram: Diagram) -> str:
     if sinks:
         caption += "\\n(not drawn: " + ", ".join(f"{n} {t}" for t, n in sorted(sinks.items())) \
             + ")"
-    head = [f"digraph {{",
+    head = ["digraph {",
             "  rankdir=LR; newrank=true; nodesep=0.25; ranksep=0.6;",
             '  node [fontname="Helvetica", fontsize=12];',
             '  edge [arrowsize=0.7];',
