@@ -45,8 +45,8 @@ def _plant_alone(scenario, t_end: float) -> tuple[float, float]:
     from pydrake.systems.primitives import ConstantVectorSource
 
     from drake_coop.control.arm_model import ArmModel
-    from drake_coop.plant.cooperative import build_plant, initialize_plant_context
     from drake_coop.experiment.references import reference_samples
+    from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 
     b = DiagramBuilder()
     coop = build_plant(b, scenario)
@@ -82,9 +82,10 @@ def _experiment(scenario, t_end: float) -> tuple[float, float]:
 @contextlib.contextmanager
 def _force_log_from_constants():
     """Build experiments whose ``F_meas``/``lambda_meas`` loggers read a constant instead."""
+    from pydrake.systems.primitives import ConstantVectorSource
+
     import drake_coop.experiment.diagram as diagram
     from drake_coop.plant.cooperative import ForceSensor
-    from pydrake.systems.primitives import ConstantVectorSource
 
     original = diagram.LogVectorOutput
 
@@ -165,9 +166,9 @@ def _tick_costs(scenario) -> dict[str, float]:
     robot: (15)/(8), (22), (13) and (16) at the same sample.
     """
     from drake_coop.control.arm_model import ArmModel
-    from drake_coop.plant.arms import Arm
     from drake_coop.control.finger import FingerLaw, Reference
     from drake_coop.experiment.references import reference_samples
+    from drake_coop.plant.arms import Arm
 
     robot = scenario.robots[0]
     law = FingerLaw(ArmModel(Arm(robot)), robot.gains)

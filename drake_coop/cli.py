@@ -35,7 +35,12 @@ import time
 import warnings
 from pathlib import Path
 
-from drake_coop.scenario.resources import find_scenario, scenario_summary, shipped_scenarios
+from drake_coop.scenario.resources import (
+    find_scenario,
+    scenario_summary,
+    shipped_scenarios,
+)
+
 
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised like Ctrl-C's KeyboardInterrupt: the same code stops the run and keeps
@@ -149,13 +154,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     onto ``--out`` at the end, also with signals deferred (see :func:`_write_outputs`).
     """
     with SIGNALS.deferred():
+        from drake_coop.experiment.simulate import simulate
         from drake_coop.results.export import MeshcatReplay, add_meshcat, live_meshcat
         from drake_coop.results.run_folder import OutputFolderError, RunFolder
+        from drake_coop.results.viz import add_force_arrows, frame_workspace
         from drake_coop.scenario.loading import load_scenario
         from drake_coop.scenario.schema import ScenarioError
         from drake_coop.scenario.timing import check_run_size, run_size
-        from drake_coop.experiment.simulate import simulate
-        from drake_coop.results.viz import add_force_arrows, frame_workspace
 
         if args.t_end is not None and not (0 < args.t_end < float("inf")):
             return _error(f"--t-end must be a finite number > 0, got {args.t_end}")
@@ -247,8 +252,13 @@ def _write_outputs(args, scenario, result, replay, staging: Path) -> None:
     a signal received meanwhile skips the figures, diagrams and replay still to come, and
     ``run.json`` then says so (``outputs_incomplete``).
     """
-    from drake_coop.results import compute_metrics, fig_references, plot_figures, save_logs
-    from drake_coop.results import write_metrics
+    from drake_coop.results import (
+        compute_metrics,
+        fig_references,
+        plot_figures,
+        save_logs,
+        write_metrics,
+    )
     from drake_coop.results.io import atomic_write_text
     from drake_coop.results.logs import write_meta
     from drake_coop.scenario.loading import dump_scenario

@@ -15,8 +15,8 @@ import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.plant.arms import GEOMETRY, Arm, urdf_dir
 from drake_coop.experiment.references import cartesian_reference
+from drake_coop.plant.arms import GEOMETRY, Arm, urdf_dir
 from drake_coop.scenario import default_scenario, paper_robots
 
 ROBOTS = paper_robots()

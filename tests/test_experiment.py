@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from drake_coop.experiment.references import force_reference
-from drake_coop.scenario import default_scenario
 from drake_coop.experiment.simulate import simulate
+from drake_coop.scenario import default_scenario
 from tests.conftest import short_scenario
 
 

@@ -13,10 +13,15 @@ from pathlib import Path
 
 import pytest
 
-from drake_coop.scenario import resources
-from drake_coop.plant.arms import urdf_dir
 from drake_coop.cli import main
-from drake_coop.scenario import ScenarioError, default_scenario, dump_scenario, load_scenario
+from drake_coop.plant.arms import urdf_dir
+from drake_coop.scenario import (
+    ScenarioError,
+    default_scenario,
+    dump_scenario,
+    load_scenario,
+    resources,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.plant.arms import Arm
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import MeasuredVelocity
+from drake_coop.plant.arms import Arm
 from drake_coop.scenario import paper_robots
 
 H = 0.009

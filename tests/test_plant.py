@@ -16,6 +16,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
 from drake_coop.control.arm_model import ArmModel
+from drake_coop.experiment.references import cartesian_reference, waypoints
 from drake_coop.plant.arms import Arm
 from drake_coop.plant.cooperative import (
     CoopPlant,
@@ -24,7 +25,6 @@ from drake_coop.plant.cooperative import (
     build_plant,
     initialize_plant_context,
 )
-from drake_coop.experiment.references import cartesian_reference, waypoints
 from drake_coop.scenario import Task, default_scenario
 
 SQUEEZE = 20.0          # N, the push of the static tests

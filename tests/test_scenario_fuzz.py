@@ -19,8 +19,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drake_coop.scenario.bounds import MAX_MESSAGE
 from drake_coop.scenario import BOUNDS, ScenarioError, load_scenario
+from drake_coop.scenario.bounds import MAX_MESSAGE
 
 PAPER = Path(__file__).resolve().parents[1] / "scenarios" / "paper.yaml"
 PAPER_DATA = yaml.safe_load(PAPER.read_text())

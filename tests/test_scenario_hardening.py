@@ -12,7 +12,6 @@ import tracemalloc
 
 import pytest
 
-from drake_coop.scenario.bounds import MAX_MESSAGE, Bound, numeric_fields
 from drake_coop.experiment.references import reference_samples
 from drake_coop.scenario import (
     BOUNDS,
@@ -23,6 +22,7 @@ from drake_coop.scenario import (
     check_run_size,
     load_scenario,
 )
+from drake_coop.scenario.bounds import MAX_MESSAGE, Bound, numeric_fields
 from drake_coop.scenario.safe_yaml import MAX_BYTES
 
 ROBOT2 = "{name: robot2, model: crs_a255, base_xyz: [1.16, 0, 0], base_yaw_deg: 180, " \

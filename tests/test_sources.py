@@ -7,7 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from drake_coop.control.sources import DifferenceVelocity, MeasuredVelocity, NoForceEstimate, SensedForce
+from drake_coop.control.sources import (
+    DifferenceVelocity,
+    MeasuredVelocity,
+    NoForceEstimate,
+    SensedForce,
+)
 
 H = 0.009
 

@@ -24,8 +24,8 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control import orthogonal
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.plant.arms import Arm
 from drake_coop.experiment.diagram import build_experiment
+from drake_coop.plant.arms import Arm
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.scenario import default_scenario
 

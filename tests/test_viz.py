@@ -13,7 +13,6 @@ from pydrake.systems.framework import DiagramBuilder
 
 from drake_coop.plant.arms import Arm
 from drake_coop.results.export import shared_meshcat
-from drake_coop.scenario import default_scenario
 from drake_coop.results.viz import (
     ARROW_KINDS,
     HEAD_LENGTH,
@@ -22,6 +21,7 @@ from drake_coop.results.viz import (
     held_box_pose,
     workspace_camera,
 )
+from drake_coop.scenario import default_scenario
 
 msgpack = pytest.importorskip("msgpack")
 

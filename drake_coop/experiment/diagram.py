@@ -24,20 +24,36 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from pydrake.systems.framework import Diagram, DiagramBuilder
-from pydrake.systems.primitives import LogVectorOutput, Saturation, TrajectorySource, VectorLogSink
+from pydrake.systems.primitives import (
+    LogVectorOutput,
+    Saturation,
+    TrajectorySource,
+    VectorLogSink,
+)
 
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.observers import ForceObserver, VelocityObserver
-from drake_coop.plant.cooperative import CoopPlant, ForceSensor, add_force_sensors, build_plant
+from drake_coop.control.sources import (
+    DifferenceVelocity,
+    MeasuredVelocity,
+    NoForceEstimate,
+    SensedForce,
+)
 from drake_coop.experiment.references import reference_trajectory
+from drake_coop.plant.cooperative import (
+    CoopPlant,
+    ForceSensor,
+    add_force_sensors,
+    build_plant,
+)
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.timing import aligned_periods
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.sensing.force_sensor import FTSensor
 from drake_coop.sensing.model_error import controller_arm_model
-from drake_coop.control.sources import DifferenceVelocity, MeasuredVelocity, NoForceEstimate, SensedForce
+
 
 @dataclass
 class RobotSystems:

@@ -21,7 +21,6 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
-from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.experiment.references import (
     cartesian_reference,
     grasp_ticks,
@@ -29,6 +28,7 @@ from drake_coop.experiment.references import (
     num_ticks_until,
     reference_trajectory,
 )
+from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.timing import aligned_periods, check_run_size

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
+from pydrake.common.value import AbstractValue
 from pydrake.geometry import Box, SceneGraph
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.parsing import Parser
@@ -51,7 +52,6 @@ from pydrake.multibody.tree import (
     SpatialInertia,
     UnitInertia,
 )
-from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem, ValueProducer
 
 from drake_coop.plant.arms import Arm
@@ -239,7 +239,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
     # that starts at t_k, under the torque τ(k) of that tick.
     plant.SetUseSampledOutputPorts(False)
     arms = add_arms(plant, scene_graph, scenario)
-    from drake_coop.sensing.model_error import add_payload   # the unmodelled payloads
+    from drake_coop.sensing.model_error import add_payload  # the unmodelled payloads
 
     for h, robot in zip(arms, scenario.robots):
         add_payload(plant, h.instance, robot.model_error.payload_mass)

@@ -56,7 +56,12 @@ from pydrake.geometry import (
 from pydrake.math import RigidTransform
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import ContactResults, CoulombFriction, MultibodyPlant
-from pydrake.multibody.tree import ModelInstanceIndex, RigidBody, SpatialInertia, UnitInertia
+from pydrake.multibody.tree import (
+    ModelInstanceIndex,
+    RigidBody,
+    SpatialInertia,
+    UnitInertia,
+)
 from pydrake.systems.framework import Context
 
 from drake_coop.plant.arms import GEOMETRY

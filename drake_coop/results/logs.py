@@ -61,8 +61,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_coop.scenario.bounds import one_line, show
 from drake_coop.results.io import atomic_path, atomic_write_text
+from drake_coop.scenario.bounds import one_line, show
 
 __all__ = ["COLUMNS", "OPTIONAL_COLUMNS", "csv_header", "load_logs", "save_logs", "write_meta"]
 

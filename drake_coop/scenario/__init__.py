@@ -7,16 +7,34 @@ size; ``bounds``, ``safe_yaml``, ``model_check`` and ``resources`` are their hel
 names are re-exported here: ``from drake_coop.scenario import Scenario, load_scenario``.
 """
 
+from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import (
-    ARM_MODELS, FORCE_SOURCES, OBJECT_MODES, VELOCITY_SOURCES, Actuators, Encoders,
-    ForceSensorModel, Gains, Guards, ModelError, PlantSettings, Robot, Scenario, ScenarioError,
-    Task, default_scenario, paper_robots,
+    ARM_MODELS,
+    FORCE_SOURCES,
+    OBJECT_MODES,
+    VELOCITY_SOURCES,
+    Actuators,
+    Encoders,
+    ForceSensorModel,
+    Gains,
+    Guards,
+    ModelError,
+    PlantSettings,
+    Robot,
+    Scenario,
+    ScenarioError,
+    Task,
+    default_scenario,
+    paper_robots,
 )
 from drake_coop.scenario.timing import (
-    MAX_PLANT_STEPS, MAX_TICKS, aligned_periods, check_run_size, run_size,
+    MAX_PLANT_STEPS,
+    MAX_TICKS,
+    aligned_periods,
+    check_run_size,
+    run_size,
 )
 from drake_coop.scenario.validation import BOUNDS, LENGTHS, validate
-from drake_coop.scenario.loading import dump_scenario, load_scenario
 
 __all__ = [
     "ARM_MODELS", "FORCE_SOURCES", "OBJECT_MODES", "VELOCITY_SOURCES", "Actuators", "Encoders",

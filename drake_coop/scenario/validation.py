@@ -8,9 +8,14 @@ kinematics late, so that this package imports nothing outside it at import time)
 
 from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
-    ARM_MODELS, FORCE_SOURCES, OBJECT_MODES, VELOCITY_SOURCES, Robot, Scenario, ScenarioError,
+    ARM_MODELS,
+    FORCE_SOURCES,
+    OBJECT_MODES,
+    VELOCITY_SOURCES,
+    Robot,
+    Scenario,
+    ScenarioError,
 )
-
 
 _POS = dict(lo_open=True)
 #: Allowed range of every number of a scenario, by dotted field (``[]``: any index). A new
@@ -138,8 +143,8 @@ def validate(scenario: Scenario) -> None:
             f"({t.force_mean}): the squeeze force must stay >= 0")
 
     # Imported late: the plant's kinematics (arms) import the scenario package.
-    from drake_coop.scenario.model_check import check_models
     from drake_coop.experiment.references import check_reachable
+    from drake_coop.scenario.model_check import check_models
 
     check_reachable(scenario)
     check_models(scenario)

@@ -12,7 +12,13 @@ saturated torque by an :class:`~pydrake.systems.primitives.Adder` named
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiagramBuilder,
+    LeafSystem,
+    OutputPort,
+)
 from pydrake.systems.primitives import Adder, Saturation
 
 #: Velocity scale of the regularized Coulomb friction (rad/s).

@@ -43,7 +43,6 @@ from dataclasses import dataclass, is_dataclass
 import numpy as np
 
 from drake_coop.scenario.loading import dump_scenario, load_scenario
-
 from drake_coop.scenario.schema import Scenario, ScenarioError
 from drake_coop.studies.spec import Perturbation, Study, StudyError
 

@@ -21,14 +21,13 @@ import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 
 from drake_coop.scenario.loading import dump_scenario, load_scenario
-
 from drake_coop.scenario.schema import Scenario
 
 
 def run_one(scenario_yaml: str, t_end: float | None = None) -> dict:
     """Simulate one scenario (given as YAML) and return its metadata and metrics."""
-    from drake_coop.results.metrics import compute_metrics
     from drake_coop.experiment.simulate import simulate
+    from drake_coop.results.metrics import compute_metrics
 
     scenario = load_scenario(data=scenario_yaml)
     result = simulate(scenario, t_end=t_end)

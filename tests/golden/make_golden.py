@@ -19,9 +19,9 @@ SIGNALS = ("t", "q", "q_hat", "lambda_hat", "lambda_meas", "tau")
 
 
 def golden_record() -> dict:
+    from drake_coop.experiment.simulate import simulate
     from drake_coop.results.metrics import compute_metrics
     from drake_coop.scenario import load_scenario
-    from drake_coop.experiment.simulate import simulate
 
     scenario = load_scenario(HERE.parents[1] / "scenarios" / "paper.yaml")
     result = simulate(scenario)
