@@ -4,7 +4,7 @@
 ``drake-coop run [SCENARIO] --out DIR [--meshcat]``
     Simulate the experiment (SCENARIO: a YAML file or a shipped scenario's name; the shipped
     ``paper.yaml`` without one) and write to DIR: the logs
-    (``robot1.npz``/``.csv``, ``robot2.*``, ``run.json``), ``metrics.json``, Figures 2–6 (PNG and
+    (``robot1.npz``/``.csv``, ``robot2.*``, ``run.json``), ``metrics.json``, Figures 2–7 (PNG and
     SVG), the reference figure, the system diagram (``.dot``, ``.svg`` when graphviz is
     installed) and a self-contained Meshcat replay ``replay.html``.
     Exit codes: 0 done, 1 the run diverged (what was logged is still written), 2 bad input
