@@ -47,3 +47,19 @@ def advance_to_tick(scenario, k: int):
     exp.coop.set_held(exp.coop.plant.GetMyMutableContextFromRoot(ctx), True)
     sim.AdvanceTo(k * h)
     return exp, sim, ctx
+
+
+def start_paper_run(out) -> tuple:
+    """The paper's run (``drake-coop run --out OUT --no-replay``) in a subprocess, returned
+    once its simulation is under way (its first progress line): ``(process, stderr lines)``."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "drake_coop", "run", "--out", str(out),
+                             "--no-replay"], stderr=subprocess.PIPE, text=True)
+    lines = []
+    for line in proc.stderr:
+        lines.append(line)
+        if "realtime" in line:
+            break
+    return proc, lines

@@ -11,7 +11,7 @@ import pytest
 
 from drake_coop.cli import main
 from drake_coop.scenario import dump_scenario
-from tests.conftest import short_scenario
+from tests.conftest import short_scenario, start_paper_run
 
 FIGURES = ["fig2_tracking_errors", "fig3_force_tracking", "fig4_force_estimate",
            "fig5_aux_force_error", "fig6_observation_errors"]
@@ -100,14 +100,7 @@ def test_ctrl_c_stops_the_run_and_still_writes_the_logs(tmp_path):
     import signal
 
     out = tmp_path / "o"
-    proc = subprocess.Popen([sys.executable, "-m", "drake_coop", "run", "--out", str(out),
-                             "--no-replay"], stderr=subprocess.PIPE, text=True)
-    # Interrupt once the simulation is under way (its first progress line).
-    lines = []
-    for line in proc.stderr:
-        lines.append(line)
-        if "realtime" in line:
-            break
+    proc, lines = start_paper_run(out)   # interrupted once the simulation is under way
     proc.send_signal(signal.SIGINT)
     rest = proc.stderr.read()
     proc.wait(timeout=120)

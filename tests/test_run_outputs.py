@@ -24,7 +24,7 @@ from drake_coop.cli import main
 from drake_coop.results import save_logs
 from drake_coop.results.run_folder import OutputFolderError, RunFolder
 from drake_coop.scenario import dump_scenario
-from tests.conftest import short_scenario
+from tests.conftest import short_scenario, start_paper_run
 from tests.test_results_io import synthetic_run
 
 
@@ -148,22 +148,10 @@ def test_a_signal_while_writing_skips_the_figures_and_marks_run_json(tmp_path, m
     assert _leftovers(tmp_path, "o") == []
 
 
-def _start_run(out: Path) -> tuple[subprocess.Popen, list[str]]:
-    """The paper's run in a subprocess, returned once its simulation is under way."""
-    proc = subprocess.Popen([sys.executable, "-m", "drake_coop", "run", "--out", str(out),
-                             "--no-replay"], stderr=subprocess.PIPE, text=True)
-    lines = []
-    for line in proc.stderr:
-        lines.append(line)
-        if "realtime" in line:
-            break
-    return proc, lines
-
-
 @pytest.mark.slow
 def test_sigterm_stops_the_run_like_ctrl_c_and_keeps_the_logs(tmp_path):
     out = tmp_path / "o"
-    proc, lines = _start_run(out)
+    proc, lines = start_paper_run(out)
     proc.send_signal(signal.SIGTERM)
     err = "".join(lines) + proc.stderr.read()
     proc.wait(timeout=120)
@@ -179,7 +167,7 @@ def test_sigterm_stops_the_run_like_ctrl_c_and_keeps_the_logs(tmp_path):
 def test_a_killed_run_leaves_the_previous_folder_as_it_was(tmp_path):
     out = tmp_path / "o"
     before = _previous_run(out)
-    proc, _ = _start_run(out)
+    proc, _ = start_paper_run(out)
     proc.kill()
     proc.wait(timeout=60)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
@@ -191,7 +179,7 @@ def test_a_killed_run_leaves_the_previous_folder_as_it_was(tmp_path):
 @pytest.mark.slow
 def test_a_second_ctrl_c_while_writing_leaves_no_partial_folder(tmp_path):
     out = tmp_path / "o"
-    proc, lines = _start_run(out)
+    proc, lines = start_paper_run(out)
     proc.send_signal(signal.SIGINT)
     time.sleep(1.0)
     proc.send_signal(signal.SIGINT)
