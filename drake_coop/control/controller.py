@@ -31,6 +31,7 @@ from pydrake.systems.framework import (
 )
 
 from drake_coop.control.finger import REFERENCE_SIZE, FingerLaw, Reference
+from drake_coop.scenario.timing import tick_of
 
 
 class Controller(LeafSystem):
@@ -84,9 +85,7 @@ class Controller(LeafSystem):
     # ------------------------------------------------------------------ helpers
     def tick_of(self, context: Context) -> int | None:
         """The tick index if the context's time is a sampling instant, else None."""
-        t = context.get_time()
-        k = round(t / self._h)
-        return k if abs(t - k * self._h) <= 1e-9 * max(1.0, t) else None
+        return tick_of(context.get_time(), self._h)
 
     def _calc_terms(self, context: Context, value: AbstractValue) -> None:
         ref = Reference.unpack(self._reference.Eval(context))

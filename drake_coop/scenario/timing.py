@@ -65,3 +65,9 @@ def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
         raise ScenarioError(
             f"task.t_end / plant.time_step gives {steps} plant steps, at most "
             f"{MAX_PLANT_STEPS}; shorten task.t_end, use --t-end or a larger plant.time_step")
+
+
+def tick_of(t: float, h: float) -> int | None:
+    """The tick index ``k`` if ``t`` is a sampling instant ``k h`` (to 1e-9 relative), else None."""
+    k = round(t / h)
+    return k if abs(t - k * h) <= 1e-9 * max(1.0, t) else None

@@ -1,7 +1,8 @@
-"""What the sampled sensor models share: tick index, seeded white noise, first-order low-pass.
+"""What the sampled sensor models share: seeded white noise and the first-order low-pass.
 
-All sensors are sampled at the control period ``h``. Their noise is a deterministic function
-of ``(seed, stream, tick)``, so a run is reproducible and a sensor read twice at the same tick
+All sensors are sampled at the control period ``h`` (their tick index is
+:func:`drake_coop.scenario.timing.tick_of`). Their noise is a deterministic function of
+``(seed, stream, tick)``, so a run is reproducible and a sensor read twice at the same tick
 (e.g. by the controller and by a logger) returns the same value.
 """
 
@@ -14,12 +15,6 @@ import numpy as np
 #: Noise streams: one per robot and sensor, so that equal seeds give independent noises.
 ENCODER_STREAM = 0
 FORCE_SENSOR_STREAM = 1
-
-
-def tick_of(t: float, h: float) -> int | None:
-    """The tick index ``k`` if ``t`` is a sampling instant ``k h`` (to 1e-9 relative), else None."""
-    k = round(t / h)
-    return k if abs(t - k * h) <= 1e-9 * max(1.0, t) else None
 
 
 def white_noise(seed: int, robot: int, stream: int, k: int, std: float, size: int
