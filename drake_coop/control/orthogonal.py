@@ -110,6 +110,17 @@ def projection_derivatives(
     return J_pinv_dot, Q_dot
 
 
+def xi_times(xi: float | np.ndarray, x: np.ndarray | float) -> np.ndarray:
+    """``ξ x`` for the gain ``ξ`` of (4): an m×m matrix, or a scalar meaning ``ξ I``.
+
+    A scalar multiplies element-wise (the same doubles as the paper's scalar ``ξ``); a matrix
+    multiplies as a matrix.
+    """
+    if np.ndim(xi) == 0:
+        return xi * np.asarray(x)
+    return np.asarray(xi) @ np.atleast_1d(x)
+
+
 def reference_velocity(
     Q: np.ndarray,
     J_pinv: np.ndarray,
@@ -120,7 +131,7 @@ def reference_velocity(
     Lambda: float,
     Delta_p: np.ndarray,
     beta: float,
-    xi: float,
+    xi: float | np.ndarray,
     Delta_F_tilde: np.ndarray,
     pdot_d: np.ndarray | float = 0.0,
 ) -> np.ndarray:
@@ -131,10 +142,11 @@ def reference_velocity(
                   + J^+\\big(\\dot p_d - \\beta\\,\\Delta p + \\xi\\,\\Delta\\tilde F\\big)
 
     ``Delta_p = φ(q) − p_d`` with ``p_d = 0``; ``Delta_F_tilde`` is the integral (6) of
-    ``Δλ̃ = λ̂ − λ_d``. ``Lambda`` and ``xi`` are the scalars of ``Λ = k I`` and ``ξ``.
+    ``Δλ̃ = λ̂ − λ_d``. ``Lambda`` is the scalar of ``Λ = k I``; ``xi`` is ``ξ`` (m×m) or a
+    scalar standing for ``ξ I`` (see :func:`xi_times`).
     """
     motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
-    force = pdot_d - beta * np.asarray(Delta_p) + xi * np.asarray(Delta_F_tilde)
+    force = pdot_d - beta * np.asarray(Delta_p) + xi_times(xi, Delta_F_tilde)
     return Q @ motion + J_pinv @ np.atleast_1d(force)
 
 
@@ -152,7 +164,7 @@ def reference_acceleration(
     Lambda: float,
     Delta_p: np.ndarray,
     beta: float,
-    xi: float,
+    xi: float | np.ndarray,
     Delta_F_tilde: np.ndarray,
     Delta_lambda_tilde: np.ndarray,
     pdot: np.ndarray | float = 0.0,
@@ -173,7 +185,7 @@ def reference_acceleration(
     """
     motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
     motion_dot = np.asarray(qddot_d) - Lambda * (np.asarray(qdot_hat) - np.asarray(qdot_d))
-    force = pdot_d - beta * np.asarray(Delta_p) + xi * np.asarray(Delta_F_tilde)
-    force_dot = pddot_d - beta * (np.asarray(pdot) - pdot_d) + xi * np.asarray(Delta_lambda_tilde)
+    force = pdot_d - beta * np.asarray(Delta_p) + xi_times(xi, Delta_F_tilde)
+    force_dot = pddot_d - beta * (np.asarray(pdot) - pdot_d) + xi_times(xi, Delta_lambda_tilde)
     return (Q @ motion_dot + J_pinv @ np.atleast_1d(force_dot)
             + Q_dot @ motion + J_pinv_dot @ np.atleast_1d(force))
