@@ -242,7 +242,7 @@ def test_whole_circle_is_reachable_within_the_joint_limits(index):
     arm = Arm(robot)
     g = arm.geometry
     theta = np.linspace(0, 2 * np.pi, 721)
-    circle = np.column_stack([np.full_like(theta, robot.plane_b), 0.05 * np.sin(theta),
+    circle = np.column_stack([np.full_like(theta, robot.contact_xy[0]), 0.05 * np.sin(theta),
                               0.635 - 0.05 + 0.05 * np.cos(theta)])     # (28)
     q = arm.ik(circle)
     np.testing.assert_allclose(arm.fk(q), circle, atol=1e-9)

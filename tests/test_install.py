@@ -130,7 +130,7 @@ def test_installed_missing_controller_model_exits_2_with_one_line(installed, tmp
     (tmp_path / "s.yaml").write_text(
         "robots:\n- {name: robot1, controller_model: nowhere.urdf}\n"
         "- {name: robot2, model: crs_a255, base_xyz: [1.16, 0, 0], base_yaw_deg: 180,\n"
-        "   plane_b: 0.8192, normal_sign: 1, home: [0.9, 0, 0.6]}\n")
+        "   contact_xy: [0.8192, 0], normals: [[1, 0, 0]], home: [0.9, 0, 0.6]}\n")
     r = _run([installed / "drake-coop", "run", "s.yaml", "--out", "o"], cwd=tmp_path,
              check=False)
     assert r.returncode == 2

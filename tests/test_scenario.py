@@ -25,7 +25,7 @@ def test_paper_yaml_holds_the_papers_numbers():
     assert r1.gains.K_R == [120.0] * 3 and r2.gains.K_R == [100.0] * 3
     for r in (r1, r2):
         assert (r.gains.k_d, r.gains.k_F, r.gains.xi, r.gains.zeta) == (40.0, 0.05, 1e-5, 1e-3)
-    assert (r1.plane_b, r2.plane_b) == (0.6, 0.8192)
+    assert (r1.contact_xy, r2.contact_xy) == ([0.6, 0.0], [0.8192, 0.0])
     t = s.task
     assert (t.t_grasp, t.t_circle_start, t.t_circle_end, t.t_release, t.t_end) == (
         15.0, 25.0, 65.0, 75.0, 90.0)
@@ -50,15 +50,15 @@ def test_dump_and_load_round_trip():
     ("plant: {stepsize: 1}", "plant.stepsize is not a known field of plant"),
     ("task: {t_grasp: soon}", "task.t_grasp must be a number"),
     ("task: {t_grasp: 30}", "task.t_circle_start must be > task.t_grasp"),
-    ("robots: [{name: a, gains: {K_R: [1, 2]}}, {name: b, normal_sign: 1}]",
+    ("robots: [{name: a, gains: {K_R: [1, 2]}}, {name: b, normals: [[1, 0, 0]]}]",
      "robots[0].gains.K_R must have 3 entries"),
-    ("robots: [{gains: {beta: 0}}, {name: b, normal_sign: 1}]", "robots[0].gains.beta must be a finite number in (0, 1000] 1/s"),
-    ("robots: [{gains: {K_R: [1, -1, 1]}}, {name: b, normal_sign: 1}]",
+    ("robots: [{gains: {beta: 0}}, {name: b, normals: [[1, 0, 0]]}]", "robots[0].gains.beta must be a finite number in (0, 1000] 1/s"),
+    ("robots: [{gains: {K_R: [1, -1, 1]}}, {name: b, normals: [[1, 0, 0]]}]",
      "robots[0].gains.K_R[1] must be a finite number in (0, 10000]"),
-    ("robots: [{}]", "robots must list exactly 2 robots"),
+    ("robots: [{}]", "robots must list 2 to 12 robots"),
     ("task: {circle_radius: 0.5}", "out of reach"),
     ("robots: [{home: [2.0, 0, 0.5]}, {name: b, model: crs_a255, base_xyz: [1.16, 0, 0], "
-     "base_yaw_deg: 180, plane_b: 0.8192, normal_sign: 1, home: [0.9, 0, 0.6]}]",
+     "base_yaw_deg: 180, contact_xy: [0.8192, 0], normals: [[1, 0, 0]], home: [0.9, 0, 0.6]}]",
      "robots[0] (robot1): target"),
     ("task: {force_amplitude: 40}", "task.force_amplitude (40.0) must not exceed"),
     ("{{{", "invalid YAML"),

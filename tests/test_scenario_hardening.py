@@ -26,7 +26,7 @@ from drake_coop.scenario.bounds import MAX_MESSAGE, Bound, numeric_fields
 from drake_coop.scenario.safe_yaml import MAX_BYTES
 
 ROBOT2 = "{name: robot2, model: crs_a255, base_xyz: [1.16, 0, 0], base_yaw_deg: 180, " \
-         "plane_b: 0.8192, normal_sign: 1, home: [0.9, 0, 0.6]}"
+         "contact_xy: [0.8192, 0], normals: [[1, 0, 0]], home: [0.9, 0, 0.6]}"
 
 
 def _refused(text: str | None = None, path=None) -> str:

@@ -42,11 +42,11 @@ def theorem_run():
     for r in s.robots:
         r.gains.beta = 1e-4
         arm = Arm(r)
-        q = arm.ik([r.plane_b, 0.0, 0.585])
+        q = arm.ik([r.contact_xy[0], 0.0, 0.585])
         q_star.append(q)
         refs.append(PiecewisePolynomial(
             np.concatenate([q, np.zeros(6), [LAMBDA_D], [1.0]]).reshape(-1, 1)))
-        q0.append(arm.ik([r.plane_b, 0.002, 0.587]))
+        q0.append(arm.ik([r.contact_xy[0], 0.002, 0.587]))
     exp = build_experiment(s, references=refs)
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()

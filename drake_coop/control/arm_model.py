@@ -2,17 +2,18 @@
 
 The controller (13) and the observers (15)–(16), (22) are model based. Their model is a
 single-arm :class:`~pydrake.multibody.plant.MultibodyPlant` parsed from the controller's URDF
-(the simulated arm's URDF by default, a perturbed one in robustness studies), with the base
-welded at the robot's pose in the palm frame, so that gravity, ``φ`` and ``J_φ`` are expressed
-exactly as in the paper's Section IV. It never reads the simulated plant's context.
+(the simulated arm's URDF by default, a perturbed one in robustness studies), with its base
+frame welded at the robot's pose in the palm frame, so that gravity, ``φ`` and ``J_φ`` are
+expressed exactly as in the paper's Section IV. It never reads the simulated plant's context.
 
-Quantities (robot ``i``, ``n = 3`` joints, ``m = 1`` constraint):
+Quantities (robot ``i``, ``n`` joints, ``m`` constraints):
 
 * ``H(q)`` inertia matrix, including the reflected rotor inertia ``N² J_m`` of the gears;
 * ``C(q, v) v`` Coriolis and centrifugal forces (Drake's bias term, evaluated at ``v``);
 * ``D`` diagonal viscous friction (the joints' damping);
 * ``g(q)`` gravity torques on the left-hand side of (1) (``g = −τ_g`` in Drake's sign);
-* ``φ(q) = s (x(q) − b)`` and ``J_φ = ∂φ/∂q`` (1×n), ``J̇_φ`` along a direction by AutoDiff.
+* ``φ(q) = N (x(q) − c)`` and ``J_φ = ∂φ/∂q = N J_x`` (m×n), ``J̇_φ`` along a direction by
+  AutoDiff (``N`` the outward normals, ``c`` the contact point: :class:`~drake_coop.plant.arms.Arm`).
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ class ArmModel:
     Parameters
     ----------
     arm : Arm
-        The robot (base pose, constraint plane and normal).
+        The robot (base pose, frames, constraint normals and contact point).
     urdf : Path, optional
         The model to use; defaults to ``arm.controller_urdf_path``.
     """
@@ -46,21 +47,22 @@ class ArmModel:
         plant = MultibodyPlant(0.0)
         Parser(plant).AddModels(str(self.urdf))
         X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
-        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"), X_WB)
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(arm.base_frame), X_WB)
         plant.Finalize()
         self.plant = plant
         self.n = plant.num_positions()
+        self.m = arm.m
         self.context = plant.CreateDefaultContext()
-        self.ee_frame = plant.GetFrameByName("pad")
+        self.ee_frame = plant.GetFrameByName(arm.ee_frame)
         self.D = np.diag([plant.get_joint(j).default_damping()
                           for j in plant.GetJointIndices() if plant.get_joint(j).num_velocities()])
         self.plant_ad = plant.ToAutoDiffXd()
         self.context_ad = self.plant_ad.CreateDefaultContext()
-        self.ee_frame_ad = self.plant_ad.GetFrameByName("pad")
+        self.ee_frame_ad = self.plant_ad.GetFrameByName(arm.ee_frame)
         self._world_ad = self.plant_ad.world_frame()
         self._zero_ad = np.zeros(3)
-        self._selector = np.zeros((1, 3))
-        self._selector[0, 0] = arm.s   # φ = s (x − b): picks s·(x row) of the Jacobian
+        self._N = arm.N          # φ = N (x − c): J_φ = N J_x
+        self._c = arm.c
         self._zero_v = np.zeros(self.n)
         self._q_key = self._v_key = b""   # what the context holds (see _set_q)
 
@@ -117,17 +119,17 @@ class ArmModel:
         self._set_q(q)
         return self.ee_frame.CalcPoseInWorld(self.context).translation()
 
-    def phi(self, q: np.ndarray) -> float:
-        """Constraint (2), ``φ = s (x − b)`` (m)."""
-        return self.arm.s * (self.ee_position(q)[0] - self.arm.b)
+    def phi(self, q: np.ndarray) -> np.ndarray:
+        """Constraint (2), ``φ = N (x − c)`` (m), an m-vector."""
+        return self._N @ (self.ee_position(q) - self._c)
 
     def J_phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint Jacobian ``J_φ = ∂φ/∂q`` (1×n)."""
+        """Constraint Jacobian ``J_φ = ∂φ/∂q = N J_x`` (m×n)."""
         self._set_q(q)
         Jv = self.plant.CalcJacobianTranslationalVelocity(
             self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
             self.plant.world_frame(), self.plant.world_frame())
-        return self._selector @ Jv
+        return self._N @ Jv
 
     def J_phi_and_derivative(self, q: np.ndarray, direction: np.ndarray
                              ) -> tuple[np.ndarray, np.ndarray]:
@@ -140,9 +142,9 @@ class ArmModel:
         Jv = self.plant_ad.CalcJacobianTranslationalVelocity(
             self.context_ad, JacobianWrtVariable.kV, self.ee_frame_ad, self._zero_ad,
             self._world_ad, self._world_ad)
-        row = Jv[0:1, :]   # the x row; φ = s (x − b)
         # Vectorised extraction (C++), the same doubles as reading each entry in Python.
-        value = ExtractValue(row).reshape(1, -1) * self.arm.s
-        deriv = ExtractGradient(row.reshape(-1, 1))   # an entry without derivatives gives 0
-        deriv = deriv.reshape(1, -1) if deriv.size == self.n else np.zeros((1, self.n))
-        return value, self.arm.s * deriv
+        value = ExtractValue(Jv).reshape(3, self.n)
+        deriv = ExtractGradient(Jv.reshape(-1, 1))   # an entry without derivatives gives 0
+        deriv = (deriv.reshape(3, self.n) if deriv.size == 3 * self.n
+                 else np.zeros((3, self.n)))
+        return self._N @ value, self._N @ deriv

@@ -30,7 +30,7 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_coop.control.finger import REFERENCE_SIZE, FingerLaw, Reference
+from drake_coop.control.finger import FingerLaw
 from drake_coop.scenario.timing import tick_of
 
 
@@ -43,12 +43,12 @@ class Controller(LeafSystem):
         Measured joint positions ``q(k)``.
     q_hat, qdot_hat, qdot_o : n-vectors
         The velocity observer's ``q̂``, ``d/dt q̂`` (15) and ``q̇_o`` (8).
-    lambda_hat : 1-vector
+    lambda_hat : m-vector
         The force observer's ``λ̂`` (22).
-    Delta_F_tilde : 1-vector
+    Delta_F_tilde : m-vector
         The force observer's integral ``ΔF̃`` (6).
-    reference : 11-vector
-        ``[q_d, q̇_d, q̈_d, λ_d, held]``.
+    reference : (3n + m + 1)-vector
+        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.finger.ReferenceLayout`).
 
     Output ports
     ------------
@@ -68,9 +68,10 @@ class Controller(LeafSystem):
         self._q_hat = self.DeclareVectorInputPort("q_hat", n)
         self._qdot_hat = self.DeclareVectorInputPort("qdot_hat", n)
         self._qdot_o = self.DeclareVectorInputPort("qdot_o", n)
-        self._lambda_hat = self.DeclareVectorInputPort("lambda_hat", 1)
-        self._Delta_F = self.DeclareVectorInputPort("Delta_F_tilde", 1)
-        self._reference = self.DeclareVectorInputPort("reference", REFERENCE_SIZE)
+        self._layout = law.layout
+        self._lambda_hat = self.DeclareVectorInputPort("lambda_hat", law.m)
+        self._Delta_F = self.DeclareVectorInputPort("Delta_F_tilde", law.m)
+        self._reference = self.DeclareVectorInputPort("reference", law.layout.size)
         # Latched [τ(k), k]; k = -1 means nothing latched yet.
         initial = np.concatenate([np.zeros(n) if tau0 is None else tau0, [-1.0]])
         self._state = self.DeclareDiscreteState(initial)
@@ -88,11 +89,11 @@ class Controller(LeafSystem):
         return tick_of(context.get_time(), self._h)
 
     def _calc_terms(self, context: Context, value: AbstractValue) -> None:
-        ref = Reference.unpack(self._reference.Eval(context))
+        ref = self._layout.unpack(self._reference.Eval(context))
         terms = self._law.control(
             self._q.Eval(context), self._q_hat.Eval(context), self._qdot_hat.Eval(context),
-            self._qdot_o.Eval(context), float(self._lambda_hat.Eval(context)[0]),
-            float(self._Delta_F.Eval(context)[0]), ref)
+            self._qdot_o.Eval(context), self._lambda_hat.Eval(context),
+            self._Delta_F.Eval(context), ref)
         value.set_value(terms)
 
     def terms(self, context: Context) -> dict[str, np.ndarray]:

@@ -4,15 +4,16 @@
 systems of :mod:`drake_coop.control.observers` and :mod:`drake_coop.control.controller` are thin wrappers
 around it, so that the three systems of a robot share one implementation of each equation.
 
-Symbols (per robot, ``n = 3``, ``m = 1``):
+Symbols (per robot, ``n`` joints, ``m`` constraints; the paper's experiment ``n = 3``,
+``m = 1``):
 
 ``q``        measured joint positions (the only measurement);
 ``q_hat``    observer estimate ``q̂`` of (15); ``z = q − q̂`` the observation error;
 ``qdot_hat`` ``d/dt q̂``, the right-hand side of (15);
 ``qdot_o``   ``q̇_o = d/dt q̂ − Λ z`` of (8) (not the observer state ``q̇̂_o``);
-``q_d, qdot_d, qddot_d``  joint references; ``lambda_d`` the desired force (29);
+``q_d, qdot_d, qddot_d``  joint references; ``lambda_d`` the desired force (29) (m-vector);
 ``Delta_F_tilde``  ``ΔF̃ = ∫ (λ̂ − λ_d)`` of (6); ``lambda_hat`` the estimate ``λ̂`` of (22);
-``J_phi, J_pinv, Q``  constraint Jacobian, ``J⁺`` and the projector of Property 1;
+``J_phi, J_pinv, Q``  constraint Jacobian (m×n), ``J⁺`` (n×m) and the projector of Property 1;
 ``held``     whether the object is held: otherwise the free-motion form (``Q = I``, ``J⁺ = 0``,
              ``J_φ = 0``, ``λ̂ = 0``) of Section IV.
 """
@@ -27,26 +28,66 @@ from drake_coop.control import orthogonal
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.scenario.schema import Gains
 
-#: Rows of the reference vector fed to each robot's controller and observers (built by
-#: :mod:`drake_coop.experiment.references`, read by :meth:`Reference.unpack`).
+#: Rows of the reference signal fed to each robot's controller and observers, in order
+#: (their sizes: n, n, n, m, 1; see :class:`ReferenceLayout`).
 REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
-REFERENCE_SIZE = 3 + 3 + 3 + 1 + 1
 
 
 @dataclass
 class Reference:
-    """One sample of a robot's reference vector (see :mod:`drake_coop.experiment.references`)."""
+    """One sample of a robot's reference signal (see :class:`ReferenceLayout`)."""
 
     q_d: np.ndarray
     qdot_d: np.ndarray
     qddot_d: np.ndarray
-    lambda_d: float
+    lambda_d: np.ndarray
     held: bool
 
-    @staticmethod
-    def unpack(r: np.ndarray) -> "Reference":
-        """From the 11-vector ``[q_d, q̇_d, q̈_d, λ_d, held]``."""
-        return Reference(r[0:3], r[3:6], r[6:9], float(r[9]), bool(r[10] > 0.5))
+
+@dataclass(frozen=True)
+class ReferenceLayout:
+    """The layout of a robot's reference signal ``[q_d, q̇_d, q̈_d, λ_d, held]``: the one
+    owner of its size and of where each part sits (built by
+    :mod:`drake_coop.experiment.references`, read by the controller and the observers).
+
+    Parameters
+    ----------
+    n : int
+        Joints.
+    m : int
+        Constraints (rows of ``λ_d``).
+    """
+
+    n: int
+    m: int = 1
+
+    @property
+    def size(self) -> int:
+        """``3 n + m + 1``."""
+        return 3 * self.n + self.m + 1
+
+    def slices(self) -> dict[str, slice]:
+        """Where each row of :data:`REFERENCE_ROWS` sits in the vector."""
+        n, m = self.n, self.m
+        return {"q_d": slice(0, n), "qdot_d": slice(n, 2 * n), "qddot_d": slice(2 * n, 3 * n),
+                "lambda_d": slice(3 * n, 3 * n + m), "held": slice(3 * n + m, 3 * n + m + 1)}
+
+    def unpack(self, r: np.ndarray) -> Reference:
+        """One sample from the vector."""
+        n, m = self.n, self.m
+        return Reference(r[0:n], r[n:2 * n], r[2 * n:3 * n], r[3 * n:3 * n + m],
+                         bool(r[3 * n + m] > 0.5))
+
+    def pack(self, q_d: np.ndarray, qdot_d: np.ndarray, qddot_d: np.ndarray,
+             lambda_d: np.ndarray, held: np.ndarray) -> np.ndarray:
+        """Samples ``(K, size)`` from ``(K, n)`` references, ``(K, m)`` forces and ``(K,)``
+        held flags."""
+        return np.hstack([q_d, qdot_d, qddot_d, np.reshape(lambda_d, (-1, self.m)),
+                          np.reshape(held, (-1, 1)).astype(float)])
+
+    def column(self, samples: np.ndarray, row: str) -> np.ndarray:
+        """One row of :data:`REFERENCE_ROWS` from samples ``(K, size)``: ``(K, width)``."""
+        return samples[:, self.slices()[row]]
 
 
 @dataclass
@@ -56,7 +97,7 @@ class Constraint:
     J_phi: np.ndarray
     J_pinv: np.ndarray
     Q: np.ndarray
-    Delta_p: float
+    Delta_p: np.ndarray
 
 
 class FingerLaw:
@@ -67,19 +108,24 @@ class FingerLaw:
     model : ArmModel
         The controller's model of the arm (H, C, D, g, φ, J_φ).
     gains : Gains
-        ``Λ = k I``, ``K_R``, ``k_d``, ``k_F``, ``ξ``, ``ζ``, ``β``.
+        ``Λ = k I``, ``K_R``, ``k_d``, ``k_F``, ``ξ`` (m×m, or ``ξ I``), ``ζ``, ``β``.
     """
 
     def __init__(self, model: ArmModel, gains: Gains):
         self.model = model
         self.n = model.n
+        self.m = model.m
+        self.layout = ReferenceLayout(self.n, self.m)
         self.Lambda = float(gains.Lambda)
         self.K_R = np.diag(np.asarray(gains.K_R, dtype=float))
         self.k_d = float(gains.k_d)
         self.k_F = float(gains.k_F)
-        self.xi = float(gains.xi)
+        # ξ of (4): the m×m matrix when given, else the scalar of ξ I (the same doubles).
+        self.xi = (float(gains.xi) if gains.xi_matrix is None
+                   else np.asarray(gains.xi_matrix, dtype=float))
         self.zeta = float(gains.zeta)
         self.beta = float(gains.beta)
+        self._zero_m = np.zeros(self.m)
 
     # ------------------------------------------------------------------ observer (15), (8)
     def observer_derivative(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
@@ -106,15 +152,15 @@ class FingerLaw:
         ``J_phi`` may be passed when already computed at ``q``.
         """
         if not held:
-            J_pinv, Q = orthogonal.free_motion_projections(self.n)
-            return Constraint(np.zeros((1, self.n)), J_pinv, Q, 0.0)
+            J_pinv, Q = orthogonal.free_motion_projections(self.n, self.m)
+            return Constraint(np.zeros((self.m, self.n)), J_pinv, Q, self._zero_m)
         if J_phi is None:
             J_phi = self.model.J_phi(q)
         J_pinv, Q = orthogonal.projections(J_phi)
         return Constraint(J_phi, J_pinv, Q, self.model.phi(q))
 
     def reference_velocity(self, c: Constraint, q_hat: np.ndarray, ref: Reference,
-                           Delta_F_tilde: float) -> np.ndarray:
+                           Delta_F_tilde: np.ndarray) -> np.ndarray:
         """``q̇_r`` of (4)."""
         return orthogonal.reference_velocity(
             c.Q, c.J_pinv, q_hat=q_hat, q_d=ref.q_d, qdot_d=ref.qdot_d, Lambda=self.Lambda,
@@ -122,28 +168,28 @@ class FingerLaw:
 
     # ------------------------------------------------------------------ force observer (22)
     def force_estimate(self, q: np.ndarray, q_hat: np.ndarray, qdot_o: np.ndarray,
-                       ref: Reference, Delta_F_tilde: float) -> float:
+                       ref: Reference, Delta_F_tilde: np.ndarray) -> np.ndarray:
         """``λ̂`` of (22): ``[J⁺ᵀ K_R (q̇_o − q̇_r) − k_F ΔF̃]/(1 + ζ) + λ_d``; 0 when free."""
         if not ref.held:
-            return 0.0
+            return self._zero_m
         c = self.constraint(q, True)
         qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)
-        s = (c.J_pinv.T @ self.K_R @ (qdot_o - qdot_r))[0]
-        return float((s - self.k_F * Delta_F_tilde) / (1.0 + self.zeta) + ref.lambda_d)
+        s = c.J_pinv.T @ self.K_R @ (qdot_o - qdot_r)
+        return (s - self.k_F * Delta_F_tilde) / (1.0 + self.zeta) + ref.lambda_d
 
     def force_estimate_21(self, q: np.ndarray, qdot_r: np.ndarray, qddot_r_hat: np.ndarray,
-                          tau: np.ndarray, held: bool) -> float:
+                          tau: np.ndarray, held: bool) -> np.ndarray:
         """``λ̂`` of (21): ``J⁺ᵀ {H q̈̂_r + C(q, q̇_r) q̇_r + D q̇_r + g − τ}`` (for checks)."""
         if not held:
-            return 0.0
+            return self._zero_m
         c = self.constraint(q, True)
         rhs = self.model.inverse_dynamics_terms(q, qdot_r, qddot_r_hat) - tau
-        return float((c.J_pinv.T @ rhs)[0])
+        return c.J_pinv.T @ rhs
 
     # ------------------------------------------------------------------ controller (13)
     def control(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat: np.ndarray,
-                qdot_o: np.ndarray, lambda_hat: float, Delta_F_tilde: float, ref: Reference
-                ) -> dict[str, np.ndarray]:
+                qdot_o: np.ndarray, lambda_hat: np.ndarray, Delta_F_tilde: np.ndarray,
+                ref: Reference) -> dict[str, np.ndarray]:
         """Torque (13) and the intermediate signals of one sample.
 
         .. math::
@@ -154,25 +200,27 @@ class FingerLaw:
         Returns
         -------
         dict
-            ``tau``, ``qdot_r`` (4), ``qddot_r_hat`` (11), ``Delta_lambda_tilde``.
+            ``tau``, ``qdot_r`` (4), ``qddot_r_hat`` (11), ``Delta_lambda_tilde`` (m).
         """
         if ref.held:
             J_phi, J_phi_dot = self.model.J_phi_and_derivative(q, qdot_o)
             J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot)
             c = self.constraint(q, True, J_phi)
+            Delta_lambda_tilde = lambda_hat - ref.lambda_d
         else:
-            J_pinv_dot, Q_dot = np.zeros((self.n, 1)), np.zeros((self.n, self.n))
+            J_pinv_dot, Q_dot = np.zeros((self.n, self.m)), np.zeros((self.n, self.n))
             c = self.constraint(q, False)
+            Delta_lambda_tilde = self._zero_m
         qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)
-        Delta_lambda_tilde = (lambda_hat - ref.lambda_d) if ref.held else 0.0
         qddot_r_hat = orthogonal.reference_acceleration(
             c.Q, c.J_pinv, Q_dot, J_pinv_dot, q_hat=q_hat, qdot_hat=qdot_hat, q_d=ref.q_d,
             qdot_d=ref.qdot_d, qddot_d=ref.qddot_d, Lambda=self.Lambda, Delta_p=c.Delta_p,
             beta=self.beta, xi=self.xi, Delta_F_tilde=Delta_F_tilde,
             Delta_lambda_tilde=Delta_lambda_tilde)
-        force = ref.lambda_d - self.k_F * Delta_F_tilde - self.zeta * Delta_lambda_tilde
         tau = (self.model.inverse_dynamics_terms(q, qdot_r, qddot_r_hat)
-               - self.K_R @ (qdot_o - qdot_r)
-               - c.J_phi.T[:, 0] * (force if ref.held else 0.0))
+               - self.K_R @ (qdot_o - qdot_r))
+        if ref.held:
+            force = ref.lambda_d - self.k_F * Delta_F_tilde - self.zeta * Delta_lambda_tilde
+            tau = tau - c.J_phi.T @ force
         return {"tau": tau, "qdot_r": qdot_r, "qddot_r_hat": qddot_r_hat,
-                "Delta_lambda_tilde": np.array([Delta_lambda_tilde])}
+                "Delta_lambda_tilde": np.array(Delta_lambda_tilde, dtype=float)}

@@ -21,7 +21,7 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_coop.control.finger import REFERENCE_SIZE, FingerLaw, Reference
+from drake_coop.control.finger import FingerLaw
 
 
 class VelocityObserver(LeafSystem):
@@ -125,14 +125,14 @@ class ForceObserver(LeafSystem):
     -----------
     q, q_hat, qdot_o : n-vectors
         Measured positions and the velocity observer's outputs.
-    reference : 11-vector
-        ``[q_d, q̇_d, q̈_d, λ_d, held]``.
+    reference : (3n + m + 1)-vector
+        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.finger.ReferenceLayout`).
 
     Output ports
     ------------
-    lambda_hat : 1-vector
+    lambda_hat : m-vector
         ``λ̂(k)`` (depends on the inputs of tick k).
-    Delta_F_tilde : 1-vector
+    Delta_F_tilde : m-vector
         ``ΔF̃(k)`` (state only).
     """
 
@@ -140,37 +140,38 @@ class ForceObserver(LeafSystem):
         super().__init__()
         self._law = law
         self._h = period
-        n = law.n
+        n, m = law.n, law.m
+        self._layout = law.layout
         self._q = self.DeclareVectorInputPort("q", n)
         self._q_hat = self.DeclareVectorInputPort("q_hat", n)
         self._qdot_o = self.DeclareVectorInputPort("qdot_o", n)
-        self._reference = self.DeclareVectorInputPort("reference", REFERENCE_SIZE)
-        self._state = self.DeclareDiscreteState(1)
+        self._reference = self.DeclareVectorInputPort("reference", law.layout.size)
+        self._state = self.DeclareDiscreteState(m)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
         # λ̂(k) once per tick: the output and the update of ΔF̃ read the same cache entry.
         self._estimate = self.DeclareCacheEntry(
             "lambda_hat (22)",
-            ValueProducer(allocate=AbstractValue.Make((0.0, 0.0, False)).Clone,
+            ValueProducer(allocate=AbstractValue.Make((np.zeros(m), np.zeros(m), False)).Clone,
                           calc=self._calc_estimate),
             {self.xd_ticket(), self.all_input_ports_ticket()})
-        self.DeclareVectorOutputPort("lambda_hat", 1, self._calc_lambda_hat,
+        self.DeclareVectorOutputPort("lambda_hat", m, self._calc_lambda_hat,
                                      prerequisites_of_calc={self._estimate.ticket()})
         self.DeclareStateOutputPort("Delta_F_tilde", self._state)
 
     def _calc_estimate(self, context: Context, value: AbstractValue) -> None:
         """``(λ̂(k), λ_d(k), held)`` from the inputs and ``ΔF̃(k)``."""
-        ref = Reference.unpack(self._reference.Eval(context))
-        DF = float(context.get_discrete_state(self._state).GetAtIndex(0))
+        ref = self._layout.unpack(self._reference.Eval(context))
+        DF = context.get_discrete_state(self._state).CopyToVector()
         lam = self._law.force_estimate(self._q.Eval(context), self._q_hat.Eval(context),
                                        self._qdot_o.Eval(context), ref, DF)
-        value.set_value((lam, ref.lambda_d, ref.held))
+        value.set_value((lam, ref.lambda_d.copy(), ref.held))
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._estimate.Eval(context)[0])
+        output.SetFromVector(self._estimate.Eval(context)[0])
 
     def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
         lam, lambda_d, held = self._estimate.Eval(context)
-        DF = float(context.get_discrete_state(self._state).GetAtIndex(0))
-        new = DF + self._h * (lam - lambda_d) if held else 0.0
-        discrete_state.set_value(self._state, [new])
+        DF = context.get_discrete_state(self._state).CopyToVector()
+        new = DF + self._h * (lam - lambda_d) if held else np.zeros_like(DF)
+        discrete_state.set_value(self._state, new)
 

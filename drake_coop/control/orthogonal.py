@@ -118,6 +118,8 @@ def xi_times(xi: float | np.ndarray, x: np.ndarray | float) -> np.ndarray:
     """
     if np.ndim(xi) == 0:
         return xi * np.asarray(x)
+    if np.ndim(xi) != 2:
+        raise ValueError(f"xi must be a scalar or an m×m matrix, got shape {np.shape(xi)}")
     return np.asarray(xi) @ np.atleast_1d(x)
 
 

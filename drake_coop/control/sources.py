@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
-from drake_coop.control.finger import REFERENCE_SIZE, Reference
+from drake_coop.control.finger import ReferenceLayout
 from drake_coop.sensing.sampling import lowpass_alpha
 
 
@@ -145,49 +145,61 @@ class SensedForce(LeafSystem):
     ``ΔF̃(k+1) = ΔF̃(k) + h (λ_s(k) − λ_d(k))`` while held, reset to 0 otherwise (as the force
     observer's integral).
 
+    Parameters
+    ----------
+    period : float
+        Sampling time ``h`` (s).
+    layout : ReferenceLayout
+        The robot's reference layout (``n`` joints, ``m`` constraints).
+
     Input ports
     -----------
-    lambda_sensor : 1-vector
+    lambda_sensor : m-vector
         The F/T sensor model's reading.
-    reference : 11-vector
+    reference : (3n + m + 1)-vector
         ``[q_d, q̇_d, q̈_d, λ_d, held]``.
 
     Output ports
     ------------
-    lambda_hat : 1-vector
-    Delta_F_tilde : 1-vector
+    lambda_hat : m-vector
+    Delta_F_tilde : m-vector
         State only.
     """
 
-    def __init__(self, period: float):
+    def __init__(self, period: float, layout: ReferenceLayout):
         super().__init__()
         self._h = period
-        self._lambda = self.DeclareVectorInputPort("lambda_sensor", 1)
-        self._reference = self.DeclareVectorInputPort("reference", REFERENCE_SIZE)
-        self._state = self.DeclareDiscreteState(1)
+        self._layout = layout
+        m = layout.m
+        self._zero = np.zeros(m)
+        self._lambda = self.DeclareVectorInputPort("lambda_sensor", m)
+        self._reference = self.DeclareVectorInputPort("reference", layout.size)
+        self._state = self.DeclareDiscreteState(m)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
-        self.DeclareVectorOutputPort("lambda_hat", 1, self._calc_lambda_hat)
-        self.DeclareVectorOutputPort("Delta_F_tilde", 1, self._calc_Delta_F_tilde,
+        self.DeclareVectorOutputPort("lambda_hat", m, self._calc_lambda_hat)
+        self.DeclareVectorOutputPort("Delta_F_tilde", m, self._calc_Delta_F_tilde,
                                      prerequisites_of_calc={self.xd_ticket()})
 
-    def set_initial_state(self, context: Context, Delta_F_tilde: float = 0.0) -> None:
-        context.SetDiscreteState(self._state, [Delta_F_tilde])
+    def set_initial_state(self, context: Context, Delta_F_tilde: np.ndarray | None = None
+                          ) -> None:
+        context.SetDiscreteState(self._state, self._zero if Delta_F_tilde is None
+                                 else Delta_F_tilde)
 
-    def _lambda_hat(self, context: Context) -> tuple[float, Reference]:
-        ref = Reference.unpack(self._reference.Eval(context))
-        return (float(self._lambda.Eval(context)[0]) if ref.held else 0.0), ref
+    def _lambda_hat(self, context: Context):
+        ref = self._layout.unpack(self._reference.Eval(context))
+        return (self._lambda.Eval(context) if ref.held else self._zero), ref
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._lambda_hat(context)[0])
+        output.SetFromVector(self._lambda_hat(context)[0])
 
     def _calc_Delta_F_tilde(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(context.get_discrete_state(self._state).value())
 
     def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
         lam, ref = self._lambda_hat(context)
-        DF = float(context.get_discrete_state(self._state).GetAtIndex(0))
+        DF = context.get_discrete_state(self._state).CopyToVector()
         discrete_state.set_value(self._state,
-                                 [DF + self._h * (lam - ref.lambda_d) if ref.held else 0.0])
+                                 DF + self._h * (lam - ref.lambda_d) if ref.held else self._zero)
 
 
 class NoForceEstimate(LeafSystem):
@@ -196,28 +208,35 @@ class NoForceEstimate(LeafSystem):
     Then ``Δλ̃ = 0`` and (13) applies the feedforward ``J_φᵀ λ_d``; the force error is left to
     the constraint and the position loop. ``λ̂ = 0`` in free motion.
 
+    Parameters
+    ----------
+    layout : ReferenceLayout
+        The robot's reference layout (``n`` joints, ``m`` constraints).
+
     Input ports
     -----------
-    reference : 11-vector
+    reference : (3n + m + 1)-vector
 
     Output ports
     ------------
-    lambda_hat : 1-vector
+    lambda_hat : m-vector
         ``λ_d`` while held, else 0.
-    Delta_F_tilde : 1-vector
+    Delta_F_tilde : m-vector
         Always 0.
     """
 
-    def __init__(self):
+    def __init__(self, layout: ReferenceLayout):
         super().__init__()
-        self._reference = self.DeclareVectorInputPort("reference", REFERENCE_SIZE)
-        self.DeclareVectorOutputPort("lambda_hat", 1, self._calc_lambda_hat)
-        self.DeclareVectorOutputPort("Delta_F_tilde", 1, self._calc_Delta_F_tilde,
+        self._layout = layout
+        self._zero = np.zeros(layout.m)
+        self._reference = self.DeclareVectorInputPort("reference", layout.size)
+        self.DeclareVectorOutputPort("lambda_hat", layout.m, self._calc_lambda_hat)
+        self.DeclareVectorOutputPort("Delta_F_tilde", layout.m, self._calc_Delta_F_tilde,
                                      prerequisites_of_calc={self.nothing_ticket()})
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
-        ref = Reference.unpack(self._reference.Eval(context))
-        output.SetAtIndex(0, ref.lambda_d if ref.held else 0.0)
+        ref = self._layout.unpack(self._reference.Eval(context))
+        output.SetFromVector(ref.lambda_d if ref.held else self._zero)
 
     def _calc_Delta_F_tilde(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, 0.0)
+        output.SetFromVector(self._zero)

@@ -109,9 +109,9 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     else:
         vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law, period))
     if force_source == "sensor":
-        force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period))
+        force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period, law.layout))
     elif force_source == "none":
-        force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate())
+        force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
     else:
         force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
@@ -159,8 +159,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     before_build : callable, optional
         ``before_build(builder, coop)`` called just before ``Build()`` (visualizers).
     references : list of Trajectory, optional
-        One 11-row reference trajectory per robot instead of the scenario's (studies and
-        tests, e.g. a constant posture for Theorem 1).
+        One reference trajectory per robot (rows of
+        :class:`~drake_coop.control.finger.ReferenceLayout`) instead of the scenario's
+        (studies and tests, e.g. a constant posture for Theorem 1).
     """
     h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
     b = builder or DiagramBuilder()
@@ -184,7 +185,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         encoder = b.AddNamedSystem(f"{name}_encoders", Encoders(n, h, robot.encoders, i))
         b.Connect(state, encoder.GetInputPort("state"))
         b.Connect(encoder.GetOutputPort("q"), control.GetInputPort("q"))
-        ft = b.AddNamedSystem(f"{name}_ft_sensor", FTSensor(h, dt, robot.force_sensor, i))
+        ft = b.AddNamedSystem(f"{name}_ft_sensor",
+                              FTSensor(h, dt, robot.force_sensor, i, law.m))
         b.Connect(sensors[i].GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
         if robot.velocity_source == "measured":   # the comparison baseline, not the paper's
             b.Connect(state, control.GetInputPort("state"))

@@ -17,13 +17,18 @@ return                ``[t_release + Δ, t_end]``             pre-grasp → home
 ====================  =====================================  ======================================
 
 with ``θ(t) = 2π σ((t − t_i)/(t_f − t_i))`` on the circle (``θ̇ = θ̈ = 0`` at ``t_i``, ``t_f``),
-``Δ = t_grasp − t_pregrasp``, the grasp point ``(b_i, 0, z_top − lift)`` and the pre-grasp point
-moved out along the object's outward normal by ``pregrasp_distance``.
+drawn in the plane of ``task.circle_axes = [u, v]`` (the paper: y and z):
+``x = c − R v + R sin θ u + R cos θ v`` from its start point ``c``; ``Δ = t_grasp − t_pregrasp``,
+the grasp point ``(contact_xy, z_top − lift)`` and the pre-grasp point moved out along the
+object's first outward normal by ``pregrasp_distance``.
 
-Joint references come from the closed-form inverse kinematics:
-``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)``.
+Joint references come from the arm's inverse kinematics (closed form for the paper's arms,
+Drake's otherwise, :attr:`drake_coop.plant.arms.Arm.kinematics`):
+``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)`` (``J`` the task Jacobian:
+position, and orientation held fixed for 6-joint arms).
 
-The desired squeeze force (29): ``f_mean (t − t_grasp)/(t_circle_start − t_grasp)`` on the
+The desired squeeze force (29), ``f(t)``, times each constraint row's weight
+(``robots[i].force_weights``, the paper: one row of weight 1): ``f_mean (t − t_grasp)/(t_circle_start − t_grasp)`` on the
 lift, ``f_mean + f_amp sin(ω (t − t_circle_start))`` on the circle and
 ``f_mean (1 − (t − t_circle_end)/(t_release − t_circle_end))`` on the put-down; zero otherwise.
 With the paper's numbers this is ``16(t − 15)/5``, ``32 + 18 sin(3π(t − 25)/40)`` and
@@ -42,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_coop.control.finger import ReferenceLayout
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Robot, Scenario, ScenarioError, Task
 from drake_coop.scenario.timing import aligned_periods
@@ -56,15 +62,22 @@ def quintic(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return s, ds, dds
 
 
+def first_normal(robot: Robot) -> np.ndarray:
+    """The object's first outward unit normal at the robot's contact (the squeeze direction)."""
+    n = np.asarray(robot.normals[0], dtype=float)
+    return n / np.linalg.norm(n)
+
+
 def waypoints(task: Task, robot: Robot) -> dict[str, np.ndarray]:
     """Home, pre-grasp, grasp and circle-start points of one robot (palm frame, m)."""
     z_top = task.circle_top_z
-    grasp = np.array([robot.plane_b, 0.0, z_top - task.lift_height])
+    x, y = (float(v) for v in robot.contact_xy)
+    grasp = np.array([x, y, z_top - task.lift_height])
     return {
         "home": np.asarray(robot.home, dtype=float),
-        "pregrasp": grasp + np.array([robot.normal_sign * task.pregrasp_distance, 0.0, 0.0]),
+        "pregrasp": grasp + task.pregrasp_distance * first_normal(robot),
         "grasp": grasp,
-        "circle_start": np.array([robot.plane_b, 0.0, z_top]),
+        "circle_start": np.array([x, y, z_top]),
     }
 
 
@@ -120,15 +133,13 @@ def cartesian_reference(task: Task, robot: Robot, t: np.ndarray
     s, ds, dds = quintic((t[sel] - task.t_circle_start) / T)
     th, thd, thdd = 2 * np.pi * s, 2 * np.pi * ds / T, 2 * np.pi * dds / T ** 2
     R = task.circle_radius
-    x[sel, 0] = robot.plane_b
-    x[sel, 1] = R * np.sin(th)
-    x[sel, 2] = task.circle_top_z - R + R * np.cos(th)
-    xd[sel, 0] = 0.0
-    xd[sel, 1] = R * np.cos(th) * thd
-    xd[sel, 2] = -R * np.sin(th) * thd
-    xdd[sel, 0] = 0.0
-    xdd[sel, 1] = -R * np.sin(th) * thd ** 2 + R * np.cos(th) * thdd
-    xdd[sel, 2] = -R * np.cos(th) * thd ** 2 - R * np.sin(th) * thdd
+    u, v = (np.asarray(a, dtype=float) for a in task.circle_axes)
+    centre = w["circle_start"] - R * v
+    # Written per axis so that the paper's u = e_y, v = e_z give its very doubles (28).
+    x[sel] = centre + (R * np.sin(th))[:, None] * u + (R * np.cos(th))[:, None] * v
+    xd[sel] = ((R * np.cos(th) * thd)[:, None] * u + (-R * np.sin(th) * thd)[:, None] * v)
+    xdd[sel] = ((-R * np.sin(th) * thd ** 2 + R * np.cos(th) * thdd)[:, None] * u
+                + (-R * np.cos(th) * thd ** 2 - R * np.sin(th) * thdd)[:, None] * v)
     return x, xd, xdd
 
 
@@ -159,13 +170,8 @@ def num_ticks_until(t: float, h: float) -> int:
 
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the closed-form IK."""
-    q = arm.ik(x)
-    J = arm.jacobian(q)
-    qd = np.linalg.solve(J, xd[..., None])[..., 0]
-    Jd = arm.jacobian_dot(q, qd)
-    qdd = np.linalg.solve(J, (xdd - (Jd @ qd[..., None])[..., 0])[..., None])[..., 0]
-    return q, qd, qdd
+    """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the arm's IK."""
+    return arm.kinematics.joint_reference(x, xd, xdd)
 
 
 def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
@@ -182,8 +188,8 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     -------
     t : ndarray, shape (K,)
         Tick times ``k h`` (``h`` from :func:`~drake_coop.scenario.aligned_periods`).
-    r : ndarray, shape (K, 11)
-        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (see :data:`drake_coop.control.finger.REFERENCE_ROWS`).
+    r : ndarray, shape (K, 3n + m + 1)
+        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`drake_coop.control.finger.ReferenceLayout`).
     """
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     task = scenario.task
@@ -194,11 +200,12 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     k = np.arange(k_last + 1)
     t = k * h
     x, xd, xdd = cartesian_reference(task, robot, t)
-    q, qd, qdd = joint_reference(Arm(robot), x, xd, xdd)
+    arm = Arm(robot, task)
+    q, qd, qdd = joint_reference(arm, x, xd, xdd)
     k_grasp, k_release = grasp_ticks(task, h)
     held = ((k >= k_grasp) & (k < k_release)).astype(float)
-    lam = force_reference(task, t)
-    return t, np.hstack([q, qd, qdd, lam[:, None], held[:, None]])
+    lam = force_reference(task, t)[:, None] * np.asarray(robot.force_weights, dtype=float)
+    return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
 
 
 def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = None
@@ -214,38 +221,22 @@ def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = N
 
 
 def _fields_to_check(i: int) -> str:
-    return (f"check robots[{i}].model, home, base_xyz, base_yaw_deg, plane_b and "
+    return (f"check robots[{i}].model, home, base_xyz, base_yaw_deg, contact_xy and "
             "task.circle_top_z, circle_radius, lift_height, pregrasp_distance")
 
 
-def check_reachable(scenario: Scenario, margin: float = 0.97) -> None:
+def check_reachable(scenario: Scenario) -> None:
     """Raise :class:`ScenarioError` if a target of the task is out of an arm's reach.
 
-    Every Cartesian target (sampled every 0.05 s) must lie within ``margin`` of the arm's full
-    reach, away from the inner singularity, and give joint angles within the limits.
+    Every Cartesian target (sampled every 0.05 s) must be reachable with the joints within
+    their limits, away from singular postures (Assumption 1), see the arm's
+    ``kinematics.check_path``.
     """
     task = scenario.task
     t = np.arange(0.0, task.t_end + 1e-9, 0.05)
     for i, robot in enumerate(scenario.robots):
-        arm = Arm(robot)
+        arm = Arm(robot, task)
         x, _, _ = cartesian_reference(task, robot, t)
-        ratio = arm.reach_ratio(x)
-        g = arm.geometry
-        inner = abs(g.L3 - g.L2) / (g.L2 + g.L3)
-        worst = int(np.argmax(ratio))
-        if ratio[worst] > margin or ratio.min() < inner + 0.05:
-            bad = worst if ratio[worst] > margin else int(np.argmin(ratio))
-            raise ScenarioError(
-                f"robots[{i}] ({robot.name}): target {np.round(x[bad], 3).tolist()} at t = "
-                f"{t[bad]:.2f} s is out of reach (distance/reach = {ratio[bad]:.3f}, allowed "
-                f"{inner + 0.05:.3f} to {margin}); {_fields_to_check(i)}")
-        q = arm.ik(x)
-        lo, hi = np.array(g.q_min), np.array(g.q_max)
-        out = (q < lo) | (q > hi)
-        if out.any():
-            row, j = np.argwhere(out)[0]
-            raise ScenarioError(
-                f"robots[{i}] ({robot.name}): target at t = {t[row]:.2f} s needs joint{j + 1} = "
-                f"{math.degrees(q[row, j]):.1f} deg, outside its limits "
-                f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg; "
-                f"{_fields_to_check(i)}")
+        problem = arm.kinematics.check_path(x, t)
+        if problem:
+            raise ScenarioError(f"robots[{i}] ({robot.name}): {problem}; {_fields_to_check(i)}")

@@ -64,7 +64,8 @@ def initialize(exp: Experiment, context) -> None:
     scenario = exp.scenario
     coop = exp.coop
     plant_context = coop.plant.GetMyMutableContextFromRoot(context)
-    q0 = [joint_reference(h.arm, *cartesian_reference(scenario.task, robot, [0.0]))[0][0]
+    q0 = [np.asarray(joint_reference(h.arm, *cartesian_reference(scenario.task, robot, [0.0]))[0])
+          .reshape(-1)
           for h, robot in zip(coop.arms, scenario.robots)]
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
     initialize_plant_context(coop, plant_context, q0, z_grasp)
@@ -86,19 +87,19 @@ def _check_guards(exp: Experiment, context) -> str | None:
         return "non-finite plant state"
     margin = math.radians(g.joint_limit_margin_deg)
     for i, rs in enumerate(exp.robots):
-        geom = exp.coop.arms[i].arm.geometry
+        arm = exp.coop.arms[i].arm
         q = exp.coop.arm_positions(pc, i)
-        lo, hi = np.array(geom.q_min) - margin, np.array(geom.q_max) + margin
+        lo, hi = arm.q_min - margin, arm.q_max + margin
         bad = np.flatnonzero((q < lo - 1e-6) | (q > hi + 1e-6))
         if bad.size:
             j = int(bad[0])
             return (f"{rs.name} joint{j + 1} = {math.degrees(q[j]):.1f} deg passed its limit "
                     f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg")
         lam_hat = rs.control.GetOutputPort("lambda_hat").Eval(
-            rs.control.GetMyContextFromRoot(context))[0]
+            rs.control.GetMyContextFromRoot(context))
         lam = rs.force_sensor.GetOutputPort("F_meas").Eval(
             rs.force_sensor.GetMyContextFromRoot(context))
-        for label, value in (("estimated force", abs(lam_hat)),
+        for label, value in (("estimated force", float(np.max(np.abs(lam_hat)))),
                              ("measured force", float(np.linalg.norm(lam)))):
             if not math.isfinite(value) or value > g.max_force:
                 return (f"{rs.name} {label} {value:.1f} N exceeds guards.max_force = "
@@ -117,25 +118,31 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
         data = {k: r.data()[:, :n].T for k, r in raw.items()}
         arm = exp.coop.arms[i].arm
         arm_dofs = rs.law.n
+        layout = rs.law.layout
         robot = exp.scenario.robots[i]
         ref = data["reference"]
+
+        def forces(a: np.ndarray) -> np.ndarray:
+            """λ logs: (N,) for one constraint (the paper), (N, m) for more."""
+            return a[:, 0].copy() if layout.m == 1 else a.copy()
+
         logs[rs.name] = {
             "t": t.copy(),
             "q": data["q"],
             "q_hat": data["q_hat"],
-            "q_d": ref[:, 0:3].copy(),
+            "q_d": layout.column(ref, "q_d").copy(),
             "x": arm.fk(data["q"]),
             "x_d": cartesian_reference(task, robot, t)[0],
             "F_meas": data["F_meas"],
-            "lambda_meas": data["lambda_meas"][:, 0].copy(),
-            "lambda_hat": data["lambda_hat"][:, 0].copy(),
-            "lambda_d": ref[:, 9].copy(),
+            "lambda_meas": forces(data["lambda_meas"]),
+            "lambda_hat": forces(data["lambda_hat"]),
+            "lambda_d": forces(layout.column(ref, "lambda_d")),
             "tau": data["tau"],
         }
         optional = {   # issue 7: sensors, velocity estimate, commanded torque
             "qdot": data["state"][:, arm_dofs:] if "state" in data else None,
             "qdot_hat": data.get("qdot_hat"),
-            "lambda_sensor": data["lambda_sensor"][:, 0].copy() if "lambda_sensor" in data
+            "lambda_sensor": forces(data["lambda_sensor"]) if "lambda_sensor" in data
             else None,
             "tau_cmd": data.get("tau_cmd"),
         }

@@ -1,31 +1,34 @@
-"""The two arms: geometry, base pose, constraint plane and closed-form kinematics.
+"""The arms: base pose, constraint planes and kinematics (closed form for the paper's arms).
 
-Both arms are reduced to waist yaw (joint 1, about z), shoulder pitch (joint 2, about y) and
-elbow pitch (joint 3, about y), with the wrist locked straight and lumped into the last link.
-At ``q = 0`` the arm points straight up; a positive ``q2`` leans the upper arm forward (towards
-the base's +x), a positive ``q3`` bends the forearm further forward ("elbow up" postures).
+The paper's two arms (CRS A465 and A255) are reduced to waist yaw (joint 1, about z), shoulder
+pitch (joint 2, about y) and elbow pitch (joint 3, about y), with the wrist locked straight and
+lumped into the last link. At ``q = 0`` the arm points straight up; a positive ``q2`` leans the
+upper arm forward (towards the base's +x), a positive ``q3`` bends the forearm further forward
+("elbow up" postures). The end-effector point E is the centre of the spherical contact pad, at
+distance ``L3`` from the elbow along the forearm: forearm + wrist-to-flange + force sensor + pad
+radius. For them the forward kinematics, Jacobian, its time derivative and inverse kinematics
+are in closed form here (NumPy, vectorised; tests check them against the MultibodyPlant). Any
+other arm (another URDF, other frames, an orientation reference) goes through Drake's
+kinematics and inverse kinematics (:mod:`drake_coop.plant.kinematics`).
 
-The end-effector point E is the centre of the spherical contact pad, at distance ``L3`` from
-the elbow along the forearm: forearm + wrist-to-flange + force sensor + pad radius.
-
-Closed-form forward kinematics, Jacobian, its time derivative and inverse kinematics live here
-(NumPy, vectorised); tests check them against the MultibodyPlant built from the URDF files.
-
-The constraint of the paper (Section IV) is ``phi_i(q) = s_i (x_i(q) - b_i)`` with ``s_i`` the x
-component of the object's outward normal at contact i (``s_1 = -1``, ``s_2 = +1``). Then the
-generalized force ``J_phi^T λ`` is the Cartesian force ``λ s_i e_x`` on the end effector: a
-positive λ is the object pushing the end effector outwards, i.e. a squeeze.
+The constraints (2) of robot ``i`` (``m_i`` rows) are ``φ_i(q) = N_i (x_i(q) − c_i)``: ``N_i``
+the object's outward unit normals at the contact (rows), ``c_i`` the contact point at the
+grasp. Then the generalized force ``J_φᵀ λ`` is the Cartesian force ``N_iᵀ λ`` on the end
+effector: a positive λ is the object pushing the end effector outwards, i.e. a squeeze. The
+paper's Section IV is ``m_i = 1``, ``N_i = (s_i, 0, 0)``: ``φ_i = s_i (x_i − b_i)`` with
+``s_1 = −1``, ``s_2 = +1``.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from drake_coop.scenario.schema import Robot
+from drake_coop.scenario.schema import SHIPPED_ARMS, Robot, Task
 
 
 def urdf_dir() -> Path:
@@ -91,43 +94,123 @@ def _rot_z(yaw: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def model_urdf_path(robot: Robot) -> Path:
+    """The simulated arm's URDF: a shipped model by name, else the ``.urdf`` path (absolute or
+    relative to :func:`urdf_dir`)."""
+    if robot.model in SHIPPED_ARMS:
+        return urdf_dir() / SHIPPED_ARMS[robot.model]
+    p = Path(robot.model).expanduser()
+    return p if p.is_absolute() else urdf_dir() / p
+
+
+def controller_urdf_path(robot: Robot) -> Path:
+    """The controller's own model of the arm (defaults to the simulated one)."""
+    if not robot.controller_model:
+        return model_urdf_path(robot)
+    p = Path(robot.controller_model).expanduser()
+    return p if p.is_absolute() else urdf_dir() / p
+
+
 class Arm:
-    """One robot in the palm frame: geometry, base pose and constraint.
+    """One robot in the palm frame: base pose, constraints (2) and kinematics.
 
     Parameters
     ----------
     robot : Robot
         The scenario's description of the robot.
+    task : Task, optional
+        The task (the contact point's height ``circle_top_z − lift_height``); the paper's by
+        default.
+
+    Attributes
+    ----------
+    N : ndarray, shape (m, 3)
+        The object's outward unit normals at the contact (rows): ``φ = N (x − c)``.
+    c : ndarray, shape (3,)
+        The contact point at the grasp.
+    closed_form : bool
+        Whether the closed-form kinematics of this module apply (the paper's arms, default
+        frames, position-only reference); otherwise :attr:`kinematics` is Drake's.
     """
 
-    def __init__(self, robot: Robot):
+    def __init__(self, robot: Robot, task: Task | None = None):
+        task = task or Task()
         self.robot = robot
         self.name = robot.name
-        self.geometry = GEOMETRY[robot.model]
+        self.geometry = GEOMETRY.get(robot.model)
+        self.closed_form = (self.geometry is not None and robot.base_frame == "base_link"
+                            and robot.ee_frame == "pad" and robot.ee_rpy_deg is None)
         self.p_base = np.asarray(robot.base_xyz, dtype=float)
         self.yaw = math.radians(robot.base_yaw_deg)
         self.R_base = _rot_z(self.yaw)
-        self.b = float(robot.plane_b)
-        self.s = float(robot.normal_sign)
-        #: Outward normal of the object at this contact (palm frame).
-        self.normal = np.array([self.s, 0.0, 0.0])
+        N = np.atleast_2d(np.asarray(robot.normals, dtype=float))
+        self.N = N / np.linalg.norm(N, axis=1, keepdims=True)
+        self.m = self.N.shape[0]
+        self.c = np.array([float(robot.contact_xy[0]), float(robot.contact_xy[1]),
+                           task.circle_top_z - task.lift_height])
+        #: Outward normal of the first constraint (the squeeze direction).
+        self.normal = self.N[0]
+        self.base_frame = robot.base_frame
+        self.ee_frame = robot.ee_frame
+        self.sensor_joint = robot.sensor_joint
+
+    @property
+    def b(self) -> float:
+        """x of the contact point (the paper's ``b_i``)."""
+        return float(self.c[0])
+
+    @property
+    def s(self) -> float:
+        """x component of the first normal (the paper's ``s_i = ±1``)."""
+        return float(self.N[0, 0])
 
     @property
     def urdf_path(self) -> Path:
         """The simulated arm's URDF."""
-        return urdf_dir() / f"{self.robot.model}_3dof.urdf"
+        return model_urdf_path(self.robot)
 
     @property
     def controller_urdf_path(self) -> Path:
         """The controller's own model of the arm (defaults to the simulated one)."""
-        if not self.robot.controller_model:
-            return self.urdf_path
-        p = Path(self.robot.controller_model)
-        return p if p.is_absolute() else urdf_dir() / p
+        return controller_urdf_path(self.robot)
+
+    @cached_property
+    def kinematics(self):
+        """Forward kinematics, joint references and path checks: the closed form of this
+        module for the paper's arms, :class:`~drake_coop.plant.kinematics.DrakeArmKinematics`
+        otherwise."""
+        if self.closed_form:
+            return ClosedFormKinematics(self)
+        from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+
+        from drake_coop.plant.kinematics import DrakeArmKinematics
+
+        R_d = None
+        if self.robot.ee_rpy_deg is not None:
+            R_d = RollPitchYaw(np.radians(self.robot.ee_rpy_deg)).ToRotationMatrix()
+        q_seed = None if self.robot.q_seed is None else np.asarray(self.robot.q_seed, float)
+        return DrakeArmKinematics(
+            self.urdf_path, RigidTransform(RotationMatrix.MakeZRotation(self.yaw), self.p_base),
+            base_frame=self.base_frame, ee_frame=self.ee_frame, R_d=R_d, q_seed=q_seed,
+            name=self.name)
+
+    @property
+    def q_min(self) -> np.ndarray:
+        """Lower joint limits (rad)."""
+        return (np.array(self.geometry.q_min) if self.closed_form
+                else np.asarray(self.kinematics.q_min))
+
+    @property
+    def q_max(self) -> np.ndarray:
+        """Upper joint limits (rad)."""
+        return (np.array(self.geometry.q_max) if self.closed_form
+                else np.asarray(self.kinematics.q_max))
 
     # ------------------------------------------------------------------ forward kinematics
     def fk(self, q: np.ndarray) -> np.ndarray:
-        """End-effector point E in the palm frame, for q of shape (..., 3)."""
+        """End-effector point E in the palm frame, for q of shape (..., n)."""
+        if not self.closed_form:
+            return self.kinematics.fk(q)
         g = self.geometry
         q = np.asarray(q, dtype=float)
         q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
@@ -222,9 +305,59 @@ class Arm:
 
     # ------------------------------------------------------------------ constraint (2)
     def phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint (2) of Section IV: ``phi = s (x(q) - b)`` (m)."""
-        return self.s * (self.fk(q)[..., 0] - self.b)
+        """Constraint (2): ``φ = N (x(q) − c)`` (m), shape (..., m)."""
+        return (self.fk(q) - self.c) @ self.N.T
 
     def J_phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint row ``J_phi = ∂phi/∂q``, shape (..., 1, 3)."""
-        return self.s * self.jacobian(q)[..., 0:1, :]
+        """Constraint Jacobian ``J_φ = N ∂x/∂q`` (closed form), shape (..., m, 3)."""
+        return self.N @ self.jacobian(q)
+
+
+class ClosedFormKinematics:
+    """The closed-form kinematics of a paper's arm behind the interface of
+    :class:`~drake_coop.plant.kinematics.DrakeArmKinematics` (``fk``, ``joint_reference``,
+    ``check_path``)."""
+
+    def __init__(self, arm: Arm):
+        self.arm = arm
+        self.n = 3
+        self.q_min = np.array(arm.geometry.q_min)
+        self.q_max = np.array(arm.geometry.q_max)
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        return self.arm.fk(q)
+
+    def joint_reference(self, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)``."""
+        arm = self.arm
+        q = arm.ik(x)
+        J = arm.jacobian(q)
+        qd = np.linalg.solve(J, xd[..., None])[..., 0]
+        Jd = arm.jacobian_dot(q, qd)
+        qdd = np.linalg.solve(J, (xdd - (Jd @ qd[..., None])[..., 0])[..., None])[..., 0]
+        return q, qd, qdd
+
+    def check_path(self, x: np.ndarray, t: np.ndarray | None = None, margin: float = 0.97
+                   ) -> str:
+        """'' or why the Cartesian points ``x`` (K, 3) (at times ``t``) are not all
+        reachable: within ``margin`` of the full reach, away from the inner singularity,
+        joints within limits."""
+        arm, g = self.arm, self.arm.geometry
+        t = np.arange(len(x), dtype=float) if t is None else t
+        ratio = arm.reach_ratio(x)
+        inner = abs(g.L3 - g.L2) / (g.L2 + g.L3)
+        worst = int(np.argmax(ratio))
+        if ratio[worst] > margin or ratio.min() < inner + 0.05:
+            bad = worst if ratio[worst] > margin else int(np.argmin(ratio))
+            return (f"target {np.round(x[bad], 3).tolist()} at t = {t[bad]:.2f} s is out of reach "
+                    f"(distance/reach = {ratio[bad]:.3f}, allowed {inner + 0.05:.3f} to "
+                    f"{margin})")
+        q = arm.ik(x)
+        out = (q < self.q_min) | (q > self.q_max)
+        if out.any():
+            row, j = np.argwhere(out)[0]
+            return (f"target at t = {t[row]:.2f} s needs joint{j + 1} = "
+                    f"{math.degrees(q[row, j]):.1f} deg, outside its limits "
+                    f"[{math.degrees(self.q_min[j]):.0f}, {math.degrees(self.q_max[j]):.0f}] deg")
+        return ""

@@ -4,10 +4,12 @@ The world frame *is* the paper's palm frame: origin at the base of the A465 (rob
 towards the A255 (robot 2). Object modes (``PlantSettings.object_mode``):
 
 ``planes`` (default, the paper's model exactly)
-    End effector i is held on its plane ``x = b_i`` and free in y and z: per arm, a light
-    "slider" body on prismatic y and z joints (gravity off) hangs from an anchor welded to the
-    world, and ``AddBallConstraint`` ties the end-effector point to it. The constraint force is
-    along x only (up to the slider's negligible inertia).
+    End effector i is held on its ``m_i`` planes ``N_i (x − c_i) = 0`` and free along their
+    common tangent directions: per arm, a light "slider" body on ``3 − m_i`` prismatic joints
+    along an orthonormal tangent basis (gravity off) hangs from an anchor welded to the world,
+    and ``AddBallConstraint`` ties the end-effector point to it (``m_i = 3``: to the anchor
+    itself, a point held in place). The constraint force is along the normals only (up to the
+    slider's negligible inertia). The paper: ``N_i = ±e_x``, prismatic y and z joints.
 ``rigid``
     One rigid object (``object_mass``) with its contact faces ``b_2 − b_1 = 0.2192 m`` apart,
     moving in y–z at fixed x on prismatic joints, ball-constrained to both end effectors: the
@@ -91,7 +93,10 @@ class CoopPlant:
     constraint_ids : list
         Ball constraints (one per arm in ``planes`` and ``rigid``), inactive by default.
     slider_joints : list[list[PrismaticJoint]]
-        Per constraint body: its ``[y, z]`` joints (planes: one pair per arm; rigid: one pair).
+        Per constraint body: its prismatic joints (planes: one per tangent direction of each
+        arm; rigid: y and z of the object).
+    slider_axes : list[ndarray]
+        Per constraint body: the joints' unit axes (rows, palm frame).
     slider_bodies : list[RigidBody]
         The bodies the end effectors are tied to (planes: one per arm; rigid: the object).
     object_body : RigidBody or None
@@ -104,6 +109,7 @@ class CoopPlant:
     mode: str
     constraint_ids: list[MultibodyConstraintId] = field(default_factory=list)
     slider_joints: list[list[PrismaticJoint]] = field(default_factory=list)
+    slider_axes: list[np.ndarray] = field(default_factory=list)
     slider_bodies: list[RigidBody] = field(default_factory=list)
     object_body: RigidBody | None = None
     grasp: ContactObject | None = None    # the contact mode's box and stand
@@ -118,7 +124,7 @@ class CoopPlant:
         """Set joint positions (and velocities, default zero) of arm i."""
         inst = self.arms[i].instance
         self.plant.SetPositions(context, inst, q)
-        self.plant.SetVelocities(context, inst, np.zeros(3) if v is None else v)
+        self.plant.SetVelocities(context, inst, np.zeros(len(q)) if v is None else v)
 
     def ee_position(self, context: Context, i: int) -> np.ndarray:
         """End-effector point of arm i in the palm frame."""
@@ -148,14 +154,14 @@ class CoopPlant:
             p = [self.ee_position(context, i) for i in range(len(self.arms))]
             v = [self.ee_velocity(context, i) for i in range(len(self.arms))]
             if self.mode == "planes":
-                targets = [(p[i][1:], v[i][1:]) for i in range(len(self.arms))]
+                targets = list(zip(p, v))
             else:  # rigid: one object between both end effectors
-                targets = [(0.5 * (p[0][1:] + p[1][1:]), 0.5 * (v[0][1:] + v[1][1:]))]
-            for joints, (pos, vel) in zip(self.slider_joints, targets):
-                for joint, x, xd in zip(joints, pos, vel):
+                targets = [(0.5 * (p[0] + p[1]), 0.5 * (v[0] + v[1]))]
+            for joints, axes, (pos, vel) in zip(self.slider_joints, self.slider_axes, targets):
+                for joint, axis in zip(joints, axes):
                     joint.Unlock(context)
-                    joint.set_translation(context, x)
-                    joint.set_translation_rate(context, xd)
+                    joint.set_translation(context, axis @ pos)
+                    joint.set_translation_rate(context, axis @ vel)
         else:
             for joints in self.slider_joints:
                 for joint in joints:
@@ -169,41 +175,82 @@ def _light_inertia(mass: float = LIGHT_MASS, radius: float = 0.01) -> SpatialIne
     return SpatialInertia(mass, np.zeros(3), UnitInertia.SolidSphere(radius))
 
 
-def _add_slider(plant: MultibodyPlant, name: str, x: float, body_inertia: SpatialInertia,
-                instance: ModelInstanceIndex) -> tuple[RigidBody, list[PrismaticJoint]]:
-    """A body moving in y and z at fixed x: anchor (welded) → carriage (y) → body (z)."""
+def tangent_basis(N: np.ndarray) -> np.ndarray:
+    """Orthonormal basis (rows) of the directions orthogonal to the normals ``N`` (rows).
+
+    Gram–Schmidt over ``e_x, e_y, e_z`` in that order, so that for ``N = ±e_x`` the basis is
+    exactly ``e_y, e_z`` (the paper's slider joints).
+    """
+    N = np.atleast_2d(np.asarray(N, dtype=float))
+    normals = list(np.linalg.qr(N.T)[0].T)       # orthonormal rows spanning the normals
+    tangents: list[np.ndarray] = []
+    for e in np.eye(3):
+        t = e - sum(((b @ e) * b for b in normals + tangents), np.zeros(3))
+        if np.linalg.norm(t) > 0.5:
+            tangents.append(t / np.linalg.norm(t))
+    return np.array(tangents).reshape(-1, 3)
+
+
+def _add_slider(plant: MultibodyPlant, name: str, p_anchor: np.ndarray, axes: np.ndarray,
+                body_inertia: SpatialInertia, instance: ModelInstanceIndex
+                ) -> tuple[RigidBody, list[PrismaticJoint]]:
+    """A body moving along ``axes`` (rows, 0 to 2 of them) from an anchor welded at
+    ``p_anchor``: anchor → carriage … → body, one prismatic joint per axis (none: the body is
+    the anchor, fixed)."""
     anchor = plant.AddRigidBody(f"{name}_anchor", instance, _light_inertia())
-    plant.WeldFrames(plant.world_frame(), anchor.body_frame(),
-                     RigidTransform(np.array([x, 0.0, 0.0])))
-    carriage = plant.AddRigidBody(f"{name}_carriage", instance, _light_inertia())
+    plant.WeldFrames(plant.world_frame(), anchor.body_frame(), RigidTransform(p_anchor))
+    if len(axes) == 0:
+        return anchor, []
+    frames = [anchor]
+    for k in range(len(axes) - 1):
+        frames.append(plant.AddRigidBody(f"{name}_carriage{'' if k == 0 else k}", instance,
+                                         _light_inertia()))
     body = plant.AddRigidBody(f"{name}", instance, body_inertia)
-    jy = plant.AddJoint(PrismaticJoint(f"{name}_y", anchor.body_frame(),
-                                       carriage.body_frame(), [0.0, 1.0, 0.0]))
-    jz = plant.AddJoint(PrismaticJoint(f"{name}_z", carriage.body_frame(),
-                                       body.body_frame(), [0.0, 0.0, 1.0]))
-    return body, [jy, jz]
+    frames.append(body)
+    paper = len(axes) == 2 and np.array_equal(axes, np.eye(3)[1:])
+    joints = []
+    for k, axis in enumerate(axes):
+        label = "yz"[k] if paper else f"t{k}"
+        joints.append(plant.AddJoint(PrismaticJoint(
+            f"{name}_{label}", frames[k].body_frame(), frames[k + 1].body_frame(), axis)))
+    return body, joints
 
 
 def add_arms(plant: MultibodyPlant, scene_graph: SceneGraph | None,
              scenario: Scenario) -> list[ArmHandles]:
-    """Parse both arms, weld their bases at their poses in the palm frame."""
+    """Parse every arm, weld its base frame at its pose in the palm frame."""
     handles = []
     for robot in scenario.robots:
-        arm = Arm(robot)
+        arm = Arm(robot, scenario.task)
         parser = Parser(plant, scene_graph, model_name_prefix=robot.name)
         (instance,) = parser.AddModels(str(arm.urdf_path))
         X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
         plant.WeldFrames(plant.world_frame(),
-                         plant.GetFrameByName("base_link", instance), X_WB)
+                         plant.GetFrameByName(arm.base_frame, instance), X_WB)
+        weld = plant.GetJointByName(arm.sensor_joint, instance)
         handles.append(ArmHandles(
             arm=arm,
             instance=instance,
-            ee_body=plant.GetBodyByName("pad", instance),
-            sensor_weld=plant.GetJointByName("flange_sensor_weld", instance),
-            sensor_bodies=[plant.GetBodyByName("force_sensor", instance),
-                           plant.GetBodyByName("pad", instance)],
+            ee_body=plant.GetFrameByName(arm.ee_frame, instance).body(),
+            sensor_weld=weld,
+            sensor_bodies=[],    # filled after Finalize (the bodies outboard of the weld)
         ))
     return handles
+
+
+def _outboard_bodies(plant: MultibodyPlant, weld: Joint) -> list[RigidBody]:
+    """The bodies the wrist sensor carries: the weld's child and every body outboard of it
+    (through any joint, welds included), in body-index order."""
+    children: dict[int, list[RigidBody]] = {}
+    for j in plant.GetJointIndices(weld.model_instance()):
+        joint = plant.get_joint(j)
+        children.setdefault(int(joint.parent_body().index()), []).append(joint.child_body())
+    found, stack = [], [weld.child_body()]
+    while stack:
+        body = stack.pop()
+        found.append(body)
+        stack.extend(children.get(int(body.index()), []))
+    return sorted(found, key=lambda b: int(b.index()))
 
 
 def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
@@ -242,7 +289,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
     from drake_coop.sensing.model_error import add_payload  # the unmodelled payloads
 
     for h, robot in zip(arms, scenario.robots):
-        add_payload(plant, h.instance, robot.model_error.payload_mass)
+        add_payload(plant, h.instance, robot.model_error.payload_mass, robot.sensor_joint)
     coop = CoopPlant(plant=plant, scene_graph=scene_graph, arms=arms,
                      mode=settings.object_mode)
 
@@ -250,17 +297,24 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
     if mode == "planes":
         for h in arms:
             inst = plant.AddModelInstance(f"{h.arm.name}_plane")
-            body, joints = _add_slider(plant, f"{h.arm.name}_plane_slider", h.arm.b,
+            axes = tangent_basis(h.arm.N)
+            # The anchor: the contact point less its tangent part (for the paper (b, 0, 0)).
+            p_anchor = h.arm.c - axes.T @ (axes @ h.arm.c)
+            body, joints = _add_slider(plant, f"{h.arm.name}_plane_slider", p_anchor, axes,
                                        _light_inertia(), inst)
             plant.set_gravity_enabled(inst, False)
             coop.slider_bodies.append(body)
             coop.slider_joints.append(joints)
-            # A translucent picture of the plane, for the 3D replay.
+            coop.slider_axes.append(axes)
+            # A translucent picture of each plane, for the 3D replay.
             anchor = plant.GetBodyByName(f"{h.arm.name}_plane_slider_anchor", inst)
-            plant.RegisterVisualGeometry(
-                anchor, RigidTransform(np.array([0.0, 0.0, scenario.task.circle_top_z
-                                                 - scenario.task.circle_radius])),
-                Box(0.002, 0.3, 0.3), f"{h.arm.name}_plane", np.array([0.3, 0.6, 1.0, 0.25]))
+            for j, normal in enumerate(h.arm.N):
+                R = RotationMatrix.MakeFromOneVector(normal, 0)
+                plant.RegisterVisualGeometry(
+                    anchor, RigidTransform(R, np.array([0.0, 0.0, scenario.task.circle_top_z
+                                                        - scenario.task.circle_radius])),
+                    Box(0.002, 0.3, 0.3), f"{h.arm.name}_plane{'' if j == 0 else j}",
+                    np.array([0.3, 0.6, 1.0, 0.25]))
             coop.constraint_ids.append(plant.AddBallConstraint(
                 h.ee_body, np.zeros(3), body, np.zeros(3)))
     elif mode == "rigid":
@@ -270,12 +324,15 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
         width = abs(b2 - b1)
         m = settings.object_mass
         inertia = SpatialInertia(m, np.zeros(3), UnitInertia.SolidBox(width, 0.08, 0.08))
-        body, joints = _add_slider(plant, "object", xc, inertia, inst)
+        axes = np.eye(3)[1:]
+        body, joints = _add_slider(plant, "object", np.array([xc, 0.0, 0.0]), axes, inertia,
+                                   inst)
         plant.RegisterVisualGeometry(body, RigidTransform(), Box(width - 0.03, 0.08, 0.08),
                                      "object_visual", np.array([0.8, 0.6, 0.2, 1.0]))
         coop.object_body = body
         coop.slider_bodies.append(body)
         coop.slider_joints.append(joints)
+        coop.slider_axes.append(axes)
         for h in arms:
             p_OP = np.array([h.arm.b - xc, 0.0, 0.0])
             coop.constraint_ids.append(plant.AddBallConstraint(h.ee_body, np.zeros(3), body, p_OP))
@@ -285,19 +342,25 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
         coop.grasp = add_contact_object(plant, scene_graph, scenario)
         coop.object_body = coop.grasp.box
     plant.Finalize()
+    for h in arms:
+        h.sensor_bodies = _outboard_bodies(plant, h.sensor_weld)
     return coop
 
 
 def initialize_plant_context(coop: CoopPlant, context: Context, q0: list[np.ndarray],
                              z_grasp: float) -> None:
-    """Arms at rest at ``q0``, constraints off, sliders/object locked at the grasp height."""
+    """Arms at rest at ``q0``, constraints off, sliders/object locked at the contact points
+    (the paper: y = 0 at the grasp height)."""
     plant = coop.plant
     for i, q in enumerate(q0):
         coop.set_arm_state(context, i, q)
-    for joints in coop.slider_joints:
-        joints[0].set_translation(context, 0.0)
-        joints[1].set_translation(context, z_grasp)
-        for j in joints:
+    if coop.mode == "planes":
+        points = [h.arm.c for h in coop.arms]
+    else:
+        points = [np.array([0.0, 0.0, z_grasp])] * len(coop.slider_joints)
+    for joints, axes, p in zip(coop.slider_joints, coop.slider_axes, points):
+        for j, axis in zip(joints, axes):
+            j.set_translation(context, axis @ p)
             j.set_translation_rate(context, 0.0)
             j.Lock(context)
     for cid in coop.constraint_ids:
@@ -324,8 +387,8 @@ class ForceSensor(LeafSystem):
     ------------
     F_meas : 3-vector
         Force of the object on the end effector, palm frame (N).
-    lambda_meas : 1-vector
-        ``n_i · F_meas``, ``n_i`` the object's outward normal: positive when squeezing (N).
+    lambda_meas : m-vector
+        ``N_i F_meas``, ``N_i`` the object's outward normals (rows): positive when squeezing (N).
     """
 
     def __init__(self, plant: MultibodyPlant, handles: ArmHandles):
@@ -337,7 +400,7 @@ class ForceSensor(LeafSystem):
                          b.default_com()) for b in handles.sensor_bodies]
         self._g = plant.gravity_field().gravity_vector()
         self._g_list = self._g.tolist()
-        self._normal = handles.arm.normal
+        self._N = handles.arm.N
         self._reaction = self.DeclareAbstractInputPort(
             "reaction_forces", plant.get_reaction_forces_output_port().Allocate())
         self._poses = self.DeclareAbstractInputPort(
@@ -352,7 +415,7 @@ class ForceSensor(LeafSystem):
                                             calc=self._calc_force_cache),
             {self.all_input_ports_ticket()})
         self.DeclareVectorOutputPort("F_meas", 3, self._calc_force)
-        self.DeclareVectorOutputPort("lambda_meas", 1, self._calc_lambda)
+        self.DeclareVectorOutputPort("lambda_meas", handles.arm.m, self._calc_lambda)
 
     def force(self, context: Context) -> np.ndarray:
         """The measured force vector (palm frame)."""
@@ -393,7 +456,7 @@ class ForceSensor(LeafSystem):
         output.SetFromVector(self.force(context))
 
     def _calc_lambda(self, context: Context, output) -> None:
-        output.SetAtIndex(0, float(self._normal @ self.force(context)))
+        output.SetFromVector(self._N @ self.force(context))
 
 
 def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant) -> list[ForceSensor]:

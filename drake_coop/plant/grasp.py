@@ -205,7 +205,7 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
         The unfinalized cooperative plant, registered with ``scene_graph``.
     scene_graph : SceneGraph
     scenario : Scenario
-        Uses the robots' ``plane_b`` and pad radius, ``task.circle_top_z``,
+        Uses the robots' contact x (``contact_xy[0]``) and pad radius, ``task.circle_top_z``,
         ``task.lift_height``, ``plant.object_mass`` and ``plant.friction``.
 
     Returns
@@ -214,7 +214,7 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
     """
     r1, r2 = scenario.robots
     r_pad = GEOMETRY[r1.model].r_pad
-    lo, hi = sorted([r1.plane_b, r2.plane_b])
+    lo, hi = sorted([r1.contact_xy[0], r2.contact_xy[0]])
     width = (hi - lo) - 2 * r_pad
     if width <= 0:
         raise ValueError(f"contact mode: the planes b_i are too close for the pads "

@@ -132,6 +132,13 @@ def check_numbers(obj: object, bounds: dict[str, Bound], lengths: dict[str, int]
                 if item in (float, int):
                     _check_number(v, f"{name}[{i}]", f"{pat}[]", bounds, error,
                                   integer=item is int)
+                elif typing.get_origin(item) is list:     # a matrix: list of rows
+                    row_pat = f"{pat}[]"
+                    if row_pat in lengths and len(v) != lengths[row_pat]:
+                        raise error(f"{name}[{i}] must have {lengths[row_pat]} entries, "
+                                    f"got {len(v)}")
+                    for j, x in enumerate(v):
+                        _check_number(x, f"{name}[{i}][{j}]", f"{row_pat}[]", bounds, error)
                 elif dataclasses.is_dataclass(item):
                     check_numbers(v, bounds, lengths, error=error, path=f"{name}[{i}]",
                                   pattern=f"{pat}[]")
@@ -161,6 +168,8 @@ def numeric_fields(schema: type, pattern: str = "") -> list[str]:
             (item,) = typing.get_args(t)
             if item in (float, int):
                 out.append(f"{pat}[]")
+            elif typing.get_origin(item) is list:
+                out.append(f"{pat}[][]")
             elif dataclasses.is_dataclass(item):
                 out += numeric_fields(item, f"{pat}[]")
         elif dataclasses.is_dataclass(t):

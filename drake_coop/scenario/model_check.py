@@ -1,15 +1,16 @@
 """Model files of a scenario checked before anything is built.
 
-Each arm's URDF (``urdf/<model>_3dof.urdf``) and each ``controller_model`` must be a readable
-regular ``.urdf`` file of at most :data:`MAX_MODEL_BYTES`, parse as XML with a ``<robot>``
-root (no DTD: no entity expansion), and load into a single-arm ``MultibodyPlant`` exactly as
-:class:`~drake_coop.control.arm_model.ArmModel` loads it (``base_link`` welded to the world), with the
-``pad`` frame and :data:`NUM_JOINTS` revolute joints. A failure raises
+Each arm's URDF (a shipped ``model`` or a ``.urdf`` path) and each ``controller_model`` must be
+a readable regular ``.urdf`` file of at most :data:`MAX_MODEL_BYTES`, parse as XML with a
+``<robot>`` root (no DTD: no entity expansion), and load into a single-arm ``MultibodyPlant``
+exactly as :class:`~drake_coop.control.arm_model.ArmModel` loads it (``base_frame`` welded to
+the world), with the ``ee_frame``, the fixed ``sensor_joint`` and between
+:data:`MIN_JOINTS` and :data:`MAX_JOINTS` one-degree-of-freedom joints. A failure raises
 :class:`~drake_coop.scenario.ScenarioError` with one line naming the field and the path.
 
 Paths are resolved as the arms resolve them (relative to
-:func:`drake_coop.plant.arms.urdf_dir`). A file already checked is not parsed again while its size
-and modification time are unchanged.
+:func:`drake_coop.plant.arms.urdf_dir`). A file already checked is not parsed again while its
+size and modification time are unchanged.
 """
 
 from __future__ import annotations
@@ -21,50 +22,81 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from drake_coop.scenario.bounds import one_line
-from drake_coop.scenario.schema import Scenario, ScenarioError
+from drake_coop.scenario.schema import Robot, Scenario, ScenarioError
 
-__all__ = ["MAX_MODEL_BYTES", "NUM_JOINTS", "check_model_file", "check_models"]
+__all__ = ["MAX_MODEL_BYTES", "MAX_JOINTS", "MIN_JOINTS", "check_model_file", "check_models",
+           "model_joint_count"]
 
-#: Largest model file read (bytes); ours are 6 kB.
+#: Largest model file read (bytes); ours are 6-10 kB.
 MAX_MODEL_BYTES = 10_000_000
-#: Joints of every arm (waist, shoulder, elbow).
-NUM_JOINTS = 3
+#: Joints an arm may have (its joint positions, all one-degree-of-freedom).
+MIN_JOINTS, MAX_JOINTS = 1, 12
 
 
-def check_models(scenario: Scenario) -> None:
+def check_models(scenario: Scenario) -> list[int]:
     """Check the simulated and the controller's model file of every robot.
 
+    Returns
+    -------
+    list[int]
+        The number of joints ``n_i`` of every robot's arm.
+
     Raises
     ------
     ScenarioError
-        ``robots[i].controller_model`` (or ``robots[i].model``), the path and the problem.
+        ``robots[i].model`` (or ``controller_model``, ``base_frame``, ...), the path and the
+        problem.
     """
-    from drake_coop.plant.arms import Arm
+    from drake_coop.plant.arms import model_urdf_path, controller_urdf_path
 
+    joints = []
     for i, robot in enumerate(scenario.robots):
-        arm = Arm(robot)
-        check_model_file(arm.urdf_path, f"robots[{i}].model")
+        n = check_model_file(model_urdf_path(robot), f"robots[{i}].model", robot)
         if robot.controller_model:
-            check_model_file(arm.controller_urdf_path, f"robots[{i}].controller_model")
+            n_c = check_model_file(controller_urdf_path(robot), f"robots[{i}].controller_model",
+                                   robot)
+            if n_c != n:
+                raise ScenarioError(f"robots[{i}].controller_model has {n_c} joints, the "
+                                    f"simulated arm {n}")
+        joints.append(n)
+    return joints
 
 
-def check_model_file(path: str | Path, field: str) -> None:
-    """Check one URDF file for a 3-joint arm (see the module's docstring).
+def model_joint_count(robot: Robot) -> int:
+    """``n_i``: the joint positions of a robot's (checked) arm model."""
+    from drake_coop.plant.arms import model_urdf_path
+
+    return check_model_file(model_urdf_path(robot), "model", robot)
+
+
+def check_model_file(path: str | Path, field: str, robot: Robot | None = None) -> int:
+    """Check one URDF file for an arm (see the module's docstring).
+
+    Returns
+    -------
+    int
+        The number of joint positions.
 
     Raises
     ------
     ScenarioError
-        ``"<field>: <path> <problem>"``.
+        ``"<field>: <path> <problem>"`` (a missing frame or joint names its own field).
     """
+    robot = robot or Robot()
     path = Path(path)
     shown = one_line(path, 120)
     try:
         st = os.stat(path)
     except OSError as exc:
         raise ScenarioError(f"{field}: {shown} {_why(exc)}") from None
-    problem = _check_cached(str(path), st.st_mtime_ns, st.st_size)
+    problem, n = _check_cached(str(path), st.st_mtime_ns, st.st_size, robot.base_frame,
+                               robot.ee_frame, robot.sensor_joint)
     if problem:
-        raise ScenarioError(f"{field}: {shown} {problem}")
+        where, _, text = problem.partition("|")
+        if where:   # a frame or joint field: name it
+            field = field.rsplit(".", 1)[0] + "." + where
+        raise ScenarioError(f"{field}: {shown} {text}")
+    return n
 
 
 def _why(exc: OSError) -> str:
@@ -73,39 +105,47 @@ def _why(exc: OSError) -> str:
 
 
 @functools.lru_cache(maxsize=64)
-def _check_cached(path: str, mtime_ns: int, size: int) -> str:
-    """The problem with the file ('' if none); cached per path, mtime and size."""
+def _check_cached(path: str, mtime_ns: int, size: int, base_frame: str, ee_frame: str,
+                  sensor_joint: str) -> tuple[str, int]:
+    """``(problem, n)``: the problem with the file ('' if none, ``field|text`` when a named
+    frame or joint is at fault) and its joint count; cached per path, mtime, size, names."""
     p = Path(path)
     if not p.is_file():
-        return "is not a regular file"
+        return "|is not a regular file", 0
     if p.suffix.lower() != ".urdf":
-        return "must be a .urdf file"
+        return "|must be a .urdf file", 0
     if size > MAX_MODEL_BYTES:
-        return f"is larger than {MAX_MODEL_BYTES} bytes"
+        return f"|is larger than {MAX_MODEL_BYTES} bytes", 0
     try:
         raw = p.read_bytes()
     except OSError as exc:
-        return _why(exc)
+        return "|" + _why(exc), 0
     if b"<!DOCTYPE" in raw or b"<!ENTITY" in raw:
-        return "must not declare a DTD or entities"
+        return "|must not declare a DTD or entities", 0
     try:
         root = ET.fromstring(raw)
     except ET.ParseError as exc:
-        return f"is not valid XML ({one_line(exc, 80)})"
+        return f"|is not valid XML ({one_line(exc, 80)})", 0
     if root.tag != "robot":
-        return f"is not a URDF: its root element is <{one_line(root.tag, 40)}>, not <robot>"
+        return (f"|is not a URDF: its root element is <{one_line(root.tag, 40)}>, "
+                "not <robot>"), 0
     links = {e.get("name") for e in root.findall("link")}
-    for frame in ("base_link", "pad"):
+    for key, frame in (("base_frame", base_frame), ("ee_frame", ee_frame)):
         if frame not in links:
-            return f"has no link named '{frame}' (the arm's base and its end-effector pad)"
-    revolute = [e for e in root.findall("joint") if e.get("type") in ("revolute", "continuous")]
-    if len(revolute) != NUM_JOINTS:
-        return f"has {len(revolute)} revolute joints, the arm needs {NUM_JOINTS}"
-    return _drake_problem(p)
+            return f"{key}|has no link named {one_line(frame, 40)!r}", 0
+    fixed = {e.get("name") for e in root.findall("joint") if e.get("type") == "fixed"}
+    if sensor_joint not in fixed:
+        return (f"sensor_joint|has no fixed joint named {one_line(sensor_joint, 40)!r} (the "
+                "wrist force sensor's mount)"), 0
+    moving = [e for e in root.findall("joint") if e.get("type") in ("revolute", "continuous",
+                                                                     "prismatic")]
+    if not MIN_JOINTS <= len(moving) <= MAX_JOINTS:
+        return f"|has {len(moving)} joints, an arm needs {MIN_JOINTS} to {MAX_JOINTS}", 0
+    return _drake_problem(p, base_frame, ee_frame)
 
 
-def _drake_problem(path: Path) -> str:
-    """Load the file as :class:`~drake_coop.control.arm_model.ArmModel` does; '' if Drake accepts it."""
+def _drake_problem(path: Path, base_frame: str, ee_frame: str) -> tuple[str, int]:
+    """Load the file as :class:`~drake_coop.control.arm_model.ArmModel` does."""
     from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import MultibodyPlant
 
@@ -115,13 +155,15 @@ def _drake_problem(path: Path) -> str:
     try:
         plant = MultibodyPlant(0.0)
         Parser(plant).AddModels(str(path))
-        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"))
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_frame))
         plant.Finalize()
-        if plant.num_positions() != NUM_JOINTS:
-            return f"gives {plant.num_positions()} joint positions, the arm needs {NUM_JOINTS}"
-        plant.GetFrameByName("pad")
+        plant.GetFrameByName(ee_frame)
+        n = plant.num_positions()
+        if n != plant.num_velocities() or not MIN_JOINTS <= n <= MAX_JOINTS:
+            return (f"|gives {n} joint positions and {plant.num_velocities()} velocities, an "
+                    f"arm needs {MIN_JOINTS} to {MAX_JOINTS} one-degree-of-freedom joints"), 0
     except Exception as exc:    # Drake's parser and plant raise RuntimeError / ValueError
-        return f"is not a model Drake can load: {one_line(exc, 120)}"
+        return f"|is not a model Drake can load: {one_line(exc, 120)}", 0
     finally:
         logger.setLevel(previous)
-    return ""
+    return "", n

@@ -112,7 +112,8 @@ def find_scenario(name_or_path: str | Path) -> Path:
 
 
 def resolve_models(scenario: Scenario, base_dir: Path | None = None) -> None:
-    """Make a relative ``controller_model`` found beside the scenario file absolute.
+    """Make a relative ``model`` / ``controller_model`` path found beside the scenario file
+    absolute.
 
     The arms look relative model paths up in :func:`urdf_dir` (the shipped models); a file
     beside the scenario file (``base_dir``) wins and is rewritten as an absolute path, so that
@@ -122,8 +123,10 @@ def resolve_models(scenario: Scenario, base_dir: Path | None = None) -> None:
     if base_dir is None:
         return
     for robot in scenario.robots:
-        value = robot.controller_model
-        if value and not Path(value).expanduser().is_absolute():
-            beside = base_dir / Path(value).expanduser()
-            if beside.is_file():
-                robot.controller_model = str(beside.resolve())
+        for name in ("model", "controller_model"):
+            value = getattr(robot, name)
+            if (value and value.lower().endswith(".urdf")
+                    and not Path(value).expanduser().is_absolute()):
+                beside = base_dir / Path(value).expanduser()
+                if beside.is_file():
+                    setattr(robot, name, str(beside.resolve()))

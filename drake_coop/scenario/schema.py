@@ -1,7 +1,7 @@
 """A scenario's typed dataclasses: every number of an experiment, and the paper's own.
 
 A scenario is the single source of truth of a run: the plant (time step, object mode), the
-two robots (model, base pose, constraint plane, home point, gains), the task of Section IV of
+robots (``l >= 2``; model, frames, base pose, constraint planes, home point, gains), the task of Section IV of
 the paper (phase times, circle (28), force profile (29)) and the simulation guards.
 ``scenarios/paper.yaml`` holds the paper's experiment; :func:`default_scenario` returns the
 same numbers from code. Loading is in :mod:`drake_coop.scenario.loading`, the ranges and rules
@@ -18,7 +18,10 @@ from drake_coop.scenario.bounds import one_line
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
 VELOCITY_SOURCES = ("observer", "measured", "difference")
 FORCE_SOURCES = ("observer", "sensor", "none")
-ARM_MODELS = ("crs_a465", "crs_a255")
+#: The shipped arm models (``urdf/<file>``); a robot's ``model`` may also be a ``.urdf`` path.
+SHIPPED_ARMS = {"crs_a465": "crs_a465_3dof.urdf", "crs_a255": "crs_a255_3dof.urdf",
+                "coop6": "coop6_6dof.urdf"}
+ARM_MODELS = tuple(SHIPPED_ARMS)
 
 
 class ScenarioError(ValueError):
@@ -40,13 +43,16 @@ class Gains:
     Lambda : float
         k of the paper's ``Lambda = k I`` (1/s): the gain of q̃ in q̇_r (4) and of z in (8).
     K_R : list[float]
-        Diagonal of ``K_R`` (N·m·s/rad), the velocity-error gain of (13).
+        Diagonal of ``K_R`` (N·m·s/rad), the velocity-error gain of (13), one per joint.
     k_d : float
         Observer gain of (15)-(16) (1/s).
     k_F : float
         Gain of the force integral ΔF̃ in (13) (dimensionless).
     xi : float
-        ``xi`` of (4) (m×m, here scalar), weight of ΔF̃ in the reference velocity.
+        ``xi`` of (4): ``ξ = xi I`` (m×m), weight of ΔF̃ in the reference velocity.
+    xi_matrix : list[list[float]] or None
+        ``ξ`` of (4) as a full m×m matrix (symmetric positive definite); replaces ``xi`` when
+        given.
     zeta : float
         ``zeta`` of (13), weight of Δλ̃ (dimensionless).
     beta : float
@@ -58,6 +64,7 @@ class Gains:
     k_d: float = 40.0
     k_F: float = 0.05
     xi: float = 1e-5
+    xi_matrix: Optional[list[list[float]]] = None
     zeta: float = 1e-3
     beta: float = 10.0
 
@@ -155,14 +162,14 @@ class ModelError:
         force sensor, so the sensor does not weigh it).
     coulomb_friction : list[float]
         Coulomb friction torque of each simulated joint (N·m, >= 0), ``−f_c tanh(q̇/v_s)``
-        with ``v_s = 0.01 rad/s``.
+        with ``v_s = 0.01 rad/s``; empty: none.
     """
 
     mass_scale: float = 1.0
     inertia_scale: float = 1.0
     damping_scale: float = 1.0
     payload_mass: float = 0.0
-    coulomb_friction: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    coulomb_friction: list[float] = field(default_factory=list)
 
 
 @dataclass
@@ -174,19 +181,38 @@ class Robot:
     name : str
         Model-instance and subsystem prefix (``robot1``, ``robot2``).
     model : str
-        ``crs_a465`` or ``crs_a255`` (file ``urdf/<model>_3dof.urdf``).
+        A shipped arm (``crs_a465``, ``crs_a255``: 3 joints; ``coop6``: 6 joints) or the path
+        of a ``.urdf`` file (absolute, beside the scenario file, or in ``urdf/``).
     controller_model : str
         URDF file (relative to ``urdf/`` or absolute) of the controller's own model of the arm;
         empty means the same URDF as the simulated arm (exact model knowledge).
+    base_frame, ee_frame : str
+        Frames of the URDF: the one welded at the base pose, and the end effector whose origin
+        is the contact point ``x_i`` of the constraints (2).
+    sensor_joint : str
+        The fixed joint between the last link and the wrist force sensor; the bodies outboard
+        of it (sensor, pad) are weighed by the ground-truth force sensor.
     base_xyz : list[float]
         Position of the robot's base in the palm frame (m).
     base_yaw_deg : float
         Rotation of the base about the palm z axis (degrees).
-    plane_b : float
-        ``b_i`` of the constraint ``x_i = b_i`` (m): the x coordinate of the contact point.
-    normal_sign : float
-        x component (±1) of the object's outward normal at this contact. With
-        ``phi_i = normal_sign * (x_i - b_i)`` a positive λ squeezes the object.
+    contact_xy : list[float]
+        ``(x, y)`` of the contact point at the grasp (m, palm frame); its z is the task's
+        ``circle_top_z − lift_height``.
+    normals : list[list[float]]
+        The object's outward normals at this contact, one row per constraint (``m_i`` rows,
+        ``1 <= m_i <= min(n_i, 3)``, linearly independent; normalized when loaded). The
+        constraint (2) is ``φ_i(q) = N_i (x_i(q) − c_i)``, ``c_i`` the contact point: each row
+        a plane through the contact point, and a positive ``λ`` squeezes the object.
+    force_weights : list[float]
+        ``λ_d,i(t) = w_i f(t)`` with ``f`` the profile (29): one weight per constraint row.
+    ee_rpy_deg : list[float] or None
+        Orientation of the end-effector frame held along the task (roll, pitch, yaw in degrees,
+        palm frame): required for 6-joint arms (their reference is position and orientation),
+        null for 3-joint arms (position only).
+    q_seed : list[float] or None
+        Initial guess of Drake's inverse kinematics for the home point (arms without a closed
+        form); null: zeros.
     home : list[float]
         Cartesian start and end point of the end effector (m, palm frame).
     gains : Gains
@@ -214,10 +240,16 @@ class Robot:
     name: str = "robot1"
     model: str = "crs_a465"
     controller_model: str = ""
+    base_frame: str = "base_link"
+    ee_frame: str = "pad"
+    sensor_joint: str = "flange_sensor_weld"
     base_xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     base_yaw_deg: float = 0.0
-    plane_b: float = 0.6
-    normal_sign: float = -1.0
+    contact_xy: list[float] = field(default_factory=lambda: [0.6, 0.0])
+    normals: list[list[float]] = field(default_factory=lambda: [[-1.0, 0.0, 0.0]])
+    force_weights: list[float] = field(default_factory=lambda: [1.0])
+    ee_rpy_deg: Optional[list[float]] = None
+    q_seed: Optional[list[float]] = None
     home: list[float] = field(default_factory=lambda: [0.5, 0.0, 0.6])
     gains: Gains = field(default_factory=Gains)
     velocity_source: str = "observer"
@@ -272,6 +304,11 @@ class Task:
         z of the circle's start point, 0.635 m in (28).
     circle_radius : float
         Radius of the circle (28), 0.05 m.
+    circle_axes : list[list[float]]
+        ``[u, v]``: the circle (28) is ``c + R sin θ u + R (cos θ − 1) v`` from its start point
+        ``c``; the paper's ``u = e_y``, ``v = e_z``. Unit and orthogonal, or one of them zero (a
+        straight back-and-forth along the other). Every direction the object moves along while
+        held (z for the lift, ``u``, ``v``) must lie in every robot's constraint planes.
     lift_height : float
         Height of the lift from the grasp point to the circle's start (m).
     force_mean, force_amplitude : float
@@ -289,6 +326,8 @@ class Task:
     pregrasp_distance: float = 0.05
     circle_top_z: float = 0.635
     circle_radius: float = 0.05
+    circle_axes: list[list[float]] = field(
+        default_factory=lambda: [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     lift_height: float = 0.1
     force_mean: float = 32.0
     force_amplitude: float = 18.0
@@ -324,7 +363,7 @@ class Scenario:
         Sampling time h of the controllers and observers (s), 9 ms in the paper.
     plant : PlantSettings
     robots : list[Robot]
-        Exactly two robots; robot 1 on the left (normal_sign = -1), robot 2 on the right.
+        ``l >= 2`` robots (the paper: robot 1 on the left, normal −x; robot 2 on the right).
     task : Task
     guards : Guards
     """
@@ -344,8 +383,8 @@ def paper_robots() -> list[Robot]:
             model="crs_a465",
             base_xyz=[0.0, 0.0, 0.0],
             base_yaw_deg=0.0,
-            plane_b=0.6,
-            normal_sign=-1.0,
+            contact_xy=[0.6, 0.0],
+            normals=[[-1.0, 0.0, 0.0]],
             home=[0.5, 0.0, 0.6],
             gains=Gains(Lambda=35.0, K_R=[120.0] * 3, k_d=40.0, k_F=0.05, xi=1e-5, zeta=1e-3,
                         beta=10.0),
@@ -355,8 +394,8 @@ def paper_robots() -> list[Robot]:
             model="crs_a255",
             base_xyz=[1.16, 0.0, 0.0],
             base_yaw_deg=180.0,
-            plane_b=0.8192,
-            normal_sign=1.0,
+            contact_xy=[0.8192, 0.0],
+            normals=[[1.0, 0.0, 0.0]],
             home=[0.9, 0.0, 0.6],
             gains=Gains(Lambda=26.0, K_R=[100.0] * 3, k_d=40.0, k_F=0.05, xi=1e-5, zeta=1e-3,
                         beta=10.0),

@@ -6,6 +6,8 @@ cross-field rules, reachability and the model files (the last two import the pla
 kinematics late, so that this package imports nothing outside it at import time).
 """
 
+import numpy as np
+
 from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
@@ -29,8 +31,12 @@ BOUNDS: dict[str, Bound] = {
     "plant.friction": Bound(0.0, 5.0, "", **_POS),
     "robots[].base_xyz[]": Bound(-5.0, 5.0, "m"),
     "robots[].base_yaw_deg": Bound(-360.0, 360.0, "deg"),
-    "robots[].plane_b": Bound(-5.0, 5.0, "m"),
-    "robots[].normal_sign": Bound(-1.0, 1.0),
+    "robots[].contact_xy[]": Bound(-5.0, 5.0, "m"),
+    "robots[].normals[][]": Bound(-1.0, 1.0),
+    "robots[].force_weights[]": Bound(-10.0, 10.0),
+    "robots[].ee_rpy_deg[]": Bound(-360.0, 360.0, "deg"),
+    "robots[].q_seed[]": Bound(-10.0, 10.0, "rad"),
+    "robots[].gains.xi_matrix[][]": Bound(-1.0, 1.0),
     "robots[].home[]": Bound(-5.0, 5.0, "m"),
     "robots[].gains.Lambda": Bound(0.0, 1e3, "1/s", **_POS),
     "robots[].gains.K_R[]": Bound(0.0, 1e4, "N·m·s/rad", **_POS),
@@ -59,6 +65,7 @@ BOUNDS: dict[str, Bound] = {
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
     "task.circle_top_z": Bound(-5.0, 5.0, "m"),
     "task.circle_radius": Bound(0.0, 1.0, "m", **_POS),
+    "task.circle_axes[][]": Bound(-1.0, 1.0),
     "task.lift_height": Bound(0.0, 1.0, "m", **_POS),
     "task.force_mean": Bound(0.0, 1e3, "N"),
     "task.force_amplitude": Bound(0.0, 1e3, "N"),
@@ -68,9 +75,16 @@ BOUNDS: dict[str, Bound] = {
     "guards.check_period": Bound(0.0, 100.0, "s", **_POS),
 }
 #: Length of every list of numbers.
+#: Lists whose length depends on the arm (``n_i`` joints, ``m_i`` constraints) are checked by
+#: :func:`_validate_dimensions` once the model files are read.
 LENGTHS: dict[str, int] = {"robots[].base_xyz": 3, "robots[].home": 3,
-                           "robots[].gains.K_R": 3, "robots[].actuators.torque_limits": 3,
-                           "robots[].model_error.coulomb_friction": 3}
+                           "robots[].contact_xy": 2, "robots[].normals[]": 3,
+                           "robots[].ee_rpy_deg": 3, "task.circle_axes": 2,
+                           "task.circle_axes[]": 3}
+#: At most this many robots in one scenario.
+MAX_ROBOTS = 12
+#: Tolerance of the geometric rules (unit vectors, orthogonality, independence).
+_TOL = 1e-9
 
 
 def _is_multiple(period: float, step: float) -> bool:
@@ -95,8 +109,9 @@ def validate(scenario: Scenario) -> None:
     ScenarioError
         On the first problem found, naming the field and the allowed values.
     """
-    if len(scenario.robots) != 2:
-        raise ScenarioError(f"robots must list exactly 2 robots, got {len(scenario.robots)}")
+    if not 2 <= len(scenario.robots) <= MAX_ROBOTS:
+        raise ScenarioError(f"robots must list 2 to {MAX_ROBOTS} robots (the paper's l >= 2 "
+                            f"fingers), got {len(scenario.robots)}")
     check_numbers(scenario, BOUNDS, LENGTHS, error=ScenarioError)
 
     p = scenario.plant
@@ -116,14 +131,19 @@ def validate(scenario: Scenario) -> None:
         if not (isinstance(r.name, str) and r.name.isidentifier() and len(r.name) <= 40):
             raise ScenarioError(f"{where}.name must be an identifier of at most 40 characters, "
                                 f"got {show(r.name)}")
-        _choice(r.model, ARM_MODELS, f"{where}.model")
-        if r.normal_sign not in (-1.0, 1.0):
-            raise ScenarioError(f"{where}.normal_sign must be -1 or 1, got {show(r.normal_sign)}")
+        if r.model not in ARM_MODELS and not (isinstance(r.model, str)
+                                               and r.model.lower().endswith(".urdf")):
+            raise ScenarioError(f"{where}.model must be one of {', '.join(ARM_MODELS)} or the "
+                                f"path of a .urdf file, got {show(r.model)}")
+        for key in ("base_frame", "ee_frame", "sensor_joint"):
+            value = getattr(r, key)
+            if not (isinstance(value, str) and 0 < len(value) <= 100):
+                raise ScenarioError(f"{where}.{key} must be a name of 1 to 100 characters, "
+                                    f"got {show(value)}")
         _validate_sensing(r, where, scenario.control_period)
-    if len(set(names)) != 2:
+    if len(set(names)) != len(names):
         raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
-    if scenario.robots[0].normal_sign == scenario.robots[1].normal_sign:
-        raise ScenarioError("robots[].normal_sign must differ (one contact on each side)")
+    _validate_two_sided(scenario)
 
     t = scenario.task
     times = ["t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end"]
@@ -142,12 +162,117 @@ def validate(scenario: Scenario) -> None:
             f"task.force_amplitude ({t.force_amplitude}) must not exceed task.force_mean "
             f"({t.force_mean}): the squeeze force must stay >= 0")
 
+    _validate_axes(scenario)
     # Imported late: the plant's kinematics (arms) import the scenario package.
     from drake_coop.experiment.references import check_reachable
     from drake_coop.scenario.model_check import check_models
 
+    for i, (robot, n) in enumerate(zip(scenario.robots, check_models(scenario))):
+        _validate_dimensions(robot, n, f"robots[{i}]", scenario)
     check_reachable(scenario)
-    check_models(scenario)
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def _unit_rows(rows: list[list[float]], name: str) -> np.ndarray:
+    """The rows normalized; a zero row is an error."""
+    a = np.asarray(rows, dtype=float).reshape(-1, 3)
+    norms = np.linalg.norm(a, axis=1)
+    for j, value in enumerate(norms):
+        if value < 1e-6:
+            raise ScenarioError(f"{name}[{j}] must be a nonzero direction, got {show(rows[j])}")
+    return a / norms[:, None]
+
+
+def _validate_two_sided(scenario: Scenario) -> None:
+    """``rigid`` and ``contact`` hold one object between two arms facing along x."""
+    mode = scenario.plant.object_mode
+    if mode not in ("rigid", "contact"):
+        return
+    robots = scenario.robots
+    signs = [r.normals[0][0] if len(r.normals) == 1 and len(r.normals[0]) == 3 else 0.0
+             for r in robots]
+    if len(robots) != 2 or sorted(signs) != [-1.0, 1.0] or any(
+            list(map(float, r.normals[0][1:])) != [0.0, 0.0] for r in robots):
+        raise ScenarioError(f"plant.object_mode {mode} holds one object between exactly 2 "
+                            "robots with normals [-1, 0, 0] and [1, 0, 0]; use planes for "
+                            "other grasps")
+    if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") for r in robots):
+        raise ScenarioError("plant.object_mode contact needs the shipped arms crs_a465 / "
+                            "crs_a255 (their pads)")
+
+
+def _validate_axes(scenario: Scenario) -> None:
+    """The circle's axes (unit and orthogonal, or one of them zero) and the object's motion
+    against every robot's constraint planes."""
+    t = scenario.task
+    axes = np.asarray(t.circle_axes, dtype=float)
+    norms = np.linalg.norm(axes, axis=1)
+    if not all(abs(v - 1.0) < 1e-6 or v == 0.0 for v in norms) or norms.max() == 0.0:
+        raise ScenarioError("task.circle_axes must be two unit vectors (or one of them "
+                            f"[0, 0, 0]), got {show(t.circle_axes)}")
+    if abs(axes[0] @ axes[1]) > 1e-6:
+        raise ScenarioError(f"task.circle_axes must be orthogonal, got {show(t.circle_axes)}")
+    if scenario.plant.object_mode == "none":
+        return
+    moves = [("the lift (z)", np.array([0.0, 0.0, 1.0]))] if t.lift_height > 0 else []
+    moves += [(f"task.circle_axes[{k}]", a) for k, a in enumerate(axes) if norms[k] > 0]
+    for i, r in enumerate(scenario.robots):
+        N = _unit_rows(r.normals, f"robots[{i}].normals")
+        for label, direction in moves:
+            j = int(np.argmax(np.abs(N @ direction)))
+            if abs(N[j] @ direction) > 1e-6:
+                raise ScenarioError(
+                    f"robots[{i}].normals[{j}] must be orthogonal to {label}: the object moves "
+                    "along it while held, so it must lie in every constraint plane")
+
+
+def _validate_dimensions(robot: Robot, n: int, where: str, scenario: Scenario) -> None:
+    """Lists sized by the arm's ``n`` joints and ``m`` constraints, and Assumption 1.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the field and the allowed size or value.
+    """
+    m = len(robot.normals)
+    if not 1 <= m <= min(n, 3):
+        raise ScenarioError(f"{where}.normals has {m} rows; allowed 1 to {min(n, 3)} "
+                            f"(m_i <= n_i = {n} joints, at most 3 for a point)")
+    N = _unit_rows(robot.normals, f"{where}.normals")
+    if np.linalg.svd(N, compute_uv=False).min() < 1e-3:
+        raise ScenarioError(f"{where}.normals must be linearly independent (J_phi full rank), "
+                            f"got {show(robot.normals)}")
+    sized = {f"{where}.force_weights": (robot.force_weights, m),
+             f"{where}.gains.K_R": (robot.gains.K_R, n),
+             f"{where}.actuators.torque_limits": (robot.actuators.torque_limits, n),
+             f"{where}.q_seed": (robot.q_seed, n)}
+    if robot.model_error.coulomb_friction:
+        sized[f"{where}.model_error.coulomb_friction"] = (robot.model_error.coulomb_friction, n)
+    for name, (value, size) in sized.items():
+        if value is not None and len(value) != size:
+            raise ScenarioError(f"{name} must have {size} entries (one per "
+                                f"{'constraint' if size == m and 'weights' in name else 'joint'}"
+                                f"), got {len(value)}")
+    xi = robot.gains.xi_matrix
+    if xi is not None:
+        X = np.asarray(xi, dtype=float) if all(len(row) == m for row in xi) else None
+        if X is None or X.shape != (m, m):
+            raise ScenarioError(f"{where}.gains.xi_matrix must be {m}x{m} (m_i = {m}), "
+                                f"got {show(xi)}")
+        if not np.allclose(X, X.T, rtol=0, atol=_TOL) or np.linalg.eigvalsh(X).min() <= 0:
+            raise ScenarioError(f"{where}.gains.xi_matrix must be symmetric positive definite, "
+                                f"got {show(xi)}")
+    task_dim = 3 if robot.ee_rpy_deg is None else 6
+    if n not in (3, 6):
+        raise ScenarioError(f"{where}.model has {n} joints: Assumption 1 needs an arm that is "
+                            "not redundant, 3 joints (position) or 6 (position and orientation)")
+    if n != task_dim:
+        raise ScenarioError(
+            f"{where}.ee_rpy_deg must be " + ("given for a 6-joint arm (its reference is "
+                                              "position and orientation)" if n == 6 else
+                                              "null for a 3-joint arm (position-only reference)"))
 
 
 # --------------------------------------------------------------------------- sensing

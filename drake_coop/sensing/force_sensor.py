@@ -40,20 +40,22 @@ class FTSensor(LeafSystem):
         Noise, bias, cutoff and seed.
     robot_index : int
         Index of the robot (noise stream).
+    m : int
+        Constraint rows: ``λ`` has one component per outward normal (the same model on each).
 
     Input ports
     -----------
-    lambda_true : 1-vector
-        The ground-truth squeeze ``λ`` (``robotN_force_sensor``'s ``lambda_meas``).
+    lambda_true : m-vector
+        The ground-truth ``λ`` (``robotN_force_sensor``'s ``lambda_meas``).
 
     Output ports
     ------------
-    lambda_sensor : 1-vector
+    lambda_sensor : m-vector
         ``λ_s(k)`` (state only).
     """
 
     def __init__(self, period: float, plant_step: float,
-                 settings: ForceSensorModel | None = None, robot_index: int = 0):
+                 settings: ForceSensorModel | None = None, robot_index: int = 0, m: int = 1):
         super().__init__()
         s = settings or ForceSensorModel()
         self._h = period
@@ -63,23 +65,22 @@ class FTSensor(LeafSystem):
         self._std = float(s.noise_std)
         self._seed = int(s.seed)
         self._robot = int(robot_index)
-        self._input = self.DeclareVectorInputPort("lambda_true", 1)
-        self._state = self.DeclareDiscreteState(np.array([0.0, self._bias]))
+        self._m = int(m)
+        self._input = self.DeclareVectorInputPort("lambda_true", m)
+        self._y = self.DeclareDiscreteState(np.zeros(m))                 # low-pass state
+        self._reading = self.DeclareDiscreteState(np.full(m, self._bias))  # held reading
         self.DeclarePeriodicDiscreteUpdateEvent(period, period - plant_step, self._update_reading)
-        self.DeclareVectorOutputPort("lambda_sensor", 1, self._calc_lambda_sensor,
-                                     prerequisites_of_calc={self.xd_ticket()})
+        self.DeclareStateOutputPort("lambda_sensor", self._reading)
 
     @property
     def alpha(self) -> float:
         """The low-pass gain ``α``."""
         return self._alpha
 
-    def _calc_lambda_sensor(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, context.get_discrete_state(self._state).GetAtIndex(1))
-
     def _update_reading(self, context: Context, discrete_state: DiscreteValues) -> None:
         k = int(round((context.get_time() + self._dt) / self._h))   # the tick being served
-        y_prev = context.get_discrete_state(self._state).GetAtIndex(0)
-        y = y_prev + self._alpha * (float(self._input.Eval(context)[0]) - y_prev)
-        noise = white_noise(self._seed, self._robot, FORCE_SENSOR_STREAM, k, self._std, 1)[0]
-        discrete_state.set_value(self._state, [y, y + self._bias + noise])
+        y_prev = context.get_discrete_state(self._y).CopyToVector()
+        y = y_prev + self._alpha * (self._input.Eval(context) - y_prev)
+        noise = white_noise(self._seed, self._robot, FORCE_SENSOR_STREAM, k, self._std, self._m)
+        discrete_state.set_value(self._y, y)
+        discrete_state.set_value(self._reading, y + self._bias + noise)

@@ -83,24 +83,25 @@ def controller_arm_model(arm: Arm, error: ModelError | None = None) -> ArmModel:
         return ArmModel(arm)
     text = scaled_urdf_text(Path(arm.controller_urdf_path).read_text(), error)
     with tempfile.TemporaryDirectory(prefix="drake_coop_model_") as folder:
-        path = Path(folder) / f"{arm.robot.model}_controller_model.urdf"
+        path = Path(folder) / f"{arm.name}_controller_model.urdf"
         path.write_text(text)
         return ArmModel(arm, path)
 
 
-def add_payload(plant: MultibodyPlant, instance, mass: float) -> RigidBody | None:
+def add_payload(plant: MultibodyPlant, instance, mass: float,
+                sensor_joint: str = "flange_sensor_weld") -> RigidBody | None:
     """Weld an unmodelled payload of ``mass`` kg to the tool flange of one simulated arm.
 
-    The payload's centre is the origin of the ``force_sensor`` body (the flange), fixed to
-    ``link3``: it sits on the arm's side of the wrist sensor, so the ground-truth force (the
-    reaction of ``flange_sensor_weld``) does not weigh it. Nothing is added for ``mass == 0``.
-    Call before ``plant.Finalize()``.
+    The payload's centre is the origin of the force-sensor body (the flange: the child frame
+    of ``sensor_joint``), fixed to the last link (its parent): it sits on the arm's side of the
+    wrist sensor, so the ground-truth force (the reaction of ``sensor_joint``) does not weigh
+    it. Nothing is added for ``mass == 0``. Call before ``plant.Finalize()``.
     """
     if mass <= 0.0:
         return None
-    weld = plant.GetJointByName("flange_sensor_weld", instance)
-    X_link3_flange = weld.frame_on_parent().GetFixedPoseInBodyFrame()
+    weld = plant.GetJointByName(sensor_joint, instance)
+    X_link_flange = weld.frame_on_parent().GetFixedPoseInBodyFrame()
     body = plant.AddRigidBody("payload", instance, SpatialInertia(
         mass, np.zeros(3), UnitInertia.SolidSphere(PAYLOAD_RADIUS)))
-    plant.WeldFrames(plant.GetFrameByName("link3", instance), body.body_frame(), X_link3_flange)
+    plant.WeldFrames(weld.parent_body().body_frame(), body.body_frame(), X_link_flange)
     return body
