@@ -233,8 +233,8 @@ def test_check_path_names_the_first_singular_posture(crs):
 
 @pytest.mark.parametrize("urdf, R_d, kind", [
     ("coop6_6dof.urdf", None, "6 joints for a 3-dimensional task: the arm is redundant"),
-    ("crs_a465_3dof.urdf", RotationMatrix(), "3 joints for a 6-dimensional task: the arm is "
-                                             "deficient"),
+    ("crs_a465_3dof.urdf", RotationMatrix(),
+     "3 joints for a 6-dimensional task: the arm is deficient"),
 ])
 def test_check_path_and_joint_reference_refuse_a_non_square_task(urdf, R_d, kind):
     kin = DrakeArmKinematics(URDF / urdf, RigidTransform(), R_d=R_d, name="r")

@@ -105,7 +105,7 @@ def _base_xml(base: tuple[float, float, float]) -> str:
     """The fixed base: welded to the world by the plant builder, its geometry below the plate."""
     bm, br, bh = base
     I = cylinder_inertia(bm, br, bh)
-    return (f'  <link name="base_link">\n' + _inertial(bm, -bh / 2, I)
+    return ('  <link name="base_link">\n' + _inertial(bm, -bh / 2, I)
             + _cyl_visual(br, bh, -bh / 2, "0.3 0.3 0.3 1") + '  </link>\n')
 
 

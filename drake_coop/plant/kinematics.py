@@ -38,7 +38,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable
 from pydrake.solvers import Solve
 
-__all__ = ["DrakeArmKinematics", "SINGULAR_RATIO", "NEWTON_TOL"]
+__all__ = ["NEWTON_TOL", "SINGULAR_RATIO", "DrakeArmKinematics"]
 
 #: Smallest-over-largest singular value of J below which a posture is called singular.
 SINGULAR_RATIO = 1e-3
@@ -219,7 +219,8 @@ class DrakeArmKinematics:
             result, q = self._ik_program(p, start, orientation)
         if not result.is_success():
             raise ValueError(f"{self.name}: point {np.round(p, 4).tolist()} out of reach "
-                             f"(inverse kinematics: {result.get_solution_result().name})")
+                             f"(inverse kinematics within the joint limits: "
+                             f"{result.get_solution_result().name})")
         try:
             polished = self.newton(p, q)
         except ValueError:
@@ -276,9 +277,11 @@ class DrakeArmKinematics:
                      else 2.0 * q[k - 1] - q[k - 2])
             try:
                 q[k] = self.solve_ik(xk, guess) if k == 0 else self.newton(xk, guess)
-            except ValueError:
+            except ValueError as error:
+                if k == 0:
+                    raise ValueError(f"{error} at sample 0") from None
                 try:
-                    q[k] = self.solve_ik(xk, q[k - 1] if k else guess)
+                    q[k] = self.solve_ik(xk, q[k - 1])
                 except ValueError as error:
                     raise ValueError(f"{error} at sample {k}") from None
         return q
