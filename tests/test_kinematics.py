@@ -244,6 +244,14 @@ def test_check_path_and_joint_reference_refuse_a_non_square_task(urdf, R_d, kind
         kin.joint_reference(x, 0 * x, 0 * x)
 
 
+@pytest.mark.parametrize("frames", [{"base_frame": "plate"}, {"ee_frame": "tool0"}],
+                         ids=["base", "ee"])
+def test_an_unknown_frame_is_named(frames):
+    name = next(iter(frames.values()))
+    with pytest.raises(ValueError, match=f"^r: .*coop6_6dof.urdf has no frame '{name}'$"):
+        DrakeArmKinematics(URDF / "coop6_6dof.urdf", RigidTransform(), name="r", **frames)
+
+
 def test_solve_ik_raises_out_of_reach_with_the_name(arm6):
     with pytest.raises(ValueError, match=r"^arm6: point \[2\.0, 0\.0, 0\.0\] out of reach"):
         arm6.solve_ik(np.array([2.0, 0.0, 0.0]), Q_SEED6)

@@ -28,6 +28,7 @@ non-singular arm) is what makes (∗) well posed: ``n == task_dim`` and ``J`` in
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -75,6 +76,11 @@ class DrakeArmKinematics:
         Initial guess of the first IK of :meth:`joint_reference` (default zeros).
     name : str
         The robot's name, first word of every error message.
+
+    Raises
+    ------
+    ValueError
+        ``base_frame`` or ``ee_frame`` not in the model, or a joint with ``q̇ ≠ v``.
     """
 
     def __init__(self, urdf: Path, X_WB: RigidTransform, base_frame: str = "base_link",
@@ -83,6 +89,9 @@ class DrakeArmKinematics:
         self.name = name
         plant = MultibodyPlant(0.0)
         Parser(plant).AddModels(str(urdf))
+        for frame in (base_frame, ee_frame):
+            if not plant.HasFrameNamed(frame):
+                raise ValueError(f"{name}: {urdf} has no frame {frame!r}")
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_frame), X_WB)
         plant.Finalize()
         self.plant = plant
@@ -111,7 +120,8 @@ class DrakeArmKinematics:
         self.plant.SetPositions(self.context, q)
         return self.ee_frame.CalcPoseInWorld(self.context)
 
-    def _map(self, q: np.ndarray, f, shape: tuple[int, ...]) -> np.ndarray:
+    def _map(self, q: np.ndarray, f: Callable[[np.ndarray], np.ndarray],
+             shape: tuple[int, ...]) -> np.ndarray:
         """``f`` of one posture (n,) or of each row of (K, n)."""
         q = np.asarray(q, dtype=float)
         if q.ndim == 1:
