@@ -46,14 +46,20 @@ def arm6():
                               name="arm6")
 
 
+def _crs_kinematics(i, arm, q_seed=None):
+    """Numeric kinematics of paper robot i's URDF at its closed form's base pose."""
+    X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
+    return DrakeArmKinematics(URDF / f"{CRS_MODELS[i]}_3dof.urdf", X_WB, q_seed=q_seed,
+                              name=f"robot{i + 1}")
+
+
 @pytest.fixture(scope="module", params=[0, 1], ids=["robot1", "robot2"])
 def crs(request):
-    """(closed-form Arm, numeric kinematics of the same URDF at the same base pose)."""
-    arm = Arm(paper_robots()[request.param])
-    X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
-    kin = DrakeArmKinematics(URDF / f"{CRS_MODELS[request.param]}_3dof.urdf", X_WB,
-                             name=f"robot{request.param + 1}")
-    return arm, kin
+    """(closed-form Arm, numeric kinematics of the same URDF at the same base pose,
+    a builder of the latter with a given ``q_seed``)."""
+    i = request.param
+    arm = Arm(paper_robots()[i])
+    return arm, _crs_kinematics(i, arm), lambda q_seed: _crs_kinematics(i, arm, q_seed)
 
 
 def _postures(kin, count, seed, fraction=0.8):
@@ -156,7 +162,7 @@ def test_joint_reference_moves_E_with_the_path_velocity_and_acceleration(arm6, r
 
 # ------------------------------------------------------------- the paper's arms, closed form
 def test_forward_kinematics_and_jacobian_equal_the_closed_form(crs):
-    arm, kin = crs
+    arm, kin, _ = crs
     assert (kin.n, kin.task_dim) == (3, 3)
     Q = _postures(kin, 20, seed=5)
     np.testing.assert_allclose(kin.fk(Q), arm.fk(Q), atol=1e-9)
@@ -164,7 +170,7 @@ def test_forward_kinematics_and_jacobian_equal_the_closed_form(crs):
 
 
 def test_inverse_kinematics_finds_the_closed_form_branch(crs):
-    arm, kin = crs
+    arm, kin, _ = crs
     rng = np.random.default_rng(6)
     for q in _postures(kin, 6, seed=7, fraction=0.5):
         q[2] = abs(q[2]) + 0.2                          # the closed form's branch: elbow up
@@ -174,14 +180,14 @@ def test_inverse_kinematics_finds_the_closed_form_branch(crs):
 
 
 def test_joint_reference_equals_the_closed_form_on_the_paper_circle(crs):
-    arm, kin = crs
+    arm, kin, with_seed = crs
     w, r, dt = 2 * math.pi / 40.0, 0.05, 0.05                      # circle (28), 40 s period
     t = np.arange(0.0, 40.0, dt)
     b = PLANES_B[int(kin.name[-1]) - 1]
     x = np.column_stack([np.full_like(t, b), r * np.sin(w * t), 0.585 + r * np.cos(w * t)])
     xd = np.column_stack([0 * t, r * w * np.cos(w * t), -r * w * np.sin(w * t)])
     xdd = np.column_stack([0 * t, -r * w * w * np.sin(w * t), -r * w * w * np.cos(w * t)])
-    kin.q_seed = arm.ik(x[0]) + 0.05
+    kin = with_seed(arm.ik(x[0]) + 0.05)
     q, qd, qdd = kin.joint_reference(x, xd, xdd)
     np.testing.assert_allclose(q, arm.ik(x), atol=1e-9)
     J = arm.jacobian(q)
@@ -200,8 +206,8 @@ def test_check_path_accepts_a_reachable_regular_path(arm6):
 
 
 def test_check_path_names_a_point_out_of_reach(crs):
-    arm, kin = crs
-    kin.q_seed = np.array([0.0, 0.3, 1.2])
+    arm, _, with_seed = crs
+    kin = with_seed(np.array([0.0, 0.3, 1.2]))
     x = arm.fk(np.array([[0.0, 0.3, 1.2], [0.0, 0.3, 1.1]]))
     far = arm.p_base + np.array([0.0, 0.0, 3.0])              # 3 m above the base
     message = kin.check_path(np.vstack([x, far]))
@@ -210,10 +216,10 @@ def test_check_path_names_a_point_out_of_reach(crs):
 
 
 def test_check_path_names_the_joint_leaving_its_limits(crs):
-    arm, kin = crs
+    arm, _, with_seed = crs
     q_path = np.column_stack([np.full(41, 0.1), np.full(41, -0.2), np.linspace(1.7, 2.1, 41)])
-    first = int(np.argmax(q_path[:, 2] > kin.q_max[2]))         # 110° = 1.9199 rad
-    kin.q_seed = q_path[0]
+    first = int(np.argmax(q_path[:, 2] > math.radians(110)))   # the published limit of J3
+    kin = with_seed(q_path[0])
     message = kin.check_path(arm.fk(q_path))
     assert message == (f"{kin.name}: joint joint3 at {q_path[first, 2]:.4f} rad outside its "
                        f"limits [{-math.radians(110):.4f}, {math.radians(110):.4f}] "
@@ -221,12 +227,12 @@ def test_check_path_names_the_joint_leaving_its_limits(crs):
 
 
 def test_check_path_names_the_first_singular_posture(crs):
-    arm, kin = crs
+    arm, _, with_seed = crs
     q_path = np.column_stack([np.zeros(50), np.full(50, 0.4), np.geomspace(0.3, 1e-4, 50)])
     sigma = np.linalg.svd(arm.jacobian(q_path), compute_uv=False)   # closed form
     first = int(np.argmax(sigma[:, -1] / sigma[:, 0] < SINGULAR_RATIO))
     assert 0 < first < 49
-    kin.q_seed = q_path[0]
+    kin = with_seed(q_path[0])
     message = kin.check_path(arm.fk(q_path))
     assert message.startswith(f"{kin.name}: singular posture at sample {first} ")
 
