@@ -298,6 +298,8 @@ def test_reference_velocity_splits_into_tangent_and_normal_parts(con):
 
 
 def test_scalar_xi_in_4_and_11_is_the_matrix_xi_identity_bit_for_bit(con):
+    """A scalar ξ in (4) and (11) gives the very doubles of the matrix ξ I (the paper's m = 1
+    runs keep their bits when ξ becomes a matrix)."""
     q, kw = _reference_inputs(con, seed=50)
     rng = np.random.default_rng(51)
     xi, m = 0.37, con.m
