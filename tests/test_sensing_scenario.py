@@ -34,7 +34,7 @@ def test_defaults_are_the_ideal_sensors_and_the_papers_observers():
     assert r.actuators.torque_limits is None
     m = r.model_error
     assert (m.mass_scale, m.inertia_scale, m.damping_scale, m.payload_mass) == (1, 1, 1, 0)
-    assert m.coulomb_friction == [0.0] * 3
+    assert m.coulomb_friction == []          # no joint friction
 
 
 def test_realistic_yaml_loads_and_round_trips():

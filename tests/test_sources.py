@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from drake_coop.control.finger import ReferenceLayout
 from drake_coop.control.sources import (
     DifferenceVelocity,
     MeasuredVelocity,
@@ -59,7 +60,7 @@ def test_low_passed_difference_of_a_ramp_is_the_first_order_step_response():
 
 
 def test_sensed_force_uses_the_sensor_and_integrates_6_while_held():
-    sf = SensedForce(H)
+    sf = SensedForce(H, ReferenceLayout(3, 1))
     ctx = sf.CreateDefaultContext()
     sf.GetInputPort("lambda_sensor").FixValue(ctx, [30.0])
     sf.GetInputPort("reference").FixValue(ctx, _reference(25.0, True))
@@ -77,7 +78,7 @@ def test_sensed_force_uses_the_sensor_and_integrates_6_while_held():
 
 @pytest.mark.parametrize("held, expected", [(True, 17.5), (False, 0.0)])
 def test_no_force_estimate_is_the_desired_force_and_no_integral(held, expected):
-    nf = NoForceEstimate()
+    nf = NoForceEstimate(ReferenceLayout(3, 1))
     ctx = nf.CreateDefaultContext()
     nf.GetInputPort("reference").FixValue(ctx, _reference(17.5, held))
     assert nf.GetOutputPort("lambda_hat").Eval(ctx)[0] == expected

@@ -239,4 +239,5 @@ def check_reachable(scenario: Scenario) -> None:
         x, _, _ = cartesian_reference(task, robot, t)
         problem = arm.kinematics.check_path(x, t)
         if problem:
+            problem = problem.removeprefix(f"{robot.name}: ")
             raise ScenarioError(f"robots[{i}] ({robot.name}): {problem}; {_fields_to_check(i)}")

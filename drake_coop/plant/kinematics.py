@@ -28,6 +28,7 @@ non-singular arm) is what makes (∗) well posed: ``n == task_dim`` and ``J`` in
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -333,14 +334,19 @@ class DrakeArmKinematics:
         return q, qd, qdd
 
     # ------------------------------------------------------------------ validation
-    def check_path(self, x: np.ndarray) -> str:
+    def check_path(self, x: np.ndarray, t: np.ndarray | None = None) -> str:
         """``''`` if the arm can follow the Cartesian path x (K, 3), else one line saying why.
 
         In this order: a redundant or deficient arm (Assumption 1: ``n == task_dim``); a point
         out of reach (IK fails); a joint outside its limits (the first one: joint name, value,
         limits, sample index); a singular posture (``σ_min(J)/σ_max(J) <`` :data:`SINGULAR_RATIO`,
-        the first sample).
+        the first sample). With the samples' times ``t``, the message gives the time instead of
+        the index.
         """
+        if t is not None:
+            message = self.check_path(x)
+            return re.sub(r"at sample (\d+)", lambda m: f"at t = {t[int(m.group(1))]:.2f} s",
+                          message)
         try:
             self._require_square()
             q = self.joint_positions(x)

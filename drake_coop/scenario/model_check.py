@@ -47,7 +47,7 @@ def check_models(scenario: Scenario) -> list[int]:
         ``robots[i].model`` (or ``controller_model``, ``base_frame``, ...), the path and the
         problem.
     """
-    from drake_coop.plant.arms import model_urdf_path, controller_urdf_path
+    from drake_coop.plant.arms import controller_urdf_path, model_urdf_path
 
     joints = []
     for i, robot in enumerate(scenario.robots):
@@ -80,7 +80,8 @@ def check_model_file(path: str | Path, field: str, robot: Robot | None = None) -
     Raises
     ------
     ScenarioError
-        ``"<field>: <path> <problem>"`` (a missing frame or joint names its own field).
+        ``"<field>: <path> <problem>"`` (a missing frame or joint also names the field that
+        names it).
     """
     robot = robot or Robot()
     path = Path(path)
@@ -93,8 +94,8 @@ def check_model_file(path: str | Path, field: str, robot: Robot | None = None) -
                                robot.ee_frame, robot.sensor_joint)
     if problem:
         where, _, text = problem.partition("|")
-        if where:   # a frame or joint field: name it
-            field = field.rsplit(".", 1)[0] + "." + where
+        if where:   # a frame or joint named by another field: name that field too
+            text += f" ({field.rsplit('.', 1)[0]}.{where})"
         raise ScenarioError(f"{field}: {shown} {text}")
     return n
 

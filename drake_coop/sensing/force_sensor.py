@@ -19,7 +19,7 @@ controller reading it forms no algebraic loop; it holds ``Î»_s(k)`` from ``t_k â
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
 
 from drake_coop.scenario.schema import ForceSensorModel
 from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
