@@ -55,7 +55,7 @@ def test_dump_and_load_round_trip():
     ("robots: [{gains: {beta: 0}}, {name: b, normals: [[1, 0, 0]]}]", "robots[0].gains.beta must be a finite number in (0, 1000] 1/s"),
     ("robots: [{gains: {K_R: [1, -1, 1]}}, {name: b, normals: [[1, 0, 0]]}]",
      "robots[0].gains.K_R[1] must be a finite number in (0, 10000]"),
-    ("robots: [{}]", "robots must list 2 to 12 robots"),
+    ("robots: [{}]", "robots must list 2 to 8 robots"),
     ("task: {circle_radius: 0.5}", "out of reach"),
     ("robots: [{home: [2.0, 0, 0.5]}, {name: b, model: crs_a255, base_xyz: [1.16, 0, 0], "
      "base_yaw_deg: 180, contact_xy: [0.8192, 0], normals: [[1, 0, 0]], home: [0.9, 0, 0.6]}]",

@@ -155,7 +155,7 @@ def test_empty_file_and_null_sections_are_named():
 
 
 def test_empty_robot_list_is_refused():
-    assert "robots must list 2 to 12 robots (the paper's l >= 2 fingers), got 0" in _refused(
+    assert "robots must list 2 to 8 robots (the paper's l >= 2 fingers), got 0" in _refused(
         "robots: []")
     assert "got 1" in _refused("robots: [{}]")
 

@@ -81,8 +81,8 @@ LENGTHS: dict[str, int] = {"robots[].base_xyz": 3, "robots[].home": 3,
                            "robots[].contact_xy": 2, "robots[].normals[]": 3,
                            "robots[].ee_rpy_deg": 3, "task.circle_axes": 2,
                            "task.circle_axes[]": 3}
-#: At most this many robots in one scenario.
-MAX_ROBOTS = 12
+#: At most this many robots in one scenario (as many as a run folder holds, results.logs).
+MAX_ROBOTS = 8
 #: Tolerance of the geometric rules (unit vectors, orthogonality, independence).
 _TOL = 1e-9
 
