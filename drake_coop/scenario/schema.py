@@ -303,14 +303,15 @@ class Task:
     circle_top_z : float
         z of the circle's start point, 0.635 m in (28).
     circle_radius : float
-        Radius of the circle (28), 0.05 m.
+        Radius of the circle (28), 0.05 m; 0: the object stays at the circle's start.
     circle_axes : list[list[float]]
         ``[u, v]``: the circle (28) is ``c + R sin θ u + R (cos θ − 1) v`` from its start point
         ``c``; the paper's ``u = e_y``, ``v = e_z``. Unit and orthogonal, or one of them zero (a
         straight back-and-forth along the other). Every direction the object moves along while
         held (z for the lift, ``u``, ``v``) must lie in every robot's constraint planes.
     lift_height : float
-        Height of the lift from the grasp point to the circle's start (m).
+        Height of the lift from the grasp point to the circle's start (m); 0: no lift (e.g.
+        a point held in place, ``m_i = 3``).
     force_mean, force_amplitude : float
         32 N and 18 N of (29).
     force_omega : float

@@ -64,9 +64,9 @@ BOUNDS: dict[str, Bound] = {
         "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
     "task.circle_top_z": Bound(-5.0, 5.0, "m"),
-    "task.circle_radius": Bound(0.0, 1.0, "m", **_POS),
+    "task.circle_radius": Bound(0.0, 1.0, "m"),
     "task.circle_axes[][]": Bound(-1.0, 1.0),
-    "task.lift_height": Bound(0.0, 1.0, "m", **_POS),
+    "task.lift_height": Bound(0.0, 1.0, "m"),
     "task.force_mean": Bound(0.0, 1e3, "N"),
     "task.force_amplitude": Bound(0.0, 1e3, "N"),
     "task.force_omega": Bound(0.0, 100.0, "rad/s"),
@@ -162,13 +162,13 @@ def validate(scenario: Scenario) -> None:
             f"task.force_amplitude ({t.force_amplitude}) must not exceed task.force_mean "
             f"({t.force_mean}): the squeeze force must stay >= 0")
 
-    _validate_axes(scenario)
     # Imported late: the plant's kinematics (arms) import the scenario package.
     from drake_coop.experiment.references import check_reachable
     from drake_coop.scenario.model_check import check_models
 
     for i, (robot, n) in enumerate(zip(scenario.robots, check_models(scenario))):
         _validate_dimensions(robot, n, f"robots[{i}]", scenario)
+    _validate_axes(scenario)
     check_reachable(scenario)
 
 
@@ -217,7 +217,8 @@ def _validate_axes(scenario: Scenario) -> None:
     if scenario.plant.object_mode == "none":
         return
     moves = [("the lift (z)", np.array([0.0, 0.0, 1.0]))] if t.lift_height > 0 else []
-    moves += [(f"task.circle_axes[{k}]", a) for k, a in enumerate(axes) if norms[k] > 0]
+    moves += [(f"task.circle_axes[{k}]", a) for k, a in enumerate(axes)
+              if norms[k] > 0 and t.circle_radius > 0]
     for i, r in enumerate(scenario.robots):
         N = _unit_rows(r.normals, f"robots[{i}].normals")
         for label, direction in moves:
