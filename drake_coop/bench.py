@@ -50,7 +50,8 @@ def _plant_alone(scenario, t_end: float) -> tuple[float, float]:
 
     b = DiagramBuilder()
     coop = build_plant(b, scenario)
-    q0 = [reference_samples(scenario, i)[1][0, 0:3] for i in range(2)]
+    q0 = [reference_samples(scenario, i, 0.0)[1][0, :h.arm.kinematics.n]
+          for i, h in enumerate(coop.arms)]
     for i, h in enumerate(coop.arms):
         src = b.AddSystem(ConstantVectorSource(ArmModel(h.arm).g(q0[i])))
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
@@ -58,7 +59,7 @@ def _plant_alone(scenario, t_end: float) -> tuple[float, float]:
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
     pc = coop.plant.GetMyMutableContextFromRoot(ctx)
-    initialize_plant_context(coop, pc, q0, 0.535)
+    initialize_plant_context(coop, pc, q0, scenario.task.circle_top_z - scenario.task.lift_height)
     coop.set_held(pc, True)
     sim.Initialize()
     wall, cpu = time.perf_counter(), time.process_time()
@@ -166,15 +167,16 @@ def _tick_costs(scenario) -> dict[str, float]:
     robot: (15)/(8), (22), (13) and (16) at the same sample.
     """
     from drake_coop.control.arm_model import ArmModel
-    from drake_coop.control.finger import FingerLaw, Reference
+    from drake_coop.control.finger import FingerLaw
     from drake_coop.experiment.references import reference_samples
     from drake_coop.plant.arms import Arm
 
     robot = scenario.robots[0]
-    law = FingerLaw(ArmModel(Arm(robot)), robot.gains)
+    law = FingerLaw(ArmModel(Arm(robot, scenario.task)), robot.gains)
     _, r = reference_samples(scenario, 0)
-    k = int(np.argmax(r[:, 10] > 0.5)) + 1000
-    ref = Reference.unpack(r[k])
+    k = int(np.argmax(law.layout.column(r, "held")[:, 0] > 0.5)) + 1000
+    ref = law.layout.unpack(r[k])
+    DF = np.full(law.m, 0.1)
     q_hat, qdot_hat_o = ref.q_d.copy(), ref.qdot_d.copy()
     samples = [ref.q_d + 1e-4, ref.q_d - 1e-4]
     state = {"i": 0}
@@ -186,20 +188,20 @@ def _tick_costs(scenario) -> dict[str, float]:
     def controller():
         q = q_next()
         qdot_hat, qdot_o = law.observer_derivative(q, q_hat, qdot_hat_o)
-        return law.control(q, q_hat, qdot_hat, qdot_o, ref.lambda_d, 0.1, ref)
+        return law.control(q, q_hat, qdot_hat, qdot_o, ref.lambda_d, DF, ref)
 
     def tick():
         q = q_next()
         qdot_hat, qdot_o = law.observer_derivative(q, q_hat, qdot_hat_o)
-        lam = law.force_estimate(q, q_hat, qdot_o, ref, 0.1)
-        terms = law.control(q, q_hat, qdot_hat, qdot_o, lam, 0.1, ref)
+        lam = law.force_estimate(q, q_hat, qdot_o, ref, DF)
+        terms = law.control(q, q_hat, qdot_hat, qdot_o, lam, DF, ref)
         return law.observer_acceleration(q, q_hat, terms["qddot_r_hat"])
 
     qdot_o = law.observer_derivative(samples[0], q_hat, qdot_hat_o)[1]
     n = 1000
     costs = {
         "controller (13)": controller,
-        "force observer (22)": lambda: law.force_estimate(q_next(), q_hat, qdot_o, ref, 0.1),
+        "force observer (22)": lambda: law.force_estimate(q_next(), q_hat, qdot_o, ref, DF),
         "velocity observer (15)-(16)": lambda: (law.observer_derivative(q_next(), q_hat,
                                                                         qdot_hat_o),
                                                 law.observer_acceleration(q_hat, q_hat,
@@ -234,7 +236,7 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
     t_extra : float, optional
         Simulated seconds of that run (default: the scenario's whole task).
     """
-    from drake_coop.experiment.references import num_ticks_until
+    from drake_coop.experiment.plan import num_ticks_until
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.schema import default_scenario
     from drake_coop.scenario.timing import aligned_periods

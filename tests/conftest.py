@@ -32,7 +32,7 @@ def advance_to_tick(scenario, k: int):
     from pydrake.systems.analysis import Simulator
 
     from drake_coop.experiment.diagram import build_experiment
-    from drake_coop.experiment.references import grasp_ticks
+    from drake_coop.experiment.plan import grasp_ticks
     from drake_coop.experiment.simulate import initialize
     from drake_coop.scenario import aligned_periods
 

@@ -161,11 +161,13 @@ def test_numpy_replay_reproduces_the_run_for_m_constraints(multi_run, index, m):
 @pytest.mark.parametrize("index", [0, 1], ids=["m2", "m3"])
 def test_every_constraint_row_tracks_its_desired_force(multi_run, index):
     """Theorem 1 per row: on the held phase λ follows λ_d = w f(t) on every row, and the
-    contact point stays on its planes."""
+    contact point stays on its planes. (The compressed task's λ_d jumps at t_circle_end, where
+    (29)'s sine is not back to zero: 0.2 s after each switch are left out.)"""
     scenario, result = multi_run
     log = result.logs[scenario.robots[index].name]
-    t = log["t"]
-    hold = (t > scenario.task.t_grasp + 0.5) & (t < scenario.task.t_release)
+    t, task = log["t"], scenario.task
+    hold = (((t > task.t_grasp + 0.5) & (t < task.t_circle_end))
+            | ((t > task.t_circle_end + 0.2) & (t < task.t_release)))
     err = log["lambda_meas"][hold] - log["lambda_d"][hold]
     assert np.abs(err).max() < 0.5, np.abs(err).max(axis=0)
     arm = Arm(scenario.robots[index], scenario.task)

@@ -16,7 +16,7 @@ import pytest
 
 from drake_coop.cli import main
 from drake_coop.experiment.diagram import build_experiment
-from drake_coop.experiment.references import grasp_ticks
+from drake_coop.experiment.plan import grasp_ticks
 from drake_coop.experiment.simulate import simulate
 from drake_coop.results.logs import COLUMNS, OPTIONAL_COLUMNS, load_logs, save_logs
 from drake_coop.results.metrics import compute_metrics

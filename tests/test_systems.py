@@ -17,7 +17,8 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 
 from drake_coop.experiment.diagram import build_experiment
-from drake_coop.experiment.references import grasp_ticks, reference_samples
+from drake_coop.experiment.plan import grasp_ticks
+from drake_coop.experiment.references import reference_samples
 from drake_coop.experiment.simulate import initialize, simulate
 from drake_coop.scenario import aligned_periods
 from tests.conftest import advance_to_tick, short_scenario

@@ -41,16 +41,15 @@ so the switch never depends on rounding of ``k·h``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control.finger import ReferenceLayout
+from drake_coop.experiment.plan import num_ticks_until, plan_run
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Robot, Scenario, ScenarioError, Task
-from drake_coop.scenario.timing import aligned_periods
 
 
 def quintic(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -158,16 +157,6 @@ def force_reference(task: Task, t: np.ndarray) -> np.ndarray:
     return f
 
 
-def grasp_ticks(task: Task, h: float) -> tuple[int, int]:
-    """First held tick and first released tick: ``(⌈t_grasp/h⌉, ⌈t_release/h⌉)``."""
-    return (int(math.ceil(task.t_grasp / h - 1e-6)), int(math.ceil(task.t_release / h - 1e-6)))
-
-
-def num_ticks_until(t: float, h: float) -> int:
-    """Index of the last control tick at or before ``t``."""
-    return int(math.floor(t / h + 1e-6))
-
-
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the arm's IK."""
@@ -187,23 +176,21 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     Returns
     -------
     t : ndarray, shape (K,)
-        Tick times ``k h`` (``h`` from :func:`~drake_coop.scenario.aligned_periods`).
+        Tick times ``k h`` (``h`` of the run's plan, :mod:`drake_coop.experiment.plan`).
     r : ndarray, shape (K, 3n + m + 1)
         Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`drake_coop.control.finger.ReferenceLayout`).
     """
-    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
-    task = scenario.task
-    robot = scenario.robots[index]
-    k_last = num_ticks_until(task.t_end, h)
+    plan = plan_run(scenario)
+    h, task, robot = plan.h, scenario.task, scenario.robots[index]
+    k_last = plan.k_end
     if t_end is not None:
         k_last = max(1, min(k_last, num_ticks_until(t_end, h) + 1))
     k = np.arange(k_last + 1)
     t = k * h
     x, xd, xdd = cartesian_reference(task, robot, t)
-    arm = Arm(robot, task)
+    arm = plan.arms[index]
     q, qd, qdd = joint_reference(arm, x, xd, xdd)
-    k_grasp, k_release = grasp_ticks(task, h)
-    held = ((k >= k_grasp) & (k < k_release)).astype(float)
+    held = ((k >= plan.k_grasp) & (k < plan.k_release)).astype(float)
     lam = force_reference(task, t)[:, None] * np.asarray(robot.force_weights, dtype=float)
     return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
 

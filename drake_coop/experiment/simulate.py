@@ -1,12 +1,14 @@
 """Run an experiment: initial state, grasp/release segments, divergence guards, logs.
 
-The simulation advances in chunks of ``guards.check_period``. The grasp constraints are
-switched on exactly at the first held control tick ``k_grasp h`` and off at ``k_release h``
-(between two ``AdvanceTo`` calls, before that tick's updates), so the plant and the
-controllers change form at the same instant. After every chunk the guards check for a
-non-finite state, a joint past its limit and a force beyond ``guards.max_force``; a tripped
-guard (or an exception inside Drake) ends the run with ``status = "diverged"`` and whatever was
-logged so far.
+The run follows its :class:`~drake_coop.experiment.plan.RunPlan`. The simulator stops only
+where the plant changes: the grasp constraints are switched on exactly at the first held
+control tick ``k_grasp h`` and off at ``k_release h`` (between two ``AdvanceTo`` calls, before
+that tick's updates), so the plant and the controllers change form at the same instant. The
+divergence guards are a Simulator monitor (:meth:`Simulator.set_monitor`), evaluated after the
+step that reaches each multiple of ``guards.check_period``: a non-finite state, a joint past its
+limit or a force beyond ``guards.max_force`` ends the run (the monitor returns
+``EventStatus.ReachedTermination``) with ``status = "diverged"`` and whatever was logged so far;
+so does an exception inside Drake.
 """
 
 from __future__ import annotations
@@ -18,20 +20,20 @@ from dataclasses import dataclass, field
 from typing import Callable, ContextManager
 
 import numpy as np
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import Simulator, SimulatorStatus
+from pydrake.systems.framework import EventStatus
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
+from drake_coop.experiment.plan import RunPlan, plan_run
 from drake_coop.experiment.references import (
     cartesian_reference,
-    grasp_ticks,
     joint_reference,
-    num_ticks_until,
     reference_trajectory,
 )
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
-from drake_coop.scenario.timing import aligned_periods, check_run_size
+from drake_coop.scenario.timing import check_run_size
 
 
 @dataclass
@@ -105,6 +107,40 @@ def _check_guards(exp: Experiment, context) -> str | None:
                 return (f"{rs.name} {label} {value:.1f} N exceeds guards.max_force = "
                         f"{g.max_force} N")
     return None
+
+
+class GuardMonitor:
+    """The divergence guards as a Simulator monitor (``simulator.set_monitor(monitor)``).
+
+    Called by the simulator after every step; every ``guards.check_period`` of simulated time
+    it evaluates :func:`_check_guards` and reports progress. A tripped guard returns
+    ``EventStatus.ReachedTermination``: ``AdvanceTo`` returns early and :attr:`message` says
+    why.
+    """
+
+    def __init__(self, exp: Experiment, plan: RunPlan,
+                 progress: Callable[[float, float, float], None] | None = None):
+        self._exp = exp
+        self._plan = plan
+        self._progress = progress
+        chunk = max(1, int(round(exp.scenario.guards.check_period / plan.h)))
+        self._period = chunk * plan.h
+        self._next = self._period
+        self._start = time.perf_counter()
+        self.message: str | None = None
+
+    def __call__(self, context) -> EventStatus:
+        t = context.get_time()
+        if t < self._next * (1 - 1e-12):
+            return EventStatus.DidNothing()
+        self._next = (math.floor(t / self._period + 1e-9) + 1) * self._period
+        reason = _check_guards(self._exp, context)
+        if reason is not None:
+            self.message = f"diverged at t = {t:.3f} s: {reason}"
+            return EventStatus.ReachedTermination(self._exp.diagram, self.message)
+        if self._progress is not None:
+            self._progress(t, self._plan.t_end, time.perf_counter() - self._start)
+        return EventStatus.Succeeded()
 
 
 def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
@@ -185,7 +221,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         If the run's work exceeds :data:`~drake_coop.scenario.MAX_TICKS` or
         :data:`~drake_coop.scenario.MAX_PLANT_STEPS` (checked before anything is built).
     """
-    T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
+    plan = plan_run(scenario, t_end)
+    T = plan.t_end
     check_run_size(scenario, T)
     # References only to the run's end: a long task stopped early stays cheap.
     references = [reference_trajectory(scenario, i, T) for i in range(len(scenario.robots))]
@@ -196,35 +233,29 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     simulator.Initialize()
     if on_start is not None:
         on_start(exp, simulator)
-    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
-    k_end = num_ticks_until(T, h)
-    k_grasp, k_release = grasp_ticks(scenario.task, h)
-    switches = {k_grasp: True, k_release: False}
-    # Stop only at control ticks (k h, computed as Drake computes event times): a stop
-    # between two events would add a step boundary that is not a tick.
-    chunk = max(1, int(round(scenario.guards.check_period / h)))
-    stops = sorted({*range(chunk, k_end, chunk), *[k for k in switches if k < k_end], k_end})
+    monitor = GuardMonitor(exp, plan, progress)
+    simulator.set_monitor(monitor)
     status, message = "ok", ""
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
     start = time.perf_counter()
     try:
-        for k_stop in stops:
-            stop = k_stop * h
+        # Stop only where the plant changes (grasp, release) and at the end, at control ticks
+        # (k h, computed as Drake computes event times).
+        for k_stop in plan.stops:
             try:
-                simulator.AdvanceTo(stop)
+                result = simulator.AdvanceTo(k_stop * plan.h)
             except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
                 status, message = "diverged", (
                     f"simulation failed at t = {context.get_time():.3f} s: "
                     f"{' '.join(str(exc).split())[:300]}")
                 break
-            reason = _check_guards(exp, context)
-            if reason is not None:
-                status, message = "diverged", f"diverged at t = {stop:.3f} s: {reason}"
+            if result.reason() == SimulatorStatus.ReturnReason.kReachedTerminationCondition:
+                status, message = "diverged", monitor.message or result.message()
                 break
-            if k_stop in switches:
-                exp.coop.set_held(plant_context, switches[k_stop])
-            if progress is not None:
-                progress(stop, T, time.perf_counter() - start)
+            if k_stop in plan.switches:
+                exp.coop.set_held(plant_context, plan.switches[k_stop])
+        if status == "ok" and progress is not None:
+            progress(context.get_time(), T, time.perf_counter() - start)
     except KeyboardInterrupt:     # Ctrl-C, wherever it lands: stop, keep what was logged
         status, message = "interrupted", f"interrupted at t = {context.get_time():.3f} s"
     wall = time.perf_counter() - start
@@ -235,7 +266,7 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         "message": message or f"completed {T:g} s",
         "phases": phases(scenario),
         "robots": [rs.name for rs in exp.robots],
-        "control_period": h,
+        "control_period": plan.h,
         "plant_time_step": scenario.plant.time_step,
         "object_mode": scenario.plant.object_mode,
         "t_end": float(context.get_time()),

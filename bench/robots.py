@@ -1,0 +1,19 @@
+"""Cost per control tick against the number of robots: ``python bench/robots.py
+[--robots 2 3 4 6] [--t-end 10] [--out robots.json]`` (see :mod:`drake_coop.bench_robots`)."""
+
+import argparse
+import json
+
+from drake_coop.bench_robots import robots_scaling
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--robots", type=int, nargs="+", default=[2, 3, 4, 6])
+    parser.add_argument("--t-end", type=float, default=10.0)
+    parser.add_argument("--out", default=None, help="write the numbers as JSON")
+    args = parser.parse_args()
+    rows = robots_scaling(tuple(args.robots), args.t_end)
+    if args.out:
+        from drake_coop.results.io import atomic_write_text
+
+        atomic_write_text(args.out, json.dumps(rows, indent=2))

@@ -1,0 +1,81 @@
+"""Benchmark: cost per control tick against the number of robots ``l`` (issue 10).
+
+``python bench/robots.py [--robots 2 3 4 6] [--t-end 10]`` builds ``l`` identical CRS A255 arms
+around one object (:func:`ring_scenario`, the geometry of ``scenarios/three_arms.yaml`` with
+the arms ``360°/l`` apart, planes mode) and measures, in one process, the CPU time of the
+experiment and of the plant alone (the same plant and constraints, constant torques, no Python
+system) for each ``l``. Reported per control tick: the plant alone, the control loop (the
+difference: the ``l`` control blocks, sensors, references and loggers) and the control loop per
+robot. A per-robot cost that stays flat as ``l`` grows is the linear growth the paper's
+decentralized scheme promises.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from drake_coop.scenario.schema import Robot, Scenario
+
+#: Distances from the object's centre (m): the contact points and the bases.
+CONTACT_RADIUS, BASE_RADIUS = 0.1, 0.44
+
+
+def ring_scenario(l: int) -> Scenario:
+    """``l`` A255 arms ``360°/l`` apart around the palm origin, each pushing on its own plane
+    towards the centre; the object dips along z instead of the circle (as three_arms.yaml)."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import scenarios_dir
+
+    s = load_scenario(scenarios_dir() / "three_arms.yaml")
+    template = s.robots[0]
+    robots = []
+    for i in range(l):
+        a = 2 * math.pi * i / l
+        c, sn = math.cos(a), math.sin(a)
+        robots.append(Robot(
+            name=f"robot{i + 1}", model=template.model, base_xyz=[BASE_RADIUS * c,
+                                                                  BASE_RADIUS * sn, 0.0],
+            base_yaw_deg=math.degrees(a) + 180.0 - (360.0 if a > math.pi else 0.0),
+            contact_xy=[CONTACT_RADIUS * c, CONTACT_RADIUS * sn], normals=[[c, sn, 0.0]],
+            home=[2 * CONTACT_RADIUS * c, 2 * CONTACT_RADIUS * sn, 0.6], gains=template.gains))
+    s.robots = robots
+    from drake_coop.scenario.validation import validate
+
+    validate(s)
+    return s
+
+
+def robots_scaling(counts: tuple[int, ...] = (2, 3, 4, 6), t_end: float = 10.0) -> list[dict]:
+    """CPU microseconds per control tick of the experiment and of the plant alone per ``l``.
+
+    Returns
+    -------
+    list of dict
+        Per ``l``: ``robots``, ``experiment_us``, ``plant_alone_us``, ``control_loop_us`` and
+        ``control_loop_us_per_robot`` (per control tick).
+    """
+    from drake_coop.bench import _experiment, _plant_alone
+    from drake_coop.experiment.plan import plan_run
+
+    rows = []
+    for l in counts:
+        s = ring_scenario(l)
+        ticks = plan_run(s, t_end).k_end
+        full = _experiment(s, t_end)[1]
+        plant = _plant_alone(s, t_end)[1]
+        loop = 1e6 * (full - plant) / ticks
+        rows.append({"robots": l, "experiment_us": 1e6 * full / ticks,
+                     "plant_alone_us": 1e6 * plant / ticks, "control_loop_us": loop,
+                     "control_loop_us_per_robot": loop / l})
+        r = rows[-1]
+        print(f"  l = {l}: experiment {r['experiment_us']:7.0f}, plant alone "
+              f"{r['plant_alone_us']:6.0f}, control loop {loop:7.0f} us per tick = "
+              f"{loop / l:5.0f} us per robot", flush=True)
+    slope, intercept = np.polyfit([r["robots"] for r in rows],
+                                  [r["control_loop_us"] for r in rows], 1)
+    print(f"  control loop ~ {intercept:.0f} + {slope:.0f} l us per tick (least squares over "
+          f"l = {', '.join(str(r['robots']) for r in rows)}; {time.strftime('%Y-%m-%d')})")
+    return rows
