@@ -3,12 +3,15 @@
 A scenario is the single source of truth of a run: the plant (time step, object mode), the
 robots (``l >= 2``; model, frames, base pose, constraint planes, home point, gains), the task of Section IV of
 the paper (phase times, circle (28), force profile (29)) and the simulation guards.
-``scenarios/paper.yaml`` holds the paper's experiment; :func:`default_scenario` returns the
-same numbers from code. Loading is in :mod:`drake_coop.scenario.loading`, the ranges and rules
+``scenarios/paper.yaml`` holds the paper's experiment, the one source of its numbers:
+:func:`default_scenario` and :func:`paper_robots` read it. The dataclass defaults below are
+what a field takes when a scenario file leaves it out (the paper's robot 1 and task; a test
+pins them to ``paper.yaml``). Loading is in :mod:`drake_coop.scenario.loading`, the ranges and rules
 in :mod:`drake_coop.scenario.validation`. This module imports only the leaf
 :mod:`drake_coop.scenario.bounds` (for the one-line message of :class:`ScenarioError`).
 """
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Optional
@@ -377,36 +380,24 @@ class Scenario:
 
 
 def paper_robots() -> list[Robot]:
-    """The two robots of Section IV with the paper's gains (β is ours)."""
-    return [
-        Robot(
-            name="robot1",
-            model="crs_a465",
-            base_xyz=[0.0, 0.0, 0.0],
-            base_yaw_deg=0.0,
-            contact_xy=[0.6, 0.0],
-            normals=[[-1.0, 0.0, 0.0]],
-            home=[0.5, 0.0, 0.6],
-            gains=Gains(Lambda=35.0, K_R=[120.0] * 3, k_d=40.0, k_F=0.05, xi=1e-5, zeta=1e-3,
-                        beta=10.0),
-        ),
-        Robot(
-            name="robot2",
-            model="crs_a255",
-            base_xyz=[1.16, 0.0, 0.0],
-            base_yaw_deg=180.0,
-            contact_xy=[0.8192, 0.0],
-            normals=[[1.0, 0.0, 0.0]],
-            home=[0.9, 0.0, 0.6],
-            gains=Gains(Lambda=26.0, K_R=[100.0] * 3, k_d=40.0, k_F=0.05, xi=1e-5, zeta=1e-3,
-                        beta=10.0),
-        ),
-    ]
+    """The two robots of Section IV with the paper's gains (β is ours), read from
+    ``scenarios/paper.yaml``."""
+    return default_scenario().robots
 
 
 def default_scenario() -> Scenario:
-    """The paper's experiment (the numbers of ``scenarios/paper.yaml``)."""
-    return Scenario(robots=paper_robots())
+    """The paper's experiment: ``scenarios/paper.yaml`` (the one source of the paper's numbers),
+    parsed once and copied on every call."""
+    import copy
+
+    return copy.deepcopy(_paper_scenario())
+
+
+@functools.lru_cache(maxsize=1)
+def _paper_scenario() -> Scenario:
+    from drake_coop.scenario.loading import load_scenario
+
+    return load_scenario()
 
 
 # --------------------------------------------------------------------------- timing
