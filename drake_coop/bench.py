@@ -18,8 +18,8 @@
 4. **isolated tick cost**: one tick's equations of one robot (controller (13), force observer
    (22), velocity observer (15)-(16)) timed with ``timeit`` outside the diagram.
 5. **scaling**: cost per control tick (full run and plant alone) at plant steps of 1, 3 and
-   9 ms, and the cost per robot (two robots exist: the per-robot share is extrapolated, the
-   plant's own growth with more arms is not measured).
+   9 ms, and the paper run's cost per robot; the growth with the number of robots is measured
+   by :mod:`drake_coop.bench_robots` (``python bench/robots.py``).
 6. optionally the realtime factor of another scenario (e.g. ``scenarios/contact.yaml``).
 """
 
@@ -331,7 +331,7 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
     per_robot = loop_us / len(robots)
     print(f"per robot: the control loop costs {per_robot:.0f} us per tick per robot "
           f"({loop_us:.0f} us for {len(robots)}); l robots ~ plant(l) + l x {per_robot:.0f} us "
-          f"per tick (the plant's own growth with l arms is not measured here)")
+          f"per tick (measured for l = 2..6 by bench/robots.py)")
 
     # 6. another scenario's realtime factor, and how much of it is the Python callbacks
     extra = None

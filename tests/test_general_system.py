@@ -299,3 +299,89 @@ def test_command_line_exits_2_naming_the_field(tmp_path):
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "robots[0].normals has 4 rows" in lines[0], proc.stderr
+
+
+# ----------------------------------------------------------------------- systems, m = 2, 3
+H = 0.009
+
+
+def _law_for(m):
+    from drake_coop.control.finger import FingerLaw
+
+    robot = load_scenario().robots[0]
+    robot.normals = NORMALS[m]
+    robot.force_weights = [1.0] + [0.5] * (m - 1)
+    A = np.random.default_rng(m).normal(size=(m, m))
+    robot.gains.xi_matrix = (1e-5 * (A @ A.T + m * np.eye(m))).tolist()   # SPD, not diagonal
+    arm = Arm(robot)
+    return robot, arm, FingerLaw(ArmModel(arm), robot.gains)
+
+
+@pytest.mark.parametrize("m", [2, 3])
+def test_force_observer_is_22_and_integrates_6_for_m_constraints(m):
+    from drake_coop.control.observers import ForceObserver
+
+    robot, arm, law = _law_for(m)
+    g = robot.gains
+    fo = ForceObserver(law, H)
+    ctx = fo.CreateDefaultContext()
+    DF = np.linspace(0.3, 0.9, m)
+    ctx.SetDiscreteState(0, DF)
+    q = arm.ik([0.6, 0.01, 0.56])
+    q_hat, qdot_o = q - np.array([1e-4, 2e-4, -1e-4]), np.array([0.01, 0.02, -0.03])
+    q_d, qdot_d = q + 1e-3, np.array([0.01, -0.02, 0.03])
+    lam_d = np.array([12.0, 3.0, -2.0][:m])
+    ref = law.layout.pack(q_d[None], qdot_d[None], np.zeros((1, 3)), lam_d[None], [1.0])[0]
+    for name, value in (("q", q), ("q_hat", q_hat), ("qdot_o", qdot_o), ("reference", ref)):
+        fo.GetInputPort(name).FixValue(ctx, value)
+    N, xi = np.asarray(NORMALS[m]), np.asarray(g.xi_matrix)
+    J = N @ arm.jacobian(q)
+    Jp = np.linalg.pinv(J)
+    qdot_r = ((np.eye(3) - Jp @ J) @ (qdot_d - g.Lambda * (q_hat - q_d))
+              + Jp @ (-g.beta * N @ (arm.fk(q) - arm.c) + xi @ DF))
+    expected = (Jp.T @ np.diag(g.K_R) @ (qdot_o - qdot_r) - g.k_F * DF) / (1 + g.zeta) + lam_d
+    np.testing.assert_allclose(fo.GetOutputPort("lambda_hat").Eval(ctx), expected, atol=1e-9)
+    update = fo.EvalUniquePeriodicDiscreteUpdate(ctx).get_vector(0).CopyToVector()
+    np.testing.assert_allclose(update, DF + H * (expected - lam_d), atol=1e-12)
+
+
+@pytest.mark.parametrize("m", [2, 3])
+def test_controller_at_rest_on_the_constraint_is_gravity_minus_JT_lambda_d(m):
+    from drake_coop.control.controller import Controller
+
+    robot, arm, law = _law_for(m)
+    q = arm.ik(arm.c)                      # on every plane: φ(q) = 0
+    lam_d = np.array([12.0, 3.0, -2.0][:m])
+    ctrl = Controller(law, H)
+    ctx = ctrl.CreateDefaultContext()
+    ctx.SetTime(5 * H)
+    ref = law.layout.pack(q[None], np.zeros((1, 3)), np.zeros((1, 3)), lam_d[None], [1.0])[0]
+    for name, value in (("q", q), ("q_hat", q), ("qdot_hat", np.zeros(3)),
+                        ("qdot_o", np.zeros(3)), ("lambda_hat", lam_d),
+                        ("Delta_F_tilde", np.zeros(m)), ("reference", ref)):
+        ctrl.GetInputPort(name).FixValue(ctx, value)
+    J = np.asarray(NORMALS[m]) @ arm.jacobian(q)
+    np.testing.assert_allclose(ctrl.GetOutputPort("tau").Eval(ctx),
+                               law.model.g(q) - J.T @ lam_d, rtol=0, atol=1e-9)
+
+
+@pytest.mark.slow
+def test_force_observer_22_equals_21_for_m_constraints_in_the_loop():
+    """(22) is (21) with the controller's own torque substituted, for every row (m = 2, 3)."""
+    from drake_coop.experiment.plan import plan_run
+
+    from .conftest import advance_to_tick
+
+    scenario = multi_constraint_scenario()
+    k = plan_run(scenario).k_grasp + 60
+    exp, sim, ctx = advance_to_tick(scenario, k)
+    for i, rs in enumerate(exp.robots):
+        cc = rs.control.GetMyContextFromRoot(ctx)
+        lam_22 = rs.control.GetOutputPort("lambda_hat").Eval(cc)
+        terms = rs.controller.terms(rs.controller.GetMyContextFromRoot(ctx))
+        q = exp.coop.arm_positions(exp.coop.plant.GetMyContextFromRoot(ctx), i)
+        lam_21 = rs.law.force_estimate_21(q, terms["qdot_r"], terms["qddot_r_hat"],
+                                          terms["tau"], True)
+        assert lam_22.shape == (rs.law.m,) and rs.law.m in (2, 3)
+        np.testing.assert_allclose(lam_21, lam_22, rtol=0, atol=1e-9)
+        assert lam_22[0] > 0.1
