@@ -32,3 +32,11 @@ def test_tutorial_02_observers_shows_21_equals_22():
 def test_tutorial_03_runs_the_paper_experiment():
     text = _run("03_paper_experiment.ipynb")
     assert "completed 90 s" in text and "force_error" in text
+
+
+@pytest.mark.slow
+def test_tutorial_04_runs_the_general_system():
+    text = _run("04_general_system.ipynb")
+    assert text.count("completed 8 s") == 3 and "completed 4 s" in text
+    assert "task dimension 6" in text
+    assert "m = 3" in text and "robot4" in text
