@@ -86,7 +86,7 @@ def _force_log_from_constants():
     from pydrake.systems.primitives import ConstantVectorSource
 
     import drake_coop.experiment.diagram as diagram
-    from drake_coop.plant.cooperative import ForceSensor
+    from drake_coop.plant.wrist import ForceSensor
 
     original = diagram.LogVectorOutput
 
@@ -111,7 +111,7 @@ _TIMED = {
                             ("_calc_estimate", "_calc_lambda_hat", "_update_integral")),
     "controller (13)": ("drake_coop.control.controller", "Controller",
                         ("_calc_terms", "_calc_tau", "_calc_qddot_r_hat", "_update_latch")),
-    "force sensor (ground truth)": ("drake_coop.plant.cooperative", "ForceSensor",
+    "force sensor (ground truth)": ("drake_coop.plant.wrist", "ForceSensor",
                                     ("_calc_force_cache", "_calc_force", "_calc_lambda")),
 }
 

@@ -20,11 +20,10 @@ from drake_coop.experiment.references import cartesian_reference, waypoints
 from drake_coop.plant.arms import Arm
 from drake_coop.plant.cooperative import (
     CoopPlant,
-    ForceSensor,
-    add_force_sensors,
     build_plant,
     initialize_plant_context,
 )
+from drake_coop.plant.wrist import ForceSensor, add_force_sensors
 from drake_coop.scenario import Task, default_scenario
 
 SQUEEZE = 20.0          # N, the push of the static tests

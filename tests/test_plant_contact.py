@@ -25,10 +25,10 @@ from drake_coop.control.arm_model import ArmModel
 from drake_coop.experiment.references import cartesian_reference, quintic, waypoints
 from drake_coop.plant.cooperative import (
     CoopPlant,
-    add_force_sensors,
     build_plant,
     initialize_plant_context,
 )
+from drake_coop.plant.wrist import add_force_sensors
 from drake_coop.scenario import Robot, Task, default_scenario
 
 G = 9.81

@@ -8,7 +8,7 @@
     plant ─state─▶ robotN_encoders ─ q ─▶│ robotN_controller (13)                            │
       │            (sensing.Encoders)    └───────────────────────────────────────────────────┘
       │                                          tau ─▶ robotN_actuators (Saturation) ─▶ plant
-      └─ reaction forces, body poses ─▶ robotN_force_sensor (ground truth)
+      └─ reaction forces, body poses ─▶ wrist_kinematics ─▶ robotN_force_sensor (ground truth)
                                           └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
 
 The encoders pass on (quantized, noisy, delayed) joint positions only: with the paper's
@@ -43,10 +43,9 @@ from drake_coop.control.sources import (
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import (
     CoopPlant,
-    ForceSensor,
-    add_force_sensors,
     build_plant,
 )
+from drake_coop.plant.wrist import ForceSensor, add_force_sensors
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.timing import aligned_periods
 from drake_coop.sensing.actuators import add_actuators

@@ -23,11 +23,9 @@ The constraints exist only while the object is held: :meth:`CoopPlant.set_held` 
 on (moving the sliders/object onto the end effectors first) and off, between simulation
 segments. While released, the slider/object joints are locked.
 
-Ground-truth force sensing: :class:`ForceSensor` (one per robot) reads the reaction force of
-the weld between the last link and the force-sensor body, removes the sensor and pad's own
-weight and inertia, and outputs the force the object exerts on the end effector in the palm
-frame and its component ``λ = n_i · F`` along the object's outward normal (positive = squeeze).
-The controllers never read it.
+Ground-truth force sensing is in :mod:`drake_coop.plant.wrist` (the reaction of the weld
+between the last link and the force-sensor body, less the sensor and pad's own weight and
+inertia); the controllers never read it.
 """
 
 from __future__ import annotations
@@ -36,7 +34,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.geometry import Box, SceneGraph
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.parsing import Parser
@@ -54,7 +51,7 @@ from pydrake.multibody.tree import (
     SpatialInertia,
     UnitInertia,
 )
-from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem, ValueProducer
+from pydrake.systems.framework import Context, DiagramBuilder
 
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Scenario
@@ -367,111 +364,3 @@ def initialize_plant_context(coop: CoopPlant, context: Context, q0: list[np.ndar
         plant.SetConstraintActiveStatus(context, cid, False)
     if coop.grasp is not None:
         coop.grasp.initialize(plant, context)
-
-
-class ForceSensor(LeafSystem):
-    """Ground-truth wrist force of one arm: the force the object exerts on the end effector.
-
-    Newton's law for the sensor body and pad (both welded after the flange) gives
-    ``F_obj = Σ m_b (a_b − g) − F_weld``, where ``F_weld`` is the reaction force the last link
-    exerts on the sensor body through the ``flange_sensor_weld`` joint (Drake reports it on the
-    child body, in the joint's child frame; SAP constraint impulses are included). The plant's
-    output ports are live: at time t the values belong to the plant step that starts at t.
-
-    Input ports
-    -----------
-    reaction_forces, body_poses, body_spatial_velocities, body_spatial_accelerations
-        The plant's ports of the same names.
-
-    Output ports
-    ------------
-    F_meas : 3-vector
-        Force of the object on the end effector, palm frame (N).
-    lambda_meas : m-vector
-        ``N_i F_meas``, ``N_i`` the object's outward normals (rows): positive when squeezing (N).
-    """
-
-    def __init__(self, plant: MultibodyPlant, handles: ArmHandles):
-        super().__init__()
-        self._weld_index = int(handles.sensor_weld.index())
-        self._child_body_index = int(handles.sensor_weld.child_body().index())
-        self._R_BJc = handles.sensor_weld.frame_on_child().GetFixedPoseInBodyFrame().rotation()
-        self._bodies = [(int(b.index()), b.default_mass(),
-                         b.default_com()) for b in handles.sensor_bodies]
-        self._g = plant.gravity_field().gravity_vector()
-        self._g_list = self._g.tolist()
-        self._N = handles.arm.N
-        self._reaction = self.DeclareAbstractInputPort(
-            "reaction_forces", plant.get_reaction_forces_output_port().Allocate())
-        self._poses = self.DeclareAbstractInputPort(
-            "body_poses", plant.get_body_poses_output_port().Allocate())
-        self._velocities = self.DeclareAbstractInputPort(
-            "body_spatial_velocities", plant.get_body_spatial_velocities_output_port().Allocate())
-        self._accelerations = self.DeclareAbstractInputPort(
-            "body_spatial_accelerations",
-            plant.get_body_spatial_accelerations_output_port().Allocate())
-        self._force_cache = self.DeclareCacheEntry(
-            "measured force", ValueProducer(allocate=AbstractValue.Make(np.zeros(3)).Clone,
-                                            calc=self._calc_force_cache),
-            {self.all_input_ports_ticket()})
-        self.DeclareVectorOutputPort("F_meas", 3, self._calc_force)
-        self.DeclareVectorOutputPort("lambda_meas", handles.arm.m, self._calc_lambda)
-
-    def force(self, context: Context) -> np.ndarray:
-        """The measured force vector (palm frame)."""
-        return self._force_cache.Eval(context)
-
-    def _calc_force_cache(self, context: Context, value: AbstractValue) -> None:
-        value.set_value(self._compute_force(context))
-
-    def _compute_force(self, context: Context) -> np.ndarray:
-        """``F_obj = Σ_b m_b (a_b − g) − F_weld`` with ``a_b = a_Bo + α × p + ω × (ω × p)``.
-
-        Scalar arithmetic on Python floats (a 3-vector per NumPy call costs more than the
-        math), in the operation order of the vector formula, so the result is the same to the
-        last bit.
-        """
-        reactions = self._reaction.Eval(context)
-        poses = self._poses.Eval(context)
-        velocities = self._velocities.Eval(context)
-        accelerations = self._accelerations.Eval(context)
-        X_WB = poses[self._child_body_index]
-        R_WJc = X_WB.rotation().multiply(self._R_BJc)
-        F_weld = R_WJc.multiply(reactions[self._weld_index].translational())
-        gx, gy, gz = self._g_list
-        fx = fy = fz = 0.0
-        for index, mass, p_BoBcm_B in self._bodies:
-            px, py, pz = poses[index].rotation().multiply(p_BoBcm_B).tolist()
-            wx, wy, wz = velocities[index].rotational().tolist()
-            A = accelerations[index]
-            ax, ay, az = A.rotational().tolist()
-            tx, ty, tz = A.translational().tolist()
-            cx, cy, cz = wy * pz - wz * py, wz * px - wx * pz, wx * py - wy * px   # ω × p
-            fx += mass * ((tx + (ay * pz - az * py) + (wy * cz - wz * cy)) - gx)
-            fy += mass * ((ty + (az * px - ax * pz) + (wz * cx - wx * cz)) - gy)
-            fz += mass * ((tz + (ax * py - ay * px) + (wx * cy - wy * cx)) - gz)
-        return np.array([fx, fy, fz]) - F_weld
-
-    def _calc_force(self, context: Context, output) -> None:
-        output.SetFromVector(self.force(context))
-
-    def _calc_lambda(self, context: Context, output) -> None:
-        output.SetFromVector(self._N @ self.force(context))
-
-
-def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant) -> list[ForceSensor]:
-    """One :class:`ForceSensor` per arm, named ``<robot>_force_sensor``, wired to the plant."""
-    sensors = []
-    plant = coop.plant
-    for h in coop.arms:
-        sensor = builder.AddSystem(ForceSensor(plant, h))
-        sensor.set_name(f"{h.arm.name}_force_sensor")
-        builder.Connect(plant.get_reaction_forces_output_port(),
-                        sensor.GetInputPort("reaction_forces"))
-        builder.Connect(plant.get_body_poses_output_port(), sensor.GetInputPort("body_poses"))
-        builder.Connect(plant.get_body_spatial_velocities_output_port(),
-                        sensor.GetInputPort("body_spatial_velocities"))
-        builder.Connect(plant.get_body_spatial_accelerations_output_port(),
-                        sensor.GetInputPort("body_spatial_accelerations"))
-        sensors.append(sensor)
-    return sensors

@@ -1,0 +1,168 @@
+"""Ground-truth wrist force of every arm: what the object exerts on each end effector.
+
+Newton's law for the bodies a wrist sensor carries (the sensor body and the pad, welded after
+the flange) gives ``F_obj = Σ_b m_b (a_b − g) − F_weld``, where ``F_weld`` is the reaction force
+the last link exerts on the sensor body through the arm's ``sensor_joint`` (Drake reports it on
+the child body, in the joint's child frame; SAP constraint impulses are included). The plant's
+output ports are live: at time t the values belong to the plant step that starts at t.
+
+Two kinds of systems, so that the cost per tick grows linearly with the number of arms:
+
+* one :class:`WristKinematics` (``wrist_kinematics``) reads the plant's per-body ports once
+  (their Python conversion is what costs: it grows with the plant's size) and hands each arm
+  only what its sensor needs, as a vector;
+* one :class:`ForceSensor` per arm (``<robot>_force_sensor``) turns that vector into the force
+  and its components along the object's outward normals.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem, ValueProducer
+
+from drake_coop.plant.cooperative import ArmHandles, CoopPlant
+
+
+def _wrist_size(handles: ArmHandles) -> int:
+    """``F_weld`` (3) and, per carried body, ``R_WB p_BoBcm``, ``ω``, ``α``, ``a_Bo`` (12)."""
+    return 3 + 12 * len(handles.sensor_bodies)
+
+
+class WristKinematics(LeafSystem):
+    """What every arm's wrist sensor needs from the plant, from one read of its ports.
+
+    Input ports
+    -----------
+    reaction_forces, body_poses, body_spatial_velocities, body_spatial_accelerations
+        The plant's ports of the same names.
+
+    Output ports
+    ------------
+    <robot>_wrist : (3 + 12 k)-vector, one per arm
+        ``F_weld`` in the palm frame, then for each of the ``k`` bodies the sensor carries:
+        its centre of mass offset ``R_WB p_BoBcm_B``, ``ω_WB``, ``α_WB`` and the acceleration of
+        its origin ``a_WBo`` (palm frame).
+    """
+
+    def __init__(self, plant: MultibodyPlant, arms: list[ArmHandles]):
+        super().__init__()
+        self._arms = [(int(h.sensor_weld.index()), int(h.sensor_weld.child_body().index()),
+                       h.sensor_weld.frame_on_child().GetFixedPoseInBodyFrame().rotation(),
+                       [(int(b.index()), b.default_com()) for b in h.sensor_bodies])
+                      for h in arms]
+        self._reaction = self.DeclareAbstractInputPort(
+            "reaction_forces", plant.get_reaction_forces_output_port().Allocate())
+        self._poses = self.DeclareAbstractInputPort(
+            "body_poses", plant.get_body_poses_output_port().Allocate())
+        self._velocities = self.DeclareAbstractInputPort(
+            "body_spatial_velocities", plant.get_body_spatial_velocities_output_port().Allocate())
+        self._accelerations = self.DeclareAbstractInputPort(
+            "body_spatial_accelerations",
+            plant.get_body_spatial_accelerations_output_port().Allocate())
+        self._signals = self.DeclareCacheEntry(
+            "wrist signals of every arm",
+            ValueProducer(allocate=AbstractValue.Make([np.zeros(0)]).Clone,
+                          calc=self._calc_signals),
+            {self.all_input_ports_ticket()})
+        for i, h in enumerate(arms):
+            self.DeclareVectorOutputPort(
+                f"{h.arm.name}_wrist", _wrist_size(h),
+                lambda context, output, i=i: output.SetFromVector(
+                    self._signals.Eval(context)[i]),
+                prerequisites_of_calc={self._signals.ticket()})
+
+    def _calc_signals(self, context: Context, value: AbstractValue) -> None:
+        reactions = self._reaction.Eval(context)
+        poses = self._poses.Eval(context)
+        velocities = self._velocities.Eval(context)
+        accelerations = self._accelerations.Eval(context)
+        out = []
+        for weld, child, R_BJc, bodies in self._arms:
+            R_WJc = poses[child].rotation().multiply(R_BJc)
+            parts = [R_WJc.multiply(reactions[weld].translational())]
+            for index, p_BoBcm_B in bodies:
+                A = accelerations[index]
+                parts += [poses[index].rotation().multiply(p_BoBcm_B),
+                          velocities[index].rotational(), A.rotational(), A.translational()]
+            out.append(np.concatenate(parts))
+        value.set_value(out)
+
+
+class ForceSensor(LeafSystem):
+    """Ground-truth wrist force of one arm (see the module's docstring).
+
+    Input ports
+    -----------
+    wrist : (3 + 12 k)-vector
+        This arm's output of :class:`WristKinematics`.
+
+    Output ports
+    ------------
+    F_meas : 3-vector
+        Force of the object on the end effector, palm frame (N).
+    lambda_meas : m-vector
+        ``N_i F_meas``, ``N_i`` the object's outward normals (rows): positive when squeezing (N).
+    """
+
+    def __init__(self, plant: MultibodyPlant, handles: ArmHandles):
+        super().__init__()
+        self._masses = [b.default_mass() for b in handles.sensor_bodies]
+        self._g_list = plant.gravity_field().gravity_vector().tolist()
+        self._N = handles.arm.N
+        self._wrist = self.DeclareVectorInputPort("wrist", _wrist_size(handles))
+        self._force_cache = self.DeclareCacheEntry(
+            "measured force", ValueProducer(allocate=AbstractValue.Make(np.zeros(3)).Clone,
+                                            calc=self._calc_force_cache),
+            {self.all_input_ports_ticket()})
+        self.DeclareVectorOutputPort("F_meas", 3, self._calc_force)
+        self.DeclareVectorOutputPort("lambda_meas", handles.arm.m, self._calc_lambda)
+
+    def force(self, context: Context) -> np.ndarray:
+        """The measured force vector (palm frame)."""
+        return self._force_cache.Eval(context)
+
+    def _calc_force_cache(self, context: Context, value: AbstractValue) -> None:
+        value.set_value(self._compute_force(context))
+
+    def _compute_force(self, context: Context) -> np.ndarray:
+        """``F_obj = Σ_b m_b (a_b − g) − F_weld`` with ``a_b = a_Bo + α × p + ω × (ω × p)``.
+
+        Scalar arithmetic on Python floats (a 3-vector per NumPy call costs more than the
+        math), in the operation order of the vector formula.
+        """
+        w = self._wrist.Eval(context)
+        values = w.tolist()
+        gx, gy, gz = self._g_list
+        fx = fy = fz = 0.0
+        for k, mass in enumerate(self._masses):
+            (px, py, pz, wx, wy, wz, ax, ay, az,
+             tx, ty, tz) = values[3 + 12 * k: 15 + 12 * k]
+            cx, cy, cz = wy * pz - wz * py, wz * px - wx * pz, wx * py - wy * px   # ω × p
+            fx += mass * ((tx + (ay * pz - az * py) + (wy * cz - wz * cy)) - gx)
+            fy += mass * ((ty + (az * px - ax * pz) + (wz * cx - wx * cz)) - gy)
+            fz += mass * ((tz + (ax * py - ay * px) + (wx * cy - wy * cx)) - gz)
+        return np.array([fx, fy, fz]) - w[0:3]
+
+    def _calc_force(self, context: Context, output) -> None:
+        output.SetFromVector(self.force(context))
+
+    def _calc_lambda(self, context: Context, output) -> None:
+        output.SetFromVector(self._N @ self.force(context))
+
+
+def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant) -> list[ForceSensor]:
+    """``wrist_kinematics`` and one :class:`ForceSensor` per arm (``<robot>_force_sensor``),
+    wired to the plant."""
+    plant = coop.plant
+    wrist = builder.AddNamedSystem("wrist_kinematics", WristKinematics(plant, coop.arms))
+    for name in ("reaction_forces", "body_poses", "body_spatial_velocities",
+                 "body_spatial_accelerations"):
+        builder.Connect(plant.GetOutputPort(name), wrist.GetInputPort(name))
+    sensors = []
+    for h in coop.arms:
+        sensor = builder.AddNamedSystem(f"{h.arm.name}_force_sensor", ForceSensor(plant, h))
+        builder.Connect(wrist.GetOutputPort(f"{h.arm.name}_wrist"), sensor.GetInputPort("wrist"))
+        sensors.append(sensor)
+    return sensors
