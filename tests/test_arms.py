@@ -16,7 +16,7 @@ from pydrake.multibody.tree import JacobianWrtVariable
 
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.experiment.references import cartesian_reference
-from drake_coop.plant.arms import GEOMETRY, Arm, urdf_dir
+from drake_coop.plant.arms import GEOMETRY, Arm, urdf_dir, urdf_joint_limits
 from drake_coop.scenario import default_scenario, paper_robots
 
 ROBOTS = paper_robots()
@@ -36,10 +36,8 @@ def arm_and_model(request):
 
 def _postures(arm, count=30, seed=0, fraction=0.9):
     """Random joint positions within ``fraction`` of the joint limits."""
-    g = arm.geometry
     rng = np.random.default_rng(seed)
-    return rng.uniform(np.array(g.q_min) * fraction, np.array(g.q_max) * fraction,
-                       size=(count, 3))
+    return rng.uniform(arm.q_min * fraction, arm.q_max * fraction, size=(count, 3))
 
 
 def _load_generate():
@@ -66,8 +64,9 @@ def test_urdf_files_are_the_output_of_generate_py_with_the_same_lengths():
         g = GEOMETRY[model]
         assert (p["h1"], p["L2"], p["L_forearm"], p["L_flange"]) == PUBLISHED[model]
         assert (g.L_sensor, g.r_pad) == (gen.SENSOR["length"], gen.PAD["radius"])
-        np.testing.assert_allclose(np.radians(p["limits_deg"]),
-                                   np.column_stack([g.q_min, g.q_max]), atol=1e-15)
+        limits = urdf_joint_limits(urdf_dir() / f"{model}_3dof.urdf")   # what the arms use
+        np.testing.assert_allclose(np.radians(p["limits_deg"]), np.column_stack(limits),
+                                   atol=1e-15)
 
 
 @pytest.mark.parametrize("q, local", [
@@ -240,13 +239,12 @@ def test_constraint_jacobian_derivative_equals_finite_difference(arm_and_model):
 def test_whole_circle_is_reachable_within_the_joint_limits(index):
     robot = ROBOTS[index]
     arm = Arm(robot)
-    g = arm.geometry
     theta = np.linspace(0, 2 * np.pi, 721)
     circle = np.column_stack([np.full_like(theta, robot.contact_xy[0]), 0.05 * np.sin(theta),
                               0.635 - 0.05 + 0.05 * np.cos(theta)])     # (28)
     q = arm.ik(circle)
     np.testing.assert_allclose(arm.fk(q), circle, atol=1e-9)
-    assert np.all(q >= np.array(g.q_min)) and np.all(q <= np.array(g.q_max))
+    assert np.all(q >= arm.q_min) and np.all(q <= arm.q_max)
     assert np.all(arm.reach_ratio(circle) < 0.9)
 
 
@@ -255,12 +253,11 @@ def test_whole_reference_path_is_reachable_away_from_singularities(index):
     s = default_scenario()
     robot = s.robots[index]
     arm = Arm(robot)
-    g = arm.geometry
     t = np.arange(0.0, s.task.t_end + 1e-9, 0.05)
     x, _, _ = cartesian_reference(s.task, robot, t)
     q = arm.ik(x)
     np.testing.assert_allclose(arm.fk(q), x, atol=1e-9)
-    assert np.all(q >= np.array(g.q_min)) and np.all(q <= np.array(g.q_max))
+    assert np.all(q >= arm.q_min) and np.all(q <= arm.q_max)
     sigma = np.linalg.svd(arm.jacobian(q), compute_uv=False)[:, -1]
     print(f"{robot.name}: smallest singular value of the position Jacobian on the path "
           f"{sigma.min():.3f} m")

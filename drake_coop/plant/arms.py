@@ -41,7 +41,7 @@ def urdf_dir() -> Path:
 
 @dataclass(frozen=True)
 class ArmGeometry:
-    """Kinematic lengths of a 3-joint arm (m) and its joint limits (rad).
+    """Kinematic lengths of a 3-joint arm (m) (its joint limits are the URDF's).
 
     Attributes
     ----------
@@ -57,8 +57,6 @@ class ArmGeometry:
         Force-sensor body length (flange to pad base).
     r_pad : float
         Radius of the spherical contact pad.
-    q_min, q_max : tuple[float, float, float]
-        Joint limits.
     """
 
     h1: float
@@ -67,8 +65,6 @@ class ArmGeometry:
     L_flange: float
     L_sensor: float
     r_pad: float
-    q_min: tuple[float, float, float]
-    q_max: tuple[float, float, float]
 
     @property
     def L3(self) -> float:
@@ -76,22 +72,34 @@ class ArmGeometry:
         return self.L_forearm + self.L_flange + self.L_sensor + self.r_pad
 
 
-_DEG = math.pi / 180.0
-
 #: Published lengths (CRS manuals) plus our sensor and pad.
 GEOMETRY: dict[str, ArmGeometry] = {
     "crs_a465": ArmGeometry(
-        h1=0.3302, L2=0.3048, L_forearm=0.3302, L_flange=0.0762, L_sensor=0.03, r_pad=0.015,
-        q_min=(-175 * _DEG, -90 * _DEG, -110 * _DEG), q_max=(175 * _DEG, 90 * _DEG, 110 * _DEG)),
+        h1=0.3302, L2=0.3048, L_forearm=0.3302, L_flange=0.0762, L_sensor=0.03, r_pad=0.015),
     "crs_a255": ArmGeometry(
-        h1=0.254, L2=0.254, L_forearm=0.254, L_flange=0.051, L_sensor=0.03, r_pad=0.015,
-        q_min=(-175 * _DEG, -90 * _DEG, -110 * _DEG), q_max=(175 * _DEG, 90 * _DEG, 110 * _DEG)),
+        h1=0.254, L2=0.254, L_forearm=0.254, L_flange=0.051, L_sensor=0.03, r_pad=0.015),
 }
 
 
 def _rot_z(yaw: float) -> np.ndarray:
     c, s = math.cos(yaw), math.sin(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def urdf_joint_limits(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper limits of the URDF's one-degree-of-freedom joints, in file order (the
+    order of Drake's joint positions); a continuous joint or a missing bound is unlimited."""
+    import xml.etree.ElementTree as ET
+
+    lo, hi = [], []
+    for joint in ET.parse(path).getroot().findall("joint"):
+        if joint.get("type") not in ("revolute", "continuous", "prismatic"):
+            continue
+        limit = joint.find("limit")
+        free = joint.get("type") == "continuous" or limit is None
+        lo.append(-math.inf if free or limit.get("lower") is None else float(limit.get("lower")))
+        hi.append(math.inf if free or limit.get("upper") is None else float(limit.get("upper")))
+    return np.array(lo), np.array(hi)
 
 
 def model_urdf_path(robot: Robot) -> Path:
@@ -194,17 +202,19 @@ class Arm:
             base_frame=self.base_frame, ee_frame=self.ee_frame, R_d=R_d, q_seed=q_seed,
             name=self.name)
 
+    @cached_property
+    def _limits(self) -> tuple[np.ndarray, np.ndarray]:
+        return urdf_joint_limits(self.urdf_path)
+
     @property
     def q_min(self) -> np.ndarray:
-        """Lower joint limits (rad)."""
-        return (np.array(self.geometry.q_min) if self.closed_form
-                else np.asarray(self.kinematics.q_min))
+        """Lower joint limits (rad), from the URDF."""
+        return self._limits[0]
 
     @property
     def q_max(self) -> np.ndarray:
-        """Upper joint limits (rad)."""
-        return (np.array(self.geometry.q_max) if self.closed_form
-                else np.asarray(self.kinematics.q_max))
+        """Upper joint limits (rad), from the URDF."""
+        return self._limits[1]
 
     # ------------------------------------------------------------------ forward kinematics
     def fk(self, q: np.ndarray) -> np.ndarray:
@@ -321,8 +331,8 @@ class ClosedFormKinematics:
     def __init__(self, arm: Arm):
         self.arm = arm
         self.n = 3
-        self.q_min = np.array(arm.geometry.q_min)
-        self.q_max = np.array(arm.geometry.q_max)
+        self.q_min = arm.q_min
+        self.q_max = arm.q_max
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         return self.arm.fk(q)
