@@ -255,7 +255,8 @@ def save_logs(out_dir: str | Path, logs: dict[str, dict[str, np.ndarray]], meta:
 
 
 #: Bounds of what :func:`load_logs` reads: ``run.json`` (bytes), robots, arrays per ``.npz``
-#: and their uncompressed size (the longest run, 200 000 ticks, needs ~45 MB per robot).
+#: and their uncompressed size (the longest run, 200 000 ticks, needs ~45 MB for a 3-joint
+#: robot and ~102 MB for one with n = 6 joints and m = 3 constraints: 64 columns).
 MAX_META_BYTES = 16_000_000
 MAX_ROBOTS = 8
 MAX_MEMBERS = 64
