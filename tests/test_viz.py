@@ -146,3 +146,34 @@ def test_published_arrows_and_box_match_the_inputs(held):
         M = np.array(_last(scene, "set_transform", box)["matrix"])
         np.testing.assert_allclose(M[12:15], (arms[0].fk(q[0]) + arms[1].fk(q[1])) / 2,
                                    atol=1e-12)
+
+
+def test_three_arms_draw_a_held_disc_touching_each_pad_and_arrows_along_their_normals():
+    s = load_scenario("scenarios/three_arms.yaml")
+    arms = [Arm(r, s.task) for r in s.robots]
+    meshcat = shared_meshcat()
+    meshcat.Delete()
+    b = DiagramBuilder()
+    arrows = b.AddSystem(ForceArrows(meshcat, arms, scale=0.002, show_held_box=True))
+    simulator = Simulator(b.Build())
+    ctx = arrows.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    for arm in arms:                       # every pad at its contact point (a symmetric grasp)
+        q_i = arm.ik(arm.c)
+        ref = np.zeros(11)
+        ref[9], ref[10] = 25.0, 1.0
+        arrows.GetInputPort(f"{arm.name}_state").FixValue(ctx, np.r_[q_i, np.zeros(3)])
+        arrows.GetInputPort(f"{arm.name}_reference").FixValue(ctx, ref)
+        arrows.GetInputPort(f"{arm.name}_F_meas").FixValue(ctx, np.zeros(3))
+        arrows.GetInputPort(f"{arm.name}_lambda_hat").FixValue(ctx, [25.0])
+    simulator.Initialize()
+    scene = _scene(meshcat.StaticHtml())
+    box = "/drake/coop/held_object"
+    assert _last(scene, "set_property", box, "visible")["value"] is True
+    centre = np.array(_last(scene, "set_transform", box)["matrix"])[12:15]
+    radius = _last(scene, "set_property", f"{box}/scaled", "scale")["value"][0]
+    for arm in arms:
+        # The contact points stand 0.1 m from the object's axis: the rim at the pad's surface.
+        assert np.linalg.norm(arm.c[:2] - centre[:2]) - radius == pytest.approx(0.015, abs=1e-9)
+        M = np.array(_last(scene, "set_transform", f"/drake/coop/forces/{arm.name}/desired")
+                     ["matrix"]).reshape(4, 4).T
+        np.testing.assert_allclose(M[:3, 2], -arm.N[0], atol=1e-12)   # into the object
