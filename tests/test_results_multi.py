@@ -11,7 +11,13 @@ import matplotlib
 import numpy as np
 import pytest
 
-from drake_coop.results import compute_metrics, fig_references, load_logs, plot_figures, save_logs
+from drake_coop.results import (
+    compute_metrics,
+    fig_references,
+    load_logs,
+    plot_figures,
+    save_logs,
+)
 from drake_coop.results.figures import path_plane
 from tests.test_results_io import PHASES, bits
 
@@ -26,9 +32,9 @@ Z_OBS = 1e-6
 
 def multi_run(t_end: float = 90.0, optional: bool = False) -> tuple[dict, dict]:
     """Three robots, n = 6 / 3 / 3 joints, m = 2 / 1 / 2 constraints, errors known in closed
-    form: ``q − q̂ = (1, 2, …, n) Z_OBS``; for m = 2, ``λ − λ_d = FORCE_ERROR`` in the circle
-    phase and 0 elsewhere, ``λ − λ̂ = (A cos ωt, A sin ωt)`` (norm A = 0.2 N)."""
-    t = H * np.arange(int(round(t_end / H)) + 1)
+    form: ``q − q̂ = (1, 2, …, n) Z_OBS``; for m = 2, ``λ − λ_d = FORCE_ERROR`` in the
+    circle phase and 0 elsewhere, ``λ − λ̂ = (A cos ωt, A sin ωt)`` (norm A = 0.2 N)."""
+    t = H * np.arange(round(t_end / H) + 1)
     N = t.size
     rng = np.random.default_rng(7)
     circle = (t >= 25.0) & (t < 65.0)
@@ -69,7 +75,9 @@ def test_six_joints_two_constraints_round_trip_bit_for_bit_with_its_header(tmp_p
             assert back[robot][key].shape == value.shape
             np.testing.assert_array_equal(bits(back[robot][key]), bits(value))
     lines = (tmp_path / "robot1.csv").read_text().splitlines()
-    joints = lambda name: [f"{name}{j}" for j in range(1, 7)]   # noqa: E731
+    def joints(name: str) -> list[str]:
+        return [f"{name}{j}" for j in range(1, 7)]
+
     assert lines[0].split(",") == (
         ["t"] + joints("q") + joints("q_hat") + joints("q_d")
         + ["x", "y", "z", "x_d", "y_d", "z_d", "Fx", "Fy", "Fz",

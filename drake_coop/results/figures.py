@@ -276,8 +276,12 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
             "Fig. 4 — measured force against its estimate"),
         "fig5_aux_force_error": _grid(
             logs, meta,
-            [(r"robot #: $\hat\lambda_# - \lambda_{d#}$", r"$\hat\lambda - \lambda_d$ [N]",
-              lambda log: log["lambda_hat"] - log["lambda_d"])],
+            # The robot's number as subscript for one constraint (the paper), the rows' numbers
+            # (legend) for several.
+            lambda log: [(r"robot #: $\hat\lambda_# - \lambda_{d#}$"
+                          if log["lambda_d"].ndim == 1 else r"robot #: $\hat\lambda - \lambda_d$",
+                          r"$\hat\lambda - \lambda_d$ [N]",
+                          lambda log: log["lambda_hat"] - log["lambda_d"])],
             r"Fig. 5 — auxiliary force errors $\hat\lambda - \lambda_d$", sci=(-2, 3),
             symbol=r"$\hat\lambda_{k} - \lambda_{{d{k}}}$"),
         "fig6_observation_errors": _grid(
@@ -378,7 +382,8 @@ def fig_references(logs: dict[str, Log], meta: dict, out_dir: str | Path,
             force_ax.plot(log["t"], lam_d, label=f"robot {i + 1}", **style)
         else:
             for k in range(lam_d.shape[1]):
-                force_ax.plot(log["t"], lam_d[:, k], label=rf"robot {i + 1}: $\lambda_{{d{k + 1}}}$",
+                force_ax.plot(log["t"], lam_d[:, k],
+                              label=rf"robot {i + 1}: $\lambda_{{d{k + 1}}}$",
                               **{**style, "color": f"C{(i + k * l) % 10}"})
     _style(path_ax, rf"{_letter(l)} path in the ${AXES[u]}$–${AXES[v]}$ plane",
            f"${AXES[v]}_d$ [m]", f"${AXES[u]}_d$ [m]")

@@ -8,7 +8,7 @@ errors
 * ``force_error`` — ``λ − λ_d``, measured minus desired squeeze (Fig. 3), N;
 * ``estimate_error`` — ``λ − λ̂``, measured minus estimated (Fig. 4), N;
 * ``aux_force_error`` — ``λ̂ − λ_d`` (Fig. 5), N;
-* ``z1`` … ``zn`` — observation errors ``q − q̂`` of each of the robot's n joints (Fig. 6), rad;
+* ``z1`` … ``zn`` — observation errors ``q − q̂`` of the robot's n joints (Fig. 6), rad;
 * ``velocity_error`` — ``max_j |q̇_j − q̇̂_j|``, the worst joint's error of the controller's
   velocity estimate (``d/dt q̂`` of the observer, or the alternative source's), rad/s; only
   for logs that hold ``qdot`` and ``qdot_hat`` (runs since issue 7).
