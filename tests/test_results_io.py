@@ -42,9 +42,11 @@ def synthetic_run(t_end: float = 90.0, h: float = H) -> tuple[dict, dict]:
         x[:, 2] += np.where(circle, SINE_AMPLITUDE * np.sin(np.pi * (t - 25.0)), 0.0)
         lam_d = 20.0 + 5.0 * np.sin(0.3 * t) + k
         lam = lam_d + offset
+        F_meas = rng.normal(size=(n, 3))
+        F_meas[:, 0] = (-1.0) ** (k + 1) * lam        # λ = s_i F_x, s_1 = −1, s_2 = +1
         logs[robot] = {
             "t": t.copy(), "q": q_d + np.array(Z_OBS), "q_hat": q_d.copy(), "q_d": q_d,
-            "x": x, "x_d": x_d, "F_meas": rng.normal(size=(n, 3)), "lambda_meas": lam,
+            "x": x, "x_d": x_d, "F_meas": F_meas, "lambda_meas": lam,
             "lambda_hat": lam - 0.25, "lambda_d": lam_d, "tau": rng.normal(size=(n, 3)),
         }
     meta = {"phases": PHASES, "robots": list(ROBOTS), "status": "ok", "message": "done",

@@ -104,6 +104,21 @@ def test_a_full_disk_is_found_before_simulating(tmp_path, monkeypatch, capsys):
     assert not out.exists() and _leftovers(tmp_path, "o") == []
 
 
+def test_the_room_needed_grows_with_the_number_of_robots(tmp_path, monkeypatch):
+    import shutil
+
+    from drake_coop.results import run_folder
+
+    ticks = 10_000
+    two = run_folder.BYTES_FIXED + 2 * ticks * run_folder.BYTES_PER_ROBOT_TICK
+    usage = shutil.disk_usage(tmp_path)
+    monkeypatch.setattr(shutil, "disk_usage", lambda p: usage._replace(free=two))
+    RunFolder(tmp_path / "a").prepare(ticks, robots=2)
+    with pytest.raises(OutputFolderError, match="the run needs about"):
+        RunFolder(tmp_path / "b").prepare(ticks, robots=3)
+    assert _leftovers(tmp_path, "b") == []
+
+
 def test_stale_staging_folders_of_dead_processes_are_removed(tmp_path):
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
                           capture_output=True, text=True).stdout.strip()

@@ -19,9 +19,10 @@ from drake_coop.results.viz import (
     ForceArrows,
     arrow_pose,
     held_box_pose,
+    held_disc_pose,
     workspace_camera,
 )
-from drake_coop.scenario import default_scenario
+from drake_coop.scenario import default_scenario, load_scenario
 
 msgpack = pytest.importorskip("msgpack")
 
@@ -41,6 +42,18 @@ def test_arrow_tip_is_tail_plus_scaled_force():
     assert L == 0.0
 
 
+def test_held_disc_touches_every_pad_on_a_circle():
+    rng = np.random.default_rng(5)
+    for l in (3, 4, 5):        # l pads equally spaced on a circle of radius R, any phase
+        centre, R, r_pad = rng.normal(size=3), rng.uniform(0.05, 0.3), 0.015
+        angles = rng.uniform(0, 2 * np.pi) + 2 * np.pi * np.arange(l) / l
+        points = [centre + R * np.array([np.cos(a), np.sin(a), 0.0]) for a in angles]
+        c, radius = held_disc_pose(points, r_pad)
+        np.testing.assert_allclose(c, centre, atol=1e-12)
+        for p in points:       # the rim is at each pad's surface
+            assert np.linalg.norm(p[:2] - c[:2]) - radius == pytest.approx(r_pad, abs=1e-12)
+
+
 def test_held_box_spans_the_gap_between_the_pads():
     p1, p2, r = np.array([0.6, 0.01, 0.52]), np.array([0.8192, 0.03, 0.54]), 0.015
     centre, size = held_box_pose(p1, p2, r)
@@ -49,16 +62,17 @@ def test_held_box_spans_the_gap_between_the_pads():
     np.testing.assert_allclose(centre[1:], (p1[1:] + p2[1:]) / 2)
 
 
-def test_camera_sees_both_arms_from_outside():
-    s = default_scenario()
-    arms = [Arm(r) for r in s.robots]
+@pytest.mark.parametrize("name", ["paper", "three_arms", "six_joint"])
+def test_camera_sees_every_arm_from_outside(name):
+    s = default_scenario() if name == "paper" else load_scenario(f"scenarios/{name}.yaml")
+    arms = [Arm(r, s.task) for r in s.robots]
     camera, target = workspace_camera(arms, 0.585)
     forward = (target - camera) / np.linalg.norm(target - camera)
     right = np.cross(forward, [0.0, 0.0, 1.0])
     right /= np.linalg.norm(right)
     up = np.cross(right, forward)                       # the camera keeps +z up
     points = [a.p_base for a in arms] + [np.asarray(r.home) for r in s.robots]
-    points += [a.fk(np.zeros(3)) for a in arms]          # arms straight up: their tops
+    points += [a.fk(np.zeros(np.size(a.q_min))) for a in arms]   # straight up: their tops
     for p in points:
         d = p - camera
         vertical = math.degrees(math.atan2(d @ up, d @ forward))
@@ -66,6 +80,9 @@ def test_camera_sees_both_arms_from_outside():
         # Meshcat's camera: 75° vertical field of view, wider horizontally (landscape).
         assert abs(vertical) < 34.0 and abs(horizontal) < 34.0, (p, vertical, horizontal)
     assert camera[2] > target[2] and camera[1] < 0
+    # Outside the robots' circle: no base is nearer to the camera than to the target.
+    for a in arms:
+        assert np.linalg.norm(a.p_base - camera) > np.linalg.norm(a.p_base - target)
 
 
 def _scene(html: str) -> list[dict]:
@@ -129,3 +146,34 @@ def test_published_arrows_and_box_match_the_inputs(held):
         M = np.array(_last(scene, "set_transform", box)["matrix"])
         np.testing.assert_allclose(M[12:15], (arms[0].fk(q[0]) + arms[1].fk(q[1])) / 2,
                                    atol=1e-12)
+
+
+def test_three_arms_draw_a_held_disc_touching_each_pad_and_arrows_along_their_normals():
+    s = load_scenario("scenarios/three_arms.yaml")
+    arms = [Arm(r, s.task) for r in s.robots]
+    meshcat = shared_meshcat()
+    meshcat.Delete()
+    b = DiagramBuilder()
+    arrows = b.AddSystem(ForceArrows(meshcat, arms, scale=0.002, show_held_box=True))
+    simulator = Simulator(b.Build())
+    ctx = arrows.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    for arm in arms:                       # every pad at its contact point (a symmetric grasp)
+        q_i = arm.ik(arm.c)
+        ref = np.zeros(11)
+        ref[9], ref[10] = 25.0, 1.0
+        arrows.GetInputPort(f"{arm.name}_state").FixValue(ctx, np.r_[q_i, np.zeros(3)])
+        arrows.GetInputPort(f"{arm.name}_reference").FixValue(ctx, ref)
+        arrows.GetInputPort(f"{arm.name}_F_meas").FixValue(ctx, np.zeros(3))
+        arrows.GetInputPort(f"{arm.name}_lambda_hat").FixValue(ctx, [25.0])
+    simulator.Initialize()
+    scene = _scene(meshcat.StaticHtml())
+    box = "/drake/coop/held_object"
+    assert _last(scene, "set_property", box, "visible")["value"] is True
+    centre = np.array(_last(scene, "set_transform", box)["matrix"])[12:15]
+    radius = _last(scene, "set_property", f"{box}/scaled", "scale")["value"][0]
+    for arm in arms:
+        # The contact points stand 0.1 m from the object's axis: the rim at the pad's surface.
+        assert np.linalg.norm(arm.c[:2] - centre[:2]) - radius == pytest.approx(0.015, abs=1e-9)
+        M = np.array(_last(scene, "set_transform", f"/drake/coop/forces/{arm.name}/desired")
+                     ["matrix"]).reshape(4, 4).T
+        np.testing.assert_allclose(M[:3, 2], -arm.N[0], atol=1e-12)   # into the object

@@ -1,22 +1,29 @@
 """Figures 2–6 of the paper from a run's logs (PNG and SVG), and the reference figure.
 
 ===========================  ===================================================================
-file                         content (panels as in the paper)
+file                         content (panels as in the paper; one row or panel per robot)
 ===========================  ===================================================================
-``fig2_tracking_errors``     Cartesian tracking errors x̃, ỹ, z̃ (mm) of robot 1 (a–c) and
-                             robot 2 (d–f)
+``fig2_tracking_errors``     Cartesian tracking errors x̃, ỹ, z̃ (mm) of robot 1 (a–c),
+                             robot 2 (d–f), …
 ``fig3_force_tracking``      measured squeeze λ (solid) against the desired λ_d (29) (dashed),
-                             robots 1 (a) and 2 (b)
+                             robots 1 (a), 2 (b), …
 ``fig4_force_estimate``      measured squeeze (solid) against the estimate λ̂ (22) (dashed)
-``fig5_aux_force_error``     auxiliary force errors λ̂ − λ_d, robots 1 (a) and 2 (b)
-``fig6_observation_errors``  observation errors z = q − q̂ (rad) of the three joints, robot 1
-                             (a–c) and robot 2 (d–f)
-``fig7_velocity_estimate``   velocity-estimate errors q̇ − q̇̂ (rad/s) of the three joints,
-                             robot 1 (a–c) and robot 2 (d–f); only for logs holding ``qdot``
-                             and ``qdot_hat`` (runs since issue 7)
-``fig_references``           the designed references: x_d, y_d, z_d of each robot, the y_d–z_d
-                             path and λ_d
+``fig5_aux_force_error``     auxiliary force errors λ̂ − λ_d, robots 1 (a), 2 (b), …
+``fig6_observation_errors``  observation errors z = q − q̂ (rad), one panel per joint: robot 1
+                             (a–c), robot 2 (d–f), … for the paper's 3-joint arms
+``fig7_velocity_estimate``   velocity-estimate errors q̇ − q̇̂ (rad/s) per joint, laid out as
+                             Fig. 6; only for logs holding ``qdot`` and ``qdot_hat`` (runs
+                             since issue 7)
+``fig_references``           the designed references: x_d, y_d, z_d of each robot, the path
+                             (in the y–z plane for the paper, see :func:`path_plane`) and λ_d
 ===========================  ===================================================================
+
+Any number of robots, joints n_i and constraints m_i: the joint figures have max n_i columns
+(a robot with fewer joints leaves its last panels out); a force of m >= 2 constraints draws
+each row λ_1 … λ_m (one colour per row, with a legend); the squeeze axis is labelled ``F_x``
+when λ = ±F_x (the paper's normals ±e_x), λ otherwise; the reference figure draws robot i in
+colour ``C{i}`` with its own line style. For the paper (two robots, n = 3, m = 1) the figures
+are those drawn before issue 10, pixel for pixel.
 
 Phase boundaries are thin grey vertical lines, with the phase names above the top panels; a run
 stopped early (diverged, interrupted) is drawn up to its last sample. Figures are drawn on
@@ -26,6 +33,7 @@ figure outlives its function. Every file is written atomically.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Callable, Iterable
 
@@ -101,38 +109,90 @@ def _finish(fig: Figure, title: str) -> Figure:
 
 
 def _letter(k: int) -> str:
-    return f"({'abcdefghij'[k]})"
+    """Panel label ``(a)``, ``(b)``, …, ``(z)``, then ``(aa)``, ``(ab)``, …"""
+    letters = "abcdefghijklmnopqrstuvwxyz"
+    return f"({letters[k]})" if k < 26 else f"({letters[k // 26 - 1]}{letters[k % 26]})"
 
 
-def _grid(logs: dict[str, Log], meta: dict, columns: list[tuple[str, str, Signal]],
-          title: str, sci: tuple[int, int] | None = None) -> Figure:
-    """Robots in rows, ``columns`` = ``(panel title, y label, signal)``; ``#`` in a panel title
-    is the robot's number; ``sci`` = scientific-notation limits of the y tick labels."""
+def _components(ax: Axes, t: np.ndarray, y: np.ndarray, symbol: str, **style) -> None:
+    """Plot ``y`` (N,) as one line, or (N, m) as m lines labelled ``symbol`` with the index
+    ``1..m`` as subscript (``symbol`` holds ``{k}`` where the index goes)."""
+    y = np.asarray(y)
+    if y.ndim == 1:
+        ax.plot(t, y, **style)
+        return
+    for k in range(y.shape[1]):
+        ax.plot(t, y[:, k], label=symbol.format(k=k + 1), **style)
+
+
+def _grid(logs: dict[str, Log], meta: dict,
+          columns: list[tuple[str, str, Signal]] | Callable[[Log], list[tuple[str, str, Signal]]],
+          title: str, sci: tuple[int, int] | None = None, symbol: str = "") -> Figure:
+    """Robots in rows, ``columns`` = ``(panel title, y label, signal)`` (or a function of the
+    robot's log giving them, e.g. one per joint); ``#`` in a panel title is the robot's number;
+    ``sci`` = scientific-notation limits of the y tick labels. A signal of shape (N, m) draws m
+    lines with a legend (``symbol`` with ``{k}`` for the index). A robot with fewer columns than
+    the widest leaves its last panels out."""
     robots = meta["robots"]
-    fig, axes = _figure(len(robots), len(columns), 2.6 * len(robots))
+    per_robot = [columns(logs[r]) if callable(columns) else columns for r in robots]
+    ncols = max(len(c) for c in per_robot)
+    fig, axes = _figure(len(robots), ncols, 2.6 * len(robots))
     for i, robot in enumerate(robots):
         log, t_end = logs[robot], _t_end(logs[robot])
-        last = i == len(robots) - 1
-        for j, (label, ylabel, signal) in enumerate(columns):
+        for j in range(ncols):
             ax = axes[i, j]
-            ax.plot(log["t"], signal(log), lw=0.8)
+            if j >= len(per_robot[i]):
+                ax.set_visible(False)
+                continue
+            label, ylabel, signal = per_robot[i][j]
+            # The x axis' labels go under the lowest drawn panel of each column.
+            last = all(j >= len(per_robot[k]) for k in range(i + 1, len(robots)))
+            y = signal(log)
+            _components(ax, log["t"], y, symbol, lw=0.8)
             _phases(ax, meta, t_end, label=i == 0)
-            panel = f"{_letter(i * len(columns) + j)} " + label.replace("#", str(i + 1))
+            panel = f"{_letter(i * ncols + j)} " + label.replace("#", str(i + 1))
             _style(ax, panel, ylabel, "t [s]" if last else None, top=i == 0, sci=sci)
+            if last:
+                ax.xaxis.set_tick_params(labelbottom=True)
+            if np.ndim(y) == 2:
+                ax.legend(fontsize=7, loc="upper right")
     return _finish(fig, title)
 
 
-def _pair(logs: dict[str, Log], meta: dict, solid: tuple[str, str], dashed: tuple[str, str],
-          ylabel: str, title: str) -> Figure:
-    """One panel per robot: ``log[solid[0]]`` solid against ``log[dashed[0]]`` dashed."""
+def _squeeze_label(log: Log) -> str:
+    """The y label of the squeeze: ``F_x`` when the logged λ is ``±F_x`` (the paper's normals
+    ``±e_x``), else λ (another normal, or m >= 2 constraints)."""
+    lam, F = np.asarray(log["lambda_meas"], dtype=float), np.asarray(log["F_meas"], dtype=float)
+    if lam.ndim == 1:
+        ok = np.isfinite(lam) & np.isfinite(F[:, 0])
+        if np.allclose(np.abs(lam[ok]), np.abs(F[ok, 0]), rtol=1e-9, atol=1e-9):
+            return "F_x (squeeze) [N]"
+        return r"$\lambda$ (squeeze) [N]"
+    return r"$\lambda$ [N]"
+
+
+def _pair(logs: dict[str, Log], meta: dict, solid: tuple[str, str, str],
+          dashed: tuple[str, str, str], title: str) -> Figure:
+    """One panel per robot: ``log[solid[0]]`` solid against ``log[dashed[0]]`` dashed, labelled
+    ``solid[1]`` and ``dashed[1]``; for m >= 2 constraints, one colour per row ``k`` of the
+    force, labelled ``solid[2]`` and ``dashed[2]`` with ``{k}`` the subscript 1..m."""
     robots = meta["robots"]
     fig, axes = _figure(1, len(robots), 3.4, sharex=False)
     for i, robot in enumerate(robots):
         log, ax = logs[robot], axes[0, i]
-        ax.plot(log["t"], log[solid[0]], "-", lw=0.9, label=solid[1])
-        ax.plot(log["t"], log[dashed[0]], "--", lw=0.9, label=dashed[1])
+        a, b = np.asarray(log[solid[0]]), np.asarray(log[dashed[0]])
+        if a.ndim == 1:
+            ax.plot(log["t"], a, "-", lw=0.9, label=solid[1])
+            ax.plot(log["t"], b, "--", lw=0.9, label=dashed[1])
+        else:
+            for k in range(a.shape[1]):
+                colour = f"C{k % 10}"
+                ax.plot(log["t"], a[:, k], "-", lw=0.9, color=colour,
+                        label=solid[2].format(k=k + 1))
+                ax.plot(log["t"], b[:, k], "--", lw=0.9, color=colour,
+                        label=dashed[2].format(k=k + 1))
         _phases(ax, meta, _t_end(log), label=True)
-        _style(ax, f"{_letter(i)} robot {i + 1}", ylabel, top=True)
+        _style(ax, f"{_letter(i)} robot {i + 1}", _squeeze_label(log), top=True)
         ax.legend(fontsize=7, loc="upper right")
     return _finish(fig, title)
 
@@ -193,6 +253,12 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
     formats = _check_formats(formats)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+
+    def joints(key: str, other: str, title: str, ylabel: str):
+        """One column per joint of the robot: ``log[key] − log[other]``."""
+        return lambda log: [(title.format(j=j + 1), ylabel.format(j=j + 1),
+                             _difference(key, other, j)) for j in range(log[key].shape[1])]
+
     figures = {
         "fig2_tracking_errors": _grid(
             logs, meta,
@@ -201,29 +267,32 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
              for j, c in enumerate("xyz")],
             "Fig. 2 — tracking errors in Cartesian coordinates", sci=(-2, 3)),
         "fig3_force_tracking": _pair(
-            logs, meta, ("lambda_meas", r"measured $\lambda$"),
-            ("lambda_d", r"desired $\lambda_d$ (29)"), "F_x (squeeze) [N]",
+            logs, meta, ("lambda_meas", r"measured $\lambda$", r"measured $\lambda_{k}$"),
+            ("lambda_d", r"desired $\lambda_d$ (29)", r"desired $\lambda_{{d{k}}}$ (29)"),
             "Fig. 3 — measured force against the desired force"),
         "fig4_force_estimate": _pair(
-            logs, meta, ("lambda_meas", r"measured $\lambda$"),
-            ("lambda_hat", r"estimate $\hat\lambda$ (22)"), "F_x (squeeze) [N]",
+            logs, meta, ("lambda_meas", r"measured $\lambda$", r"measured $\lambda_{k}$"),
+            ("lambda_hat", r"estimate $\hat\lambda$ (22)", r"estimate $\hat\lambda_{k}$ (22)"),
             "Fig. 4 — measured force against its estimate"),
         "fig5_aux_force_error": _grid(
             logs, meta,
-            [(r"robot #: $\hat\lambda_# - \lambda_{d#}$", r"$\hat\lambda - \lambda_d$ [N]",
-              lambda log: log["lambda_hat"] - log["lambda_d"])],
-            r"Fig. 5 — auxiliary force errors $\hat\lambda - \lambda_d$", sci=(-2, 3)),
+            # The robot's number as subscript for one constraint (the paper), the rows' numbers
+            # (legend) for several.
+            lambda log: [(r"robot #: $\hat\lambda_# - \lambda_{d#}$"
+                          if log["lambda_d"].ndim == 1 else r"robot #: $\hat\lambda - \lambda_d$",
+                          r"$\hat\lambda - \lambda_d$ [N]",
+                          lambda log: log["lambda_hat"] - log["lambda_d"])],
+            r"Fig. 5 — auxiliary force errors $\hat\lambda - \lambda_d$", sci=(-2, 3),
+            symbol=r"$\hat\lambda_{k} - \lambda_{{d{k}}}$"),
         "fig6_observation_errors": _grid(
-            logs, meta,
-            [(f"$z_{{#{j + 1}}}$", f"$z_{j + 1}$ [rad]", _difference("q", "q_hat", j))
-             for j in range(3)],
+            logs, meta, joints("q", "q_hat", "$z_{{#{j}}}$", "$z_{j}$ [rad]"),
             r"Fig. 6 — observation errors $z = q - \hat q$", sci=(0, 0)),
     }
     if all("qdot" in logs[r] and "qdot_hat" in logs[r] for r in meta["robots"]):
         figures["fig7_velocity_estimate"] = _grid(
             logs, meta,
-            [(f"$\\dot q_{{#{j + 1}}} - \\hat{{\\dot q}}_{{#{j + 1}}}$", "[rad/s]",
-              _difference("qdot", "qdot_hat", j)) for j in range(3)],
+            joints("qdot", "qdot_hat", "$\\dot q_{{#{j}}} - \\hat{{\\dot q}}_{{#{j}}}$",
+                   "[rad/s]"),
             r"Velocity-estimate errors $\dot q - \hat{\dot q}$ (the controller's estimate)",
             sci=(-2, 3))
     paths = []
@@ -232,9 +301,43 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
     return paths
 
 
+#: Line styles of the robots in the shared panels of the reference figure (robot i: colour
+#: ``C{i}`` and style ``STYLES[i mod 4]``).
+STYLES = ("-", "--", "-.", ":")
+AXES = "xyz"
+
+
+def path_plane(logs: dict[str, Log], robots: list[str], tol: float = 1e-9) -> tuple[int, int]:
+    """The two Cartesian axes (indices, increasing) of the plane in which to draw the paths.
+
+    The axes of the two largest extents ``max_i (max x_d − min x_d)`` of the robots' desired
+    paths while they hold the object (samples with ``λ_d ≠ 0``; all samples if none), extents
+    within ``tol`` (m) of each other counted equal and ties broken in the order y, z, x. The
+    paper's path (a circle in the y–z plane, lift and put-down along z) gives ``(1, 2)``, the
+    y–z plane; a path along z only gives the y–z plane too.
+    """
+    extent = np.zeros(3)
+    for r in robots:
+        x_d, lam_d = np.asarray(logs[r]["x_d"], dtype=float), np.asarray(logs[r]["lambda_d"])
+        held = np.any(np.reshape(lam_d, (len(lam_d), -1)) != 0, axis=1)
+        points = x_d[held] if held.any() else x_d
+        points = points[np.isfinite(points).all(axis=1)]
+        if len(points):
+            extent = np.maximum(extent, np.ptp(points, axis=0))
+    preference = (1, 2, 0)
+    ranked = sorted(preference, key=lambda j: (-np.round(extent[j] / tol),
+                                               preference.index(j)))
+    return tuple(sorted(ranked[:2]))
+
+
 def fig_references(logs: dict[str, Log], meta: dict, out_dir: str | Path,
                    formats: Iterable[str] = ("png", "svg")) -> list[Path]:
-    """Draw the designed references: x_d, y_d, z_d per robot, the y_d–z_d path and λ_d.
+    """Draw the designed references: x_d, y_d, z_d per robot, the path and λ_d.
+
+    The top row has one panel per robot (x_d, y_d, z_d against time); below, the robots' paths
+    in the plane of their two largest extents (:func:`path_plane`; the y–z plane for the
+    paper) and their desired squezes λ_d (every row λ_{d,k} for m >= 2), robot i drawn in
+    colour ``C{i}`` with line style :data:`STYLES` ``[i mod 4]``.
 
     Parameters
     ----------
@@ -255,25 +358,40 @@ def fig_references(logs: dict[str, Log], meta: dict, out_dir: str | Path,
     formats = _check_formats(formats)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    robots = meta["robots"][:2]
-    fig, axes = _figure(2, 2, 6.6, sharex=False)
+    robots = meta["robots"]
+    l = len(robots)
+    width = math.lcm(l, 2)        # top row: l panels; bottom row: 2 panels
+    fig = Figure(figsize=(WIDTH, 6.6), dpi=DPI)
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(2, width)
+    top = [fig.add_subplot(grid[0, i * width // l:(i + 1) * width // l]) for i in range(l)]
+    path_ax = fig.add_subplot(grid[1, :width // 2])
+    force_ax = fig.add_subplot(grid[1, width // 2:])
+    u, v = path_plane(logs, robots)
     for i, robot in enumerate(robots):
-        log, ax = logs[robot], axes[0, i]
-        for j, c in enumerate("xyz"):
+        log, ax = logs[robot], top[i]
+        for j, c in enumerate(AXES):
             ax.plot(log["t"], log["x_d"][:, j], lw=0.9, label=f"${c}_d$")
         _phases(ax, meta, _t_end(log), label=True)
         _style(ax, f"{_letter(i)} robot {i + 1}: desired position", "position [m]", top=True)
         ax.legend(fontsize=7, loc="best")
-        style = "-" if i == 0 else "--"
-        axes[1, 0].plot(log["x_d"][:, 1], log["x_d"][:, 2], style, lw=0.9,
-                        label=f"robot {i + 1}")
-        axes[1, 1].plot(log["t"], log["lambda_d"], style, lw=0.9, label=f"robot {i + 1}")
-    _style(axes[1, 0], r"(c) path in the $y$–$z$ plane", "$z_d$ [m]", "$y_d$ [m]")
-    axes[1, 0].set_aspect("equal", adjustable="datalim")
+        style = {"ls": STYLES[i % len(STYLES)], "color": f"C{i % 10}", "lw": 0.9}
+        path_ax.plot(log["x_d"][:, u], log["x_d"][:, v], label=f"robot {i + 1}", **style)
+        lam_d = np.asarray(log["lambda_d"])
+        if lam_d.ndim == 1:
+            force_ax.plot(log["t"], lam_d, label=f"robot {i + 1}", **style)
+        else:
+            for k in range(lam_d.shape[1]):
+                force_ax.plot(log["t"], lam_d[:, k],
+                              label=rf"robot {i + 1}: $\lambda_{{d{k + 1}}}$",
+                              **{**style, "color": f"C{(i + k * l) % 10}"})
+    _style(path_ax, rf"{_letter(l)} path in the ${AXES[u]}$–${AXES[v]}$ plane",
+           f"${AXES[v]}_d$ [m]", f"${AXES[u]}_d$ [m]")
+    path_ax.set_aspect("equal", adjustable="datalim")
     t_end = max((t for t in (_t_end(logs[r]) for r in robots) if t is not None), default=None)
-    _phases(axes[1, 1], meta, t_end, label=False)
-    _style(axes[1, 1], r"(d) desired squeeze $\lambda_d$ (29)", r"$\lambda_d$ [N]")
-    for ax in axes[1]:
+    _phases(force_ax, meta, t_end, label=False)
+    _style(force_ax, rf"{_letter(l + 1)} desired squeeze $\lambda_d$ (29)", r"$\lambda_d$ [N]")
+    for ax in (path_ax, force_ax):
         ax.legend(fontsize=7, loc="best")
     _finish(fig, "Reference trajectories: quintic rest-to-rest segments, circle (28), "
                  "force (29)")

@@ -1,49 +1,57 @@
 """Run logs on disk: one ``.npz`` and one ``.csv`` per robot, plus ``run.json``.
 
-Per robot, one row per control sample (period h):
+Per robot, one row per control sample (period h); ``n`` is the robot's number of joints (read
+from ``q``), ``m`` its number of constraints (read from ``lambda_d``: an array of shape (N,)
+is one constraint, the paper's case, and (N, m) with m >= 2 several):
 
-==============  =========  ==================================================================
-array           shape      meaning
-==============  =========  ==================================================================
-``t``           (N,)       time of the sample (s)
-``q``           (N, 3)     measured joint positions (rad)
-``q_hat``       (N, 3)     velocity-observer estimate q̂ (15) (rad)
-``q_d``         (N, 3)     desired joint positions (rad)
-``x``           (N, 3)     end-effector position, palm frame (m)
-``x_d``         (N, 3)     desired end-effector position (28) (m)
-``F_meas``      (N, 3)     measured force of the object on the end effector, palm frame (N)
-``lambda_meas`` (N,)       measured squeeze ``n_i · F_meas`` (N)
-``lambda_hat``  (N,)       force-observer estimate λ̂ (22) (N)
-``lambda_d``    (N,)       desired squeeze (29) (N)
-``tau``         (N, 3)     applied joint torques, after the actuators' saturation (N·m)
-==============  =========  ==================================================================
+==============  ================  ===========================================================
+array           shape             meaning
+==============  ================  ===========================================================
+``t``           (N,)              time of the sample (s)
+``q``           (N, n)            measured joint positions (rad)
+``q_hat``       (N, n)            velocity-observer estimate q̂ (15) (rad)
+``q_d``         (N, n)            desired joint positions (rad)
+``x``           (N, 3)            end-effector position, palm frame (m)
+``x_d``         (N, 3)            desired end-effector position (28) (m)
+``F_meas``      (N, 3)            measured force of the object on the end effector, palm
+                                  frame (N)
+``lambda_meas`` (N,) or (N, m)    measured squeeze ``N_i F_meas`` (N)
+``lambda_hat``  (N,) or (N, m)    force-observer estimate λ̂ (22) (N)
+``lambda_d``    (N,) or (N, m)    desired squeeze (29) (N)
+``tau``         (N, n)            applied joint torques, after the actuators' saturation (N·m)
+==============  ================  ===========================================================
 
 Optional arrays (runs since issue 7; older logs lack them and still load and plot):
 
-=================  =========  ===============================================================
-array              shape      meaning
-=================  =========  ===============================================================
-``qdot``           (N, 3)     true joint velocities q̇ (rad/s)
-``qdot_hat``       (N, 3)     the controller's velocity estimate: d/dt q̂ (15) of the
-                              observer, the true q̇ (``measured``) or the filtered difference
-                              (``difference``) (rad/s)
-``lambda_sensor``  (N,)       the F/T sensor model's squeeze λ_s (N)
-``tau_cmd``        (N, 3)     torques commanded by the controller (13), before saturation (N·m)
-=================  =========  ===============================================================
+=================  ==============  ============================================================
+array              shape           meaning
+=================  ==============  ============================================================
+``qdot``           (N, n)          true joint velocities q̇ (rad/s)
+``qdot_hat``       (N, n)          the controller's velocity estimate: d/dt q̂ (15) of the
+                                   observer, the true q̇ (``measured``) or the filtered
+                                   difference (``difference``) (rad/s)
+``lambda_sensor``  (N,) or (N, m)  the F/T sensor model's squeeze λ_s (N)
+``tau_cmd``        (N, n)          torques commanded by the controller (13), before
+                                   saturation (N·m)
+=================  ==============  ============================================================
 
 Files in the run directory:
 
 * ``<robot>.npz`` — every array of the robot's log under its name (``np.savez``, no pickle;
   arrays beyond the schema are kept too). This is what :func:`load_logs` reads.
-* ``<robot>.csv`` — the schema's arrays, one row per sample, comma separated, one header line::
+* ``<robot>.csv`` — the schema's arrays, one row per sample, comma separated, one header line;
+  for the paper's arms (n = 3, m = 1)::
 
       t,q1,q2,q3,q_hat1,q_hat2,q_hat3,q_d1,q_d2,q_d3,x,y,z,x_d,y_d,z_d,Fx,Fy,Fz,
       lambda_meas,lambda_hat,lambda_d,tau1,tau2,tau3
 
   (a single line in the file), followed by the optional arrays' columns when the log has all
-  of them: ``qdot1..3,qdot_hat1..3,lambda_sensor,tau_cmd1..3``. Vector columns are numbered from 1 (joints) or named by axis
-  (positions ``x, y, z``, desired ``x_d, y_d, z_d``, forces ``Fx, Fy, Fz``). Every value is
-  written with ``repr(float)``, the shortest text that reads back to the same double, so
+  of them: ``qdot1..3,qdot_hat1..3,lambda_sensor,tau_cmd1..3``. Joint columns are numbered
+  from 1 to n (``q1..qn``, ``tau1..taun``); force columns keep their name for one constraint
+  (``lambda_meas``) and are numbered from 1 to m for several (``lambda_meas1..m``); Cartesian
+  columns are named by axis (positions ``x, y, z``, desired ``x_d, y_d, z_d``, forces
+  ``Fx, Fy, Fz``). :func:`log_columns` gives a log's columns. Every value is written with
+  ``repr(float)``, the shortest text that reads back to the same double, so
   ``np.loadtxt(path, delimiter=",", skiprows=1)`` returns the logged values bit for bit
   (``nan`` and ``inf`` included).
 * ``run.json`` — the metadata: status, message, phases ``[name, t_start, t_end]``, robots,
@@ -64,58 +72,115 @@ import numpy as np
 from drake_coop.results.io import atomic_path, atomic_write_text
 from drake_coop.scenario.bounds import one_line, show
 
-__all__ = ["COLUMNS", "OPTIONAL_COLUMNS", "csv_header", "load_logs", "save_logs", "write_meta"]
+__all__ = ["COLUMNS", "OPTIONAL_COLUMNS", "csv_header", "load_logs", "log_columns",
+           "log_sizes", "save_logs", "schema", "write_meta"]
 
-#: Arrays of a robot's log and their CSV column names.
-COLUMNS: dict[str, list[str]] = {
-    "t": ["t"],
-    "q": ["q1", "q2", "q3"],
-    "q_hat": ["q_hat1", "q_hat2", "q_hat3"],
-    "q_d": ["q_d1", "q_d2", "q_d3"],
-    "x": ["x", "y", "z"],
-    "x_d": ["x_d", "y_d", "z_d"],
-    "F_meas": ["Fx", "Fy", "Fz"],
-    "lambda_meas": ["lambda_meas"],
-    "lambda_hat": ["lambda_hat"],
-    "lambda_d": ["lambda_d"],
-    "tau": ["tau1", "tau2", "tau3"],
+#: Kind of each array of the schema: ``t`` (the time), ``joint`` (one column per joint),
+#: ``cartesian`` (columns named below), ``force`` (one per constraint); optional ones last.
+KINDS: dict[str, str] = {
+    "t": "t", "q": "joint", "q_hat": "joint", "q_d": "joint", "x": "cartesian",
+    "x_d": "cartesian", "F_meas": "cartesian", "lambda_meas": "force", "lambda_hat": "force",
+    "lambda_d": "force", "tau": "joint",
 }
-
-#: Optional arrays (sensing, issue 7) and their CSV column names; written when all present.
-OPTIONAL_COLUMNS: dict[str, list[str]] = {
-    "qdot": ["qdot1", "qdot2", "qdot3"],
-    "qdot_hat": ["qdot_hat1", "qdot_hat2", "qdot_hat3"],
-    "lambda_sensor": ["lambda_sensor"],
-    "tau_cmd": ["tau_cmd1", "tau_cmd2", "tau_cmd3"],
+OPTIONAL_KINDS: dict[str, str] = {
+    "qdot": "joint", "qdot_hat": "joint", "lambda_sensor": "force", "tau_cmd": "joint",
+}
+#: Column names of the Cartesian arrays (by axis).
+CARTESIAN_NAMES: dict[str, list[str]] = {
+    "x": ["x", "y", "z"], "x_d": ["x_d", "y_d", "z_d"], "F_meas": ["Fx", "Fy", "Fz"],
 }
 
 
-def _csv_columns(log: dict[str, np.ndarray] | None) -> dict[str, list[str]]:
-    """The schema's columns, plus the optional ones when ``log`` has all of them."""
-    if log is not None and all(k in log for k in OPTIONAL_COLUMNS):
-        return {**COLUMNS, **OPTIONAL_COLUMNS}
-    return COLUMNS
+def schema(n: int = 3, m: int = 1, optional: bool = False) -> dict[str, list[str]]:
+    """Arrays of a robot's log with ``n`` joints and ``m`` constraints, and their CSV columns.
+
+    Parameters
+    ----------
+    n : int
+        Joints: ``q`` becomes ``q1..qn``.
+    m : int
+        Constraints: ``lambda_d`` stays one column for ``m = 1`` (the paper) and becomes
+        ``lambda_d1..m`` for ``m >= 2``.
+    optional : bool
+        Return the optional arrays (:data:`OPTIONAL_COLUMNS` for n = 3, m = 1) instead.
+
+    Returns
+    -------
+    dict
+        ``array name -> column names``, in the CSV's order.
+    """
+    columns = {}
+    for key, kind in (OPTIONAL_KINDS if optional else KINDS).items():
+        if kind == "joint":
+            columns[key] = [f"{key}{j}" for j in range(1, n + 1)]
+        elif kind == "force":
+            columns[key] = [key] if m == 1 else [f"{key}{k}" for k in range(1, m + 1)]
+        elif kind == "cartesian":
+            columns[key] = list(CARTESIAN_NAMES[key])
+        else:
+            columns[key] = [key]
+    return columns
+
+
+#: Arrays of the paper's robots' logs (n = 3 joints, m = 1 constraint) and their CSV columns.
+COLUMNS: dict[str, list[str]] = schema(3, 1)
+
+#: Optional arrays (sensing, issue 7) of the paper's robots and their CSV columns; written when
+#: all present.
+OPTIONAL_COLUMNS: dict[str, list[str]] = schema(3, 1, optional=True)
+
+
+def log_sizes(log: dict[str, np.ndarray]) -> tuple[int, int]:
+    """``(n, m)`` of a log: joints from ``q`` (N, n), constraints from ``lambda_d``
+    ((N,): 1, (N, m): m). Shapes are checked by :func:`_check_log`."""
+    n = np.shape(log["q"])[1] if np.ndim(log["q"]) == 2 else 0
+    m = 1 if np.ndim(log["lambda_d"]) == 1 else int(np.shape(log["lambda_d"])[-1])
+    return n, m
+
+
+def log_columns(log: dict[str, np.ndarray]) -> dict[str, list[str]]:
+    """The CSV columns of ``log``: its schema's, plus the optional ones when it has all of
+    them."""
+    n, m = log_sizes(log)
+    columns = schema(n, m)
+    optional = schema(n, m, optional=True)
+    if all(k in log for k in optional):
+        columns.update(optional)
+    return columns
 
 
 def csv_header(log: dict[str, np.ndarray] | None = None) -> str:
-    """The CSV header line (without newline): the column names of :data:`COLUMNS`, in order,
-    then those of :data:`OPTIONAL_COLUMNS` when ``log`` has all of them."""
-    return ",".join(c for names in _csv_columns(log).values() for c in names)
+    """The CSV header line (without newline): the columns of :func:`log_columns` of ``log``,
+    or those of :data:`COLUMNS` (the paper's robots, no optional arrays) without a log."""
+    columns = COLUMNS if log is None else log_columns(log)
+    return ",".join(c for names in columns.values() for c in names)
 
 
 def _check_log(where: str, log: dict[str, np.ndarray]) -> None:
-    """Raise ValueError (naming ``where``) unless ``log`` follows the schema."""
-    missing = [k for k in COLUMNS if k not in log]
+    """Raise ValueError (naming ``where``) unless ``log`` follows the schema: ``t`` (N,),
+    ``q`` (N, n) with n >= 1, ``lambda_d`` (N,) or (N, m) with m >= 2, and every other array
+    of the schema (optional ones when present) consistent with N, n and m."""
+    missing = [k for k in KINDS if k not in log]
     if missing:
         raise ValueError(f"{where} lacks arrays {missing}")
-    n = np.shape(log["t"])[0] if np.ndim(log["t"]) == 1 else None
-    if n is None:
+    if np.ndim(log["t"]) != 1:
         raise ValueError(f"{where}: 't' must have shape (N,), has {np.shape(log['t'])}")
-    for key, names in {**COLUMNS, **OPTIONAL_COLUMNS}.items():
-        expected = (n,) if len(names) == 1 else (n, len(names))
+    N = np.shape(log["t"])[0]
+    q_shape, lam_shape = np.shape(log["q"]), np.shape(log["lambda_d"])
+    if len(q_shape) != 2 or q_shape[0] != N or q_shape[1] < 1:
+        raise ValueError(f"{where}: 'q' has shape {q_shape}, expected (N, n) = ({N}, n) with "
+                         "n >= 1 joints")
+    if not (lam_shape == (N,) or (len(lam_shape) == 2 and lam_shape[0] == N
+                                  and lam_shape[1] >= 2)):
+        raise ValueError(f"{where}: 'lambda_d' has shape {lam_shape}, expected ({N},) for one "
+                         f"constraint or ({N}, m) with m >= 2")
+    n, m = log_sizes(log)
+    for key, names in {**schema(n, m), **schema(n, m, optional=True)}.items():
+        kind = {**KINDS, **OPTIONAL_KINDS}[key]
+        expected = (N,) if kind == "t" or (kind == "force" and m == 1) else (N, len(names))
         if key in log and np.shape(log[key]) != expected:
             raise ValueError(f"{where}: '{key}' has shape {np.shape(log[key])}, "
-                             f"expected {expected}")
+                             f"expected {expected} (n = {n} joints, m = {m} constraints)")
 
 
 def _json_default(value):
@@ -127,7 +192,7 @@ def _json_default(value):
 
 def _csv_text(log: dict[str, np.ndarray]) -> str:
     n = log["t"].shape[0]
-    columns = _csv_columns(log)
+    columns = log_columns(log)
     table = np.hstack([np.asarray(log[k], dtype=float).reshape(n, -1) for k in columns])
     buffer = io.StringIO()
     buffer.write(csv_header(log) + "\n")
@@ -190,7 +255,8 @@ def save_logs(out_dir: str | Path, logs: dict[str, dict[str, np.ndarray]], meta:
 
 
 #: Bounds of what :func:`load_logs` reads: ``run.json`` (bytes), robots, arrays per ``.npz``
-#: and their uncompressed size (the longest run, 200 000 ticks, needs ~45 MB per robot).
+#: and their uncompressed size (the longest run, 200 000 ticks, needs ~45 MB for a 3-joint
+#: robot and ~102 MB for one with n = 6 joints and m = 3 constraints: 64 columns).
 MAX_META_BYTES = 16_000_000
 MAX_ROBOTS = 8
 MAX_MEMBERS = 64

@@ -8,10 +8,16 @@ errors
 * ``force_error`` — ``λ − λ_d``, measured minus desired squeeze (Fig. 3), N;
 * ``estimate_error`` — ``λ − λ̂``, measured minus estimated (Fig. 4), N;
 * ``aux_force_error`` — ``λ̂ − λ_d`` (Fig. 5), N;
-* ``z1``, ``z2``, ``z3`` — observation errors ``q − q̂`` (Fig. 6), rad;
+* ``z1`` … ``zn`` — observation errors ``q − q̂`` of the robot's n joints (Fig. 6), rad;
 * ``velocity_error`` — ``max_j |q̇_j − q̇̂_j|``, the worst joint's error of the controller's
   velocity estimate (``d/dt q̂`` of the observer, or the alternative source's), rad/s; only
   for logs that hold ``qdot`` and ``qdot_hat`` (runs since issue 7).
+
+For a robot with m >= 2 constraints the three force errors are m-vectors per sample; their
+metric is taken on the Euclidean norm of the vector at each sample,
+``e(t_k) = ‖λ(t_k) − λ_d(t_k)‖₂`` (so ``max`` is the largest norm and ``rms`` is
+``sqrt(mean_k Σ_j e_j(t_k)²)``). For one constraint (the paper) the norm is ``|λ − λ_d|``, and
+RMS and max of ``|e|`` are those of ``e``: the paper's numbers are unchanged.
 
 A phase ``[name, a, b]`` holds the samples with ``a <= t < b`` (the last phase also ``t = b``);
 ``all`` holds every sample. Besides the errors, ``metrics[robot][phase]`` has ``n_samples``
@@ -53,15 +59,29 @@ def error_signals(log: dict[str, np.ndarray]) -> dict[str, tuple[np.ndarray, str
     lam_d = np.asarray(log["lambda_d"], dtype=float)
     signals = {
         "x_tilde": (e[:, 0], "m"), "y_tilde": (e[:, 1], "m"), "z_tilde": (e[:, 2], "m"),
-        "force_error": (lam - lam_d, "N"),
-        "estimate_error": (lam - lam_hat, "N"),
-        "aux_force_error": (lam_hat - lam_d, "N"),
-        "z1": (z[:, 0], "rad"), "z2": (z[:, 1], "rad"), "z3": (z[:, 2], "rad"),
+        "force_error": (_per_sample(lam - lam_d), "N"),
+        "estimate_error": (_per_sample(lam - lam_hat), "N"),
+        "aux_force_error": (_per_sample(lam_hat - lam_d), "N"),
     }
+    signals.update({f"z{j + 1}": (z[:, j], "rad") for j in range(z.shape[1])})
     if "qdot" in log and "qdot_hat" in log:
         dv = np.asarray(log["qdot"], dtype=float) - np.asarray(log["qdot_hat"], dtype=float)
         signals["velocity_error"] = (np.abs(dv).max(axis=1), "rad/s")
     return signals
+
+
+def _per_sample(e: np.ndarray) -> np.ndarray:
+    """A force error per sample: ``e`` itself for one constraint (shape (N,)), the Euclidean
+    norm ``‖e_k‖₂`` of each row for m >= 2 (shape (N, m)), computed as
+    ``p_k sqrt(Σ_j (e_kj / p_k)²)`` with ``p_k = max_j |e_kj|`` so that squaring cannot
+    overflow; a row holding NaN or ±inf gives NaN (a non-finite sample)."""
+    if e.ndim == 1:
+        return e
+    peak = np.max(np.abs(e), axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scaled = np.where(peak[:, None] > 0, e / np.where(peak > 0, peak, 1.0)[:, None], 0.0)
+        norm = peak * np.sqrt(np.sum(scaled ** 2, axis=1))
+    return np.where(np.isfinite(peak), norm, np.nan)
 
 
 def phase_masks(t: np.ndarray, phases: list) -> dict[str, np.ndarray]:

@@ -27,9 +27,10 @@ RUN_FILES = {"run.json", "metrics.json", "scenario.yaml"}
 RUN_SUFFIXES = {".npz", ".csv", ".png", ".svg", ".dot", ".html"}
 #: Temporary files of :func:`drake_coop.results.io.atomic_path` left by a killed writer.
 ATOMIC_TEMP = re.compile(r"\..+\.[0-9a-f]{8}\.tmp")
-#: Room kept free for a run: per control tick (logs of both robots, CSV included) and fixed
-#: (figures, diagrams, replay).
-BYTES_PER_TICK = 3_000
+#: Room kept free for a run: per control tick and robot (a 3-joint robot's log of 35 columns,
+#: CSV included; a robot with n = 6 joints and m = 3 constraints logs 64 columns, under twice
+#: as much: the estimate is a floor, not a bound) and fixed (figures, diagrams, replay).
+BYTES_PER_ROBOT_TICK = 1_500
 BYTES_FIXED = 50_000_000
 
 
@@ -76,13 +77,15 @@ class RunFolder:
     def _pattern(self) -> re.Pattern:
         return re.compile(rf"\.{re.escape(self.out.name)}\.drake-coop-(\d+)-[0-9a-f]+\.(tmp|old)")
 
-    def prepare(self, ticks: int) -> Path:
+    def prepare(self, ticks: int, robots: int = 2) -> Path:
         """Check the target and create the staging folder; return it.
 
         Parameters
         ----------
         ticks : int
             Control ticks of the run (for the free-space estimate).
+        robots : int
+            Robots of the run (for the free-space estimate).
 
         Raises
         ------
@@ -112,7 +115,7 @@ class RunFolder:
             self.staging = staging
             (staging / ".write-test").write_bytes(b"drake-coop")
             (staging / ".write-test").unlink()
-            need = BYTES_FIXED + BYTES_PER_TICK * ticks
+            need = BYTES_FIXED + BYTES_PER_ROBOT_TICK * robots * ticks
             free = shutil.disk_usage(staging).free
         except OSError as exc:
             self.discard()

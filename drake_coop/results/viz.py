@@ -3,16 +3,21 @@
 :class:`ForceArrows` is a LeafSystem that publishes (30 Hz by default), for each robot i, three
 arrows at its end-effector point ``p_E = fk(q)``:
 
-* desired ``−λ_d n_i`` (green), from the reference (29);
+* desired ``−N_iᵀ λ_d`` (green), from the reference (29);
 * measured ``−F_meas`` (red), the ground-truth wrist force (never read by the controllers);
-* estimated ``−λ̂ n_i`` (blue), the force observer (22);
+* estimated ``−N_iᵀ λ̂`` (blue), the force observer (22);
 
-each the force the end effector exerts *on the object* (palm frame): ``n_i = (s_i, 0, 0)`` is
-the object's outward normal at contact i and ``λ n_i`` the object's force on the end effector
-(Decision 1), so a squeeze (λ > 0) draws arrows pointing into the object. An arrow of force F
-starts at ``p_E + o_k`` (``o_k`` a small vertical offset per kind so the three stay apart)
-and its tip is at ``p_E + o_k + scale · F``. In ``planes`` mode it also draws a translucent
-box between the two pads while the reference says the object is held.
+each the force the end effector exerts *on the object* (palm frame): the rows of ``N_i``
+(``arm.N``, m_i × 3) are the object's outward unit normals at contact i, and ``N_iᵀ λ`` is the
+object's force on the end effector (Decision 1), so a squeeze (λ > 0) draws arrows pointing
+into the object. For the paper (m_i = 1) ``N_i = n_iᵀ = (s_i, 0, 0)`` and the arrows are
+``−λ n_i``. λ_d and the held flag are read from the reference vector through its
+:class:`~drake_coop.control.finger.ReferenceLayout` (``3 n_i + m_i + 1`` rows). An arrow of
+force F starts at ``p_E + o_k`` (``o_k`` a small vertical offset per kind so the three stay
+apart) and its tip is at ``p_E + o_k + scale · F``. In ``planes`` mode it also draws the held
+object while the reference says it is held: for two robots a translucent box between the two
+pads (facing each other along x, the paper's geometry), for three or more a translucent
+vertical disc touching every pad (:func:`held_disc_pose`).
 
 Each Meshcat call passes the context time as ``time_in_recording``: when the Meshcat records
 (the HTML replay), the arrows are recorded in the same animation as the arms; otherwise they
@@ -28,6 +33,7 @@ from pydrake.geometry import Box, Cylinder, MeshcatCone, Rgba
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
+from drake_coop.control.finger import ReferenceLayout
 from drake_coop.plant.arms import Arm
 
 if TYPE_CHECKING:
@@ -37,7 +43,7 @@ if TYPE_CHECKING:
     from drake_coop.plant.cooperative import CoopPlant
 
 __all__ = ["ARROW_KINDS", "ForceArrows", "add_force_arrows", "arrow_pose", "frame_workspace",
-           "held_box_pose", "workspace_camera"]
+           "held_box_pose", "held_disc_pose", "workspace_camera"]
 
 #: name: (colour RGBA, vertical offset of the tail from p_E in m).
 ARROW_KINDS: dict[str, tuple[tuple[float, float, float, float], float]] = {
@@ -53,7 +59,11 @@ SHAFT_RADIUS = 0.004
 MIN_LENGTH = 1e-3
 """Arrows shorter than this (m) are hidden."""
 BOX_SECTION = 0.06
-"""Height and depth of the planes mode's held box (m)."""
+"""Height and depth of the planes mode's held box, height of the held disc (m)."""
+PAD_RADIUS = 0.015
+"""Radius of the shipped arms' spherical pads (m), for arms without closed-form geometry."""
+SURROUND = 1.6
+"""Camera distance factor for three or more arms around the target (:func:`workspace_camera`)."""
 
 
 def arrow_pose(p_tail: np.ndarray, F: np.ndarray, scale: float
@@ -100,11 +110,31 @@ def held_box_pose(p_E1: np.ndarray, p_E2: np.ndarray, r_pad: float
     return 0.5 * (p1 + p2), np.array([width, BOX_SECTION, BOX_SECTION])
 
 
-def workspace_camera(arms: list[Arm], z_target: float) -> tuple[np.ndarray, np.ndarray]:
-    """A camera position and target that frame both arms and the space between them.
+def held_disc_pose(points: list[np.ndarray], r_pad: float) -> tuple[np.ndarray, float]:
+    """Centre and radius of a vertical disc held by three or more pads around it.
 
-    The target is the midpoint of the bases at height ``z_target``; the camera looks from the
-    front-right (−y, +x), above, at a distance proportional to the bases' spread.
+    The centre is the mean of the end-effector points; the radius is their mean horizontal
+    distance from it minus the pad radius, so that the disc's rim touches each pad's surface
+    when the pads stand on a circle (the three-arm scenario).
+
+    Returns
+    -------
+    (centre, radius) : (ndarray shape (3,), float)
+    """
+    p = np.asarray(points, dtype=float)
+    centre = p.mean(axis=0)
+    reach = np.linalg.norm(p[:, :2] - centre[:2], axis=1).mean()
+    return centre, max(float(reach) - r_pad, 1e-3)
+
+
+def workspace_camera(arms: list[Arm], z_target: float) -> tuple[np.ndarray, np.ndarray]:
+    """A camera position and target that frame every arm and the space between them.
+
+    The target is the mean of the bases at height ``z_target``; the camera looks from the
+    front-right (−y, +x), above, at a distance proportional to ``d = max(2 r, 0.5 m)``, ``r``
+    the largest horizontal distance of a base from the target. Two arms facing each other (the
+    paper) give ``d`` = the distance between their bases. Three or more arms stand around the
+    target, one of them between it and the camera: the distance is ``1.6 d`` then.
 
     Returns
     -------
@@ -113,50 +143,62 @@ def workspace_camera(arms: list[Arm], z_target: float) -> tuple[np.ndarray, np.n
     bases = np.array([a.p_base for a in arms])
     target = bases.mean(axis=0)
     target[2] = z_target
-    spread = max(float(np.ptp(bases[:, 0])), 0.5)
+    r = float(np.max(np.linalg.norm(bases[:, :2] - target[:2], axis=1)))
+    spread = max(2.0 * r, 0.5) * (1.0 if len(arms) <= 2 else SURROUND)
     return target + spread * np.array([0.35, -0.95, 0.35]), target
 
 
 class ForceArrows(LeafSystem):
-    """Draws force arrows at each end effector (and the held box) in Meshcat.
+    """Draws force arrows at each end effector (and the held object) in Meshcat.
 
-    Input ports (per robot ``<name>``)
-    ----------------------------------
+    Input ports (per robot ``<name>``, with ``n`` joints and ``m`` constraints)
+    ------------------------------------------------------------------------
     <name>_state : 2n-vector
         The arm's plant state ``[q, v]`` (the end-effector point is ``fk(q)``).
-    <name>_reference : 11-vector
-        The robot's reference (``λ_d`` at row 9, the held flag at row 10).
+    <name>_reference : (3n + m + 1)-vector
+        The robot's reference ``[q_d, q̇_d, q̈_d, λ_d, held]``
+        (:class:`~drake_coop.control.finger.ReferenceLayout`).
     <name>_F_meas : 3-vector
         Ground-truth force on the end effector (N).
-    <name>_lambda_hat : 1-vector
+    <name>_lambda_hat : m-vector
         The force observer's estimate λ̂ (N).
 
     Parameters
     ----------
     meshcat : pydrake.geometry.Meshcat
     arms : list[Arm]
+        The robots; ``m`` of each is its number of normals (``arm.N`` rows).
+    n_joints : list[int], optional
+        Joints of each arm (default: the size of its joint limits, ``arm.q_min``).
     scale : float
         Metres of arrow per newton.
     show_held_box : bool
-        Draw the translucent box between the pads while held (``planes`` mode).
+        Draw the held object while held (``planes`` mode): a box between two pads, a disc
+        among three or more.
     publish_period : float
         Seconds between drawings.
     """
 
-    def __init__(self, meshcat: Meshcat, arms: list[Arm], *, scale: float = 0.002,
-                 show_held_box: bool = False, publish_period: float = 1 / 30) -> None:
+    def __init__(self, meshcat: Meshcat, arms: list[Arm], *, n_joints: list[int] | None = None,
+                 scale: float = 0.002, show_held_box: bool = False,
+                 publish_period: float = 1 / 30) -> None:
         super().__init__()
         self._meshcat = meshcat
         self._arms = arms
         self._scale = scale
         self._show_held_box = show_held_box
+        if n_joints is None:
+            n_joints = [int(np.size(arm.q_min)) for arm in arms]
+        self._layouts = [ReferenceLayout(n, arm.m) for n, arm in zip(n_joints, arms)]
+        self._r_pad = next((a.geometry.r_pad for a in arms if a.geometry is not None),
+                           PAD_RADIUS)
         self._ports = []
-        for arm in arms:
+        for arm, layout in zip(arms, self._layouts):
             self._ports.append({
-                "state": self.DeclareVectorInputPort(f"{arm.name}_state", 6),
-                "reference": self.DeclareVectorInputPort(f"{arm.name}_reference", 11),
+                "state": self.DeclareVectorInputPort(f"{arm.name}_state", 2 * layout.n),
+                "reference": self.DeclareVectorInputPort(f"{arm.name}_reference", layout.size),
                 "F_meas": self.DeclareVectorInputPort(f"{arm.name}_F_meas", 3),
-                "lambda_hat": self.DeclareVectorInputPort(f"{arm.name}_lambda_hat", 1),
+                "lambda_hat": self.DeclareVectorInputPort(f"{arm.name}_lambda_hat", layout.m),
             })
         self.DeclarePeriodicPublishEvent(publish_period, 0.0, self._publish)
         self.DeclareInitializationPublishEvent(self._publish)
@@ -181,24 +223,32 @@ class ForceArrows(LeafSystem):
                     RollPitchYaw(np.pi, 0.0, 0.0), [0.0, 0.0, 0.0]))
                 m.SetProperty(path, "visible", False)
         if self._show_held_box:
-            m.SetObject(f"{ROOT}/held_object/scaled/unit", Box(1.0, 1.0, 1.0),
-                        Rgba(0.85, 0.65, 0.25, 0.45))
+            shape = Box(1.0, 1.0, 1.0) if len(self._arms) <= 2 else Cylinder(1.0, 1.0)
+            m.SetObject(f"{ROOT}/held_object/scaled/unit", shape, Rgba(0.85, 0.65, 0.25, 0.45))
             m.SetProperty(f"{ROOT}/held_object", "visible", False)
 
     # ------------------------------------------------------------------ publishing
     def forces(self, context: Context, i: int) -> dict[str, np.ndarray]:
-        """Robot i's force on the object (N, palm frame): desired ``−λ_d n_i``, measured
-        ``−F_meas``, estimated ``−λ̂ n_i``."""
+        """Robot i's force on the object (N, palm frame): desired ``−N_iᵀ λ_d``, measured
+        ``−F_meas``, estimated ``−N_iᵀ λ̂``."""
         ports = self._ports[i]
-        n = self._arms[i].normal
-        lambda_d = float(ports["reference"].Eval(context)[9])
-        return {"desired": -lambda_d * n,
+        N = self._arms[i].N
+        rows = self._layouts[i].slices()
+        lambda_d = np.asarray(ports["reference"].Eval(context), dtype=float)[rows["lambda_d"]]
+        lambda_hat = np.asarray(ports["lambda_hat"].Eval(context), dtype=float)
+        return {"desired": -(N.T @ lambda_d),
                 "measured": -np.asarray(ports["F_meas"].Eval(context), dtype=float),
-                "estimated": -float(ports["lambda_hat"].Eval(context)[0]) * n}
+                "estimated": -(N.T @ lambda_hat)}
+
+    def held(self, context: Context) -> bool:
+        """Whether the first robot's reference says the object is held."""
+        held = self._layouts[0].slices()["held"]
+        return bool(self._ports[0]["reference"].Eval(context)[held][0] > 0.5)
 
     def ee_point(self, context: Context, i: int) -> np.ndarray:
         """End-effector point ``fk(q)`` of robot i (palm frame)."""
-        return self._arms[i].fk(self._ports[i]["state"].Eval(context)[:3])
+        n = self._layouts[i].n
+        return self._arms[i].fk(self._ports[i]["state"].Eval(context)[:n])
 
     def _publish(self, context: Context) -> None:
         m, t = self._meshcat, context.get_time()
@@ -219,11 +269,14 @@ class ForceArrows(LeafSystem):
                 m.SetProperty(f"{path}/shaft", "scale", [1.0, 1.0, shaft], t)
                 m.SetTransform(f"{path}/head", RigidTransform([0.0, 0.0, L]), t)
         if self._show_held_box:
-            held = bool(self._ports[0]["reference"].Eval(context)[10] > 0.5)
+            held = self.held(context)
             m.SetProperty(f"{ROOT}/held_object", "visible", held, t)
             if held:
-                centre, size = held_box_pose(points[0], points[1],
-                                             self._arms[0].geometry.r_pad)
+                if len(points) <= 2:
+                    centre, size = held_box_pose(points[0], points[-1], self._r_pad)
+                else:
+                    centre, radius = held_disc_pose(points, self._r_pad)
+                    size = np.array([radius, radius, BOX_SECTION])
                 m.SetTransform(f"{ROOT}/held_object", RigidTransform(centre), t)
                 m.SetProperty(f"{ROOT}/held_object/scaled", "scale", list(size), t)
 
@@ -258,8 +311,8 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
     """
     arms = [h.arm for h in coop.arms]
     arrows = builder.AddNamedSystem("force_arrows", ForceArrows(
-        meshcat, arms, scale=scale, show_held_box=coop.mode == "planes",
-        publish_period=publish_period))
+        meshcat, arms, n_joints=[coop.plant.num_positions(h.instance) for h in coop.arms],
+        scale=scale, show_held_box=coop.mode == "planes", publish_period=publish_period))
     for h in coop.arms:
         name = h.arm.name
         builder.Connect(coop.plant.get_state_output_port(h.instance),
@@ -271,7 +324,7 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
 
 
 def frame_workspace(meshcat: Meshcat, arms: list[Arm], z_target: float) -> None:
-    """Point Meshcat's camera at both arms and the space between them
+    """Point Meshcat's camera at every arm and the space between them
     (:func:`workspace_camera`); the HTML replay opens with this view."""
     camera, target = workspace_camera(arms, z_target)
     meshcat.SetCameraPose(camera, target)
