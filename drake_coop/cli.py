@@ -174,7 +174,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             return _error(str(exc))
         folder = RunFolder(args.out)
         try:
-            staging = folder.prepare(run_size(scenario, args.t_end)[0])
+            staging = folder.prepare(run_size(scenario, args.t_end)[0],
+                                     robots=len(scenario.robots))
         except OutputFolderError as exc:
             return _error(str(exc))
     try:

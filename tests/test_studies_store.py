@@ -78,3 +78,19 @@ guides: [{label: g, slope: 1.0}]
                      "syn_vs_gains_k_d.png", "syn_vs_robots.png"]
     for name in names:
         assert (tmp_path / name).stat().st_size > 5_000
+
+
+def test_observation_error_covers_every_joint_of_the_arm():
+    """A 6-joint arm's summary combines z1 … z6 (a 3-joint arm's z1 … z3)."""
+    import math
+
+    from drake_coop.studies.store import summary_columns
+
+    six = {f"z{k}": {"rms": 0.1 * k, "max": 0.2 * k} for k in range(1, 7)}
+    three = {f"z{k}": {"rms": 0.1 * k, "max": 0.2 * k} for k in range(1, 4)}
+    cols = summary_columns({"robot1": {"circle": six}, "robot2": {"circle": three}}, "circle")
+    assert cols["robot1.observation_error.rms"] == math.sqrt(sum((0.1 * k) ** 2
+                                                                 for k in range(1, 7)))
+    assert cols["robot1.observation_error.max"] == 0.2 * 6
+    assert cols["robot2.observation_error.max"] == 0.2 * 3
+    assert cols["robot1.z6.rms"] == 0.1 * 6 and "robot2.z4.rms" not in cols

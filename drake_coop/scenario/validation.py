@@ -6,8 +6,6 @@ cross-field rules, reachability and the model files (the last two import the pla
 kinematics late, so that this package imports nothing outside it at import time).
 """
 
-import numpy as np
-
 from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
@@ -83,8 +81,6 @@ LENGTHS: dict[str, int] = {"robots[].base_xyz": 3, "robots[].home": 3,
                            "task.circle_axes[]": 3}
 #: At most this many robots in one scenario (as many as a run folder holds, results.logs).
 MAX_ROBOTS = 8
-#: Tolerance of the geometric rules (unit vectors, orthogonality, independence).
-_TOL = 1e-9
 
 
 def _is_multiple(period: float, step: float) -> bool:
@@ -162,27 +158,16 @@ def validate(scenario: Scenario) -> None:
             f"task.force_amplitude ({t.force_amplitude}) must not exceed task.force_mean "
             f"({t.force_mean}): the squeeze force must stay >= 0")
 
-    # Imported late: the plant's kinematics (arms) import the scenario package.
+    # Imported late: NumPy, the model files and the plant's kinematics (which imports the
+    # scenario package) are needed only here, not to import the package.
     from drake_coop.experiment.references import check_reachable
+    from drake_coop.scenario.arm_check import check_axes, check_dimensions
     from drake_coop.scenario.model_check import check_models
 
     for i, (robot, n) in enumerate(zip(scenario.robots, check_models(scenario))):
-        _validate_dimensions(robot, n, f"robots[{i}]", scenario)
-    _validate_axes(scenario)
+        check_dimensions(robot, n, f"robots[{i}]")
+    check_axes(scenario)
     check_reachable(scenario)
-
-
-# --------------------------------------------------------------------------- geometry
-
-
-def _unit_rows(rows: list[list[float]], name: str) -> np.ndarray:
-    """The rows normalized; a zero row is an error."""
-    a = np.asarray(rows, dtype=float).reshape(-1, 3)
-    norms = np.linalg.norm(a, axis=1)
-    for j, value in enumerate(norms):
-        if value < 1e-6:
-            raise ScenarioError(f"{name}[{j}] must be a nonzero direction, got {show(rows[j])}")
-    return a / norms[:, None]
 
 
 def _validate_two_sided(scenario: Scenario) -> None:
@@ -201,79 +186,6 @@ def _validate_two_sided(scenario: Scenario) -> None:
     if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") for r in robots):
         raise ScenarioError("plant.object_mode contact needs the shipped arms crs_a465 / "
                             "crs_a255 (their pads)")
-
-
-def _validate_axes(scenario: Scenario) -> None:
-    """The circle's axes (unit and orthogonal, or one of them zero) and the object's motion
-    against every robot's constraint planes."""
-    t = scenario.task
-    axes = np.asarray(t.circle_axes, dtype=float)
-    norms = np.linalg.norm(axes, axis=1)
-    if not all(abs(v - 1.0) < 1e-6 or v == 0.0 for v in norms) or norms.max() == 0.0:
-        raise ScenarioError("task.circle_axes must be two unit vectors (or one of them "
-                            f"[0, 0, 0]), got {show(t.circle_axes)}")
-    if abs(axes[0] @ axes[1]) > 1e-6:
-        raise ScenarioError(f"task.circle_axes must be orthogonal, got {show(t.circle_axes)}")
-    if scenario.plant.object_mode == "none":
-        return
-    moves = [("the lift (z)", np.array([0.0, 0.0, 1.0]))] if t.lift_height > 0 else []
-    moves += [(f"task.circle_axes[{k}]", a) for k, a in enumerate(axes)
-              if norms[k] > 0 and t.circle_radius > 0]
-    for i, r in enumerate(scenario.robots):
-        N = _unit_rows(r.normals, f"robots[{i}].normals")
-        for label, direction in moves:
-            j = int(np.argmax(np.abs(N @ direction)))
-            if abs(N[j] @ direction) > 1e-6:
-                raise ScenarioError(
-                    f"robots[{i}].normals[{j}] must be orthogonal to {label}: the object moves "
-                    "along it while held, so it must lie in every constraint plane")
-
-
-def _validate_dimensions(robot: Robot, n: int, where: str, scenario: Scenario) -> None:
-    """Lists sized by the arm's ``n`` joints and ``m`` constraints, and Assumption 1.
-
-    Raises
-    ------
-    ScenarioError
-        Naming the field and the allowed size or value.
-    """
-    m = len(robot.normals)
-    if not 1 <= m <= min(n, 3):
-        raise ScenarioError(f"{where}.normals has {m} rows; allowed 1 to {min(n, 3)} "
-                            f"(m_i <= n_i = {n} joints, at most 3 for a point)")
-    N = _unit_rows(robot.normals, f"{where}.normals")
-    if np.linalg.svd(N, compute_uv=False).min() < 1e-3:
-        raise ScenarioError(f"{where}.normals must be linearly independent (J_phi full rank), "
-                            f"got {show(robot.normals)}")
-    sized = {f"{where}.force_weights": (robot.force_weights, m),
-             f"{where}.gains.K_R": (robot.gains.K_R, n),
-             f"{where}.actuators.torque_limits": (robot.actuators.torque_limits, n),
-             f"{where}.q_seed": (robot.q_seed, n)}
-    if robot.model_error.coulomb_friction:
-        sized[f"{where}.model_error.coulomb_friction"] = (robot.model_error.coulomb_friction, n)
-    for name, (value, size) in sized.items():
-        if value is not None and len(value) != size:
-            raise ScenarioError(f"{name} must have {size} entries (one per "
-                                f"{'constraint' if size == m and 'weights' in name else 'joint'}"
-                                f"), got {len(value)}")
-    xi = robot.gains.xi_matrix
-    if xi is not None:
-        X = np.asarray(xi, dtype=float) if all(len(row) == m for row in xi) else None
-        if X is None or X.shape != (m, m):
-            raise ScenarioError(f"{where}.gains.xi_matrix must be {m}x{m} (m_i = {m}), "
-                                f"got {show(xi)}")
-        if not np.allclose(X, X.T, rtol=0, atol=_TOL) or np.linalg.eigvalsh(X).min() <= 0:
-            raise ScenarioError(f"{where}.gains.xi_matrix must be symmetric positive definite, "
-                                f"got {show(xi)}")
-    task_dim = 3 if robot.ee_rpy_deg is None else 6
-    if n not in (3, 6):
-        raise ScenarioError(f"{where}.model has {n} joints: Assumption 1 needs an arm that is "
-                            "not redundant, 3 joints (position) or 6 (position and orientation)")
-    if n != task_dim:
-        raise ScenarioError(
-            f"{where}.ee_rpy_deg must be " + ("given for a 6-joint arm (its reference is "
-                                              "position and orientation)" if n == 6 else
-                                              "null for a 3-joint arm (position-only reference)"))
 
 
 # --------------------------------------------------------------------------- sensing

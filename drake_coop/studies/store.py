@@ -14,7 +14,7 @@ after every finished case.
 Summary columns (of the study's ``phase``): ``<robot>.<error>.<rms|max>`` for the errors of
 :mod:`drake_coop.results.metrics`, plus ``position_error`` (RMS of ``|x − x_d|``, i.e.
 ``sqrt(rms_x² + rms_y² + rms_z²)``; max = the largest single-axis max) and ``observation_error``
-(the same over ``z1 … z3``), ``velocity_error`` when the run logs it (the sensing alternatives),
+(the same over the joints' ``z1 … zn``), ``velocity_error`` when the run logs it (the sensing alternatives),
 and ``worst.<error>.<stat>``, the largest over the robots.
 """
 
@@ -33,10 +33,12 @@ from drake_coop.studies.spec import Study
 
 __all__ = ["ERRORS", "ResultStore", "check_metric_names", "summary_columns"]
 
+#: Observation errors ``q − q̂`` of joints 1 … 12 (an arm has at most 12 joints).
+JOINT_ERRORS = tuple(f"z{k}" for k in range(1, 13))
 ERRORS = ("x_tilde", "y_tilde", "z_tilde", "position_error", "force_error", "estimate_error",
-          "aux_force_error", "z1", "z2", "z3", "observation_error", "velocity_error")
+          "aux_force_error", *JOINT_ERRORS, "observation_error", "velocity_error")
 _GROUPS = {"position_error": ("x_tilde", "y_tilde", "z_tilde"),
-           "observation_error": ("z1", "z2", "z3")}
+           "observation_error": JOINT_ERRORS}
 STATS = ("rms", "max")
 
 
@@ -45,6 +47,8 @@ def _robot_summary(phase_metrics: dict) -> dict[str, float]:
     for error in ERRORS:
         if error in _GROUPS:
             parts = [phase_metrics.get(e) for e in _GROUPS[error]]
+            if error == "observation_error":        # the joints the arm has
+                parts = [p for p in parts if p is not None] or [None]
             if all(parts):
                 out[f"{error}.rms"] = math.sqrt(sum(p["rms"] ** 2 for p in parts))
                 out[f"{error}.max"] = max(p["max"] for p in parts)
