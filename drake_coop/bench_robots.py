@@ -13,6 +13,7 @@ decentralized scheme promises.
 from __future__ import annotations
 
 import math
+import statistics
 import time
 
 import numpy as np
@@ -48,8 +49,10 @@ def ring_scenario(l: int) -> Scenario:
     return s
 
 
-def robots_scaling(counts: tuple[int, ...] = (2, 3, 4, 6), t_end: float = 10.0) -> list[dict]:
-    """CPU microseconds per control tick of the experiment and of the plant alone per ``l``.
+def robots_scaling(counts: tuple[int, ...] = (2, 3, 4, 6), t_end: float = 10.0,
+                   repeats: int = 1) -> list[dict]:
+    """CPU microseconds per control tick of the experiment and of the plant alone per ``l``
+    (the median of ``repeats`` alternated pairs).
 
     Returns
     -------
@@ -64,8 +67,10 @@ def robots_scaling(counts: tuple[int, ...] = (2, 3, 4, 6), t_end: float = 10.0) 
     for l in counts:
         s = ring_scenario(l)
         ticks = plan_run(s, t_end).k_end
-        full = _experiment(s, t_end)[1]
-        plant = _plant_alone(s, t_end)[1]
+        pairs = [(_experiment(s, t_end)[1], _plant_alone(s, t_end)[1])
+                 for _ in range(max(1, repeats))]
+        full = statistics.median(p[0] for p in pairs)
+        plant = statistics.median(p[1] for p in pairs)
         loop = 1e6 * (full - plant) / ticks
         rows.append({"robots": l, "experiment_us": 1e6 * full / ticks,
                      "plant_alone_us": 1e6 * plant / ticks, "control_loop_us": loop,
