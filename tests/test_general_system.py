@@ -385,3 +385,20 @@ def test_force_observer_22_equals_21_for_m_constraints_in_the_loop():
         assert lam_22.shape == (rs.law.m,) and rs.law.m in (2, 3)
         np.testing.assert_allclose(lam_21, lam_22, rtol=0, atol=1e-9)
         assert lam_22[0] > 0.1
+
+
+@pytest.mark.parametrize("l", [2, 3, 5, 8])
+def test_ring_of_l_arms_is_valid_and_its_squeezes_balance(l):
+    """The benchmark's l arms around one object: a valid scenario, each base facing the
+    centre, and the l equal squeezes along the normals summing to zero."""
+    from drake_coop.bench_robots import BASE_RADIUS, ring_scenario
+
+    s = ring_scenario(l)
+    assert [r.name for r in s.robots] == [f"robot{i + 1}" for i in range(l)]
+    normals = np.array([r.normals[0] for r in s.robots])
+    np.testing.assert_allclose(normals.sum(axis=0), 0.0, atol=1e-12)
+    for r, n in zip(s.robots, normals):
+        base = np.asarray(r.base_xyz)
+        np.testing.assert_allclose(base, BASE_RADIUS * n, atol=1e-12)
+        yaw = np.radians(r.base_yaw_deg)      # the base's x axis points at the centre
+        np.testing.assert_allclose([np.cos(yaw), np.sin(yaw), 0.0], -n, atol=1e-12)
