@@ -113,6 +113,8 @@ _TIMED = {
                         ("_calc_terms", "_calc_tau", "_calc_qddot_r_hat", "_update_latch")),
     "force sensor (ground truth)": ("drake_coop.plant.wrist", "ForceSensor",
                                     ("_calc_force_cache", "_calc_force", "_calc_lambda")),
+    "wrist kinematics (all arms)": ("drake_coop.plant.wrist", "WristKinematics",
+                                    ("_calc_signals",)),
 }
 
 
