@@ -89,7 +89,7 @@ def test_tangential_tracking_and_observation_errors_vanish(theorem_run, i):
         assert late[0] < 1e-6, late
         assert late[-1] <= max(late[0], 1e-9)     # keeps falling (or sits at round-off)
     # The normal part of q̃ is the constraint's compliance: J_φ q̃ = φ(q), a few µm.
-    phi = np.array([model.phi(x) for x in q[-10:]])
+    phi = np.array([model.phi(x)[0] for x in q[-10:]])     # m = 1
     normal = (q_tilde[-10:] @ model.J_phi(r["q_star"]).T)[:, 0]
     np.testing.assert_allclose(normal, phi, atol=1e-8)
     assert np.all(np.abs(phi) < 2e-5)

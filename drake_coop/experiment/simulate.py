@@ -109,6 +109,10 @@ def _check_guards(exp: Experiment, context) -> str | None:
     return None
 
 
+#: Monitor results that end ``AdvanceTo``.
+_STOPS = (EventStatus.Severity.kReachedTermination, EventStatus.Severity.kFailed)
+
+
 class GuardMonitor:
     """The divergence guards as a Simulator monitor (``simulator.set_monitor(monitor)``).
 
@@ -119,10 +123,12 @@ class GuardMonitor:
     """
 
     def __init__(self, exp: Experiment, plan: RunPlan,
-                 progress: Callable[[float, float, float], None] | None = None):
+                 progress: Callable[[float, float, float], None] | None = None,
+                 also: Callable | None = None):
         self._exp = exp
         self._plan = plan
         self._progress = progress
+        self._also = also        # a monitor installed before (e.g. by ``on_start``), kept
         chunk = max(1, int(round(exp.scenario.guards.check_period / plan.h)))
         self._period = chunk * plan.h
         self._next = self._period
@@ -130,6 +136,10 @@ class GuardMonitor:
         self.message: str | None = None
 
     def __call__(self, context) -> EventStatus:
+        if self._also is not None:
+            status = self._also(context)
+            if status is not None and status.severity() in _STOPS:
+                return status
         t = context.get_time()
         if t < self._next * (1 - 1e-12):
             return EventStatus.DidNothing()
@@ -203,7 +213,9 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     before_build : callable, optional
         Passed to :func:`~drake_coop.experiment.diagram.build_experiment` (visualizers).
     on_start : callable, optional
-        ``on_start(experiment, simulator)`` just before the first step (start recordings).
+        ``on_start(experiment, simulator)`` just before the first step (start recordings); a
+        monitor it sets with ``simulator.set_monitor`` is called before the guards' at every
+        step.
     hold_signals : callable, optional
         A context manager factory entered once the loop has stopped, around the collection of
         the logs (the command line defers SIGINT/SIGTERM there, so that a second Ctrl-C cannot
@@ -233,7 +245,7 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     simulator.Initialize()
     if on_start is not None:
         on_start(exp, simulator)
-    monitor = GuardMonitor(exp, plan, progress)
+    monitor = GuardMonitor(exp, plan, progress, also=simulator.get_monitor())
     simulator.set_monitor(monitor)
     status, message = "ok", ""
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
