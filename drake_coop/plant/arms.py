@@ -28,7 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_coop.scenario.schema import SHIPPED_ARMS, Robot, Task
+from drake_coop.scenario.resources import controller_urdf_path, model_urdf_path
+from drake_coop.scenario.schema import Robot, Task
 
 
 def urdf_dir() -> Path:
@@ -100,23 +101,6 @@ def urdf_joint_limits(path: Path) -> tuple[np.ndarray, np.ndarray]:
         lo.append(-math.inf if free or limit.get("lower") is None else float(limit.get("lower")))
         hi.append(math.inf if free or limit.get("upper") is None else float(limit.get("upper")))
     return np.array(lo), np.array(hi)
-
-
-def model_urdf_path(robot: Robot) -> Path:
-    """The simulated arm's URDF: a shipped model by name, else the ``.urdf`` path (absolute or
-    relative to :func:`urdf_dir`)."""
-    if robot.model in SHIPPED_ARMS:
-        return urdf_dir() / SHIPPED_ARMS[robot.model]
-    p = Path(robot.model).expanduser()
-    return p if p.is_absolute() else urdf_dir() / p
-
-
-def controller_urdf_path(robot: Robot) -> Path:
-    """The controller's own model of the arm (defaults to the simulated one)."""
-    if not robot.controller_model:
-        return model_urdf_path(robot)
-    p = Path(robot.controller_model).expanduser()
-    return p if p.is_absolute() else urdf_dir() / p
 
 
 class Arm:

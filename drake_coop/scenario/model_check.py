@@ -8,8 +8,8 @@ the world), with the ``ee_frame``, the fixed ``sensor_joint`` and between
 :data:`MIN_JOINTS` and :data:`MAX_JOINTS` one-degree-of-freedom joints. A failure raises
 :class:`~drake_coop.scenario.ScenarioError` with one line naming the field and the path.
 
-Paths are resolved as the arms resolve them (relative to
-:func:`drake_coop.plant.arms.urdf_dir`). A file already checked is not parsed again while its
+Paths are resolved by :func:`~drake_coop.scenario.resources.model_urdf_path` (shipped models
+and paths relative to the ``urdf/`` folder). A file already checked is not parsed again while its
 size and modification time are unchanged.
 """
 
@@ -22,6 +22,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from drake_coop.scenario.bounds import one_line
+from drake_coop.scenario.resources import controller_urdf_path, model_urdf_path
 from drake_coop.scenario.schema import Robot, Scenario, ScenarioError
 
 __all__ = ["MAX_MODEL_BYTES", "MAX_JOINTS", "MIN_JOINTS", "check_model_file", "check_models",
@@ -47,8 +48,6 @@ def check_models(scenario: Scenario) -> list[int]:
         ``robots[i].model`` (or ``controller_model``, ``base_frame``, ...), the path and the
         problem.
     """
-    from drake_coop.plant.arms import controller_urdf_path, model_urdf_path
-
     joints = []
     for i, robot in enumerate(scenario.robots):
         n = check_model_file(model_urdf_path(robot), f"robots[{i}].model", robot)
@@ -64,8 +63,6 @@ def check_models(scenario: Scenario) -> list[int]:
 
 def model_joint_count(robot: Robot) -> int:
     """``n_i``: the joint positions of a robot's (checked) arm model."""
-    from drake_coop.plant.arms import model_urdf_path
-
     return check_model_file(model_urdf_path(robot), "model", robot)
 
 

@@ -21,12 +21,13 @@ from importlib import resources as _resources
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from drake_coop.scenario.schema import ScenarioError
+from drake_coop.scenario.schema import SHIPPED_ARMS, Robot, ScenarioError
 
 if TYPE_CHECKING:
     from drake_coop.scenario.schema import Scenario
 
-__all__ = ["data_dir", "urdf_dir", "scenarios_dir", "shipped_scenarios", "scenario_summary",
+__all__ = ["data_dir", "urdf_dir", "model_urdf_path", "controller_urdf_path", "scenarios_dir",
+           "shipped_scenarios", "scenario_summary",
            "find_scenario", "default_scenario_path", "resolve_models"]
 
 #: A file each data folder must hold (tells a real folder from a stray one).
@@ -65,6 +66,23 @@ def urdf_dir() -> Path:
     """Folder of the robot models: ``$DRAKE_COOP_URDF_DIR`` if set, else the shipped one."""
     env = os.environ.get("DRAKE_COOP_URDF_DIR")
     return Path(env) if env else data_dir("urdf")
+
+
+def model_urdf_path(robot: Robot) -> Path:
+    """The simulated arm's URDF: a shipped model by name, else the ``.urdf`` path (absolute or
+    relative to :func:`urdf_dir`)."""
+    if robot.model in SHIPPED_ARMS:
+        return urdf_dir() / SHIPPED_ARMS[robot.model]
+    p = Path(robot.model).expanduser()
+    return p if p.is_absolute() else urdf_dir() / p
+
+
+def controller_urdf_path(robot: Robot) -> Path:
+    """The controller's own model of the arm (defaults to the simulated one)."""
+    if not robot.controller_model:
+        return model_urdf_path(robot)
+    p = Path(robot.controller_model).expanduser()
+    return p if p.is_absolute() else urdf_dir() / p
 
 
 def scenarios_dir() -> Path:
