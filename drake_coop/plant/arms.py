@@ -1,35 +1,37 @@
-"""The arms: base pose, constraint planes and kinematics (closed form for the paper's arms).
+"""The arms in the palm frame: base pose, frames, constraints (2) and kinematics.
 
-The paper's two arms (CRS A465 and A255) are reduced to waist yaw (joint 1, about z), shoulder
-pitch (joint 2, about y) and elbow pitch (joint 3, about y), with the wrist locked straight and
-lumped into the last link. At ``q = 0`` the arm points straight up; a positive ``q2`` leans the
-upper arm forward (towards the base's +x), a positive ``q3`` bends the forearm further forward
-("elbow up" postures). The end-effector point E is the centre of the spherical contact pad, at
-distance ``L3`` from the elbow along the forearm: forearm + wrist-to-flange + force sensor + pad
-radius. For them the forward kinematics, Jacobian, its time derivative and inverse kinematics
-are in closed form here (NumPy, vectorised; tests check them against the MultibodyPlant). Any
-other arm (another URDF, other frames, an orientation reference) goes through Drake's
-kinematics and inverse kinematics (:mod:`drake_coop.plant.kinematics`).
-
-The constraints (2) of robot ``i`` (``m_i`` rows) are ``φ_i(q) = N_i (x_i(q) − c_i)``: ``N_i``
+The constraints of robot ``i`` (``m_i`` rows) are ``φ_i(q) = N_i (x_i(q) − c_i)``: ``N_i``
 the object's outward unit normals at the contact (rows), ``c_i`` the contact point at the
 grasp. Then the generalized force ``J_φᵀ λ`` is the Cartesian force ``N_iᵀ λ`` on the end
 effector: a positive λ is the object pushing the end effector outwards, i.e. a squeeze. The
 paper's Section IV is ``m_i = 1``, ``N_i = (s_i, 0, 0)``: ``φ_i = s_i (x_i − b_i)`` with
 ``s_1 = −1``, ``s_2 = +1``.
+
+The kinematics are the closed form of the paper's arms (:mod:`drake_coop.plant.crs`) or
+Drake's for any other arm (:mod:`drake_coop.plant.kinematics`), chosen by
+:func:`drake_coop.scenario.reach.robot_kinematics`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
+from drake_coop.plant.crs import (
+    GEOMETRY,
+    ArmGeometry,
+    CrsKinematics,
+    _rot_z,
+    urdf_joint_limits,
+)
+from drake_coop.scenario.reach import has_closed_form, robot_kinematics
 from drake_coop.scenario.resources import controller_urdf_path, model_urdf_path
 from drake_coop.scenario.schema import Robot, Task
+
+__all__ = ["GEOMETRY", "Arm", "ArmGeometry", "CrsKinematics", "urdf_dir", "urdf_joint_limits"]
 
 
 def urdf_dir() -> Path:
@@ -38,69 +40,6 @@ def urdf_dir() -> Path:
     from drake_coop.scenario.resources import urdf_dir as _urdf_dir
 
     return _urdf_dir()
-
-
-@dataclass(frozen=True)
-class ArmGeometry:
-    """Kinematic lengths of a 3-joint arm (m) (its joint limits are the URDF's).
-
-    Attributes
-    ----------
-    h1 : float
-        Base plate to shoulder axis.
-    L2 : float
-        Shoulder to elbow (upper arm).
-    L_forearm : float
-        Elbow to wrist.
-    L_flange : float
-        Wrist to tool flange (wrist locked straight).
-    L_sensor : float
-        Force-sensor body length (flange to pad base).
-    r_pad : float
-        Radius of the spherical contact pad.
-    """
-
-    h1: float
-    L2: float
-    L_forearm: float
-    L_flange: float
-    L_sensor: float
-    r_pad: float
-
-    @property
-    def L3(self) -> float:
-        """Elbow to end-effector point (pad centre)."""
-        return self.L_forearm + self.L_flange + self.L_sensor + self.r_pad
-
-
-#: Published lengths (CRS manuals) plus our sensor and pad.
-GEOMETRY: dict[str, ArmGeometry] = {
-    "crs_a465": ArmGeometry(
-        h1=0.3302, L2=0.3048, L_forearm=0.3302, L_flange=0.0762, L_sensor=0.03, r_pad=0.015),
-    "crs_a255": ArmGeometry(
-        h1=0.254, L2=0.254, L_forearm=0.254, L_flange=0.051, L_sensor=0.03, r_pad=0.015),
-}
-
-
-def _rot_z(yaw: float) -> np.ndarray:
-    c, s = math.cos(yaw), math.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def urdf_joint_limits(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper limits of the URDF's one-degree-of-freedom joints, in file order (the
-    order of Drake's joint positions); a continuous joint or a missing bound is unlimited."""
-    import xml.etree.ElementTree as ET
-
-    lo, hi = [], []
-    for joint in ET.parse(path).getroot().findall("joint"):
-        if joint.get("type") not in ("revolute", "continuous", "prismatic"):
-            continue
-        limit = joint.find("limit")
-        free = joint.get("type") == "continuous" or limit is None
-        lo.append(-math.inf if free or limit.get("lower") is None else float(limit.get("lower")))
-        hi.append(math.inf if free or limit.get("upper") is None else float(limit.get("upper")))
-    return np.array(lo), np.array(hi)
 
 
 class Arm:
@@ -121,8 +60,8 @@ class Arm:
     c : ndarray, shape (3,)
         The contact point at the grasp.
     closed_form : bool
-        Whether the closed-form kinematics of this module apply (the paper's arms, default
-        frames, position-only reference); otherwise :attr:`kinematics` is Drake's.
+        Whether the closed-form kinematics apply (the paper's arms, default frames,
+        position-only reference); otherwise :attr:`kinematics` is Drake's.
     """
 
     def __init__(self, robot: Robot, task: Task | None = None):
@@ -130,11 +69,9 @@ class Arm:
         self.robot = robot
         self.name = robot.name
         self.geometry = GEOMETRY.get(robot.model)
-        self.closed_form = (self.geometry is not None and robot.base_frame == "base_link"
-                            and robot.ee_frame == "pad" and robot.ee_rpy_deg is None)
+        self.closed_form = has_closed_form(robot)
         self.p_base = np.asarray(robot.base_xyz, dtype=float)
         self.yaw = math.radians(robot.base_yaw_deg)
-        self.R_base = _rot_z(self.yaw)
         N = np.atleast_2d(np.asarray(robot.normals, dtype=float))
         self.N = N / np.linalg.norm(N, axis=1, keepdims=True)
         self.m = self.N.shape[0]
@@ -168,23 +105,15 @@ class Arm:
 
     @cached_property
     def kinematics(self):
-        """Forward kinematics, joint references and path checks: the closed form of this
-        module for the paper's arms, :class:`~drake_coop.plant.kinematics.DrakeArmKinematics`
-        otherwise."""
-        if self.closed_form:
-            return ClosedFormKinematics(self)
-        from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+        """Forward kinematics, joint references and path checks:
+        :class:`~drake_coop.plant.crs.CrsKinematics` for the paper's arms,
+        :class:`~drake_coop.plant.kinematics.DrakeArmKinematics` otherwise."""
+        return robot_kinematics(self.robot)
 
-        from drake_coop.plant.kinematics import DrakeArmKinematics
-
-        R_d = None
-        if self.robot.ee_rpy_deg is not None:
-            R_d = RollPitchYaw(np.radians(self.robot.ee_rpy_deg)).ToRotationMatrix()
-        q_seed = None if self.robot.q_seed is None else np.asarray(self.robot.q_seed, float)
-        return DrakeArmKinematics(
-            self.urdf_path, RigidTransform(RotationMatrix.MakeZRotation(self.yaw), self.p_base),
-            base_frame=self.base_frame, ee_frame=self.ee_frame, R_d=R_d, q_seed=q_seed,
-            name=self.name)
+    @property
+    def R_base(self) -> np.ndarray:
+        """Rotation of the base in the palm frame (about z by the yaw)."""
+        return _rot_z(self.yaw)
 
     @cached_property
     def _limits(self) -> tuple[np.ndarray, np.ndarray]:
@@ -200,102 +129,33 @@ class Arm:
         """Upper joint limits (rad), from the URDF."""
         return self._limits[1]
 
-    # ------------------------------------------------------------------ forward kinematics
+    # ------------------------------------------------------------------ kinematics
     def fk(self, q: np.ndarray) -> np.ndarray:
         """End-effector point E in the palm frame, for q of shape (..., n)."""
-        if not self.closed_form:
-            return self.kinematics.fk(q)
-        g = self.geometry
-        q = np.asarray(q, dtype=float)
-        q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
-        r = g.L2 * np.sin(q2) + g.L3 * np.sin(q2 + q3)
-        z = g.h1 + g.L2 * np.cos(q2) + g.L3 * np.cos(q2 + q3)
-        local = np.stack([r * np.cos(q1), r * np.sin(q1), z], axis=-1)
-        return local @ self.R_base.T + self.p_base
-
-    def _terms(self, q: np.ndarray):
-        """sin q1, cos q1 and the planar terms r = L2 s2 + L3 s23, a = ∂r/∂q2, b = ∂r/∂q3,
-        e = L3 s23 shared by the Jacobian and its derivative."""
-        g = self.geometry
-        q = np.asarray(q, dtype=float)
-        q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
-        b = g.L3 * np.cos(q2 + q3)
-        e = g.L3 * np.sin(q2 + q3)
-        r = g.L2 * np.sin(q2) + e
-        a = g.L2 * np.cos(q2) + b
-        return np.sin(q1), np.cos(q1), r, a, b, e
+        return self.kinematics.fk(q)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """Translational Jacobian ∂E/∂q in the palm frame, shape (..., 3, 3)."""
-        s1, c1, r, a, b, e = self._terms(q)
-        zero = np.zeros_like(s1)
-        J = np.stack([
-            np.stack([-r * s1, a * c1, b * c1], axis=-1),
-            np.stack([r * c1, a * s1, b * s1], axis=-1),
-            np.stack([zero, -r, -e], axis=-1),
-        ], axis=-2)
-        return self.R_base @ J
+        """Translational Jacobian ∂E/∂q (closed form of the paper's arms), shape (..., 3, 3)."""
+        return self._crs.jacobian(q)
 
     def jacobian_dot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Time derivative of :meth:`jacobian` along joint velocity v, shape (..., 3, 3)."""
-        s1, c1, r, a, b, e = self._terms(q)
-        v = np.asarray(v, dtype=float)
-        v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
-        q2 = np.asarray(q, dtype=float)[..., 1]
-        rd = a * v2 + b * v3
-        ad = -self.geometry.L2 * np.sin(q2) * v2 - e * (v2 + v3)
-        bd = -e * (v2 + v3)
-        ed = b * (v2 + v3)
-        zero = np.zeros_like(s1)
-        Jd = np.stack([
-            np.stack([-rd * s1 - r * c1 * v1, ad * c1 - a * s1 * v1, bd * c1 - b * s1 * v1],
-                     axis=-1),
-            np.stack([rd * c1 - r * s1 * v1, ad * s1 + a * c1 * v1, bd * s1 + b * c1 * v1],
-                     axis=-1),
-            np.stack([zero, -rd, -ed], axis=-1),
-        ], axis=-2)
-        return self.R_base @ Jd
-
-    # ------------------------------------------------------------------ inverse kinematics
-    def local_point(self, p: np.ndarray) -> np.ndarray:
-        """A palm-frame point expressed in the base frame."""
-        return (np.asarray(p, dtype=float) - self.p_base) @ self.R_base
-
-    def reach_ratio(self, p: np.ndarray) -> np.ndarray:
-        """Shoulder-to-point distance over the arm's full reach ``L2 + L3``."""
-        g = self.geometry
-        lp = self.local_point(p)
-        d = np.hypot(np.hypot(lp[..., 0], lp[..., 1]), lp[..., 2] - g.h1)
-        return d / (g.L2 + g.L3)
+        """Time derivative of :meth:`jacobian` along v (closed form), shape (..., 3, 3)."""
+        return self._crs.jacobian_dot(q, v)
 
     def ik(self, p: np.ndarray) -> np.ndarray:
-        """Closed-form inverse kinematics, the branch of the paper's postures.
+        """Closed-form inverse kinematics of the paper's arms (the elbow-up branch)."""
+        return self._crs.ik(p)
 
-        The branch: the arm faces the point (``q1 = atan2(y, x)`` in the base frame) with the
-        elbow up (``q3 > 0``). Raises ``ValueError`` for a point out of reach.
+    def reach_ratio(self, p: np.ndarray) -> np.ndarray:
+        """Shoulder-to-point distance over the full reach (closed form)."""
+        return self._crs.reach_ratio(p)
 
-        Parameters
-        ----------
-        p : ndarray, shape (..., 3)
-            End-effector points in the palm frame.
-
-        Returns
-        -------
-        ndarray, shape (..., 3)
-            Joint positions.
-        """
-        g = self.geometry
-        lp = self.local_point(p)
-        x, y, z = lp[..., 0], lp[..., 1], lp[..., 2]
-        q1 = np.arctan2(y, x)
-        r = np.hypot(x, y)
-        dz = z - g.h1
-        c3 = (r * r + dz * dz - g.L2 ** 2 - g.L3 ** 2) / (2 * g.L2 * g.L3)
-        if np.any(np.abs(c3) > 1.0):
-            raise ValueError(f"{self.name}: point out of reach of the arm")
-        q3 = np.arccos(c3)
-        q2 = np.arctan2(r, dz) - np.arctan2(g.L3 * np.sin(q3), g.L2 + g.L3 * np.cos(q3))
-        return np.stack([q1, q2, q3], axis=-1)
+    @property
+    def _crs(self) -> CrsKinematics:
+        if not self.closed_form:
+            raise ValueError(f"{self.name}: no closed-form kinematics for model "
+                             f"{self.robot.model!r}; use arm.kinematics")
+        return self.kinematics
 
     # ------------------------------------------------------------------ constraint (2)
     def phi(self, q: np.ndarray) -> np.ndarray:
@@ -305,53 +165,3 @@ class Arm:
     def J_phi(self, q: np.ndarray) -> np.ndarray:
         """Constraint Jacobian ``J_φ = N ∂x/∂q`` (closed form), shape (..., m, 3)."""
         return self.N @ self.jacobian(q)
-
-
-class ClosedFormKinematics:
-    """The closed-form kinematics of a paper's arm behind the interface of
-    :class:`~drake_coop.plant.kinematics.DrakeArmKinematics` (``fk``, ``joint_reference``,
-    ``check_path``)."""
-
-    def __init__(self, arm: Arm):
-        self.arm = arm
-        self.n = 3
-        self.q_min = arm.q_min
-        self.q_max = arm.q_max
-
-    def fk(self, q: np.ndarray) -> np.ndarray:
-        return self.arm.fk(q)
-
-    def joint_reference(self, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)``."""
-        arm = self.arm
-        q = arm.ik(x)
-        J = arm.jacobian(q)
-        qd = np.linalg.solve(J, xd[..., None])[..., 0]
-        Jd = arm.jacobian_dot(q, qd)
-        qdd = np.linalg.solve(J, (xdd - (Jd @ qd[..., None])[..., 0])[..., None])[..., 0]
-        return q, qd, qdd
-
-    def check_path(self, x: np.ndarray, t: np.ndarray | None = None, margin: float = 0.97
-                   ) -> str:
-        """'' or why the Cartesian points ``x`` (K, 3) (at times ``t``) are not all
-        reachable: within ``margin`` of the full reach, away from the inner singularity,
-        joints within limits."""
-        arm, g = self.arm, self.arm.geometry
-        t = np.arange(len(x), dtype=float) if t is None else t
-        ratio = arm.reach_ratio(x)
-        inner = abs(g.L3 - g.L2) / (g.L2 + g.L3)
-        worst = int(np.argmax(ratio))
-        if ratio[worst] > margin or ratio.min() < inner + 0.05:
-            bad = worst if ratio[worst] > margin else int(np.argmin(ratio))
-            return (f"target {np.round(x[bad], 3).tolist()} at t = {t[bad]:.2f} s is out of reach "
-                    f"(distance/reach = {ratio[bad]:.3f}, allowed {inner + 0.05:.3f} to "
-                    f"{margin})")
-        q = arm.ik(x)
-        out = (q < self.q_min) | (q > self.q_max)
-        if out.any():
-            row, j = np.argwhere(out)[0]
-            return (f"target at t = {t[row]:.2f} s needs joint{j + 1} = "
-                    f"{math.degrees(q[row, j]):.1f} deg, outside its limits "
-                    f"[{math.degrees(self.q_min[j]):.0f}, {math.degrees(self.q_max[j]):.0f}] deg")
-        return ""

@@ -1,13 +1,20 @@
 """Scenario: every number of an experiment, as typed dataclasses loaded from YAML.
 
-``schema`` holds the dataclasses (:class:`Scenario`, :func:`default_scenario`), ``loading``
-reads and writes YAML (:func:`load_scenario`, :func:`dump_scenario`), ``validation`` the
-ranges and rules (:func:`validate`, :data:`BOUNDS`), ``timing`` the aligned periods and the run
-size; ``bounds``, ``safe_yaml``, ``model_check`` and ``resources`` are their helpers. The public
+``schema`` holds the dataclasses (:class:`Scenario`), ``loading`` reads and writes YAML
+(:func:`load_scenario`, :func:`dump_scenario`, :func:`default_scenario`: ``paper.yaml``),
+``validation`` the ranges and rules (:func:`validate`, :data:`BOUNDS`; the arms' rules in
+``arm_check``, the model files in ``model_check``, reachability in ``reach``), ``task_path`` the
+task's Cartesian paths (28) and force (29), ``timing`` the aligned periods and the run size;
+``bounds``, ``safe_yaml`` and ``resources`` are their helpers. The public
 names are re-exported here: ``from drake_coop.scenario import Scenario, load_scenario``.
 """
 
-from drake_coop.scenario.loading import dump_scenario, load_scenario
+from drake_coop.scenario.loading import (
+    default_scenario,
+    dump_scenario,
+    load_scenario,
+    paper_robots,
+)
 from drake_coop.scenario.schema import (
     ARM_MODELS,
     FORCE_SOURCES,
@@ -24,8 +31,6 @@ from drake_coop.scenario.schema import (
     Scenario,
     ScenarioError,
     Task,
-    default_scenario,
-    paper_robots,
 )
 from drake_coop.scenario.timing import (
     MAX_PLANT_STEPS,

@@ -8,11 +8,13 @@ then runs :func:`drake_coop.scenario.validation.validate`. Every problem is repo
 what is allowed.
 """
 
+import copy
 import dataclasses
+import functools
 from pathlib import Path
 
 from drake_coop.scenario.bounds import one_line, optional_of, show
-from drake_coop.scenario.schema import Scenario, ScenarioError, paper_robots
+from drake_coop.scenario.schema import Robot, Scenario, ScenarioError
 from drake_coop.scenario.validation import validate
 
 
@@ -140,3 +142,20 @@ def dump_scenario(scenario: Scenario) -> str:
     from pydrake.common.yaml import yaml_dump_typed
 
     return yaml_dump_typed(scenario)
+
+
+def paper_robots() -> list[Robot]:
+    """The two robots of Section IV with the paper's gains (β is ours), read from
+    ``scenarios/paper.yaml``."""
+    return default_scenario().robots
+
+
+def default_scenario() -> Scenario:
+    """The paper's experiment: ``scenarios/paper.yaml`` (the one source of the paper's numbers),
+    parsed once and copied on every call."""
+    return copy.deepcopy(_paper_scenario())
+
+
+@functools.lru_cache(maxsize=1)
+def _paper_scenario() -> Scenario:
+    return load_scenario()

@@ -4,14 +4,13 @@ A scenario is the single source of truth of a run: the plant (time step, object 
 robots (``l >= 2``; model, frames, base pose, constraint planes, home point, gains), the task of Section IV of
 the paper (phase times, circle (28), force profile (29)) and the simulation guards.
 ``scenarios/paper.yaml`` holds the paper's experiment, the one source of its numbers:
-:func:`default_scenario` and :func:`paper_robots` read it. The dataclass defaults below are
+:func:`~drake_coop.scenario.loading.default_scenario` and ``paper_robots`` read it. The dataclass defaults below are
 what a field takes when a scenario file leaves it out (the paper's robot 1 and task; a test
 pins them to ``paper.yaml``). Loading is in :mod:`drake_coop.scenario.loading`, the ranges and rules
 in :mod:`drake_coop.scenario.validation`. This module imports only the leaf
 :mod:`drake_coop.scenario.bounds` (for the one-line message of :class:`ScenarioError`).
 """
 
-import functools
 import math
 from dataclasses import dataclass, field
 from typing import Optional
@@ -377,27 +376,6 @@ class Scenario:
     robots: list[Robot] = field(default_factory=list)
     task: Task = field(default_factory=Task)
     guards: Guards = field(default_factory=Guards)
-
-
-def paper_robots() -> list[Robot]:
-    """The two robots of Section IV with the paper's gains (β is ours), read from
-    ``scenarios/paper.yaml``."""
-    return default_scenario().robots
-
-
-def default_scenario() -> Scenario:
-    """The paper's experiment: ``scenarios/paper.yaml`` (the one source of the paper's numbers),
-    parsed once and copied on every call."""
-    import copy
-
-    return copy.deepcopy(_paper_scenario())
-
-
-@functools.lru_cache(maxsize=1)
-def _paper_scenario() -> Scenario:
-    from drake_coop.scenario.loading import load_scenario
-
-    return load_scenario()
 
 
 # --------------------------------------------------------------------------- timing

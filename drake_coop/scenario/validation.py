@@ -158,11 +158,11 @@ def validate(scenario: Scenario) -> None:
             f"task.force_amplitude ({t.force_amplitude}) must not exceed task.force_mean "
             f"({t.force_mean}): the squeeze force must stay >= 0")
 
-    # Imported late: NumPy, the model files and the plant's kinematics (which imports the
-    # scenario package) are needed only here, not to import the package.
-    from drake_coop.experiment.references import check_reachable
+    # Imported late: NumPy, the model files and the arms' kinematics are needed only here,
+    # not to import the package.
     from drake_coop.scenario.arm_check import check_axes, check_dimensions
     from drake_coop.scenario.model_check import check_models
+    from drake_coop.scenario.reach import check_reachable
 
     for i, (robot, n) in enumerate(zip(scenario.robots, check_models(scenario))):
         check_dimensions(robot, n, f"robots[{i}]")

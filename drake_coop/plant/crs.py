@@ -1,0 +1,243 @@
+"""Closed-form kinematics of the paper's two arms (CRS A465 and A255, 3 joints).
+
+Both arms are reduced to waist yaw (joint 1, about z), shoulder pitch (joint 2, about y) and
+elbow pitch (joint 3, about y), with the wrist locked straight and lumped into the last link.
+At ``q = 0`` the arm points straight up; a positive ``q2`` leans the upper arm forward (towards
+the base's +x), a positive ``q3`` bends the forearm further forward ("elbow up" postures). The
+end-effector point E is the centre of the spherical contact pad, at distance ``L3`` from the
+elbow along the forearm: forearm + wrist-to-flange + force sensor + pad radius.
+
+:class:`CrsKinematics` holds the forward kinematics, Jacobian, its time derivative and inverse
+kinematics (NumPy, vectorised; tests check them against the MultibodyPlant built from the URDF
+files), behind the same interface as :class:`~drake_coop.plant.kinematics.DrakeArmKinematics`
+(``n``, ``q_min``, ``q_max``, ``fk``, ``joint_reference``, ``check_path``). Like that module,
+it imports nothing of the scenario, so the scenario's checks can use both.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ArmGeometry:
+    """Kinematic lengths of a 3-joint arm (m) (its joint limits are the URDF's).
+
+    Attributes
+    ----------
+    h1 : float
+        Base plate to shoulder axis.
+    L2 : float
+        Shoulder to elbow (upper arm).
+    L_forearm : float
+        Elbow to wrist.
+    L_flange : float
+        Wrist to tool flange (wrist locked straight).
+    L_sensor : float
+        Force-sensor body length (flange to pad base).
+    r_pad : float
+        Radius of the spherical contact pad.
+    """
+
+    h1: float
+    L2: float
+    L_forearm: float
+    L_flange: float
+    L_sensor: float
+    r_pad: float
+
+    @property
+    def L3(self) -> float:
+        """Elbow to end-effector point (pad centre)."""
+        return self.L_forearm + self.L_flange + self.L_sensor + self.r_pad
+
+
+#: Published lengths (CRS manuals) plus our sensor and pad.
+GEOMETRY: dict[str, ArmGeometry] = {
+    "crs_a465": ArmGeometry(
+        h1=0.3302, L2=0.3048, L_forearm=0.3302, L_flange=0.0762, L_sensor=0.03, r_pad=0.015),
+    "crs_a255": ArmGeometry(
+        h1=0.254, L2=0.254, L_forearm=0.254, L_flange=0.051, L_sensor=0.03, r_pad=0.015),
+}
+
+
+def _rot_z(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def urdf_joint_limits(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper limits of the URDF's one-degree-of-freedom joints, in file order (the
+    order of Drake's joint positions); a continuous joint or a missing bound is unlimited."""
+    lo, hi = [], []
+    for joint in ET.parse(path).getroot().findall("joint"):
+        if joint.get("type") not in ("revolute", "continuous", "prismatic"):
+            continue
+        limit = joint.find("limit")
+        free = joint.get("type") == "continuous" or limit is None
+        lo.append(-math.inf if free or limit.get("lower") is None else float(limit.get("lower")))
+        hi.append(math.inf if free or limit.get("upper") is None else float(limit.get("upper")))
+    return np.array(lo), np.array(hi)
+
+
+class CrsKinematics:
+    """Closed-form kinematics of one of the paper's arms at its base pose.
+
+    Parameters
+    ----------
+    geometry : ArmGeometry
+        The arm's lengths (:data:`GEOMETRY`).
+    p_base : ndarray, shape (3,)
+        Base position in the palm frame (m).
+    yaw : float
+        Base rotation about the palm z axis (rad).
+    q_min, q_max : ndarray, shape (3,)
+        Joint limits (rad), from the URDF (:func:`urdf_joint_limits`).
+    name : str
+        The robot's name, for messages.
+    """
+
+    def __init__(self, geometry: ArmGeometry, p_base: np.ndarray, yaw: float,
+                 q_min: np.ndarray, q_max: np.ndarray, name: str = "robot"):
+        self.geometry = geometry
+        self.p_base = np.asarray(p_base, dtype=float)
+        self.yaw = float(yaw)
+        self.R_base = _rot_z(self.yaw)
+        self.q_min = np.asarray(q_min, dtype=float)
+        self.q_max = np.asarray(q_max, dtype=float)
+        self.name = name
+        self.n = 3
+
+    # ------------------------------------------------------------------ forward kinematics
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """End-effector point E in the palm frame, for q of shape (..., n)."""
+        g = self.geometry
+        q = np.asarray(q, dtype=float)
+        q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
+        r = g.L2 * np.sin(q2) + g.L3 * np.sin(q2 + q3)
+        z = g.h1 + g.L2 * np.cos(q2) + g.L3 * np.cos(q2 + q3)
+        local = np.stack([r * np.cos(q1), r * np.sin(q1), z], axis=-1)
+        return local @ self.R_base.T + self.p_base
+
+    def _terms(self, q: np.ndarray):
+        """sin q1, cos q1 and the planar terms r = L2 s2 + L3 s23, a = ∂r/∂q2, b = ∂r/∂q3,
+        e = L3 s23 shared by the Jacobian and its derivative."""
+        g = self.geometry
+        q = np.asarray(q, dtype=float)
+        q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
+        b = g.L3 * np.cos(q2 + q3)
+        e = g.L3 * np.sin(q2 + q3)
+        r = g.L2 * np.sin(q2) + e
+        a = g.L2 * np.cos(q2) + b
+        return np.sin(q1), np.cos(q1), r, a, b, e
+
+    def jacobian(self, q: np.ndarray) -> np.ndarray:
+        """Translational Jacobian ∂E/∂q in the palm frame, shape (..., 3, 3)."""
+        s1, c1, r, a, b, e = self._terms(q)
+        zero = np.zeros_like(s1)
+        J = np.stack([
+            np.stack([-r * s1, a * c1, b * c1], axis=-1),
+            np.stack([r * c1, a * s1, b * s1], axis=-1),
+            np.stack([zero, -r, -e], axis=-1),
+        ], axis=-2)
+        return self.R_base @ J
+
+    def jacobian_dot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Time derivative of :meth:`jacobian` along joint velocity v, shape (..., 3, 3)."""
+        s1, c1, r, a, b, e = self._terms(q)
+        v = np.asarray(v, dtype=float)
+        v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
+        q2 = np.asarray(q, dtype=float)[..., 1]
+        rd = a * v2 + b * v3
+        ad = -self.geometry.L2 * np.sin(q2) * v2 - e * (v2 + v3)
+        bd = -e * (v2 + v3)
+        ed = b * (v2 + v3)
+        zero = np.zeros_like(s1)
+        Jd = np.stack([
+            np.stack([-rd * s1 - r * c1 * v1, ad * c1 - a * s1 * v1, bd * c1 - b * s1 * v1],
+                     axis=-1),
+            np.stack([rd * c1 - r * s1 * v1, ad * s1 + a * c1 * v1, bd * s1 + b * c1 * v1],
+                     axis=-1),
+            np.stack([zero, -rd, -ed], axis=-1),
+        ], axis=-2)
+        return self.R_base @ Jd
+
+    # ------------------------------------------------------------------ inverse kinematics
+    def local_point(self, p: np.ndarray) -> np.ndarray:
+        """A palm-frame point expressed in the base frame."""
+        return (np.asarray(p, dtype=float) - self.p_base) @ self.R_base
+
+    def reach_ratio(self, p: np.ndarray) -> np.ndarray:
+        """Shoulder-to-point distance over the arm's full reach ``L2 + L3``."""
+        g = self.geometry
+        lp = self.local_point(p)
+        d = np.hypot(np.hypot(lp[..., 0], lp[..., 1]), lp[..., 2] - g.h1)
+        return d / (g.L2 + g.L3)
+
+    def ik(self, p: np.ndarray) -> np.ndarray:
+        """Closed-form inverse kinematics, the branch of the paper's postures.
+
+        The branch: the arm faces the point (``q1 = atan2(y, x)`` in the base frame) with the
+        elbow up (``q3 > 0``). Raises ``ValueError`` for a point out of reach.
+
+        Parameters
+        ----------
+        p : ndarray, shape (..., 3)
+            End-effector points in the palm frame.
+
+        Returns
+        -------
+        ndarray, shape (..., 3)
+            Joint positions.
+        """
+        g = self.geometry
+        lp = self.local_point(p)
+        x, y, z = lp[..., 0], lp[..., 1], lp[..., 2]
+        q1 = np.arctan2(y, x)
+        r = np.hypot(x, y)
+        dz = z - g.h1
+        c3 = (r * r + dz * dz - g.L2 ** 2 - g.L3 ** 2) / (2 * g.L2 * g.L3)
+        if np.any(np.abs(c3) > 1.0):
+            raise ValueError(f"{self.name}: point out of reach of the arm")
+        q3 = np.arccos(c3)
+        q2 = np.arctan2(r, dz) - np.arctan2(g.L3 * np.sin(q3), g.L2 + g.L3 * np.cos(q3))
+        return np.stack([q1, q2, q3], axis=-1)
+
+    def joint_reference(self, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)``."""
+        q = self.ik(x)
+        J = self.jacobian(q)
+        qd = np.linalg.solve(J, xd[..., None])[..., 0]
+        Jd = self.jacobian_dot(q, qd)
+        qdd = np.linalg.solve(J, (xdd - (Jd @ qd[..., None])[..., 0])[..., None])[..., 0]
+        return q, qd, qdd
+
+    def check_path(self, x: np.ndarray, t: np.ndarray | None = None, margin: float = 0.97
+                   ) -> str:
+        """'' or why the Cartesian points ``x`` (K, 3) (at times ``t``) are not all
+        reachable: within ``margin`` of the full reach, away from the inner singularity,
+        joints within limits."""
+        g = self.geometry
+        t = np.arange(len(x), dtype=float) if t is None else t
+        ratio = self.reach_ratio(x)
+        inner = abs(g.L3 - g.L2) / (g.L2 + g.L3)
+        worst = int(np.argmax(ratio))
+        if ratio[worst] > margin or ratio.min() < inner + 0.05:
+            bad = worst if ratio[worst] > margin else int(np.argmin(ratio))
+            return (f"target {np.round(x[bad], 3).tolist()} at t = {t[bad]:.2f} s is out of reach "
+                    f"(distance/reach = {ratio[bad]:.3f}, allowed {inner + 0.05:.3f} to "
+                    f"{margin})")
+        q = self.ik(x)
+        out = (q < self.q_min) | (q > self.q_max)
+        if out.any():
+            row, j = np.argwhere(out)[0]
+            return (f"target at t = {t[row]:.2f} s needs joint{j + 1} = "
+                    f"{math.degrees(q[row, j]):.1f} deg, outside its limits "
+                    f"[{math.degrees(self.q_min[j]):.0f}, {math.degrees(self.q_max[j]):.0f}] deg")
+        return ""
