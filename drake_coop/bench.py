@@ -239,8 +239,7 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         Simulated seconds of that run (default: the scenario's whole task).
     """
     from drake_coop.experiment.plan import num_ticks_until
-    from drake_coop.scenario.loading import load_scenario
-    from drake_coop.scenario.loading import default_scenario
+    from drake_coop.scenario.loading import default_scenario, load_scenario
     from drake_coop.scenario.timing import aligned_periods
 
     scenario = default_scenario()

@@ -19,7 +19,7 @@ import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control.finger import ReferenceLayout
-from drake_coop.experiment.plan import num_ticks_until, plan_run
+from drake_coop.experiment.plan import RunPlan, num_ticks_until, plan_run
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.task_path import (
@@ -44,8 +44,8 @@ def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
     return arm.kinematics.joint_reference(x, xd, xdd)
 
 
-def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def reference_samples(scenario: Scenario, index: int, t_end: float | None = None,
+                      plan: RunPlan | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Reference vector of robot ``index`` at every control tick.
 
     Parameters
@@ -53,6 +53,8 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     t_end : float, optional
         Last time needed (a run stopped early): the samples end at the first tick at or after
         ``min(t_end, task.t_end)``; the ticks before are the same as the full run's.
+    plan : RunPlan, optional
+        The run's plan when the caller has it (else computed from ``scenario``).
 
     Returns
     -------
@@ -61,9 +63,9 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     r : ndarray, shape (K, 3n + m + 1)
         Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`drake_coop.control.finger.ReferenceLayout`).
     """
-    plan = plan_run(scenario)
+    plan = plan or plan_run(scenario)
     h, task, robot = plan.h, scenario.task, scenario.robots[index]
-    k_last = plan.k_end
+    k_last = num_ticks_until(task.t_end, h)      # the whole task (the plan may be a shorter run)
     if t_end is not None:
         k_last = max(1, min(k_last, num_ticks_until(t_end, h) + 1))
     k = np.arange(k_last + 1)
@@ -76,13 +78,13 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
 
 
-def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = None
-                         ) -> PiecewisePolynomial:
+def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = None,
+                         plan: RunPlan | None = None) -> PiecewisePolynomial:
     """The tick samples as a first-order-hold :class:`PiecewisePolynomial`.
 
     Evaluated at a tick time it returns that tick's sample exactly; the controller and the
     observers only read it at their ticks. ``t_end`` limits it to a shorter run (see
     :func:`reference_samples`).
     """
-    t, r = reference_samples(scenario, index, t_end)
+    t, r = reference_samples(scenario, index, t_end, plan)
     return PiecewisePolynomial.FirstOrderHold(t, r.T)

@@ -237,7 +237,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     T = plan.t_end
     check_run_size(scenario, T)
     # References only to the run's end: a long task stopped early stays cheap.
-    references = [reference_trajectory(scenario, i, T) for i in range(len(scenario.robots))]
+    references = [reference_trajectory(scenario, i, T, plan)
+                  for i in range(len(scenario.robots))]
     exp = build_experiment(scenario, before_build=before_build, references=references)
     simulator = Simulator(exp.diagram)
     context = simulator.get_mutable_context()

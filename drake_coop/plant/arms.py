@@ -115,19 +115,15 @@ class Arm:
         """Rotation of the base in the palm frame (about z by the yaw)."""
         return _rot_z(self.yaw)
 
-    @cached_property
-    def _limits(self) -> tuple[np.ndarray, np.ndarray]:
-        return urdf_joint_limits(self.urdf_path)
-
     @property
     def q_min(self) -> np.ndarray:
-        """Lower joint limits (rad), from the URDF."""
-        return self._limits[0]
+        """Lower joint limits (rad), from the URDF (as the kinematics read them)."""
+        return self.kinematics.q_min
 
     @property
     def q_max(self) -> np.ndarray:
-        """Upper joint limits (rad), from the URDF."""
-        return self._limits[1]
+        """Upper joint limits (rad), from the URDF (as the kinematics read them)."""
+        return self.kinematics.q_max
 
     # ------------------------------------------------------------------ kinematics
     def fk(self, q: np.ndarray) -> np.ndarray:

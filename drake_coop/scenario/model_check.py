@@ -25,8 +25,7 @@ from drake_coop.scenario.bounds import one_line
 from drake_coop.scenario.resources import controller_urdf_path, model_urdf_path
 from drake_coop.scenario.schema import Robot, Scenario, ScenarioError
 
-__all__ = ["MAX_MODEL_BYTES", "MAX_JOINTS", "MIN_JOINTS", "check_model_file", "check_models",
-           "model_joint_count"]
+__all__ = ["MAX_MODEL_BYTES", "MAX_JOINTS", "MIN_JOINTS", "check_model_file", "check_models"]
 
 #: Largest model file read (bytes); ours are 6-10 kB.
 MAX_MODEL_BYTES = 10_000_000
@@ -59,11 +58,6 @@ def check_models(scenario: Scenario) -> list[int]:
                                     f"simulated arm {n}")
         joints.append(n)
     return joints
-
-
-def model_joint_count(robot: Robot) -> int:
-    """``n_i``: the joint positions of a robot's (checked) arm model."""
-    return check_model_file(model_urdf_path(robot), "model", robot)
 
 
 def check_model_file(path: str | Path, field: str, robot: Robot | None = None) -> int:
