@@ -250,6 +250,41 @@ def test_check_path_and_joint_reference_refuse_a_non_square_task(urdf, R_d, kind
         kin.joint_reference(x, 0 * x, 0 * x)
 
 
+def _planar_3r_urdf(folder: Path) -> Path:
+    """Three revolute joints about parallel y axes: E moves in the x-z plane only."""
+    links = "".join(
+        f'<link name="l{k}"><inertial><mass value="1"/><origin xyz="0 0 0.15"/>'
+        f'<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+        for k in range(1, 4))
+    joints = "".join(
+        f'<joint name="j{k}" type="revolute"><parent link="{"base_link" if k == 1 else f"l{k-1}"}"/>'
+        f'<child link="l{k}"/><origin xyz="0 0 {0 if k == 1 else 0.3}"/><axis xyz="0 1 0"/>'
+        f'<limit lower="-2.5" upper="2.5" effort="50" velocity="3"/></joint>'
+        for k in range(1, 4))
+    path = folder / "planar3r.urdf"
+    path.write_text(f'<robot name="planar"><link name="base_link"/>{links}{joints}'
+                    f'<link name="pad"/><joint name="pad_fixed" type="fixed"><parent link="l3"/>'
+                    f'<child link="pad"/><origin xyz="0 0 0.3"/></joint></robot>')
+    return path
+
+
+def test_a_planar_arm_is_refused_for_a_3d_task_not_called_out_of_reach(tmp_path):
+    kin = DrakeArmKinematics(_planar_3r_urdf(tmp_path), RigidTransform(), name="r")
+    assert kin.n == kin.task_dim == 3 and kin.generic_rank() == 2
+    x = np.array([[0.3, 0.2, 0.5]])
+    message = kin.check_path(x)
+    assert message.startswith("r: its 3 joints move the end effector in only 2 of the 3 "
+                              "directions"), message
+    assert "out of reach" not in message
+    with pytest.raises(ValueError, match="only 2 of the 3 directions"):
+        kin.joint_reference(x, 0 * x, 0 * x)
+
+
+def test_a_spatial_arm_has_full_generic_rank(arm6):
+    assert arm6.generic_rank() == 6
+    assert DrakeArmKinematics(URDF / "crs_a465_3dof.urdf", RigidTransform()).generic_rank() == 3
+
+
 @pytest.mark.parametrize("frames", [{"base_frame": "plate"}, {"ee_frame": "tool0"}],
                          ids=["base", "ee"])
 def test_an_unknown_frame_is_named(frames):

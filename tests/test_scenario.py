@@ -108,3 +108,37 @@ def test_dataclass_defaults_are_paper_yaml_robot_1_and_task():
     assert dataclasses.asdict(Task()) == dataclasses.asdict(paper.task)
     assert dataclasses.asdict(PlantSettings()) == dataclasses.asdict(paper.plant)
     assert dataclasses.asdict(Guards()) == dataclasses.asdict(paper.guards)
+
+
+# --------------------------------------------------------------------- package:// model paths
+def _urdf_package(folder: Path, name: str = "my_arms") -> Path:
+    """A ROS-style package (``package.xml``) holding a copy of the A465 model."""
+    root = folder / name
+    (root / "urdf").mkdir(parents=True)
+    (root / "package.xml").write_text(
+        f'<?xml version="1.0"?><package format="2"><name>{name}</name><version>0.0.0</version>'
+        '<description>test</description><maintainer email="a@b.c">a</maintainer>'
+        '<license>BSD</license></package>')
+    source = PAPER.parents[1] / "urdf" / "crs_a465_3dof.urdf"
+    (root / "urdf" / "a465.urdf").write_text(source.read_text())
+    return root
+
+
+def test_a_package_url_is_resolved_through_ros_package_path(tmp_path, monkeypatch):
+    _urdf_package(tmp_path)
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(tmp_path))
+    s = load_scenario(data=PAPER.read_text().replace(
+        "model: crs_a465", "model: package://my_arms/urdf/a465.urdf", 1))
+    from drake_coop.scenario.resources import model_urdf_path
+    assert model_urdf_path(s.robots[0]) == (tmp_path / "my_arms" / "urdf" / "a465.urdf").resolve()
+
+
+def test_an_unknown_package_is_named_with_the_field_not_mangled_into_a_path():
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(data=PAPER.read_text().replace(
+            "model: crs_a255\n  controller_model: ''",
+            "model: crs_a255\n  controller_model: package://nope/arm.urdf", 1))
+    message = str(info.value)
+    assert message.startswith("robots[1].controller_model: package://nope/arm.urdf: unknown "
+                              "package 'nope' (Drake knows "), message
+    assert "package:/nope" not in message and "\n" not in message

@@ -51,6 +51,8 @@ _NEWTON_MAX_ITER = 20
 _IK_THETA_BOUND = 1e-6
 #: Restarts of Drake's IK from fixed pseudo-random postures before a point is unreachable.
 _IK_RESTARTS = 8
+#: Pseudo-random postures over which :meth:`DrakeArmKinematics.generic_rank` takes its maximum.
+_RANK_POSTURES = 16
 
 
 def _vee_of_skew_part(M: np.ndarray) -> np.ndarray:
@@ -115,6 +117,7 @@ class DrakeArmKinematics:
         #: 3 (position of E) or 6 (position of E and orientation of ``ee_frame``).
         self.task_dim = 3 if R_d is None else 6
         self.q_seed = np.zeros(self.n) if q_seed is None else np.asarray(q_seed, dtype=float)
+        self._generic_rank: int | None = None
 
     # ------------------------------------------------------------------ forward kinematics
     def _pose(self, q: np.ndarray) -> RigidTransform:
@@ -265,12 +268,39 @@ class DrakeArmKinematics:
                          f"{np.round(p, 4).tolist()}")
 
     # ------------------------------------------------------------------ reference postures
+    def generic_rank(self) -> int:
+        """The rank of the task Jacobian at a generic posture.
+
+        The largest rank of ``J(q)`` over :data:`_RANK_POSTURES` fixed pseudo-random postures
+        within the joint limits (relative tolerance :data:`SINGULAR_RATIO`). An arm whose
+        joints move E in fewer than ``task_dim`` directions everywhere — a planar arm, say —
+        has ``generic_rank() < task_dim`` even with ``n == task_dim``: no posture reaches a
+        point off its plane, and its Jacobian is singular everywhere.
+        """
+        if self._generic_rank is None:
+            rng = np.random.default_rng(1)
+            low = np.where(np.isfinite(self.q_min), self.q_min, -np.pi)
+            high = np.where(np.isfinite(self.q_max), self.q_max, np.pi)
+            q = rng.uniform(0.8 * low + 0.2 * high, 0.2 * low + 0.8 * high,
+                            size=(_RANK_POSTURES, self.n))
+            sigma = np.linalg.svd(self.jacobian(q), compute_uv=False)
+            self._generic_rank = int((sigma > SINGULAR_RATIO * sigma[:, :1]).sum(axis=1).max())
+        return self._generic_rank
+
     def _require_square(self) -> None:
         if self.n != self.task_dim:
             kind = "redundant" if self.n > self.task_dim else "deficient"
             raise ValueError(
                 f"{self.name}: {self.n} joints for a {self.task_dim}-dimensional task: the arm is "
                 f"{kind} (Assumption 1 needs as many joints as task coordinates)")
+        rank = self.generic_rank()
+        if rank < self.task_dim:
+            what = "position" if self.task_dim == 3 else "position and orientation"
+            raise ValueError(
+                f"{self.name}: its {self.n} joints move the end effector in only {rank} of the "
+                f"{self.task_dim} directions of its {what} task at every posture (a planar arm, "
+                f"or joints with parallel axes): Assumption 1 needs a task Jacobian of full "
+                f"rank, so no reference can be followed off that subspace")
 
     def joint_positions(self, x: np.ndarray) -> np.ndarray:
         """Postures along a Cartesian path x (K, 3): IK at ``x[0]`` from ``q_seed``, then Newton

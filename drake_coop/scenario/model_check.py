@@ -49,10 +49,11 @@ def check_models(scenario: Scenario) -> list[int]:
     """
     joints = []
     for i, robot in enumerate(scenario.robots):
-        n = check_model_file(model_urdf_path(robot), f"robots[{i}].model", robot)
+        n = check_model_file(model_urdf_path(robot, f"robots[{i}].model"),
+                             f"robots[{i}].model", robot)
         if robot.controller_model:
-            n_c = check_model_file(controller_urdf_path(robot), f"robots[{i}].controller_model",
-                                   robot)
+            field = f"robots[{i}].controller_model"
+            n_c = check_model_file(controller_urdf_path(robot, field), field, robot)
             if n_c != n:
                 raise ScenarioError(f"robots[{i}].controller_model has {n_c} joints, the "
                                     f"simulated arm {n}")

@@ -26,7 +26,7 @@ from drake_coop.scenario.schema import SHIPPED_ARMS, Robot, ScenarioError
 if TYPE_CHECKING:
     from drake_coop.scenario.schema import Scenario
 
-__all__ = ["data_dir", "urdf_dir", "model_urdf_path", "controller_urdf_path", "scenarios_dir",
+__all__ = ["data_dir", "urdf_dir", "PACKAGE_SCHEME", "resolve_package_url", "model_urdf_path", "controller_urdf_path", "scenarios_dir",
            "shipped_scenarios", "scenario_summary",
            "find_scenario", "default_scenario_path", "resolve_models"]
 
@@ -68,21 +68,75 @@ def urdf_dir() -> Path:
     return Path(env) if env else data_dir("urdf")
 
 
-def model_urdf_path(robot: Robot) -> Path:
+#: The URL scheme of Drake's package paths (``package://<package>/<path in the package>``).
+PACKAGE_SCHEME = "package://"
+
+
+def resolve_package_url(url: str, field: str = "model") -> Path:
+    """The file a ``package://`` URL names, found by Drake's
+    :class:`~pydrake.multibody.parsing.PackageMap`.
+
+    The map knows Drake's own packages and every package on ``ROS_PACKAGE_PATH``. A package
+    that Drake downloads on first use (``drake_models``) is fetched then, and fails on a machine
+    without network access.
+
+    Raises
+    ------
+    ScenarioError
+        ``"<field>: <url>: <why>"``: an unknown package (the known ones are listed), a download
+        that failed, or a file missing inside the package.
+    """
+    from pydrake.multibody.parsing import PackageMap
+
+    package = url[len(PACKAGE_SCHEME):].split("/", 1)[0]
+    packages = PackageMap()
+    packages.PopulateFromRosPackagePath()
+    if not package or not packages.Contains(package):
+        known = ", ".join(sorted(packages.GetPackageNames()))
+        raise ScenarioError(f"{field}: {url}: unknown package {package!r} (Drake knows {known}; "
+                            "add yours to ROS_PACKAGE_PATH or give the .urdf file's path)")
+    import logging
+
+    drake_log = logging.getLogger("drake")
+    level = drake_log.level
+    drake_log.setLevel(logging.WARNING)      # Drake logs each download attempt at INFO
+    try:
+        path = Path(packages.ResolveUrl(url))
+    except RuntimeError as error:
+        text = " ".join(str(error).split())
+        why = (f"Drake could not download the package {package!r}, which it fetches on first "
+               "use; give the .urdf file's path" if "download" in text
+               else text.removeprefix("error: ")[:200])
+        raise ScenarioError(f"{field}: {url} could not be resolved: {why}") from None
+    finally:
+        drake_log.setLevel(level)
+    return path
+
+
+def _model_path(value: str, field: str) -> Path:
+    """A ``.urdf`` path (absolute or relative to :func:`urdf_dir`) or a ``package://`` URL."""
+    if value.startswith(PACKAGE_SCHEME):
+        return resolve_package_url(value, field)
+    p = Path(value).expanduser()
+    return p if p.is_absolute() else urdf_dir() / p
+
+
+def model_urdf_path(robot: Robot, field: str = "model") -> Path:
     """The simulated arm's URDF: a shipped model by name, else the ``.urdf`` path (absolute or
-    relative to :func:`urdf_dir`)."""
+    relative to :func:`urdf_dir`) or ``package://`` URL (:func:`resolve_package_url`).
+
+    ``field`` names the scenario field in error messages."""
     if robot.model in SHIPPED_ARMS:
         return urdf_dir() / SHIPPED_ARMS[robot.model]
-    p = Path(robot.model).expanduser()
-    return p if p.is_absolute() else urdf_dir() / p
+    return _model_path(robot.model, field)
 
 
-def controller_urdf_path(robot: Robot) -> Path:
-    """The controller's own model of the arm (defaults to the simulated one)."""
+def controller_urdf_path(robot: Robot, field: str = "controller_model") -> Path:
+    """The controller's own model of the arm (defaults to the simulated one); a path or a
+    ``package://`` URL as for :func:`model_urdf_path`."""
     if not robot.controller_model:
         return model_urdf_path(robot)
-    p = Path(robot.controller_model).expanduser()
-    return p if p.is_absolute() else urdf_dir() / p
+    return _model_path(robot.controller_model, field)
 
 
 def scenarios_dir() -> Path:
@@ -144,6 +198,7 @@ def resolve_models(scenario: Scenario, base_dir: Path | None = None) -> None:
         for name in ("model", "controller_model"):
             value = getattr(robot, name)
             if (value and value.lower().endswith(".urdf")
+                    and not value.startswith(PACKAGE_SCHEME)
                     and not Path(value).expanduser().is_absolute()):
                 beside = base_dir / Path(value).expanduser()
                 if beside.is_file():
