@@ -125,7 +125,7 @@ def schema(n: int = 3, m: int = 1, optional: bool = False) -> dict[str, list[str
 #: Arrays of the paper's robots' logs (n = 3 joints, m = 1 constraint) and their CSV columns.
 COLUMNS: dict[str, list[str]] = schema(3, 1)
 
-#: Optional arrays (sensing, issue 7) of the paper's robots and their CSV columns; written when
+#: Optional arrays (sensing) of the paper's robots and their CSV columns; written when
 #: all present.
 OPTIONAL_COLUMNS: dict[str, list[str]] = schema(3, 1, optional=True)
 
