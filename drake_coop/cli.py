@@ -21,7 +21,8 @@
 ``drake-coop plot DIR``
     Redraw the figures and metrics from the logs in DIR.
 ``drake-coop diagram [SCENARIO.yaml] [--out diagrams]``
-    Draw the block diagram (top level, and robot 1's control block) without loggers.
+    Draw the paper's block diagram (``block_diagram``) and, for debugging, the port-level
+    diagrams of the top level (``experiment``) and robot 1's control block, without loggers.
 ``drake-coop bench``
     Realtime factor and cost per controller tick (see ``bench/benchmark.py``).
 ``drake-coop study STUDY.yaml --out DIR`` / ``drake-coop study --plot DIR``
@@ -135,13 +136,15 @@ def _error(message: str) -> int:
 
 def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: bool
                           ) -> list[Path]:
-    """The top-level diagram (one level deep) and robot 1's control block, .dot and .svg,
-    connected ports only; a missing graphviz is reported once, as a note."""
+    """The paper's block diagram (``block_diagram``), and for debugging the top-level
+    diagram (one level deep) and robot 1's control block with their connected ports; .dot and
+    .svg; a missing graphviz is reported once, as a note."""
     from drake_coop.results.export import write_diagram, write_subsystem_diagram
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        files = [write_diagram(experiment.diagram, out, top, style="connected"),
+        files = [write_diagram(experiment.diagram, out, "block_diagram", style="paper"),
+                 write_diagram(experiment.diagram, out, top, style="connected"),
                  write_subsystem_diagram(experiment.robots[0].control, out, control,
                                          style="connected")]
     if caught and not quiet:
@@ -399,7 +402,8 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("dir")
     plot.add_argument("--quiet", action="store_true")
     plot.set_defaults(func=cmd_plot)
-    diagram = sub.add_parser("diagram", help="draw the block diagram (top level and robot 1's "
+    diagram = sub.add_parser("diagram", help="draw the paper's block diagram, and the "
+                                             "port-level diagrams (top level, robot 1's "
                                              "control block)")
     diagram.add_argument("scenario", nargs="?", default=None)
     diagram.add_argument("--out", default="diagrams")
