@@ -115,3 +115,35 @@ def test_a_public_name_added_without_its_docs_is_reported(tmp_path, monkeypatch)
 ])
 def test_only_autosummary_entries_count_as_documented(text, names):
     assert autosummary_entries(text) == names
+
+
+# ---------------------------------------------------------------- repository metadata
+
+
+def test_citation_cff_is_valid_yaml_with_the_required_keys_and_this_version():
+    from pydrake.common.yaml import yaml_load
+
+    cff = yaml_load(filename=str(ROOT / "CITATION.cff"))
+    assert {"cff-version", "message", "title", "authors"} <= set(cff)
+    assert cff["cff-version"].startswith("1.2")
+    assert all("name" in a or "family-names" in a for a in cff["authors"])
+    pyproject = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    version = re.search(r'^version = "([^"]+)"', pyproject, flags=re.M).group(1)
+    init = (PKG / "__init__.py").read_text(encoding="utf-8")
+    assert cff["version"] == version
+    assert f'__version__ = "{version}"' in init
+    assert f"## {version}" in (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+
+
+def test_no_file_refers_to_a_folder_outside_the_repository():
+    needles = ["../" + "shared", "/work/" + "shared", "equations" + ".md"]
+    skip = {".git", "_build", "_generated", "generated", "__pycache__", ".ipynb_checkpoints"}
+    found = []
+    for path in ROOT.rglob("*"):
+        if skip & set(path.relative_to(ROOT).parts) or not path.is_file():
+            continue
+        if path.suffix not in (".py", ".md", ".yaml", ".toml", ".cff", ".ipynb", ".txt", ""):
+            continue
+        text = path.read_text(encoding="utf-8", errors="replace")
+        found += [f"{path.relative_to(ROOT)}: {n}" for n in needles if n in text]
+    assert found == []
