@@ -147,3 +147,21 @@ def test_no_file_refers_to_a_folder_outside_the_repository():
         text = path.read_text(encoding="utf-8", errors="replace")
         found += [f"{path.relative_to(ROOT)}: {n}" for n in needles if n in text]
     assert found == []
+
+
+def test_pydrake_system_blocks_are_read_into_their_ports():
+    pytest.importorskip("sphinx")                       # the docs extension imports Sphinx
+    import sys
+    sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+    try:
+        from pydrake_system import parse_block
+    finally:
+        sys.path.remove(str(ROOT / "docs" / "_ext"))
+    block = parse_block(["name: Controller", "input_ports:", "- q", "- reference",
+                         "output_ports: [tau, qddot_r_hat]"])
+    assert block == {"name": "Controller", "input_ports": ["q", "reference"],
+                     "output_ports": ["tau", "qddot_r_hat"]}
+    with pytest.raises(ValueError, match="expected one of name"):
+        parse_block(["name: X", "inputs: [q]"])
+    with pytest.raises(ValueError, match="no name"):
+        parse_block(["input_ports: [q]"])
