@@ -161,3 +161,18 @@ def test_scenarios_lists_whole_descriptions_without_issue_numbers(capsys):
     assert len(lines) >= 8
     for line in lines:
         assert "issue" not in line.lower() and line.rstrip().endswith("."), line
+
+
+def test_run_warns_on_stderr_when_a_squeeze_turned_into_a_pull(capsys):
+    from types import SimpleNamespace
+
+    from drake_coop.cli import _print_summary
+
+    logs, meta = synthetic_run()
+    logs["robot1"]["lambda_meas"][(logs["robot1"]["t"] > 30.0)] = -2.0   # dropped at 30 s
+    _print_summary(SimpleNamespace(logs=logs, meta=meta), compute_metrics(logs, meta))
+    out, err = capsys.readouterr()
+    assert out.startswith("drake-coop: circle phase (25-65 s), RMS / max\n")
+    (line,) = err.splitlines()
+    assert line.startswith("drake-coop: warning: robot1: the measured squeeze turned into a "
+                           "pull (-2.0 N against a desired")

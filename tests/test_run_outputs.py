@@ -1,7 +1,7 @@
 """A run's output folder holds one whole run; signals end a run cleanly; plot reads safely.
 
-Outputs, signals and plot: a rerun with ``--force`` replaces the previous folder whole, a killed run leaves the previous folder as it was, ``--out`` is checked before
-simulating, SIGTERM is handled like Ctrl-C (exit 143), a signal during start-up or while
+Outputs, signals and plot: a rerun with ``--force`` replaces the previous folder whole, a
+killed run leaves the previous folder as it was, ``--out`` is checked before simulating, SIGTERM is handled like Ctrl-C (exit 143), a signal during start-up or while
 writing ends without a traceback and without a mixed folder, and ``drake-coop plot`` reads
 only regular files inside its run folder with their sizes checked before unpacking.
 """

@@ -12,8 +12,8 @@
 
 Axes are labelled in words with their units (:func:`metric_label`, :func:`param_label`), not
 with the dotted paths of the study file: ``worst.force_error.rms`` reads "λ − λ_d, RMS, worst
-robot [N]" (in mathtext), ``robots.*.gains.k_d`` reads "k_d, every robot [1/s]" (units from the scenario's
-bounds table). Lengths and angles are drawn in the unit a reader reads (µm or mm, µrad or
+robot [N]" (in mathtext), ``robots.*.gains.k_d`` reads "k_d, every robot [1/s]" (units
+from the scenario's bounds table). Lengths and angles are drawn in the unit a reader reads (µm or mm, µrad or
 mrad, mrad/s), chosen from the plotted values; the files keep SI values.
 """
 
