@@ -1,4 +1,4 @@
-"""Every velocity source × force source under realistic sensing: the README's table.
+"""Every velocity source × force source under realistic sensing: the table of docs/guide/sensing.md.
 
 ``python bench/sources_table.py [--scenario scenarios/realistic.yaml] [--workers 2]
 [--t-end 90] [--out sources.json]`` runs the nine combinations (both robots switched together;

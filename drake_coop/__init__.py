@@ -1,4 +1,4 @@
-"""drake_coop: decentralized position/force control of two cooperating arms on Drake.
+"""drake_coop: decentralized position/force control of cooperating robot arms on Drake.
 
 Implements the observer-based controller of the paper (joint-velocity observer (15)-(16),
 force observer (22), controller (13)) as Drake LeafSystems and reproduces its Section IV

@@ -1,4 +1,4 @@
-"""Benchmark: cost per control tick against the number of robots ``l`` (issue 10).
+"""Benchmark: cost per control tick against the number of robots ``l``.
 
 ``python bench/robots.py [--robots 2 3 4 6] [--t-end 10]`` builds ``l`` identical CRS A255 arms
 around one object (:func:`ring_scenario`, the geometry of ``scenarios/three_arms.yaml`` with

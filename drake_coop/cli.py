@@ -7,6 +7,9 @@
     (``robot1.npz``/``.csv``, ``robot2.*``, ``run.json``), ``metrics.json``, Figures 2–7 (PNG and
     SVG), the reference figure, the system diagram (``.dot``, ``.svg`` when graphviz is
     installed) and a self-contained Meshcat replay ``replay.html``.
+    A previous run held in DIR is replaced only with ``--force`` (else exit 2, nothing
+    simulated). The command ends with a summary of the circle phase's errors per robot and a
+    warning line per failed physical sanity check (:mod:`drake_coop.results.summary`).
     Exit codes: 0 done, 1 the run diverged (what was logged is still written), 2 bad input
     (scenario, model files, ``--out``), 130 interrupted with Ctrl-C (SIGINT), 143 stopped by
     SIGTERM (in both cases what was logged is still written). The outputs are staged in a
@@ -18,7 +21,8 @@
 ``drake-coop plot DIR``
     Redraw the figures and metrics from the logs in DIR.
 ``drake-coop diagram [SCENARIO.yaml] [--out diagrams]``
-    Draw the block diagram (top level, and robot 1's control block) without loggers.
+    Draw the paper's block diagram (``block_diagram``) and, for debugging, the port-level
+    diagrams of the top level (``experiment``) and robot 1's control block, without loggers.
 ``drake-coop bench``
     Realtime factor and cost per controller tick (see ``bench/benchmark.py``).
 ``drake-coop study STUDY.yaml --out DIR`` / ``drake-coop study --plot DIR``
@@ -132,13 +136,15 @@ def _error(message: str) -> int:
 
 def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: bool
                           ) -> list[Path]:
-    """The top-level diagram (one level deep) and robot 1's control block, .dot and .svg,
-    connected ports only; a missing graphviz is reported once, as a note."""
+    """The paper's block diagram (``block_diagram``), and for debugging the top-level
+    diagram (one level deep) and robot 1's control block with their connected ports; .dot and
+    .svg; a missing graphviz is reported once, as a note."""
     from drake_coop.results.export import write_diagram, write_subsystem_diagram
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        files = [write_diagram(experiment.diagram, out, top, style="connected"),
+        files = [write_diagram(experiment.diagram, out, "block_diagram", style="paper"),
+                 write_diagram(experiment.diagram, out, top, style="connected"),
                  write_subsystem_diagram(experiment.robots[0].control, out, control,
                                          style="connected")]
     if caught and not quiet:
@@ -175,7 +181,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         folder = RunFolder(args.out)
         try:
             staging = folder.prepare(run_size(scenario, args.t_end)[0],
-                                     robots=len(scenario.robots))
+                                     robots=len(scenario.robots), replace=args.force)
         except OutputFolderError as exc:
             return _error(str(exc))
     try:
@@ -222,7 +228,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         with SIGNALS.deferred():
             started = time.perf_counter()
             try:
-                _write_outputs(args, scenario, result, replay, staging)
+                metrics = _write_outputs(args, scenario, result, replay, staging)
                 folder.commit()
             except OSError as exc:
                 return _error(f"--out {out}: writing the outputs failed "
@@ -233,6 +239,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(f"drake-coop: {result.meta['message']}; simulated in {result.wall_time:.1f} s "
               f"(realtime x{result.meta['realtime_factor'] or 0:.2f}), outputs written in "
               f"{time.perf_counter() - started:.1f} s to {out}", file=sys.stderr)
+    _print_summary(result, metrics)
     if result.meta.get("outputs_incomplete"):
         print(f"drake-coop: {result.meta['outputs_incomplete']}", file=sys.stderr)
     if result.meta["status"] == "interrupted" or SIGNALS.received is not None:
@@ -246,8 +253,20 @@ def cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_outputs(args, scenario, result, replay, staging: Path) -> None:
-    """Logs, ``run.json``, metrics, then figures, diagrams and the replay into ``staging``.
+def _print_summary(result, metrics: dict) -> None:
+    """The circle phase's errors per robot (stdout) and failed sanity checks (stderr), printed
+    even with ``--quiet``: they are the run's result (:mod:`drake_coop.results.summary`)."""
+    from drake_coop.results.summary import sanity_warnings, summary_lines
+
+    lines = summary_lines(metrics, result.meta)
+    print(f"drake-coop: {lines[0]}", *lines[1:], sep="\n", flush=True)
+    for warning in sanity_warnings(result.logs):
+        print(f"drake-coop: warning: {warning}", file=sys.stderr)
+
+
+def _write_outputs(args, scenario, result, replay, staging: Path) -> dict:
+    """Logs, ``run.json``, metrics, then figures, diagrams and the replay into ``staging``;
+    returns the metrics.
 
     Runs with signals deferred: the logs, ``run.json`` and metrics are always written whole;
     a signal received meanwhile skips the figures, diagrams and replay still to come, and
@@ -268,7 +287,8 @@ def _write_outputs(args, scenario, result, replay, staging: Path) -> None:
     signals_before = SIGNALS.count
     atomic_write_text(staging / "scenario.yaml", dump_scenario(scenario))
     save_logs(staging, result.logs, meta)
-    write_metrics(staging, compute_metrics(result.logs, meta))
+    metrics = compute_metrics(result.logs, meta)
+    write_metrics(staging, metrics)
     exp = result.experiment
     optional = [
         ("figures", lambda: plot_figures(result.logs, meta, staging)),
@@ -290,6 +310,7 @@ def _write_outputs(args, scenario, result, replay, staging: Path) -> None:
             f"{', '.join(skipped)} skipped after {SIGNALS.name} while writing; "
             f"`drake-coop plot {args.out}` redraws the figures")
         write_meta(staging, meta)
+    return metrics
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
@@ -350,14 +371,21 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``drake-coop``."""
     parser = argparse.ArgumentParser(
         prog="drake-coop",
-        description="Cooperative two-arm position/force control without velocity or force "
-                    "measurements (paper's Section IV) on Drake.")
+        description="Decentralized position/force control of cooperating robot arms holding "
+                    "an object, without joint-velocity or contact-force measurements, on "
+                    "Drake: run the paper's experiment and your own scenarios, studies and "
+                    "benchmarks.")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="simulate an experiment and write its outputs")
     run.add_argument("scenario", nargs="?", default=None,
                      help="scenario YAML file or shipped scenario name (default: paper)")
-    run.add_argument("--out", required=True, help="output directory")
-    run.add_argument("--quiet", action="store_true", help="no progress bar or messages")
+    run.add_argument("--out", required=True,
+                     help="output directory (a new or empty one, or a previous run's with "
+                          "--force)")
+    run.add_argument("--force", action="store_true",
+                     help="replace the previous run held in --out")
+    run.add_argument("--quiet", action="store_true",
+                     help="no progress bar or messages (the summary is still printed)")
     run.add_argument("--no-replay", action="store_true", help="skip the Meshcat HTML replay")
     run.add_argument("--t-end", type=float, default=None,
                      help="stop the simulation earlier (s)")
@@ -374,7 +402,8 @@ def build_parser() -> argparse.ArgumentParser:
     plot.add_argument("dir")
     plot.add_argument("--quiet", action="store_true")
     plot.set_defaults(func=cmd_plot)
-    diagram = sub.add_parser("diagram", help="draw the block diagram (top level and robot 1's "
+    diagram = sub.add_parser("diagram", help="draw the paper's block diagram, and the "
+                                             "port-level diagrams (top level, robot 1's "
                                              "control block)")
     diagram.add_argument("scenario", nargs="?", default=None)
     diagram.add_argument("--out", default="diagrams")

@@ -50,13 +50,14 @@ def advance_to_tick(scenario, k: int):
 
 
 def start_paper_run(out) -> tuple:
-    """The paper's run (``drake-coop run --out OUT --no-replay``) in a subprocess, returned
-    once its simulation is under way (its first progress line): ``(process, stderr lines)``."""
+    """The paper's run (``drake-coop run --out OUT --no-replay --force``: it may replace a
+    previous run) in a subprocess, returned once its simulation is under way (its first
+    progress line): ``(process, stderr lines)``."""
     import subprocess
     import sys
 
     proc = subprocess.Popen([sys.executable, "-m", "drake_coop", "run", "--out", str(out),
-                             "--no-replay"], stderr=subprocess.PIPE, text=True)
+                             "--no-replay", "--force"], stderr=subprocess.PIPE, text=True)
     lines = []
     for line in proc.stderr:
         lines.append(line)

@@ -75,7 +75,7 @@ def check_panels(out, phases: list[str], absent: list[str]) -> None:
     assert text["fig3_force_tracking"].count("F_x(squeeze)[N]") == 2
     assert text["fig4_force_estimate"].count("F_x(squeeze)[N]") == 2
     assert text["fig2_tracking_errors"].count("[mm]") == 6
-    assert text["fig6_observation_errors"].count("[rad]") == 6
+    assert text["fig6_observation_errors"].count("[µrad]") == 6      # z of 1–3 µrad
     for name in FIGURES:
         assert "t[s]" in text[name]
         assert all(p in text[name] for p in phases)
@@ -141,3 +141,36 @@ def test_failed_save_keeps_the_previous_figure_and_leaves_no_temporary(tmp_path,
         fig_references(logs, meta, tmp_path, formats=("png",))
     assert (tmp_path / "fig_references.png").read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["fig_references.png"]
+
+
+def test_figures_use_the_units_a_reader_reads(tmp_path):
+    # Sub-millimetre tracking errors in µm, velocity errors of mrad/s in mrad/s: no "×1e-3"
+    # offset text on any axis; the largest value decides the unit (5 µm, 2 mrad/s here).
+    logs, meta = synthetic_run(h=0.03)
+    for log in logs.values():
+        log["x"] = log["x_d"] + 5e-6
+        log["qdot"] = np.zeros_like(log["q"])
+        log["qdot_hat"] = log["qdot"] + 2e-3
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        plot_figures(logs, meta, tmp_path)
+    fig2 = svg_texts(tmp_path / "fig2_tracking_errors.svg")
+    fig7 = svg_texts(tmp_path / "fig7_velocity_estimate.svg")
+    assert fig2.count("[µm]") == 6 and "[mm]" not in fig2
+    assert fig7.count("[mrad/s]") == 6 and "[rad/s]" not in fig7.replace("[mrad/s]", "")
+    for text in (fig2, fig7):
+        assert "1e" not in text and "×10" not in text
+
+
+def test_fig6_and_fig7_name_the_figure_and_the_robot_of_each_panel(tmp_path):
+    logs, meta = synthetic_run(h=0.03)
+    for log in logs.values():
+        log["qdot"], log["qdot_hat"] = np.zeros_like(log["q"]), np.ones_like(log["q"])
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        plot_figures(logs, meta, tmp_path)
+    fig6 = svg_texts(tmp_path / "fig6_observation_errors.svg")
+    fig7 = svg_texts(tmp_path / "fig7_velocity_estimate.svg")
+    assert "Fig.7" in fig7 and "Fig.6" in fig6
+    for robot in (1, 2):
+        for joint in (1, 2, 3):
+            # Panel title and y label: z_{i,j} with the robot's index i.
+            assert fig6.count(f"z{robot},{joint}") == 2, (robot, joint)

@@ -126,3 +126,66 @@ def test_experiment_picture_hides_the_plants_unconnected_ports():
     assert "WorldModelInstance" not in dot and "VectorLogSink" in dot
     for name in ("robot1_reference", "robot1_control", "robot2_control", "scene_graph"):
         assert name in drawn
+
+
+# ---------------------------------------------------------------- the paper's block diagram
+
+
+def _block_graph(scenario):
+    """(block name -> label, set of (source name, target name, label)) of the paper's block
+    diagram of ``scenario``'s experiment, with its loggers; ``dir=back`` edges turned around."""
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.results.block_diagram import paper_block_diagram
+
+    dot = paper_block_diagram(build_experiment(scenario, log=True).diagram)
+    names = {}
+    for node, label in re.findall(r"^\s*(n\d+) \[label=<(.*)>, fillcolor", dot, re.M):
+        system = re.search(r'COLOR="#667788">(.*?)</FONT>', label).group(1)
+        names[node] = (system, re.sub(r"<[^>]+>", " ", label.split("<FONT")[0]).split())
+    edges = set()
+    for a, b, attrs in re.findall(r"^\s*(n\d+) -> (n\d+) \[(.*)\];$", dot, re.M):
+        if "dir=back" in attrs:
+            a, b = b, a
+        edges.add((names[a][0], names[b][0]))
+        if "dir=both" in attrs:
+            edges.add((names[b][0], names[a][0]))
+    return {system: " ".join(words) for system, words in names.values()}, edges
+
+
+def test_paper_block_diagram_draws_each_robots_loop_with_equation_numbers():
+    from drake_coop.scenario import default_scenario
+
+    blocks, edges = _block_graph(default_scenario())
+    for r in ("robot1", "robot2"):
+        assert blocks[f"{r}_controller"].startswith("controller (13)")
+        assert blocks[f"{r}_velocity_observer"].startswith("velocity observer (15)–(16)")
+        assert blocks[f"{r}_force_observer"].startswith("force observer (22)")
+        assert blocks[f"{r}_reference"].startswith("reference (28)–(29)")
+        # The loop, as the Diagram connects it: reference → controller → actuators → plant →
+        # encoders → controller and both observers; controller ⇄ velocity observer.
+        for edge in [(f"{r}_reference", f"{r}_controller"),
+                     (f"{r}_controller", f"{r}_actuators"), (f"{r}_actuators", "plant"),
+                     ("plant", f"{r}_encoders"), (f"{r}_encoders", f"{r}_controller"),
+                     (f"{r}_encoders", f"{r}_velocity_observer"),
+                     (f"{r}_encoders", f"{r}_force_observer"),
+                     (f"{r}_velocity_observer", f"{r}_controller"),
+                     (f"{r}_controller", f"{r}_velocity_observer"),
+                     (f"{r}_force_observer", f"{r}_controller")]:
+            assert edge in edges, edge
+    # Loggers, the scene graph and the ground-truth sensors that only feed the logs are out.
+    assert set(blocks) == {f"{r}_{b}" for r in ("robot1", "robot2") for b in (
+        "controller", "velocity_observer", "force_observer", "reference", "encoders",
+        "actuators")} | {"plant"}
+
+
+def test_paper_block_diagram_follows_the_sources_a_scenario_chooses():
+    from drake_coop.scenario import default_scenario
+
+    s = default_scenario()
+    s.robots[0].force_source, s.robots[0].velocity_source = "sensor", "measured"
+    blocks, edges = _block_graph(s)
+    assert blocks["robot1_sensed_force"].startswith("force feedback")
+    assert blocks["robot1_measured_velocity"].startswith("measured velocity")
+    assert ("robot1_ft_sensor", "robot1_sensed_force") in edges    # the sensor now feeds (13)
+    assert ("plant", "robot1_measured_velocity") in edges          # true velocities
+    assert "robot2_ft_sensor" not in blocks                        # robot 2 keeps (22)

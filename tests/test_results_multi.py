@@ -195,7 +195,7 @@ def test_three_robots_with_six_and_three_joints_draw_every_figure(tmp_path):
     for name in ("fig6_observation_errors", "fig7_velocity_estimate"):
         assert all(x in text[name] for x in drawn)
         assert not any(x in text[name] for x in set(letters) - set(drawn))
-    assert text["fig6_observation_errors"].count("[rad]") == 12
+    assert text["fig6_observation_errors"].count("[µrad]") == 12
     # Forces of two constraints: one line per row, labelled λ_1, λ_2.
     fig3 = text["fig3_force_tracking"]
     for label in ("measuredλ1", "measuredλ2", "desired(29)λd1", "desired(29)λd2"):

@@ -1,8 +1,7 @@
 """A run's output folder holds one whole run; signals end a run cleanly; plot reads safely.
 
-Regression tests of issue 11 ("Outputs", "Signals", "plot"): a rerun replaces the previous
-folder whole, a killed run leaves the previous folder as it was, ``--out`` is checked before
-simulating, SIGTERM is handled like Ctrl-C (exit 143), a signal during start-up or while
+Outputs, signals and plot: a rerun with ``--force`` replaces the previous folder whole, a
+killed run leaves the previous folder as it was, ``--out`` is checked before simulating, SIGTERM is handled like Ctrl-C (exit 143), a signal during start-up or while
 writing ends without a traceback and without a mixed folder, and ``drake-coop plot`` reads
 only regular files inside its run folder with their sizes checked before unpacking.
 """
@@ -47,7 +46,7 @@ def test_commit_replaces_a_previous_run_whole(tmp_path):
     out = tmp_path / "run"
     _previous_run(out)
     folder = RunFolder(out)
-    staging = folder.prepare(ticks=100)
+    staging = folder.prepare(ticks=100, replace=True)
     assert staging.parent == tmp_path and staging.name.startswith(".run.drake-coop-")
     (staging / "left.npz").write_bytes(b"new")
     folder.commit()
@@ -71,7 +70,7 @@ def test_a_previous_folder_with_stray_temporary_files_is_replaced(tmp_path):
     _previous_run(out)
     (out / ".robot1.npz.0123abcd.tmp").write_bytes(b"half-written by a killed writer")
     folder = RunFolder(out)
-    folder.prepare(ticks=1)
+    folder.prepare(ticks=1, replace=True)
     folder.commit()
     assert list(out.iterdir()) == []
 
@@ -187,7 +186,7 @@ def test_a_killed_run_leaves_the_previous_folder_as_it_was(tmp_path):
     proc.wait(timeout=60)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert len(_leftovers(tmp_path, "o")) == 1          # the dead run's staging folder ...
-    RunFolder(out).prepare(ticks=1)
+    RunFolder(out).prepare(ticks=1, replace=True)
     assert len(_leftovers(tmp_path, "o")) == 1          # ... replaced by the new one's only
 
 

@@ -202,3 +202,35 @@ grid:
         expand(_study("grid: {robots.*: [{speed: 1}]}"))
     assert str(info.value).startswith("grid.robots.* = {'speed': 1}: robots[0].speed is not a "
                                       "known field"), str(info.value)
+
+
+# ---------------------------------------------------------------- figure labels
+
+
+@pytest.mark.parametrize("metric, unit, label", [
+    ("worst.force_error.rms", "N", r"$\lambda - \lambda_d$, RMS, worst robot [N]"),
+    ("robot2.position_error.max", "µm", r"$|x - x_d|$ (worst axis), max, robot2 [µm]"),
+    ("worst.z3.max", "µrad", "z of joint 3, max, worst robot [µrad]"),
+])
+def test_study_metrics_are_labelled_in_words_with_their_unit(metric, unit, label):
+    from drake_coop.studies.plots import metric_label
+    assert metric_label(metric, unit) == label
+
+
+@pytest.mark.parametrize("param, label, factor", [
+    ("control_period", "control period h [ms]", 1e3),
+    ("robots.*.gains.k_d", "k_d, every robot [1/s]", 1.0),
+    ("robots.0.gains.K_R", "K_R, robot 1 [N·m·s/rad]", 1.0),        # unit from BOUNDS
+    ("robots.*.model_error.mass_scale", "mass_scale, every robot", 1.0),
+])
+def test_study_parameters_are_labelled_with_the_scenario_units(param, label, factor):
+    from drake_coop.studies.plots import param_label
+    assert param_label(param) == (label, factor)
+
+
+def test_study_values_are_drawn_in_the_unit_their_size_calls_for():
+    from drake_coop.studies.plots import _metric_unit
+    assert _metric_unit("worst.position_error.max", [2.0e-5, 1.8e-4]) == (1e6, "µm")
+    assert _metric_unit("worst.position_error.max", [2.8e-3, float("nan")]) == (1e3, "mm")
+    assert _metric_unit("worst.velocity_error.rms", [0.059]) == (1e3, "mrad/s")
+    assert _metric_unit("worst.force_error.rms", [132.0]) == (1.0, "N")

@@ -5,8 +5,8 @@
 * (21), evaluated with the torque the controller outputs at a sample, equals (22);
 * events fire at k·h, the plant makes no spurious tiny steps, logs are at the ticks;
 * no algebraic loop, state-only outputs declared as such;
-* a plain NumPy loop written here from equations.md, fed the logged q(k), reproduces the
-  diagram's τ(k), q̂(k) and λ̂(k) to 1e-9.
+* a plain NumPy loop written here from the paper's equations (docs/guide/paper.md), fed the
+  logged q(k), reproduces the diagram's τ(k), q̂(k) and λ̂(k) to 1e-9.
 """
 
 import numpy as np
@@ -134,7 +134,7 @@ def _dynamics_plant(robot):
 
 
 def _replay(scenario, index, q_log):
-    """Equations (4), (8), (11), (13), (15)-(16), (22) as a plain loop (equations.md)."""
+    """Equations (4), (8), (11), (13), (15)-(16), (22) as a plain loop (docs/guide/paper.md)."""
     robot = scenario.robots[index]
     g = robot.gains
     h = scenario.control_period

@@ -7,15 +7,16 @@ around it, so that the three systems of a robot share one implementation of each
 Symbols (per robot, ``n`` joints, ``m`` constraints; the paper's experiment ``n = 3``,
 ``m = 1``):
 
-``q``        measured joint positions (the only measurement);
-``q_hat``    observer estimate ``q̂`` of (15); ``z = q − q̂`` the observation error;
-``qdot_hat`` ``d/dt q̂``, the right-hand side of (15);
-``qdot_o``   ``q̇_o = d/dt q̂ − Λ z`` of (8) (not the observer state ``q̇̂_o``);
-``q_d, qdot_d, qddot_d``  joint references; ``lambda_d`` the desired force (29) (m-vector);
-``Delta_F_tilde``  ``ΔF̃ = ∫ (λ̂ − λ_d)`` of (6); ``lambda_hat`` the estimate ``λ̂`` of (22);
-``J_phi, J_pinv, Q``  constraint Jacobian (m×n), ``J⁺`` (n×m) and the projector of Property 1;
-``held``     whether the object is held: otherwise the free-motion form (``Q = I``, ``J⁺ = 0``,
-             ``J_φ = 0``, ``λ̂ = 0``) of Section IV.
+* ``q``: measured joint positions (the only measurement);
+* ``q_hat``: observer estimate ``q̂`` of (15); ``z = q − q̂`` the observation error;
+* ``qdot_hat``: ``d/dt q̂``, the right-hand side of (15);
+* ``qdot_o``: ``q̇_o = d/dt q̂ − Λ z`` of (8) (not the observer state ``q̇̂_o``);
+* ``q_d, qdot_d, qddot_d``: joint references; ``lambda_d`` the desired force (29) (m-vector);
+* ``Delta_F_tilde``: ``ΔF̃ = ∫ (λ̂ − λ_d)`` of (6); ``lambda_hat`` the estimate ``λ̂`` of (22);
+* ``J_phi, J_pinv, Q``: constraint Jacobian (m×n), ``J⁺`` (n×m) and the projector of
+  Property 1;
+* ``held``: whether the object is held: otherwise the free-motion form (``Q = I``, ``J⁺ = 0``,
+  ``J_φ = 0``, ``λ̂ = 0``) of Section IV.
 """
 
 from __future__ import annotations

@@ -185,7 +185,7 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
             "lambda_d": forces(layout.column(ref, "lambda_d")),
             "tau": data["tau"],
         }
-        optional = {   # issue 7: sensors, velocity estimate, commanded torque
+        optional = {   # sensing: sensors, velocity estimate, commanded torque
             "qdot": data["state"][:, arm_dofs:] if "state" in data else None,
             "qdot_hat": data.get("qdot_hat"),
             "lambda_sensor": forces(data["lambda_sensor"]) if "lambda_sensor" in data

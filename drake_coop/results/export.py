@@ -92,9 +92,11 @@ def write_diagram(diagram: System, out_dir: str | Path, name: str = "system_diag
     max_depth : int, optional
         Depth of sub-diagrams to expand (None: all), for ``style="drake"``.
     style : str
-        ``"drake"`` (every port, Drake's picture) or ``"connected"`` (a Diagram one level
+        ``"drake"`` (every port, Drake's picture), ``"connected"`` (a Diagram one level
         deep, connected ports only, each loop left to right; see
-        :mod:`drake_coop.results.graph`).
+        :mod:`drake_coop.results.graph`) or ``"paper"`` (the paper's block diagram of the
+        experiment, per robot, with equation numbers; see
+        :mod:`drake_coop.results.block_diagram`).
 
     Returns
     -------
@@ -107,11 +109,15 @@ def write_diagram(diagram: System, out_dir: str | Path, name: str = "system_diag
         from drake_coop.results.graph import connected_graphviz
 
         text = connected_graphviz(diagram)
+    elif style == "paper":
+        from drake_coop.results.block_diagram import paper_block_diagram
+
+        text = paper_block_diagram(diagram)
     elif style == "drake":
         text = (diagram.GetGraphvizString() if max_depth is None
                 else diagram.GetGraphvizString(max_depth=max_depth))
     else:
-        raise ValueError(f"style must be 'drake' or 'connected', got {style!r}")
+        raise ValueError(f"style must be 'drake', 'connected' or 'paper', got {style!r}")
     dot = atomic_write_text(out / f"{name}.dot", text)
     return {"dot": dot, "svg": _render_svg(text, out / f"{name}.svg")}
 

@@ -3,17 +3,17 @@
 ===========================  ===================================================================
 file                         content (panels as in the paper; one row or panel per robot)
 ===========================  ===================================================================
-``fig2_tracking_errors``     Cartesian tracking errors x̃, ỹ, z̃ (mm) of robot 1 (a–c),
+``fig2_tracking_errors``     Cartesian tracking errors x̃, ỹ, z̃ (µm) of robot 1 (a–c),
                              robot 2 (d–f), …
 ``fig3_force_tracking``      measured squeeze λ (solid) against the desired λ_d (29) (dashed),
                              robots 1 (a), 2 (b), …
 ``fig4_force_estimate``      measured squeeze (solid) against the estimate λ̂ (22) (dashed)
-``fig5_aux_force_error``     auxiliary force errors λ̂ − λ_d, robots 1 (a), 2 (b), …
-``fig6_observation_errors``  observation errors z = q − q̂ (rad), one panel per joint: robot 1
+``fig5_aux_force_error``     auxiliary force errors λ̂ − λ_d (mN), robots 1 (a), 2 (b), …
+``fig6_observation_errors``  observation errors z = q − q̂ (µrad), one panel per joint: robot 1
                              (a–c), robot 2 (d–f), … for the paper's 3-joint arms
-``fig7_velocity_estimate``   velocity-estimate errors q̇ − q̇̂ (rad/s) per joint, laid out as
-                             Fig. 6; only for logs holding ``qdot`` and ``qdot_hat`` (runs
-                             since issue 7)
+``fig7_velocity_estimate``   Fig. 7 (ours): velocity-estimate errors q̇ − q̇̂ (mrad/s) per
+                             joint, laid out as Fig. 6; only for logs holding ``qdot`` and
+                             ``qdot_hat`` (runs with the sensing models)
 ``fig_references``           the designed references: x_d, y_d, z_d of each robot, the path
                              (in the y–z plane for the paper, see :func:`path_plane`) and λ_d
 ===========================  ===================================================================
@@ -23,7 +23,10 @@ Any number of robots, joints n_i and constraints m_i: the joint figures have max
 each row λ_1 … λ_m (one colour per row, with a legend); the squeeze axis is labelled ``F_x``
 when λ = ±F_x (the paper's normals ±e_x), λ otherwise; the reference figure draws robot i in
 colour ``C{i}`` with its own line style. For the paper (two robots, n = 3, m = 1) the figures
-are those drawn before issue 10, pixel for pixel.
+keep their layout. Units are those a reader reads: each figure takes the first of µm / mm / m
+(µrad / mrad / rad, mN / N, mrad/s / rad/s) in which its largest value is below 1000, one
+unit for all its panels, and the labels carry the robot's index (``z_{i,j}``: robot i,
+joint j).
 
 Phase boundaries are thin grey vertical lines, with the phase names above the top panels; a run
 stopped early (diverged, interrupted) is drawn up to its last sample. Figures are drawn on
@@ -52,6 +55,14 @@ DPI = 120
 """Resolution of raster formats."""
 SHORT = {"put_down": "down"}
 """Phase names shortened to fit above a panel."""
+NARROW = {"put_down": "down", "return": "ret."}
+"""Phase names above narrow panels (more than three columns), where they are also staggered."""
+#: Units of the figures, smallest first: (factor from SI, name). A figure takes the first unit
+#: in which its largest value is below 1000, one unit for all its panels.
+LENGTH_UNITS = ((1e6, "µm"), (1e3, "mm"), (1.0, "m"))
+FORCE_UNITS = ((1e3, "mN"), (1.0, "N"))
+ANGLE_UNITS = ((1e6, "µrad"), (1e3, "mrad"), (1.0, "rad"))
+RATE_UNITS = ((1e3, "mrad/s"), (1.0, "rad/s"))
 
 Log = dict[str, np.ndarray]
 Signal = Callable[[Log], np.ndarray]
@@ -72,25 +83,30 @@ def _t_end(log: Log) -> float | None:
     return float(t.max()) if t.size else None
 
 
-def _phases(ax: Axes, meta: dict, t_end: float | None, label: bool) -> None:
-    """Grey lines at the phase boundaries up to ``t_end``; names above the axes if ``label``."""
+def _phases(ax: Axes, meta: dict, t_end: float | None, label: bool,
+            narrow: bool = False) -> None:
+    """Grey lines at the phase boundaries up to ``t_end``; names above the axes if ``label``
+    (``narrow``: shorter names on two alternating heights, so that neighbours do not overlap)."""
     if t_end is None:
         return
-    for name, a, b in meta["phases"]:
+    names = NARROW if narrow else SHORT
+    for k, (name, a, b) in enumerate(meta["phases"]):
         if a >= t_end:
             break
         if a > 0:
             ax.axvline(a, color="0.6", lw=0.6, zorder=0)
         if label:   # above the y axis' offset text (×1e-6), below the title
-            ax.annotate(SHORT.get(name, name), ((a + min(b, t_end)) / 2, 1.0),
-                        xycoords=ax.get_xaxis_transform(), xytext=(0, 10),
+            ax.annotate(names.get(name, name), ((a + min(b, t_end)) / 2, 1.0),
+                        xycoords=ax.get_xaxis_transform(),
+                        xytext=(0, 18 if narrow and k % 2 else 10),
                         textcoords="offset points", fontsize=6.5, color="0.35",
                         ha="center", va="bottom")
 
 
 def _style(ax: Axes, title: str, ylabel: str, xlabel: str | None = "t [s]",
-           top: bool = False, sci: tuple[int, int] | None = None) -> None:
-    ax.set_title(title, fontsize=9, pad=20 if top else 4)
+           top: bool = False, sci: tuple[int, int] | None = None, narrow: bool = False
+           ) -> None:
+    ax.set_title(title, fontsize=9, pad=(28 if narrow else 20) if top else 4)
     ax.set_ylabel(ylabel, fontsize=8)
     if xlabel:
         ax.set_xlabel(xlabel, fontsize=8)
@@ -125,18 +141,35 @@ def _components(ax: Axes, t: np.ndarray, y: np.ndarray, symbol: str, **style) ->
         ax.plot(t, y[:, k], label=symbol.format(k=k + 1), **style)
 
 
+def _unit(values: Iterable[np.ndarray], units: tuple[tuple[float, str], ...]
+          ) -> tuple[float, str]:
+    """The first ``(factor, unit)`` of ``units`` in which the largest finite ``|value|`` is
+    below 1000 (the last unit if none)."""
+    peak = 0.0
+    for v in values:
+        v = np.abs(np.asarray(v, dtype=float))
+        v = v[np.isfinite(v)]
+        if v.size:
+            peak = max(peak, float(v.max()))
+    return next(((f, u) for f, u in units if peak * f < 1000), units[-1])
+
+
 def _grid(logs: dict[str, Log], meta: dict,
           columns: list[tuple[str, str, Signal]] | Callable[[Log], list[tuple[str, str, Signal]]],
-          title: str, sci: tuple[int, int] | None = None, symbol: str = "") -> Figure:
+          title: str, units: tuple[tuple[float, str], ...], symbol: str = "") -> Figure:
     """Robots in rows, ``columns`` = ``(panel title, y label, signal)`` (or a function of the
-    robot's log giving them, e.g. one per joint); ``#`` in a panel title is the robot's number;
-    ``sci`` = scientific-notation limits of the y tick labels. A signal of shape (N, m) draws m
+    robot's log giving them, e.g. one per joint); ``#`` in a panel title or y label is the
+    robot's number and ``{unit}`` in a y label the unit chosen from ``units`` (SI signals,
+    one unit for the whole figure, see :func:`_unit`). A signal of shape (N, m) draws m
     lines with a legend (``symbol`` with ``{k}`` for the index). A robot with fewer columns than
     the widest leaves its last panels out."""
     robots = meta["robots"]
     per_robot = [columns(logs[r]) if callable(columns) else columns for r in robots]
     ncols = max(len(c) for c in per_robot)
-    fig, axes = _figure(len(robots), ncols, 2.6 * len(robots))
+    values = [[signal(logs[r]) for _, _, signal in per_robot[i]] for i, r in enumerate(robots)]
+    factor, unit = _unit((v for row in values for v in row), units)
+    narrow = ncols > 3
+    fig, axes = _figure(len(robots), ncols, 2.6 * len(robots) + (0.2 if narrow else 0.0))
     for i, robot in enumerate(robots):
         log, t_end = logs[robot], _t_end(logs[robot])
         for j in range(ncols):
@@ -144,14 +177,15 @@ def _grid(logs: dict[str, Log], meta: dict,
             if j >= len(per_robot[i]):
                 ax.set_visible(False)
                 continue
-            label, ylabel, signal = per_robot[i][j]
+            label, ylabel, _ = per_robot[i][j]
             # The x axis' labels go under the lowest drawn panel of each column.
             last = all(j >= len(per_robot[k]) for k in range(i + 1, len(robots)))
-            y = signal(log)
+            y = factor * np.asarray(values[i][j], dtype=float)
             _components(ax, log["t"], y, symbol, lw=0.8)
-            _phases(ax, meta, t_end, label=i == 0)
+            _phases(ax, meta, t_end, label=i == 0, narrow=narrow)
             panel = f"{_letter(i * ncols + j)} " + label.replace("#", str(i + 1))
-            _style(ax, panel, ylabel, "t [s]" if last else None, top=i == 0, sci=sci)
+            _style(ax, panel, ylabel.replace("#", str(i + 1)).replace("{unit}", unit),
+                   "t [s]" if last else None, top=i == 0, narrow=narrow)
             if last:
                 ax.xaxis.set_tick_params(labelbottom=True)
             if np.ndim(y) == 2:
@@ -262,10 +296,9 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
     figures = {
         "fig2_tracking_errors": _grid(
             logs, meta,
-            [(rf"$\tilde{{{c}}}_#$", rf"$\tilde{{{c}}}$ [mm]",
-              _difference("x", "x_d", j, scale=1e3))
+            [(rf"$\tilde{{{c}}}_#$", rf"$\tilde{{{c}}}_#$ [{{unit}}]", _difference("x", "x_d", j))
              for j, c in enumerate("xyz")],
-            "Fig. 2 — tracking errors in Cartesian coordinates", sci=(-2, 3)),
+            "Fig. 2 — tracking errors in Cartesian coordinates", LENGTH_UNITS),
         "fig3_force_tracking": _pair(
             logs, meta, ("lambda_meas", r"measured $\lambda$", r"measured $\lambda_{k}$"),
             ("lambda_d", r"desired $\lambda_d$ (29)", r"desired $\lambda_{{d{k}}}$ (29)"),
@@ -280,21 +313,22 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
             # (legend) for several.
             lambda log: [(r"robot #: $\hat\lambda_# - \lambda_{d#}$"
                           if log["lambda_d"].ndim == 1 else r"robot #: $\hat\lambda - \lambda_d$",
-                          r"$\hat\lambda - \lambda_d$ [N]",
+                          r"$\hat\lambda_# - \lambda_{d#}$ [{unit}]"
+                          if log["lambda_d"].ndim == 1 else r"$\hat\lambda - \lambda_d$ [{unit}]",
                           lambda log: log["lambda_hat"] - log["lambda_d"])],
-            r"Fig. 5 — auxiliary force errors $\hat\lambda - \lambda_d$", sci=(-2, 3),
+            r"Fig. 5 — auxiliary force errors $\hat\lambda - \lambda_d$", FORCE_UNITS,
             symbol=r"$\hat\lambda_{k} - \lambda_{{d{k}}}$"),
         "fig6_observation_errors": _grid(
-            logs, meta, joints("q", "q_hat", "$z_{{#{j}}}$", "$z_{j}$ [rad]"),
-            r"Fig. 6 — observation errors $z = q - \hat q$", sci=(0, 0)),
+            logs, meta, joints("q", "q_hat", "$z_{{#,{j}}}$", "$z_{{#,{j}}}$ [{{unit}}]"),
+            r"Fig. 6 — observation errors $z = q - \hat q$ (robot, joint)", ANGLE_UNITS),
     }
     if all("qdot" in logs[r] and "qdot_hat" in logs[r] for r in meta["robots"]):
         figures["fig7_velocity_estimate"] = _grid(
             logs, meta,
-            joints("qdot", "qdot_hat", "$\\dot q_{{#{j}}} - \\hat{{\\dot q}}_{{#{j}}}$",
-                   "[rad/s]"),
-            r"Velocity-estimate errors $\dot q - \hat{\dot q}$ (the controller's estimate)",
-            sci=(-2, 3))
+            joints("qdot", "qdot_hat", "$\\dot q_{{#,{j}}} - \\hat{{\\dot q}}_{{#,{j}}}$",
+                   "$\\dot q_{{#,{j}}} - \\hat{{\\dot q}}_{{#,{j}}}$ [{{unit}}]"),
+            r"Fig. 7 — velocity-estimate errors $\dot q - \hat{\dot q}$ (robot, joint)",
+            RATE_UNITS)
     paths = []
     for name, fig in figures.items():
         paths += _save(fig, out, name, formats)

@@ -4,24 +4,24 @@ Per robot, one row per control sample (period h); ``n`` is the robot's number of
 from ``q``), ``m`` its number of constraints (read from ``lambda_d``: an array of shape (N,)
 is one constraint, the paper's case, and (N, m) with m >= 2 several):
 
-==============  ================  ===========================================================
-array           shape             meaning
-==============  ================  ===========================================================
-``t``           (N,)              time of the sample (s)
-``q``           (N, n)            measured joint positions (rad)
-``q_hat``       (N, n)            velocity-observer estimate q̂ (15) (rad)
-``q_d``         (N, n)            desired joint positions (rad)
-``x``           (N, 3)            end-effector position, palm frame (m)
-``x_d``         (N, 3)            desired end-effector position (28) (m)
-``F_meas``      (N, 3)            measured force of the object on the end effector, palm
-                                  frame (N)
-``lambda_meas`` (N,) or (N, m)    measured squeeze ``N_i F_meas`` (N)
-``lambda_hat``  (N,) or (N, m)    force-observer estimate λ̂ (22) (N)
-``lambda_d``    (N,) or (N, m)    desired squeeze (29) (N)
-``tau``         (N, n)            applied joint torques, after the actuators' saturation (N·m)
-==============  ================  ===========================================================
+===============  ================  ===========================================================
+array            shape             meaning
+===============  ================  ===========================================================
+``t``            (N,)              time of the sample (s)
+``q``            (N, n)            measured joint positions (rad)
+``q_hat``        (N, n)            velocity-observer estimate q̂ (15) (rad)
+``q_d``          (N, n)            desired joint positions (rad)
+``x``            (N, 3)            end-effector position, palm frame (m)
+``x_d``          (N, 3)            desired end-effector position (28) (m)
+``F_meas``       (N, 3)            measured force of the object on the end effector, palm
+                                   frame (N)
+``lambda_meas``  (N,) or (N, m)    measured squeeze ``N_i F_meas`` (N)
+``lambda_hat``   (N,) or (N, m)    force-observer estimate λ̂ (22) (N)
+``lambda_d``     (N,) or (N, m)    desired squeeze (29) (N)
+``tau``          (N, n)            applied joint torques, after the actuators' saturation (N·m)
+===============  ================  ===========================================================
 
-Optional arrays (runs since issue 7; older logs lack them and still load and plot):
+Optional arrays (newer runs; older logs lack them and still load and plot):
 
 =================  ==============  ============================================================
 array              shape           meaning
@@ -125,7 +125,7 @@ def schema(n: int = 3, m: int = 1, optional: bool = False) -> dict[str, list[str
 #: Arrays of the paper's robots' logs (n = 3 joints, m = 1 constraint) and their CSV columns.
 COLUMNS: dict[str, list[str]] = schema(3, 1)
 
-#: Optional arrays (sensing, issue 7) of the paper's robots and their CSV columns; written when
+#: Optional arrays (sensing) of the paper's robots and their CSV columns; written when
 #: all present.
 OPTIONAL_COLUMNS: dict[str, list[str]] = schema(3, 1, optional=True)
 

@@ -11,7 +11,7 @@ errors
 * ``z1`` … ``zn`` — observation errors ``q − q̂`` of the robot's n joints (Fig. 6), rad;
 * ``velocity_error`` — ``max_j |q̇_j − q̇̂_j|``, the worst joint's error of the controller's
   velocity estimate (``d/dt q̂`` of the observer, or the alternative source's), rad/s; only
-  for logs that hold ``qdot`` and ``qdot_hat`` (runs since issue 7).
+  for logs that hold ``qdot`` and ``qdot_hat`` (runs with the sensing models).
 
 For a robot with m >= 2 constraints the three force errors are m-vectors per sample; their
 metric is taken on the Euclidean norm of the vector at each sample,

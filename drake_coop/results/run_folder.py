@@ -5,7 +5,11 @@ target before anything is simulated (an existing folder must be empty or hold on
 run's files; the parent must be writable and have room for the outputs) and creates a hidden
 sibling ``.<name>.drake-coop-<pid>-<token>.tmp``; the run writes everything there, and
 :meth:`RunFolder.commit` renames it onto ``--out`` (the previous run's folder, if any, is
-renamed aside first and removed after). So the folder holds one complete run, or one
+renamed aside first and removed after). A folder holding a previous run whose ``run.json``
+says it completed or diverged (a result) is replaced only when asked (``replace=True``, the
+command line's ``--force``): a long run is not lost to a short one by a repeated command.
+An interrupted run, or a folder with no readable ``run.json``, is replaced as before. So the
+folder holds one complete run, or one
 interrupted/diverged run marked as such in its ``run.json`` — never files of two runs.
 :meth:`RunFolder.discard` removes the staging folder of a run that stops before its outputs;
 folders left by killed processes (their pid no longer runs) are removed by the next run
@@ -14,13 +18,14 @@ into the same place.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import secrets
 import shutil
 from pathlib import Path
 
-__all__ = ["OutputFolderError", "RunFolder"]
+__all__ = ["OutputFolderError", "RunFolder", "previous_run"]
 
 #: Files a run writes (names or suffixes); an existing folder holding anything else is kept.
 RUN_FILES = {"run.json", "metrics.json", "scenario.yaml"}
@@ -32,6 +37,25 @@ ATOMIC_TEMP = re.compile(r"\..+\.[0-9a-f]{8}\.tmp")
 #: as much: the estimate is a floor, not a bound) and fixed (figures, diagrams, replay).
 BYTES_PER_ROBOT_TICK = 1_500
 BYTES_FIXED = 50_000_000
+
+
+#: The largest ``run.json`` read to tell whether a previous run completed.
+MAX_RUN_JSON_BYTES = 16_000_000
+
+
+def previous_run(path: Path) -> str | None:
+    """The message of the run held in ``path`` if it is a result (completed or diverged),
+    else None (no run, an interrupted one, or an unreadable ``run.json``)."""
+    meta_path = path / "run.json"
+    try:
+        if meta_path.is_symlink() or meta_path.stat().st_size > MAX_RUN_JSON_BYTES:
+            return None
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return None
+    if not isinstance(meta, dict) or meta.get("status") not in ("ok", "diverged"):
+        return None
+    return str(meta.get("message", meta["status"]))[:80]
 
 
 class OutputFolderError(ValueError):
@@ -77,7 +101,7 @@ class RunFolder:
     def _pattern(self) -> re.Pattern:
         return re.compile(rf"\.{re.escape(self.out.name)}\.drake-coop-(\d+)-[0-9a-f]+\.(tmp|old)")
 
-    def prepare(self, ticks: int, robots: int = 2) -> Path:
+    def prepare(self, ticks: int, robots: int = 2, replace: bool = False) -> Path:
         """Check the target and create the staging folder; return it.
 
         Parameters
@@ -86,12 +110,15 @@ class RunFolder:
             Control ticks of the run (for the free-space estimate).
         robots : int
             Robots of the run (for the free-space estimate).
+        replace : bool
+            Replace a previous run that completed or diverged (see :func:`previous_run`).
 
         Raises
         ------
         OutputFolderError
-            The target is a file, holds foreign files, or its parent cannot be created,
-            written or has too little free space.
+            The target is a file, holds foreign files or (without ``replace``) a previous
+            run's result, or its parent cannot be created, written or has too little free
+            space.
         """
         out = self.out
         if out.name in ("", ".", ".."):
@@ -107,6 +134,11 @@ class RunFolder:
                     raise OutputFolderError(
                         f"--out {out} holds '{foreign[:60]}', which is not a drake-coop output; "
                         "choose a new or empty folder (a previous run's folder is replaced)")
+                held = None if replace else previous_run(out)
+                if held is not None:
+                    raise OutputFolderError(
+                        f"--out {out} holds a previous run ({held}); add --force to replace "
+                        "it, or choose another folder")
             out.parent.mkdir(parents=True, exist_ok=True)
             self._remove_stale()
             staging = out.parent / f".{out.name}.drake-coop-{os.getpid()}-" \

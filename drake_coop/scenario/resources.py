@@ -155,11 +155,19 @@ def shipped_scenarios() -> dict[str, Path]:
 
 
 def scenario_summary(path: Path) -> str:
-    """The first comment line of a scenario file, without its ``#`` (empty if none)."""
+    """The first sentence of a scenario file's leading comment block, whole (it may span
+    several ``#`` lines; empty if the file starts with no comment)."""
+    words: list[str] = []
     for line in Path(path).read_text(encoding="utf-8").splitlines():
-        if line.startswith("#"):
-            return line.lstrip("#").strip()
-    return ""
+        if not line.startswith("#") or not line.lstrip("#").strip():
+            break
+        words += line.lstrip("#").split()
+        sentence = " ".join(words)
+        end = next((i for i in range(len(sentence)) if sentence[i] == "."
+                    and (i + 1 == len(sentence) or sentence[i + 1] == " ")), None)
+        if end is not None:
+            return sentence[:end + 1]
+    return " ".join(words)
 
 
 def find_scenario(name_or_path: str | Path) -> Path:

@@ -202,7 +202,7 @@ def _cutoff(value: float | None, name: str, h: float) -> None:
 
 
 def _validate_sensing(robot: Robot, where: str, h: float) -> None:
-    """Sources and the cutoffs of one robot's sensing (issue 7); the numbers' ranges are in
+    """Sources and the cutoffs of one robot's sensing; the numbers' ranges are in
     :data:`BOUNDS`.
 
     Raises

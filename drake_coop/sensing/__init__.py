@@ -1,4 +1,4 @@
-"""Realistic sensors and actuators between the plant and the control blocks (issue 7).
+"""Realistic sensors and actuators between the plant and the control blocks.
 
 Per robot: plant → ``robotN_encoders`` (:mod:`.encoders`) → control block →
 ``robotN_actuators`` (:mod:`.actuators`) → plant; ``robotN_ft_sensor`` (:mod:`.force_sensor`)

@@ -9,6 +9,12 @@
   complement), a half-filled marker where some did; the study's ``guides`` as lines.
 * ``<name>_hist.png`` — Monte Carlo: a histogram of each metric over the ``ok`` cases, with
   the fraction that diverged.
+
+Axes are labelled in words with their units (:func:`metric_label`, :func:`param_label`), not
+with the dotted paths of the study file: ``worst.force_error.rms`` reads "λ − λ_d, RMS, worst
+robot [N]" (in mathtext), ``robots.*.gains.k_d`` reads "k_d, every robot [1/s]" (units
+from the scenario's bounds table). Lengths and angles are drawn in the unit a reader reads (µm or mm, µrad or
+mrad, mrad/s), chosen from the plotted values; the files keep SI values.
 """
 
 from __future__ import annotations
@@ -24,9 +30,78 @@ from matplotlib.figure import Figure
 
 from drake_coop.results.io import atomic_path
 
-__all__ = ["plot_study"]
+__all__ = ["metric_label", "param_label", "plot_study"]
 
 DPI = 110
+
+#: Error names of the summary columns, in words.
+ERROR_NAMES = {
+    "x_tilde": r"$\tilde x$", "y_tilde": r"$\tilde y$", "z_tilde": r"$\tilde z$",
+    "position_error": r"$|x - x_d|$ (worst axis)", "force_error": r"$\lambda - \lambda_d$",
+    "estimate_error": r"$\lambda - \hat\lambda$", "aux_force_error": r"$\hat\lambda - \lambda_d$",
+    "observation_error": r"$z = q - \hat q$ (worst joint)",
+    "velocity_error": r"$\dot q - \hat{\dot q}$ (worst joint)",
+}
+#: SI unit of each error and the display units to choose from, smallest first.
+_LENGTH = ("m", ((1e6, "µm"), (1e3, "mm"), (1.0, "m")))
+_ANGLE = ("rad", ((1e6, "µrad"), (1e3, "mrad"), (1.0, "rad")))
+_UNITS = {"force_error": ("N", ((1.0, "N"),)), "estimate_error": ("N", ((1.0, "N"),)),
+          "aux_force_error": ("N", ((1.0, "N"),)), "velocity_error":
+          ("rad/s", ((1e3, "mrad/s"), (1.0, "rad/s"))), "observation_error": _ANGLE,
+          "x_tilde": _LENGTH, "y_tilde": _LENGTH, "z_tilde": _LENGTH, "position_error": _LENGTH}
+#: Scenario fields with a display name and scale (factor, unit) other than their SI value.
+_PARAMS = {"control_period": ("control period h", 1e3, "ms"),
+           "plant.time_step": ("plant step", 1e3, "ms"),
+           "robots.*.encoders.counts_per_rev": ("encoder counts per revolution", 1.0, ""),
+           "robots.*.force_sensor.noise_std": ("F/T sensor noise σ, every robot", 1.0, "N")}
+
+
+def _metric_parts(metric: str) -> tuple[str, str, str]:
+    robot, error, stat = metric.split(".")
+    return robot, error, stat
+
+
+def _metric_unit(metric: str, values) -> tuple[float, str]:
+    """(factor, unit) of a metric for display: the first unit in which its largest finite
+    value is below 1000."""
+    error = _metric_parts(metric)[1]
+    _, units = _UNITS.get(error, _ANGLE if error[:1] == "z" and error[1:].isdigit() else
+                          ("", ((1.0, ""),)))
+    v = np.abs(np.asarray([x for x in values if np.isfinite(x)], dtype=float))
+    peak = float(v.max()) if v.size else 0.0
+    return next(((f, u) for f, u in units if peak * f < 1000), units[-1])
+
+
+def metric_label(metric: str, unit: str) -> str:
+    """``worst.force_error.rms`` → ``λ − λ_d, RMS, worst robot [N]``."""
+    robot, error, stat = _metric_parts(metric)
+    name = ERROR_NAMES.get(error, f"z of joint {error[1:]}" if error[:1] == "z" else error)
+    who = "worst robot" if robot == "worst" else robot
+    text = f"{name}, {stat.upper() if stat == 'rms' else stat}, {who}"
+    return f"{text} [{unit}]" if unit else text
+
+
+def param_label(param: str) -> tuple[str, float]:
+    """A grid parameter's axis label and the factor its values are drawn with:
+    ``control_period`` → (``control period h [ms]``, 1000); ``robots.*.gains.k_d`` →
+    (``k_d, every robot [1/s]``, 1) with the unit of the scenario's bounds table."""
+    if param in _PARAMS:
+        name, factor, unit = _PARAMS[param]
+        return (f"{name} [{unit}]" if unit else name), factor
+    from drake_coop.scenario.validation import BOUNDS
+    parts = param.split(".")
+    pattern = ".".join("[]" if p == "*" or p.isdigit() else p for p in parts)
+    pattern = pattern.replace(".[]", "[]")
+    bound = BOUNDS.get(pattern) or BOUNDS.get(pattern + "[]")
+    words = [p for p in parts if p not in ("*",) and not p.isdigit() and p != "robots"]
+    who = ""
+    if parts[:2] == ["robots", "*"]:
+        who = ", every robot"
+    elif len(parts) > 1 and parts[0] == "robots" and parts[1].isdigit():
+        who = f", robot {int(parts[1]) + 1}"
+    name = (words[-1] if words else "variant") + who
+    unit = bound.unit if bound is not None and bound.unit else ""
+    return (f"{name} [{unit}]" if unit else name), 1.0
 
 
 def _numeric(values: list) -> bool:
@@ -69,7 +144,9 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
     values = list(dict.fromkeys(json.dumps(v) for v in doc["grid"][param]))
     xs_raw = [json.loads(v) for v in values]
     numeric = _numeric(xs_raw)
-    xs = np.array(xs_raw, dtype=float) if numeric else np.arange(len(values), dtype=float)
+    xlabel, xfactor = param_label(param)
+    xs = xfactor * np.array(xs_raw, dtype=float) if numeric else np.arange(len(values),
+                                                                            dtype=float)
     split = next((k for k in _swept(doc) if k != param and not _numeric(doc["grid"][k])), None)
     groups = list(dict.fromkeys(json.dumps(c["params"][split]) for c in cases)) if split else [
         None]
@@ -78,13 +155,14 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
     axes = fig.subplots(len(metrics), 1, sharex=True, squeeze=False)[:, 0]
     for ax, metric in zip(axes, metrics):
         top = []
+        factor, unit = _metric_unit(metric, [_value(c, metric) for c in cases])
         for g_index, group in enumerate(groups):
             members = [c for c in cases if split is None or json.dumps(c["params"][split]) ==
                        group]
             med, lo, hi, n_div = [], [], [], []
             for v in values:
                 at = [c for c in members if json.dumps(c["params"][param]) == v]
-                y = np.array([_value(c, metric) for c in at])
+                y = factor * np.array([_value(c, metric) for c in at])
                 y = y[np.isfinite(y)]
                 med.append(np.median(y) if y.size else math.nan)
                 lo.append(y.min() if y.size else math.nan)
@@ -105,7 +183,7 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
         finite = np.array(top)
         if _log_scale(finite):
             ax.set_yscale("log")
-        ax.set_ylabel(metric, fontsize=8)
+        ax.set_ylabel(metric_label(metric, unit), fontsize=8)
         ax.grid(True, alpha=0.3)
         if split is not None or len(groups) > 1:
             ax.legend(fontsize=7)
@@ -117,7 +195,7 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
     else:
         pad = 0.05 * (xs.max() - xs.min()) or 0.5
         axes[-1].set_xlim(xs.min() - pad, xs.max() + pad)
-    axes[-1].set_xlabel(param)
+    axes[-1].set_xlabel(xlabel)
     fig.suptitle(f"{doc['name']}: median and min–max over the other parameters "
                  f"(phase {doc['phase']}; ✕ n: n cases diverged)", fontsize=9)
     return _save(fig, out / f"{doc['name']}_vs_{_slug(param)}.png")
@@ -132,13 +210,15 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
     axes = fig.subplots(1, len(metrics), squeeze=False)[0]
     xv = np.array([json.loads(v) for v in xs], dtype=float)
     yv = np.array([json.loads(v) for v in ys], dtype=float)
+    (xlabel, fx), (ylabel, fy) = param_label(px), param_label(py)
     for ax, metric in zip(axes, metrics):
+        factor, unit = _metric_unit(metric, [_value(c, metric) for c in cases])
         cx, cy, cz, dx, dy, px_, py_ = [], [], [], [], [], [], []
         for x in xs:
             for y in ys:
                 at = [c for c in cases if json.dumps(c["params"][px]) == x
                       and json.dumps(c["params"][py]) == y]
-                z = np.array([_value(c, metric) for c in at])
+                z = factor * np.array([_value(c, metric) for c in at])
                 z = z[np.isfinite(z)]
                 n_div = sum(c["status"] == "diverged" for c in at)
                 if z.size:
@@ -151,7 +231,7 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
         norm = LogNorm() if _log_scale(cz_arr) else Normalize()
         if cz:
             sc = ax.scatter(cx, cy, c=cz, s=260, marker="s", norm=norm, cmap="viridis")
-            fig.colorbar(sc, ax=ax, label=metric)
+            fig.colorbar(sc, ax=ax, label=metric_label(metric, unit))
         if dx:
             ax.scatter(dx, dy, s=90, marker="x", color="crimson", label="diverged")
         if px_:
@@ -168,9 +248,9 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
             ax.plot(xline, g["slope"] * xline + g["intercept"], "--", lw=1, label=g["label"])
         if ylim:
             ax.set_ylim(*ylim)
-        ax.set_xlabel(px)
-        ax.set_ylabel(py)
-        ax.set_title(metric, fontsize=9)
+        ax.set_xlabel(xlabel if fx == 1.0 else px)
+        ax.set_ylabel(ylabel if fy == 1.0 else py)
+        ax.set_title(metric_label(metric, unit), fontsize=9)
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2)
     fig.suptitle(f"{doc['name']}: median over other parameters (phase {doc['phase']})",
@@ -186,14 +266,15 @@ def _plot_hist(doc: dict, out: Path) -> Path:
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(metrics), squeeze=False)[0]
     for ax, metric in zip(axes, metrics):
-        y = np.array([_value(c, metric) for c in cases])
+        factor, unit = _metric_unit(metric, [_value(c, metric) for c in cases])
+        y = factor * np.array([_value(c, metric) for c in cases])
         y = y[np.isfinite(y)]
         if y.size:
             ax.hist(y, bins=min(30, max(5, y.size // 3)), color="C0", alpha=0.8)
             ax.axvline(np.median(y), color="k", lw=1, ls="--",
                        label=f"median {np.median(y):.3g}")
             ax.legend(fontsize=7)
-        ax.set_xlabel(metric, fontsize=8)
+        ax.set_xlabel(metric_label(metric, unit), fontsize=8)
         ax.set_ylabel("cases")
     fig.suptitle(f"{doc['name']}: {n_done} cases, {n_div} diverged "
                  f"({100.0 * n_div / max(1, n_done):.0f} %), phase {doc['phase']}", fontsize=9)

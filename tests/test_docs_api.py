@@ -1,0 +1,167 @@
+"""The API reference (docs/api/*.md) names every public name of the package.
+
+Public names, read from the sources with :mod:`ast` (no import, no Sphinx):
+
+* each subpackage's ``__all__`` (the names ``from drake_coop.<sub> import ...`` gives), looked
+  for in ``docs/api/<sub>.md``;
+* each module's public classes and functions (module level, no leading underscore; only those
+  in the module's ``__all__`` when it has one), looked for under the module's own heading.
+
+A name added to the package without its line in the API reference fails here.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PKG = ROOT / "drake_coop"
+API = ROOT / "docs" / "api"
+TOP_LEVEL = ("cli", "bench", "bench_robots")      # documented in docs/api/commands.md
+
+
+def _dunder_all(tree: ast.Module) -> list[str] | None:
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(
+                isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
+            return [e.value for e in node.value.elts]
+    return None
+
+
+def public_names(path: Path) -> list[str]:
+    """Module-level public classes and functions of one source file."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    names = [n.name for n in tree.body
+             if isinstance(n, (ast.FunctionDef, ast.ClassDef)) and not n.name.startswith("_")]
+    listed = _dunder_all(tree)
+    return names if listed is None else [n for n in names if n in listed]
+
+
+def subpackages() -> list[str]:
+    return sorted(p.parent.name for p in PKG.glob("*/__init__.py")
+                  if p.parent.name != "data")
+
+
+def module_sections(text: str) -> dict[str, str]:
+    """``module -> the text under its '## `module`' heading`` of an API page."""
+    parts = re.split(r"^## `([\w.]+)`\s*$", text, flags=re.M)
+    return {parts[i]: parts[i + 1] for i in range(1, len(parts) - 1, 2)}
+
+
+def autosummary_entries(text: str) -> set[str]:
+    """Names listed in the autosummary blocks of a chunk of an API page (indented lines)."""
+    return set(re.findall(r"^ {3}~?([\w.]+)\s*$", text, flags=re.M))
+
+
+def expected() -> list[tuple[str, str, str]]:
+    """(api page, section, name) for every public name of the package."""
+    out = []
+    for sub in subpackages():
+        exported = _dunder_all(ast.parse((PKG / sub / "__init__.py").read_text())) or []
+        out += [(sub, "", name) for name in exported]
+        for module in sorted((PKG / sub).glob("*.py")):
+            if module.name != "__init__.py":
+                out += [(sub, f"drake_coop.{sub}.{module.stem}", name)
+                        for name in public_names(module) if name not in exported]
+    for module in TOP_LEVEL:
+        out += [("commands", f"drake_coop.{module}", name)
+                for name in public_names(PKG / f"{module}.py")]
+    return out
+
+
+def missing_names() -> list[str]:
+    missing = []
+    for page, section, name in expected():
+        path = API / f"{page}.md"
+        text = path.read_text(encoding="utf-8") if path.exists() else ""
+        chunk = module_sections(text).get(section, "") if section else \
+            text.split("\n## `", 1)[0]
+        if name not in autosummary_entries(chunk):
+            missing.append(f"{section or 'drake_coop.' + page}.{name} (docs/api/{page}.md)")
+    return missing
+
+
+def test_every_public_name_is_listed_in_the_api_reference():
+    assert missing_names() == []
+
+
+def test_every_subpackage_has_an_api_page_in_the_index():
+    index = (API / "index.md").read_text(encoding="utf-8")
+    assert [s for s in subpackages() if not re.search(rf"^{s}$", index, flags=re.M)] == []
+
+
+def test_a_public_name_added_without_its_docs_is_reported(tmp_path, monkeypatch):
+    # The check itself must be able to fail: a new public function in a copy of a module
+    # whose API page does not list it is reported by name.
+    pkg = tmp_path / "drake_coop"
+    (pkg / "control").mkdir(parents=True)
+    (pkg / "control" / "__init__.py").write_text('"""x"""\n')
+    source = (PKG / "control" / "orthogonal.py").read_text(encoding="utf-8")
+    (pkg / "control" / "orthogonal.py").write_text(source + "\n\ndef brand_new(x):\n    return x\n")
+    monkeypatch.setitem(globals(), "PKG", pkg)
+    monkeypatch.setitem(globals(), "TOP_LEVEL", ())
+    missing = missing_names()
+    assert missing == ["drake_coop.control.orthogonal.brand_new (docs/api/control.md)"]
+
+
+@pytest.mark.parametrize("text, names", [
+    ("```{eval-rst}\n.. autosummary::\n   :toctree: generated\n\n   Foo\n   bar\n```\n",
+     {"Foo", "bar"}),
+    ("Foo is mentioned in prose only.\n", set()),
+])
+def test_only_autosummary_entries_count_as_documented(text, names):
+    assert autosummary_entries(text) == names
+
+
+# ---------------------------------------------------------------- repository metadata
+
+
+def test_citation_cff_is_valid_yaml_with_the_required_keys_and_this_version():
+    from pydrake.common.yaml import yaml_load
+
+    cff = yaml_load(filename=str(ROOT / "CITATION.cff"))
+    assert {"cff-version", "message", "title", "authors"} <= set(cff)
+    assert cff["cff-version"].startswith("1.2")
+    assert all("name" in a or "family-names" in a for a in cff["authors"])
+    pyproject = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    version = re.search(r'^version = "([^"]+)"', pyproject, flags=re.M).group(1)
+    init = (PKG / "__init__.py").read_text(encoding="utf-8")
+    assert cff["version"] == version
+    assert f'__version__ = "{version}"' in init
+    assert f"## {version}" in (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+
+
+def test_no_file_refers_to_a_folder_outside_the_repository():
+    needles = ["../" + "shared", "/work/" + "shared", "equations" + ".md"]
+    skip = {".git", "_build", "_generated", "generated", "__pycache__", ".ipynb_checkpoints"}
+    found = []
+    for path in ROOT.rglob("*"):
+        if skip & set(path.relative_to(ROOT).parts) or not path.is_file():
+            continue
+        if path.suffix not in (".py", ".md", ".yaml", ".toml", ".cff", ".ipynb", ".txt", ""):
+            continue
+        text = path.read_text(encoding="utf-8", errors="replace")
+        found += [f"{path.relative_to(ROOT)}: {n}" for n in needles if n in text]
+    assert found == []
+
+
+def test_pydrake_system_blocks_are_read_into_their_ports():
+    pytest.importorskip("sphinx")                       # the docs extension imports Sphinx
+    import sys
+    sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+    try:
+        from pydrake_system import parse_block
+    finally:
+        sys.path.remove(str(ROOT / "docs" / "_ext"))
+    block = parse_block(["name: Controller", "input_ports:", "- q", "- reference",
+                         "output_ports: [tau, qddot_r_hat]"])
+    assert block == {"name": "Controller", "input_ports": ["q", "reference"],
+                     "output_ports": ["tau", "qddot_r_hat"]}
+    with pytest.raises(ValueError, match="expected one of name"):
+        parse_block(["name: X", "inputs: [q]"])
+    with pytest.raises(ValueError, match="no name"):
+        parse_block(["input_ports: [q]"])
