@@ -135,11 +135,24 @@ def test_citation_cff_is_valid_yaml_with_the_required_keys_and_this_version():
     assert f"## {version}" in (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
 
 
+def _repository_files() -> list[Path]:
+    """The files git tracks (and would track) in a checkout; every file below the root
+    otherwise. Build products (``*.egg-info``, a virtual environment) are not the repository."""
+    import subprocess
+    try:
+        out = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+                             cwd=ROOT, capture_output=True, check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return [p for p in ROOT.rglob("*") if not any(part.endswith(".egg-info")
+                                                      for part in p.relative_to(ROOT).parts)]
+    return [ROOT / name for name in out.decode().split("\0") if name]
+
+
 def test_no_file_refers_to_a_folder_outside_the_repository():
     needles = ["../" + "shared", "/work/" + "shared", "equations" + ".md"]
     skip = {".git", "_build", "_generated", "generated", "__pycache__", ".ipynb_checkpoints"}
     found = []
-    for path in ROOT.rglob("*"):
+    for path in _repository_files():
         if skip & set(path.relative_to(ROOT).parts) or not path.is_file():
             continue
         if path.suffix not in (".py", ".md", ".yaml", ".toml", ".cff", ".ipynb", ".txt", ""):
