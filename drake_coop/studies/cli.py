@@ -76,7 +76,14 @@ def _error(message: str) -> int:
     return 2
 
 
+#: Set by the SIGTERM handler: Ray's ``ray.wait`` turns any exception raised in a signal
+#: handler into a plain KeyboardInterrupt, so the exit code is taken from this flag.
+_SIGTERM_SEEN = False
+
+
 def _on_sigterm(signum, frame):
+    global _SIGTERM_SEEN
+    _SIGTERM_SEEN = True
     raise Terminated()
 
 
@@ -204,6 +211,8 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
                 progress.update(case, result)
         store.write_tables(study, cases, records, engine, died)
 
+    global _SIGTERM_SEEN
+    _SIGTERM_SEEN = False
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     code = 0
     started = time.perf_counter()
@@ -217,7 +226,7 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
                     workers=args.workers)
     except KeyboardInterrupt as exc:
         # this module's SIGTERM handler, or drake_coop.cli's before it was installed
-        code = 143 if type(exc).__name__ == "Terminated" else 130
+        code = 143 if type(exc).__name__ == "Terminated" or _SIGTERM_SEEN else 130
     except OSError as exc:        # writing a case or a table failed (full disk, read-only)
         print(f"\ndrake-coop study: writing to --out {out} failed ({_one_line(exc)}); the "
               "cases finished before are kept; free the space and run again to resume",

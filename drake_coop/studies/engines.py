@@ -17,7 +17,9 @@ soon as it arrives, in completion order.
   pid changes; a worker whose parent is gone exits quietly (no BrokenPipeError traceback).
 * :func:`run_ray` — each case a ``@ray.remote(max_calls=1)`` task (a worker process is not
   reused after one case) on a local instance (``ray.init(num_cpus=workers)``) or an existing
-  cluster (``ray.init(address=...)``). Every node needs ``drake_coop`` importable.
+  cluster (``ray.init(address=...)``). Every node needs ``drake_coop`` importable. A local
+  instance is watched by :mod:`drake_coop.studies.reaper`, which ends Ray's helpers if the
+  driver is killed; a task whose worker died gives a ``died`` record.
 """
 
 from __future__ import annotations
@@ -180,9 +182,13 @@ def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
     import ray
 
     started = False
+    reaper = None
     saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     if not ray.is_initialized():
         if address is None:
+            from drake_coop.studies.reaper import start as start_reaper
+
+            reaper = start_reaper()      # ends Ray's helpers if this process is killed
             ray.init(num_cpus=max(1, workers), include_dashboard=False, log_to_driver=False,
                      configure_logging=False)
         else:
@@ -209,3 +215,5 @@ def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
     finally:
         if started:
             ray.shutdown()
+        if reaper is not None:
+            reaper.done()
