@@ -475,3 +475,63 @@ def test_plot_refuses_a_run_json_with_400000_phases_quickly(tmp_path, capsys):
     assert time.perf_counter() - started < 5.0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "'phases' lists 400000 phases, at most" in err[0]
+
+
+# --- the command with a stand-in engine (no simulation): damaged files, a full disk ----------
+
+def _fake_engine(monkeypatch, calls: list):
+    import drake_coop.studies.engines as engines
+
+    def run_local(cases, t_end, on_result, *, workers=2):
+        rng = np.random.default_rng(len(calls))
+        for case in cases:
+            calls.append(case.hash)
+            on_result(case, _fake_result(rng))
+
+    monkeypatch.setattr(engines, "run_local", run_local)
+
+
+def test_a_damaged_case_file_is_rerun_with_a_warning_not_a_blocked_resume(tmp_path, capsys,
+                                                                           monkeypatch):
+    calls: list = []
+    _fake_engine(monkeypatch, calls)
+    path, out = _study_file(tmp_path), tmp_path / "out"
+    assert main(["study", str(path), "--out", str(out), "--quiet"]) == 0
+    assert len(calls) == 2
+    victim = out / "cases" / f"{calls[0]}.json"
+    doc = json.loads(victim.read_text())
+    del doc["status"]
+    victim.write_text(json.dumps(doc))
+    capsys.readouterr()
+    assert main(["study", str(path), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {victim.name}: status must be one of ok, diverged, error; its case runs " \
+           "again" in err
+    assert "1 already finished, running 1" in err and calls[2:] == [calls[0]]
+    assert json.loads(victim.read_text())["status"] == "ok"
+
+
+def test_a_full_disk_during_a_study_is_exit_1_with_one_line_and_keeps_the_cases(
+        tmp_path, capsys, monkeypatch):
+    import drake_coop.studies.store as store_module
+
+    calls: list = []
+    _fake_engine(monkeypatch, calls)
+    real = store_module.atomic_write_text
+    writes = []
+
+    def filling(path, text):
+        writes.append(path)
+        if len(writes) > 4:              # results.csv, study.json, case 0, its tables, ...
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(path, text)
+
+    monkeypatch.setattr(store_module, "atomic_write_text", filling)
+    out = tmp_path / "out"
+    assert main(["study", str(_study_file(tmp_path)), "--out", str(out)]) == 1
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert err[-1] == (f"drake-coop study: writing to --out {out} failed (No space left on "
+                       "device); the cases finished before are kept; free the space and run "
+                       "again to resume"), err
+    assert not any("Traceback" in line or "error" in line for line in err[:-1]), err
+    assert len(list((out / "cases").glob("*.json"))) == 1

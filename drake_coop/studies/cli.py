@@ -242,8 +242,9 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
     try:
         store.write_tables(study, cases, records, engine, died)
     except OSError as exc:
-        print(f"drake-coop study: writing results.csv to --out {out} failed "
-              f"({_one_line(exc)})", file=sys.stderr)
+        if code != 1:                 # not said already
+            print(f"drake-coop study: writing results.csv to --out {out} failed "
+                  f"({_one_line(exc)})", file=sys.stderr)
         return code or 1
     done = sum(c.hash in records for c in cases)
     if code:

@@ -221,9 +221,11 @@ def set_value(data: dict, keys: KeyPath, value) -> None:
     node[last] = copy.deepcopy(value)
 
 
-def case_hash(scenario: Scenario, t_end: float | None) -> str:
+def case_hash(scenario: Scenario | str, t_end: float | None) -> str:
     """16 hex digits of SHA-256 over the validated scenario (every field, canonical JSON) and
-    the study's ``t_end``."""
+    the study's ``t_end``; ``scenario`` may also be its YAML text (loaded and validated)."""
+    if isinstance(scenario, str):
+        scenario = load_scenario(data=scenario)
     text = json.dumps(dataclasses.asdict(scenario), sort_keys=True, separators=(",", ":"))
     text += f"\n# t_end: {t_end!r}\n"
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
@@ -271,9 +273,8 @@ _SLOW = object()     # "this value needs the YAML loading"
 def _coerce(schema, old, value):
     """``value`` converted as ``yaml_load_typed`` converts it for a field of type ``schema``
     (numbers and lists of numbers only), or ``_SLOW``."""
-    optional = _unwrap_optional(schema) is not schema
     schema = _unwrap_optional(schema)
-    if value is None:
+    if value is None:                       # null: the loader decides (Optional or not)
         return _SLOW
     if schema is float and _is_number(value):
         try:
@@ -293,7 +294,6 @@ def _coerce(schema, old, value):
             return [float(v) for v in items]
         except OverflowError:
             return _SLOW
-    del optional
     return _SLOW
 
 
