@@ -118,7 +118,6 @@ def _plot_only(args: argparse.Namespace) -> int:
 def cmd_study(args: argparse.Namespace) -> int:
     """Run (or resume) a study, or redraw its figures with ``--plot``."""
     from drake_coop.studies.folder import StudyFolder, StudyFolderError
-    from drake_coop.studies.plots import plot_study
 
     if args.plot is not None:
         return _plot_only(args)
