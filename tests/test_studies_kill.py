@@ -244,7 +244,15 @@ def test_ray_driver_stopped_or_killed_leaves_no_helper(fresh, tmp_path, signum, 
     deadline = time.monotonic() + 10
     while any(map(_alive, started)) and time.monotonic() < deadline:
         time.sleep(0.1)
-    assert not [pid for pid in started if _alive(pid)]
+    left = {pid: _cmdline(pid) for pid in started if _alive(pid)}
+    assert not left, left
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes()[:100].decode(errors="replace")
+    except OSError:
+        return ""
 
 
 def _descendants(pid: int) -> set[int]:

@@ -10,7 +10,10 @@ session that holds the reading end of a pipe from the driver:
   ``/proc``), so it still knows the agents after their raylet died and they were re-parented;
 * when the pipe closes *without* the word ``done`` — the driver died, however (``kill -9``
   included: the kernel closes its end) — it sends SIGKILL to every recorded process that
-  still runs with the same start time (a reused pid is never touched) and exits;
+  still runs with the same start time (a reused pid is never touched), then, three times
+  0.1 s apart, to every process whose command line names the driver's Ray session
+  (``session_<date>_<time>_<µs>_<driver pid>``): a worker the raylet started in the last
+  0.25 s and that was re-parented when the raylet died is caught that way; then it exits;
 * when the driver writes ``done`` (after ``ray.shutdown()``) it exits without killing.
 
 Linux only (it reads ``/proc``); elsewhere :func:`start` returns None and nothing watches.
@@ -21,10 +24,12 @@ This file runs as a script (``python reaper.py PID``) so that it imports nothing
 from __future__ import annotations
 
 import os
+import re
 import select
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 __all__ = ["Reaper", "start"]
@@ -89,11 +94,34 @@ def watch(driver: int, pipe) -> int:
         seen.setdefault(pid, _start_time(pid) or "")
     for pid, start in seen.items():
         if start and _start_time(pid) == start:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except OSError:
-                pass
+            _kill(pid)
+    session = re.compile(rb"session_\d{4}-\d\d-\d\d_\d\d-\d\d-\d\d_\d+_%d(?!\d)" % driver)
+    for _ in range(3):
+        for pid in _session_members(session) - {me}:
+            _kill(pid)
+        time.sleep(0.1)
     return 0
+
+
+def _kill(pid: int) -> None:
+    try:
+        os.kill(pid, signal.SIGKILL)
+    except OSError:
+        pass
+
+
+def _session_members(session: re.Pattern) -> set[int]:
+    """Processes whose command line names the driver's Ray session."""
+    found = set()
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                cmdline = Path(f"/proc/{entry}/cmdline").read_bytes()
+            except OSError:
+                continue
+            if session.search(cmdline):
+                found.add(int(entry))
+    return found
 
 
 class Reaper:
