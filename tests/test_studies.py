@@ -1,8 +1,10 @@
 """Study files: parsing, path resolution, grid expansion, Monte Carlo sampling, case hashes,
 errors naming the field (no simulation here)."""
 
+import dataclasses
 import hashlib
 import itertools
+import json
 
 import numpy as np
 import pytest
@@ -58,8 +60,10 @@ grid:
 def test_identical_scenarios_share_a_hash_and_t_end_enters_it():
     cases = expand(_study("grid: {robots.0.gains.k_d: [40, 40.0, 41]}"))
     assert cases[0].hash == cases[1].hash != cases[2].hash
-    expected = hashlib.sha256(f"{cases[0].scenario_yaml}\n# t_end: None\n".encode()
-                              ).hexdigest()[:16]
+    # the hash is over the scenario the case runs (its YAML loaded back), every field
+    loaded = dataclasses.asdict(load_scenario(data=cases[0].scenario_yaml))
+    canonical = json.dumps(loaded, sort_keys=True, separators=(",", ":"))
+    expected = hashlib.sha256(f"{canonical}\n# t_end: None\n".encode()).hexdigest()[:16]
     assert cases[0].hash == expected
     other = expand(_study("t_end: 5.0\ngrid: {robots.0.gains.k_d: [40]}"))
     assert other[0].scenario_yaml == cases[0].scenario_yaml and other[0].hash != cases[0].hash

@@ -261,6 +261,9 @@ MAX_META_BYTES = 16_000_000
 MAX_ROBOTS = 8
 MAX_MEMBERS = 64
 MAX_NPZ_BYTES = 128_000_000
+#: Phases a ``run.json`` may list (a run has five; each phase costs the figures and metrics a
+#: pass over the logs, so a damaged file with 400 000 of them is refused before any is read).
+MAX_PHASES = 32
 
 
 def _inside(out: Path, name: str, what: str) -> Path:
@@ -313,6 +316,8 @@ def _check_npz_sizes(path: Path) -> None:
 
 def _check_phases(path: Path, meta: dict) -> None:
     phases = meta.get("phases")
+    if isinstance(phases, list) and len(phases) > MAX_PHASES:
+        raise ValueError(f"{path}: 'phases' lists {len(phases)} phases, at most {MAX_PHASES}")
     if not (isinstance(phases, list) and all(
             isinstance(p, list) and len(p) == 3 and isinstance(p[0], str)
             and all(isinstance(v, (int, float)) for v in p[1:]) for p in phases)):
@@ -347,6 +352,7 @@ def load_logs(out_dir: str | Path) -> tuple[dict[str, dict[str, np.ndarray]], di
     """
     out = Path(out_dir)
     meta = _load_meta(out)
+    _check_phases(out / "run.json", meta)        # before the logs are read: bounded work
     logs = {}
     for robot in meta["robots"]:
         path = _inside(out, f"{robot}.npz", f"{robot}.npz")

@@ -22,6 +22,7 @@ import math
 import reprlib
 import typing
 from dataclasses import dataclass
+from functools import lru_cache
 
 __all__ = ["Bound", "check_numbers", "numeric_fields", "one_line", "optional_of", "show"]
 
@@ -114,7 +115,7 @@ def check_numbers(obj: object, bounds: dict[str, Bound], lengths: dict[str, int]
     error
         The first field that is not a finite number, out of its bound or of the wrong length.
     """
-    hints = typing.get_type_hints(type(obj))
+    hints = _type_hints(type(obj))
     for f in dataclasses.fields(obj):
         value = getattr(obj, f.name)
         name = f"{path}.{f.name}" if path else f.name
@@ -158,7 +159,7 @@ def numeric_fields(schema: type, pattern: str = "") -> list[str]:
     """Patterns of every number (``float``, ``int``, optional or in lists) of a dataclass
     schema: the keys its bounds table should have."""
     out = []
-    hints = typing.get_type_hints(schema)
+    hints = _type_hints(schema)
     for f in dataclasses.fields(schema):
         pat = f"{pattern}.{f.name}" if pattern else f.name
         t = optional_of(hints[f.name])
@@ -175,3 +176,10 @@ def numeric_fields(schema: type, pattern: str = "") -> list[str]:
         elif dataclasses.is_dataclass(t):
             out += numeric_fields(t, pat)
     return out
+
+
+@lru_cache(maxsize=None)
+def _type_hints(cls) -> dict:
+    """``typing.get_type_hints`` of a dataclass, once per class (a study validates thousands
+    of scenarios)."""
+    return typing.get_type_hints(cls)

@@ -93,12 +93,20 @@ def _choice(value: object, allowed: tuple[str, ...], name: str) -> None:
         raise ScenarioError(f"{name} must be one of {', '.join(allowed)}, got {show(value)}")
 
 
-def validate(scenario: Scenario) -> None:
+def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
     """Check ranges and consistency of a scenario.
 
     In order: every number finite and within its :data:`BOUNDS` (lists of their
     :data:`LENGTHS`), the choices (modes, models, names), the cross-field rules (periods,
     phase order, force profile), the reachability of every target and the model files.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    cache : dict, optional
+        Results of the reachability check (the costly part: every target of the path through
+        each arm's kinematics) by :func:`reach_inputs`, shared between calls on scenarios that
+        differ elsewhere (a study's cases). The outcome is that of an uncached call.
 
     Raises
     ------
@@ -167,7 +175,30 @@ def validate(scenario: Scenario) -> None:
     for i, (robot, n) in enumerate(zip(scenario.robots, check_models(scenario))):
         check_dimensions(robot, n, f"robots[{i}]")
     check_axes(scenario)
-    check_reachable(scenario)
+    if cache is None:
+        check_reachable(scenario)
+        return
+    key = ("reach", reach_inputs(scenario))
+    if key not in cache:
+        try:
+            check_reachable(scenario)
+            cache[key] = None
+        except ScenarioError as exc:
+            cache[key] = str(exc)
+    if cache[key] is not None:
+        raise ScenarioError(cache[key])
+
+
+def reach_inputs(scenario: Scenario) -> str:
+    """Everything the reachability check reads, as text: the task and each robot's model,
+    frames, base pose, contact point, normals, orientation reference, IK seed and home
+    (:mod:`drake_coop.scenario.reach`, :mod:`drake_coop.scenario.task_path`)."""
+    import dataclasses
+
+    return repr((dataclasses.asdict(scenario.task), [
+        (r.name, r.model, r.controller_model, r.base_frame, r.ee_frame, r.base_xyz,
+         r.base_yaw_deg, r.contact_xy, r.normals, r.ee_rpy_deg, r.q_seed, r.home)
+        for r in scenario.robots]))
 
 
 def _validate_two_sided(scenario: Scenario) -> None:

@@ -1,26 +1,33 @@
 """``drake-coop study``: run a study file, resume it, redraw its figures.
 
-``drake-coop study STUDY.yaml --out DIR [--workers N] [--ray [ADDRESS]] [--quiet]``
-    Expand and validate every case (exit 2 naming the field on a bad path or value), skip the
-    cases already finished in ``DIR/cases/``, run the others (one fresh process each) with a
-    progress bar, and write ``results.csv``, ``study.json`` and the figures.
-    Exit codes: 0 done (diverged cases are results, not failures), 1 the engine failed,
-    2 bad input, 130 Ctrl-C, 143 SIGTERM (finished cases are kept; rerun to resume).
+``drake-coop study STUDY.yaml --out DIR [--workers N] [--ray [ADDRESS]] [--max-cases N]
+[--max-workers N] [--quiet]``
+    Check the study's size (at most ``--max-cases``, default 10 000), expand and validate
+    every case as ``run`` would (exit 2 naming the field on a bad path or value), claim and
+    lock ``DIR`` (:mod:`drake_coop.studies.folder`: new, empty or this study's folder), skip
+    the cases already finished in ``DIR/cases/``, run the others (one fresh process each)
+    with a progress bar, and write ``results.csv``, ``study.json`` and the figures.
+    Exit codes: 0 every case finished (diverged cases are results, not failures); 1 after
+    work: a case's process died (it runs again on the next resume), the engine failed, or
+    writing failed (full disk); 2 bad input or an unusable ``DIR``, before any case ran;
+    130 Ctrl-C, 143 SIGTERM (finished cases are kept; rerun to resume).
 ``drake-coop study --plot DIR``
-    Redraw the figures from ``DIR/study.json``.
+    Redraw the figures from ``DIR/study.json`` (exit 2 with one line if it is missing or
+    damaged, or the folder is read-only).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import time
 from pathlib import Path
 
-from drake_coop.studies.expand import Case, expand
+from drake_coop.studies.expand import MAX_CASES, Case, expand
 from drake_coop.studies.spec import StudyError, load_study
-from drake_coop.studies.store import ResultStore, check_metric_names
+from drake_coop.studies.store import FINISHED, ResultStore, check_metric_names
 
 __all__ = ["CaseProgress", "add_study_parser", "cmd_study"]
 
@@ -69,30 +76,64 @@ def _error(message: str) -> int:
     return 2
 
 
+#: Set by the SIGTERM handler: Ray's ``ray.wait`` turns any exception raised in a signal
+#: handler into a plain KeyboardInterrupt, so the exit code is taken from this flag.
+_SIGTERM_SEEN = False
+
+
 def _on_sigterm(signum, frame):
+    global _SIGTERM_SEEN
+    _SIGTERM_SEEN = True
     raise Terminated()
+
+
+def _default_max_workers() -> int:
+    return 4 * (os.cpu_count() or 1)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+    return " ".join(str(text).split())[:300]
+
+
+def _plot_only(args: argparse.Namespace) -> int:
+    from drake_coop.studies.folder import StudyFolder, StudyFolderError
+    from drake_coop.studies.plots import plot_study
+
+    folder = StudyFolder(args.plot)
+    try:
+        folder.lock_existing()
+        paths = plot_study(args.plot)
+    except (StudyFolderError, FileNotFoundError, ValueError) as exc:
+        return _error(_one_line(exc))
+    except OSError as exc:
+        return _error(f"--plot {args.plot}: writing the figures failed ({_one_line(exc)})")
+    finally:
+        folder.release()
+    if not args.quiet:
+        print(f"drake-coop study: wrote {len(paths)} figures to {args.plot}", file=sys.stderr)
+    return 0
 
 
 def cmd_study(args: argparse.Namespace) -> int:
     """Run (or resume) a study, or redraw its figures with ``--plot``."""
-    from drake_coop.studies.plots import plot_study
+    from drake_coop.studies.folder import StudyFolder, StudyFolderError
 
     if args.plot is not None:
-        try:
-            paths = plot_study(args.plot)
-        except FileNotFoundError as exc:
-            return _error(str(exc))
-        if not args.quiet:
-            print(f"drake-coop study: wrote {len(paths)} figures to {args.plot}",
-                  file=sys.stderr)
-        return 0
+        return _plot_only(args)
     if args.study is None or args.out is None:
         return _error("give a study file and --out DIR (or --plot DIR)")
-    if args.workers < 1:
-        return _error(f"--workers must be >= 1, got {args.workers}")
+    if args.max_cases < 1:
+        return _error(f"--max-cases must be >= 1, got {args.max_cases}")
+    max_workers = args.max_workers if args.max_workers is not None else _default_max_workers()
+    if max_workers < 1:
+        return _error(f"--max-workers must be >= 1, got {max_workers}")
+    if not 1 <= args.workers <= max_workers:
+        return _error(f"--workers must be between 1 and {max_workers} (4 per CPU; raise the "
+                      f"bound on purpose with --max-workers), got {args.workers}")
     try:
         study = load_study(args.study)
-        cases = expand(study)
+        cases = expand(study, max_cases=args.max_cases)
     except StudyError as exc:
         return _error(str(exc))
     robots = _robot_names(cases[0])
@@ -105,12 +146,33 @@ def cmd_study(args: argparse.Namespace) -> int:
         except ImportError:
             return _error('--ray needs ray: pip install "drake_coop[ray]"')
     out = Path(args.out)
+    folder = StudyFolder(out)
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        return _error(f"--out {out}: {exc.strerror}")
+        folder.claim(study.name)
+    except StudyFolderError as exc:
+        return _error(str(exc))
+    try:
+        return _run_study(args, study, cases, folder)
+    finally:
+        folder.release()
+
+
+def _run_study(args, study, cases: list[Case], folder) -> int:
+    from drake_coop.studies.plots import plot_study
+
+    out = folder.out
     store = ResultStore(out)
-    records = store.load()
+    try:
+        records = store.load()
+        died = store.died()
+    except OSError as exc:
+        return _error(f"--out {out}: cannot read the finished cases ({_one_line(exc)})")
+    if not args.quiet:
+        for warning in store.skipped[:20]:
+            print(f"drake-coop study: warning: {warning}", file=sys.stderr)
+        if len(store.skipped) > 20:
+            print(f"drake-coop study: warning: {len(store.skipped) - 20} more damaged case "
+                  "files skipped", file=sys.stderr)
     engine = "local" if args.ray is None else f"ray:{args.ray or 'local'}"
     todo, seen = [], set(records)
     for case in cases:
@@ -118,21 +180,38 @@ def cmd_study(args: argparse.Namespace) -> int:
             todo.append(case)
             seen.add(case.hash)
     unique = len({c.hash for c in cases})
-    store.write_tables(study, cases, records, engine)
+    retried = sum(c.hash in died for c in todo)
+    try:
+        store.write_tables(study, cases, records, engine, died)
+    except OSError as exc:
+        return _error(f"--out {out}: writing results.csv failed ({_one_line(exc)})")
     if not args.quiet:
+        again = f" ({retried} again: their process died before)" if retried else ""
         print(f"drake-coop study: {study.name}: {len(cases)} cases ({unique} distinct), "
-              f"{unique - len(todo)} already finished, running {len(todo)} on {engine} "
+              f"{unique - len(todo)} already finished, running {len(todo)}{again} on {engine} "
               f"({args.workers} workers) -> {out}", file=sys.stderr)
     progress = None if args.quiet else CaseProgress(unique, unique - len(todo))
+    lost: list[str] = []
 
     def on_result(case: Case, result: dict) -> None:
         if result["status"] == "interrupted":
             return
-        records[case.hash] = store.save(case, result, study.t_end)
-        store.write_tables(study, cases, records, engine)
-        if progress is not None:
-            progress.update(case, result)
+        if result["status"] not in FINISHED:          # its process died: not a result
+            message = f"{result['message']}; it runs again on the next resume"
+            died[case.hash] = message
+            lost.append(case.hash)
+            store.mark_died(case, message)
+            if not args.quiet:
+                print(f"\ndrake-coop study: case {case.index}: {message}", file=sys.stderr)
+        else:
+            records[case.hash] = store.save(case, result, study.t_end)
+            died.pop(case.hash, None)
+            if progress is not None:
+                progress.update(case, result)
+        store.write_tables(study, cases, records, engine, died)
 
+    global _SIGTERM_SEEN
+    _SIGTERM_SEEN = False
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
     code = 0
     started = time.perf_counter()
@@ -145,28 +224,51 @@ def cmd_study(args: argparse.Namespace) -> int:
             run_ray(todo, study.t_end, on_result, address=args.ray or None,
                     workers=args.workers)
     except KeyboardInterrupt as exc:
-        code = 143 if isinstance(exc, Terminated) else 130
-    except Exception as exc:      # the engine itself failed (a worker crashed, Ray down)
+        # this module's SIGTERM handler, or drake_coop.cli's before it was installed
+        code = 143 if type(exc).__name__ == "Terminated" or _SIGTERM_SEEN else 130
+    except OSError as exc:        # writing a case or a table failed (full disk, read-only)
+        print(f"\ndrake-coop study: writing to --out {out} failed ({_one_line(exc)}); the "
+              "cases finished before are kept; free the space and run again to resume",
+              file=sys.stderr)
+        code = 1
+    except Exception as exc:      # the engine itself failed (Ray down)
         print(f"\ndrake-coop study: engine failed: {type(exc).__name__}: "
-              f"{' '.join(str(exc).split())[:300]}", file=sys.stderr)
+              f"{_one_line(exc)}", file=sys.stderr)
         code = 1
     finally:
         signal.signal(signal.SIGTERM, previous)
     elapsed = time.perf_counter() - started
-    store.write_tables(study, cases, records, engine)
+    try:
+        store.write_tables(study, cases, records, engine, died)
+    except OSError as exc:
+        if code != 1:                 # not said already
+            print(f"drake-coop study: writing results.csv to --out {out} failed "
+                  f"({_one_line(exc)})", file=sys.stderr)
+        return code or 1
     done = sum(c.hash in records for c in cases)
     if code:
         if code != 1:
             print(f"\ndrake-coop study: interrupted; {done} of {len(cases)} cases finished "
                   f"and kept in {out}; run the same command again to resume", file=sys.stderr)
         return code
-    paths = plot_study(out)
+    try:
+        paths = plot_study(out)
+    except (OSError, ValueError) as exc:
+        print(f"drake-coop study: drawing the figures in {out} failed ({_one_line(exc)}); "
+              f"`drake-coop study --plot {out}` redraws them", file=sys.stderr)
+        paths, code = [], 1
+    missing = [c for c in cases if c.hash not in records]
+    if missing:
+        print(f"drake-coop study: {len(missing)} of {len(cases)} cases did not finish (their "
+              f"process died: killed or out of memory); run the same command again to "
+              "retry them", file=sys.stderr)
+        code = 1
     if not args.quiet:
-        bad = sum(records[c.hash]["status"] != "ok" for c in cases)
+        bad = sum(records[c.hash]["status"] != "ok" for c in cases if c.hash in records)
         print(f"drake-coop study: {done} cases finished ({bad} diverged or failed), "
               f"{len(todo)} run in {elapsed:.1f} s; wrote results.csv, study.json and "
               f"{len(paths)} figures to {out}", file=sys.stderr)
-    return 0
+    return code
 
 
 def _robot_names(case: Case) -> list[str]:
@@ -179,8 +281,14 @@ def add_study_parser(sub) -> None:
     """Register ``study`` on the ``drake-coop`` subparsers."""
     p = sub.add_parser("study", help="run a parameter study / Monte Carlo (or --plot DIR)")
     p.add_argument("study", nargs="?", default=None, help="study YAML (see studies/)")
-    p.add_argument("--out", default=None, help="study directory (resumed if it exists)")
+    p.add_argument("--out", default=None, help="study folder: new or empty, or this study's "
+                                                "(resumed)")
     p.add_argument("--workers", type=int, default=2, help="parallel processes (default 2)")
+    p.add_argument("--max-cases", type=int, default=MAX_CASES, metavar="N",
+                   help=f"refuse a study of more than N cases (default {MAX_CASES}); raise "
+                        "it on purpose for a larger study")
+    p.add_argument("--max-workers", type=int, default=None, metavar="N",
+                   help="refuse --workers above N (default 4 per CPU)")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="run on Ray: a local instance, or the cluster at ADDRESS")
     p.add_argument("--plot", default=None, metavar="DIR", help="only redraw DIR's figures")

@@ -10,23 +10,33 @@ soon as it arrives, in completion order.
   ``ProcessPoolExecutor(max_tasks_per_child=1)``: after its workers were terminated on SIGTERM,
   that executor hung the interpreter's exit (Python 3.11.7). Workers ignore SIGINT; on
   Ctrl-C/SIGTERM the parent terminates the running cases. A worker that dies without a record
-  (a crash) gives an ``error`` record.
+  (a crash, ``kill -9``, the OOM killer) gives a ``died`` record, which is not a result: the
+  study does not store it and runs the case again on its next resume. Each worker dies with
+  its study, however the study ends: it asks the kernel for SIGKILL when its parent dies
+  (``prctl(PR_SET_PDEATHSIG)`` on Linux) and a watchdog thread also ends it when its parent
+  pid changes; a worker whose parent is gone exits quietly (no BrokenPipeError traceback).
 * :func:`run_ray` — each case a ``@ray.remote(max_calls=1)`` task (a worker process is not
   reused after one case) on a local instance (``ray.init(num_cpus=workers)``) or an existing
-  cluster (``ray.init(address=...)``). Every node needs ``drake_coop`` importable.
+  cluster (``ray.init(address=...)``). Every node needs ``drake_coop`` importable. A local
+  instance is watched by :mod:`drake_coop.studies.reaper`, which ends Ray's helpers if the
+  driver is killed; a task whose worker died gives a ``died`` record.
 """
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import multiprocessing.connection
+import os
 import signal
+import sys
+import threading
 import time
 from typing import Callable
 
 from drake_coop.studies.expand import Case
 
-__all__ = ["run_case", "run_local", "run_ray"]
+__all__ = ["died", "die_with_parent", "run_case", "run_local", "run_ray"]
 
 OnResult = Callable[[Case, dict], None]
 
@@ -37,15 +47,17 @@ def run_case(scenario_yaml: str, t_end: float | None) -> dict:
     Returns
     -------
     dict
-        ``status`` (``ok``, ``diverged``, ``error`` or ``interrupted``), ``message``,
-        ``t_reached`` (s), ``wall_time_s`` and ``metrics`` (as in ``metrics.json``; empty on
-        ``error``).
+        ``status`` (``ok``, ``diverged``, ``error``, ``interrupted`` or ``died``: out of
+        memory, not a result), ``message``, ``t_reached`` (s), ``wall_time_s`` and ``metrics``
+        (as in ``metrics.json``; empty on ``error``).
     """
     from drake_coop.studies.sweep import run_one
 
     start = time.perf_counter()
     try:
         result = run_one(scenario_yaml, t_end)
+    except MemoryError:
+        return died("the case ran out of memory (MemoryError)")
     except Exception as exc:          # a failure to build or run: recorded, not fatal
         return {"status": "error", "message": f"{type(exc).__name__}: "
                 f"{' '.join(str(exc).split())[:300]}", "t_reached": 0.0,
@@ -56,11 +68,65 @@ def run_case(scenario_yaml: str, t_end: float | None) -> dict:
             "metrics": result["metrics"]}
 
 
-def _child(conn, scenario_yaml: str, t_end: float | None) -> None:
-    """Worker process: run one case, send its record, exit (Ctrl-C is the parent's business)."""
+def died(message: str) -> dict:
+    """The record of a case that did not finish (not a result: it runs again)."""
+    return {"status": "died", "message": message, "t_reached": 0.0, "wall_time_s": 0.0,
+            "metrics": {}}
+
+
+def _exit_message(exitcode: int | None) -> str:
+    if exitcode is not None and exitcode < 0:
+        try:
+            name = signal.Signals(-exitcode).name
+        except ValueError:
+            name = f"signal {-exitcode}"
+        return f"the case's process was killed by {name}"
+    return f"the case's process died (exit code {exitcode})"
+
+
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent: int) -> None:
+    """End this process when process ``parent`` ends, however it ends.
+
+    On Linux the kernel sends SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``);
+    a daemon thread also checks the parent pid every 0.5 s (other systems, and the case
+    where the parent died before the ``prctl``).
+    """
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(0.5)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
+
+
+def _child(conn, scenario_yaml: str, t_end: float | None, parent: int | None = None) -> None:
+    """Worker process: run one case, send its record, exit (Ctrl-C is the parent's business).
+
+    Dies with its parent (:func:`die_with_parent`); a parent gone by the time the record is
+    sent ends the worker quietly.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    conn.send(run_case(scenario_yaml, t_end))
-    conn.close()
+    if parent is not None:
+        die_with_parent(parent)
+    result = run_case(scenario_yaml, t_end)
+    try:
+        conn.send(result)
+        conn.close()
+    except (BrokenPipeError, ConnectionError, EOFError, OSError):
+        os._exit(1)
 
 
 def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
@@ -79,7 +145,8 @@ def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
                 case = queue.pop(0)
                 receiver, sender = context.Pipe(duplex=False)
                 process = context.Process(target=_child, name=f"case-{case.hash}",
-                                          args=(sender, case.scenario_yaml, t_end),
+                                          args=(sender, case.scenario_yaml, t_end,
+                                                os.getpid()),
                                           daemon=True)
                 process.start()
                 sender.close()
@@ -88,11 +155,9 @@ def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
                 process, case = running.pop(receiver)
                 try:
                     result = receiver.recv()
-                except EOFError:
+                except (EOFError, OSError):
                     process.join()
-                    result = {"status": "error", "message": "the case's process died "
-                              f"(exit code {process.exitcode})", "t_reached": 0.0,
-                              "wall_time_s": 0.0, "metrics": {}}
+                    result = died(_exit_message(process.exitcode))
                 receiver.close()
                 process.join()
                 on_result(case, result)
@@ -117,9 +182,13 @@ def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
     import ray
 
     started = False
+    reaper = None
     saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     if not ray.is_initialized():
         if address is None:
+            from drake_coop.studies.reaper import start as start_reaper
+
+            reaper = start_reaper()      # ends Ray's helpers if this process is killed
             ray.init(num_cpus=max(1, workers), include_dashboard=False, log_to_driver=False,
                      configure_logging=False)
         else:
@@ -134,7 +203,11 @@ def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
             for ref in done:
-                on_result(refs[ref], ray.get(ref))
+                try:
+                    result = ray.get(ref)
+                except (ray.exceptions.RayError, OSError) as exc:   # a worker or node died
+                    result = died(f"the case's Ray task failed: {type(exc).__name__}")
+                on_result(refs[ref], result)
     except BaseException:
         for ref in pending:
             ray.cancel(ref, force=True)
@@ -142,3 +215,5 @@ def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
     finally:
         if started:
             ray.shutdown()
+        if reaper is not None:
+            reaper.done()

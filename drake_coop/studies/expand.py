@@ -22,23 +22,52 @@ In a grid, ``*`` gives every matched element the same value. In Monte Carlo, ``*
 its own draw); a path without ``*`` draws once: ``{scale_uniform: [lo, hi]}`` at a list path
 multiplies the whole list by one factor, ``{uniform: …}`` sets every element to one draw.
 
+Order of application (overlapping paths)
+----------------------------------------
+A case starts from the base scenario; the grid values are set in file order, then the Monte
+Carlo draws in the order of ``perturb`` (file order), each matched element in turn. A later
+path overrides what an earlier one set on the same element, and ``scale_uniform`` multiplies
+the value the element has *at that moment* (the grid's value, or an earlier draw's). So with
+``robots.*.gains.K_R: {scale_uniform: [0.9, 1.1]}`` followed by
+``robots.0.gains.K_R.*: {uniform: [80, 160]}``, robot 0's three gains are the uniform draws
+(robot 1's the scaled list). The values written into ``results.csv`` and ``study.json``
+(:attr:`Case.values`) are read back from the case's resolved scenario, so they are the values
+the case ran with whatever the overlap.
+
 Cases
 -----
 Grid points are the Cartesian product of the grid's lists (first key outermost); each grid point
 is combined with every Monte Carlo sample ``i = 0 … n−1`` (the same draws at every grid point:
 common random numbers). Draws come from ``numpy.random.default_rng(seed)`` in the order
 sample, perturbation (file order), matched element. A case is identified by the SHA-256 of its
-canonical scenario YAML (``dump_scenario`` of the validated scenario) and the study's ``t_end``.
+validated scenario (every field, as canonical JSON) and the study's ``t_end``.
+
+Size and validation
+-------------------
+The number of cases (grid points × samples) is computed from the study before anything is
+expanded and refused above ``max_cases`` (:data:`MAX_CASES` unless raised on purpose). Every
+case is validated as ``drake-coop run`` validates its scenario (the field checks of
+:func:`~drake_coop.scenario.validation.validate` and the run size of
+:func:`~drake_coop.scenario.timing.check_run_size` at the study's ``t_end``). Numbers and lists
+of numbers are set on a copy of the validated base :class:`~drake_coop.scenario.Scenario`
+(converted as the YAML loader converts them), other values (variants, texts, ``null``) go
+through the scenario's YAML loading; the reachability check, which reads only the task and the
+arms' geometry, is shared between cases with the same geometry. 10 000 cases validate in
+seconds (see ``docs/studies.md``).
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import hashlib
 import itertools
+import json
+import math
 import types
 import typing
-from dataclasses import dataclass, is_dataclass
+from dataclasses import is_dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -46,12 +75,17 @@ from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario, ScenarioError
 from drake_coop.studies.spec import Perturbation, Study, StudyError
 
-__all__ = ["Case", "case_hash", "draw", "expand", "get_value", "resolve", "set_value"]
+__all__ = ["MAX_CASES", "Case", "case_hash", "draw", "expand", "get_value", "resolve",
+           "set_value", "study_size"]
 
 Key = str | int
+KeyPath = tuple[Key, ...]
+
+#: Largest number of cases (grid points × Monte Carlo samples) of a study unless raised on
+#: purpose (``drake-coop study --max-cases``).
+MAX_CASES = 10_000
 
 
-@dataclass
 class Case:
     """One run of a study.
 
@@ -60,17 +94,35 @@ class Case:
     index : int
         Position in the expansion order.
     params : dict
-        Grid path -> value, and for Monte Carlo ``sample`` and each drawn concrete path.
+        What identifies the case in the study: grid path -> the grid's value, and for Monte
+        Carlo ``sample`` (the figures group cases by these).
+    values : dict
+        The values the case ran with, read from its resolved scenario: every grid path and
+        every concrete Monte Carlo path -> its value (a list when a ``*`` path's elements
+        differ). ``results.csv`` shows these.
     scenario_yaml : str
-        The canonical, validated scenario.
+        The canonical, validated scenario (written when first needed).
     hash : str
-        16 hex digits of SHA-256 over ``scenario_yaml`` and ``t_end``.
+        16 hex digits of SHA-256 over the validated scenario and ``t_end``.
     """
 
-    index: int
-    params: dict
-    scenario_yaml: str
-    hash: str
+    __slots__ = ("index", "params", "values", "hash", "_yaml", "_scenario")
+
+    def __init__(self, index: int, params: dict, scenario_yaml: str | None = None,
+                 hash: str = "", values: dict | None = None, scenario: Scenario | None = None):
+        self.index, self.params, self.hash = index, params, hash
+        self.values = dict(params) if values is None else values
+        self._yaml, self._scenario = scenario_yaml, scenario
+
+    @property
+    def scenario_yaml(self) -> str:
+        if self._yaml is None:
+            self._yaml = dump_scenario(self._scenario)
+            self._scenario = None
+        return self._yaml
+
+    def __repr__(self) -> str:
+        return f"Case(index={self.index}, hash={self.hash!r}, params={self.params!r})"
 
 
 def _unwrap_optional(schema):
@@ -82,7 +134,12 @@ def _unwrap_optional(schema):
     return schema
 
 
-def resolve(data: dict, path: str, where: str) -> list[tuple[Key, ...]]:
+@lru_cache(maxsize=None)
+def _hints(cls) -> dict:
+    return typing.get_type_hints(cls)
+
+
+def resolve(data: dict, path: str, where: str) -> list[KeyPath]:
     """Concrete key paths matched by a dotted ``path`` in the scenario dict ``data``.
 
     Fields are checked against the :class:`~drake_coop.scenario.Scenario` dataclasses (a field
@@ -93,9 +150,9 @@ def resolve(data: dict, path: str, where: str) -> list[tuple[Key, ...]]:
     StudyError
         ``"<where>: no such field"`` (with the allowed names) or a bad index.
     """
-    results: list[tuple[Key, ...]] = []
+    results: list[KeyPath] = []
 
-    def walk(node, schema, parts: list[str], prefix: tuple[Key, ...]) -> None:
+    def walk(node, schema, parts: list[str], prefix: KeyPath) -> None:
         schema = _unwrap_optional(schema)
         if not parts:
             results.append(prefix)
@@ -103,7 +160,7 @@ def resolve(data: dict, path: str, where: str) -> list[tuple[Key, ...]]:
         head, rest = parts[0], parts[1:]
         shown = ".".join(map(str, prefix + (head,)))
         if is_dataclass(schema):
-            hints = typing.get_type_hints(schema)
+            hints = _hints(schema)
             if head not in hints:
                 raise StudyError(f"{where}: no such field ({shown!r}); allowed here: "
                                  f"{', '.join(hints)}")
@@ -129,7 +186,7 @@ def resolve(data: dict, path: str, where: str) -> list[tuple[Key, ...]]:
     return results
 
 
-def get_value(data: dict, keys: tuple[Key, ...]):
+def get_value(data: dict, keys: KeyPath):
     """The value at a concrete key path (None when absent)."""
     node = data
     for k in keys:
@@ -142,7 +199,7 @@ def get_value(data: dict, keys: tuple[Key, ...]):
     return node
 
 
-def set_value(data: dict, keys: tuple[Key, ...], value) -> None:
+def set_value(data: dict, keys: KeyPath, value) -> None:
     """Set the value at a concrete key path in place.
 
     A number at a list of numbers sets every element (broadcast); a mapping at a mapping
@@ -164,16 +221,13 @@ def set_value(data: dict, keys: tuple[Key, ...], value) -> None:
     node[last] = copy.deepcopy(value)
 
 
-def _scenario_text(data: dict) -> str:
-    """Canonical YAML of the scenario dict (validated)."""
-    from pydrake.common.yaml import yaml_dump
-
-    return dump_scenario(load_scenario(data=yaml_dump(data)))
-
-
-def case_hash(scenario_yaml: str, t_end: float | None) -> str:
-    """16 hex digits of SHA-256 over the canonical scenario YAML and the study's ``t_end``."""
-    text = f"{scenario_yaml}\n# t_end: {t_end!r}\n"
+def case_hash(scenario: Scenario | str, t_end: float | None) -> str:
+    """16 hex digits of SHA-256 over the validated scenario (every field, canonical JSON) and
+    the study's ``t_end``; ``scenario`` may also be its YAML text (loaded and validated)."""
+    if isinstance(scenario, str):
+        scenario = load_scenario(data=scenario)
+    text = json.dumps(dataclasses.asdict(scenario), sort_keys=True, separators=(",", ":"))
+    text += f"\n# t_end: {t_end!r}\n"
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
@@ -184,91 +238,261 @@ def draw(p: Perturbation, base, rng: np.random.Generator):
         return float(rng.uniform(p.a, p.b))
     if p.distribution == "normal":
         return float(rng.normal(p.a, p.b))
-    factor = float(rng.uniform(p.a, p.b))
+    return _scaled(base, float(rng.uniform(p.a, p.b)))
+
+
+def _scaled(base, factor: float):
     if isinstance(base, list):
         return [float(v) * factor for v in base]
     return float(base) * factor
 
 
-def _number_or_list(value, where: str) -> None:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if not ok and not (isinstance(value, list) and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
-        raise StudyError(f"{where}: scale_uniform needs a numeric base value, got {value!r}")
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def _base_dict(study: Study) -> dict:
-    from pydrake.common.yaml import yaml_load
-
-    try:
-        scenario = load_scenario(data=study.base_yaml) if study.base_yaml else load_scenario()
-    except ScenarioError as exc:
-        raise StudyError(f"base: {exc}") from None
-    return yaml_load(data=dump_scenario(scenario))
+def _numeric(value) -> bool:
+    return _is_number(value) or (isinstance(value, list) and all(map(_is_number, value)))
 
 
-def _validated(data: dict, where: str) -> str:
-    try:
-        return _scenario_text(data)
-    except ScenarioError as exc:
-        raise StudyError(f"{where}: {exc}") from None
+def study_size(study: Study) -> tuple[int, int, int]:
+    """``(cases, grid points, samples)`` of a study, computed without expanding it."""
+    points = math.prod(len(v) for v in study.grid.values())
+    samples = study.monte_carlo.n if study.monte_carlo is not None else 1
+    return points * samples, points, samples
 
 
-def _samples(study: Study, base: dict) -> list[dict[tuple[Key, ...], object]]:
-    """Monte Carlo draws per sample: concrete key path -> value (one empty sample: no MC)."""
+# --- building one case: an assignment is (key path, operation, value) ------------------------
+# operation "set": the value; "scale": multiply the current value by the factor.
+
+Assignment = tuple[KeyPath, str, object]
+
+_SLOW = object()     # "this value needs the YAML loading"
+
+
+def _coerce(schema, old, value):
+    """``value`` converted as ``yaml_load_typed`` converts it for a field of type ``schema``
+    (numbers and lists of numbers only), or ``_SLOW``."""
+    schema = _unwrap_optional(schema)
+    if value is None:                       # null: the loader decides (Optional or not)
+        return _SLOW
+    if schema is float and _is_number(value):
+        try:
+            return float(value)
+        except OverflowError:
+            return _SLOW
+    if schema is int and isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if typing.get_origin(schema) is list and typing.get_args(schema) == (float,):
+        if isinstance(value, list) and all(map(_is_number, value)):
+            items = value
+        elif _is_number(value) and isinstance(old, list):
+            items = [value] * len(old)          # broadcast, as set_value does
+        else:
+            return _SLOW
+        try:
+            return [float(v) for v in items]
+        except OverflowError:
+            return _SLOW
+    return _SLOW
+
+
+def _walk_object(scenario: Scenario, keys: KeyPath):
+    """(parent node, field type, current value) of a key path in a Scenario, or None."""
+    node, schema = scenario, Scenario
+    for k in keys[:-1]:
+        schema = _unwrap_optional(schema)
+        if is_dataclass(schema):
+            schema, node = _hints(schema)[k], getattr(node, k)
+        else:
+            (schema,) = typing.get_args(schema)
+            node = node[k]
+        if node is None:
+            return None
+    schema, last = _unwrap_optional(schema), keys[-1]
+    if is_dataclass(schema):
+        return node, _hints(schema)[last], getattr(node, last)
+    (item,) = typing.get_args(schema)
+    return node, item, node[last]
+
+
+def _apply_object(scenario: Scenario, assignments: list[Assignment]) -> bool:
+    """Apply the assignments to a Scenario in place; False if one needs the YAML loading."""
+    for keys, op, value in assignments:
+        found = _walk_object(scenario, keys)
+        if found is None:
+            return False
+        node, schema, old = found
+        if op == "scale":
+            if not _numeric(old):
+                return False
+            value = _scaled(old, value)
+        new = _coerce(schema, old, value)
+        if new is _SLOW:
+            return False
+        if isinstance(keys[-1], int):
+            node[keys[-1]] = new
+        else:
+            setattr(node, keys[-1], new)
+    return True
+
+
+def _apply_dict(data: dict, assignments: list[Assignment], where: str) -> None:
+    for keys, op, value in assignments:
+        if op == "scale":
+            old = get_value(data, keys)
+            if not _numeric(old):
+                raise StudyError(f"{where}: scale_uniform needs a numeric value at "
+                                 f"{'.'.join(map(str, keys))}, got {old!r}")
+            value = _scaled(old, value)
+        set_value(data, keys, value)
+
+
+def _read(scenario: Scenario, keys: KeyPath, spec):
+    """The value at ``keys`` in the scenario; for a variant, the fields it names."""
+    if isinstance(spec, dict):
+        return {k: _read(scenario, keys + (k,), v) for k, v in spec.items()}
+    node = scenario
+    for k in keys:
+        node = node[k] if isinstance(k, int) else getattr(node, k, None)
+        if node is None:
+            return None
+    if is_dataclass(node):
+        return dataclasses.asdict(node)
+    return copy.deepcopy(node)
+
+
+class _Builder:
+    """Builds and validates the scenario of one case from the base (see the module's
+    docstring)."""
+
+    def __init__(self, study: Study):
+        from pydrake.common.yaml import yaml_load
+
+        try:
+            if study.base_yaml:
+                self.base = load_scenario(data=study.base_yaml)
+            else:
+                self.base = load_scenario()
+        except ScenarioError as exc:
+            raise StudyError(f"base: {exc}") from None
+        self.base_dict = yaml_load(data=dump_scenario(self.base))
+        self.t_end = study.t_end
+        self.cache: dict = {}
+
+    def build(self, assignments: list[Assignment], where: str
+              ) -> tuple[Scenario, str | None]:
+        """The validated scenario (and its YAML when it went through the YAML loading)."""
+        from drake_coop.scenario.timing import check_run_size
+        from drake_coop.scenario.validation import validate
+
+        scenario = copy.deepcopy(self.base)
+        text = None
+        try:
+            if _apply_object(scenario, assignments):
+                validate(scenario, cache=self.cache)
+            else:
+                from pydrake.common.yaml import yaml_dump
+
+                data = copy.deepcopy(self.base_dict)
+                _apply_dict(data, assignments, where)
+                scenario = load_scenario(data=yaml_dump(data))
+                text = dump_scenario(scenario)
+            check_run_size(scenario, self.t_end)
+        except ScenarioError as exc:
+            raise StudyError(f"{where}: {exc}") from None
+        return scenario, text
+
+
+def _samples(study: Study, base: dict) -> list[list[Assignment]]:
+    """Monte Carlo draws per sample as assignments (one empty sample: no Monte Carlo)."""
     mc = study.monte_carlo
     if mc is None:
-        return [{}]
+        return [[]]
     targets = [(p, resolve(base, p.path, f"monte_carlo.perturb.{p.path}")) for p in mc.perturb]
+    for p, matches in targets:
+        if p.distribution == "scale_uniform":
+            for keys in matches:
+                if not _numeric(get_value(base, keys)):
+                    raise StudyError(f"monte_carlo.perturb.{p.path}: scale_uniform needs a "
+                                     f"numeric base value, got {get_value(base, keys)!r}")
     rng = np.random.default_rng(mc.seed)
     samples = []
     for _ in range(mc.n):
-        values = {}
+        values: list[Assignment] = []
         for p, matches in targets:
             for keys in matches:
-                base_value = get_value(base, keys)
                 if p.distribution == "scale_uniform":
-                    _number_or_list(base_value, f"monte_carlo.perturb.{p.path}")
-                values[keys] = draw(p, base_value, rng)
+                    values.append((keys, "scale", float(rng.uniform(p.a, p.b))))
+                else:
+                    values.append((keys, "set", draw(p, None, rng)))
         samples.append(values)
     return samples
 
 
-def expand(study: Study) -> list[Case]:
+def _label(params: dict) -> str:
+    text = ", ".join(f"{k}={v!r}" for k, v in params.items())
+    return text if len(text) <= 200 else text[:200] + "…"
+
+
+def expand(study: Study, *, max_cases: int = MAX_CASES) -> list[Case]:
     """All cases of ``study``, each scenario validated, in order (grid outer, samples inner).
+
+    Parameters
+    ----------
+    study : Study
+    max_cases : int
+        Refuse a study of more cases (computed before expanding it).
 
     Raises
     ------
     StudyError
-        A bad path (``grid.robots.0.gains.k_x: no such field …``) or a value the scenario
-        rejects (``grid.control_period: control_period must be > 0, got -1``), before any run.
+        Too many cases, a bad path (``grid.robots.0.gains.k_x: no such field …``) or a value
+        the scenario rejects (``grid.control_period: control_period must be > 0, got -1``),
+        before any run.
     """
-    base = _base_dict(study)
+    n_cases, points, samples_n = study_size(study)
+    if n_cases > max_cases:
+        raise StudyError(f"the study has {n_cases} cases ({points} grid points × {samples_n} "
+                         f"samples), more than {max_cases}; shrink the grid or monte_carlo.n, "
+                         "or raise the bound on purpose with --max-cases")
+    builder = _Builder(study)
+    base = builder.base_dict
     grid_targets = {path: resolve(base, path, f"grid.{path}") for path in study.grid}
     for path, values in study.grid.items():     # each value alone: names the bad one
+        seen = set()
         for value in values:
-            data = copy.deepcopy(base)
-            for keys in grid_targets[path]:
-                set_value(data, keys, value)
-            _validated(data, f"grid.{path} = {value!r}")
+            marker = json.dumps(value, sort_keys=True, default=repr)
+            if marker in seen:
+                continue
+            seen.add(marker)
+            builder.build([(keys, "set", value) for keys in grid_targets[path]],
+                          f"grid.{path} = {value!r}")
     samples = _samples(study, base)
+    mc_paths = [] if not samples[0] else list(dict.fromkeys(k for k, _, _ in samples[0]))
     cases = []
     keys_order = list(study.grid)
     for point in itertools.product(*(study.grid[k] for k in keys_order)):
         grid_params = dict(zip(keys_order, point))
-        for s, values in enumerate(samples):
-            data = copy.deepcopy(base)
-            for path, value in grid_params.items():
-                for keys in grid_targets[path]:
-                    set_value(data, keys, value)
-            for keys, value in values.items():
-                set_value(data, keys, value)
+        grid_assign = [(keys, "set", value) for path, value in grid_params.items()
+                       for keys in grid_targets[path]]
+        for s, draws in enumerate(samples):
             params = dict(grid_params)
             if study.monte_carlo is not None:
                 params["sample"] = s
-                params.update({".".join(map(str, k)): v for k, v in values.items()})
-            label = ", ".join(f"{k}={v!r}" for k, v in params.items())
-            text = _validated(data, f"case {len(cases)} ({label})")
-            cases.append(Case(index=len(cases), params=params, scenario_yaml=text,
-                              hash=case_hash(text, study.t_end)))
+            scenario, text = builder.build(grid_assign + draws,
+                                           f"case {len(cases)} ({_label(params)})")
+            values = {}
+            for path, spec in grid_params.items():
+                read = [_read(scenario, keys, spec) for keys in grid_targets[path]]
+                same = all(json.dumps(r, sort_keys=True) == json.dumps(read[0], sort_keys=True)
+                           for r in read)
+                values[path] = read[0] if same else read
+            if study.monte_carlo is not None:
+                values["sample"] = s
+                for keys in mc_paths:
+                    values[".".join(map(str, keys))] = _read(scenario, keys, None)
+            cases.append(Case(index=len(cases), params=params, values=values,
+                              scenario_yaml=text, scenario=scenario,
+                              hash=case_hash(scenario, study.t_end)))
     return cases

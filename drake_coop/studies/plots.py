@@ -29,6 +29,7 @@ from matplotlib.colors import LogNorm, Normalize
 from matplotlib.figure import Figure
 
 from drake_coop.results.io import atomic_path
+from drake_coop.studies.spec import file_stem
 
 __all__ = ["metric_label", "param_label", "plot_study"]
 
@@ -116,10 +117,11 @@ def _label(value) -> str:
 
 
 def _slug(path: str) -> str:
-    return path.replace("robots.*.", "").replace(".*", "").replace(".", "_")
+    return file_stem(path.replace("robots.*.", "").replace(".*", "").replace(".", "_"))
 
 
 def _save(fig: Figure, path: Path) -> Path:
+    """Write ``path`` (a file name made by :func:`file_stem`, directly in the study folder)."""
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=DPI)
     return path
@@ -198,7 +200,7 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
     axes[-1].set_xlabel(xlabel)
     fig.suptitle(f"{doc['name']}: median and min–max over the other parameters "
                  f"(phase {doc['phase']}; ✕ n: n cases diverged)", fontsize=9)
-    return _save(fig, out / f"{doc['name']}_vs_{_slug(param)}.png")
+    return _save(fig, out / f"{file_stem(doc['name'])}_vs_{_slug(param)}.png")
 
 
 def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
@@ -255,7 +257,7 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
             ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2)
     fig.suptitle(f"{doc['name']}: median over other parameters (phase {doc['phase']})",
                  fontsize=9)
-    return _save(fig, out / f"{doc['name']}_map.png")
+    return _save(fig, out / f"{file_stem(doc['name'])}_map.png")
 
 
 def _plot_hist(doc: dict, out: Path) -> Path:
@@ -278,29 +280,82 @@ def _plot_hist(doc: dict, out: Path) -> Path:
         ax.set_ylabel("cases")
     fig.suptitle(f"{doc['name']}: {n_done} cases, {n_div} diverged "
                  f"({100.0 * n_div / max(1, n_done):.0f} %), phase {doc['phase']}", fontsize=9)
-    return _save(fig, out / f"{doc['name']}_hist.png")
+    return _save(fig, out / f"{file_stem(doc['name'])}_hist.png")
+
+
+#: Largest ``study.json`` read (bytes) and cases plotted.
+MAX_DOC_BYTES = 256_000_000
+MAX_PLOT_CASES = 1_000_000
+
+
+def _check_doc(doc, path: Path) -> None:
+    """Raise ValueError (one line) unless ``doc`` has the structure the figures read."""
+    def bad(what: str):
+        raise ValueError(f"{path} is damaged: {what}; rerun the study to rewrite it")
+
+    if not isinstance(doc, dict):
+        bad("not a JSON object")
+    if not isinstance(doc.get("name"), str):
+        bad("'name' must be a text")
+    grid, cases, metrics = doc.get("grid"), doc.get("cases"), doc.get("metrics")
+    if not isinstance(grid, dict) or not all(isinstance(v, list) and v for v in grid.values()):
+        bad("'grid' must map paths to lists of values")
+    if not (isinstance(metrics, list) and 0 < len(metrics) <= 20
+            and all(isinstance(m, str) for m in metrics)):
+        bad("'metrics' must be a list of 1 to 20 column names")
+    if not isinstance(cases, list) or len(cases) > MAX_PLOT_CASES:
+        bad(f"'cases' must be a list of at most {MAX_PLOT_CASES} cases")
+    for c in cases:
+        if not (isinstance(c, dict) and isinstance(c.get("params"), dict)
+                and isinstance(c.get("status"), str) and isinstance(c.get("summary"), dict)
+                and all(k in c["params"] for k in grid)):
+            bad("a case needs 'params' (every grid path), 'status' and 'summary'")
+    guides = doc.get("guides", [])
+    if not isinstance(guides, list) or not all(
+            isinstance(g, dict) and isinstance(g.get("slope"), (int, float))
+            and isinstance(g.get("intercept", 0.0), (int, float)) for g in guides):
+        bad("'guides' must be a list of {label, slope, intercept}")
 
 
 def plot_study(out_dir: str | Path) -> list[Path]:
     """Draw every figure of the study in ``out_dir`` (from its ``study.json``).
 
+    The figures are written only into ``out_dir``, named from :func:`file_stem` of the
+    study's name (whatever ``study.json`` holds).
+
     Raises
     ------
     FileNotFoundError
         If ``out_dir/study.json`` does not exist.
+    ValueError
+        If ``study.json`` is too large, not UTF-8 JSON or damaged (one-line message).
+    OSError
+        If a figure cannot be written (read-only folder, full disk).
     """
     out = Path(out_dir)
     path = out / "study.json"
-    if not path.is_file():
+    if not path.is_file() or path.is_symlink():
         raise FileNotFoundError(f"no study.json in {out} (run `drake-coop study` first)")
-    doc = json.loads(path.read_text())
+    if path.stat().st_size > MAX_DOC_BYTES:
+        raise ValueError(f"{path} is larger than {MAX_DOC_BYTES} bytes")
+    try:
+        doc = json.loads(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise ValueError(f"{path} is not valid JSON ({' '.join(str(exc).split())[:100]}); "
+                         "rerun the study to rewrite it") from None
+    _check_doc(doc, path)
     written = []
-    swept = _swept(doc)
-    for param in swept:
-        written.append(_plot_vs(doc, param, out))
-    numeric = [k for k in swept if _numeric(doc["grid"][k])]
-    if len(numeric) >= 2:
-        written.append(_plot_map(doc, numeric[0], numeric[1], out))
-    if doc.get("monte_carlo"):
-        written.append(_plot_hist(doc, out))
+    try:
+        swept = _swept(doc)
+        for param in swept:
+            written.append(_plot_vs(doc, param, out))
+        numeric = [k for k in swept if _numeric(doc["grid"][k])]
+        if len(numeric) >= 2:
+            written.append(_plot_map(doc, numeric[0], numeric[1], out))
+        if doc.get("monte_carlo"):
+            written.append(_plot_hist(doc, out))
+    except (KeyError, TypeError, IndexError, ValueError) as exc:
+        raise ValueError(f"{path} is damaged ({type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:100]}); rerun the study to rewrite "
+                         "it") from None
     return written

@@ -20,8 +20,11 @@ least one ``grid`` entry or a ``monte_carlo`` block)::
     guides:                        # straight lines y = slope x + intercept on the 2-D maps
       - {label: "(26), robot 1", slope: 0.639, intercept: 0}
 
-Every problem is a :class:`StudyError` whose message starts with the field's dotted name,
-e.g. ``grid.robots.0.gains.k_x: no such field``.
+A study file is read as a scenario file is (:mod:`drake_coop.scenario.safe_yaml`): at most
+1 MB of strict UTF-8, aliases bounded, duplicate keys refused; so is a ``base:`` file. The
+``name`` is 1 to 100 printable characters; it becomes part of file names only through
+:func:`file_stem`. Every problem is a :class:`StudyError` whose message starts with the
+field's dotted name, e.g. ``grid.robots.0.gains.k_x: no such field``.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 __all__ = ["DISTRIBUTIONS", "Guide", "MonteCarlo", "Perturbation", "Study", "StudyError",
-           "load_study"]
+           "file_stem", "load_study"]
 
 #: Monte Carlo distributions: name -> meaning of its two parameters ``[a, b]``.
 DISTRIBUTIONS = {
@@ -128,7 +131,7 @@ def _number(value, where: str) -> float:
 
 def _integer(value, where: str, minimum: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise StudyError(f"{where}: must be an integer >= {minimum}, got {value!r}")
+        raise StudyError(f"{where}: must be an integer >= {minimum}, got {_short(value)}")
     return value
 
 
@@ -164,23 +167,63 @@ def _monte_carlo(data) -> MonteCarlo:
     perturb = data.get("perturb") or {}
     if not isinstance(perturb, dict) or not perturb:
         raise StudyError("monte_carlo.perturb: must map scenario paths to distributions")
+    for p in perturb:
+        if not isinstance(p, str) or not 0 < len(p) <= 200:
+            raise StudyError(f"monte_carlo.perturb: a key must be a dotted scenario path, got "
+                             f"{_short(p)}")
     return MonteCarlo(n=n, seed=seed, perturb=[
-        _perturbation(str(p), s, f"monte_carlo.perturb.{p}") for p, s in perturb.items()])
+        _perturbation(p, s, f"monte_carlo.perturb.{p}") for p, s in perturb.items()])
 
 
 def _base_yaml(base, folder: Path) -> str | None:
     from pydrake.common.yaml import yaml_dump
 
+    from drake_coop.scenario.safe_yaml import YamlInputError, read_text_file
+
     if base is None:
         return None
     if isinstance(base, dict):
         return yaml_dump(base)
-    if isinstance(base, str):
+    if isinstance(base, str) and 0 < len(base) <= 4096 and "\0" not in base:
         path = Path(base) if Path(base).is_absolute() else folder / base
-        if not path.is_file():
+        if not path.exists():
             raise StudyError(f"base: scenario file not found: {path}")
-        return path.read_text()
-    raise StudyError(f"base: must be a scenario file path or an inline scenario, got {base!r}")
+        try:
+            return read_text_file(path, "scenario file")
+        except YamlInputError as exc:
+            raise StudyError(f"base: {exc}") from None
+    raise StudyError(f"base: must be a scenario file path or an inline scenario, got "
+                     f"{_short(base)}")
+
+
+def _short(value, n: int = 80) -> str:
+    text = " ".join(repr(value).split())
+    return text if len(text) <= n else text[:n] + "…"
+
+
+#: Longest study name (characters); names become file names only after :func:`file_stem`.
+MAX_NAME = 100
+
+
+def _name(value, where: str = "name") -> str:
+    if not isinstance(value, (str, int, float)) or isinstance(value, bool):
+        raise StudyError(f"{where}: must be a text of 1 to {MAX_NAME} characters, got "
+                         f"{_short(value)}")
+    text = str(value)
+    if not 0 < len(text) <= MAX_NAME or not text.isprintable():
+        raise StudyError(f"{where}: must be 1 to {MAX_NAME} printable characters (no control "
+                         f"characters), got {_short(text)}")
+    return text
+
+
+def file_stem(name: str) -> str:
+    """A study name as a file name part: letters, digits, ``-``, ``_`` and ``.`` kept, any
+    other run of characters one ``_``, no leading dot, at most :data:`MAX_NAME` characters
+    (``study`` when nothing is left). Never a path: ``../x`` gives ``x``."""
+    import re
+
+    stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("._")[:MAX_NAME].rstrip("._")
+    return stem or "study"
 
 
 def load_study(path: str | Path | None = None, *, data: str | None = None,
@@ -192,24 +235,36 @@ def load_study(path: str | Path | None = None, *, data: str | None = None,
     StudyError
         With a one-line message starting with the offending field's name.
     """
-    from pydrake.common.yaml import yaml_load
+    from drake_coop.scenario.safe_yaml import (
+        MAX_BYTES,
+        YamlInputError,
+        load_untrusted,
+        read_text_file,
+    )
 
     name = "study"
-    if path is not None:
-        path = Path(path)
-        if not path.is_file():
-            raise StudyError(f"study file not found: {path}")
-        data, folder, name = path.read_text(), path.parent, path.stem
     try:
-        raw = yaml_load(data=data or "")
-    except Exception as exc:
-        raise StudyError(f"invalid YAML: {' '.join(str(exc).split())}") from None
+        if path is not None:
+            path = Path(path)
+            data, folder, name = read_text_file(path, "study file"), path.parent, path.stem
+        elif data is not None and len(data) > MAX_BYTES:
+            raise YamlInputError(f"study text is longer than {MAX_BYTES} characters")
+        raw = load_untrusted(data or "")
+    except YamlInputError as exc:
+        raise StudyError(str(exc)) from None
     if not isinstance(raw, dict):
         raise StudyError(f"study: must be a mapping of fields ({', '.join(_TOP_KEYS)})")
     for key in raw:
         if key not in _TOP_KEYS:
-            raise StudyError(f"{key}: no such field; allowed: {', '.join(_TOP_KEYS)}")
-    study = Study(name=str(raw.get("name", name)), description=str(raw.get("description", "")))
+            shown = key if isinstance(key, str) and len(key) <= 60 and key.isprintable() \
+                else _short(key, 60)
+            raise StudyError(f"{shown}: no such field; allowed: "
+                             f"{', '.join(_TOP_KEYS)}")
+    description = raw.get("description", "")
+    if not isinstance(description, (str, int, float)) or len(str(description)) > 2000:
+        raise StudyError("description: must be a text of at most 2000 characters")
+    study = Study(name=_name(raw["name"]) if "name" in raw else _name(name, "the file name"),
+                  description=str(description))
     study.base_yaml = _base_yaml(raw.get("base"), Path(folder))
     if raw.get("t_end") is not None:
         study.t_end = _number(raw["t_end"], "t_end")
@@ -219,28 +274,35 @@ def load_study(path: str | Path | None = None, *, data: str | None = None,
     if not isinstance(grid, dict):
         raise StudyError(f"grid: must map scenario paths to lists of values, got {grid!r}")
     for key, values in grid.items():
+        if not isinstance(key, str) or not 0 < len(key) <= 200:
+            raise StudyError(f"grid: a key must be a dotted scenario path, got {_short(key)}")
         if not isinstance(values, list) or not values:
-            raise StudyError(f"grid.{key}: must be a non-empty list of values, got {values!r}")
-        study.grid[str(key)] = values
+            raise StudyError(f"grid.{key}: must be a non-empty list of values, got "
+                             f"{_short(values)}")
+        study.grid[key] = values
     if raw.get("monte_carlo") is not None:
         study.monte_carlo = _monte_carlo(raw["monte_carlo"])
     if not study.grid and study.monte_carlo is None:
         raise StudyError("grid: a study needs a grid, a monte_carlo block, or both")
-    study.phase = str(raw.get("phase", study.phase))
+    study.phase = raw.get("phase", study.phase)
     if study.phase not in PHASES:
-        raise StudyError(f"phase: must be one of {', '.join(PHASES)}, got {study.phase!r}")
+        raise StudyError(f"phase: must be one of {', '.join(PHASES)}, got "
+                         f"{_short(study.phase)}")
     if "metrics" in raw:
         metrics = raw["metrics"]
-        if not isinstance(metrics, list) or not metrics or not all(
-                isinstance(m, str) for m in metrics):
+        if not isinstance(metrics, list) or not 0 < len(metrics) <= 20 or not all(
+                isinstance(m, str) and len(m) <= 100 for m in metrics):
             raise StudyError(f"metrics: must be a non-empty list of column names, got "
                              f"{metrics!r}")
         study.metrics = list(metrics)
-    for i, g in enumerate(raw.get("guides") or []):
+    guides = raw.get("guides") or []
+    if not isinstance(guides, list) or len(guides) > 20:
+        raise StudyError(f"guides: must be a list of at most 20 lines, got {_short(guides)}")
+    for i, g in enumerate(guides):
         where = f"guides.{i}"
         if not isinstance(g, dict) or not {"label", "slope"} <= set(g) or not set(g) <= {
                 "label", "slope", "intercept"}:
             raise StudyError(f"{where}: must be {{label, slope, intercept}}, got {g!r}")
-        study.guides.append(Guide(label=str(g["label"]), slope=_number(g["slope"], where),
+        study.guides.append(Guide(label=_name(g["label"], f"{where}.label"), slope=_number(g["slope"], where),
                                   intercept=_number(g.get("intercept", 0.0), where)))
     return study

@@ -6,10 +6,16 @@ Layout of ``DIR``::
     results.csv         one row per case: index, hash, swept parameters, status, summary metrics
     study.json          the study (grid, Monte Carlo, metrics, guides), engine, counts, cases
 
+    cases/<hash>.died   a case whose process died (killed, out of memory): not a result
+
 A case file holds the full metrics (every robot, phase and error of ``metrics.json``), the
-scenario YAML, status and message. Resuming skips every case whose hash has a file; a case that
-was interrupted is never written. ``results.csv`` and ``study.json`` are rewritten (atomically)
-after every finished case.
+scenario YAML, status (``ok``, ``diverged`` or ``error``: what the case's run said) and
+message. Resuming skips every case whose hash has a valid file; a case that was interrupted,
+or whose process died, is never written as a result (a ``.died`` note says so, and the case is
+run again on the next resume). A case file that cannot be read or misses a field is skipped
+with a warning (:attr:`ResultStore.skipped`) and its case runs again. ``results.csv`` and
+``study.json`` are rewritten (atomically) after every finished case; their parameter columns
+are :attr:`~drake_coop.studies.expand.Case.values`, read from each case's resolved scenario.
 
 Summary columns (of the study's ``phase``): ``<robot>.<error>.<rms|max>`` for the errors of
 :mod:`drake_coop.results.metrics`, plus ``position_error`` (RMS of ``|x − x_d|``, i.e.
@@ -31,7 +37,12 @@ from drake_coop.results.io import atomic_write_text
 from drake_coop.studies.expand import Case
 from drake_coop.studies.spec import Study
 
-__all__ = ["ERRORS", "ResultStore", "check_metric_names", "summary_columns"]
+__all__ = ["ERRORS", "FINISHED", "ResultStore", "check_metric_names", "summary_columns"]
+
+#: Statuses of a finished case (a result); any other (``interrupted``, ``died``) is not stored.
+FINISHED = ("ok", "diverged", "error")
+#: Largest case file read (bytes): a case's metrics are a few kB, its scenario ~3 kB.
+MAX_CASE_BYTES = 4_000_000
 
 #: Observation errors ``q − q̂`` of joints 1 … 12 (an arm has at most 12 joints).
 JOINT_ERRORS = tuple(f"z{k}" for k in range(1, 13))
@@ -95,32 +106,70 @@ class ResultStore:
         self.cases_dir = self.out / "cases"
 
     def load(self) -> dict[str, dict]:
-        """Finished case records by hash (unreadable files are ignored: their case reruns)."""
-        records = {}
-        if self.cases_dir.is_dir():
-            for path in sorted(self.cases_dir.glob("*.json")):
-                try:
-                    record = json.loads(path.read_text())
-                except (OSError, ValueError):
-                    continue
-                if isinstance(record, dict) and record.get("hash") == path.stem:
-                    records[path.stem] = record
+        """Finished case records by hash.
+
+        A file that cannot be read, is not UTF-8 JSON, or misses a field of a record is
+        skipped (its case runs again); :attr:`skipped` lists them as one-line warnings.
+        """
+        records: dict[str, dict] = {}
+        self.skipped: list[str] = []
+        if not self.cases_dir.is_dir():
+            return records
+        for path in sorted(self.cases_dir.glob("*.json")):
+            problem = None
+            try:
+                if path.is_symlink() or not path.is_file():
+                    problem = "not a regular file"
+                elif path.stat().st_size > MAX_CASE_BYTES:
+                    problem = f"larger than {MAX_CASE_BYTES} bytes"
+                else:
+                    record = json.loads(path.read_bytes().decode("utf-8"))
+                    problem = _record_problem(record, path.stem)
+            except (OSError, ValueError, RecursionError) as exc:
+                problem = " ".join(str(getattr(exc, "strerror", None) or exc).split())[:120]
+            if problem:
+                self.skipped.append(f"{path.name}: {problem}; its case runs again")
+            else:
+                records[path.stem] = record
         return records
 
+    def died(self) -> dict[str, str]:
+        """Cases whose process died in an earlier run: hash -> message."""
+        notes = {}
+        if self.cases_dir.is_dir():
+            for path in sorted(self.cases_dir.glob("*.died")):
+                try:
+                    notes[path.stem] = " ".join(path.read_bytes()[:400].decode(
+                        "utf-8", "replace").split())
+                except OSError:
+                    notes[path.stem] = "its process died"
+        return notes
+
     def save(self, case: Case, result: dict, t_end: float | None) -> dict:
-        """Write one finished case's record atomically and return it."""
+        """Write one finished case's record atomically and return it (and drop its
+        ``.died`` note, if any)."""
+        if result["status"] not in FINISHED:
+            raise ValueError(f"case {case.index}: status {result['status']!r} is not a result")
         record = {"hash": case.hash, "index": case.index, "params": case.params,
-                  "t_end": t_end, **result, "scenario_yaml": case.scenario_yaml}
+                  "values": case.values, "t_end": t_end, **result,
+                  "scenario_yaml": case.scenario_yaml}
         text = json.dumps(record, indent=1, allow_nan=False)
         atomic_write_text(self.cases_dir / f"{case.hash}.json", text + "\n")
+        (self.cases_dir / f"{case.hash}.died").unlink(missing_ok=True)
         return record
 
+    def mark_died(self, case: Case, message: str) -> None:
+        """Note that ``case``'s process died (not a result: the case runs again)."""
+        atomic_write_text(self.cases_dir / f"{case.hash}.died", message + "\n")
+
     def write_tables(self, study: Study, cases: list[Case], records: dict[str, dict],
-                     engine: str) -> None:
-        """Rewrite ``results.csv`` and ``study.json`` (atomically) from the records so far."""
+                     engine: str, died: dict[str, str] | None = None) -> None:
+        """Rewrite ``results.csv`` and ``study.json`` (atomically) from the records so far
+        (a case without a record is ``pending``, or ``died`` when ``died`` names it)."""
+        died = died or {}
         param_keys: list[str] = []
         for case in cases:
-            param_keys += [k for k in case.params if k not in param_keys]
+            param_keys += [k for k in case.values if k not in param_keys]
         rows, metric_keys = [], []
         for case in cases:
             record = records.get(case.hash)
@@ -132,8 +181,8 @@ class ResultStore:
         writer = csv.writer(buffer, lineterminator="\n")
         writer.writerow([*head, *metric_keys, "message"])
         for case, record, summary in rows:
-            record = record or {"status": "pending", "message": ""}
-            writer.writerow([case.index, case.hash, *[_cell(case.params.get(k))
+            record = record or _missing(case, died)
+            writer.writerow([case.index, case.hash, *[_cell(case.values.get(k))
                                                       for k in param_keys],
                              record["status"], _cell(record.get("t_reached")),
                              _cell(record.get("wall_time_s")),
@@ -141,8 +190,8 @@ class ResultStore:
                              record["message"]])
         atomic_write_text(self.out / "results.csv", buffer.getvalue())
         counts: dict[str, int] = {}
-        for _, record, _ in rows:
-            status = record["status"] if record else "pending"
+        for case, record, _ in rows:
+            status = (record or _missing(case, died))["status"]
             counts[status] = counts.get(status, 0) + 1
         doc = {
             "name": study.name, "description": study.description, "t_end": study.t_end,
@@ -151,8 +200,8 @@ class ResultStore:
             "metrics": study.metrics, "guides": [asdict(g) for g in study.guides],
             "engine": engine, "n_cases": len(cases), "counts": counts,
             "cases": [{"index": c.index, "hash": c.hash, "params": c.params,
-                       "status": (r or {}).get("status", "pending"),
-                       "message": (r or {}).get("message", ""), "summary": s}
+                       "values": c.values, "status": (r or _missing(c, died))["status"],
+                       "message": (r or _missing(c, died))["message"], "summary": s}
                       for c, r, s in rows],
         }
         atomic_write_text(self.out / "study.json",
@@ -169,3 +218,37 @@ def _cell(value) -> str:
     if isinstance(value, dict):
         return " ".join(f"{k}={_cell(v)}" for k, v in value.items())
     return str(value)
+
+
+def _missing(case: Case, died: dict[str, str]) -> dict:
+    if case.hash in died:
+        return {"status": "died", "message": died[case.hash]}
+    return {"status": "pending", "message": ""}
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _record_problem(record, stem: str) -> str | None:
+    """What makes a loaded case file unusable, or None."""
+    if not isinstance(record, dict):
+        return "not a JSON object"
+    if record.get("hash") != stem:
+        return "its hash is not its file name"
+    if record.get("status") not in FINISHED:
+        return f"status must be one of {', '.join(FINISHED)}"
+    for key, ok in (("message", lambda v: isinstance(v, str)),
+                    ("t_reached", _is_number), ("wall_time_s", _is_number),
+                    ("metrics", lambda v: isinstance(v, dict)),
+                    ("params", lambda v: isinstance(v, dict))):
+        if key not in record or not ok(record[key]):
+            return f"field {key!r} is missing or of the wrong type"
+    for robot, phases in record["metrics"].items():
+        if not isinstance(phases, dict) or not all(
+                isinstance(m, dict) and all(isinstance(e, dict) and _is_number(e.get("rms"))
+                                            and _is_number(e.get("max"))
+                                            for e in m.values() if isinstance(e, dict))
+                for m in phases.values()):
+            return f"metrics of {str(robot)[:40]!r} are malformed"
+    return None

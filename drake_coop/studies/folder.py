@@ -1,0 +1,178 @@
+"""A study's ``--out`` folder: owned by one study, used by one process at a time.
+
+Ownership
+    :meth:`StudyFolder.claim` accepts a folder that does not exist yet (it is created), an
+    empty folder, or the folder of the *same* study (same ``name``: a resume). The folder is
+    marked as a study's by the file ``.drake-coop-study`` (JSON ``{"name": …}``); a folder
+    written before that marker existed is recognized by its ``study.json`` of the same name.
+    Anything else — a folder holding a user's files, a run's outputs, another study — is
+    refused, naming what is there, before anything is written.
+
+One process per folder
+    The claim takes an exclusive ``fcntl.flock`` on ``.drake-coop-study.lock`` inside the
+    folder (non-blocking: a second study on the same folder exits at once, naming the pid of
+    the first). The kernel releases the lock when the holding process ends, however it ends
+    (``kill -9`` included), so a killed study never leaves the folder locked.
+
+Every problem is a :class:`StudyFolderError` with a one-line message that starts with
+``--out <folder>`` (an ``OSError`` such as a read-only or full disk included).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+from pathlib import Path
+
+__all__ = ["LOCK", "MARKER", "StudyFolder", "StudyFolderError"]
+
+#: The file that marks a folder as a study's (JSON: the study's name).
+MARKER = ".drake-coop-study"
+#: The lock file (holds the pid of the process that holds the lock).
+LOCK = ".drake-coop-study.lock"
+_OURS = {MARKER, LOCK}
+
+
+class StudyFolderError(ValueError):
+    """The folder cannot be used for this study (one-line message naming it and why)."""
+
+
+def _shown(name: str, n: int = 60) -> str:
+    text = name if name.isprintable() else repr(name)
+    return text if len(text) <= n else text[:n] + "…"
+
+
+class StudyFolder:
+    """The ``--out`` folder of a study (see the module's docstring).
+
+    Parameters
+    ----------
+    out : str or Path
+        The folder.
+    """
+
+    def __init__(self, out: str | Path):
+        self.out = Path(out)
+        self._fd: int | None = None
+
+    # --- reading what is there -----------------------------------------------------------
+    def owner(self) -> str | None:
+        """The name of the study that owns the folder, or None (no marker, no study.json)."""
+        for name, key in ((MARKER, "name"), ("study.json", "name")):
+            path = self.out / name
+            try:
+                if path.is_symlink() or not path.is_file() or path.stat().st_size > 256_000_000:
+                    continue
+                with open(path, "rb") as f:
+                    doc = json.loads(f.read().decode("utf-8"))
+            except (OSError, ValueError, RecursionError):
+                continue
+            if isinstance(doc, dict) and isinstance(doc.get(key), str):
+                return doc[key]
+        return None
+
+    def _check(self, name: str) -> bool:
+        """Raise unless the folder may be used by study ``name``; True if it exists."""
+        out = self.out
+        if out.is_symlink():
+            raise StudyFolderError(f"--out {out} is a symbolic link; give the folder itself")
+        if not out.exists():
+            return False
+        if not out.is_dir():
+            raise StudyFolderError(f"--out {out} exists and is not a folder")
+        entries = sorted(e for e in os.listdir(out) if e not in _OURS)
+        owner = self.owner()
+        if owner is None:
+            if entries:
+                raise StudyFolderError(
+                    f"--out {out} holds '{_shown(entries[0])}', which is not part of a "
+                    "drake-coop study; choose a new or empty folder")
+        elif owner != name:
+            raise StudyFolderError(
+                f"--out {out} is the folder of study '{_shown(owner)}', not of "
+                f"'{_shown(name)}'; choose another folder")
+        return True
+
+    # --- claiming ----------------------------------------------------------------------------
+    def claim(self, name: str) -> StudyFolder:
+        """Check the folder, create it if needed, lock it and mark it as study ``name``'s.
+
+        Raises
+        ------
+        StudyFolderError
+            Foreign content, another study's folder, a running study, or an OS error.
+        """
+        try:
+            existed = self._check(name)
+            if not existed:
+                self.out.mkdir(parents=True, exist_ok=True)
+            self._lock()
+            self._check(name)          # again under the lock: another process may have won
+            if self.owner() is None or not (self.out / MARKER).is_file():
+                from drake_coop.results.io import atomic_write_text
+
+                atomic_write_text(self.out / MARKER, json.dumps({"name": name}) + "\n")
+            (self.out / "cases").mkdir(exist_ok=True)
+        except StudyFolderError:
+            self.release()
+            raise
+        except OSError as exc:
+            self.release()
+            raise StudyFolderError(f"--out {self.out}: {exc.strerror or exc}") from None
+        return self
+
+    def lock_existing(self) -> StudyFolder:
+        """Lock a folder that already holds a study (for ``study --plot``).
+
+        Raises
+        ------
+        StudyFolderError
+            Not a study folder, a running study, or an OS error.
+        """
+        if not self.out.is_dir() or self.out.is_symlink():
+            raise StudyFolderError(f"--plot {self.out}: no such study folder")
+        if self.owner() is None:
+            raise StudyFolderError(f"--plot {self.out}: no study.json (run `drake-coop study` "
+                                   "first)")
+        try:
+            self._lock()
+        except OSError as exc:
+            raise StudyFolderError(f"--plot {self.out}: {exc.strerror or exc}") from None
+        return self
+
+    def _lock(self) -> None:
+        flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
+        fd = os.open(self.out / LOCK, flags, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            try:
+                holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+            except OSError:
+                holder = ""
+            os.close(fd)
+            raise StudyFolderError(
+                f"--out {self.out} is in use by another study process"
+                f"{f' (pid {holder})' if holder.isdigit() else ''}; wait for it to end or "
+                "stop it") from None
+        except OSError:
+            os.close(fd)
+            raise
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        self._fd = fd
+
+    def release(self) -> None:
+        """Release the lock (the kernel also does when the process ends)."""
+        if self._fd is not None:
+            try:
+                os.close(self._fd)
+            finally:
+                self._fd = None
+
+    def __enter__(self) -> StudyFolder:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.release()
