@@ -1,7 +1,6 @@
 """``drake-coop study``: run a study file, resume it, redraw its figures.
 
-``drake-coop study STUDY.yaml --out DIR [--workers N] [--ray [ADDRESS]] [--max-cases N]
-[--max-workers N] [--quiet]``
+``drake-coop study STUDY.yaml --out DIR [--workers N] [--ray [ADDRESS]] [--max-cases N] [--max-workers N] [--quiet]``
     Check the study's size (at most ``--max-cases``, default 10 000), expand and validate
     every case as ``run`` would (exit 2 naming the field on a bad path or value), claim and
     lock ``DIR`` (:mod:`drake_coop.studies.folder`: new, empty or this study's folder), skip
