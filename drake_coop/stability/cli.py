@@ -53,8 +53,8 @@ def add_stability_parser(sub) -> None:
                    help="a study's results.csv to mark its simulated outcomes on the maps")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS")
-    p.add_argument("--epsilon", type=float, default=1e-6,
-                   help="central-difference step (default 1e-6)")
+    p.add_argument("--epsilon", type=float, default=1e-5,
+                   help="central-difference step (default 1e-5)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_stability)
 

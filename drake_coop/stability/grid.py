@@ -54,7 +54,7 @@ def grid_cases(base_yaml: str | None, grid: dict[str, list]) -> list[Case]:
     return expand(Study(name="stability", base_yaml=base_yaml, grid=dict(grid)))
 
 
-def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-6) -> list[dict]:
+def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-5) -> list[dict]:
     """ρ(Φ) of one scenario at each operating point (never raises: ``status = error``)."""
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.stability.operating import operating_point
@@ -93,7 +93,7 @@ def _child(conn, scenario_yaml: str, points: list[str], epsilon: float) -> None:
 
 def run_grid(cases: list[Case], points: list[str], on_result: Callable[[Case, list], None], *,
              workers: int = 2, engine: str = "local", address: str | None = None,
-             epsilon: float = 1e-6) -> None:
+             epsilon: float = 1e-5) -> None:
     """Compute every case's rows in fresh processes (``local``) or Ray tasks (``ray``),
     handing each case's rows to ``on_result`` as they arrive."""
     if engine == "ray":

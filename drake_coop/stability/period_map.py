@@ -8,9 +8,11 @@ is, between two ticks, a map of its whole state
 
 ``x(t_k^-)`` the state at the tick time ``t_k`` *before* that tick's updates (what
 ``Simulator.AdvanceTo(t_k)`` leaves: Drake handles the events at ``t_k`` at the start of the
-next step). ``F`` is evaluated with the Simulator itself: restore the operating point's context
-(time, abstract state, parameters such as locked joints and active constraints), write ``x``,
-``Initialize()`` and ``AdvanceTo(t_0 + h)``. At an equilibrium ``x* = F(x*)`` the loop is locally
+next step). ``F`` is evaluated with the Simulator itself, as a fresh simulation from ``x``:
+restore the operating point's context (time, abstract state, parameters such as locked joints
+and active constraints), write ``x``, ``Initialize()`` — which runs the initialization events,
+so that abstract state derived from the state is recomputed from ``x`` (a discrete plant with
+sampled output ports keeps its step results there) — and ``AdvanceTo(t_0 + h)``. At an equilibrium ``x* = F(x*)`` the loop is locally
 asymptotically stable iff the spectral radius of the monodromy matrix ``Φ = ∂F/∂x (x*)`` is
 below one.
 
@@ -149,7 +151,7 @@ def jacobian(F: PeriodMap, x: np.ndarray, columns: list[int], epsilon: float | n
     return J
 
 
-def find_equilibrium(F: PeriodMap, x: np.ndarray, free: list[int], *, epsilon: float = 1e-6,
+def find_equilibrium(F: PeriodMap, x: np.ndarray, free: list[int], *, epsilon: float = 1e-5,
                      tol: float = 1e-10, max_iter: int = 8
                      ) -> tuple[np.ndarray, float, np.ndarray | None]:
     """Newton's method on ``F(x) − x = 0`` over the ``free`` entries (the others as given).
@@ -202,9 +204,15 @@ def modes(Phi: np.ndarray, labels: list[str], period: float, top: int = 3
     return mu, mode(0), mode(nonzero[-1]) if nonzero else None
 
 
-def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float = 1e-6,
+def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float = 1e-5,
             newton: bool = True, tol: float = 1e-10) -> MapReport:
     """Equilibrium, Φ on the dynamic entries, ρ(Φ) and the slowest and fastest modes.
+
+    Order: counters (one evaluation), locked joints, then a first Jacobian at ``x_guess``
+    names the overwritten entries (zero columns), Newton's method solves ``F(x) = x`` on the
+    dynamic entries only (an overwritten entry, e.g. a sensor's latched reading of the stiff
+    constraint force, would otherwise put its own sensitivity into the residual), and Φ is
+    computed again at the equilibrium.
 
     Parameters
     ----------
@@ -213,8 +221,11 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float =
     x_guess : ndarray, optional
         Start of the equilibrium search (default: the operating point's state).
     epsilon : float
-        Step of the central differences (absolute, every entry: the state's entries are radians,
-        rad/s, metres, N·s and N·m, all of order 1 at the operating points).
+        Step of the central differences (absolute, every entry: radians, rad/s, metres, N·s
+        and N·m, all of order 0.1–1 at the operating points). Default 1e-5: inside the plateau
+        where ρ does not depend on it (1e-3 … 1e-6 agree to 1e-6 on the paper's loop; at 1e-7
+        and below the plant's iterative contact solver stops resolving the held loop's
+        fastest constraint mode, see :func:`step_sensitivity`).
     newton : bool
         Solve ``F(x) = x`` first (else Φ is taken at ``x_guess``).
     """
@@ -223,21 +234,24 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float =
     counters = _counters(F, x, fx)
     locked = F.state.locked_indices(F.nominal)
     candidates = [i for i in range(len(x)) if i not in set(counters) | set(locked)]
-    if newton:
-        x, residual, _ = find_equilibrium(F, x, candidates, epsilon=epsilon, tol=tol)
-    else:
-        residual = float(np.max(np.abs((fx - x)[candidates]), initial=0.0))
-    F.set_nominal_state(x)
     J = jacobian(F, x, candidates, epsilon)
     overwritten = [j for c, j in enumerate(candidates) if not np.any(J[:, c])]
     dynamic = [j for j in candidates if j not in set(overwritten)]
+    if newton:
+        x, residual, _ = find_equilibrium(F, x, dynamic, epsilon=epsilon, tol=tol)
+        F.set_nominal_state(x)
+        J = jacobian(F, x, candidates, epsilon)
+    else:
+        residual = float(np.max(np.abs((fx - x)[dynamic]), initial=0.0))
     cols = [candidates.index(j) for j in dynamic]
     Phi = J[np.ix_(dynamic, cols)]
     labels = F.state.labels
+    if not np.all(np.isfinite(Phi)):
+        return MapReport(rho=math.inf, Phi=Phi, labels=labels, dynamic=dynamic,
+                         counters=counters, locked=locked, overwritten=overwritten,
+                         residual=residual, epsilon=epsilon, evaluations=F.evaluations)
     mu, slow, fast = modes(Phi, [labels[j] for j in dynamic], F.period)
     rho = float(np.max(np.abs(mu))) if len(mu) else 0.0
-    if not np.all(np.isfinite(Phi)):
-        rho = math.inf
     return MapReport(rho=rho, Phi=Phi, labels=labels, dynamic=dynamic, counters=counters,
                      locked=locked, overwritten=overwritten, residual=residual,
                      epsilon=epsilon, evaluations=F.evaluations, eigenvalues=mu,
