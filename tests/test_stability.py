@@ -12,6 +12,12 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from drake_coop.cli import main
 from drake_coop.scenario import default_scenario
+from drake_coop.stability.one_joint import (
+    crossing_period,
+    observer_period_limit,
+    one_joint_phi,
+    one_joint_rho,
+)
 from drake_coop.stability.operating import operating_point
 from drake_coop.stability.period_map import PeriodMap, analyse, step_sensitivity
 
@@ -23,10 +29,12 @@ H, DT, N = 0.009, 0.009 / 9, 9
 
 class OneJointLoop(LeafSystem):
     """Observer (15)–(16) and controller (13) in free motion for one joint, ``q_d = 0``:
-    state ``q̂, q̇̂_o`` and a latch ``[τ, k]`` (the torque of the tick, held)."""
+    state ``q̂, q̇̂_o`` and a latch ``[τ, k]`` (the torque of the tick, held); with
+    ``measured`` the law reads the plant's velocity instead (``q̂ = q``, ``q̇̂ = q̇_o = v``)."""
 
-    def __init__(self):
+    def __init__(self, measured: bool = False):
         super().__init__()
+        self._measured = measured
         self._x = self.DeclareVectorInputPort("state", 2)
         self._obs = self.DeclareDiscreteState(2)
         self._latch = self.DeclareDiscreteState(np.array([0.0, -1.0]))
@@ -34,8 +42,10 @@ class OneJointLoop(LeafSystem):
         self.DeclareVectorOutputPort("tau", 1, self._calc_tau)
 
     def _law(self, context):
-        q = self._x.Eval(context)[0]
+        q, v = self._x.Eval(context)
         q_hat, o = context.get_discrete_state(self._obs).value()
+        if self._measured:
+            q_hat, o = q, v
         z = q - q_hat
         qdot_hat = o + (LAM + KD) * z
         qdot_o = o + KD * z
@@ -56,7 +66,7 @@ class OneJointLoop(LeafSystem):
         discrete_state.set_value(self._latch, np.array([tau, round(context.get_time() / H)]))
 
 
-def one_joint_map(sampled: bool = False):
+def one_joint_map(sampled: bool = False, measured: bool = False, h: float = H):
     b = DiagramBuilder()
     plant = b.AddNamedSystem("plant", MultibodyPlant(DT))
     plant.SetUseSampledOutputPorts(sampled)   # False as the project's plant: q(t_k) at t_k
@@ -67,35 +77,15 @@ def one_joint_map(sampled: bool = False):
                                          [0.0, 0.0, 1.0], D))
     plant.AddJointActuator("motor", joint)
     plant.Finalize()
-    law = b.AddNamedSystem("law", OneJointLoop())
+    law = b.AddNamedSystem("law", OneJointLoop(measured))
     b.Connect(plant.get_state_output_port(), law.get_input_port(0))
     b.Connect(law.get_output_port(0), plant.get_actuation_input_port())
     diagram = b.Build()
     return PeriodMap(diagram, diagram.CreateDefaultContext(), H)
 
 
-def closed_form_phi() -> np.ndarray:
-    """Φ of x = [q, v, q̂, q̇̂_o] by hand: τ(k) = c x(k); nine plant steps with SAP's implicit
-    damping, (J + Δt D) v⁺ = J v + Δt τ, q⁺ = q + Δt v⁺; the observer's Euler step."""
-    # z = q − q̂, q̇̂ = o + (Λ + k_d) z, q̇_o = o + k_d z, q̇_r = −Λ q̂, q̈̂_r = −Λ q̇̂
-    z = np.array([1.0, 0.0, -1.0, 0.0])
-    o = np.array([0.0, 0.0, 0.0, 1.0])
-    qdot_hat = o + (LAM + KD) * z
-    qdot_o = o + KD * z
-    qdot_r = np.array([0.0, 0.0, -LAM, 0.0])
-    c = J * (-LAM * qdot_hat) + D * qdot_r - KR * (qdot_o - qdot_r)
-    a = J / (J + DT * D)
-    bt = DT / (J + DT * D)
-    A = np.array([[1.0, DT * a], [0.0, a]])        # [q, v] per plant step
-    B = np.array([DT * bt, bt])
-    AN = np.linalg.matrix_power(A, N)
-    BN = sum(np.linalg.matrix_power(A, i) @ B for i in range(N))
-    Phi = np.zeros((4, 4))
-    Phi[0:2, 0:2] = AN
-    Phi[0:2, :] += np.outer(BN, c)
-    Phi[2, :] = np.array([0.0, 0.0, 1.0, 0.0]) + H * qdot_hat
-    Phi[3, :] = o + H * (-LAM * qdot_hat + KD * LAM * z)
-    return Phi
+def closed_form_phi(measured: bool = False) -> np.ndarray:
+    return one_joint_phi(J, D, LAM, KD, KR, H, DT, "measured" if measured else "observer")
 
 
 def test_finite_difference_monodromy_matches_the_hand_derived_one_joint_loop():
@@ -109,6 +99,30 @@ def test_finite_difference_monodromy_matches_the_hand_derived_one_joint_loop():
     rho = max(abs(np.linalg.eigvals(expected)))
     assert report.rho == pytest.approx(rho, rel=1e-7)
     assert 0.5 < rho < 1.0
+
+
+def test_finite_difference_monodromy_matches_the_closed_form_with_measured_velocity():
+    report = analyse(one_joint_map(measured=True))
+    assert len(report.dynamic) == 2          # the observer's state is overwritten: q̂ = q
+    np.testing.assert_allclose(report.Phi, closed_form_phi(measured=True), rtol=1e-6,
+                               atol=1e-8)
+
+
+def test_closed_form_limit_of_measured_velocity_is_h_K_R_over_J_about_2():
+    # a sampled velocity loop: h K_R / J < 2 (ref. estimate of the studies); exact limit here
+    h = crossing_period(0.478, 0.0, 35.0, 40.0, 100.0, 0.001, "measured")
+    assert 1.6 < h * 100.0 / 0.478 < 2.2
+    # the observer's filtering moves the limit out (the studies: 20 ms vs 9 ms)
+    assert crossing_period(0.478, 0.0, 35.0, 40.0, 100.0, 0.001, "observer") > 1.5 * h
+
+
+def test_observer_limit_is_forward_euler_on_its_fast_pole():
+    # s² + (2Λ + k_d) s + Λ k_d, Λ = 35, k_d = 40: poles −14.7 and −95.3 → h < 2/95.3 = 21 ms
+    assert observer_period_limit(35.0, 40.0) == pytest.approx(0.02098, abs=2e-5)
+    # against the full one-joint map: a heavy joint (the arm barely moves within a sample)
+    h = observer_period_limit(35.0, 40.0)
+    assert one_joint_rho(50.0, 0.0, 35.0, 40.0, 120.0, 0.97 * h, h / 100, "observer") < 1.0
+    assert one_joint_rho(50.0, 0.0, 35.0, 40.0, 120.0, 1.03 * h, h / 100, "observer") > 1.0
 
 
 def test_latched_torque_is_overwritten_and_the_tick_index_is_a_counter():
