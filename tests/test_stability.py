@@ -12,6 +12,8 @@ from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
 
 from drake_coop.cli import main
 from drake_coop.scenario import default_scenario
+from drake_coop.scenario.schema import Timing
+from drake_coop.sensing.latency import ActuationDelay
 from drake_coop.stability.one_joint import (
     crossing_period,
     observer_period_limit,
@@ -66,7 +68,7 @@ class OneJointLoop(LeafSystem):
         discrete_state.set_value(self._latch, np.array([tau, round(context.get_time() / H)]))
 
 
-def one_joint_map(sampled: bool = False, measured: bool = False, h: float = H):
+def one_joint_map(sampled: bool = False, measured: bool = False, delay: float = 0.0):
     b = DiagramBuilder()
     plant = b.AddNamedSystem("plant", MultibodyPlant(DT))
     plant.SetUseSampledOutputPorts(sampled)   # False as the project's plant: q(t_k) at t_k
@@ -79,9 +81,19 @@ def one_joint_map(sampled: bool = False, measured: bool = False, h: float = H):
     plant.Finalize()
     law = b.AddNamedSystem("law", OneJointLoop(measured))
     b.Connect(plant.get_state_output_port(), law.get_input_port(0))
-    b.Connect(law.get_output_port(0), plant.get_actuation_input_port())
+    if delay:
+        lat = b.AddNamedSystem("latency", ActuationDelay(1, H, DT, Timing(computation_delay=delay)))
+        b.Connect(law.get_output_port(0), lat.get_tau_cmd_input_port())
+        b.Connect(lat.get_tau_output_port(), plant.get_actuation_input_port())
+    else:
+        b.Connect(law.get_output_port(0), plant.get_actuation_input_port())
     diagram = b.Build()
-    return PeriodMap(diagram, diagram.CreateDefaultContext(), H)
+    context = diagram.CreateDefaultContext()
+    if delay:       # start after a first tick (the block applies the very first torque at once)
+        simulator = Simulator(diagram, context)
+        simulator.AdvanceTo(H)
+        context = simulator.get_context()
+    return PeriodMap(diagram, context, H)
 
 
 def closed_form_phi(measured: bool = False) -> np.ndarray:
@@ -123,6 +135,15 @@ def test_observer_limit_is_forward_euler_on_its_fast_pole():
     h = observer_period_limit(35.0, 40.0)
     assert one_joint_rho(50.0, 0.0, 35.0, 40.0, 120.0, 0.97 * h, h / 100, "observer") < 1.0
     assert one_joint_rho(50.0, 0.0, 35.0, 40.0, 120.0, 1.03 * h, h / 100, "observer") > 1.0
+
+
+@pytest.mark.parametrize("delay, steps", [(0.001, 1), (0.0025, 3)])
+def test_map_with_a_computation_delay_matches_the_closed_form(delay, steps):
+    F = one_joint_map(delay=delay)
+    report = analyse(F)
+    assert report.dynamic_labels()[-1] == "latency[0][3]"     # τ(k−1) held into the period
+    expected = one_joint_phi(J, D, LAM, KD, KR, H, DT, "observer", delay_steps=steps)
+    np.testing.assert_allclose(report.Phi, expected, rtol=1e-6, atol=1e-8)
 
 
 def test_latched_torque_is_overwritten_and_the_tick_index_is_a_counter():

@@ -36,29 +36,47 @@ __all__ = ["crossing_period", "observer_period_limit", "one_joint_phi", "one_joi
 
 
 def one_joint_phi(J: float, D: float, Lambda: float, k_d: float, K_R: float, h: float,
-                  dt: float, velocity: str = "observer") -> np.ndarray:
-    """Φ of ``x = [q, v, q̂, q̇̂_o]`` (``observer``) or ``[q, v]`` (``measured``)."""
+                  dt: float, velocity: str = "observer", delay_steps: int = 0) -> np.ndarray:
+    """Φ of ``x = [q, v, q̂, q̇̂_o]`` (``observer``) or ``[q, v]`` (``measured``).
+
+    ``delay_steps = s > 0`` applies ``τ(k)`` from the ``s``-th plant step of the period on
+    (a computation delay, :mod:`drake_coop.sensing.latency`): the first ``s`` steps still get
+    ``τ(k−1)``, which joins the state as its last entry.
+    """
     N = int(round(h / dt))
+    s = int(delay_steps)
     a = J / (J + dt * D)
     b = dt / (J + dt * D)
     A = np.array([[1.0, dt * a], [0.0, a]])
     B = np.array([dt * b, b])
-    AN = np.linalg.matrix_power(A, N)
-    BN = sum((np.linalg.matrix_power(A, i) @ B for i in range(N)), np.zeros(2))
+
+    def steps(m: int) -> tuple[np.ndarray, np.ndarray]:
+        return (np.linalg.matrix_power(A, m),
+                sum((np.linalg.matrix_power(A, i) @ B for i in range(m)), np.zeros(2)))
+
     if velocity == "measured":
         c = np.array([-D * Lambda - K_R * Lambda, -J * Lambda - K_R])
-        return AN + np.outer(BN, c)
-    z = np.array([1.0, 0.0, -1.0, 0.0])
-    o = np.array([0.0, 0.0, 0.0, 1.0])
-    qdot_hat = o + (Lambda + k_d) * z
-    qdot_o = o + k_d * z
-    qdot_r = np.array([0.0, 0.0, -Lambda, 0.0])
-    c = J * (-Lambda * qdot_hat) + D * qdot_r - K_R * (qdot_o - qdot_r)
-    Phi = np.zeros((4, 4))
-    Phi[0:2, 0:2] = AN
-    Phi[0:2, :] += np.outer(BN, c)
-    Phi[2, :] = np.array([0.0, 0.0, 1.0, 0.0]) + h * qdot_hat
-    Phi[3, :] = o + h * (-Lambda * qdot_hat + k_d * Lambda * z)
+        rows = np.zeros((0, 2))
+    else:
+        z = np.array([1.0, 0.0, -1.0, 0.0])
+        o = np.array([0.0, 0.0, 0.0, 1.0])
+        qdot_hat = o + (Lambda + k_d) * z
+        qdot_o = o + k_d * z
+        qdot_r = np.array([0.0, 0.0, -Lambda, 0.0])
+        c = J * (-Lambda * qdot_hat) + D * qdot_r - K_R * (qdot_o - qdot_r)
+        rows = np.vstack([np.array([0.0, 0.0, 1.0, 0.0]) + h * qdot_hat,
+                          o + h * (-Lambda * qdot_hat + k_d * Lambda * z)])
+    n = len(c)
+    A_late, B_late = steps(N - s)          # the steps with τ(k)
+    A_early, B_early = steps(s)            # the steps with τ(k−1)
+    size = n + (1 if s else 0)
+    Phi = np.zeros((size, size))
+    Phi[0:2, 0:2] = A_late @ A_early
+    Phi[0:2, 0:n] += np.outer(B_late, c)
+    Phi[2:n, 0:n] = rows
+    if s:
+        Phi[0:2, n] = A_late @ B_early
+        Phi[n, 0:n] = c
     return Phi
 
 

@@ -21,6 +21,7 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.systems.analysis import Simulator
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
@@ -73,7 +74,7 @@ def _frozen(row: np.ndarray, layout, held: bool) -> PiecewisePolynomial:
 
 def operating_point(scenario: Scenario, point: str = "free", t_star: float | None = None
                     ) -> OperatingPoint:
-    """Build the loop at ``point`` (``free`` or ``held``) and its one-period map at ``t_0 = 0``.
+    """Build the loop at ``point`` (``free`` or ``held``) and its one-period map at ``t_0 = h``.
 
     The state is the designed equilibrium guess (arms at ``q_d``, at rest, observers at
     ``q̂ = q``, ``q̇̂_o = 0``, ``ΔF̃ = 0``); :func:`~drake_coop.stability.period_map.analyse`
@@ -120,4 +121,11 @@ def operating_point(scenario: Scenario, point: str = "free", t_star: float | Non
         if hasattr(rs.velocity_observer, "set_initial_state"):
             rs.velocity_observer.set_initial_state(
                 rs.velocity_observer.GetMyMutableContextFromRoot(context), q)
-    return OperatingPoint(point, exp, PeriodMap(exp.diagram, context, h), k_star * h)
+    # One period of warm-up: the map then starts at t_0 = h, where every sampled system has a
+    # previous tick behind it (a latch's "nothing latched yet" start, e.g. the actuation delay
+    # applying the very first torque at once, must not be part of every evaluation).
+    simulator = Simulator(exp.diagram, context)
+    simulator.Initialize()
+    simulator.AdvanceTo(h)
+    return OperatingPoint(point, exp, PeriodMap(exp.diagram, simulator.get_context(), h),
+                          k_star * h)
