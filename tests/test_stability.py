@@ -199,7 +199,6 @@ def test_step_size_plateau_of_the_papers_free_map(paper_free):
     assert max(abs(r[1] - report.rho) for r in rows) < 1e-6
 
 
-@pytest.mark.slow
 def test_paper_loop_at_9ms_is_stable_held_with_the_slow_force_mode():
     report = analyse(operating_point(default_scenario(), "held").map)
     assert report.residual < 1e-6
@@ -247,7 +246,6 @@ def test_cli_refuses_a_folder_that_is_not_ours(tmp_path, capsys):
     assert (tmp_path / "notes.txt").read_text() == "mine"
 
 
-@pytest.mark.slow
 def test_cli_writes_a_row_per_grid_point_and_operating_point(tmp_path):
     out = tmp_path / "map"
     assert main(["stability", "paper", "--out", str(out), "--quiet", "--workers", "2",

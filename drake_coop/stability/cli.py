@@ -65,8 +65,8 @@ def _check_out(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise InputError(f"--out: {out} exists and is not a folder")
     if out.is_dir():
-        foreign = [p.name for p in out.iterdir()
-                   if not any(p.name.startswith(n) for n in OUTPUT_NAMES)]
+        foreign = [p.name for p in out.iterdir()     # ours, or our interrupted temp files
+                   if not any(p.name.lstrip(".").startswith(n) for n in OUTPUT_NAMES)]
         if foreign:
             raise InputError(f"--out: {out} holds files that are not a stability map's "
                              f"({', '.join(sorted(foreign)[:3])}); choose a new folder")

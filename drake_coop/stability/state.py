@@ -10,10 +10,12 @@ leaf systems (recursing into sub-Diagrams) and collects
   entries by Drake's state names), and
 * the continuous state, if any.
 
-Abstract state (e.g. a plant with sampled output ports keeps its last step's results there) is
-*not* perturbed: the map restores it from the operating point's context before each evaluation
-(``SetTimeStateAndParametersFrom``), which is exact for abstract values that are overwritten by
-every step (results caches) and is stated in the map's report otherwise.
+Abstract state is *not* perturbed: before each evaluation the map restores it with the rest
+of the operating point's context (``SetTimeStateAndParametersFrom``) and then runs
+``Simulator.Initialize()``, whose initialization events recompute abstract state derived from
+the state (a discrete plant with sampled output ports keeps its step results there), as a fresh
+simulation from the written state would. The paper's plant has no abstract state (live output
+ports).
 
 Components that are not degrees of freedom of the loop are identified by
 :meth:`LoopState.locked_indices` (the positions and velocities of a joint the plant holds locked,
