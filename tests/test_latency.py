@@ -116,3 +116,19 @@ def test_cli_exits_2_with_one_line_for_a_bad_timing_field(tmp_path, capsys):
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "timing.computation_delay" in err[0]
+
+
+def test_a_jittered_run_is_reproducible_and_its_seed_matters():
+    from drake_coop.experiment.simulate import simulate
+
+    def q(seed: int) -> np.ndarray:
+        s = default_scenario()
+        for robot in s.robots:
+            robot.timing.jitter = "uniform"
+            robot.timing.jitter_scale = 0.006
+            robot.timing.seed = seed
+        return simulate(s, t_end=0.3).logs["robot1"]["q"]
+
+    a = q(1)
+    np.testing.assert_array_equal(a, q(1))
+    assert not np.array_equal(a, q(2))
