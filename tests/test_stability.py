@@ -256,3 +256,12 @@ def test_cli_writes_a_row_per_grid_point_and_operating_point(tmp_path):
         ("0.009", "free", "stable"), ("0.025", "free", "unstable")]
     assert math.isclose(float(rows[0]["rho"]), 0.896, abs_tol=0.01)
     assert list(out.glob("stability_*.png"))
+
+
+def test_contact_mode_is_refused_in_one_line():
+    from drake_coop.scenario import ScenarioError
+
+    s = default_scenario()
+    s.plant.object_mode = "contact"
+    with pytest.raises(ScenarioError, match="plant.object_mode"):
+        operating_point(s, "free")

@@ -83,15 +83,16 @@ def operating_point(scenario: Scenario, point: str = "free", t_star: float | Non
     Raises
     ------
     ScenarioError
-        Unknown ``point``, or ``object_mode: contact`` held (a floating box: its quaternion is not
+        Unknown ``point``, or ``object_mode: contact`` (a floating box: its quaternion is not
         a vector space the central differences could perturb).
     """
     if point not in POINTS:
         raise ScenarioError(f"point must be one of {', '.join(POINTS)}, got {point!r}")
     scenario = linearizable(scenario)
-    if point == "held" and scenario.plant.object_mode == "contact":
-        raise ScenarioError("plant.object_mode: the held map supports planes, rigid and none, "
-                            "not contact (a floating box)")
+    if scenario.plant.object_mode == "contact":
+        raise ScenarioError("plant.object_mode: the stability map supports planes, rigid and "
+                            "none, not contact (a floating box: its quaternion is no vector "
+                            "space for central differences, its contacts are not smooth)")
     plan = plan_run(scenario)
     h = plan.h
     if t_star is None:
