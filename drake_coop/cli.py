@@ -27,6 +27,8 @@
     Realtime factor and cost per controller tick (see ``bench/benchmark.py``).
 ``drake-coop study STUDY.yaml --out DIR`` / ``drake-coop study --plot DIR``
     Parameter studies and Monte Carlo (see :mod:`drake_coop.studies.cli`).
+``drake-coop stability SCENARIO --out DIR [--grid PATH=v1,v2,...] [--point free|held|both]``
+    Spectral radius of the loop's one-period map over a grid (see :mod:`drake_coop.stability`).
 """
 
 from __future__ import annotations
@@ -415,6 +417,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench.set_defaults(func=cmd_bench)
     from drake_coop.studies.cli import add_study_parser
     add_study_parser(sub)
+    from drake_coop.stability.cli import add_stability_parser
+    add_stability_parser(sub)
     return parser
 
 

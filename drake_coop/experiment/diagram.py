@@ -8,6 +8,7 @@
     plant ─state─▶ robotN_encoders ─ q ─▶│ robotN_controller (13)                            │
       │            (sensing.Encoders)    └───────────────────────────────────────────────────┘
       │                                          tau ─▶ robotN_actuators (Saturation) ─▶ plant
+      │                     (robotN_latency between them with a computation delay or jitter)
       └─ reaction forces, body poses ─▶ wrist_kinematics ─▶ robotN_force_sensor (ground truth)
                                           └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
 
@@ -51,6 +52,7 @@ from drake_coop.scenario.timing import aligned_periods
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.sensing.force_sensor import FTSensor
+from drake_coop.sensing.latency import ActuationDelay
 from drake_coop.sensing.model_error import controller_arm_model
 
 
@@ -68,6 +70,7 @@ class RobotSystems:
     encoders: Encoders | None = None
     ft_sensor: FTSensor | None = None
     actuators: Saturation | None = None
+    latency: ActuationDelay | None = None
     loggers: dict[str, VectorLogSink] = field(default_factory=dict)
 
 
@@ -195,11 +198,20 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
                                            robot.model_error.coulomb_friction, state)
-        b.Connect(control.GetOutputPort("tau"), actuators.get_input_port())
+        # Computation delay / jitter (issue 20): a block of its own, only when enabled, so
+        # that the paper's diagram is unchanged at the defaults.
+        latency = None
+        timing = robot.timing
+        if timing.computation_delay > 0.0 or timing.jitter != "none":
+            latency = b.AddNamedSystem(f"{name}_latency", ActuationDelay(n, h, dt, timing, i))
+            b.Connect(control.GetOutputPort("tau"), latency.get_tau_cmd_input_port())
+            b.Connect(latency.get_tau_output_port(), actuators.get_input_port())
+        else:
+            b.Connect(control.GetOutputPort("tau"), actuators.get_input_port())
         b.Connect(applied, plant.get_actuation_input_port(handles.instance))
         rs = RobotSystems(name=name, law=law, control=control, velocity_observer=vel,
                           force_observer=force, controller=ctrl, force_sensor=sensors[i],
-                          encoders=encoder, ft_sensor=ft, actuators=actuators)
+                          encoders=encoder, ft_sensor=ft, actuators=actuators, latency=latency)
         if log:
             sources = {
                 "q": encoder.GetOutputPort("q"),

@@ -143,6 +143,39 @@ class Actuators:
     torque_limits: Optional[list[float]] = None
 
 
+#: Distributions of the sampling jitter (:class:`Timing`).
+JITTER_DISTRIBUTIONS = ("none", "uniform", "exponential")
+
+
+@dataclass
+class Timing:
+    """Timing realism of one robot's digital controller (:mod:`drake_coop.sensing.latency`).
+
+    The torque ``τ(k)`` computed from ``q(t_k)`` is applied from ``t_k + d + ℓ_k`` (on the
+    plant's step grid: from the first plant step at or after it) until the next torque takes
+    over; before that the previous torque ``τ(k−1)`` stays on. Defaults: no delay, no jitter
+    (the paper's zero-order hold, and no extra block in the diagram).
+
+    Attributes
+    ----------
+    computation_delay : float
+        ``d`` (s, ``0 <= d <= control_period``): the computation time of a tick.
+    jitter : str
+        Distribution of the lateness ``ℓ_k >= 0`` of each tick: ``none``, ``uniform``
+        (``U(0, jitter_scale)``) or ``exponential`` (mean ``jitter_scale``, cut at
+        ``control_period − d``).
+    jitter_scale : float
+        Its scale (s, >= 0; > 0 with a distribution, 0 with ``none``).
+    seed : int
+        Seed of the lateness (>= 0); ``ℓ_k`` is a deterministic function of (seed, robot, k).
+    """
+
+    computation_delay: float = 0.0
+    jitter: str = "none"
+    jitter_scale: float = 0.0
+    seed: int = 0
+
+
 @dataclass
 class ModelError:
     """What the controller's model gets wrong (:mod:`drake_coop.sensing.model_error`).
@@ -237,6 +270,8 @@ class Robot:
         Torque limits.
     model_error : ModelError
         The controller's model error, payload and joint friction of the simulated arm.
+    timing : Timing
+        Computation delay and sampling jitter of the robot's controller.
     """
 
     name: str = "robot1"
@@ -261,6 +296,7 @@ class Robot:
     force_sensor: ForceSensorModel = field(default_factory=ForceSensorModel)
     actuators: Actuators = field(default_factory=Actuators)
     model_error: ModelError = field(default_factory=ModelError)
+    timing: Timing = field(default_factory=Timing)
 
 
 @dataclass

@@ -10,6 +10,7 @@ from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
     FORCE_SOURCES,
+    JITTER_DISTRIBUTIONS,
     OBJECT_MODES,
     VELOCITY_SOURCES,
     Robot,
@@ -58,6 +59,9 @@ BOUNDS: dict[str, Bound] = {
     "robots[].model_error.damping_scale": Bound(0.0, 100.0, "", **_POS),
     "robots[].model_error.payload_mass": Bound(0.0, 20.0, "kg"),
     "robots[].model_error.coulomb_friction[]": Bound(0.0, 1e3, "N·m"),
+    "robots[].timing.computation_delay": Bound(0.0, 0.1, "s"),
+    "robots[].timing.jitter_scale": Bound(0.0, 0.1, "s"),
+    "robots[].timing.seed": Bound(0, 2**63 - 1),
     **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
         "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
@@ -248,3 +252,25 @@ def _validate_sensing(robot: Robot, where: str, h: float) -> None:
         raise ScenarioError(f"{where}.difference_cutoff_hz applies to velocity_source: "
                             f"difference only; set it to null or use difference")
     _cutoff(robot.force_sensor.cutoff_hz, f"{where}.force_sensor.cutoff_hz", h)
+    _validate_timing(robot, f"{where}.timing", h)
+
+
+def _validate_timing(robot: Robot, where: str, h: float) -> None:
+    """Computation delay within the period, a known jitter distribution with a scale that
+    keeps a uniform lateness within the period too (:mod:`drake_coop.sensing.latency`)."""
+    t = robot.timing
+    _choice(t.jitter, JITTER_DISTRIBUTIONS, f"{where}.jitter")
+    if t.computation_delay > h * (1 + 1e-9):
+        raise ScenarioError(f"{where}.computation_delay must be <= control_period = {h:g} s "
+                            f"(a tick's torque is applied before the next tick's), got "
+                            f"{show(t.computation_delay)}")
+    if t.jitter == "none" and t.jitter_scale != 0.0:
+        raise ScenarioError(f"{where}.jitter_scale applies to a jitter distribution only; set "
+                            f"it to 0 or choose jitter: uniform or exponential")
+    if t.jitter != "none" and not t.jitter_scale > 0.0:
+        raise ScenarioError(f"{where}.jitter_scale must be > 0 s with jitter: {t.jitter}, got "
+                            f"{show(t.jitter_scale)}")
+    if t.jitter == "uniform" and t.computation_delay + t.jitter_scale > h * (1 + 1e-9):
+        raise ScenarioError(f"{where}.jitter_scale: computation_delay + jitter_scale must be <= "
+                            f"control_period = {h:g} s for uniform jitter, got "
+                            f"{show(t.computation_delay + t.jitter_scale)}")

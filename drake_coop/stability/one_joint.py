@@ -1,0 +1,109 @@
+"""The one-period map of one joint under the paper's law, in closed form: why the loop's
+sampling limit is where it is.
+
+One joint of inertia ``J`` and viscous friction ``D`` (no gravity, exact model), regulated to
+``q_d = 0`` by the free-motion law (13) (``Q = I``), sampled every ``h``, on a plant stepping
+every ``Δt`` (``h = N Δt``) as Drake's discrete plant does with its implicit joint damping:
+
+.. math::
+    (J + \\Delta t D)\\, v^+ = J v + \\Delta t\\, \\tau, \\qquad q^+ = q + \\Delta t\\, v^+ .
+
+With the observer (15)–(16) (forward Euler, state ``q̂, q̇̂_o``), ``z = q − q̂``:
+
+.. math::
+    \\dot{\\hat q} = \\dot{\\hat q}_o + (\\Lambda + k_d) z, \\quad
+    \\dot q_o = \\dot{\\hat q}_o + k_d z, \\quad
+    \\dot q_r = -\\Lambda \\hat q, \\quad \\ddot{\\hat q}_r = -\\Lambda \\dot{\\hat q},
+
+.. math::
+    \\tau = J \\ddot{\\hat q}_r + D \\dot q_r - K_R(\\dot q_o - \\dot q_r), \\qquad
+    \\hat q^+ = \\hat q + h \\dot{\\hat q}, \\quad
+    \\dot{\\hat q}_o^+ = \\dot{\\hat q}_o + h(\\ddot{\\hat q}_r + k_d \\Lambda z).
+
+With measured velocities (``q̂ = q``, ``q̇̂ = q̇_o = v``) the state is ``[q, v]`` and
+``τ = −JΛv − DΛq − K_R(v + Λq)``. Either way ``τ(k) = c·x(k)`` is linear and held, so
+
+.. math::
+    \\Phi = \\begin{bmatrix} A^N + B_N c \\\\ \\text{observer rows} \\end{bmatrix}, \\qquad
+    B_N = \\sum_{i<N} A^i B .
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["crossing_period", "observer_period_limit", "one_joint_phi", "one_joint_rho"]
+
+
+def one_joint_phi(J: float, D: float, Lambda: float, k_d: float, K_R: float, h: float,
+                  dt: float, velocity: str = "observer", delay_steps: int = 0) -> np.ndarray:
+    """Φ of ``x = [q, v, q̂, q̇̂_o]`` (``observer``) or ``[q, v]`` (``measured``).
+
+    ``delay_steps = s > 0`` applies ``τ(k)`` from the ``s``-th plant step of the period on
+    (a computation delay, :mod:`drake_coop.sensing.latency`): the first ``s`` steps still get
+    ``τ(k−1)``, which joins the state as its last entry.
+    """
+    N = int(round(h / dt))
+    s = int(delay_steps)
+    a = J / (J + dt * D)
+    b = dt / (J + dt * D)
+    A = np.array([[1.0, dt * a], [0.0, a]])
+    B = np.array([dt * b, b])
+
+    def steps(m: int) -> tuple[np.ndarray, np.ndarray]:
+        return (np.linalg.matrix_power(A, m),
+                sum((np.linalg.matrix_power(A, i) @ B for i in range(m)), np.zeros(2)))
+
+    if velocity == "measured":
+        c = np.array([-D * Lambda - K_R * Lambda, -J * Lambda - K_R])
+        rows = np.zeros((0, 2))
+    else:
+        z = np.array([1.0, 0.0, -1.0, 0.0])
+        o = np.array([0.0, 0.0, 0.0, 1.0])
+        qdot_hat = o + (Lambda + k_d) * z
+        qdot_o = o + k_d * z
+        qdot_r = np.array([0.0, 0.0, -Lambda, 0.0])
+        c = J * (-Lambda * qdot_hat) + D * qdot_r - K_R * (qdot_o - qdot_r)
+        rows = np.vstack([np.array([0.0, 0.0, 1.0, 0.0]) + h * qdot_hat,
+                          o + h * (-Lambda * qdot_hat + k_d * Lambda * z)])
+    n = len(c)
+    A_late, B_late = steps(N - s)          # the steps with τ(k)
+    A_early, B_early = steps(s)            # the steps with τ(k−1)
+    size = n + (1 if s else 0)
+    Phi = np.zeros((size, size))
+    Phi[0:2, 0:2] = A_late @ A_early
+    Phi[0:2, 0:n] += np.outer(B_late, c)
+    Phi[2:n, 0:n] = rows
+    if s:
+        Phi[0:2, n] = A_late @ B_early
+        Phi[n, 0:n] = c
+    return Phi
+
+
+def one_joint_rho(*args, **kwargs) -> float:
+    """``ρ(Φ)`` of :func:`one_joint_phi` (same arguments)."""
+    return float(np.max(np.abs(np.linalg.eigvals(one_joint_phi(*args, **kwargs)))))
+
+
+def crossing_period(J: float, D: float, Lambda: float, k_d: float, K_R: float, dt: float,
+                    velocity: str = "observer", max_steps: int = 200) -> float | None:
+    """The smallest ``h = N Δt`` at which ``ρ ≥ 1`` (None up to ``max_steps`` steps)."""
+    for N in range(1, max_steps + 1):
+        if one_joint_rho(J, D, Lambda, k_d, K_R, N * dt, dt, velocity) >= 1.0:
+            return N * dt
+    return None
+
+
+def observer_period_limit(Lambda: float, k_d: float) -> float:
+    """``2 / p_f``: the largest ``h`` at which the forward-Euler observer loop is stable while
+    the arm does not move within a sample (``J → ∞``).
+
+    With ``q`` frozen, (15)–(16) with ``q̈̂_r = −Λ q̇̂`` (free motion, ``q_d`` constant) are
+    linear in ``(q̂, q̇̂_o)`` with the characteristic polynomial
+    ``s² + (2Λ + k_d) s + Λ k_d``; forward Euler maps a real pole ``−p`` to ``1 − h p``, stable
+    iff ``h < 2/p``, and the fast pole
+    ``p_f = ((2Λ + k_d) + √((2Λ + k_d)² − 4Λk_d)) / 2`` binds first.
+    """
+    b = 2.0 * Lambda + k_d
+    p_fast = 0.5 * (b + np.sqrt(b * b - 4.0 * Lambda * k_d))
+    return float(2.0 / p_fast)

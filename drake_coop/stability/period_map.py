@@ -1,0 +1,272 @@
+"""The one-period map of a sampled closed loop, its equilibrium and its monodromy matrix Φ.
+
+A closed loop whose controllers tick every ``h`` and whose plant steps every ``Δt`` (``h = N Δt``)
+is, between two ticks, a map of its whole state
+
+.. math::
+    x_{k+1} = F(x_k), \\qquad x_k = x(t_k^-),
+
+``x(t_k^-)`` the state at the tick time ``t_k`` *before* that tick's updates (what
+``Simulator.AdvanceTo(t_k)`` leaves: Drake handles the events at ``t_k`` at the start of the
+next step). ``F`` is evaluated with the Simulator itself, as a fresh simulation from ``x``:
+restore the operating point's context (time, abstract state, parameters such as locked joints
+and active constraints), write ``x``, ``Initialize()`` — which runs the initialization events,
+so that abstract state derived from the state is recomputed from ``x`` (a discrete plant with
+sampled output ports keeps its step results there) — and ``AdvanceTo(t_0 + h)``. At an equilibrium ``x* = F(x*)`` the loop is locally
+asymptotically stable iff the spectral radius of the monodromy matrix ``Φ = ∂F/∂x (x*)`` is
+below one.
+
+Drake's ``Linearize`` cannot do this here (Python LeafSystems do not convert to AutoDiff; on
+this diagram drake 1.51 aborts the process), so ``Φ`` comes from central differences,
+
+.. math::
+    \\Phi_{:,j} \\approx \\frac{F(x^* + \\varepsilon_j e_j) - F(x^* - \\varepsilon_j e_j)}{2\\varepsilon_j},
+
+error ``O(ε²)`` from truncation plus ``O(η/ε)`` from the map's own noise ``η`` (rounding, the
+plant's iterative contact solver). :func:`step_sensitivity` measures it by repeating the
+computation at several ``ε``.
+
+Which components take part (:class:`MapReport`):
+
+* *counters* — entries that advance by exactly one per period whatever the state (tick indices
+  latched by the sampled systems): functions of time, not of the loop; never perturbed.
+* *locked* — positions/velocities of joints the plant holds locked
+  (:meth:`~drake_coop.stability.state.LoopState.locked_indices`).
+* *overwritten* — entries whose column of ``Φ`` is exactly zero: the next tick overwrites them
+  before anything reads them (the torque latched for the previous interval, the older slot of a
+  delay buffer). A zero column contributes an eigenvalue 0 and nothing else (expand
+  ``det(μI − Φ)`` along it), so dropping them leaves ``ρ(Φ)`` unchanged.
+* *dynamic* — the rest: ``Φ`` is reported on these.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context, Diagram
+
+from drake_coop.stability.state import LoopState
+
+__all__ = ["MapReport", "Mode", "PeriodMap", "analyse", "find_equilibrium", "jacobian",
+           "modes", "step_sensitivity"]
+
+
+class PeriodMap:
+    """``x_{k+1} = F(x_k)`` over one control period ``h``, evaluated with the Simulator.
+
+    Parameters
+    ----------
+    diagram : Diagram
+        The closed loop.
+    context : Context
+        A root context of ``diagram`` at the operating point, its time a tick ``t_0``; it is
+        cloned (time, state, abstract state and parameters restored before every evaluation).
+    period : float
+        The control period ``h``.
+    """
+
+    def __init__(self, diagram: Diagram, context: Context, period: float):
+        self.diagram = diagram
+        self.period = float(period)
+        self.nominal = context.Clone()
+        self.t0 = context.get_time()
+        self.state = LoopState(diagram, context)
+        self.simulator = Simulator(diagram, context.Clone())
+        self.evaluations = 0
+
+    @property
+    def x0(self) -> np.ndarray:
+        """The state of the operating point's context."""
+        return self.state.get(self.nominal)
+
+    def set_nominal_state(self, x: np.ndarray) -> None:
+        """Make ``x`` the state of the operating point (e.g. the equilibrium found)."""
+        self.state.set(self.nominal, x)
+
+    def __call__(self, x: np.ndarray, periods: int = 1) -> np.ndarray:
+        """``F^periods(x)``."""
+        context = self.simulator.get_mutable_context()
+        context.SetTimeStateAndParametersFrom(self.nominal)
+        self.state.set(context, x)
+        self.simulator.Initialize()
+        self.simulator.AdvanceTo(self.t0 + periods * self.period)
+        self.evaluations += 1
+        return self.state.get(context)
+
+
+@dataclass
+class Mode:
+    """One eigenvalue ``μ`` of ``Φ``: ``|μ|``, time constant ``−h/ln|μ|`` (s), frequency
+    ``arg μ / (2π h)`` (Hz) and the state entries that dominate its eigenvector."""
+
+    mu: complex
+    magnitude: float
+    time_constant: float
+    frequency_hz: float
+    dominant: list[str]
+
+
+@dataclass
+class MapReport:
+    """Φ at an operating point and what went into it."""
+
+    rho: float
+    Phi: np.ndarray
+    labels: list[str]
+    dynamic: list[int]
+    counters: list[int]
+    locked: list[int]
+    overwritten: list[int]
+    residual: float
+    epsilon: float
+    evaluations: int
+    eigenvalues: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    slowest: Mode | None = None
+    fastest: Mode | None = None
+
+    def dynamic_labels(self) -> list[str]:
+        return [self.labels[i] for i in self.dynamic]
+
+
+def _counters(F: PeriodMap, x: np.ndarray, fx: np.ndarray) -> list[int]:
+    """Entries that advance by exactly 1 per period and are whole numbers: tick counters."""
+    return [i for i in range(len(x))
+            if float(x[i]).is_integer() and fx[i] - x[i] == 1.0]
+
+
+def jacobian(F: PeriodMap, x: np.ndarray, columns: list[int], epsilon: float | np.ndarray
+             ) -> np.ndarray:
+    """Central differences ``(F(x + ε e_j) − F(x − ε e_j)) / 2ε`` for ``j`` in ``columns``
+    (full rows, shape ``(len(x), len(columns))``)."""
+    eps = np.broadcast_to(np.asarray(epsilon, dtype=float), (len(x),))
+    J = np.zeros((len(x), len(columns)))
+    for c, j in enumerate(columns):
+        xp, xm = x.copy(), x.copy()
+        xp[j] += eps[j]
+        xm[j] -= eps[j]
+        J[:, c] = (F(xp) - F(xm)) / (2.0 * eps[j])
+    return J
+
+
+def find_equilibrium(F: PeriodMap, x: np.ndarray, free: list[int], *, epsilon: float = 1e-5,
+                     tol: float = 1e-10, max_iter: int = 8
+                     ) -> tuple[np.ndarray, float, np.ndarray | None]:
+    """Newton's method on ``F(x) − x = 0`` over the ``free`` entries (the others as given).
+
+    The Jacobian ``Φ − I`` comes from :func:`jacobian` (recomputed each iteration: the map may
+    be unstable, so settling by simulation is no option). Returns ``(x*, residual, Φ_free)``
+    with ``residual = max |F(x*) − x*|`` over the free entries and the last Jacobian's
+    free-by-free block (None if no iteration ran).
+    """
+    x = np.asarray(x, dtype=float).copy()
+    free = list(free)
+    Phi = None
+    r = (F(x) - x)[free]
+    for _ in range(max_iter):
+        if np.max(np.abs(r), initial=0.0) <= tol:
+            break
+        Phi = jacobian(F, x, free, epsilon)[free, :]
+        try:
+            dx = np.linalg.solve(Phi - np.eye(len(free)), -r)
+        except np.linalg.LinAlgError:
+            dx = np.linalg.lstsq(Phi - np.eye(len(free)), -r, rcond=None)[0]
+        x_new = x.copy()
+        x_new[free] += dx
+        r_new = (F(x_new) - x_new)[free]
+        if not np.all(np.isfinite(r_new)) or np.max(np.abs(r_new)) >= np.max(np.abs(r)):
+            break
+        x, r = x_new, r_new
+    return x, float(np.max(np.abs(r), initial=0.0)), Phi
+
+
+def modes(Phi: np.ndarray, labels: list[str], period: float, top: int = 3
+          ) -> tuple[np.ndarray, Mode | None, Mode | None]:
+    """Eigenvalues of ``Φ`` (by decreasing ``|μ|``), its slowest mode (largest ``|μ|``) and its
+    fastest (smallest nonzero ``|μ|``), each with the ``top`` dominant state entries."""
+    if Phi.size == 0:
+        return np.zeros(0), None, None
+    mu, V = np.linalg.eig(Phi)
+    order = np.argsort(-np.abs(mu))
+    mu, V = mu[order], V[:, order]
+
+    def mode(i: int) -> Mode:
+        m = complex(mu[i])
+        a = abs(m)
+        tc = -period / math.log(a) if 0.0 < a < 1.0 else math.inf
+        w = np.abs(V[:, i])
+        lead = [labels[j] for j in np.argsort(-w)[:top]]
+        return Mode(m, a, tc, abs(math.atan2(m.imag, m.real)) / (2 * math.pi * period), lead)
+
+    nonzero = [i for i in range(len(mu)) if abs(mu[i]) > 1e-12]
+    return mu, mode(0), mode(nonzero[-1]) if nonzero else None
+
+
+def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float = 1e-5,
+            newton: bool = True, tol: float = 1e-10) -> MapReport:
+    """Equilibrium, Φ on the dynamic entries, ρ(Φ) and the slowest and fastest modes.
+
+    Order: counters (one evaluation), locked joints, then a first Jacobian at ``x_guess``
+    names the overwritten entries (zero columns), Newton's method solves ``F(x) = x`` on the
+    dynamic entries only (an overwritten entry, e.g. a sensor's latched reading of the stiff
+    constraint force, would otherwise put its own sensitivity into the residual), and Φ is
+    computed again at the equilibrium.
+
+    Parameters
+    ----------
+    F : PeriodMap
+        The map at the operating point.
+    x_guess : ndarray, optional
+        Start of the equilibrium search (default: the operating point's state).
+    epsilon : float
+        Step of the central differences (absolute, every entry: radians, rad/s, metres, N·s
+        and N·m, all of order 0.1–1 at the operating points). Default 1e-5: inside the plateau
+        where ρ does not depend on it (1e-3 … 1e-6 agree to 1e-6 on the paper's loop; at 1e-7
+        and below the plant's iterative contact solver stops resolving the held loop's
+        fastest constraint mode, see :func:`step_sensitivity`).
+    newton : bool
+        Solve ``F(x) = x`` first (else Φ is taken at ``x_guess``).
+    """
+    x = F.x0 if x_guess is None else np.asarray(x_guess, dtype=float).copy()
+    fx = F(x)
+    counters = _counters(F, x, fx)
+    locked = F.state.locked_indices(F.nominal)
+    candidates = [i for i in range(len(x)) if i not in set(counters) | set(locked)]
+    J = jacobian(F, x, candidates, epsilon)
+    overwritten = [j for c, j in enumerate(candidates) if not np.any(J[:, c])]
+    dynamic = [j for j in candidates if j not in set(overwritten)]
+    if newton:
+        x, residual, _ = find_equilibrium(F, x, dynamic, epsilon=epsilon, tol=tol)
+        F.set_nominal_state(x)
+        J = jacobian(F, x, candidates, epsilon)
+    else:
+        residual = float(np.max(np.abs((fx - x)[dynamic]), initial=0.0))
+    cols = [candidates.index(j) for j in dynamic]
+    Phi = J[np.ix_(dynamic, cols)]
+    labels = F.state.labels
+    if not np.all(np.isfinite(Phi)):
+        return MapReport(rho=math.inf, Phi=Phi, labels=labels, dynamic=dynamic,
+                         counters=counters, locked=locked, overwritten=overwritten,
+                         residual=residual, epsilon=epsilon, evaluations=F.evaluations)
+    mu, slow, fast = modes(Phi, [labels[j] for j in dynamic], F.period)
+    rho = float(np.max(np.abs(mu))) if len(mu) else 0.0
+    return MapReport(rho=rho, Phi=Phi, labels=labels, dynamic=dynamic, counters=counters,
+                     locked=locked, overwritten=overwritten, residual=residual,
+                     epsilon=epsilon, evaluations=F.evaluations, eigenvalues=mu,
+                     slowest=slow, fastest=fast)
+
+
+def step_sensitivity(F: PeriodMap, x: np.ndarray, dynamic: list[int],
+                     epsilons=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8)) -> list[tuple[float, float, float]]:
+    """``(ε, ρ(Φ_ε), max|Φ_ε − Φ_ref|)`` for each ``ε``, ``Φ_ref`` the first ``ε``'s."""
+    out = []
+    ref = None
+    for eps in epsilons:
+        J = jacobian(F, x, dynamic, eps)[dynamic, :]
+        if ref is None:
+            ref = J
+        rho = float(np.max(np.abs(np.linalg.eigvals(J)))) if J.size else 0.0
+        out.append((float(eps), rho, float(np.max(np.abs(J - ref)))))
+    return out
