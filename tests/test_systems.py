@@ -6,7 +6,7 @@
 * events fire at k·h, the plant makes no spurious tiny steps, logs are at the ticks;
 * no algebraic loop, state-only outputs declared as such;
 * a plain NumPy loop written here from equations.md, fed the logged q(k), reproduces the
-  diagram's τ(k), q̂(k) and λ̂(k) to 1e-9.
+  diagram's τ(k), q̂(k) and λ̂(k) to 1e-11 of each signal's scale.
 """
 
 import numpy as np
@@ -196,6 +196,10 @@ def test_numpy_replay_reproduces_logged_torque_and_estimates(short_run, index):
     replay = _replay(scenario, index, log["q"])
     held = reference_samples(scenario, index)[1][: log["t"].size, 10] > 0.5
     assert held.sum() > 100 and (~held).sum() > 100      # both forms are exercised
-    np.testing.assert_allclose(replay["q_hat"], log["q_hat"], rtol=0, atol=1e-9)
-    np.testing.assert_allclose(replay["lambda_hat"], log["lambda_hat"], rtol=0, atol=1e-9)
-    np.testing.assert_allclose(replay["tau"], log["tau"], rtol=0, atol=1e-9)
+    # 1e-11 of each signal's largest magnitude: the replay and the systems are the same
+    # equations in other operation orders (closed form vs Drake, NumPy vs plain floats), which
+    # differ by a few hundred roundings at most (measured ~2e-13 of the scale).
+    for key in ("q_hat", "lambda_hat", "tau"):
+        scale = np.abs(log[key]).max()
+        np.testing.assert_allclose(replay[key], log[key], rtol=0, atol=1e-11 * scale,
+                                   err_msg=key)
