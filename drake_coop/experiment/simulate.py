@@ -4,11 +4,11 @@ The run follows its :class:`~drake_coop.experiment.plan.RunPlan`. The simulator 
 where the plant changes: the grasp constraints are switched on exactly at the first held
 control tick ``k_grasp h`` and off at ``k_release h`` (between two ``AdvanceTo`` calls, before
 that tick's updates), so the plant and the controllers change form at the same instant. The
-divergence guards are a Simulator monitor (:meth:`Simulator.set_monitor`), evaluated after the
-step that reaches each multiple of ``guards.check_period``: a non-finite state, a joint past its
-limit or a force beyond ``guards.max_force`` ends the run (the monitor returns
-``EventStatus.ReachedTermination``) with ``status = "diverged"`` and whatever was logged so far;
-so does an exception inside Drake.
+divergence guards run between ``AdvanceTo`` chunks of ``guards.check_period`` (rounded to whole
+control ticks), after the step that reaches each chunk's end: a non-finite state, a joint past
+its limit or a force beyond ``guards.max_force`` ends the run with ``status = "diverged"`` and
+whatever was logged so far; so does an exception inside Drake. No Python call happens at the
+plant's steps for the guards (a Simulator monitor would be one per plant step).
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from typing import Callable, ContextManager
 
 import numpy as np
 from pydrake.systems.analysis import Simulator, SimulatorStatus
-from pydrake.systems.framework import EventStatus
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.plan import RunPlan, plan_run
@@ -109,48 +108,11 @@ def _check_guards(exp: Experiment, context) -> str | None:
     return None
 
 
-#: Monitor results that end ``AdvanceTo``.
-_STOPS = (EventStatus.Severity.kReachedTermination, EventStatus.Severity.kFailed)
-
-
-class GuardMonitor:
-    """The divergence guards as a Simulator monitor (``simulator.set_monitor(monitor)``).
-
-    Called by the simulator after every step; every ``guards.check_period`` of simulated time
-    it evaluates :func:`_check_guards` and reports progress. A tripped guard returns
-    ``EventStatus.ReachedTermination``: ``AdvanceTo`` returns early and :attr:`message` says
-    why.
-    """
-
-    def __init__(self, exp: Experiment, plan: RunPlan,
-                 progress: Callable[[float, float, float], None] | None = None,
-                 also: Callable | None = None):
-        self._exp = exp
-        self._plan = plan
-        self._progress = progress
-        self._also = also        # a monitor installed before (e.g. by ``on_start``), kept
-        chunk = max(1, int(round(exp.scenario.guards.check_period / plan.h)))
-        self._period = chunk * plan.h
-        self._next = self._period
-        self._start = time.perf_counter()
-        self.message: str | None = None
-
-    def __call__(self, context) -> EventStatus:
-        if self._also is not None:
-            status = self._also(context)
-            if status is not None and status.severity() in _STOPS:
-                return status
-        t = context.get_time()
-        if t < self._next * (1 - 1e-12):
-            return EventStatus.DidNothing()
-        self._next = (math.floor(t / self._period + 1e-9) + 1) * self._period
-        reason = _check_guards(self._exp, context)
-        if reason is not None:
-            self.message = f"diverged at t = {t:.3f} s: {reason}"
-            return EventStatus.ReachedTermination(self._exp.diagram, self.message)
-        if self._progress is not None:
-            self._progress(t, self._plan.t_end, time.perf_counter() - self._start)
-        return EventStatus.Succeeded()
+def guard_chunks(plan: RunPlan, check_period: float) -> list[int]:
+    """The ticks where the run stops: every ``check_period`` (whole ticks, at least one) and at
+    the plan's stops (grasp, release, end), in increasing order."""
+    chunk = max(1, int(round(check_period / plan.h)))
+    return sorted({*range(chunk, plan.k_end, chunk), *plan.stops})
 
 
 def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
@@ -214,8 +176,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         Passed to :func:`~drake_coop.experiment.diagram.build_experiment` (visualizers).
     on_start : callable, optional
         ``on_start(experiment, simulator)`` just before the first step (start recordings); a
-        monitor it sets with ``simulator.set_monitor`` is called before the guards' at every
-        step.
+        monitor it sets with ``simulator.set_monitor`` is called at every step (a termination
+        it returns ends the run as diverged, with its message).
     hold_signals : callable, optional
         A context manager factory entered once the loop has stopped, around the collection of
         the logs (the command line defers SIGINT/SIGTERM there, so that a second Ctrl-C cannot
@@ -246,15 +208,13 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     simulator.Initialize()
     if on_start is not None:
         on_start(exp, simulator)
-    monitor = GuardMonitor(exp, plan, progress, also=simulator.get_monitor())
-    simulator.set_monitor(monitor)
     status, message = "ok", ""
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
     start = time.perf_counter()
     try:
-        # Stop only where the plant changes (grasp, release) and at the end, at control ticks
-        # (k h, computed as Drake computes event times).
-        for k_stop in plan.stops:
+        # Stop where the plant changes (grasp, release), at the end, and every guard period,
+        # at control ticks (k h, computed as Drake computes event times).
+        for k_stop in guard_chunks(plan, scenario.guards.check_period):
             try:
                 result = simulator.AdvanceTo(k_stop * plan.h)
             except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
@@ -263,10 +223,17 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
                     f"{' '.join(str(exc).split())[:300]}")
                 break
             if result.reason() == SimulatorStatus.ReturnReason.kReachedTerminationCondition:
-                status, message = "diverged", monitor.message or result.message()
+                status, message = "diverged", result.message()   # a monitor of on_start
+                break
+            reason = _check_guards(exp, context)
+            if reason is not None:
+                status = "diverged"
+                message = f"diverged at t = {context.get_time():.3f} s: {reason}"
                 break
             if k_stop in plan.switches:
                 exp.coop.set_held(plant_context, plan.switches[k_stop])
+            if progress is not None and k_stop != plan.k_end:
+                progress(context.get_time(), T, time.perf_counter() - start)
         if status == "ok" and progress is not None:
             progress(context.get_time(), T, time.perf_counter() - start)
     except KeyboardInterrupt:     # Ctrl-C, wherever it lands: stop, keep what was logged
