@@ -112,7 +112,9 @@ _TIMED = {
     "controller (13)": ("drake_coop.control.controller", "Controller",
                         ("_calc_terms", "_calc_tau", "_calc_qddot_r_hat", "_update_latch")),
     "force sensor (ground truth)": ("drake_coop.plant.wrist", "ForceSensor",
-                                    ("_calc_force_cache", "_calc_force", "_calc_lambda")),
+                                    ("_calc_force_cache", "_calc_force", "_calc_lambda",
+                                     "_update_step")),
+    "F/T sensor model": ("drake_coop.sensing.force_sensor", "FTSensor", ("_update_reading",)),
     "wrist kinematics (all arms)": ("drake_coop.plant.wrist", "WristKinematics",
                                     ("_calc_signals",)),
 }

@@ -56,7 +56,8 @@ def _tau_before_and_after_perturbation(scenario):
     pc = exp.coop.plant.GetMyMutableContextFromRoot(ctx)
 
     def taus():
-        return [rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx)).copy()
+        # τ(k) that the tick's update latches (the tau port is state, still τ(k−1)).
+        return [rs.controller.next_tau(rs.controller.GetMyContextFromRoot(ctx)).copy()
                 for rs in exp.robots]
 
     def force():

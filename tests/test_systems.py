@@ -38,7 +38,9 @@ def test_next_torque_ignores_plant_velocities_and_constraint_state():
     exp, sim, ctx = advance_to_tick(scenario, k_grasp + 40)
     plant = exp.coop.plant
     pc = plant.GetMyMutableContextFromRoot(ctx)
-    taus = [rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx)).copy()
+    # τ(k) of the tick the simulator stopped at, before its events: what the tick's update
+    # latches (the tau port is state and still holds τ(k−1): comparing it would prove nothing).
+    taus = [rs.controller.next_tau(rs.controller.GetMyContextFromRoot(ctx)).copy()
             for rs in exp.robots]
     forces = [rs.force_sensor.GetOutputPort("F_meas").Eval(
         rs.force_sensor.GetMyContextFromRoot(ctx)).copy() for rs in exp.robots]
@@ -48,13 +50,18 @@ def test_next_torque_ignores_plant_velocities_and_constraint_state():
     plant.SetVelocities(pc, rng.normal(size=plant.num_velocities()))
     exp.coop.set_held(pc, False)
     for rs, tau in zip(exp.robots, taus):
-        new = rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx))
+        new = rs.controller.next_tau(rs.controller.GetMyContextFromRoot(ctx))
         np.testing.assert_array_equal(new, tau)
     # ...while the plant's ground truth did change (the sensor's ports are live).
     assert not exp.coop.is_held(pc)
     changed = exp.robots[0].force_sensor.GetOutputPort("F_meas").Eval(
         exp.robots[0].force_sensor.GetMyContextFromRoot(ctx))
     assert np.linalg.norm(changed - forces[0]) > 1.0
+    # The tick's update latches exactly that torque, which the plant then applies.
+    sim.AdvanceTo(ctx.get_time() + scenario.plant.time_step / 2)
+    for rs, tau in zip(exp.robots, taus):
+        np.testing.assert_array_equal(
+            rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx)), tau)
 
 
 def test_force_observer_22_equals_21_with_the_controllers_torque():
@@ -66,8 +73,7 @@ def test_force_observer_22_equals_21_with_the_controllers_torque():
             cc = rs.control.GetMyContextFromRoot(ctx)
             lam_22 = rs.control.GetOutputPort("lambda_hat").Eval(cc)[0]
             terms = rs.controller.terms(rs.controller.GetMyContextFromRoot(ctx))
-            tau = rs.control.GetOutputPort("tau").Eval(cc)
-            np.testing.assert_array_equal(tau, terms["tau"])
+            tau = terms["tau"]     # τ(k): what the tick's update latches (the port holds τ(k−1))
             q = exp.coop.arm_positions(exp.coop.plant.GetMyContextFromRoot(ctx),
                                        exp.robots.index(rs))
             lam_21 = rs.law.force_estimate_21(q, terms["qdot_r"], terms["qddot_r_hat"], tau,
@@ -113,8 +119,8 @@ def test_events_fire_at_ticks_and_the_ft_read_without_tiny_steps():
     reads = ends[np.abs((ends + 1.5 * dt) / h - np.round((ends + 1.5 * dt) / h)) < 1e-9]
     assert reads.size == half.sum() // 2 >= 50       # one read per tick, and only there
     # The controller latched one torque per tick: last latched tick is that of t = 0.495 s.
-    latch = exp.robots[0].controller.GetMyContextFromRoot(ctx).get_discrete_state(0).value()
-    assert int(latch[-1]) == 55
+    ctrl = exp.robots[0].controller
+    assert ctrl.latched_tick(ctrl.GetMyContextFromRoot(ctx)) == 55
 
 
 def test_logs_are_sampled_at_the_ticks(short_run):

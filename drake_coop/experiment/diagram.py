@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 from pydrake.systems.framework import Diagram, DiagramBuilder
 from pydrake.systems.primitives import (
+    Demultiplexer,
     LogVectorOutput,
     Saturation,
     TrajectorySource,
@@ -65,7 +66,7 @@ class RobotSystems:
     force_observer: ForceObserver | SensedForce | NoForceEstimate
     controller: Controller
     force_sensor: ForceSensor
-    encoders: Encoders | None = None
+    encoders: Encoders | Demultiplexer | None = None
     ft_sensor: FTSensor | None = None
     actuators: Saturation | None = None
     loggers: dict[str, VectorLogSink] = field(default_factory=dict)
@@ -143,6 +144,30 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     return diagram, vel, force, ctrl
 
 
+def is_ideal(settings) -> bool:
+    """Encoders that pass the exact ``q(t_k)``: no quantization, no noise, no delay."""
+    return (settings.counts_per_rev is None and settings.noise_std == 0.0
+            and settings.delay_samples == 0)
+
+
+def add_encoders(builder: DiagramBuilder, name: str, n: int, period: float, settings,
+                 robot_index: int, state):
+    """``<name>_encoders``, wired to the arm's plant ``state``; returns it and its ``q`` port.
+
+    Ideal encoders are Drake's :class:`~pydrake.systems.primitives.Demultiplexer` (C++) taking
+    ``q`` out of ``[q, q̇]``: what the controller reads at ``t_k`` is the plant's ``q(t_k)``, as
+    :class:`~drake_coop.sensing.encoders.Encoders` would give bit for bit, without a Python call.
+    """
+    if is_ideal(settings):
+        encoder = builder.AddNamedSystem(f"{name}_encoders", Demultiplexer([n, n]))
+        builder.Connect(state, encoder.get_input_port(0))
+        return encoder, encoder.get_output_port(0)
+    encoder = builder.AddNamedSystem(f"{name}_encoders",
+                                     Encoders(n, period, settings, robot_index))
+    builder.Connect(state, encoder.GetInputPort("state"))
+    return encoder, encoder.GetOutputPort("q")
+
+
 def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = None,
                      log: bool = True, before_build=None, references=None) -> Experiment:
     """Build the experiment's Diagram from a scenario.
@@ -166,7 +191,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     b = builder or DiagramBuilder()
     coop = build_plant(b, scenario)
     plant = coop.plant
-    sensors = add_force_sensors(b, coop)
+    sensors = add_force_sensors(b, coop, h)
     robots = []
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
@@ -181,9 +206,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
-        encoder = b.AddNamedSystem(f"{name}_encoders", Encoders(n, h, robot.encoders, i))
-        b.Connect(state, encoder.GetInputPort("state"))
-        b.Connect(encoder.GetOutputPort("q"), control.GetInputPort("q"))
+        encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
+        b.Connect(q_port, control.GetInputPort("q"))
         ft = b.AddNamedSystem(f"{name}_ft_sensor",
                               FTSensor(h, dt, robot.force_sensor, i, law.m))
         b.Connect(sensors[i].GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
@@ -202,15 +226,15 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                           encoders=encoder, ft_sensor=ft, actuators=actuators)
         if log:
             sources = {
-                "q": encoder.GetOutputPort("q"),
+                "q": q_port,
                 "q_hat": control.GetOutputPort("q_hat"),
                 "reference": ref.get_output_port(),
                 "lambda_hat": control.GetOutputPort("lambda_hat"),
                 "Delta_F_tilde": control.GetOutputPort("Delta_F_tilde"),
                 "tau": actuators.get_output_port(),
                 "tau_cmd": control.GetOutputPort("tau"),
-                "F_meas": sensors[i].GetOutputPort("F_meas"),
-                "lambda_meas": sensors[i].GetOutputPort("lambda_meas"),
+                "F_meas": sensors[i].GetOutputPort("F_step"),
+                "lambda_meas": sensors[i].GetOutputPort("lambda_step"),
                 "lambda_sensor": ft.GetOutputPort("lambda_sensor"),
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,

@@ -32,7 +32,12 @@ from drake_coop.experiment.references import (
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
-from drake_coop.scenario.timing import check_run_size
+from drake_coop.scenario.timing import check_run_size, tick_of
+from drake_coop.sensing.encoders import Encoders
+
+#: Logged signals latched at a tick by its own updates (the torque, the force of the step
+#: taken): a logger publishing at ``t_{k+1}`` holds the value of tick ``k``.
+LATCHED_SIGNALS = ("tau", "tau_cmd", "F_meas", "lambda_meas")
 
 
 @dataclass
@@ -71,7 +76,7 @@ def initialize(exp: Experiment, context) -> None:
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
     initialize_plant_context(coop, plant_context, q0, z_grasp)
     for rs, q in zip(exp.robots, q0):
-        if rs.encoders is not None:   # the delay line holds the reading at rest
+        if isinstance(rs.encoders, Encoders):   # the delay line holds the reading at rest
             rs.encoders.set_initial_state(rs.encoders.GetMyMutableContextFromRoot(context), q)
             q = rs.encoders.initial_reading(q)   # what the controller knows of q(0)
         rs.velocity_observer.set_initial_state(
@@ -115,15 +120,62 @@ def guard_chunks(plan: RunPlan, check_period: float) -> list[int]:
     return sorted({*range(chunk, plan.k_end, chunk), *plan.stops})
 
 
+def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
+    """Run the events of the tick the simulator stopped at, so that its latched signals exist.
+
+    ``AdvanceTo(k h)`` ends with the loggers' publish at ``t_k``, *before* that tick's updates:
+    ``τ(k)`` and the force of the step from ``t_k`` are not latched yet. A run that ended
+    normally or by a guard takes half a plant step more (the tick's updates and the plant's step
+    from ``t_k``; nothing is published, the reported end stays ``t_k``). A run that stopped
+    inside a step (an exception, Ctrl-C) is left as it is; :func:`collect_logs` then keeps only
+    the ticks whose signals were latched.
+    """
+    context = simulator.get_context()
+    if status not in ("ok", "diverged") or not exp.robots:
+        return
+    ctrl = exp.robots[0].controller
+    t = context.get_time()
+    k = tick_of(t, exp.scenario.control_period)
+    if k is None or ctrl.latched_tick(ctrl.GetMyContextFromRoot(context)) == k:
+        return
+    try:
+        simulator.AdvanceTo(t + 0.5 * exp.scenario.plant.time_step)
+    except RuntimeError:      # the blown-up state of a diverged run: keep what was latched
+        pass
+
+
 def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
-    """The loggers' data in the schema of :mod:`drake_coop.results.logs`."""
+    """The loggers' data in the schema of :mod:`drake_coop.results.logs`, one row per tick.
+
+    Alignment: loggers publish at ``t_k`` before the tick's updates. The signals of
+    :data:`LATCHED_SIGNALS` (``τ(k)`` and the force of the step taken from ``t_k``) are
+    latched by those updates, so the sample published at ``t_{k+1}`` holds tick ``k``: they
+    are shifted back by one sample, and the last published tick's come from the logged ports'
+    current values when its updates have run (:func:`finish_last_tick`). Rule for a run that
+    stopped before the last published tick's updates ran (an exception or Ctrl-C during them):
+    its logs end one tick earlier, at the last tick whose torque is known.
+    """
     logs = {}
     task = exp.scenario.task
     for i, rs in enumerate(exp.robots):
         raw = {k: lg.FindLog(context) for k, lg in rs.loggers.items()}
-        n = min(r.num_samples() for r in raw.values())
+        published = min(r.num_samples() for r in raw.values())
+        ctrl_context = rs.controller.GetMyContextFromRoot(context)
+        complete = published > 0 and rs.controller.latched_tick(ctrl_context) == \
+            tick_of(raw["q"].sample_times()[published - 1], exp.scenario.control_period)
+        n = published if complete else max(published - 1, 0)
         t = raw["q"].sample_times()[:n]
-        data = {k: r.data()[:, :n].T for k, r in raw.items()}
+        data = {}
+        for key, r in raw.items():
+            if key not in LATCHED_SIGNALS:
+                data[key] = r.data()[:, :n].T
+                continue
+            rows = r.data()[:, 1:published].T
+            if complete:
+                logger = rs.loggers[key]
+                now = logger.get_input_port().Eval(logger.GetMyContextFromRoot(context))
+                rows = np.vstack([rows, np.reshape(now, (1, -1))])
+            data[key] = rows[:n]
         arm = exp.coop.arms[i].arm
         arm_dofs = rs.law.n
         layout = rs.law.layout
@@ -239,7 +291,9 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     except KeyboardInterrupt:     # Ctrl-C, wherever it lands: stop, keep what was logged
         status, message = "interrupted", f"interrupted at t = {context.get_time():.3f} s"
     wall = time.perf_counter() - start
+    t_stop = float(context.get_time())
     with hold_signals() if hold_signals is not None else contextlib.nullcontext():
+        finish_last_tick(exp, simulator, status)
         logs = collect_logs(exp, context)
     meta = {
         "status": status,
@@ -249,9 +303,9 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         "control_period": plan.h,
         "plant_time_step": scenario.plant.time_step,
         "object_mode": scenario.plant.object_mode,
-        "t_end": float(context.get_time()),
+        "t_end": t_stop,
         "wall_time_s": wall,
-        "realtime_factor": float(context.get_time()) / wall if wall > 0 else None,
+        "realtime_factor": t_stop / wall if wall > 0 else None,
         "scenario_yaml": dump_scenario(scenario),
     }
     return RunResult(logs=logs, meta=meta, wall_time=wall, experiment=exp)

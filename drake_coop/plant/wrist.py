@@ -13,6 +13,16 @@ Two kinds of systems, so that the cost per tick grows linearly with the number o
   only what its sensor needs, as a vector;
 * one :class:`ForceSensor` per arm (``<robot>_force_sensor``) turns that vector into the force
   and its components along the object's outward normals.
+
+Logged force of a tick (``F_step``, ``lambda_step``): with a control period, the sensor latches
+at every tick ``t_k`` the force of the plant step actually taken from ``t_k``: its discrete
+update runs after the controller's unrestricted update (so under ``τ(k)``) and after a grasp
+switch made between two ``AdvanceTo`` calls (so a grasp or release tick logs the step of the
+new form), from the same context as the plant's own update (the step's solve is shared). A
+logger publishing at ``t_{k+1}`` sees it; :func:`~drake_coop.experiment.simulate.collect_logs`
+shifts it back to the row of ``t_k``. The live ports (``F_meas``, ``lambda_meas``) at a tick
+before its events would read the state of ``t_k`` under ``τ(k − 1)``: a step that is not
+taken.
 """
 
 from __future__ import annotations
@@ -101,12 +111,16 @@ class ForceSensor(LeafSystem):
     Output ports
     ------------
     F_meas : 3-vector
-        Force of the object on the end effector, palm frame (N).
+        Force of the object on the end effector, palm frame (N), live: the plant step that
+        starts at the context's state and inputs.
     lambda_meas : m-vector
         ``N_i F_meas``, ``N_i`` the object's outward normals (rows): positive when squeezing (N).
+    F_step, lambda_step : 3- and m-vectors
+        With a ``period``: ``[F_meas, lambda_meas]`` of the step taken from the last tick,
+        latched at that tick (state only; see the module's docstring).
     """
 
-    def __init__(self, plant: MultibodyPlant, handles: ArmHandles):
+    def __init__(self, plant: MultibodyPlant, handles: ArmHandles, period: float | None = None):
         super().__init__()
         self._masses = [b.default_mass() for b in handles.sensor_bodies]
         self._g_list = plant.gravity_field().gravity_vector().tolist()
@@ -118,6 +132,12 @@ class ForceSensor(LeafSystem):
             {self.all_input_ports_ticket()})
         self.DeclareVectorOutputPort("F_meas", 3, self._calc_force)
         self.DeclareVectorOutputPort("lambda_meas", handles.arm.m, self._calc_lambda)
+        if period is not None:
+            self._F_step = self.DeclareDiscreteState(3)
+            self._lambda_step = self.DeclareDiscreteState(handles.arm.m)
+            self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_step)
+            self.DeclareStateOutputPort("F_step", self._F_step)
+            self.DeclareStateOutputPort("lambda_step", self._lambda_step)
 
     def force(self, context: Context) -> np.ndarray:
         """The measured force vector (palm frame)."""
@@ -145,6 +165,11 @@ class ForceSensor(LeafSystem):
             fz += mass * ((tz + (ax * py - ay * px) + (wx * cy - wy * cx)) - gz)
         return np.array([fx, fy, fz]) - w[0:3]
 
+    def _update_step(self, context: Context, discrete_state) -> None:
+        F = self.force(context)
+        discrete_state.set_value(self._F_step, F)
+        discrete_state.set_value(self._lambda_step, self._N @ F)
+
     def _calc_force(self, context: Context, output) -> None:
         output.SetFromVector(self.force(context))
 
@@ -152,9 +177,11 @@ class ForceSensor(LeafSystem):
         output.SetFromVector(self._N @ self.force(context))
 
 
-def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant) -> list[ForceSensor]:
+def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | None = None
+                      ) -> list[ForceSensor]:
     """``wrist_kinematics`` and one :class:`ForceSensor` per arm (``<robot>_force_sensor``),
-    wired to the plant."""
+    wired to the plant; with a control ``period``, each latches the force of every tick's step
+    (``F_step``, ``lambda_step``)."""
     plant = coop.plant
     wrist = builder.AddNamedSystem("wrist_kinematics", WristKinematics(plant, coop.arms))
     for name in ("reaction_forces", "body_poses", "body_spatial_velocities",
@@ -162,7 +189,7 @@ def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant) -> list[ForceSen
         builder.Connect(plant.GetOutputPort(name), wrist.GetInputPort(name))
     sensors = []
     for h in coop.arms:
-        sensor = builder.AddNamedSystem(f"{h.arm.name}_force_sensor", ForceSensor(plant, h))
+        sensor = builder.AddNamedSystem(f"{h.arm.name}_force_sensor", ForceSensor(plant, h, period))
         builder.Connect(wrist.GetOutputPort(f"{h.arm.name}_wrist"), sensor.GetInputPort("wrist"))
         sensors.append(sensor)
     return sensors
