@@ -21,12 +21,15 @@ those alternatives) and whose outputs are ``tau`` and the sources' signals (for 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from pydrake.systems.framework import Diagram, DiagramBuilder
+import numpy as np
+from pydrake.systems.framework import Context, OutputPort
 from pydrake.systems.primitives import (
     Demultiplexer,
     LogVectorOutput,
+    Multiplexer,
     Saturation,
     TrajectorySource,
     VectorLogSink,
@@ -56,6 +59,30 @@ from drake_coop.sensing.model_error import controller_arm_model
 
 
 @dataclass
+class RobotLog:
+    """One robot's logged signals: a C++ :class:`Multiplexer` of every logged port into one
+    :class:`VectorLogSink` publishing at every tick (one logger per robot, not one per signal).
+
+    ``slices[key]`` is where a signal sits in the logged vector, ``ports[key]`` its source.
+    """
+
+    logger: VectorLogSink
+    slices: dict[str, slice]
+    ports: dict[str, OutputPort]
+
+    def raw(self, context: Context) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Sample times ``(K,)`` and each signal's samples ``(width, K)``, as published."""
+        log = self.logger.FindLog(context)
+        data = log.data()
+        return log.sample_times(), {k: data[s] for k, s in self.slices.items()}
+
+    def now(self, context: Context, key: str) -> np.ndarray:
+        """The current value of a logged signal's source port."""
+        port = self.ports[key]
+        return port.Eval(port.get_system().GetMyContextFromRoot(context))
+
+
+@dataclass
 class RobotSystems:
     """The systems of one robot inside the experiment diagram."""
 
@@ -69,7 +96,7 @@ class RobotSystems:
     encoders: Encoders | Demultiplexer | None = None
     ft_sensor: FTSensor | None = None
     actuators: Saturation | None = None
-    loggers: dict[str, VectorLogSink] = field(default_factory=dict)
+    log: RobotLog | None = None
 
 
 @dataclass
@@ -179,7 +206,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     builder : DiagramBuilder, optional
         Builder to use (e.g. to add a visualizer first).
     log : bool
-        Add a :class:`VectorLogSink` per logged signal, sampling every control period.
+        Log every signal of :class:`RobotLog`, sampling every control period.
     before_build : callable, optional
         ``before_build(builder, coop)`` called just before ``Build()`` (visualizers).
     references : list of Trajectory, optional
@@ -239,10 +266,15 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,
             }
-            for key, port in sources.items():
-                logger = LogVectorOutput(port, b, publish_period=h)
-                logger.set_name(f"{name}_log_{key}")
-                rs.loggers[key] = logger
+            sizes = [port.size() for port in sources.values()]
+            mux = b.AddNamedSystem(f"{name}_log_signals", Multiplexer(sizes))
+            for j, port in enumerate(sources.values()):
+                b.Connect(port, mux.get_input_port(j))
+            logger = LogVectorOutput(mux.get_output_port(0), b, publish_period=h)
+            logger.set_name(f"{name}_log")
+            starts = np.cumsum([0] + sizes)
+            rs.log = RobotLog(logger, {k: slice(int(starts[j]), int(starts[j + 1]))
+                                       for j, k in enumerate(sources)}, dict(sources))
         robots.append(rs)
     if before_build is not None:
         before_build(b, coop)

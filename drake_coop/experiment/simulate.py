@@ -158,23 +158,21 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
     logs = {}
     task = exp.scenario.task
     for i, rs in enumerate(exp.robots):
-        raw = {k: lg.FindLog(context) for k, lg in rs.loggers.items()}
-        published = min(r.num_samples() for r in raw.values())
+        times, raw = rs.log.raw(context)
+        published = times.size
         ctrl_context = rs.controller.GetMyContextFromRoot(context)
         complete = published > 0 and rs.controller.latched_tick(ctrl_context) == \
-            tick_of(raw["q"].sample_times()[published - 1], exp.scenario.control_period)
+            tick_of(times[published - 1], exp.scenario.control_period)
         n = published if complete else max(published - 1, 0)
-        t = raw["q"].sample_times()[:n]
+        t = times[:n]
         data = {}
         for key, r in raw.items():
             if key not in LATCHED_SIGNALS:
-                data[key] = r.data()[:, :n].T
+                data[key] = r[:, :n].T
                 continue
-            rows = r.data()[:, 1:published].T
+            rows = r[:, 1:published].T
             if complete:
-                logger = rs.loggers[key]
-                now = logger.get_input_port().Eval(logger.GetMyContextFromRoot(context))
-                rows = np.vstack([rows, np.reshape(now, (1, -1))])
+                rows = np.vstack([rows, np.reshape(rs.log.now(context, key), (1, -1))])
             data[key] = rows[:n]
         arm = exp.coop.arms[i].arm
         arm_dofs = rs.law.n
