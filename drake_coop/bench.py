@@ -304,6 +304,7 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
             print(f"  {1e3 * step:3g} ms: experiment {row['experiment_us_per_tick']:6.0f}, plant "
                   f"alone {row['plant_alone_us_per_tick']:6.0f}, control loop "
                   f"{row['control_loop_us_per_tick']:6.0f} us per tick (ratio {row['ratio']:.2f})")
+    full_cpu = statistics.median(p["full_cpu_s"] for p in pairs)
     loop_us = 1e6 * (full_cpu - statistics.median(p["plant_cpu_s"] for p in pairs)) / ticks
     per_robot = loop_us / len(robots)
     print(f"per robot: the control loop costs {per_robot:.0f} us per tick per robot "
