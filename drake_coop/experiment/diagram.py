@@ -58,6 +58,12 @@ from drake_coop.sensing.force_sensor import FTSensor
 from drake_coop.sensing.model_error import controller_arm_model
 
 
+#: The signals each robot logs, in the order of its ``<robot>_log_signals`` Multiplexer's
+#: inputs (:class:`RobotLog`).
+LOG_KEYS = ("q", "q_hat", "reference", "lambda_hat", "Delta_F_tilde", "tau", "tau_cmd",
+            "F_meas", "lambda_meas", "lambda_sensor", "qdot_hat", "state")
+
+
 @dataclass
 class RobotLog:
     """One robot's logged signals: a C++ :class:`Multiplexer` of every logged port into one
@@ -266,6 +272,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,
             }
+            assert tuple(sources) == LOG_KEYS
             sizes = [port.size() for port in sources.values()]
             mux = b.AddNamedSystem(f"{name}_log_signals", Multiplexer(sizes))
             for j, port in enumerate(sources.values()):
