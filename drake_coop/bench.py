@@ -94,6 +94,8 @@ _TIMED = {
     "F/T sensor model": ("drake_coop.sensing.force_sensor", "FTSensor", ("_update_reading",)),
     "wrist kinematics (all arms)": ("drake_coop.plant.wrist", "WristKinematics",
                                     ("_calc_signals",)),
+    "wrist dynamics (all arms)": ("drake_coop.plant.wrist", "WristDynamics",
+                                  ("_calc_signals",)),
 }
 
 
