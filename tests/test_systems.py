@@ -216,3 +216,35 @@ def test_numpy_replay_reproduces_logged_torque_and_estimates(short_run, index):
         scale = np.abs(log[key]).max()
         np.testing.assert_allclose(replay[key], log[key], rtol=0, atol=1e-11 * scale,
                                    err_msg=key)
+
+
+def _interrupted_at(scenario, t_stop):
+    """The run interrupted (KeyboardInterrupt from a monitor) after the step reaching t_stop."""
+
+    def on_start(exp, simulator):
+        def monitor(context):
+            if context.get_time() >= t_stop - 1e-12:
+                raise KeyboardInterrupt
+        simulator.set_monitor(monitor)
+
+    return simulate(scenario, t_end=3.0, on_start=on_start)
+
+
+@pytest.mark.parametrize("offset_steps, rows", [(4, 0), (0, -1)],
+                         ids=["off_a_tick", "before_a_ticks_updates"])
+def test_logs_of_a_run_stopped_early_end_at_the_last_latched_tick(offset_steps, rows):
+    """Stopped 4 plant steps after tick k (its updates ran): the logs keep tick k, whose
+    torque comes from the latched port. Stopped at tick k itself, before its updates: the logs
+    end at tick k − 1. Either way every logged torque is the law at its logged q (replay)."""
+    scenario = short_scenario("planes", 0.001)
+    h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    k = 150                                        # held from k_grasp = 112
+    result = _interrupted_at(scenario, k * h + offset_steps * dt)
+    assert result.meta["status"] == "interrupted"
+    log = result.logs["robot1"]
+    assert log["t"].size == k + 1 + rows
+    np.testing.assert_array_equal(log["t"], np.arange(k + 1 + rows) * h)
+    replay = _replay(scenario, 0, log["q"])
+    scale = np.abs(log["tau"]).max()
+    np.testing.assert_allclose(replay["tau"], log["tau"], rtol=0, atol=1e-11 * scale)
+    assert all(v.shape[0] == log["t"].size for v in log.values())
