@@ -6,10 +6,18 @@
     (TrajectorySource)├─ reference ─────▶│ robotN_velocity_observer (15)-(16)               │
                       │                  │ robotN_force_observer (22)                        │──tau─▶ plant
     plant ─state─▶ robotN_encoders ─ q ─▶│ robotN_controller (13)                            │
-      │            (sensing.Encoders)    └───────────────────────────────────────────────────┘
-      │                                          tau ─▶ robotN_actuators (Saturation) ─▶ plant
-      └─ reaction forces, body poses ─▶ wrist_kinematics ─▶ robotN_force_sensor (ground truth)
+      │            (Encoders, or a C++   └───────────────────────────────────────────────────┘
+      │             Demultiplexer when ideal)    tau ─▶ robotN_actuators (Saturation) ─▶ plant
+      └─ state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor (ground truth)
+         (contact mode: reaction forces, body poses ─▶ wrist_kinematics)
                                           └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
+    every logged signal of a robot ─▶ robotN_log_signals (Multiplexer) ─▶ robotN_log
+
+Timing at a tick ``t_k``: the controller latches ``τ(k)`` by an unrestricted update (before
+every discrete update, so the plant's step at ``t_k`` applies it); the observers, the
+encoders and the ground truth's latch then update from the same context as the plant's step.
+Loggers publish before the tick's updates (see
+:func:`~drake_coop.experiment.simulate.collect_logs` for the alignment).
 
 The encoders pass on (quantized, noisy, delayed) joint positions only: with the paper's
 observers the control block never sees a velocity or a force. The alternatives of
