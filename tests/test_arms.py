@@ -31,7 +31,8 @@ EPS = 1e-6            # step of the central finite differences
 @pytest.fixture(scope="module", params=[0, 1], ids=["robot1", "robot2"])
 def arm_and_model(request):
     arm = Arm(ROBOTS[request.param])
-    return arm, ArmModel(arm)
+    # Drake's kinematics (AutoDiff J̇_φ): checked here against the closed form, independently.
+    return arm, ArmModel(arm, closed_form=False)
 
 
 def _postures(arm, count=30, seed=0, fraction=0.9):
@@ -232,6 +233,36 @@ def test_constraint_jacobian_derivative_equals_finite_difference(arm_and_model):
         np.testing.assert_allclose(dJ, arm.s * arm.jacobian_dot(q, d)[0:1, :], atol=1e-12)
         fd = (model.J_phi(q + EPS * d) - model.J_phi(q - EPS * d)) / (2 * EPS)
         assert np.linalg.norm(dJ - fd) < 1e-6 * np.linalg.norm(fd), (dJ, fd)
+
+
+@pytest.mark.parametrize("index", [0, 1], ids=["robot1", "robot2"])
+def test_paper_arms_model_uses_the_closed_form_equal_to_drakes_kinematics(index):
+    arm = Arm(ROBOTS[index])
+    fast, drake = ArmModel(arm), ArmModel(arm, closed_form=False)
+    assert fast.closed_form and not drake.closed_form
+    rng = np.random.default_rng(20 + index)
+    for q in _postures(arm, 10, seed=21):
+        d = rng.normal(size=3)
+        for a, b in zip(fast.J_phi_and_derivative(q, d), drake.J_phi_and_derivative(q, d)):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-13)
+        np.testing.assert_allclose(fast.phi(q), drake.phi(q), rtol=0, atol=1e-13)
+
+
+def test_inverse_dynamics_call_equals_H_a_plus_C_v_plus_D_v_plus_g(arm_and_model):
+    """One ``CalcInverseDynamics`` with the force elements (gravity, joint damping) against the
+    separate terms of (1) from Drake's mass matrix, bias term and gravity."""
+    arm, model = arm_and_model
+    plant, context = model.plant, model.plant.CreateDefaultContext()
+    rng = np.random.default_rng(22)
+    assert np.all(np.diag(model.D) > 0)     # the damping term is exercised
+    for q in _postures(arm, 5, seed=23):
+        v, a = rng.normal(size=(2, 3))
+        plant.SetPositions(context, q)
+        plant.SetVelocities(context, v)
+        expected = (plant.CalcMassMatrix(context) @ a + plant.CalcBiasTerm(context)
+                    + model.D @ v - plant.CalcGravityGeneralizedForces(context))
+        np.testing.assert_allclose(model.inverse_dynamics_terms(q, v, a), expected,
+                                   rtol=0, atol=1e-13 * np.abs(expected).max())
 
 
 # --------------------------------------------------------------------------- paper's path

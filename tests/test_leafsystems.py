@@ -121,17 +121,24 @@ def _controller_context(law, posture, t):
     return ctrl, ctx
 
 
-def test_controller_computes_the_torque_of_a_tick_not_yet_latched(law, posture):
+def test_controller_latches_the_law_of_the_tick_at_its_update(law, posture):
+    """Before the tick's update the port holds the previous torque (τ0 here); the periodic
+    unrestricted update at t_k latches (13) at the tick's inputs, with the tick index."""
+    from pydrake.systems.analysis import Simulator
+
     ctrl, ctx = _controller_context(law, posture, 5 * H)
-    tau = ctrl.GetOutputPort("tau").Eval(ctx)
-    np.testing.assert_array_equal(tau, ctrl.terms(ctx)["tau"])
+    np.testing.assert_array_equal(ctrl.GetOutputPort("tau").Eval(ctx), [1.0, 2.0, 3.0])
+    tau = ctrl.next_tau(ctx).copy()
+    qddot = ctrl.terms(ctx)["qddot_r_hat"].copy()
     # At rest on the reference with λ̂ = λ_d, (13) reduces to g(q) − J_φᵀ λ_d (+ the β term).
     model = law.model
     np.testing.assert_allclose(
         tau, model.g(posture) - model.J_phi(posture)[0] * 12.0, rtol=0, atol=1e-6)
-    latched = _update(ctrl, ctx)
-    np.testing.assert_array_equal(latched[:3], tau)
-    assert latched[3] == 5.0
+    sim = Simulator(ctrl, ctx)
+    sim.AdvanceTo(5 * H + H / 2)
+    np.testing.assert_array_equal(ctrl.GetOutputPort("tau").Eval(ctx), tau)
+    np.testing.assert_array_equal(ctrl.GetOutputPort("qddot_r_hat").Eval(ctx), qddot)
+    assert ctrl.latched_tick(ctx) == 5
 
 
 def test_controller_holds_the_latched_torque_between_ticks(law, posture):

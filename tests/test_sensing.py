@@ -106,14 +106,15 @@ def test_delay_shifts_the_readings_by_whole_samples():
 # --------------------------------------------------------------------------- F/T sensor
 
 def _ft_readings(settings, lam_of_k, ticks, robot_index=0):
-    """``λ_s(k)``: the sensor is read at ``t_k − Δt`` and output at ``t_k``."""
+    """``λ_s(k)``: the sensor is read at ``t_k − 3Δt/2`` (its own event time) and output at
+    ``t_k``."""
     ft = FTSensor(H, DT, settings, robot_index)
     ctx = ft.CreateDefaultContext()
     out = []
     for k in range(ticks):
         ctx.SetTime(k * H)
         out.append(ft.GetOutputPort("lambda_sensor").Eval(ctx)[0])
-        ctx.SetTime((k + 1) * H - DT)
+        ctx.SetTime((k + 1) * H - 1.5 * DT)
         ft.GetInputPort("lambda_true").FixValue(ctx, [lam_of_k(k + 1)])
         _step(ft, ctx)
     return np.array(out)
@@ -143,10 +144,21 @@ def test_force_sensor_noise_is_seeded_with_its_standard_deviation():
     assert abs(w.std() / 0.05 - 1) < 0.05 and abs(w.mean()) < 4 * 0.05 / math.sqrt(w.size)
 
 
-def test_force_sensor_reads_the_ground_truth_during_the_plants_last_step():
+def test_force_sensor_reads_half_a_plant_step_before_the_plants_last_step():
+    """The read lies mid-way between two plant updates (t_k − 2Δt, t_k − Δt), where the live
+    port is the step [t_k − Δt, t_k); no rounding of ``offset + k h`` can move it across one.
+    The whole-run check of every tick is in test_sensing_runs."""
     timing = FTSensor(H, DT, ForceSensorModel()).GetUniquePeriodicDiscreteUpdateAttribute()
     assert timing.period_sec() == H
-    assert timing.offset_sec() == pytest.approx(H - DT, abs=1e-15)
+    assert timing.offset_sec() == pytest.approx(H - 1.5 * DT, abs=1e-15)
+
+
+def test_force_sensor_with_the_plant_step_as_period_reads_at_the_previous_tick():
+    """h = Δt: no plant update lies between two ticks; the read is at t_{k−1} (offset 0)."""
+    ft = FTSensor(DT, DT, ForceSensorModel())
+    timing = ft.GetUniquePeriodicDiscreteUpdateAttribute()
+    assert (timing.period_sec(), timing.offset_sec()) == (DT, 0.0)
+    assert ft.read_lead == DT
 
 
 # --------------------------------------------------------------------------- actuators

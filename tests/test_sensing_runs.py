@@ -10,6 +10,7 @@
 """
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -55,7 +56,8 @@ def _tau_before_and_after_perturbation(scenario):
     pc = exp.coop.plant.GetMyMutableContextFromRoot(ctx)
 
     def taus():
-        return [rs.control.GetOutputPort("tau").Eval(rs.control.GetMyContextFromRoot(ctx)).copy()
+        # τ(k) that the tick's update latches (the tau port is state, still τ(k−1)).
+        return [rs.controller.next_tau(rs.controller.GetMyContextFromRoot(ctx)).copy()
                 for rs in exp.robots]
 
     def force():
@@ -159,3 +161,62 @@ def test_measured_velocity_without_force_estimate_completes_with_model_error():
         np.testing.assert_array_equal(log["lambda_hat"][held], log["lambda_d"][held])
         assert c["force_error"]["rms"] < 0.25 * s.task.force_mean
         assert max(c[k]["max"] for k in ("x_tilde", "y_tilde", "z_tilde")) < 5e-3
+
+
+# --------------------------------------------------------------------------- F/T sensor timing
+def _ft_readings_and_step_forces(t_end):
+    """``scenarios/realistic.yaml`` to ``t_end``: the logged F/T readings and, recorded by a
+    Simulator monitor at every plant step time ``j Δt`` (publishes run before that time's
+    updates), the ground truth ``λ`` of each plant step: the plant's live port there is the
+    step the plant then takes."""
+    from pathlib import Path
+
+    from drake_coop.scenario import load_scenario
+
+    scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "realistic.yaml")
+    h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    steps = {}
+
+    def on_start(exp, simulator):
+        def record(context):
+            # Only at the plant's own step times j Δt (Drake's periodic event time): an event
+            # one rounding off the grid makes a ~1e-18 s step whose live port is not a step.
+            t = context.get_time()
+            j = int(round(t / dt))
+            if t == j * dt and j not in steps:
+                steps[j] = [rs.force_sensor.GetOutputPort("lambda_meas").Eval(
+                    rs.force_sensor.GetMyContextFromRoot(context)).copy() for rs in exp.robots]
+        simulator.set_monitor(record)
+
+    result = simulate(scenario, t_end=t_end, on_start=on_start)
+    assert result.ok, result.meta["message"]
+    return scenario, h, dt, result, steps
+
+
+@pytest.mark.slow
+def test_ft_sensor_reads_the_low_pass_of_the_plant_step_before_every_tick():
+    """Every tick k >= 1 of a realistic run (ideal sensors would hide nothing: noise, bias and a
+    25 Hz filter are on) holds ``y(k) + b + v_k`` with ``y(k) = y(k−1) + α (λ_j − y(k−1))`` and
+    ``λ_j`` the ground truth of the plant step ``j = N k − 1``, ``[t_k − Δt, t_k)`` (issue 19:
+    an event at ``t_k − Δt`` read the step after it on ~1 % of the ticks)."""
+    from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
+
+    scenario, h, dt, result, steps = _ft_readings_and_step_forces(16.5)
+    N = int(round(h / dt))
+    for i, robot in enumerate(scenario.robots):
+        s = robot.force_sensor
+        alpha = 1.0 - math.exp(-2.0 * math.pi * s.cutoff_hz * h)    # exact step invariance
+        assert alpha == pytest.approx(lowpass_alpha(s.cutoff_hz, h), rel=1e-15)
+        logged = result.logs[robot.name]["lambda_sensor"]
+        ticks = logged.shape[0]
+        y, expected = 0.0, [s.bias]
+        for k in range(1, ticks):
+            lam = steps[N * k - 1][i][0]
+            y = y + alpha * (lam - y)
+            noise = white_noise(s.seed, i, FORCE_SENSOR_STREAM, k, s.noise_std, 1)[0]
+            expected.append(y + s.bias + noise)
+        expected = np.array(expected)
+        held = np.abs(result.logs[robot.name]["lambda_meas"]) > 1.0
+        assert held.sum() > 150        # the squeeze is on for well over a second of ticks
+        np.testing.assert_allclose(logged, expected, rtol=0, atol=1e-12 * np.abs(expected).max(),
+                                   err_msg=robot.name)

@@ -60,11 +60,13 @@ def theorem_run():
     sim.AdvanceTo(T)
     out = []
     for i, rs in enumerate(exp.robots):
-        raw = {k: lg.FindLog(ctx) for k, lg in rs.loggers.items()}
+        t, raw = rs.log.raw(ctx)
+        # λ of the step taken from t_k is latched at t_k and published at t_{k+1}: shifted
+        # back by one sample (the last tick has none).
         out.append(dict(
-            t=raw["q"].sample_times(), q=raw["q"].data().T, q_hat=raw["q_hat"].data().T,
-            lam=raw["lambda_meas"].data()[0], lam_hat=raw["lambda_hat"].data()[0],
-            DF=raw["Delta_F_tilde"].data()[0], q_star=q_star[i],
+            t=t[:-1], q=raw["q"].T[:-1], q_hat=raw["q_hat"].T[:-1],
+            lam=raw["lambda_meas"][0][1:], lam_hat=raw["lambda_hat"][0][:-1],
+            DF=raw["Delta_F_tilde"][0][:-1], q_star=q_star[i],
             model=ArmModel(exp.coop.arms[i].arm)))
     return out
 

@@ -12,12 +12,21 @@ Quantities (robot ``i``, ``n`` joints, ``m`` constraints):
 * ``C(q, v) v`` Coriolis and centrifugal forces (Drake's bias term, evaluated at ``v``);
 * ``D`` diagonal viscous friction (the joints' damping);
 * ``g(q)`` gravity torques on the left-hand side of (1) (``g = −τ_g`` in Drake's sign);
-* ``φ(q) = N (x(q) − c)`` and ``J_φ = ∂φ/∂q = N J_x`` (m×n), ``J̇_φ`` along a direction by
-  AutoDiff (``N`` the outward normals, ``c`` the contact point: :class:`~drake_coop.plant.arms.Arm`).
+* ``φ(q) = N (x(q) − c)`` and ``J_φ = ∂φ/∂q = N J_x`` (m×n), ``J̇_φ`` along a direction
+  (``N`` the outward normals, ``c`` the contact point: :class:`~drake_coop.plant.arms.Arm`).
+
+Kinematics: the closed form of the paper's arms (:mod:`drake_coop.plant.crs`) when it applies
+(:attr:`Arm.closed_form` and the controller's URDF is the simulated model, whose masses,
+inertias and damping model errors may scale but whose geometry they never change); otherwise
+Drake's, with ``J̇_φ`` by forward-mode AutoDiff. Both are exact; they differ by roundings.
+Dynamics: ``H a + C v + D v + g`` is one inverse-dynamics call
+(``CalcForceElementsContribution`` — gravity and joint damping — then
+``CalcInverseDynamics``).
 """
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +34,7 @@ from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoD
 from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import MultibodyForces
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from drake_coop.plant.arms import Arm
@@ -39,9 +49,13 @@ class ArmModel:
         The robot (base pose, frames, constraint normals and contact point).
     urdf : Path, optional
         The model to use; defaults to ``arm.controller_urdf_path``.
+    closed_form : bool, optional
+        Use the closed-form kinematics of :mod:`drake_coop.plant.crs` for ``φ``, ``J_φ`` and
+        ``J̇_φ``; default: when the arm has them and the controller's URDF is the simulated
+        model (``controller_model`` unset; scaled masses and inertias keep the geometry).
     """
 
-    def __init__(self, arm: Arm, urdf: Path | None = None):
+    def __init__(self, arm: Arm, urdf: Path | None = None, closed_form: bool | None = None):
         self.arm = arm
         self.urdf = Path(urdf) if urdf is not None else arm.controller_urdf_path
         plant = MultibodyPlant(0.0)
@@ -65,6 +79,61 @@ class ArmModel:
         self._c = arm.c
         self._zero_v = np.zeros(self.n)
         self._q_key = self._v_key = b""   # what the context holds (see _set_q)
+        self._forces = MultibodyForces(plant)
+        self.closed_form = (arm.closed_form and not arm.robot.controller_model
+                            if closed_form is None else bool(closed_form))
+        self._row_key = b""
+        if self.closed_form:
+            crs = arm.kinematics
+            self._lengths = (crs.geometry.h1, crs.geometry.L2, crs.geometry.L3)
+            n = self._N[0]
+            nl = crs.R_base.T @ n            # the first normal in the base frame
+            self._row_constants = (float(nl[0]), float(nl[1]), float(nl[2]),
+                                   float(n @ (crs.p_base - self._c)))
+
+    # ------------------------------------------------ closed form, one constraint, plain floats
+    def constraint_row(self, q: np.ndarray) -> tuple[float, list[float]]:
+        """``φ(q)`` and ``J_φ(q)`` (as a list) of a one-constraint arm in closed form.
+
+        Plain floats (a 3-vector per NumPy call costs more than the arithmetic), the same
+        formulas as :class:`~drake_coop.plant.crs.CrsKinematics` with the normal ``n``
+        rotated into the base frame: ``φ = (R_bᵀ n)·x_local(q) + n·(p_b − c)``,
+        ``J_φ = (R_bᵀ n)ᵀ J_local(q)``. Cached for the last ``q``: the force observer and the
+        controller evaluate it at the same sample of a tick.
+        """
+        key = q.tobytes()
+        if key == self._row_key:
+            return self._row
+        nx, ny, nz, off = self._row_constants
+        h1, L2, L3 = self._lengths
+        q1, q2, q3 = q.tolist()
+        s1, c1 = math.sin(q1), math.cos(q1)
+        s2, c2 = math.sin(q2), math.cos(q2)
+        s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
+        b, e = L3 * c23, L3 * s23
+        r, a = L2 * s2 + e, L2 * c2 + b
+        phi = nx * r * c1 + ny * r * s1 + nz * (h1 + L2 * c2 + b) + off
+        j = [-nx * r * s1 + ny * r * c1, nx * a * c1 + ny * a * s1 - nz * r,
+             nx * b * c1 + ny * b * s1 - nz * e]
+        self._row_key, self._row = key, (phi, j)
+        self._row_terms = (s1, c1, s2, r, a, b, e)
+        return phi, j
+
+    def constraint_row_dot(self, q: np.ndarray, v: np.ndarray) -> list[float]:
+        """``J̇_φ`` along ``v`` of a one-constraint arm in closed form (plain floats)."""
+        self.constraint_row(q)
+        s1, c1, s2, r, a, b, e = self._row_terms
+        nx, ny, nz, _ = self._row_constants
+        L2 = self._lengths[1]
+        v1, v2, v3 = v.tolist()
+        w = v2 + v3
+        rd = a * v2 + b * v3
+        ad = -L2 * s2 * v2 - e * w
+        bd = -e * w
+        ed = b * w
+        return [nx * (-rd * s1 - r * c1 * v1) + ny * (rd * c1 - r * s1 * v1),
+                nx * (ad * c1 - a * s1 * v1) + ny * (ad * s1 + a * c1 * v1) - nz * rd,
+                nx * (bd * c1 - b * s1 * v1) + ny * (bd * s1 + b * c1 * v1) - nz * ed]
 
     # -------------------------------------------------------------------------- helpers
     def _set_q(self, q: np.ndarray) -> None:
@@ -108,14 +177,17 @@ class ArmModel:
     def inverse_dynamics_terms(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """``H(q) a + C(q, v) v + D v + g(q)``: the model part of (13) and (21)."""
         self._set(q, v)
-        H = self.plant.CalcMassMatrix(self.context)
-        Cv = self.plant.CalcBiasTerm(self.context)
-        g = -self.plant.CalcGravityGeneralizedForces(self.context)
-        return H @ a + Cv + self.D @ v + g
+        # Drake's inverse dynamics is M a + C v − τ_app; the force elements give
+        # τ_app = τ_g − D v (gravity, and the joints' damping).
+        self.plant.CalcForceElementsContribution(self.context, self._forces)
+        return self.plant.CalcInverseDynamics(self.context, np.asarray(a, dtype=float),
+                                              self._forces)
 
     # ----------------------------------------------------------------------- kinematics
     def ee_position(self, q: np.ndarray) -> np.ndarray:
         """End-effector point (pad centre) in the palm frame."""
+        if self.closed_form:
+            return self.arm.fk(q)
         self._set_q(q)
         return self.ee_frame.CalcPoseInWorld(self.context).translation()
 
@@ -125,6 +197,8 @@ class ArmModel:
 
     def J_phi(self, q: np.ndarray) -> np.ndarray:
         """Constraint Jacobian ``J_φ = ∂φ/∂q = N J_x`` (m×n)."""
+        if self.closed_form:
+            return self._N @ self.arm.jacobian(q)
         self._set_q(q)
         Jv = self.plant.CalcJacobianTranslationalVelocity(
             self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
@@ -135,8 +209,12 @@ class ArmModel:
                              ) -> tuple[np.ndarray, np.ndarray]:
         """``J_φ(q)`` and its exact directional derivative ``Σ_k ∂J_φ/∂q_k · direction_k``.
 
-        Forward-mode AutoDiff with one derivative component seeded with ``direction``.
+        Closed form (:meth:`Arm.jacobian_dot`) when it applies, else forward-mode AutoDiff
+        with one derivative component seeded with ``direction``.
         """
+        if self.closed_form:
+            return (self._N @ self.arm.jacobian(q),
+                    self._N @ self.arm.jacobian_dot(q, np.asarray(direction, dtype=float)))
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))
         Jv = self.plant_ad.CalcJacobianTranslationalVelocity(

@@ -10,25 +10,26 @@ of (7) along ``q̇_o``; in free motion (before the grasp, after the release) the
 ``Q = I``, ``J_φ = 0``, ``J⁺ = 0``.
 
 Sampling (zero-order hold, no computation delay): the torque of tick ``k`` is computed from
-``q(k)`` and the observers' tick-``k`` outputs and applied on ``[t_k, t_{k+1})``. Drake runs the
-plant's own step at ``t_k`` at the same time as the controller's update, so the ``tau`` output
-computes ``τ(k)`` directly from the inputs when evaluated at a tick that has not been latched
-yet, and returns the latched value otherwise; the periodic update latches ``τ(k)`` (state
-``[τ, k]``). The plant's state output does not depend on its actuation input, so this makes no
-algebraic loop.
+``q(k)`` and the observers' tick-``k`` outputs and applied on ``[t_k, t_{k+1})``. A periodic
+*unrestricted* update at ``t_k`` latches ``τ(k)`` and ``q̈̂_r(k)`` into state; Drake runs a
+time's unrestricted updates before its discrete updates (the plant's step, the observers'
+updates), so the plant's step at ``t_k`` already applies ``τ(k)`` and the velocity observer's
+update at ``t_k`` reads ``q̈̂_r(k)``. Both outputs are state output ports: no Python call
+happens at the plant's steps between two ticks.
+
+What the outputs mean at a tick *before* its events (a simulator stopped by ``AdvanceTo(k h)``,
+a logger publishing at ``t_k``): ``tau`` and ``qddot_r_hat`` still hold ``τ(k − 1)`` and
+``q̈̂_r(k − 1)``, the values applied on ``[t_{k−1}, t_k)``. The values the tick's update will
+latch are :meth:`Controller.next_tau` and :meth:`Controller.terms` (the law at the current
+inputs). Loggers therefore see ``τ(k)`` at ``t_{k+1}``;
+:func:`~drake_coop.experiment.simulate.collect_logs` shifts those logs back by one sample.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import (
-    BasicVector,
-    Context,
-    DiscreteValues,
-    LeafSystem,
-    ValueProducer,
-)
+from pydrake.systems.framework import Context, LeafSystem, State, ValueProducer
 
 from drake_coop.control.finger import FingerLaw
 from drake_coop.scenario.timing import tick_of
@@ -53,9 +54,11 @@ class Controller(LeafSystem):
     Output ports
     ------------
     tau : n-vector
-        Joint torques ``τ(k)``, held over the sampling interval.
+        Joint torques ``τ(k)``, latched at ``t_k`` and held over ``[t_k, t_{k+1})`` (state
+        only; ``τ(k − 1)`` at ``t_k`` before the tick's update).
     qddot_r_hat : n-vector
-        ``q̈̂_r(k)`` of (11), for the velocity observer's update (16) at the same tick.
+        ``q̈̂_r(k)`` of (11), latched with ``τ(k)`` for the velocity observer's update (16) at
+        the same tick (state only).
     """
 
     def __init__(self, law: FingerLaw, period: float, tau0: np.ndarray | None = None):
@@ -72,16 +75,18 @@ class Controller(LeafSystem):
         self._lambda_hat = self.DeclareVectorInputPort("lambda_hat", law.m)
         self._Delta_F = self.DeclareVectorInputPort("Delta_F_tilde", law.m)
         self._reference = self.DeclareVectorInputPort("reference", law.layout.size)
-        # Latched [τ(k), k]; k = -1 means nothing latched yet.
-        initial = np.concatenate([np.zeros(n) if tau0 is None else tau0, [-1.0]])
-        self._state = self.DeclareDiscreteState(initial)
+        # Latched τ(k), q̈̂_r(k) and k (k = -1: nothing latched yet).
+        self._tau_state = self.DeclareDiscreteState(np.zeros(n) if tau0 is None
+                                                    else np.asarray(tau0, dtype=float))
+        self._qddot_state = self.DeclareDiscreteState(np.zeros(n))
+        self._tick_state = self.DeclareDiscreteState([-1.0])
         self._terms = self.DeclareCacheEntry(
             "control terms of (13)",
             ValueProducer(allocate=AbstractValue.Make(dict()).Clone, calc=self._calc_terms),
             {self.all_sources_ticket()})
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_latch)
-        self.DeclareVectorOutputPort("tau", n, self._calc_tau)
-        self.DeclareVectorOutputPort("qddot_r_hat", n, self._calc_qddot_r_hat)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update_latch)
+        self.DeclareStateOutputPort("tau", self._tau_state)
+        self.DeclareStateOutputPort("qddot_r_hat", self._qddot_state)
 
     # ------------------------------------------------------------------ helpers
     def tick_of(self, context: Context) -> int | None:
@@ -97,26 +102,24 @@ class Controller(LeafSystem):
         value.set_value(terms)
 
     def terms(self, context: Context) -> dict[str, np.ndarray]:
-        """``tau``, ``qdot_r``, ``qddot_r_hat``, ``Delta_lambda_tilde`` from the current inputs."""
+        """``tau``, ``qdot_r``, ``qddot_r_hat``, ``Delta_lambda_tilde`` from the current inputs:
+        at a tick, what the tick's update latches."""
         return self._terms.Eval(context)
 
-    # ------------------------------------------------------------------ outputs
-    def _calc_tau(self, context: Context, output: BasicVector) -> None:
-        # Called at every plant step: the test of "a tick not latched yet" is inlined
-        # (tick_of's arithmetic) to keep the held case to three framework calls.
-        t = context.get_time()
-        k = round(t / self._h)
-        x = context.get_discrete_state(self._state).value()
-        if x[-1] != k and abs(t - k * self._h) <= 1e-9 * max(1.0, t):
-            output.SetFromVector(self.terms(context)["tau"])   # τ(k), not latched yet
-        else:
-            output.SetFromVector(x[: self._n])                  # held τ(k)
+    def next_tau(self, context: Context) -> np.ndarray:
+        """``τ(k)`` of (13) at the current inputs: at tick ``k`` before its events, the torque
+        the tick's update latches and the plant then applies on ``[t_k, t_{k+1})``."""
+        return self.terms(context)["tau"]
 
-    def _calc_qddot_r_hat(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self.terms(context)["qddot_r_hat"])
+    def latched_tick(self, context: Context) -> int:
+        """The last tick whose torque was latched (-1 before the first)."""
+        return int(context.get_discrete_state(self._tick_state).value()[0])
 
     # ------------------------------------------------------------------ update
-    def _update_latch(self, context: Context, discrete_state: DiscreteValues) -> None:
+    def _update_latch(self, context: Context, state: State) -> None:
         k = self.tick_of(context)
-        tau = self.terms(context)["tau"]
-        discrete_state.set_value(self._state, np.concatenate([tau, [float(k)]]))
+        terms = self.terms(context)
+        xd = state.get_mutable_discrete_state()
+        xd.set_value(self._tau_state, terms["tau"])
+        xd.set_value(self._qddot_state, terms["qddot_r_hat"])
+        xd.set_value(self._tick_state, [float(k)])

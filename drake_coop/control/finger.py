@@ -127,6 +127,11 @@ class FingerLaw:
         self.zeta = float(gains.zeta)
         self.beta = float(gains.beta)
         self._zero_m = np.zeros(self.m)
+        #: The paper's case on plain floats (see :meth:`_held_m1`): one constraint, scalar ξ,
+        #: closed-form kinematics. Anything else takes the general path (any n, m, ξ matrix).
+        self.fast = (self.m == 1 and np.ndim(self.xi) == 0
+                     and getattr(model, "closed_form", False))
+        self._K_R_diag = np.diag(self.K_R).tolist()
 
     # ------------------------------------------------------------------ observer (15), (8)
     def observer_derivative(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
@@ -167,12 +172,70 @@ class FingerLaw:
             c.Q, c.J_pinv, q_hat=q_hat, q_d=ref.q_d, qdot_d=ref.qdot_d, Lambda=self.Lambda,
             Delta_p=c.Delta_p, beta=self.beta, xi=self.xi, Delta_F_tilde=Delta_F_tilde)
 
+    # ------------------------------------------------------------------ m = 1 on plain floats
+    def _held_m1(self, q: np.ndarray, q_hat: np.ndarray, ref: Reference, DF: float
+                 ) -> tuple[list[float], float, float, list[float], list[float]]:
+        """The held form of (4) for one constraint, on plain floats.
+
+        With the row ``j = J_φ`` (1×n) and ``ν = j jᵀ``: ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``,
+        ``q̇_r = Q (q̇_d − Λ(q̂ − q_d)) + J⁺ (−β φ + ξ ΔF̃)``. Returns ``j``, ``ν``, the force
+        part ``−β φ + ξ ΔF̃``, the motion part ``q̇_d − Λ(q̂ − q_d)`` and ``q̇_r``.
+        """
+        phi, j = self.model.constraint_row(q)
+        nu = j[0] * j[0] + j[1] * j[1] + j[2] * j[2] if len(j) == 3 else sum(x * x for x in j)
+        f = -self.beta * phi + self.xi * DF
+        L = self.Lambda
+        motion = [vd - L * (qh - qd) for vd, qh, qd in
+                  zip(ref.qdot_d.tolist(), q_hat.tolist(), ref.q_d.tolist())]
+        jm = sum(a * b for a, b in zip(j, motion))
+        qdot_r = [x - (jk / nu) * jm + (jk / nu) * f for x, jk in zip(motion, j)]
+        return j, nu, f, motion, qdot_r
+
+    def _force_estimate_m1(self, q, q_hat, qdot_o, ref, Delta_F_tilde) -> np.ndarray:
+        """(22) for one constraint on plain floats (see :meth:`force_estimate`)."""
+        DF = float(Delta_F_tilde[0])
+        j, nu, _, _, qdot_r = self._held_m1(q, q_hat, ref, DF)
+        s = sum((jk / nu) * kr * (vo - vr) for jk, kr, vo, vr in
+                zip(j, self._K_R_diag, qdot_o.tolist(), qdot_r))
+        return np.array([(s - self.k_F * DF) / (1.0 + self.zeta) + float(ref.lambda_d[0])])
+
+    def _control_m1(self, q, q_hat, qdot_hat, qdot_o, lambda_hat, Delta_F_tilde, ref):
+        """(4), (11), (13) for one constraint on plain floats (see :meth:`control`).
+
+        ``J̇⁺ = J̇_φᵀ/ν − 2 jᵀ (J̇_φ jᵀ)/ν²`` and ``Q̇ x = −(J̇⁺ (j x) + J⁺ (J̇_φ x))``.
+        """
+        DF = float(Delta_F_tilde[0])
+        j, nu, f, motion, qdot_r = self._held_m1(q, q_hat, ref, DF)
+        jd = self.model.constraint_row_dot(q, qdot_o)
+        lam_d = float(ref.lambda_d[0])
+        dlt = float(lambda_hat[0]) - lam_d
+        L = self.Lambda
+        motion_dot = [ad - L * (vh - vd) for ad, vh, vd in
+                      zip(ref.qddot_d.tolist(), qdot_hat.tolist(), ref.qdot_d.tolist())]
+        jdj = sum(a * b for a, b in zip(jd, j))
+        jmd = sum(a * b for a, b in zip(j, motion_dot))
+        jm = sum(a * b for a, b in zip(j, motion))
+        jdm = sum(a * b for a, b in zip(jd, motion))
+        xi_dl = self.xi * dlt
+        qddot_r = []
+        for jk, jdk, md in zip(j, jd, motion_dot):
+            jp, jpd = jk / nu, jdk / nu - jk * 2.0 * jdj / (nu * nu)
+            qddot_r.append(md - jp * jmd + jp * xi_dl - (jpd * jm + jp * jdm) + jpd * f)
+        qdot_r_a, qddot_r_a = np.array(qdot_r), np.array(qddot_r)
+        force = lam_d - self.k_F * DF - self.zeta * dlt
+        tau = (self.model.inverse_dynamics_terms(q, qdot_r_a, qddot_r_a)
+               - self.K_R @ (qdot_o - qdot_r_a) - np.array(j) * force)
+        return {"tau": tau, "qdot_r": qdot_r_a, "qddot_r_hat": qddot_r_a,
+                "Delta_lambda_tilde": np.array([dlt])}
+
     # ------------------------------------------------------------------ force observer (22)
     def force_estimate(self, q: np.ndarray, q_hat: np.ndarray, qdot_o: np.ndarray,
                        ref: Reference, Delta_F_tilde: np.ndarray) -> np.ndarray:
         """``λ̂`` of (22): ``[J⁺ᵀ K_R (q̇_o − q̇_r) − k_F ΔF̃]/(1 + ζ) + λ_d``; 0 when free."""
         if not ref.held:
             return self._zero_m
+        if self.fast:
+            return self._force_estimate_m1(q, q_hat, qdot_o, ref, Delta_F_tilde)
         c = self.constraint(q, True)
         qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)
         s = c.J_pinv.T @ self.K_R @ (qdot_o - qdot_r)
@@ -202,7 +265,12 @@ class FingerLaw:
         -------
         dict
             ``tau``, ``qdot_r`` (4), ``qddot_r_hat`` (11), ``Delta_lambda_tilde`` (m).
+
+        The paper's case (one constraint, scalar ξ, closed-form kinematics: :attr:`fast`)
+        runs on plain floats (:meth:`_control_m1`); the same equations, other roundings.
         """
+        if ref.held and self.fast:
+            return self._control_m1(q, q_hat, qdot_hat, qdot_o, lambda_hat, Delta_F_tilde, ref)
         if ref.held:
             J_phi, J_phi_dot = self.model.J_phi_and_derivative(q, qdot_o)
             J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot)

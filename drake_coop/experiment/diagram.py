@@ -6,11 +6,19 @@
     (TrajectorySource)├─ reference ─────▶│ robotN_velocity_observer (15)-(16)               │
                       │                  │ robotN_force_observer (22)                        │──tau─▶ plant
     plant ─state─▶ robotN_encoders ─ q ─▶│ robotN_controller (13)                            │
-      │            (sensing.Encoders)    └───────────────────────────────────────────────────┘
-      │                                          tau ─▶ robotN_actuators (Saturation) ─▶ plant
+      │            (Encoders, or a C++   └───────────────────────────────────────────────────┘
+      │             Demultiplexer when ideal)    tau ─▶ robotN_actuators (Saturation) ─▶ plant
       │                     (robotN_latency between them with a computation delay or jitter)
-      └─ reaction forces, body poses ─▶ wrist_kinematics ─▶ robotN_force_sensor (ground truth)
+      └─ state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor (ground truth)
+         (contact mode: reaction forces, body poses ─▶ wrist_kinematics)
                                           └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
+    every logged signal of a robot ─▶ robotN_log_signals (Multiplexer) ─▶ robotN_log
+
+Timing at a tick ``t_k``: the controller latches ``τ(k)`` by an unrestricted update (before
+every discrete update, so the plant's step at ``t_k`` applies it); the observers, the
+encoders and the ground truth's latch then update from the same context as the plant's step.
+Loggers publish before the tick's updates (see
+:func:`~drake_coop.experiment.simulate.collect_logs` for the alignment).
 
 The encoders pass on (quantized, noisy, delayed) joint positions only: with the paper's
 observers the control block never sees a velocity or a force. The alternatives of
@@ -22,11 +30,14 @@ those alternatives) and whose outputs are ``tau`` and the sources' signals (for 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from pydrake.systems.framework import Diagram, DiagramBuilder
+import numpy as np
+from pydrake.systems.framework import Context, Diagram, DiagramBuilder, OutputPort
 from pydrake.systems.primitives import (
+    Demultiplexer,
     LogVectorOutput,
+    Multiplexer,
     Saturation,
     TrajectorySource,
     VectorLogSink,
@@ -56,6 +67,36 @@ from drake_coop.sensing.latency import ActuationDelay
 from drake_coop.sensing.model_error import controller_arm_model
 
 
+#: The signals each robot logs, in the order of its ``<robot>_log_signals`` Multiplexer's
+#: inputs (:class:`RobotLog`).
+LOG_KEYS = ("q", "q_hat", "reference", "lambda_hat", "Delta_F_tilde", "tau", "tau_cmd",
+            "F_meas", "lambda_meas", "lambda_sensor", "qdot_hat", "state")
+
+
+@dataclass
+class RobotLog:
+    """One robot's logged signals: a C++ :class:`Multiplexer` of every logged port into one
+    :class:`VectorLogSink` publishing at every tick (one logger per robot, not one per signal).
+
+    ``slices[key]`` is where a signal sits in the logged vector, ``ports[key]`` its source.
+    """
+
+    logger: VectorLogSink
+    slices: dict[str, slice]
+    ports: dict[str, OutputPort]
+
+    def raw(self, context: Context) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """Sample times ``(K,)`` and each signal's samples ``(width, K)``, as published."""
+        log = self.logger.FindLog(context)
+        data = log.data()
+        return log.sample_times(), {k: data[s] for k, s in self.slices.items()}
+
+    def now(self, context: Context, key: str) -> np.ndarray:
+        """The current value of a logged signal's source port."""
+        port = self.ports[key]
+        return port.Eval(port.get_system().GetMyContextFromRoot(context))
+
+
 @dataclass
 class RobotSystems:
     """The systems of one robot inside the experiment diagram."""
@@ -67,11 +108,11 @@ class RobotSystems:
     force_observer: ForceObserver | SensedForce | NoForceEstimate
     controller: Controller
     force_sensor: ForceSensor
-    encoders: Encoders | None = None
+    encoders: Encoders | Demultiplexer | None = None
     ft_sensor: FTSensor | None = None
     actuators: Saturation | None = None
     latency: ActuationDelay | None = None
-    loggers: dict[str, VectorLogSink] = field(default_factory=dict)
+    log: RobotLog | None = None
 
 
 @dataclass
@@ -146,6 +187,30 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     return diagram, vel, force, ctrl
 
 
+def is_ideal(settings) -> bool:
+    """Encoders that pass the exact ``q(t_k)``: no quantization, no noise, no delay."""
+    return (settings.counts_per_rev is None and settings.noise_std == 0.0
+            and settings.delay_samples == 0)
+
+
+def add_encoders(builder: DiagramBuilder, name: str, n: int, period: float, settings,
+                 robot_index: int, state):
+    """``<name>_encoders``, wired to the arm's plant ``state``; returns it and its ``q`` port.
+
+    Ideal encoders are Drake's :class:`~pydrake.systems.primitives.Demultiplexer` (C++) taking
+    ``q`` out of ``[q, q̇]``: what the controller reads at ``t_k`` is the plant's ``q(t_k)``, as
+    :class:`~drake_coop.sensing.encoders.Encoders` would give bit for bit, without a Python call.
+    """
+    if is_ideal(settings):
+        encoder = builder.AddNamedSystem(f"{name}_encoders", Demultiplexer([n, n]))
+        builder.Connect(state, encoder.get_input_port(0))
+        return encoder, encoder.get_output_port(0)
+    encoder = builder.AddNamedSystem(f"{name}_encoders",
+                                     Encoders(n, period, settings, robot_index))
+    builder.Connect(state, encoder.GetInputPort("state"))
+    return encoder, encoder.GetOutputPort("q")
+
+
 def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = None,
                      log: bool = True, before_build=None, references=None) -> Experiment:
     """Build the experiment's Diagram from a scenario.
@@ -157,7 +222,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     builder : DiagramBuilder, optional
         Builder to use (e.g. to add a visualizer first).
     log : bool
-        Add a :class:`VectorLogSink` per logged signal, sampling every control period.
+        Log every signal of :class:`RobotLog`, sampling every control period.
     before_build : callable, optional
         ``before_build(builder, coop)`` called just before ``Build()`` (visualizers).
     references : list of Trajectory, optional
@@ -169,7 +234,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     b = builder or DiagramBuilder()
     coop = build_plant(b, scenario)
     plant = coop.plant
-    sensors = add_force_sensors(b, coop)
+    sensors = add_force_sensors(b, coop, h)
     robots = []
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
@@ -184,9 +249,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
-        encoder = b.AddNamedSystem(f"{name}_encoders", Encoders(n, h, robot.encoders, i))
-        b.Connect(state, encoder.GetInputPort("state"))
-        b.Connect(encoder.GetOutputPort("q"), control.GetInputPort("q"))
+        encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
+        b.Connect(q_port, control.GetInputPort("q"))
         ft = b.AddNamedSystem(f"{name}_ft_sensor",
                               FTSensor(h, dt, robot.force_sensor, i, law.m))
         b.Connect(sensors[i].GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
@@ -214,23 +278,29 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                           encoders=encoder, ft_sensor=ft, actuators=actuators, latency=latency)
         if log:
             sources = {
-                "q": encoder.GetOutputPort("q"),
+                "q": q_port,
                 "q_hat": control.GetOutputPort("q_hat"),
                 "reference": ref.get_output_port(),
                 "lambda_hat": control.GetOutputPort("lambda_hat"),
                 "Delta_F_tilde": control.GetOutputPort("Delta_F_tilde"),
                 "tau": actuators.get_output_port(),
                 "tau_cmd": control.GetOutputPort("tau"),
-                "F_meas": sensors[i].GetOutputPort("F_meas"),
-                "lambda_meas": sensors[i].GetOutputPort("lambda_meas"),
+                "F_meas": sensors[i].GetOutputPort("F_step"),
+                "lambda_meas": sensors[i].GetOutputPort("lambda_step"),
                 "lambda_sensor": ft.GetOutputPort("lambda_sensor"),
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,
             }
-            for key, port in sources.items():
-                logger = LogVectorOutput(port, b, publish_period=h)
-                logger.set_name(f"{name}_log_{key}")
-                rs.loggers[key] = logger
+            assert tuple(sources) == LOG_KEYS
+            sizes = [port.size() for port in sources.values()]
+            mux = b.AddNamedSystem(f"{name}_log_signals", Multiplexer(sizes))
+            for j, port in enumerate(sources.values()):
+                b.Connect(port, mux.get_input_port(j))
+            logger = LogVectorOutput(mux.get_output_port(0), b, publish_period=h)
+            logger.set_name(f"{name}_log")
+            starts = np.cumsum([0] + sizes)
+            rs.log = RobotLog(logger, {k: slice(int(starts[j]), int(starts[j + 1]))
+                                       for j, k in enumerate(sources)}, dict(sources))
         robots.append(rs)
     if before_build is not None:
         before_build(b, coop)

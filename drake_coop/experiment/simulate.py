@@ -4,11 +4,11 @@ The run follows its :class:`~drake_coop.experiment.plan.RunPlan`. The simulator 
 where the plant changes: the grasp constraints are switched on exactly at the first held
 control tick ``k_grasp h`` and off at ``k_release h`` (between two ``AdvanceTo`` calls, before
 that tick's updates), so the plant and the controllers change form at the same instant. The
-divergence guards are a Simulator monitor (:meth:`Simulator.set_monitor`), evaluated after the
-step that reaches each multiple of ``guards.check_period``: a non-finite state, a joint past its
-limit or a force beyond ``guards.max_force`` ends the run (the monitor returns
-``EventStatus.ReachedTermination``) with ``status = "diverged"`` and whatever was logged so far;
-so does an exception inside Drake.
+divergence guards run between ``AdvanceTo`` chunks of ``guards.check_period`` (rounded to whole
+control ticks), after the step that reaches each chunk's end: a non-finite state, a joint past
+its limit or a force beyond ``guards.max_force`` ends the run with ``status = "diverged"`` and
+whatever was logged so far; so does an exception inside Drake. No Python call happens at the
+plant's steps for the guards (a Simulator monitor would be one per plant step).
 """
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from typing import Callable, ContextManager
 
 import numpy as np
 from pydrake.systems.analysis import Simulator, SimulatorStatus
-from pydrake.systems.framework import EventStatus
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.plan import RunPlan, plan_run
@@ -33,7 +32,12 @@ from drake_coop.experiment.references import (
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
-from drake_coop.scenario.timing import check_run_size
+from drake_coop.scenario.timing import check_run_size, tick_of
+from drake_coop.sensing.encoders import Encoders
+
+#: Logged signals latched at a tick by its own updates (the torque, the force of the step
+#: taken): a logger publishing at ``t_{k+1}`` holds the value of tick ``k``.
+LATCHED_SIGNALS = ("tau", "tau_cmd", "F_meas", "lambda_meas")
 
 
 @dataclass
@@ -72,7 +76,7 @@ def initialize(exp: Experiment, context) -> None:
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
     initialize_plant_context(coop, plant_context, q0, z_grasp)
     for rs, q in zip(exp.robots, q0):
-        if rs.encoders is not None:   # the delay line holds the reading at rest
+        if isinstance(rs.encoders, Encoders):   # the delay line holds the reading at rest
             rs.encoders.set_initial_state(rs.encoders.GetMyMutableContextFromRoot(context), q)
             q = rs.encoders.initial_reading(q)   # what the controller knows of q(0)
         rs.velocity_observer.set_initial_state(
@@ -109,59 +113,67 @@ def _check_guards(exp: Experiment, context) -> str | None:
     return None
 
 
-#: Monitor results that end ``AdvanceTo``.
-_STOPS = (EventStatus.Severity.kReachedTermination, EventStatus.Severity.kFailed)
+def guard_chunks(plan: RunPlan, check_period: float) -> list[int]:
+    """The ticks where the run stops: every ``check_period`` (whole ticks, at least one) and at
+    the plan's stops (grasp, release, end), in increasing order."""
+    chunk = max(1, int(round(check_period / plan.h)))
+    return sorted({*range(chunk, plan.k_end, chunk), *plan.stops})
 
 
-class GuardMonitor:
-    """The divergence guards as a Simulator monitor (``simulator.set_monitor(monitor)``).
+def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
+    """Run the events of the tick the simulator stopped at, so that its latched signals exist.
 
-    Called by the simulator after every step; every ``guards.check_period`` of simulated time
-    it evaluates :func:`_check_guards` and reports progress. A tripped guard returns
-    ``EventStatus.ReachedTermination``: ``AdvanceTo`` returns early and :attr:`message` says
-    why.
+    ``AdvanceTo(k h)`` ends with the loggers' publish at ``t_k``, *before* that tick's updates:
+    ``τ(k)`` and the force of the step from ``t_k`` are not latched yet. A run that ended
+    normally or by a guard takes half a plant step more (the tick's updates and the plant's step
+    from ``t_k``; nothing is published, the reported end stays ``t_k``). A run that stopped
+    inside a step (an exception, Ctrl-C) is left as it is; :func:`collect_logs` then keeps only
+    the ticks whose signals were latched.
     """
-
-    def __init__(self, exp: Experiment, plan: RunPlan,
-                 progress: Callable[[float, float, float], None] | None = None,
-                 also: Callable | None = None):
-        self._exp = exp
-        self._plan = plan
-        self._progress = progress
-        self._also = also        # a monitor installed before (e.g. by ``on_start``), kept
-        chunk = max(1, int(round(exp.scenario.guards.check_period / plan.h)))
-        self._period = chunk * plan.h
-        self._next = self._period
-        self._start = time.perf_counter()
-        self.message: str | None = None
-
-    def __call__(self, context) -> EventStatus:
-        if self._also is not None:
-            status = self._also(context)
-            if status is not None and status.severity() in _STOPS:
-                return status
-        t = context.get_time()
-        if t < self._next * (1 - 1e-12):
-            return EventStatus.DidNothing()
-        self._next = (math.floor(t / self._period + 1e-9) + 1) * self._period
-        reason = _check_guards(self._exp, context)
-        if reason is not None:
-            self.message = f"diverged at t = {t:.3f} s: {reason}"
-            return EventStatus.ReachedTermination(self._exp.diagram, self.message)
-        if self._progress is not None:
-            self._progress(t, self._plan.t_end, time.perf_counter() - self._start)
-        return EventStatus.Succeeded()
+    context = simulator.get_context()
+    if status not in ("ok", "diverged") or not exp.robots:
+        return
+    ctrl = exp.robots[0].controller
+    t = context.get_time()
+    k = tick_of(t, exp.scenario.control_period)
+    if k is None or ctrl.latched_tick(ctrl.GetMyContextFromRoot(context)) == k:
+        return
+    try:
+        simulator.AdvanceTo(t + 0.5 * exp.scenario.plant.time_step)
+    except RuntimeError:      # the blown-up state of a diverged run: keep what was latched
+        pass
 
 
 def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
-    """The loggers' data in the schema of :mod:`drake_coop.results.logs`."""
+    """The loggers' data in the schema of :mod:`drake_coop.results.logs`, one row per tick.
+
+    Alignment: loggers publish at ``t_k`` before the tick's updates. The signals of
+    :data:`LATCHED_SIGNALS` (``τ(k)`` and the force of the step taken from ``t_k``) are
+    latched by those updates, so the sample published at ``t_{k+1}`` holds tick ``k``: they
+    are shifted back by one sample, and the last published tick's come from the logged ports'
+    current values when its updates have run (:func:`finish_last_tick`). Rule for a run that
+    stopped before the last published tick's updates ran (an exception or Ctrl-C during them):
+    its logs end one tick earlier, at the last tick whose torque is known.
+    """
     logs = {}
     task = exp.scenario.task
     for i, rs in enumerate(exp.robots):
-        raw = {k: lg.FindLog(context) for k, lg in rs.loggers.items()}
-        n = min(r.num_samples() for r in raw.values())
-        t = raw["q"].sample_times()[:n]
-        data = {k: r.data()[:, :n].T for k, r in raw.items()}
+        times, raw = rs.log.raw(context)
+        published = times.size
+        ctrl_context = rs.controller.GetMyContextFromRoot(context)
+        complete = published > 0 and rs.controller.latched_tick(ctrl_context) == \
+            tick_of(times[published - 1], exp.scenario.control_period)
+        n = published if complete else max(published - 1, 0)
+        t = times[:n]
+        data = {}
+        for key, r in raw.items():
+            if key not in LATCHED_SIGNALS:
+                data[key] = r[:, :n].T
+                continue
+            rows = r[:, 1:published].T
+            if complete:
+                rows = np.vstack([rows, np.reshape(rs.log.now(context, key), (1, -1))])
+            data[key] = rows[:n]
         arm = exp.coop.arms[i].arm
         arm_dofs = rs.law.n
         layout = rs.law.layout
@@ -214,8 +226,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         Passed to :func:`~drake_coop.experiment.diagram.build_experiment` (visualizers).
     on_start : callable, optional
         ``on_start(experiment, simulator)`` just before the first step (start recordings); a
-        monitor it sets with ``simulator.set_monitor`` is called before the guards' at every
-        step.
+        monitor it sets with ``simulator.set_monitor`` is called at every step (a termination
+        it returns ends the run as diverged, with its message).
     hold_signals : callable, optional
         A context manager factory entered once the loop has stopped, around the collection of
         the logs (the command line defers SIGINT/SIGTERM there, so that a second Ctrl-C cannot
@@ -246,15 +258,13 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     simulator.Initialize()
     if on_start is not None:
         on_start(exp, simulator)
-    monitor = GuardMonitor(exp, plan, progress, also=simulator.get_monitor())
-    simulator.set_monitor(monitor)
     status, message = "ok", ""
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
     start = time.perf_counter()
     try:
-        # Stop only where the plant changes (grasp, release) and at the end, at control ticks
-        # (k h, computed as Drake computes event times).
-        for k_stop in plan.stops:
+        # Stop where the plant changes (grasp, release), at the end, and every guard period,
+        # at control ticks (k h, computed as Drake computes event times).
+        for k_stop in guard_chunks(plan, scenario.guards.check_period):
             try:
                 result = simulator.AdvanceTo(k_stop * plan.h)
             except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
@@ -263,16 +273,25 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
                     f"{' '.join(str(exc).split())[:300]}")
                 break
             if result.reason() == SimulatorStatus.ReturnReason.kReachedTerminationCondition:
-                status, message = "diverged", monitor.message or result.message()
+                status, message = "diverged", result.message()   # a monitor of on_start
+                break
+            reason = _check_guards(exp, context)
+            if reason is not None:
+                status = "diverged"
+                message = f"diverged at t = {context.get_time():.3f} s: {reason}"
                 break
             if k_stop in plan.switches:
                 exp.coop.set_held(plant_context, plan.switches[k_stop])
+            if progress is not None and k_stop != plan.k_end:
+                progress(context.get_time(), T, time.perf_counter() - start)
         if status == "ok" and progress is not None:
             progress(context.get_time(), T, time.perf_counter() - start)
     except KeyboardInterrupt:     # Ctrl-C, wherever it lands: stop, keep what was logged
         status, message = "interrupted", f"interrupted at t = {context.get_time():.3f} s"
     wall = time.perf_counter() - start
+    t_stop = float(context.get_time())
     with hold_signals() if hold_signals is not None else contextlib.nullcontext():
+        finish_last_tick(exp, simulator, status)
         logs = collect_logs(exp, context)
     meta = {
         "status": status,
@@ -282,9 +301,9 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         "control_period": plan.h,
         "plant_time_step": scenario.plant.time_step,
         "object_mode": scenario.plant.object_mode,
-        "t_end": float(context.get_time()),
+        "t_end": t_stop,
         "wall_time_s": wall,
-        "realtime_factor": float(context.get_time()) / wall if wall > 0 else None,
+        "realtime_factor": t_stop / wall if wall > 0 else None,
         "scenario_yaml": dump_scenario(scenario),
     }
     return RunResult(logs=logs, meta=meta, wall_time=wall, experiment=exp)

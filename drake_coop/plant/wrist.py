@@ -13,6 +13,16 @@ Two kinds of systems, so that the cost per tick grows linearly with the number o
   only what its sensor needs, as a vector;
 * one :class:`ForceSensor` per arm (``<robot>_force_sensor``) turns that vector into the force
   and its components along the object's outward normals.
+
+Logged force of a tick (``F_step``, ``lambda_step``): with a control period, the sensor latches
+at every tick ``t_k`` the force of the plant step actually taken from ``t_k``: its discrete
+update runs after the controller's unrestricted update (so under ``τ(k)``) and after a grasp
+switch made between two ``AdvanceTo`` calls (so a grasp or release tick logs the step of the
+new form), from the same context as the plant's own update (the step's solve is shared). A
+logger publishing at ``t_{k+1}`` sees it; :func:`~drake_coop.experiment.simulate.collect_logs`
+shifts it back to the row of ``t_k``. The live ports (``F_meas``, ``lambda_meas``) at a tick
+before its events would read the state of ``t_k`` under ``τ(k − 1)``: a step that is not
+taken.
 """
 
 from __future__ import annotations
@@ -20,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem, ValueProducer
 
 from drake_coop.plant.cooperative import ArmHandles, CoopPlant
@@ -90,6 +101,88 @@ class WristKinematics(LeafSystem):
         value.set_value(out)
 
 
+class WristDynamics(LeafSystem):
+    """Every arm's ground-truth wrist force from the arm's own equations of motion, for the
+    modes where the object's pull on the end-effector point is the only external force on an
+    arm (``planes``, ``rigid``: a ball constraint at the end-effector body's origin).
+
+    For the plant step from ``(q_k, v_k)`` to ``v_{k+1} = v_k + Δt a`` under the actuation
+    ``u``, SAP's momentum balance with the joints' damping taken implicitly is
+
+    .. math::
+        J_x(q_k)^T F = M(q_k)\\,a + C(q_k, v_k) v_k - \\tau_g(q_k) + D (v_k + \\Delta t\\, a)
+                       - B u,
+
+    ``J_x`` the translational Jacobian of the end-effector point (columns of the arm's
+    joints), ``B`` the actuation matrix. The right-hand side is one inverse-dynamics call on a
+    private context of the plant (force elements: gravity and ``D v_k``) plus ``D Δt a − B u``;
+    ``a`` is the plant's generalized-acceleration port, which reuses the step's solve. No
+    reaction forces and no per-body lists cross into Python. ``F`` solves the arm's rows by
+    least squares (exact for a full-rank ``J_x``: ``n = 3`` square, ``n > 3`` tall).
+
+    Input ports
+    -----------
+    state, generalized_acceleration, net_actuation
+        The plant's ports of the same names (``net_actuation`` per actuator).
+
+    Output ports
+    ------------
+    <robot>_wrist : 3-vector, one per arm
+        ``F``, the force of the object on the end effector (palm frame).
+    """
+
+    def __init__(self, plant: MultibodyPlant, arms: list[ArmHandles], time_step: float):
+        super().__init__()
+        self._plant = plant
+        self._context = plant.CreateDefaultContext()
+        self._forces = MultibodyForces(plant)
+        self._dt = float(time_step)
+        nv = plant.num_velocities()
+        self._B = plant.MakeActuationMatrix()
+        damping = np.zeros(nv)
+        for j in plant.GetJointIndices():
+            joint = plant.get_joint(j)
+            if joint.num_velocities() > 0:
+                damping[joint.velocity_start():joint.velocity_start() + joint.num_velocities()] \
+                    = joint.default_damping_vector()
+        self._damping_dt = damping * self._dt
+        self._arms = []
+        for h in arms:
+            columns = plant.GetVelocitiesFromArray(h.instance,
+                                                   np.arange(nv, dtype=float)).astype(int)
+            self._arms.append((h.ee_body.body_frame(), columns))
+        self._state = self.DeclareVectorInputPort(
+            "state", plant.num_multibody_states())
+        self._acceleration = self.DeclareVectorInputPort("generalized_acceleration", nv)
+        self._actuation = self.DeclareVectorInputPort("net_actuation", plant.num_actuators())
+        self._signals = self.DeclareCacheEntry(
+            "wrist forces of every arm",
+            ValueProducer(allocate=AbstractValue.Make([np.zeros(0)]).Clone,
+                          calc=self._calc_signals),
+            {self.all_input_ports_ticket()})
+        for i, h in enumerate(arms):
+            self.DeclareVectorOutputPort(
+                f"{h.arm.name}_wrist", 3,
+                lambda context, output, i=i: output.SetFromVector(
+                    self._signals.Eval(context)[i]),
+                prerequisites_of_calc={self._signals.ticket()})
+
+    def _calc_signals(self, context: Context, value: AbstractValue) -> None:
+        plant, pc = self._plant, self._context
+        plant.SetPositionsAndVelocities(pc, self._state.Eval(context))
+        a = self._acceleration.Eval(context)
+        plant.CalcForceElementsContribution(pc, self._forces)
+        generalized = (plant.CalcInverseDynamics(pc, a, self._forces) + self._damping_dt * a
+                       - self._B @ self._actuation.Eval(context))
+        world = plant.world_frame()
+        out = []
+        for frame, columns in self._arms:
+            J = plant.CalcJacobianTranslationalVelocity(
+                pc, JacobianWrtVariable.kV, frame, np.zeros(3), world, world)[:, columns]
+            out.append(np.linalg.lstsq(J.T, generalized[columns], rcond=None)[0])
+        value.set_value(out)
+
+
 class ForceSensor(LeafSystem):
     """Ground-truth wrist force of one arm (see the module's docstring).
 
@@ -101,23 +194,35 @@ class ForceSensor(LeafSystem):
     Output ports
     ------------
     F_meas : 3-vector
-        Force of the object on the end effector, palm frame (N).
+        Force of the object on the end effector, palm frame (N), live: the plant step that
+        starts at the context's state and inputs.
     lambda_meas : m-vector
         ``N_i F_meas``, ``N_i`` the object's outward normals (rows): positive when squeezing (N).
+    F_step, lambda_step : 3- and m-vectors
+        With a ``period``: ``[F_meas, lambda_meas]`` of the step taken from the last tick,
+        latched at that tick (state only; see the module's docstring).
     """
 
-    def __init__(self, plant: MultibodyPlant, handles: ArmHandles):
+    def __init__(self, plant: MultibodyPlant, handles: ArmHandles, period: float | None = None,
+                 direct: bool = False):
         super().__init__()
         self._masses = [b.default_mass() for b in handles.sensor_bodies]
         self._g_list = plant.gravity_field().gravity_vector().tolist()
         self._N = handles.arm.N
-        self._wrist = self.DeclareVectorInputPort("wrist", _wrist_size(handles))
+        self._direct = direct      # the input is the force itself (WristDynamics)
+        self._wrist = self.DeclareVectorInputPort("wrist", 3 if direct else _wrist_size(handles))
         self._force_cache = self.DeclareCacheEntry(
             "measured force", ValueProducer(allocate=AbstractValue.Make(np.zeros(3)).Clone,
                                             calc=self._calc_force_cache),
             {self.all_input_ports_ticket()})
         self.DeclareVectorOutputPort("F_meas", 3, self._calc_force)
         self.DeclareVectorOutputPort("lambda_meas", handles.arm.m, self._calc_lambda)
+        if period is not None:
+            self._F_step = self.DeclareDiscreteState(3)
+            self._lambda_step = self.DeclareDiscreteState(handles.arm.m)
+            self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_step)
+            self.DeclareStateOutputPort("F_step", self._F_step)
+            self.DeclareStateOutputPort("lambda_step", self._lambda_step)
 
     def force(self, context: Context) -> np.ndarray:
         """The measured force vector (palm frame)."""
@@ -130,9 +235,12 @@ class ForceSensor(LeafSystem):
         """``F_obj = Σ_b m_b (a_b − g) − F_weld`` with ``a_b = a_Bo + α × p + ω × (ω × p)``.
 
         Scalar arithmetic on Python floats (a 3-vector per NumPy call costs more than the
-        math), in the operation order of the vector formula.
+        math), in the operation order of the vector formula. With ``direct``, the input is
+        already the force (:class:`WristDynamics`).
         """
         w = self._wrist.Eval(context)
+        if self._direct:
+            return w.copy()
         values = w.tolist()
         gx, gy, gz = self._g_list
         fx = fy = fz = 0.0
@@ -145,6 +253,11 @@ class ForceSensor(LeafSystem):
             fz += mass * ((tz + (ax * py - ay * px) + (wx * cy - wy * cx)) - gz)
         return np.array([fx, fy, fz]) - w[0:3]
 
+    def _update_step(self, context: Context, discrete_state) -> None:
+        F = self.force(context)
+        discrete_state.set_value(self._F_step, F)
+        discrete_state.set_value(self._lambda_step, self._N @ F)
+
     def _calc_force(self, context: Context, output) -> None:
         output.SetFromVector(self.force(context))
 
@@ -152,17 +265,32 @@ class ForceSensor(LeafSystem):
         output.SetFromVector(self._N @ self.force(context))
 
 
-def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant) -> list[ForceSensor]:
-    """``wrist_kinematics`` and one :class:`ForceSensor` per arm (``<robot>_force_sensor``),
-    wired to the plant."""
+def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | None = None
+                      ) -> list[ForceSensor]:
+    """The ground truth wired to the plant: ``wrist_dynamics`` (:class:`WristDynamics`) in the
+    ``planes`` and ``rigid`` modes, ``wrist_kinematics`` (:class:`WristKinematics`, Newton's
+    law from the reaction forces: other contacts may touch an arm) in ``contact`` mode, and one
+    :class:`ForceSensor` per arm (``<robot>_force_sensor``); with a control ``period``, each
+    latches the force of every tick's step (``F_step``, ``lambda_step``)."""
     plant = coop.plant
-    wrist = builder.AddNamedSystem("wrist_kinematics", WristKinematics(plant, coop.arms))
-    for name in ("reaction_forces", "body_poses", "body_spatial_velocities",
-                 "body_spatial_accelerations"):
-        builder.Connect(plant.GetOutputPort(name), wrist.GetInputPort(name))
+    direct = coop.mode in ("planes", "rigid")
+    if direct:
+        wrist = builder.AddNamedSystem("wrist_dynamics",
+                                       WristDynamics(plant, coop.arms, plant.time_step()))
+        names = ("state", "generalized_acceleration", "net_actuation")
+        ports = (plant.get_state_output_port(), plant.get_generalized_acceleration_output_port(),
+                 plant.get_net_actuation_output_port())
+        for name, port in zip(names, ports):
+            builder.Connect(port, wrist.GetInputPort(name))
+    else:
+        wrist = builder.AddNamedSystem("wrist_kinematics", WristKinematics(plant, coop.arms))
+        for name in ("reaction_forces", "body_poses", "body_spatial_velocities",
+                     "body_spatial_accelerations"):
+            builder.Connect(plant.GetOutputPort(name), wrist.GetInputPort(name))
     sensors = []
     for h in coop.arms:
-        sensor = builder.AddNamedSystem(f"{h.arm.name}_force_sensor", ForceSensor(plant, h))
+        sensor = builder.AddNamedSystem(f"{h.arm.name}_force_sensor",
+                                        ForceSensor(plant, h, period, direct))
         builder.Connect(wrist.GetOutputPort(f"{h.arm.name}_wrist"), sensor.GetInputPort("wrist"))
         sensors.append(sensor)
     return sensors

@@ -281,21 +281,26 @@ class ForceArrows(LeafSystem):
                 m.SetProperty(f"{ROOT}/held_object/scaled", "scale", list(size), t)
 
 
-def _logged_source(builder: DiagramBuilder, logger_name: str) -> OutputPort:
-    """The output port that feeds the logger named ``logger_name``."""
-    logger = builder.GetSubsystemByName(logger_name)
-    for (system, index), (source, out_index) in builder.connection_map().items():
-        if system is logger and int(index) == 0:
+def _logged_source(builder: DiagramBuilder, robot: str, key: str) -> OutputPort:
+    """The output port that feeds the logged signal ``key`` of ``robot`` (an input of its
+    ``<robot>_log_signals`` Multiplexer, in the order of
+    :data:`~drake_coop.experiment.diagram.LOG_KEYS`)."""
+    from drake_coop.experiment.diagram import LOG_KEYS
+
+    mux = builder.GetSubsystemByName(f"{robot}_log_signals")
+    index = LOG_KEYS.index(key)
+    for (system, port), (source, out_index) in builder.connection_map().items():
+        if system is mux and int(port) == index:
             return source.get_output_port(out_index)
-    raise KeyError(f"{logger_name} is not connected")
+    raise KeyError(f"{robot}'s logged {key} is not connected")
 
 
 def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat, *,
                      scale: float = 0.002, publish_period: float = 1 / 30) -> ForceArrows:
     """Add :class:`ForceArrows` to an experiment's builder, fed by the robots' logged signals.
 
-    Call it from ``build_experiment``'s ``before_build`` hook (the loggers
-    ``<robot>_log_reference``, ``_F_meas`` and ``_lambda_hat`` must exist, i.e. ``log=True``).
+    Call it from ``build_experiment``'s ``before_build`` hook (the logged ``reference``,
+    ``F_meas`` and ``lambda_hat`` of each robot must exist, i.e. ``log=True``).
 
     Parameters
     ----------
@@ -318,7 +323,7 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
         builder.Connect(coop.plant.get_state_output_port(h.instance),
                         arrows.GetInputPort(f"{name}_state"))
         for key in ("reference", "F_meas", "lambda_hat"):
-            builder.Connect(_logged_source(builder, f"{name}_log_{key}"),
+            builder.Connect(_logged_source(builder, name, key),
                             arrows.GetInputPort(f"{name}_{key}"))
     return arrows
 

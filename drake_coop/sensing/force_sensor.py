@@ -7,13 +7,27 @@
 with ``α = 1 − exp(−2π f_c h)`` (:func:`~drake_coop.sensing.sampling.lowpass_alpha`;
 ``α = 1`` without a cutoff), ``b`` the bias and ``v_k`` seeded white Gaussian noise.
 
-Sampling instant ``t_k^-``: the sensor is read during the plant's last step before the tick,
-``t_k − Δt`` (``Δt`` the plant's step), i.e. it measures the contact force of
-``[t_k − Δt, t_k)`` under the torque ``τ(k − 1)`` — the latest force that exists at ``t_k``.
-(The plant's live force port *at* ``t_k`` belongs to the step ``[t_k, t_k + Δt)`` and depends on
-``τ(k)``, which is what the controller is about to compute.) The output is state only, so a
-controller reading it forms no algebraic loop; it holds ``λ_s(k)`` from ``t_k − Δt`` to
-``t_{k+1} − Δt``.
+Sampling instant: the reading of tick ``k`` is the contact force of the plant's last step
+before the tick, ``[t_k − Δt, t_k)`` (``Δt`` the plant's step), taken under the torque
+``τ(k − 1)`` — the latest force that exists at ``t_k``. (The plant's live force port *at*
+``t_k`` belongs to the step ``[t_k, t_k + Δt)`` and depends on ``τ(k)``, which is what the
+controller is about to compute.)
+
+How that step is read: the plant's ports are live, so at any time in ``(t_k − 2Δt, t_k − Δt]``
+before the plant's update at ``t_k − Δt`` they return the force of the step ``[t_k − Δt, t_k)``
+(the plant's state and its held actuation do not change in between). The update is declared
+at ``t_k − 3Δt/2``, the middle of the step before, and not at ``t_k − Δt``: Drake computes a
+periodic event's time as ``offset + k h``, which rounds differently from the plant's
+``j Δt`` on some ticks, and an event one rounding *after* the plant's update at ``t_k − Δt``
+reads the step ``[t_k, t_k + Δt)`` under the old torque ``τ(k − 1)`` — a step that never
+happens (the fault of issue 19: 23 of 2 000 ticks of ``scenarios/realistic.yaml``, up to
+0.58 N). Half a plant step from every plant update, no rounding can move the read across
+one. When ``h = Δt`` there is no step in between: the update is at the previous tick
+``t_{k−1}`` (offset 0, on the plant's own grid), where the live port is the step
+``[t_{k−1}, t_k)`` under ``τ(k − 1)``.
+
+The output is state only, so a controller reading it forms no algebraic loop; it holds
+``λ_s(k)`` from the read to the next one.
 """
 
 from __future__ import annotations
@@ -35,7 +49,8 @@ class FTSensor(LeafSystem):
     period : float
         Sampling time ``h`` (s).
     plant_step : float
-        The plant's step ``Δt`` (s), a divisor of ``h``: the sensor is read at ``t_k − Δt``.
+        The plant's step ``Δt`` (s), a divisor of ``h``: the sensor reads the force of the
+        step ``[t_k − Δt, t_k)``, at ``t_k − 3Δt/2`` (at ``t_{k−1}`` when ``h = Δt``).
     settings : drake_coop.scenario.ForceSensorModel
         Noise, bias, cutoff and seed.
     robot_index : int
@@ -69,8 +84,17 @@ class FTSensor(LeafSystem):
         self._input = self.DeclareVectorInputPort("lambda_true", m)
         self._y = self.DeclareDiscreteState(np.zeros(m))                 # low-pass state
         self._reading = self.DeclareDiscreteState(np.full(m, self._bias))  # held reading
-        self.DeclarePeriodicDiscreteUpdateEvent(period, period - plant_step, self._update_reading)
+        # Time from the read to the tick it serves (see the module's docstring).
+        steps = int(round(period / plant_step))
+        self._lead = 1.5 * plant_step if steps >= 2 else period
+        self.DeclarePeriodicDiscreteUpdateEvent(period, period - self._lead,
+                                                self._update_reading)
         self.DeclareStateOutputPort("lambda_sensor", self._reading)
+
+    @property
+    def read_lead(self) -> float:
+        """Time from the read to the tick it serves: ``3Δt/2`` (``h`` when ``h = Δt``)."""
+        return self._lead
 
     @property
     def alpha(self) -> float:
@@ -78,7 +102,7 @@ class FTSensor(LeafSystem):
         return self._alpha
 
     def _update_reading(self, context: Context, discrete_state: DiscreteValues) -> None:
-        k = int(round((context.get_time() + self._dt) / self._h))   # the tick being served
+        k = int(round((context.get_time() + self._lead) / self._h))   # the tick being served
         y_prev = context.get_discrete_state(self._y).CopyToVector()
         y = y_prev + self._alpha * (self._input.Eval(context) - y_prev)
         noise = white_noise(self._seed, self._robot, FORCE_SENSOR_STREAM, k, self._std, self._m)
