@@ -24,12 +24,13 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.trajectories import PiecewisePolynomial
 
+from drake_coop.control.finger import ReferenceLayout
 from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.plan import plan_run
-from drake_coop.control.finger import ReferenceLayout
 from drake_coop.experiment.references import reference_samples
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.scenario.schema import Scenario, ScenarioError
+from drake_coop.sensing.encoders import Encoders
 from drake_coop.stability.period_map import PeriodMap
 
 __all__ = ["POINTS", "OperatingPoint", "linearizable", "operating_point"]
@@ -117,7 +118,7 @@ def operating_point(scenario: Scenario, point: str = "free", t_star: float | Non
     if held:
         coop.set_held(pc, True)
     for rs, q in zip(exp.robots, q_star):
-        if rs.encoders is not None:
+        if isinstance(rs.encoders, Encoders):   # ideal encoders are a stateless Demultiplexer
             rs.encoders.set_initial_state(rs.encoders.GetMyMutableContextFromRoot(context), q)
         if hasattr(rs.velocity_observer, "set_initial_state"):
             rs.velocity_observer.set_initial_state(
