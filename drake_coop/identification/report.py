@@ -52,9 +52,6 @@ from drake_coop.scenario.schema import Scenario
 DURATION_RANGE = (1.0, 120.0)
 #: Files ``identify`` writes (an existing ``--out`` may hold only these).
 OUTPUT_FILES = ("identify.json", "identify_fit.png", "identified.yaml")
-#: A parameter is "determined by the torques" when its unit direction lies in the identifiable
-#: subspace to within this (the norm of its projection).
-IDENTIFIABLE_TOL = 0.99
 
 
 class IdentifyInputError(ValueError):
@@ -72,7 +69,8 @@ class RobotIdentification:
     estimate: Estimate
     theta_true: np.ndarray
     theta_nominal: np.ndarray
-    identifiable: np.ndarray
+    identifiable: np.ndarray   # per parameter: norm of its direction's projection on the
+    #                           identifiable subspace (1: the torques determine it; 0: never)
     validation: dict
     fit: dict
     urdf_text: str
@@ -130,7 +128,7 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     estimate = estimate_parameters(regressor, prepared, theta_nominal)
     Y = regressor.matrix(prepared.q, prepared.v, prepared.a)
     scale, V = identifiable_basis(Y)
-    identifiable = np.linalg.norm(V, axis=1) >= IDENTIFIABLE_TOL
+    identifiable = np.linalg.norm(V, axis=1)
     # Validation: a different excitation, exact states, torques of the truth (no friction
     # term: the Coulomb column's smoothing is the identification's own choice).
     other, _ = design_excitation(duration, q0, limits, nominal_torque, regressor.matrix,
@@ -167,7 +165,7 @@ def masses(ident: RobotIdentification) -> dict:
         out[link] = {"identified": float(ident.estimate.theta[k]),
                      "nominal": float(ident.theta_nominal[k]), "true": true,
                      "relative_error": float(ident.estimate.theta[k] / true - 1.0),
-                     "determined_by_torques": bool(ident.identifiable[k]),
+                     "identifiability": float(ident.identifiable[k]),
                      "bodies": ident.structure.members[link]}
     return out
 
@@ -181,7 +179,7 @@ def summary(ident: RobotIdentification, duration: float) -> dict:
         params[name] = {"identified": float(e.theta[k]), "nominal": float(ident.theta_nominal[k]),
                         "true": float(ident.theta_true[k]),
                         "error": float(e.theta[k] - ident.theta_true[k]),
-                        "determined_by_torques": bool(ident.identifiable[k])}
+                        "identifiability": float(ident.identifiable[k])}
     return {
         "urdf": f"{ident.name}_identified.urdf",
         "duration_s": duration, "samples_recorded": int(ident.data.t.size),
