@@ -369,7 +369,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         robots = parse_robots(args.robots, len(scenario.robots))
         report = run_identify(scenario, args.out, robots, args.duration, seed=args.seed,
                               log=(lambda *a: None) if args.quiet else
-                              (lambda m: print(m, file=sys.stderr)))
+                              (lambda m: print(m, flush=True)))
     except (ScenarioError, IdentifyInputError) as exc:
         return _error(str(exc))
     if not args.quiet:

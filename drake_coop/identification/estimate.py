@@ -179,10 +179,13 @@ def estimate_parameters(regressor: Regressor, data: PreparedData, theta0: np.nda
     r = (y - Y @ theta0) / np.sqrt(sigma2)
     Q = 2.0 * (A.T @ A + np.eye(s.num_parameters))
     prog.AddQuadraticCost(Q, -2.0 * A.T @ r, float(r @ r), x, is_convex=True)
-    theta_expr = theta0 + spread * x
+    theta_expr = np.array([float(t0) + float(sp) * xi                 # elementwise: numpy's
+                           for t0, sp, xi in zip(theta0, spread, x)])  # ufuncs warn on symbols
     for i, _ in enumerate(s.links):
         J = pseudo_inertia(theta_expr[10 * i: 10 * i + 10])
-        prog.AddPositiveSemidefiniteConstraint(J - PSD_MARGIN * np.eye(4))
+        for d in range(4):
+            J[d, d] = J[d, d] - PSD_MARGIN
+        prog.AddPositiveSemidefiniteConstraint(J)
     for kind in ("rotor_inertia", "viscous", "coulomb"):
         sl = s.joint_slice(kind)
         prog.AddBoundingBoxConstraint(-theta0[sl] / spread[sl], np.full(s.n, np.inf), x[sl])

@@ -72,12 +72,12 @@ def pseudo_inertia(theta: np.ndarray) -> np.ndarray:
     (Wensing, Kim, Slotine, IEEE RA-L 2018): the physical-consistency condition.
     """
     m, hx, hy, hz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz = theta
-    I = np.array([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]])
-    J = np.zeros((4, 4), dtype=I.dtype)
-    J[:3, :3] = 0.5 * np.trace(I) * np.eye(3) - I
-    J[:3, 3] = J[3, :3] = [hx, hy, hz]
-    J[3, 3] = m
-    return J
+    # Σ = ½ tr(I) 1 − I written out (also for symbolic entries: no products with 0 or 1).
+    Sxx, Syy, Szz = 0.5 * (Iyy + Izz - Ixx), 0.5 * (Ixx + Izz - Iyy), 0.5 * (Ixx + Iyy - Izz)
+    return np.array([[Sxx, -Ixy, -Ixz, hx],
+                     [-Ixy, Syy, -Iyz, hy],
+                     [-Ixz, -Iyz, Szz, hz],
+                     [hx, hy, hz, m]])
 
 
 @dataclass
