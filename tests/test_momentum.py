@@ -154,3 +154,19 @@ def test_momentum_estimate_follows_the_ground_truth_sensor_in_a_run():
         sel = (t > 16.0) & (t < 19.0)           # held, squeeze ramping up 3.2 N/s
         err = log["lambda_hat"][sel] - log["lambda_meas"][sel]
         assert np.sqrt(np.mean(err ** 2)) < 0.5, name   # N, on 3–13 N
+
+
+def test_momentum_control_block_reads_encoders_and_reference_only():
+    from drake_coop.experiment.diagram import build_experiment
+
+    sc = default_scenario()
+    sc.robots[0].force_source = "momentum"
+    exp = build_experiment(sc, log=False)
+    rs = exp.robots[0]
+    inner = {s.get_name() for s in rs.control.GetSystems()}
+    assert inner == {"robot1_velocity_observer", "robot1_momentum_observer", "robot1_controller"}
+    ports = {rs.control.get_input_port(i).get_name() for i in range(rs.control.num_input_ports())}
+    assert ports == {"q", "reference"}            # no plant state, no measured force
+    outputs = {rs.control.get_output_port(i).get_name()
+               for i in range(rs.control.num_output_ports())}
+    assert {"tau_ext_hat", "O_F_ext_hat", "lambda_hat"} <= outputs
