@@ -49,6 +49,14 @@ class JointTracker(LeafSystem):
     :class:`~drake_coop.control.controller.Controller`: the torque of tick ``k`` is computed
     from ``q_m(k)`` and held on ``[t_k, t_{k+1})`` (state ``[τ(k), q_m(k), k]``).
 
+    .. pydrake_system::
+
+        name: JointTracker
+        input_ports:
+        - q
+        output_ports:
+        - tau
+
     Input ports
     -----------
     q : n-vector
@@ -75,6 +83,12 @@ class JointTracker(LeafSystem):
         self._state = self.DeclareDiscreteState(np.concatenate([np.zeros(n), q0, [-1.0]]))
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_latch)
         self.DeclareVectorOutputPort("tau", n, self._calc_tau)
+
+    def get_q_input_port(self):
+        return self._q
+
+    def get_tau_output_port(self):
+        return self.GetOutputPort("tau")
 
     def _law(self, context: Context, k: int) -> np.ndarray:
         x = context.get_discrete_state(self._state).value()
@@ -166,13 +180,13 @@ def simulate_excitation(scenario: Scenario, robot_index: int, excitation: Fourie
     b.Connect(state, encoders.GetInputPort("state"))
     kp, kv = tracking_gains(nominal, excitation.q0)
     tracker = b.AddNamedSystem("tracker", JointTracker(nominal, excitation, h, kp, kv))
-    b.Connect(encoders.GetOutputPort("q"), tracker.GetInputPort("q"))
+    b.Connect(encoders.GetOutputPort("q"), tracker.get_q_input_port())
     saturation, applied = add_actuators(b, robot.name, n, robot.actuators.torque_limits,
                                         robot.model_error.coulomb_friction, state)
-    b.Connect(tracker.GetOutputPort("tau"), saturation.get_input_port())
+    b.Connect(tracker.get_tau_output_port(), saturation.get_input_port())
     b.Connect(applied, plant.get_actuation_input_port(instance))
     logs = {"q": LogVectorOutput(encoders.GetOutputPort("q"), b, publish_period=h),
-            "tau": LogVectorOutput(tracker.GetOutputPort("tau"), b, publish_period=h),
+            "tau": LogVectorOutput(tracker.get_tau_output_port(), b, publish_period=h),
             "state": LogVectorOutput(state, b, publish_period=h)}
     diagram = b.Build()
     simulator = Simulator(diagram)
