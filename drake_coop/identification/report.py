@@ -131,8 +131,11 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     identifiable = np.linalg.norm(V, axis=1)
     # Validation: a different excitation, exact states, torques of the truth (no friction
     # term: the Coulomb column's smoothing is the identification's own choice).
-    other, _ = design_excitation(duration, q0, limits, nominal_torque, regressor.matrix,
-                                 seed=seed + 1, candidates=1)
+    try:
+        other, _ = design_excitation(duration, q0, limits, nominal_torque, regressor.matrix,
+                                     seed=seed + 1, candidates=3)
+    except ExcitationError:        # no second trajectory fits: validate on the first one
+        other = excitation
     tv = np.linspace(0.0, duration, 400)
     Yv = regressor.matrix(*other.evaluate(tv))
     no_coulomb = np.ones(structure.num_parameters)
