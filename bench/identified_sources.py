@@ -12,6 +12,15 @@ both robots switched together, so that every comparison is paired:
   friction, which stays in the simulated plant);
 * ``sensor`` (the wrist F/T sensor model) and ``none`` with the nominal model.
 
+``--published`` takes the draws instead from the published study 5 results
+(``docs/figures/studies/model_mismatch_results.csv``: the first ``--draws`` samples, their
+mass, inertia and damping scales and their Coulomb friction per joint, on the paper's
+scenario with the study's plant step and ``t_end``). The two differ: today's expansion of the
+study file draws no Coulomb friction (the base scenario's ``coulomb_friction`` lists are
+empty, so ``robots.*.model_error.coulomb_friction.*`` matches nothing), and from the second
+sample on its other draws differ too (the random stream no longer interleaves the Coulomb
+draws), while the published run did draw Coulomb friction.
+
 Each identification and each run is a fresh process (two at a time). Every finished run is
 appended to ``DIR/runs.jsonl`` (so an interrupted study keeps what it ran);
 ``--summarize`` rereads it and writes ``DIR/identified_sources.csv`` (one row per draw and
@@ -56,6 +65,34 @@ def identify_draw(scenario_yaml: str, folder: str, duration: float) -> str:
     return dump_scenario(ided)
 
 
+def published_cases(n: int) -> list[tuple[int, str, dict]]:
+    """``(sample, scenario_yaml, params)`` of the first ``n`` published study 5 samples."""
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+    from drake_coop.studies.spec import load_study
+
+    study = load_study(ROOT / "studies" / "model_mismatch.yaml")
+    out = []
+    with (ROOT / "docs" / "figures" / "studies" / "model_mismatch_results.csv").open() as f:
+        rows = list(csv.DictReader(f))[:n]
+    for row in rows:
+        s = load_scenario(ROOT / "scenarios" / "paper.yaml")
+        s.plant.time_step = float(row["plant.time_step"])
+        params = {}
+        for i, robot in enumerate(s.robots):
+            e = robot.model_error
+            for name in ("mass_scale", "inertia_scale", "damping_scale"):
+                key = f"robots.{i}.model_error.{name}"
+                setattr(e, name, float(row[key]))
+                params[key] = float(row[key])
+            e.coulomb_friction = [float(row[f"robots.{i}.model_error.coulomb_friction.{j}"])
+                                  for j in range(3)]
+            params[f"robots.{i}.model_error.coulomb_friction"] = e.coulomb_friction
+        params["published_worst_force_error_rms"] = float(row["worst.force_error.rms"])
+        out.append((int(row["sample"]), dump_scenario(s), params))
+    assert study.t_end == 35.0
+    return out
+
+
 def variant(scenario_yaml: str, source: str) -> str:
     from drake_coop.scenario.loading import dump_scenario, load_scenario
 
@@ -78,7 +115,8 @@ def run(args) -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     study = load_study(ROOT / "studies" / "model_mismatch.yaml")
-    cases = expand(study)[: args.draws]
+    cases = (published_cases(args.draws) if args.published else
+             [(c.index, c.scenario_yaml, c.params) for c in expand(study)[: args.draws]])
     done = set()
     log = out / "runs.jsonl"
     if log.exists():
@@ -88,11 +126,9 @@ def run(args) -> None:
     ctx = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx,
                              max_tasks_per_child=1) as pool:
-        for case in cases:
-            k = case.index
+        for k, base, params in cases:
             if all((k, s) in done for s in SOURCES):
                 continue
-            base = case.scenario_yaml
             ided = pool.submit(identify_draw, base, str(out / f"draw{k:03d}"),
                                args.duration).result()
             jobs = {s: pool.submit(run_one, variant(ided if s.endswith("+id") else base, s),
@@ -102,7 +138,7 @@ def run(args) -> None:
                 rec = {"draw": k, "source": s, "status": r["meta"]["status"],
                        "squeeze_error": (squeeze_error(r["metrics"])
                                          if r["meta"]["status"] == "ok" else float("nan")),
-                       "params": {p: v for p, v in case.params.items()}}
+                       "params": params}
                 with log.open("a") as f:
                     f.write(json.dumps(rec) + "\n")
                 print(k, s, rec["status"], f"{rec['squeeze_error']:.3f}", flush=True)
@@ -139,9 +175,11 @@ def summarize(args) -> None:
     ax.set_xticks(range(1, len(SOURCES) + 1), SOURCES)
     ax.set_yscale("log")
     ax.set_ylabel("RMS of λ − λ_d, circle [N]")
-    ax.set_title(f"±30 % model error, {len(draws)} paired draws of study 5")
+    ax.set_title(f"±30 % model error, {len(draws)} paired draws of study 5"
+                 + (" (published, Coulomb friction)" if args.published else ""))
     fig.tight_layout()
     fig.savefig(out / "identified_sources.png", dpi=80)
+    plt.close(fig)
 
 
 def main() -> None:
@@ -150,6 +188,8 @@ def main() -> None:
     p.add_argument("--draws", type=int, default=12)
     p.add_argument("--duration", type=float, default=10.0, help="excitation length (s)")
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--published", action="store_true",
+                   help="the published study 5 draws (with their Coulomb friction)")
     p.add_argument("--summarize", action="store_true")
     args = p.parse_args()
     if args.summarize:
