@@ -15,7 +15,6 @@ friction errors, and the circle-phase RMS of λ − λ_d (worst robot, N). Write
 from __future__ import annotations
 
 import argparse
-import copy
 import csv
 import json
 import multiprocessing

@@ -31,7 +31,6 @@ prints the table of median / 90 % / max per source.
 from __future__ import annotations
 
 import argparse
-import copy
 import csv
 import json
 import multiprocessing
