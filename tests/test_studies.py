@@ -168,7 +168,8 @@ def test_bad_study_file_on_the_command_line_exits_2_with_one_line(tmp_path, caps
     assert main(["study", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["drake-coop study: error: grid.robots.0.gains.k_x: no such field "
-                   "('robots.0.gains.k_x'); allowed here: Lambda, K_R, k_d, k_F, xi, xi_matrix, zeta, beta"]
+                   "('robots.0.gains.k_x'); allowed here: Lambda, K_R, k_d, k_F, xi, xi_matrix, zeta, beta, "
+                   "momentum_gain"]
     assert not (tmp_path / "out").exists()
     path.write_text("grid: {control_period: [0.009]}\nmetrics: [worst.speed.rms]\n")
     assert main(["study", str(path), "--out", str(tmp_path / "out")]) == 2

@@ -45,6 +45,7 @@ from pydrake.systems.primitives import (
 
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
+from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import (
     DifferenceVelocity,
@@ -105,7 +106,7 @@ class RobotSystems:
     law: FingerLaw
     control: Diagram
     velocity_observer: VelocityObserver | MeasuredVelocity | DifferenceVelocity
-    force_observer: ForceObserver | SensedForce | NoForceEstimate
+    force_observer: ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
     controller: Controller
     force_sensor: ForceSensor
     encoders: Encoders | Demultiplexer | None = None
@@ -126,12 +127,12 @@ class Experiment:
 
 
 VelocitySource = VelocityObserver | MeasuredVelocity | DifferenceVelocity
-ForceSource = ForceObserver | SensedForce | NoForceEstimate
+ForceSource = ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
 
 
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
-                        difference_cutoff_hz: float | None = None
+                        difference_cutoff_hz: float | None = None, momentum_gain: float = 50.0
                         ) -> tuple[Diagram, VelocitySource, ForceSource, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -139,7 +140,10 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     :mod:`drake_coop.control.sources`, with the same port names, so only the blocks change.
 
     Exported inputs: ``q``, ``reference``; ``state`` for ``velocity_source = measured`` (the
-    true velocities); ``lambda_sensor`` for ``force_source = sensor``.
+    true velocities); ``lambda_sensor`` for ``force_source = sensor``. ``force_source =
+    momentum`` (:class:`~drake_coop.control.momentum.MomentumObserver`, gain
+    ``momentum_gain``) reads ``q``, the velocity source's ``qdot_hat`` and the controller's
+    commanded ``tau``, and adds the exported outputs ``tau_ext_hat`` and ``O_F_ext_hat``.
     Exported outputs: ``tau``, ``q_hat``, ``qdot_hat``, ``qdot_o``, ``lambda_hat``,
     ``Delta_F_tilde``, ``qddot_r_hat``.
     """
@@ -155,6 +159,9 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period, law.layout))
     elif force_source == "none":
         force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
+    elif force_source == "momentum":
+        force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
+            law.model, law.layout, period, momentum_gain))
     else:
         force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
@@ -176,6 +183,12 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         b.Connect(vel.GetOutputPort("qdot_o"), force.GetInputPort("qdot_o"))
     elif force_source == "sensor":
         b.ExportInput(force.GetInputPort("lambda_sensor"), "lambda_sensor")
+    elif force_source == "momentum":
+        b.ConnectInput("q", force.GetInputPort("q"))
+        b.Connect(vel.GetOutputPort("qdot_hat"), force.GetInputPort("qdot_hat"))
+        b.Connect(ctrl.GetOutputPort("tau"), force.GetInputPort("tau"))
+        b.ExportOutput(force.GetOutputPort("tau_ext_hat"), "tau_ext_hat")
+        b.ExportOutput(force.GetOutputPort("O_F_ext_hat"), "O_F_ext_hat")
     b.ExportOutput(ctrl.GetOutputPort("tau"), "tau")
     for port in ("q_hat", "qdot_hat", "qdot_o"):
         b.ExportOutput(vel.GetOutputPort(port), port)
@@ -242,7 +255,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         law = FingerLaw(controller_arm_model(handles.arm, robot.model_error), robot.gains)
         n = law.n
         control, vel, force, ctrl = build_control_block(
-            name, law, h, robot.velocity_source, robot.force_source, robot.difference_cutoff_hz)
+            name, law, h, robot.velocity_source, robot.force_source, robot.difference_cutoff_hz,
+            robot.gains.momentum_gain)
         b.AddSystem(control)
         trajectory = (reference_trajectory(scenario, i) if references is None
                       else references[i])
