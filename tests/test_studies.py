@@ -239,3 +239,36 @@ def test_study_values_are_drawn_in_the_unit_their_size_calls_for():
     assert _metric_unit("worst.position_error.max", [2.8e-3, float("nan")]) == (1e3, "mm")
     assert _metric_unit("worst.velocity_error.rms", [0.059]) == (1e3, "mrad/s")
     assert _metric_unit("worst.force_error.rms", [132.0]) == (1.0, "N")
+
+
+def test_friction_draws_reach_every_joint_of_every_arm():
+    # coulomb_friction defaults to [] (no friction, any arm): a per-joint path must still find
+    # one element per joint of each arm, not silently match nothing.
+    cases = expand(_study("""
+t_end: 1.0
+monte_carlo:
+  n: 2
+  seed: 7
+  perturb:
+    robots.*.model_error.coulomb_friction.*: {uniform: [0.0, 1.0]}
+"""))
+    for scenario in _scenarios(cases):
+        for robot in scenario.robots:
+            friction = robot.model_error.coulomb_friction
+            assert len(friction) == 3 and len(set(friction)) == 3
+            assert all(0.0 <= f <= 1.0 for f in friction)
+
+
+def test_the_shipped_model_mismatch_study_draws_its_published_cases():
+    import csv
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    cases = expand(load_study(root / "studies" / "model_mismatch.yaml"))
+    with open(root / "docs" / "figures" / "studies" / "model_mismatch_results.csv") as f:
+        published = list(csv.DictReader(f))
+    assert len(cases) == len(published) == 60
+    for case, row in zip(cases, published):
+        drawn = {k: v for k, v in case.values.items() if k.startswith("robots.")}
+        assert len(drawn) == 12      # mass, inertia, damping per arm; friction per joint
+        assert drawn == {k: float(row[k]) for k in drawn}
