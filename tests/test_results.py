@@ -63,7 +63,10 @@ def test_logs_round_trip_bit_exact_in_npz_and_csv(tmp_path):
 def test_loading_a_directory_without_logs_names_the_file(tmp_path):
     with pytest.raises(FileNotFoundError, match="run.json"):
         load_logs(tmp_path)
-    (tmp_path / "run.json").write_text(json.dumps({"robots": ["robot1"]}))
+    # A run.json whose phases are valid (they are checked before any log is read) and whose
+    # robot has no log file.
+    (tmp_path / "run.json").write_text(json.dumps({"robots": ["robot1"],
+                                                   "phases": [["free", 0.0, 1.0]]}))
     with pytest.raises(FileNotFoundError, match="robot1.npz"):
         load_logs(tmp_path)
 
