@@ -157,9 +157,14 @@ class ControllerHandles:
         The measured ``q`` (already connected).
     tau_output : OutputPort
         The torque ``τ(k)``, held over ``[t_k, t_{k+1})``.
-    q_hat_output, qdot_hat_output, qdot_o_output, lambda_hat_output, Delta_F_tilde_output :
-        OutputPort
-        The sources' signals (for logging).
+    q_hat_output, qdot_hat_output, qdot_o_output : OutputPort
+        The velocity source's ``q̂``, ``d/dt q̂``, ``q̇_o`` (for logging).
+    lambda_hat_output, Delta_F_tilde_output : OutputPort
+        The force source's ``λ̂`` and ``ΔF̃`` (for logging).
+    plant : MultibodyPlant
+        The simulated plant.
+    model_instance : ModelInstanceIndex
+        The arm in ``plant``.
     lambda_sensor_input : InputPort or None
         The F/T reading of ``force_source = sensor`` (connected when given).
     q_selector : Demultiplexer or None

@@ -25,7 +25,9 @@ observers the control block never sees a velocity or a force. The alternatives o
 :mod:`drake_coop.control.sources` replace the observers inside the block: ``measured`` also reads the
 plant's state (true velocities), ``sensor`` the F/T sensor model's λ. Each control block is a
 sub-Diagram whose inputs are ``q`` and ``reference`` (plus ``state`` / ``lambda_sensor`` for
-those alternatives) and whose outputs are ``tau`` and the sources' signals (for logging).
+those alternatives) and whose outputs are ``tau`` and the sources' signals (for logging),
+added by the public :func:`~drake_coop.control.block.AddCooperativeController` as in a user's
+own diagram (one path).
 """
 
 from __future__ import annotations
