@@ -29,6 +29,10 @@
     Parameter studies and Monte Carlo (see :mod:`drake_coop.studies.cli`).
 ``drake-coop stability SCENARIO --out DIR [--grid PATH=v1,v2,...] [--point free|held|both]``
     Spectral radius of the loop's one-period map over a grid (see :mod:`drake_coop.stability`).
+``drake-coop identify SCENARIO --out DIR [--robots 1,2] [--duration 10]``
+    Identify each robot's dynamic parameters on the simulated true arm from encoder readings
+    and commanded torques; write ``robotN_identified.urdf``, ``identify.json``,
+    ``identify_fit.png`` and ``identified.yaml`` (see :mod:`drake_coop.identification.report`).
 """
 
 from __future__ import annotations
@@ -369,6 +373,39 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_identify(args: argparse.Namespace) -> int:
+    """Identify the scenario's robots and write DIR (exit 2 on bad input, one line)."""
+    import math
+
+    from drake_coop.identification.report import (
+        IdentifyInputError,
+        parse_robots,
+        run_identify,
+    )
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.schema import ScenarioError
+
+    if not math.isfinite(args.duration):
+        return _error(f"--duration must be a finite number of seconds, got {args.duration}")
+    try:
+        scenario = load_scenario(find_scenario(args.scenario))
+        robots = parse_robots(args.robots, len(scenario.robots))
+        report = run_identify(scenario, args.out, robots, args.duration, seed=args.seed,
+                              log=(lambda *a: None) if args.quiet else
+                              (lambda m: print(m, flush=True)))
+    except (ScenarioError, IdentifyInputError) as exc:
+        return _error(str(exc))
+    if not args.quiet:
+        for name, r in report["robots"].items():
+            v = r["validation"]
+            print(f"{name}: model torque error {v['torque_error_rms_identified']:.3g} N·m RMS "
+                  f"(nominal model {v['torque_error_rms_nominal']:.3g}), residual "
+                  f"{max(r['residual_torque_rms']):.3g} N·m, condition number "
+                  f"{r['regressor_condition_number']:.3g}")
+        print(f"wrote {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``drake-coop``."""
     parser = argparse.ArgumentParser(
@@ -415,6 +452,16 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--t-end", type=float, default=90.0)
     bench.add_argument("--repeats", type=int, default=1)
     bench.set_defaults(func=cmd_bench)
+    ident = sub.add_parser("identify", help="identify the arms' dynamic parameters and write "
+                                            "identified URDFs and scenario")
+    ident.add_argument("scenario", help="scenario YAML file or shipped scenario name")
+    ident.add_argument("--out", required=True, help="output directory")
+    ident.add_argument("--robots", default=None, help="robot numbers, e.g. 1,2 (default: all)")
+    ident.add_argument("--duration", type=float, default=10.0,
+                       help="excitation length in seconds (1 to 120, default 10)")
+    ident.add_argument("--seed", type=int, default=0, help="seed of the excitation's design")
+    ident.add_argument("--quiet", action="store_true")
+    ident.set_defaults(func=cmd_identify)
     from drake_coop.studies.cli import add_study_parser
     add_study_parser(sub)
     from drake_coop.stability.cli import add_stability_parser

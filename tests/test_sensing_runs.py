@@ -75,7 +75,8 @@ def _tau_before_and_after_perturbation(scenario):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("velocity_source, force_source", [
-    ("observer", "sensor"), ("difference", "none"), ("difference", "observer")])
+    ("observer", "sensor"), ("difference", "none"), ("difference", "observer"),
+    ("observer", "momentum")])
 def test_next_torque_ignores_true_velocities_and_contact_force(velocity_source, force_source):
     before, after = _tau_before_and_after_perturbation(
         _scenario(velocity_source, force_source, counts_per_rev=100000, noise_std=1e-5,

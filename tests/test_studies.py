@@ -168,7 +168,8 @@ def test_bad_study_file_on_the_command_line_exits_2_with_one_line(tmp_path, caps
     assert main(["study", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["drake-coop study: error: grid.robots.0.gains.k_x: no such field "
-                   "('robots.0.gains.k_x'); allowed here: Lambda, K_R, k_d, k_F, xi, xi_matrix, zeta, beta"]
+                   "('robots.0.gains.k_x'); allowed here: Lambda, K_R, k_d, k_F, xi, xi_matrix, zeta, beta, "
+                   "momentum_gain"]
     assert not (tmp_path / "out").exists()
     path.write_text("grid: {control_period: [0.009]}\nmetrics: [worst.speed.rms]\n")
     assert main(["study", str(path), "--out", str(tmp_path / "out")]) == 2
@@ -238,3 +239,36 @@ def test_study_values_are_drawn_in_the_unit_their_size_calls_for():
     assert _metric_unit("worst.position_error.max", [2.8e-3, float("nan")]) == (1e3, "mm")
     assert _metric_unit("worst.velocity_error.rms", [0.059]) == (1e3, "mrad/s")
     assert _metric_unit("worst.force_error.rms", [132.0]) == (1.0, "N")
+
+
+def test_friction_draws_reach_every_joint_of_every_arm():
+    # coulomb_friction defaults to [] (no friction, any arm): a per-joint path must still find
+    # one element per joint of each arm, not silently match nothing.
+    cases = expand(_study("""
+t_end: 1.0
+monte_carlo:
+  n: 2
+  seed: 7
+  perturb:
+    robots.*.model_error.coulomb_friction.*: {uniform: [0.0, 1.0]}
+"""))
+    for scenario in _scenarios(cases):
+        for robot in scenario.robots:
+            friction = robot.model_error.coulomb_friction
+            assert len(friction) == 3 and len(set(friction)) == 3
+            assert all(0.0 <= f <= 1.0 for f in friction)
+
+
+def test_the_shipped_model_mismatch_study_draws_its_published_cases():
+    import csv
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    cases = expand(load_study(root / "studies" / "model_mismatch.yaml"))
+    with open(root / "docs" / "figures" / "studies" / "model_mismatch_results.csv") as f:
+        published = list(csv.DictReader(f))
+    assert len(cases) == len(published) == 60
+    for case, row in zip(cases, published):
+        drawn = {k: v for k, v in case.values.items() if k.startswith("robots.")}
+        assert len(drawn) == 12      # mass, inertia, damping per arm; friction per joint
+        assert drawn == {k: float(row[k]) for k in drawn}

@@ -4,7 +4,7 @@ The public API: :func:`AddCooperativeController` wires one arm's control block i
 diagram (see ``docs/api_usage.md``); the systems it holds — :class:`VelocityObserver` (15)-(16),
 :class:`ForceObserver` (22), :class:`Controller` (13) and the alternative sources
 (:class:`MeasuredVelocity`, :class:`DifferenceVelocity`, :class:`SensedForce`,
-:class:`NoForceEstimate`) — the law at one sample (:class:`FingerLaw`), the controller's arm model
+:class:`NoForceEstimate`, :class:`MomentumObserver`) — the law at one sample (:class:`FingerLaw`), the controller's arm model
 (:class:`ArmModel`), the reference layout (:class:`ReferenceLayout`, :class:`Reference`) and the
 gains (:class:`Gains`).
 
@@ -21,6 +21,7 @@ from drake_coop.control.block import (
 )
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw, Reference, ReferenceLayout
+from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import (
     DifferenceVelocity,
@@ -41,6 +42,7 @@ __all__ = [
     "Gains",
     "MakeArmControllerPlant",
     "MeasuredVelocity",
+    "MomentumObserver",
     "NoForceEstimate",
     "Reference",
     "ReferenceLayout",

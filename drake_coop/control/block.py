@@ -42,6 +42,7 @@ from pydrake.systems.primitives import Demultiplexer
 from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw, check_period
+from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import (
     DifferenceVelocity,
@@ -53,12 +54,12 @@ from drake_coop.scenario.schema import Gains
 
 #: The choices of ``velocity_source`` and ``force_source``.
 VELOCITY_SOURCES = ("observer", "measured", "difference")
-FORCE_SOURCES = ("observer", "sensor", "none")
+FORCE_SOURCES = ("observer", "sensor", "none", "momentum")
 
 
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
-                        difference_cutoff_hz: float | None = None
+                        difference_cutoff_hz: float | None = None, momentum_gain: float = 50.0
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -78,6 +79,9 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         One of :data:`VELOCITY_SOURCES`, :data:`FORCE_SOURCES`.
     difference_cutoff_hz : float, optional
         Low-pass cutoff of ``velocity_source = difference``.
+    momentum_gain : float
+        ``K_O`` (1/s) of ``force_source = momentum``
+        (:class:`~drake_coop.control.momentum.MomentumObserver`).
 
     Returns
     -------
@@ -85,7 +89,9 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         ``(diagram, velocity source, force source, controller)``. Exported inputs: ``q``,
         ``reference``; ``state`` for ``velocity_source = measured`` (the true velocities);
         ``lambda_sensor`` for ``force_source = sensor``. Exported outputs: ``tau``, ``q_hat``,
-        ``qdot_hat``, ``qdot_o``, ``lambda_hat``, ``Delta_F_tilde``, ``qddot_r_hat``.
+        ``qdot_hat``, ``qdot_o``, ``lambda_hat``, ``Delta_F_tilde``, ``qddot_r_hat``; with
+        ``force_source = momentum`` (which reads ``q``, the velocity source's ``qdot_hat`` and
+        the commanded ``tau``) also ``tau_ext_hat`` and ``O_F_ext_hat``.
     """
     check_period(period)
     if velocity_source not in VELOCITY_SOURCES:
@@ -106,6 +112,9 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period, law.layout))
     elif force_source == "none":
         force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
+    elif force_source == "momentum":
+        force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
+            law.model, law.layout, period, momentum_gain))
     else:
         force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
@@ -127,6 +136,12 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         b.Connect(vel.get_qdot_o_output_port(), force.get_qdot_o_input_port())
     elif force_source == "sensor":
         b.ExportInput(force.get_lambda_sensor_input_port(), "lambda_sensor")
+    elif force_source == "momentum":
+        b.ConnectInput("q", force.GetInputPort("q"))
+        b.Connect(vel.GetOutputPort("qdot_hat"), force.GetInputPort("qdot_hat"))
+        b.Connect(ctrl.get_tau_output_port(), force.GetInputPort("tau"))
+        b.ExportOutput(force.GetOutputPort("tau_ext_hat"), "tau_ext_hat")
+        b.ExportOutput(force.GetOutputPort("O_F_ext_hat"), "O_F_ext_hat")
     b.ExportOutput(ctrl.get_tau_output_port(), "tau")
     for port in ("q_hat", "qdot_hat", "qdot_o"):
         b.ExportOutput(vel.GetOutputPort(port), port)
@@ -251,7 +266,8 @@ def AddCooperativeController(
         gains: Gains, period: float, controller_model: str | Path | MultibodyPlant | ArmModel,
         ee_frame: str | Frame | None = None, normals=None, contact_point=None,
         velocity_source: str = "observer", force_source: str = "observer",
-        difference_cutoff_hz: float | None = None, q: OutputPort | None = None,
+        difference_cutoff_hz: float | None = None, momentum_gain: float = 50.0,
+        q: OutputPort | None = None,
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
         name: str | None = None, allow_sampled_output_ports: bool = False
 ) -> ControllerHandles:
@@ -287,10 +303,13 @@ def AddCooperativeController(
     velocity_source : {"observer", "measured", "difference"}
         The paper's observer (default) or a comparison baseline
         (:mod:`drake_coop.control.sources`); ``measured`` reads the plant's velocities.
-    force_source : {"observer", "sensor", "none"}
-        The paper's observer (default), an F/T reading (``lambda_sensor``) or none.
+    force_source : {"observer", "sensor", "none", "momentum"}
+        The paper's observer (default), an F/T reading (``lambda_sensor``), none, or the
+        generalized-momentum observer.
     difference_cutoff_hz : float, optional
         Low-pass cutoff of ``velocity_source = "difference"``.
+    momentum_gain : float
+        ``K_O`` (1/s) of ``force_source = "momentum"``.
     q : OutputPort, optional
         The measured positions (the user's own encoder model); default: the plant's exact
         ``q`` through a C++ ``Demultiplexer``.
@@ -361,7 +380,8 @@ def AddCooperativeController(
     law = FingerLaw(model, gains)
     name = name or plant.GetModelInstanceName(model_instance)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
-                                                  force_source, difference_cutoff_hz)
+                                                  force_source, difference_cutoff_hz,
+                                                  momentum_gain)
     builder.AddSystem(block)
     state = plant.get_state_output_port(model_instance)
     selector = None

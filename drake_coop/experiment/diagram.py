@@ -48,6 +48,7 @@ from pydrake.systems.primitives import (
 from drake_coop.control.block import AddCooperativeController
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
+from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import (
     DifferenceVelocity,
@@ -108,7 +109,7 @@ class RobotSystems:
     law: FingerLaw
     control: Diagram
     velocity_observer: VelocityObserver | MeasuredVelocity | DifferenceVelocity
-    force_observer: ForceObserver | SensedForce | NoForceEstimate
+    force_observer: ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
     controller: Controller
     force_sensor: ForceSensor
     encoders: Encoders | Demultiplexer | None = None
@@ -129,7 +130,7 @@ class Experiment:
 
 
 VelocitySource = VelocityObserver | MeasuredVelocity | DifferenceVelocity
-ForceSource = ForceObserver | SensedForce | NoForceEstimate
+ForceSource = ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
 
 
 def is_ideal(settings) -> bool:
@@ -198,7 +199,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         block = AddCooperativeController(
             b, plant, handles.instance, gains=robot.gains, period=h, controller_model=model,
             velocity_source=robot.velocity_source, force_source=robot.force_source,
-            difference_cutoff_hz=robot.difference_cutoff_hz, q=q_port,
+            difference_cutoff_hz=robot.difference_cutoff_hz,
+            momentum_gain=robot.gains.momentum_gain, q=q_port,
             lambda_sensor=ft.GetOutputPort("lambda_sensor"), connect_actuation=False,
             name=name)
         law, control = block.law, block.system

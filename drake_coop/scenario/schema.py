@@ -19,7 +19,7 @@ from drake_coop.scenario.bounds import one_line
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
 VELOCITY_SOURCES = ("observer", "measured", "difference")
-FORCE_SOURCES = ("observer", "sensor", "none")
+FORCE_SOURCES = ("observer", "sensor", "none", "momentum")
 #: The shipped arm models (``urdf/<file>``); a robot's ``model`` may also be a ``.urdf`` path.
 SHIPPED_ARMS = {"crs_a465": "crs_a465_3dof.urdf", "crs_a255": "crs_a255_3dof.urdf",
                 "coop6": "coop6_6dof.urdf"}
@@ -59,6 +59,10 @@ class Gains:
         ``zeta`` of (13), weight of Δλ̃ (dimensionless).
     beta : float
         ``beta`` of (4), position-constraint gain (1/s). Not given by the paper.
+    momentum_gain : float
+        ``K_O`` of the generalized-momentum observer (``force_source: momentum``,
+        :mod:`drake_coop.control.momentum`), 1/s: the estimate follows the external torque
+        as a first-order filter of time constant ``1/K_O``; ``0 < h K_O <= 1``.
     """
 
     Lambda: float = 35.0
@@ -69,6 +73,7 @@ class Gains:
     xi_matrix: Optional[list[list[float]]] = None
     zeta: float = 1e-3
     beta: float = 10.0
+    momentum_gain: float = 50.0
 
 
 @dataclass
@@ -261,7 +266,9 @@ class Robot:
         ``0 < f < 1/(2h)``; null: the raw difference.
     force_source : str
         ``observer`` (the paper's (22)), ``sensor`` (the F/T sensor model's λ in (13) and (6))
-        or ``none`` (``λ̂ := λ_d``, ``ΔF̃ ≡ 0``: the implicit force control of reference [9]).
+        or ``none`` (``λ̂ := λ_d``, ``ΔF̃ ≡ 0``: the implicit force control of reference [9]),
+        or ``momentum`` (the generalized-momentum observer's ``J⁺ᵀ τ̂_ext``, gain
+        ``gains.momentum_gain``).
     encoders : Encoders
         The joint-position sensors.
     force_sensor : ForceSensorModel

@@ -44,6 +44,7 @@ BOUNDS: dict[str, Bound] = {
     "robots[].gains.xi": Bound(0.0, 1.0, "", **_POS),
     "robots[].gains.zeta": Bound(0.0, 100.0, "", **_POS),
     "robots[].gains.beta": Bound(0.0, 1e3, "1/s", **_POS),
+    "robots[].gains.momentum_gain": Bound(0.0, 1e4, "1/s", **_POS),
     "robots[].difference_cutoff_hz": Bound(0.0, 1e6, "Hz", **_POS),
     "robots[].encoders.counts_per_rev": Bound(1, 1e12, "counts"),
     "robots[].encoders.noise_std": Bound(0.0, 1.0, "rad"),
@@ -248,6 +249,10 @@ def _validate_sensing(robot: Robot, where: str, h: float) -> None:
     _choice(robot.velocity_source, VELOCITY_SOURCES, f"{where}.velocity_source")
     _choice(robot.force_source, FORCE_SOURCES, f"{where}.force_source")
     _cutoff(robot.difference_cutoff_hz, f"{where}.difference_cutoff_hz", h)
+    if robot.force_source == "momentum" and robot.gains.momentum_gain * h > 1.0:
+        raise ScenarioError(f"{where}.gains.momentum_gain must be at most 1/h = {1.0 / h:g} "
+                            f"1/s with force_source: momentum (the sampled observer's error "
+                            f"shrinks by 1 - h K_O per tick), got {robot.gains.momentum_gain:g}")
     if robot.difference_cutoff_hz is not None and robot.velocity_source != "difference":
         raise ScenarioError(f"{where}.difference_cutoff_hz applies to velocity_source: "
                             f"difference only; set it to null or use difference")

@@ -64,6 +64,7 @@ import hashlib
 import itertools
 import json
 import math
+import re
 import types
 import typing
 from dataclasses import is_dataclass
@@ -170,6 +171,10 @@ def resolve(data: dict, path: str, where: str) -> list[KeyPath]:
             (item,) = typing.get_args(schema)
             size = len(node) if isinstance(node, list) else 0
             if head == "*":
+                if size == 0:
+                    raise StudyError(f"{where}: {shown!r} matches nothing: the base scenario's "
+                                     f"list {'.'.join(map(str, prefix))!r} is empty (give it "
+                                     "its elements in the base scenario first)")
                 indices = range(size)
             elif head.isdigit() and int(head) < size:
                 indices = [int(head)]
@@ -404,6 +409,32 @@ class _Builder:
         return scenario, text
 
 
+#: Per-joint lists whose empty default means "zero on every joint" (same physics).
+_JOINT_LISTS = re.compile(r"^robots\.(\*|\d+)\.model_error\.coulomb_friction\.")
+
+
+def _fill_joint_lists(builder: "_Builder", paths: list[str]) -> None:
+    """Give a per-joint list that a study path reaches into its arm's length.
+
+    ``model_error.coulomb_friction`` defaults to ``[]`` (no friction, any number of joints); a
+    path such as ``robots.*.model_error.coulomb_friction.*`` would match no element of it. For
+    the robots such a path names, an empty list becomes ``n`` zeros (``n`` the arm's joint
+    count from its model): the same physics, and elements for the path to set or draw.
+    """
+    wanted = [p for p in paths if _JOINT_LISTS.match(p)]
+    if not wanted:
+        return
+    from drake_coop.scenario.model_check import check_models
+
+    joints = check_models(builder.base)
+    for i, robot in enumerate(builder.base.robots):
+        named = any(_JOINT_LISTS.match(p).group(1) in ("*", str(i)) for p in wanted)
+        if named and not robot.model_error.coulomb_friction:
+            robot.model_error.coulomb_friction = [0.0] * joints[i]
+            entry = builder.base_dict["robots"][i].setdefault("model_error", {})
+            entry["coulomb_friction"] = [0.0] * joints[i]
+
+
 def _samples(study: Study, base: dict) -> list[list[Assignment]]:
     """Monte Carlo draws per sample as assignments (one empty sample: no Monte Carlo)."""
     mc = study.monte_carlo
@@ -457,6 +488,9 @@ def expand(study: Study, *, max_cases: int = MAX_CASES) -> list[Case]:
                          f"samples), more than {max_cases}; shrink the grid or monte_carlo.n, "
                          "or raise the bound on purpose with --max-cases")
     builder = _Builder(study)
+    paths = list(study.grid) + ([p.path for p in study.monte_carlo.perturb]
+                                if study.monte_carlo is not None else [])
+    _fill_joint_lists(builder, paths)
     base = builder.base_dict
     grid_targets = {path: resolve(base, path, f"grid.{path}") for path in study.grid}
     for path, values in study.grid.items():     # each value alone: names the bad one

@@ -1,0 +1,201 @@
+"""Study 5's model-mismatch draws with every force source, identified models included.
+
+``python bench/identified_sources.py --draws 12 --out DIR`` takes the first ``--draws``
+samples of ``studies/model_mismatch.yaml`` (the same draws as study 5: seed 2026, ±30 %
+masses, inertias and damping of each controller model, unknown Coulomb friction up to
+1 N·m per joint; ``t_end`` 35 s, plant step 3 ms) and runs each draw with six force sources,
+both robots switched together, so that every comparison is paired:
+
+* ``observer`` / ``momentum`` with the draw's nominal (wrong) controller model;
+* ``observer+id`` / ``momentum+id`` with the model that ``drake-coop identify`` finds for
+  this draw's arms (10 s of excitation per arm; the identification sees the draw's Coulomb
+  friction, which stays in the simulated plant);
+* ``sensor`` (the wrist F/T sensor model) and ``none`` with the nominal model.
+
+``--published`` takes the draws instead from the published study 5 results
+(``docs/figures/studies/model_mismatch_results.csv``: the first ``--draws`` samples, their
+mass, inertia and damping scales and their Coulomb friction per joint, on the paper's
+scenario with the study's plant step and ``t_end``). The two differ: today's expansion of the
+study file draws no Coulomb friction (the base scenario's ``coulomb_friction`` lists are
+empty, so ``robots.*.model_error.coulomb_friction.*`` matches nothing), and from the second
+sample on its other draws differ too (the random stream no longer interleaves the Coulomb
+draws), while the published run did draw Coulomb friction.
+
+Each identification and each run is a fresh process (two at a time). Every finished run is
+appended to ``DIR/runs.jsonl`` (so an interrupted study keeps what it ran);
+``--summarize`` rereads it and writes ``DIR/identified_sources.csv`` (one row per draw and
+source: the circle phase's RMS of λ − λ_d, worst robot) and ``identified_sources.png``, and
+prints the table of median / 90 % / max per source.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SOURCES = ("observer", "observer+id", "momentum", "momentum+id", "sensor", "none")
+
+
+def identify_draw(scenario_yaml: str, folder: str, duration: float) -> str:
+    """Identify both robots of one draw; the identified scenario's YAML (absolute URDFs)."""
+    from drake_coop.identification.report import identified_scenario, identify_robot
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+
+    scenario = load_scenario(data=scenario_yaml)
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    idents = {}
+    for i in range(len(scenario.robots)):
+        ident = identify_robot(scenario, i, duration)
+        (out / f"{ident.name}_identified.urdf").write_text(ident.urdf_text)
+        idents[i] = ident
+    ided = identified_scenario(scenario, idents)
+    for robot in ided.robots:
+        robot.controller_model = str((out / robot.controller_model).resolve())
+    errors = {ident.name: ident.validation for ident in idents.values()}
+    (out / "validation.json").write_text(json.dumps(errors, indent=1))
+    return dump_scenario(ided)
+
+
+def published_cases(n: int) -> list[tuple[int, str, dict]]:
+    """``(sample, scenario_yaml, params)`` of the first ``n`` published study 5 samples."""
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+    from drake_coop.studies.spec import load_study
+
+    study = load_study(ROOT / "studies" / "model_mismatch.yaml")
+    out = []
+    with (ROOT / "docs" / "figures" / "studies" / "model_mismatch_results.csv").open() as f:
+        rows = list(csv.DictReader(f))[:n]
+    for row in rows:
+        s = load_scenario(ROOT / "scenarios" / "paper.yaml")
+        s.plant.time_step = float(row["plant.time_step"])
+        params = {}
+        for i, robot in enumerate(s.robots):
+            e = robot.model_error
+            for name in ("mass_scale", "inertia_scale", "damping_scale"):
+                key = f"robots.{i}.model_error.{name}"
+                setattr(e, name, float(row[key]))
+                params[key] = float(row[key])
+            e.coulomb_friction = [float(row[f"robots.{i}.model_error.coulomb_friction.{j}"])
+                                  for j in range(3)]
+            params[f"robots.{i}.model_error.coulomb_friction"] = e.coulomb_friction
+        params["published_worst_force_error_rms"] = float(row["worst.force_error.rms"])
+        out.append((int(row["sample"]), dump_scenario(s), params))
+    assert study.t_end == 35.0
+    return out
+
+
+def variant(scenario_yaml: str, source: str) -> str:
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+
+    s = load_scenario(data=scenario_yaml)
+    for robot in s.robots:
+        robot.force_source = source.split("+")[0]
+    return dump_scenario(s)
+
+
+def squeeze_error(metrics: dict) -> float:
+    """The worst robot's circle-phase RMS of λ − λ_d (N)."""
+    return max(m["circle"]["force_error"]["rms"] for m in metrics.values() if "circle" in m)
+
+
+def run(args) -> None:
+    from drake_coop.studies.expand import expand
+    from drake_coop.studies.spec import load_study
+    from drake_coop.studies.sweep import run_one
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    study = load_study(ROOT / "studies" / "model_mismatch.yaml")
+    cases = (published_cases(args.draws) if args.published else
+             [(c.index, c.scenario_yaml, c.params) for c in expand(study)[: args.draws]])
+    done = set()
+    log = out / "runs.jsonl"
+    if log.exists():
+        for line in log.read_text().splitlines():
+            r = json.loads(line)
+            done.add((r["draw"], r["source"]))
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx,
+                             max_tasks_per_child=1) as pool:
+        for k, base, params in cases:
+            if all((k, s) in done for s in SOURCES):
+                continue
+            ided = pool.submit(identify_draw, base, str(out / f"draw{k:03d}"),
+                               args.duration).result()
+            jobs = {s: pool.submit(run_one, variant(ided if s.endswith("+id") else base, s),
+                                   study.t_end) for s in SOURCES if (k, s) not in done}
+            for s, job in jobs.items():
+                r = job.result()
+                rec = {"draw": k, "source": s, "status": r["meta"]["status"],
+                       "squeeze_error": (squeeze_error(r["metrics"])
+                                         if r["meta"]["status"] == "ok" else float("nan")),
+                       "params": params}
+                with log.open("a") as f:
+                    f.write(json.dumps(rec) + "\n")
+                print(k, s, rec["status"], f"{rec['squeeze_error']:.3f}", flush=True)
+
+
+def summarize(args) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(args.out)
+    recs = [json.loads(x) for x in (out / "runs.jsonl").read_text().splitlines()]
+    draws = sorted({r["draw"] for r in recs
+                    if all(any(q["draw"] == r["draw"] and q["source"] == s for q in recs)
+                           for s in SOURCES)})
+    table = {s: np.array([next(q["squeeze_error"] for q in recs
+                               if q["draw"] == d and q["source"] == s) for d in draws])
+             for s in SOURCES}
+    with (out / "identified_sources.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["draw", *SOURCES])
+        for i, d in enumerate(draws):
+            w.writerow([d, *(f"{table[s][i]:.4f}" for s in SOURCES)])
+    print(f"{len(draws)} paired draws; circle-phase RMS of λ − λ_d, worst robot (N)")
+    print("| force source | median | 90 % | max |")
+    print("| --- | --- | --- | --- |")
+    for s in SOURCES:
+        v = table[s]
+        print(f"| {s} | {np.nanmedian(v):.2f} | {np.nanpercentile(v, 90):.2f} | "
+              f"{np.nanmax(v):.2f} |")
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    ax.boxplot([table[s] for s in SOURCES], whis=(0, 100))
+    ax.set_xticks(range(1, len(SOURCES) + 1), SOURCES)
+    ax.set_yscale("log")
+    ax.set_ylabel("RMS of λ − λ_d, circle [N]")
+    ax.set_title(f"±30 % model error, {len(draws)} paired draws of study 5"
+                 + (" (published, Coulomb friction)" if args.published else ""))
+    fig.tight_layout()
+    fig.savefig(out / "identified_sources.png", dpi=80)
+    plt.close(fig)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", required=True)
+    p.add_argument("--draws", type=int, default=12)
+    p.add_argument("--duration", type=float, default=10.0, help="excitation length (s)")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--published", action="store_true",
+                   help="the published study 5 draws (with their Coulomb friction)")
+    p.add_argument("--summarize", action="store_true")
+    args = p.parse_args()
+    if args.summarize:
+        summarize(args)
+    else:
+        run(args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,231 @@
+"""The generalized-momentum observer of the external joint torque, a force source at ``h``.
+
+From the model (1), ``H q̈ + C q̇ + D q̇ + g = τ + τ_ext`` with ``τ_ext = J_φᵀ λ``, and
+``Ḣ = C + Cᵀ``, the generalized momentum ``p = H(q) q̇`` obeys
+
+.. math::
+    \\dot p = \\tau - \\beta(q, \\dot q) + \\tau_{ext}, \\qquad
+    \\beta = g(q) + D\\dot q - C^T(q, \\dot q)\\dot q ,
+
+which needs no acceleration. The observer (De Luca & Mattone 2005; Haddadin, De Luca,
+Albu-Schäffer, IEEE T-RO 2017) integrates the known part and feeds back the residual
+
+.. math::
+    r(t) = K_O\\Big(p(t) - p(0) - \\int_0^t (\\tau - \\beta + r)\\,ds\\Big), \\qquad
+    \\dot r = K_O(\\tau_{ext} - r),
+
+a first-order filter of the external torque with the gain ``K_O`` (1/s). Sampled at ``h``
+(forward Euler, as the paper's observers): with the state ``σ`` (``σ(0) = p(0)``),
+
+.. math::
+    r(k) = K_O\\big(\\hat H(q_k)\\hat{\\dot q}_k - \\sigma(k)\\big), \\qquad
+    \\sigma(k+1) = \\sigma(k) + h\\big(\\tau(k) - \\hat\\beta(q_k, \\hat{\\dot q}_k) + r(k)\\big),
+
+so that for a constant ``τ_ext`` on an arm at rest ``r(k) = (1 − (1 − h K_O)^k) τ_ext``
+(stable and monotone for ``0 < h K_O ≤ 1``). ``τ(k)`` is the *commanded* torque (what a
+controller knows), ``q̇̂`` the robot's velocity source (the observer's ``d/dt q̂`` (15)), and
+``Ĥ, Ĉ, D̂, ĝ`` the controller's model: a model error, unknown friction or a torque
+saturation appears in ``r`` as external torque. ``Ĉᵀ q̇`` is ``Ḣ q̇ − C q̇`` with ``Ḣ`` the
+exact directional derivative of ``H`` along ``q̇`` (AutoDiff).
+
+The contact force then follows as the other force sources deliver it:
+``λ̂ = J⁺ᵀ r = (J_φ J_φᵀ)⁻¹ J_φ r`` while the object is held (0 in free motion), feeding (13)
+and the integral (6) ``ΔF̃(k+1) = ΔF̃(k) + h (λ̂(k) − λ_d(k))`` (reset to 0 when not held).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.autodiffutils import ExtractGradient, InitializeAutoDiff
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiscreteValues,
+    LeafSystem,
+    ValueProducer,
+)
+
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.finger import ReferenceLayout
+
+
+class MomentumObserver(LeafSystem):
+    """Generalized-momentum observer of one robot (module docstring).
+
+    Parameters
+    ----------
+    model : ArmModel
+        The controller's model of the arm.
+    layout : ReferenceLayout
+        The robot's reference layout (``n`` joints, ``m`` constraints).
+    period : float
+        Sampling time ``h`` (s).
+    gain : float
+        ``K_O`` (1/s), ``0 < h K_O ≤ 1``.
+
+    .. pydrake_system::
+
+        name: MomentumObserver
+        input_ports:
+        - q
+        - qdot_hat
+        - tau
+        - reference
+        output_ports:
+        - tau_ext_hat
+        - O_F_ext_hat
+        - lambda_hat
+        - Delta_F_tilde
+
+    Input ports
+    -----------
+    q : n-vector
+        The encoder reading ``q(k)``.
+    qdot_hat : n-vector
+        The velocity estimate of tick ``k``.
+    tau : n-vector
+        The commanded torque ``τ(k)`` (read by the update only: no algebraic loop).
+    reference : (3n + m + 1)-vector
+        ``[q_d, q̇_d, q̈_d, λ_d, held]``.
+
+    Output ports
+    ------------
+    tau_ext_hat : n-vector
+        ``r(k)``, the estimated external joint torque (libfranka's ``tau_ext_hat_filtered``).
+    O_F_ext_hat : 3-vector
+        The estimated external force on the end effector in the palm frame ``O``,
+        ``(J_xᵀ)⁺ r`` (libfranka's ``O_F_ext_hat_K``, force part).
+    lambda_hat : m-vector
+        ``λ̂(k) = J⁺ᵀ r(k)`` while held, else 0.
+    Delta_F_tilde : m-vector
+        ``ΔF̃(k)`` (state only).
+    """
+
+    def __init__(self, model: ArmModel, layout: ReferenceLayout, period: float, gain: float):
+        super().__init__()
+        self._model = model
+        self._layout = layout
+        self._h = float(period)
+        self._gain = float(gain)
+        n, m = layout.n, layout.m
+        self._n, self._m = n, m
+        self._q = self.DeclareVectorInputPort("q", n)
+        self._v = self.DeclareVectorInputPort("qdot_hat", n)
+        self._tau = self.DeclareVectorInputPort("tau", n)
+        self._reference = self.DeclareVectorInputPort("reference", layout.size)
+        self._sigma = self.DeclareDiscreteState(n)
+        self._DF = self.DeclareDiscreteState(m)
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        inputs = {self.xd_ticket(), self._q.ticket(), self._v.ticket(),
+                  self._reference.ticket()}
+        self._estimate = self.DeclareCacheEntry(
+            "r, lambda_hat, F_hat",
+            ValueProducer(allocate=AbstractValue.Make((np.zeros(n), np.zeros(m), np.zeros(3),
+                                                       np.zeros(n), False)).Clone,
+                          calc=self._calc_estimate), inputs)
+        deps = {self._estimate.ticket()}
+        self.DeclareVectorOutputPort("tau_ext_hat", n, self._calc_tau_ext,
+                                     prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("O_F_ext_hat", 3, self._calc_force,
+                                     prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("lambda_hat", m, self._calc_lambda_hat,
+                                     prerequisites_of_calc=deps)
+        self.DeclareStateOutputPort("Delta_F_tilde", self._DF)
+
+    @property
+    def gain(self) -> float:
+        """``K_O`` (1/s)."""
+        return self._gain
+
+    def get_q_input_port(self):
+        return self._q
+
+    def get_qdot_hat_input_port(self):
+        return self._v
+
+    def get_tau_input_port(self):
+        return self._tau
+
+    def get_reference_input_port(self):
+        return self._reference
+
+    def get_tau_ext_hat_output_port(self):
+        return self.GetOutputPort("tau_ext_hat")
+
+    def get_O_F_ext_hat_output_port(self):
+        return self.GetOutputPort("O_F_ext_hat")
+
+    def get_lambda_hat_output_port(self):
+        return self.GetOutputPort("lambda_hat")
+
+    def get_Delta_F_tilde_output_port(self):
+        return self.GetOutputPort("Delta_F_tilde")
+
+    def set_initial_state(self, context: Context, q0: np.ndarray,
+                          v0: np.ndarray | None = None) -> None:
+        """``σ(0) = Ĥ(q_0) v_0`` (zero momentum at rest by default) and ``ΔF̃(0) = 0``."""
+        v0 = np.zeros(self._n) if v0 is None else np.asarray(v0, float)
+        context.SetDiscreteState(self._sigma, self._model.H(q0) @ v0)
+        context.SetDiscreteState(self._DF, np.zeros(self._m))
+
+    # ------------------------------------------------------------------ the model's terms
+    def momentum(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``p = Ĥ(q) v``."""
+        return self._model.H(q) @ v
+
+    def beta(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """``β = ĝ(q) + D̂ v − Ĉ(q, v)ᵀ v`` with ``Ĉᵀ v = Ḣ v − C v``."""
+        model = self._model
+        q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(v, float).reshape(-1, 1))
+        model.plant_ad.SetPositions(model.context_ad, q_ad.reshape(-1))
+        H_ad = model.plant_ad.CalcMassMatrix(model.context_ad)
+        grad = ExtractGradient(H_ad.reshape(-1, 1))
+        Hdot = (grad.reshape(self._n, self._n) if grad.size == self._n ** 2
+                else np.zeros((self._n, self._n)))
+        CTv = Hdot @ v - model.Cv(q, v)
+        return model.g(q) + model.D @ v - CTv
+
+    def _translational_jacobian(self, q: np.ndarray) -> np.ndarray:
+        model = self._model
+        model.H(q)   # positions into the model's context
+        world = model.plant.world_frame()
+        return model.plant.CalcJacobianTranslationalVelocity(
+            model.context, JacobianWrtVariable.kV, model.ee_frame, np.zeros(3), world, world)
+
+    # ------------------------------------------------------------------ outputs, update
+    def _calc_estimate(self, context: Context, value: AbstractValue) -> None:
+        q = self._q.Eval(context)
+        v = self._v.Eval(context)
+        sigma = context.get_discrete_state(self._sigma).value()
+        r = self._gain * (self.momentum(q, v) - sigma)
+        ref = self._layout.unpack(self._reference.Eval(context))
+        if ref.held:
+            J = self._model.J_phi(q)
+            lam = np.linalg.solve(J @ J.T, J @ r)
+        else:
+            lam = np.zeros(self._m)
+        F = np.linalg.lstsq(self._translational_jacobian(q).T, r, rcond=None)[0]
+        value.set_value((r, lam, F, ref.lambda_d.copy(), bool(ref.held)))
+
+    def _calc_tau_ext(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._estimate.Eval(context)[0])
+
+    def _calc_force(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._estimate.Eval(context)[2])
+
+    def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._estimate.Eval(context)[1])
+
+    def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
+        r, lam, _, lambda_d, held = self._estimate.Eval(context)
+        q = self._q.Eval(context)
+        v = self._v.Eval(context)
+        sigma = context.get_discrete_state(self._sigma).value()
+        tau = self._tau.Eval(context)
+        discrete_state.set_value(self._sigma,
+                                 sigma + self._h * (tau - self.beta(q, v) + r))
+        DF = context.get_discrete_state(self._DF).value()
+        discrete_state.set_value(self._DF, DF + self._h * (lam - lambda_d) if held
+                                 else np.zeros(self._m))

@@ -1,0 +1,314 @@
+"""``drake-coop identify``: identify each robot of a scenario and write the results.
+
+For each robot: design the excitation (:mod:`~drake_coop.identification.excitation`) from the
+nominal model (the controller's model of the scenario: its URDF with the scenario's
+``model_error`` scales, what the user starts from), run the experiment on the true simulated
+arm (:mod:`~drake_coop.identification.collect`), estimate
+(:mod:`~drake_coop.identification.estimate`), and write into ``DIR``:
+
+* ``robotN_identified.urdf`` (:mod:`~drake_coop.identification.urdf_writer`);
+* ``identify.json``: every parameter's estimate, nominal and (this is a simulation) true value
+  and error; which parameters the joint torques determine; the regressor's condition number;
+  the residual torque RMS; the data length; the model torque error on a validation trajectory
+  (a different excitation) of the identified and of the nominal model against the truth;
+* ``identify_fit.png``: measured and predicted torques;
+* ``identified.yaml``: the input scenario with each identified robot's ``controller_model``
+  set to its identified URDF and its controller-side scales (``mass_scale``,
+  ``inertia_scale``, ``damping_scale``) back to 1; the simulated payload and Coulomb friction
+  stay (they are the truth).
+
+The folder is written whole: staged in a hidden sibling and renamed into place.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import secrets
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from drake_coop.identification.collect import ExcitationData, simulate_excitation
+from drake_coop.identification.estimate import Estimate, estimate_parameters, prepare
+from drake_coop.identification.excitation import (
+    ExcitationLimits,
+    FourierExcitation,
+    design_excitation,
+)
+from drake_coop.identification.regressor import (
+    ArmStructure,
+    Regressor,
+    identifiable_basis,
+    load_structure,
+    true_parameters,
+)
+from drake_coop.identification.urdf_writer import identified_urdf_text
+from drake_coop.scenario.schema import Scenario
+
+#: Allowed excitation lengths (s).
+DURATION_RANGE = (1.0, 120.0)
+#: Files ``identify`` writes (an existing ``--out`` may hold only these).
+OUTPUT_FILES = ("identify.json", "identify_fit.png", "identified.yaml")
+
+
+class IdentifyInputError(ValueError):
+    """Bad input of ``identify`` (one-line message)."""
+
+
+@dataclass
+class RobotIdentification:
+    """One robot's identification: its data, estimate and the reference values."""
+
+    name: str
+    structure: ArmStructure
+    excitation: FourierExcitation
+    data: ExcitationData
+    estimate: Estimate
+    theta_true: np.ndarray
+    theta_nominal: np.ndarray
+    identifiable: np.ndarray   # per parameter: norm of its direction's projection on the
+    #                           identifiable subspace (1: the torques determine it; 0: never)
+    validation: dict
+    fit: dict
+    urdf_text: str
+
+
+def _velocity_limits(structure: ArmStructure) -> np.ndarray:
+    plant = structure.plant
+    return np.array([min(10.0, plant.GetJointByName(j).velocity_upper_limits()[0])
+                     for j in structure.joints])
+
+
+def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed: int = 0
+                   ) -> RobotIdentification:
+    """Identify robot ``index`` of ``scenario`` (module docstring).
+
+    Raises
+    ------
+    IdentifyInputError
+        When no excitation fits the arm's limits.
+    """
+    from drake_coop.identification.excitation import ExcitationError
+    from drake_coop.plant.arms import Arm
+    from drake_coop.sensing.model_error import controller_arm_model
+
+    robot = scenario.robots[index]
+    arm = Arm(robot, scenario.task)
+    nominal = controller_arm_model(arm, robot.model_error)
+    structure = load_structure(arm.urdf_path, arm.base_frame,
+                               payload_mass=robot.model_error.payload_mass,
+                               sensor_joint=robot.sensor_joint)
+    theta_true = true_parameters(structure)
+    if robot.model_error.coulomb_friction:
+        theta_true[structure.joint_slice("coulomb")] = robot.model_error.coulomb_friction
+    theta_nominal = true_parameters(structure, nominal.plant)
+    regressor = Regressor(structure)
+    n = structure.n
+    limits = ExcitationLimits(
+        q_min=arm.q_min, q_max=arm.q_max,
+        torque_limits=(np.full(n, np.inf) if robot.actuators.torque_limits is None
+                       else np.asarray(robot.actuators.torque_limits, float)),
+        velocity_limits=_velocity_limits(structure))
+
+    def nominal_torque(q, v, a):
+        return np.array([nominal.inverse_dynamics_terms(q[k], v[k], a[k])
+                         for k in range(len(q))])
+
+    q0 = 0.5 * (arm.q_min + arm.q_max)
+    try:
+        excitation, _ = design_excitation(duration, q0, limits, nominal_torque,
+                                          regressor.matrix, seed=seed)
+    except ExcitationError as exc:
+        raise IdentifyInputError(f"{robot.name}: {exc}") from None
+    data = simulate_excitation(scenario, index, excitation, nominal)
+    prepared = prepare(data.t, data.q, data.tau, data.h, data.torque_limits)
+    estimate = estimate_parameters(regressor, prepared, theta_nominal)
+    Y = regressor.matrix(prepared.q, prepared.v, prepared.a)
+    scale, V = identifiable_basis(Y)
+    identifiable = np.linalg.norm(V, axis=1)
+    # Validation: a different excitation, exact states, torques of the truth (no friction
+    # term: the Coulomb column's smoothing is the identification's own choice).
+    try:
+        other, _ = design_excitation(duration, q0, limits, nominal_torque, regressor.matrix,
+                                     seed=seed + 1, candidates=3)
+    except ExcitationError:        # no second trajectory fits: validate on the first one
+        other = excitation
+    tv = np.linspace(0.0, duration, 400)
+    Yv = regressor.matrix(*other.evaluate(tv))
+    no_coulomb = np.ones(structure.num_parameters)
+    no_coulomb[structure.joint_slice("coulomb")] = 0.0
+    tau_true = Yv @ (theta_true * no_coulomb)
+
+    def rms(theta):
+        return float(np.sqrt(np.mean((Yv @ (theta * no_coulomb) - tau_true) ** 2)))
+
+    validation = {"torque_error_rms_identified": rms(estimate.theta),
+                  "torque_error_rms_nominal": rms(theta_nominal),
+                  "torque_rms": float(np.sqrt(np.mean(tau_true ** 2)))}
+    fit = {"t": prepared.t, "tau": prepared.tau,
+           "identified": (Y @ estimate.theta).reshape(-1, n),
+           "nominal": (Y @ theta_nominal).reshape(-1, n)}
+    nominal_text = Path(nominal.arm.controller_urdf_path).read_text()
+    urdf_text = identified_urdf_text(
+        nominal_text, structure, estimate.theta,
+        note=f"Robot {robot.name}, {duration:g} s of excitation.")
+    return RobotIdentification(robot.name, structure, excitation, data, estimate, theta_true,
+                               theta_nominal, identifiable, validation, fit, urdf_text)
+
+
+def masses(ident: RobotIdentification) -> dict:
+    """Each composite body's mass: identified, nominal, true, relative error, identifiable."""
+    out = {}
+    for i, link in enumerate(ident.structure.links):
+        k = 10 * i
+        true = float(ident.theta_true[k])
+        out[link] = {"identified": float(ident.estimate.theta[k]),
+                     "nominal": float(ident.theta_nominal[k]), "true": true,
+                     "relative_error": float(ident.estimate.theta[k] / true - 1.0),
+                     "identifiability": float(ident.identifiable[k]),
+                     "bodies": ident.structure.members[link]}
+    return out
+
+
+def summary(ident: RobotIdentification, duration: float) -> dict:
+    """The ``identify.json`` entry of one robot."""
+    s = ident.structure
+    e = ident.estimate
+    params = {}
+    for k, name in enumerate(s.parameter_names()):
+        params[name] = {"identified": float(e.theta[k]), "nominal": float(ident.theta_nominal[k]),
+                        "true": float(ident.theta_true[k]),
+                        "error": float(e.theta[k] - ident.theta_true[k]),
+                        "identifiability": float(ident.identifiable[k])}
+    return {
+        "urdf": f"{ident.name}_identified.urdf",
+        "duration_s": duration, "samples_recorded": int(ident.data.t.size),
+        "samples_used": e.samples, "control_period_s": ident.data.h,
+        "regressor_condition_number": e.condition_number,
+        "identifiable_combinations": e.rank, "parameters_total": s.num_parameters,
+        "residual_torque_rms": e.residual_rms.tolist(), "solver": e.solver,
+        "validation": ident.validation, "masses": masses(ident), "parameters": params,
+        "excitation": {"q0": ident.excitation.q0.tolist(), "period_s": ident.excitation.period,
+                       "harmonics": int(ident.excitation.a.shape[1]),
+                       "a": ident.excitation.a.tolist(), "b": ident.excitation.b.tolist()},
+        "velocity_source": "offline Savitzky-Golay (window 15 samples, order 3, zero phase)",
+    }
+
+
+def fit_figure(idents: list[RobotIdentification], path: Path) -> None:
+    """Measured (filtered) torques against the identified and nominal models' predictions."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = max(i.structure.n for i in idents)
+    fig, axes = plt.subplots(n, len(idents), figsize=(5.5 * len(idents), 1.9 * n),
+                             sharex=True, squeeze=False)
+    for c, ident in enumerate(idents):
+        f = ident.fit
+        for j in range(ident.structure.n):
+            ax = axes[j, c]
+            ax.plot(f["t"], f["tau"][:, j], "k", lw=1.2, label="commanded (filtered)")
+            ax.plot(f["t"], f["identified"][:, j], "C0--", lw=1, label="identified model")
+            ax.plot(f["t"], f["nominal"][:, j], "C3:", lw=1, label="nominal model")
+            ax.set_ylabel(f"τ{j + 1} [N·m]")
+            if j == 0:
+                ax.set_title(f"{ident.name}: residual RMS "
+                             + ", ".join(f"{r:.3f}" for r in ident.estimate.residual_rms))
+        axes[-1, c].set_xlabel("t [s]")
+    axes[0, 0].legend(fontsize=7, loc="upper right")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def identified_scenario(scenario: Scenario, idents: dict[int, RobotIdentification]
+                        ) -> Scenario:
+    """``identified.yaml``'s scenario (module docstring)."""
+    import copy
+
+    out = copy.deepcopy(scenario)
+    for i, ident in idents.items():
+        robot = out.robots[i]
+        robot.controller_model = f"{ident.name}_identified.urdf"
+        robot.model_error.mass_scale = 1.0
+        robot.model_error.inertia_scale = 1.0
+        robot.model_error.damping_scale = 1.0
+    return out
+
+
+def _check_out(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise IdentifyInputError(f"--out {out} exists and is not a folder")
+    if out.is_dir():
+        ours = set(OUTPUT_FILES)
+        for e in out.iterdir():
+            if not (e.is_file() and (e.name in ours or e.name.endswith("_identified.urdf"))):
+                raise IdentifyInputError(f"--out {out} holds {e.name!r}, which identify did "
+                                         f"not write; use an empty or new folder")
+    parent = out.resolve().parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK):
+        raise IdentifyInputError(f"--out {out}: the parent folder is missing or not writable")
+
+
+def parse_robots(text: str | None, count: int) -> list[int]:
+    """``--robots 1,2`` as 0-based indices (all robots when None)."""
+    if text is None:
+        return list(range(count))
+    try:
+        numbers = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        numbers = []
+    if not numbers or any(not 1 <= k <= count for k in numbers) or len(set(numbers)) != len(numbers):
+        raise IdentifyInputError(f"--robots must list distinct robot numbers from 1 to {count} "
+                                 f"separated by commas, got {text!r}")
+    return [k - 1 for k in numbers]
+
+
+def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
+                 duration: float = 10.0, seed: int = 0, log=print) -> dict:
+    """Identify ``robots`` of ``scenario`` and write ``out`` whole (module docstring).
+
+    Returns
+    -------
+    dict
+        The contents of ``identify.json``.
+    """
+    from drake_coop.scenario.loading import dump_scenario
+
+    lo, hi = DURATION_RANGE
+    if not lo <= duration <= hi:
+        raise IdentifyInputError(f"--duration must be in [{lo:g}, {hi:g}] s, got {duration:g}")
+    out = Path(out)
+    _check_out(out)
+    idents = {}
+    for i in robots:
+        log(f"drake-coop: identifying {scenario.robots[i].name} ({duration:g} s of excitation)")
+        idents[i] = identify_robot(scenario, i, duration, seed)
+    report = {"scenario_robots": [r.name for r in scenario.robots],
+              "robots": {ident.name: summary(ident, duration) for ident in idents.values()}}
+    staging = out.resolve().parent / f".{out.name}.identify-{os.getpid()}-{secrets.token_hex(4)}.tmp"
+    staging.mkdir()
+    try:
+        for ident in idents.values():
+            (staging / f"{ident.name}_identified.urdf").write_text(ident.urdf_text)
+        (staging / "identify.json").write_text(json.dumps(report, indent=1))
+        fit_figure(list(idents.values()), staging / "identify_fit.png")
+        (staging / "identified.yaml").write_text(
+            "# Written by drake-coop identify: the input scenario with the identified "
+            "controller models.\n" + dump_scenario(identified_scenario(scenario, idents)))
+        if out.exists():
+            old = out.resolve().parent / f".{out.name}.identify-old-{secrets.token_hex(4)}"
+            out.rename(old)
+            staging.rename(out)
+            shutil.rmtree(old)
+        else:
+            staging.rename(out)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    return report
