@@ -40,3 +40,11 @@ def test_tutorial_04_runs_the_general_system():
     assert text.count("completed 8 s") == 3 and "completed 4 s" in text
     assert "task dimension 6" in text
     assert "m = 3" in text and "robot4" in text
+
+
+def test_tutorial_05_runs_the_control_on_a_users_own_plant():
+    text = _run("05_your_own_plant.ipynb")
+    assert "arm1: estimated squeeze λ̂ = 10.00 N, felt squeeze = 8.61 N" in text
+    assert "forced update matches (15)-(16)" in text
+    assert "refused: K_R: 3 diagonal entries" in text and "refused: period:" in text
+    assert "wrote my_two_arm_diagram.dot arm1_control.dot" in text

@@ -58,28 +58,9 @@ class ArmModel:
     def __init__(self, arm: Arm, urdf: Path | None = None, closed_form: bool | None = None):
         self.arm = arm
         self.urdf = Path(urdf) if urdf is not None else arm.controller_urdf_path
-        plant = MultibodyPlant(0.0)
-        Parser(plant).AddModels(str(self.urdf))
         X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
-        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(arm.base_frame), X_WB)
-        plant.Finalize()
-        self.plant = plant
-        self.n = plant.num_positions()
-        self.m = arm.m
-        self.context = plant.CreateDefaultContext()
-        self.ee_frame = plant.GetFrameByName(arm.ee_frame)
-        self.D = np.diag([plant.get_joint(j).default_damping()
-                          for j in plant.GetJointIndices() if plant.get_joint(j).num_velocities()])
-        self.plant_ad = plant.ToAutoDiffXd()
-        self.context_ad = self.plant_ad.CreateDefaultContext()
-        self.ee_frame_ad = self.plant_ad.GetFrameByName(arm.ee_frame)
-        self._world_ad = self.plant_ad.world_frame()
-        self._zero_ad = np.zeros(3)
-        self._N = arm.N          # φ = N (x − c): J_φ = N J_x
-        self._c = arm.c
-        self._zero_v = np.zeros(self.n)
-        self._q_key = self._v_key = b""   # what the context holds (see _set_q)
-        self._forces = MultibodyForces(plant)
+        plant = make_arm_controller_plant(self.urdf, arm.base_frame, X_WB)
+        self._setup(plant, arm.ee_frame, arm.N, arm.c)
         self.closed_form = (arm.closed_form and not arm.robot.controller_model
                             if closed_form is None else bool(closed_form))
         self._row_key = b""
@@ -90,6 +71,78 @@ class ArmModel:
             nl = crs.R_base.T @ n            # the first normal in the base frame
             self._row_constants = (float(nl[0]), float(nl[1]), float(nl[2]),
                                    float(n @ (crs.p_base - self._c)))
+
+    @classmethod
+    def from_plant(cls, plant: MultibodyPlant, ee_frame: str, normals, contact_point
+                   ) -> "ArmModel":
+        """The model of an arm given as its own single-arm plant (any arm, Drake's kinematics).
+
+        Parameters
+        ----------
+        plant : MultibodyPlant
+            A finalized plant holding the arm alone, its base welded where it is in the world
+            of the simulated plant (:func:`make_arm_controller_plant`); continuous or discrete,
+            only its kinematics and dynamics functions are used.
+        ee_frame : str
+            Name of the end-effector frame whose origin is the contact point ``x(q)`` of (2).
+        normals : array_like, shape (m, 3) or (3,)
+            The object's outward normals at the contact (rows, normalized here); ``m = 1..3``,
+            linearly independent.
+        contact_point : array_like, shape (3,)
+            ``c`` of ``φ(q) = N (x(q) − c)``, in the world frame.
+
+        Raises
+        ------
+        ValueError
+            Naming ``plant``, ``ee_frame``, ``normals`` or ``contact_point``.
+        """
+        if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
+            raise ValueError("plant: a finalized single-arm MultibodyPlant is required "
+                             "(see make_arm_controller_plant)")
+        if plant.num_positions() != plant.num_velocities() or plant.num_positions() == 0:
+            raise ValueError(f"plant: the arm must have as many positions as velocities and "
+                             f"at least one (it has {plant.num_positions()} and "
+                             f"{plant.num_velocities()}; weld its base)")
+        if not plant.HasFrameNamed(ee_frame):
+            raise ValueError(f"ee_frame: the controller's plant has no frame named "
+                             f"{ee_frame!r}")
+        self = cls.__new__(cls)
+        self.arm = None
+        self.urdf = None
+        self._setup(plant, ee_frame, normalized_normals(normals), contact_vector(contact_point))
+        self.closed_form = False
+        self._row_key = b""
+        return self
+
+    def _setup(self, plant: MultibodyPlant, ee_frame: str, N: np.ndarray, c: np.ndarray
+               ) -> None:
+        self.plant = plant
+        self.n = plant.num_positions()
+        self.m = N.shape[0]
+        self.context = plant.CreateDefaultContext()
+        self.ee_frame = plant.GetFrameByName(ee_frame)
+        self.D = np.diag([plant.get_joint(j).default_damping()
+                          for j in plant.GetJointIndices() if plant.get_joint(j).num_velocities()])
+        self.plant_ad = plant.ToAutoDiffXd()
+        self.context_ad = self.plant_ad.CreateDefaultContext()
+        self.ee_frame_ad = self.plant_ad.GetFrameByName(ee_frame)
+        self._world_ad = self.plant_ad.world_frame()
+        self._zero_ad = np.zeros(3)
+        self._N = N          # φ = N (x − c): J_φ = N J_x
+        self._c = c
+        self._zero_v = np.zeros(self.n)
+        self._q_key = self._v_key = b""   # what the context holds (see _set_q)
+        self._forces = MultibodyForces(plant)
+
+    @property
+    def N(self) -> np.ndarray:
+        """The constraint normals (rows, unit), ``m × 3``."""
+        return self._N
+
+    @property
+    def c(self) -> np.ndarray:
+        """The contact point ``c`` of (2) in the world frame."""
+        return self._c
 
     # ------------------------------------------------ closed form, one constraint, plain floats
     def constraint_row(self, q: np.ndarray) -> tuple[float, list[float]]:
@@ -226,3 +279,69 @@ class ArmModel:
         deriv = (deriv.reshape(3, self.n) if deriv.size == 3 * self.n
                  else np.zeros((3, self.n)))
         return self._N @ value, self._N @ deriv
+
+
+def make_arm_controller_plant(model_file: str | Path, base_frame: str,
+                              X_WB: RigidTransform | None = None) -> MultibodyPlant:
+    """The controller's own single-arm plant, as Drake's ``InverseDynamicsController`` wants.
+
+    Parameters
+    ----------
+    model_file : str or Path
+        The arm's URDF or SDFormat file (``package://`` URLs resolved by Drake's parser).
+    base_frame : str
+        The frame welded to the world.
+    X_WB : RigidTransform, optional
+        The base frame's pose in the world of the simulated plant (identity by default).
+
+    Returns
+    -------
+    MultibodyPlant
+        Finalized, continuous (time step 0), the base welded at ``X_WB``.
+    """
+    plant = MultibodyPlant(0.0)
+    parser = Parser(plant)
+    text = str(model_file)
+    if "://" in text:
+        parser.AddModelsFromUrl(text)
+    else:
+        parser.AddModels(text)
+    if not plant.HasFrameNamed(base_frame):
+        raise ValueError(f"base_frame: {model_file} has no frame named {base_frame!r}")
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_frame),
+                     RigidTransform() if X_WB is None else X_WB)
+    plant.Finalize()
+    return plant
+
+
+def normalized_normals(normals) -> np.ndarray:
+    """``normals`` as unit rows ``(m, 3)``, ``m = 1..3``, checked to be independent.
+
+    Raises
+    ------
+    ValueError
+        Naming ``normals``: wrong shape, a zero or non-finite row, or dependent rows.
+    """
+    N = np.atleast_2d(np.asarray(normals, dtype=float))
+    if N.ndim != 2 or N.shape[1] != 3 or not 1 <= N.shape[0] <= 3:
+        raise ValueError(f"normals: 1 to 3 rows of 3 numbers are required (got shape "
+                         f"{np.shape(normals)})")
+    if not np.all(np.isfinite(N)):
+        raise ValueError("normals: every entry must be finite")
+    norms = np.linalg.norm(N, axis=1, keepdims=True)
+    if np.any(norms < 1e-9):
+        raise ValueError("normals: a row is zero (each row is a direction)")
+    N = N / norms
+    if np.linalg.matrix_rank(N, tol=1e-6) < N.shape[0]:
+        raise ValueError(f"normals: the {N.shape[0]} rows must be linearly independent "
+                         "(rank-deficient constraints)")
+    return N
+
+
+def contact_vector(contact_point) -> np.ndarray:
+    """``contact_point`` as a finite 3-vector (``ValueError`` naming it otherwise)."""
+    c = np.asarray(contact_point, dtype=float)
+    if c.shape != (3,) or not np.all(np.isfinite(c)):
+        raise ValueError(f"contact_point: 3 finite numbers are required (got "
+                         f"{np.shape(contact_point)})")
+    return c

@@ -29,14 +29,51 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, LeafSystem, State, ValueProducer
+from pydrake.systems.framework import (
+    Context,
+    DiscreteValues,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+    State,
+    ValueProducer,
+)
 
-from drake_coop.control.finger import FingerLaw
+from drake_coop.control.finger import FingerLaw, check_period
 from drake_coop.scenario.timing import tick_of
 
 
 class Controller(LeafSystem):
     """Controller (13) of one robot, reading measured joint positions only.
+
+    .. pydrake_system::
+
+        name: Controller
+        input_ports:
+        - q
+        - q_hat
+        - qdot_hat
+        - qdot_o
+        - lambda_hat
+        - Delta_F_tilde
+        - reference
+        output_ports:
+        - tau
+        - qddot_r_hat
+
+    The latch of ``τ(k)``, ``q̈̂_r(k)`` and ``k`` is a periodic unrestricted update (every
+    ``h``, offset 0: before the plant's step of the same instant) and is also declared as a
+    forced discrete update, so ``CalcForcedDiscreteVariableUpdate`` gives the state the tick
+    would latch (its tick index: the context's time as a tick, else the last tick before it).
+
+    Parameters
+    ----------
+    law : FingerLaw
+        The robot's law (model, gains, ``n``, ``m``).
+    period : float
+        Sampling time ``h`` (s), > 0.
+    tau0 : array_like, optional
+        The torque held before the first tick (default zero); n entries.
 
     Input ports
     -----------
@@ -63,10 +100,13 @@ class Controller(LeafSystem):
 
     def __init__(self, law: FingerLaw, period: float, tau0: np.ndarray | None = None):
         super().__init__()
+        check_period(period)
         self._law = law
         self._h = period
         n = law.n
         self._n = n
+        if tau0 is not None and np.shape(tau0) != (n,):
+            raise ValueError(f"tau0: {n} torques are required (got shape {np.shape(tau0)})")
         self._q = self.DeclareVectorInputPort("q", n)
         self._q_hat = self.DeclareVectorInputPort("q_hat", n)
         self._qdot_hat = self.DeclareVectorInputPort("qdot_hat", n)
@@ -85,8 +125,46 @@ class Controller(LeafSystem):
             ValueProducer(allocate=AbstractValue.Make(dict()).Clone, calc=self._calc_terms),
             {self.all_sources_ticket()})
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update_latch)
-        self.DeclareStateOutputPort("tau", self._tau_state)
-        self.DeclareStateOutputPort("qddot_r_hat", self._qddot_state)
+        self.DeclareForcedDiscreteUpdateEvent(self._latch)
+        self._tau_out = self.DeclareStateOutputPort("tau", self._tau_state)
+        self._qddot_out = self.DeclareStateOutputPort("qddot_r_hat", self._qddot_state)
+
+    # ------------------------------------------------------------------ ports
+    def get_q_input_port(self) -> InputPort:
+        """Measured joint positions ``q``."""
+        return self._q
+
+    def get_q_hat_input_port(self) -> InputPort:
+        """The velocity observer's ``q̂``."""
+        return self._q_hat
+
+    def get_qdot_hat_input_port(self) -> InputPort:
+        """The velocity observer's ``d/dt q̂``."""
+        return self._qdot_hat
+
+    def get_qdot_o_input_port(self) -> InputPort:
+        """The velocity observer's ``q̇_o``."""
+        return self._qdot_o
+
+    def get_lambda_hat_input_port(self) -> InputPort:
+        """The force observer's ``λ̂``."""
+        return self._lambda_hat
+
+    def get_Delta_F_tilde_input_port(self) -> InputPort:
+        """The force observer's ``ΔF̃``."""
+        return self._Delta_F
+
+    def get_reference_input_port(self) -> InputPort:
+        """The reference ``[q_d, q̇_d, q̈_d, λ_d, held]``."""
+        return self._reference
+
+    def get_tau_output_port(self) -> OutputPort:
+        """The latched torque ``τ``."""
+        return self._tau_out
+
+    def get_qddot_r_hat_output_port(self) -> OutputPort:
+        """The latched ``q̈̂_r``."""
+        return self._qddot_out
 
     # ------------------------------------------------------------------ helpers
     def tick_of(self, context: Context) -> int | None:
@@ -117,9 +195,13 @@ class Controller(LeafSystem):
 
     # ------------------------------------------------------------------ update
     def _update_latch(self, context: Context, state: State) -> None:
+        self._latch(context, state.get_mutable_discrete_state())
+
+    def _latch(self, context: Context, xd: DiscreteValues) -> None:
         k = self.tick_of(context)
+        if k is None:      # a forced update between ticks: the last tick before
+            k = int(np.floor(context.get_time() / self._h))
         terms = self.terms(context)
-        xd = state.get_mutable_discrete_state()
         xd.set_value(self._tau_state, terms["tau"])
         xd.set_value(self._qddot_state, terms["qddot_r_hat"])
         xd.set_value(self._tick_state, [float(k)])

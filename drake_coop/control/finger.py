@@ -91,6 +91,46 @@ class ReferenceLayout:
         return samples[:, self.slices()[row]]
 
 
+def check_gains(gains: Gains, n: int, m: int) -> None:
+    """Refuse gains that do not fit an arm of ``n`` joints and ``m`` constraints.
+
+    ``Λ``, ``k_d`` and the ``n`` entries of ``K_R`` must be finite and positive (the observer
+    (15)–(16) and the passivity of (13) need them); ``k_F``, ``ζ``, ``β`` and a scalar ``ξ``
+    finite and non-negative; a ``ξ`` matrix ``m × m``, symmetric positive definite.
+
+    Raises
+    ------
+    ValueError
+        One line naming the gain and what is allowed.
+    """
+    K_R = np.asarray(gains.K_R, dtype=float)
+    if K_R.shape != (n,):
+        raise ValueError(f"K_R: {n} diagonal entries are required, one per joint "
+                         f"(got shape {K_R.shape})")
+    if not np.all(np.isfinite(K_R)) or np.any(K_R <= 0.0):
+        raise ValueError(f"K_R: every entry must be finite and > 0 (got {K_R.tolist()})")
+    for name in ("Lambda", "k_d"):
+        value = float(getattr(gains, name))
+        if not np.isfinite(value) or value <= 0.0:
+            raise ValueError(f"{name}: must be finite and > 0 (got {value})")
+    for name in ("k_F", "zeta", "beta"):
+        value = float(getattr(gains, name))
+        if not np.isfinite(value) or value < 0.0:
+            raise ValueError(f"{name}: must be finite and >= 0 (got {value})")
+    if gains.xi_matrix is None:
+        xi = float(gains.xi)
+        if not np.isfinite(xi) or xi < 0.0:
+            raise ValueError(f"xi: must be finite and >= 0 (got {xi})")
+        return
+    xi = np.asarray(gains.xi_matrix, dtype=float)
+    if xi.shape != (m, m):
+        raise ValueError(f"xi_matrix: an {m}x{m} matrix is required, one row per constraint "
+                         f"(got shape {xi.shape})")
+    if (not np.all(np.isfinite(xi)) or not np.allclose(xi, xi.T, rtol=0.0, atol=1e-12)
+            or np.linalg.eigvalsh(xi).min() <= 0.0):
+        raise ValueError("xi_matrix: must be symmetric positive definite")
+
+
 @dataclass
 class Constraint:
     """``J_φ``, ``J⁺``, ``Q`` and ``Δp = φ(q)`` at one posture (zeros/identity when free)."""
@@ -109,10 +149,17 @@ class FingerLaw:
     model : ArmModel
         The controller's model of the arm (H, C, D, g, φ, J_φ).
     gains : Gains
-        ``Λ = k I``, ``K_R``, ``k_d``, ``k_F``, ``ξ`` (m×m, or ``ξ I``), ``ζ``, ``β``.
+        ``Λ = k I``, ``K_R``, ``k_d``, ``k_F``, ``ξ`` (m×m, or ``ξ I``), ``ζ``, ``β``,
+        checked by :func:`check_gains` against the model's ``n`` and ``m``.
+
+    Raises
+    ------
+    ValueError
+        A gain of the wrong shape or sign, naming it (``K_R``, ``xi_matrix``, ...).
     """
 
     def __init__(self, model: ArmModel, gains: Gains):
+        check_gains(gains, model.n, model.m)
         self.model = model
         self.n = model.n
         self.m = model.m
@@ -293,3 +340,15 @@ class FingerLaw:
             tau = tau - c.J_phi.T @ force
         return {"tau": tau, "qdot_r": qdot_r, "qddot_r_hat": qddot_r_hat,
                 "Delta_lambda_tilde": np.array(Delta_lambda_tilde, dtype=float)}
+
+
+def check_period(period: float) -> None:
+    """Refuse a sampling time that is not a finite number > 0 (``ValueError`` naming
+    ``period``)."""
+    try:
+        h = float(period)
+    except (TypeError, ValueError):
+        raise ValueError(f"period: the sampling time h must be a number of seconds > 0 "
+                         f"(got {period!r})") from None
+    if not np.isfinite(h) or h <= 0.0:
+        raise ValueError(f"period: the sampling time h must be finite and > 0 s (got {h})")

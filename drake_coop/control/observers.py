@@ -17,15 +17,29 @@ from pydrake.systems.framework import (
     BasicVector,
     Context,
     DiscreteValues,
+    InputPort,
     LeafSystem,
+    OutputPort,
+    State,
     ValueProducer,
 )
 
-from drake_coop.control.finger import FingerLaw
+from drake_coop.control.finger import FingerLaw, check_period
 
 
 class VelocityObserver(LeafSystem):
     """Model-based joint-velocity observer (15)–(16) of one robot.
+
+    .. pydrake_system::
+
+        name: VelocityObserver
+        input_ports:
+        - q
+        - qddot_r_hat
+        output_ports:
+        - q_hat
+        - qdot_hat
+        - qdot_o
 
     State ``q̂`` (group 0, n) and ``q̇̂_o`` (group 1, n). With ``z = q − q̂``:
 
@@ -34,10 +48,25 @@ class VelocityObserver(LeafSystem):
 
         \\frac{d}{dt}\\dot{\\hat q}_o = \\ddot{\\hat q}_r + k_d \\Lambda z \\qquad (16)
 
-    discretized as ``x(k+1) = x(k) + h f(x(k), q(k), q̈̂_r(k))``.
+    discretized as ``x(k+1) = x(k) + h f(x(k), q(k), q̈̂_r(k))`` by a periodic discrete update
+    every ``h`` (offset 0); the same update is declared as a forced discrete update, so
+    ``CalcForcedDiscreteVariableUpdate`` takes one step ``k → k + 1`` in a unit test.
+
+    Initial state: unless :meth:`set_initial_state` was called on the context, an
+    initialization event (run by ``Simulator.Initialize``) sets ``q̂(0) = q(0)``, the first
+    measured ``q``, and ``q̇̂_o(0) = 0``: the observer never starts from ``q̂ = 0`` by
+    omission (with the paper's gains that start squeezed 111 N for 24 N desired). A default
+    context that is never initialized holds ``q̂ = 0``, ``q̇̂_o = 0``.
 
     Cost: ``d/dt q̂`` and ``q̇_o`` are computed once per tick into a cache entry that both
     outputs and the update read; ``q_hat`` is a state output port (no Python call).
+
+    Parameters
+    ----------
+    law : FingerLaw
+        The robot's law (its gains ``Λ``, ``k_d`` and ``n``).
+    period : float
+        Sampling time ``h`` (s), > 0.
 
     Input ports
     -----------
@@ -58,6 +87,7 @@ class VelocityObserver(LeafSystem):
 
     def __init__(self, law: FingerLaw, period: float):
         super().__init__()
+        check_period(period)
         self._law = law
         self._h = period
         n = law.n
@@ -66,25 +96,63 @@ class VelocityObserver(LeafSystem):
         self._qddot_r = self.DeclareVectorInputPort("qddot_r_hat", n)
         self._q_hat_state = self.DeclareDiscreteState(n)
         self._qdot_hat_o_state = self.DeclareDiscreteState(n)
+        # Whether the context holds an initial state given by the user (set_initial_state) or
+        # already taken from q: then the initialization event leaves it alone.
+        self._given = self.DeclareAbstractState(AbstractValue.Make(False))
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_observer)
+        self.DeclareForcedDiscreteUpdateEvent(self._update_observer)
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._initialize_from_q)
         depends_on_q = {self.xd_ticket(), self._q.ticket()}
         self._signals = self.DeclareCacheEntry(
             "d/dt q_hat (15) and qdot_o (8)",
             ValueProducer(allocate=AbstractValue.Make((np.zeros(n), np.zeros(n))).Clone,
                           calc=self._calc_signals),
             depends_on_q)
-        self.DeclareStateOutputPort("q_hat", self._q_hat_state)
-        self.DeclareVectorOutputPort("qdot_hat", n, self._calc_qdot_hat,
-                                     prerequisites_of_calc={self._signals.ticket()})
-        self.DeclareVectorOutputPort("qdot_o", n, self._calc_qdot_o,
-                                     prerequisites_of_calc={self._signals.ticket()})
+        self._q_hat_out = self.DeclareStateOutputPort("q_hat", self._q_hat_state)
+        self._qdot_hat_out = self.DeclareVectorOutputPort(
+            "qdot_hat", n, self._calc_qdot_hat, prerequisites_of_calc={self._signals.ticket()})
+        self._qdot_o_out = self.DeclareVectorOutputPort(
+            "qdot_o", n, self._calc_qdot_o, prerequisites_of_calc={self._signals.ticket()})
 
+    # ------------------------------------------------------------------ ports
+    def get_q_input_port(self) -> InputPort:
+        """Measured joint positions ``q``."""
+        return self._q
+
+    def get_qddot_r_hat_input_port(self) -> InputPort:
+        """``q̈̂_r`` of (11) from the controller."""
+        return self._qddot_r
+
+    def get_q_hat_output_port(self) -> OutputPort:
+        """The estimate ``q̂``."""
+        return self._q_hat_out
+
+    def get_qdot_hat_output_port(self) -> OutputPort:
+        """``d/dt q̂`` of (15)."""
+        return self._qdot_hat_out
+
+    def get_qdot_o_output_port(self) -> OutputPort:
+        """``q̇_o`` of (8)."""
+        return self._qdot_o_out
+
+    # ------------------------------------------------------------------ state
     def set_initial_state(self, context: Context, q_hat: np.ndarray,
                           qdot_hat_o: np.ndarray | None = None) -> None:
-        """``q̂(0)`` and ``q̇̂_o(0)`` (default zero) in this system's context."""
+        """``q̂(0)`` and ``q̇̂_o(0)`` (default zero) in this system's context; the
+        initialization event then keeps them."""
         context.SetDiscreteState(self._q_hat_state, q_hat)
         context.SetDiscreteState(self._qdot_hat_o_state,
                                  np.zeros(self._n) if qdot_hat_o is None else qdot_hat_o)
+        context.SetAbstractState(self._given, True)
+
+    def _initialize_from_q(self, context: Context, state: State) -> None:
+        """At ``Simulator.Initialize``: ``q̂ = q``, ``q̇̂_o = 0`` unless already given."""
+        if context.get_abstract_state(self._given).get_value():
+            return
+        xd = state.get_mutable_discrete_state()
+        xd.set_value(self._q_hat_state, self._q.Eval(context))
+        xd.set_value(self._qdot_hat_o_state, np.zeros(self._n))
+        state.get_mutable_abstract_state(self._given).set_value(True)
 
     def _split(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
         return (context.get_discrete_state(self._q_hat_state).value(),
@@ -112,6 +180,18 @@ class VelocityObserver(LeafSystem):
 class ForceObserver(LeafSystem):
     """Contact-force observer (22) of one robot, with the force integral ΔF̃ (6) as state.
 
+    .. pydrake_system::
+
+        name: ForceObserver
+        input_ports:
+        - q
+        - q_hat
+        - qdot_o
+        - reference
+        output_ports:
+        - lambda_hat
+        - Delta_F_tilde
+
     .. math::
         \\hat\\lambda = \\frac{1}{1+\\zeta}\\Big[J^{+T}(q) K_R(\\dot q_o - \\dot q_r)
                         - k_F \\Delta\\tilde F\\Big] + \\lambda_d \\qquad (22)
@@ -119,7 +199,15 @@ class ForceObserver(LeafSystem):
     (22) is (21) with the controller (13) substituted and solved for ``λ̂``: it needs no torque,
     so observer and controller form no algebraic loop. ``ΔF̃(k+1) = ΔF̃(k) + h (λ̂(k) − λ_d(k))``
     while the object is held; before the grasp and after the release ``λ̂ = 0`` and ``ΔF̃`` is
-    reset to 0 (the integral (6) starts at the grasp).
+    reset to 0 (the integral (6) starts at the grasp). ``ΔF̃(0) = 0``. The update is periodic
+    (every ``h``, offset 0) and also declared as a forced discrete update.
+
+    Parameters
+    ----------
+    law : FingerLaw
+        The robot's law (model, gains, ``n``, ``m``).
+    period : float
+        Sampling time ``h`` (s), > 0.
 
     Input ports
     -----------
@@ -138,6 +226,7 @@ class ForceObserver(LeafSystem):
 
     def __init__(self, law: FingerLaw, period: float):
         super().__init__()
+        check_period(period)
         self._law = law
         self._h = period
         n, m = law.n, law.m
@@ -148,15 +237,41 @@ class ForceObserver(LeafSystem):
         self._reference = self.DeclareVectorInputPort("reference", law.layout.size)
         self._state = self.DeclareDiscreteState(m)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
+        self.DeclareForcedDiscreteUpdateEvent(self._update_integral)
         # λ̂(k) once per tick: the output and the update of ΔF̃ read the same cache entry.
         self._estimate = self.DeclareCacheEntry(
             "lambda_hat (22)",
             ValueProducer(allocate=AbstractValue.Make((np.zeros(m), np.zeros(m), False)).Clone,
                           calc=self._calc_estimate),
             {self.xd_ticket(), self.all_input_ports_ticket()})
-        self.DeclareVectorOutputPort("lambda_hat", m, self._calc_lambda_hat,
-                                     prerequisites_of_calc={self._estimate.ticket()})
-        self.DeclareStateOutputPort("Delta_F_tilde", self._state)
+        self._lambda_hat_out = self.DeclareVectorOutputPort(
+            "lambda_hat", m, self._calc_lambda_hat,
+            prerequisites_of_calc={self._estimate.ticket()})
+        self._Delta_F_out = self.DeclareStateOutputPort("Delta_F_tilde", self._state)
+
+    def get_q_input_port(self) -> InputPort:
+        """Measured joint positions ``q``."""
+        return self._q
+
+    def get_q_hat_input_port(self) -> InputPort:
+        """The velocity observer's ``q̂``."""
+        return self._q_hat
+
+    def get_qdot_o_input_port(self) -> InputPort:
+        """The velocity observer's ``q̇_o``."""
+        return self._qdot_o
+
+    def get_reference_input_port(self) -> InputPort:
+        """The reference ``[q_d, q̇_d, q̈_d, λ_d, held]``."""
+        return self._reference
+
+    def get_lambda_hat_output_port(self) -> OutputPort:
+        """The estimate ``λ̂`` of (22)."""
+        return self._lambda_hat_out
+
+    def get_Delta_F_tilde_output_port(self) -> OutputPort:
+        """The integral ``ΔF̃`` of (6)."""
+        return self._Delta_F_out
 
     def _calc_estimate(self, context: Context, value: AbstractValue) -> None:
         """``(λ̂(k), λ_d(k), held)`` from the inputs and ``ΔF̃(k)``."""

@@ -25,14 +25,34 @@ As for the observers, ``λ̂ = 0`` and ``ΔF̃ = 0`` in free motion.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiscreteValues,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+    State,
+)
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.finger import ReferenceLayout, check_period
 from drake_coop.sensing.sampling import lowpass_alpha
 
 
 class MeasuredVelocity(LeafSystem):
     """Baseline for comparisons, *not* the paper's scheme: the true joint velocities.
+
+    .. pydrake_system::
+
+        name: MeasuredVelocity
+        input_ports:
+        - state
+        - q
+        output_ports:
+        - q_hat
+        - qdot_hat
+        - qdot_o
 
     ``q̂ = q`` (the encoder reading), ``d/dt q̂ = q̇_o = q̇`` from the plant's state, so that
     ``z = 0``. With ideal encoders a run with it isolates what the velocity observer costs.
@@ -47,16 +67,42 @@ class MeasuredVelocity(LeafSystem):
     Output ports
     ------------
     q_hat, qdot_hat, qdot_o : n-vectors
+
+    Parameters
+    ----------
+    n : int
+        Joints (> 0). Stateless: no update, nothing to initialize.
     """
 
     def __init__(self, n: int):
         super().__init__()
+        _check_n(n)
         self._n = n
         self._state = self.DeclareVectorInputPort("state", 2 * n)
         self._q = self.DeclareVectorInputPort("q", n)
-        self.DeclareVectorOutputPort("q_hat", n, self._calc_q)
-        self.DeclareVectorOutputPort("qdot_hat", n, self._calc_v)
-        self.DeclareVectorOutputPort("qdot_o", n, self._calc_v)
+        self._q_hat_out = self.DeclareVectorOutputPort("q_hat", n, self._calc_q)
+        self._qdot_hat_out = self.DeclareVectorOutputPort("qdot_hat", n, self._calc_v)
+        self._qdot_o_out = self.DeclareVectorOutputPort("qdot_o", n, self._calc_v)
+
+    def get_state_input_port(self) -> InputPort:
+        """The arm's ``[q, q̇]``."""
+        return self._state
+
+    def get_q_input_port(self) -> InputPort:
+        """The encoder reading ``q`` (optional)."""
+        return self._q
+
+    def get_q_hat_output_port(self) -> OutputPort:
+        """``q̂ = q``."""
+        return self._q_hat_out
+
+    def get_qdot_hat_output_port(self) -> OutputPort:
+        """``q̇``."""
+        return self._qdot_hat_out
+
+    def get_qdot_o_output_port(self) -> OutputPort:
+        """``q̇``."""
+        return self._qdot_o_out
 
     def set_initial_state(self, context: Context, q_hat: np.ndarray,
                           qdot_hat_o: np.ndarray | None = None) -> None:
@@ -75,6 +121,16 @@ class MeasuredVelocity(LeafSystem):
 class DifferenceVelocity(LeafSystem):
     """Backward difference of the encoder signal, with an optional first-order low-pass.
 
+    .. pydrake_system::
+
+        name: DifferenceVelocity
+        input_ports:
+        - q
+        output_ports:
+        - q_hat
+        - qdot_hat
+        - qdot_o
+
     .. math::
         u(k) = \\frac{q(k) - q(k-1)}{h}, \\qquad
         \\dot{\\hat q}(k) = \\dot{\\hat q}(k-1) + \\alpha\\,(u(k) - \\dot{\\hat q}(k-1))
@@ -82,7 +138,18 @@ class DifferenceVelocity(LeafSystem):
     with ``α = 1 − exp(−2π f_c h)`` (``α = 1``, the raw difference, without a cutoff). State
     ``[q(k−1), q̇̂(k−1)]``; at tick ``k`` the outputs use the current input ``q(k)`` (no sample
     of delay beyond the difference's own); the update stores ``q(k)`` and ``q̇̂(k)``.
-    Initially ``q(−1) = q(0)`` and ``q̇̂(−1) = 0``.
+    Initially ``q(−1) = q(0)`` and ``q̇̂(−1) = 0``: unless :meth:`set_initial_state` was
+    called, an initialization event (``Simulator.Initialize``) takes ``q(−1)`` from the first
+    measured ``q``. The update is periodic (every ``h``, offset 0) and also forced.
+
+    Parameters
+    ----------
+    n : int
+        Joints.
+    period : float
+        Sampling time ``h`` (s), > 0.
+    cutoff_hz : float, optional
+        Low-pass cutoff ``f_c`` (Hz), > 0; none: the raw difference.
 
     Input ports
     -----------
@@ -99,16 +166,39 @@ class DifferenceVelocity(LeafSystem):
 
     def __init__(self, n: int, period: float, cutoff_hz: float | None = None):
         super().__init__()
+        _check_n(n)
+        check_period(period)
+        if cutoff_hz is not None and not (np.isfinite(cutoff_hz) and cutoff_hz > 0.0):
+            raise ValueError(f"cutoff_hz: must be finite and > 0 Hz, or None (got {cutoff_hz})")
         self._n = n
         self._h = period
         self._alpha = lowpass_alpha(cutoff_hz, period)
         self._q = self.DeclareVectorInputPort("q", n)
         self._state = self.DeclareDiscreteState(2 * n)
+        self._given = self.DeclareAbstractState(AbstractValue.Make(False))
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_difference)
-        self.DeclareVectorOutputPort("q_hat", n, self._calc_q_hat,
-                                     prerequisites_of_calc={self._q.ticket()})
-        self.DeclareVectorOutputPort("qdot_hat", n, self._calc_velocity)
-        self.DeclareVectorOutputPort("qdot_o", n, self._calc_velocity)
+        self.DeclareForcedDiscreteUpdateEvent(self._update_difference)
+        self.DeclareInitializationUnrestrictedUpdateEvent(self._initialize_from_q)
+        self._q_hat_out = self.DeclareVectorOutputPort(
+            "q_hat", n, self._calc_q_hat, prerequisites_of_calc={self._q.ticket()})
+        self._qdot_hat_out = self.DeclareVectorOutputPort("qdot_hat", n, self._calc_velocity)
+        self._qdot_o_out = self.DeclareVectorOutputPort("qdot_o", n, self._calc_velocity)
+
+    def get_q_input_port(self) -> InputPort:
+        """The encoder reading ``q``."""
+        return self._q
+
+    def get_q_hat_output_port(self) -> OutputPort:
+        """``q(k)``."""
+        return self._q_hat_out
+
+    def get_qdot_hat_output_port(self) -> OutputPort:
+        """The velocity estimate."""
+        return self._qdot_hat_out
+
+    def get_qdot_o_output_port(self) -> OutputPort:
+        """The velocity estimate."""
+        return self._qdot_o_out
 
     @property
     def alpha(self) -> float:
@@ -120,6 +210,15 @@ class DifferenceVelocity(LeafSystem):
         """``q(−1) = q_hat`` (the initial reading) and ``q̇̂(−1)`` (default zero)."""
         v = np.zeros(self._n) if qdot_hat_o is None else qdot_hat_o
         context.SetDiscreteState(self._state, np.concatenate([q_hat, v]))
+        context.SetAbstractState(self._given, True)
+
+    def _initialize_from_q(self, context: Context, state: State) -> None:
+        """At ``Simulator.Initialize``: ``q(−1) = q``, ``q̇̂(−1) = 0`` unless already given."""
+        if context.get_abstract_state(self._given).get_value():
+            return
+        state.get_mutable_discrete_state().set_value(
+            self._state, np.concatenate([self._q.Eval(context), np.zeros(self._n)]))
+        state.get_mutable_abstract_state(self._given).set_value(True)
 
     def _velocity(self, context: Context) -> np.ndarray:
         x = context.get_discrete_state(self._state).value()
@@ -141,9 +240,19 @@ class DifferenceVelocity(LeafSystem):
 class SensedForce(LeafSystem):
     """Classical force feedback: the sensor's ``λ_s`` in place of ``λ̂`` in (13) and (6).
 
+    .. pydrake_system::
+
+        name: SensedForce
+        input_ports:
+        - lambda_sensor
+        - reference
+        output_ports:
+        - lambda_hat
+        - Delta_F_tilde
+
     ``λ̂(k) = λ_s(k)`` while held (0 in free motion) and
     ``ΔF̃(k+1) = ΔF̃(k) + h (λ_s(k) − λ_d(k))`` while held, reset to 0 otherwise (as the force
-    observer's integral).
+    observer's integral). The update is periodic (every ``h``, offset 0) and also forced.
 
     Parameters
     ----------
@@ -168,6 +277,7 @@ class SensedForce(LeafSystem):
 
     def __init__(self, period: float, layout: ReferenceLayout):
         super().__init__()
+        check_period(period)
         self._h = period
         self._layout = layout
         m = layout.m
@@ -176,12 +286,31 @@ class SensedForce(LeafSystem):
         self._reference = self.DeclareVectorInputPort("reference", layout.size)
         self._state = self.DeclareDiscreteState(m)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
-        self.DeclareVectorOutputPort("lambda_hat", m, self._calc_lambda_hat)
-        self.DeclareVectorOutputPort("Delta_F_tilde", m, self._calc_Delta_F_tilde,
-                                     prerequisites_of_calc={self.xd_ticket()})
+        self.DeclareForcedDiscreteUpdateEvent(self._update_integral)
+        self._lambda_hat_out = self.DeclareVectorOutputPort("lambda_hat", m,
+                                                            self._calc_lambda_hat)
+        self._Delta_F_out = self.DeclareVectorOutputPort(
+            "Delta_F_tilde", m, self._calc_Delta_F_tilde, prerequisites_of_calc={self.xd_ticket()})
+
+    def get_lambda_sensor_input_port(self) -> InputPort:
+        """The sensor's reading ``λ_s``."""
+        return self._lambda
+
+    def get_reference_input_port(self) -> InputPort:
+        """The reference ``[q_d, q̇_d, q̈_d, λ_d, held]``."""
+        return self._reference
+
+    def get_lambda_hat_output_port(self) -> OutputPort:
+        """``λ_s`` while held, else 0."""
+        return self._lambda_hat_out
+
+    def get_Delta_F_tilde_output_port(self) -> OutputPort:
+        """The integral ``ΔF̃`` of (6) on ``λ_s``."""
+        return self._Delta_F_out
 
     def set_initial_state(self, context: Context, Delta_F_tilde: np.ndarray | None = None
                           ) -> None:
+        """``ΔF̃(0)`` (default zero)."""
         context.SetDiscreteState(self._state, self._zero if Delta_F_tilde is None
                                  else Delta_F_tilde)
 
@@ -204,6 +333,15 @@ class SensedForce(LeafSystem):
 
 class NoForceEstimate(LeafSystem):
     """No force information (implicit force control, reference [9]): ``λ̂ := λ_d``, ``ΔF̃ ≡ 0``.
+
+    .. pydrake_system::
+
+        name: NoForceEstimate
+        input_ports:
+        - reference
+        output_ports:
+        - lambda_hat
+        - Delta_F_tilde
 
     Then ``Δλ̃ = 0`` and (13) applies the feedforward ``J_φᵀ λ_d``; the force error is left to
     the constraint and the position loop. ``λ̂ = 0`` in free motion.
@@ -230,9 +368,23 @@ class NoForceEstimate(LeafSystem):
         self._layout = layout
         self._zero = np.zeros(layout.m)
         self._reference = self.DeclareVectorInputPort("reference", layout.size)
-        self.DeclareVectorOutputPort("lambda_hat", layout.m, self._calc_lambda_hat)
-        self.DeclareVectorOutputPort("Delta_F_tilde", layout.m, self._calc_Delta_F_tilde,
-                                     prerequisites_of_calc={self.nothing_ticket()})
+        self._lambda_hat_out = self.DeclareVectorOutputPort("lambda_hat", layout.m,
+                                                            self._calc_lambda_hat)
+        self._Delta_F_out = self.DeclareVectorOutputPort(
+            "Delta_F_tilde", layout.m, self._calc_Delta_F_tilde,
+            prerequisites_of_calc={self.nothing_ticket()})
+
+    def get_reference_input_port(self) -> InputPort:
+        """The reference ``[q_d, q̇_d, q̈_d, λ_d, held]``."""
+        return self._reference
+
+    def get_lambda_hat_output_port(self) -> OutputPort:
+        """``λ_d`` while held, else 0."""
+        return self._lambda_hat_out
+
+    def get_Delta_F_tilde_output_port(self) -> OutputPort:
+        """Zero."""
+        return self._Delta_F_out
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
         ref = self._layout.unpack(self._reference.Eval(context))
@@ -240,3 +392,8 @@ class NoForceEstimate(LeafSystem):
 
     def _calc_Delta_F_tilde(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(self._zero)
+
+
+def _check_n(n: int) -> None:
+    if not isinstance(n, (int, np.integer)) or n <= 0:
+        raise ValueError(f"n: the number of joints must be a positive integer (got {n!r})")

@@ -25,7 +25,9 @@ observers the control block never sees a velocity or a force. The alternatives o
 :mod:`drake_coop.control.sources` replace the observers inside the block: ``measured`` also reads the
 plant's state (true velocities), ``sensor`` the F/T sensor model's λ. Each control block is a
 sub-Diagram whose inputs are ``q`` and ``reference`` (plus ``state`` / ``lambda_sensor`` for
-those alternatives) and whose outputs are ``tau`` and the sources' signals (for logging).
+those alternatives) and whose outputs are ``tau`` and the sources' signals (for logging),
+added by the public :func:`~drake_coop.control.block.AddCooperativeController` as in a user's
+own diagram (one path).
 """
 
 from __future__ import annotations
@@ -43,6 +45,7 @@ from pydrake.systems.primitives import (
     VectorLogSink,
 )
 
+from drake_coop.control.block import AddCooperativeController
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.momentum import MomentumObserver
@@ -130,76 +133,6 @@ VelocitySource = VelocityObserver | MeasuredVelocity | DifferenceVelocity
 ForceSource = ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
 
 
-def build_control_block(name: str, law: FingerLaw, period: float,
-                        velocity_source: str = "observer", force_source: str = "observer",
-                        difference_cutoff_hz: float | None = None, momentum_gain: float = 50.0
-                        ) -> tuple[Diagram, VelocitySource, ForceSource, Controller]:
-    """One robot's velocity source, force source and controller, wired as in the paper.
-
-    The sources are the paper's observers (``observer``) or the alternatives of
-    :mod:`drake_coop.control.sources`, with the same port names, so only the blocks change.
-
-    Exported inputs: ``q``, ``reference``; ``state`` for ``velocity_source = measured`` (the
-    true velocities); ``lambda_sensor`` for ``force_source = sensor``. ``force_source =
-    momentum`` (:class:`~drake_coop.control.momentum.MomentumObserver`, gain
-    ``momentum_gain``) reads ``q``, the velocity source's ``qdot_hat`` and the controller's
-    commanded ``tau``, and adds the exported outputs ``tau_ext_hat`` and ``O_F_ext_hat``.
-    Exported outputs: ``tau``, ``q_hat``, ``qdot_hat``, ``qdot_o``, ``lambda_hat``,
-    ``Delta_F_tilde``, ``qddot_r_hat``.
-    """
-    b = DiagramBuilder()
-    if velocity_source == "measured":
-        vel = b.AddNamedSystem(f"{name}_measured_velocity", MeasuredVelocity(law.n))
-    elif velocity_source == "difference":
-        vel = b.AddNamedSystem(f"{name}_difference_velocity",
-                               DifferenceVelocity(law.n, period, difference_cutoff_hz))
-    else:
-        vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law, period))
-    if force_source == "sensor":
-        force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period, law.layout))
-    elif force_source == "none":
-        force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
-    elif force_source == "momentum":
-        force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
-            law.model, law.layout, period, momentum_gain))
-    else:
-        force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
-    ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
-    for port in ("q_hat", "qdot_hat", "qdot_o"):
-        b.Connect(vel.GetOutputPort(port), ctrl.GetInputPort(port))
-    b.Connect(force.GetOutputPort("lambda_hat"), ctrl.GetInputPort("lambda_hat"))
-    b.Connect(force.GetOutputPort("Delta_F_tilde"), ctrl.GetInputPort("Delta_F_tilde"))
-    b.ExportInput(ctrl.GetInputPort("q"), "q")
-    if velocity_source == "measured":
-        b.ExportInput(vel.GetInputPort("state"), "state")
-    if velocity_source == "observer":
-        b.Connect(ctrl.GetOutputPort("qddot_r_hat"), vel.GetInputPort("qddot_r_hat"))
-    b.ConnectInput("q", vel.GetInputPort("q"))
-    b.ExportInput(ctrl.GetInputPort("reference"), "reference")
-    b.ConnectInput("reference", force.GetInputPort("reference"))
-    if force_source == "observer":
-        b.ConnectInput("q", force.GetInputPort("q"))
-        b.Connect(vel.GetOutputPort("q_hat"), force.GetInputPort("q_hat"))
-        b.Connect(vel.GetOutputPort("qdot_o"), force.GetInputPort("qdot_o"))
-    elif force_source == "sensor":
-        b.ExportInput(force.GetInputPort("lambda_sensor"), "lambda_sensor")
-    elif force_source == "momentum":
-        b.ConnectInput("q", force.GetInputPort("q"))
-        b.Connect(vel.GetOutputPort("qdot_hat"), force.GetInputPort("qdot_hat"))
-        b.Connect(ctrl.GetOutputPort("tau"), force.GetInputPort("tau"))
-        b.ExportOutput(force.GetOutputPort("tau_ext_hat"), "tau_ext_hat")
-        b.ExportOutput(force.GetOutputPort("O_F_ext_hat"), "O_F_ext_hat")
-    b.ExportOutput(ctrl.GetOutputPort("tau"), "tau")
-    for port in ("q_hat", "qdot_hat", "qdot_o"):
-        b.ExportOutput(vel.GetOutputPort(port), port)
-    b.ExportOutput(force.GetOutputPort("lambda_hat"), "lambda_hat")
-    b.ExportOutput(force.GetOutputPort("Delta_F_tilde"), "Delta_F_tilde")
-    b.ExportOutput(ctrl.GetOutputPort("qddot_r_hat"), "qddot_r_hat")
-    diagram = b.Build()
-    diagram.set_name(f"{name}_control")
-    return diagram, vel, force, ctrl
-
-
 def is_ideal(settings) -> bool:
     """Encoders that pass the exact ``q(t_k)``: no quantization, no noise, no delay."""
     return (settings.counts_per_rev is None and settings.noise_std == 0.0
@@ -252,27 +185,30 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         robot = scenario.robots[i]
-        law = FingerLaw(controller_arm_model(handles.arm, robot.model_error), robot.gains)
-        n = law.n
-        control, vel, force, ctrl = build_control_block(
-            name, law, h, robot.velocity_source, robot.force_source, robot.difference_cutoff_hz,
-            robot.gains.momentum_gain)
-        b.AddSystem(control)
-        trajectory = (reference_trajectory(scenario, i) if references is None
-                      else references[i])
-        ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
+        model = controller_arm_model(handles.arm, robot.model_error)
+        n = model.n
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
         encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
-        b.Connect(q_port, control.GetInputPort("q"))
         ft = b.AddNamedSystem(f"{name}_ft_sensor",
-                              FTSensor(h, dt, robot.force_sensor, i, law.m))
+                              FTSensor(h, dt, robot.force_sensor, i, model.m))
         b.Connect(sensors[i].GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
-        if robot.velocity_source == "measured":   # the comparison baseline, not the paper's
-            b.Connect(state, control.GetInputPort("state"))
-        if robot.force_source == "sensor":        # classical force feedback
-            b.Connect(ft.GetOutputPort("lambda_sensor"), control.GetInputPort("lambda_sensor"))
-        b.Connect(ref.get_output_port(), control.GetInputPort("reference"))
+        # The control block, through the public API (the same path as a user's diagram): the
+        # encoders' q in; the F/T reading for classical force feedback; tau left to the
+        # actuators below. The measured-velocity baseline reads the plant's state.
+        block = AddCooperativeController(
+            b, plant, handles.instance, gains=robot.gains, period=h, controller_model=model,
+            velocity_source=robot.velocity_source, force_source=robot.force_source,
+            difference_cutoff_hz=robot.difference_cutoff_hz,
+            momentum_gain=robot.gains.momentum_gain, q=q_port,
+            lambda_sensor=ft.GetOutputPort("lambda_sensor"), connect_actuation=False,
+            name=name)
+        law, control = block.law, block.system
+        vel, force, ctrl = block.velocity_source, block.force_source, block.controller
+        trajectory = (reference_trajectory(scenario, i) if references is None
+                      else references[i])
+        ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
+        b.Connect(ref.get_output_port(), block.reference_input)
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
                                            robot.model_error.coulomb_friction, state)

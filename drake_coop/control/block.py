@@ -1,0 +1,413 @@
+"""One robot's control block in any Drake diagram: :func:`AddCooperativeController`.
+
+In the style of pydrake's ``AddMultibodyPlantSceneGraph`` and the ``Add*``/``Make*`` helpers of
+the ``manipulation`` package: given a user's :class:`~pydrake.systems.framework.DiagramBuilder`,
+a finalized :class:`~pydrake.multibody.plant.MultibodyPlant` and one arm's model instance,
+:func:`AddCooperativeController` adds the paper's velocity observer (15)–(16), force observer
+(22) and controller (13) of that arm as one sub-Diagram, wires its ``q`` input (the plant's
+positions through a C++ :class:`~pydrake.systems.primitives.Demultiplexer`, or the user's own
+sensor) and its ``tau`` output (to the plant's actuation input of that instance, or left to the
+user), and returns a :class:`ControllerHandles`.
+
+The controller's model follows Drake's ``InverseDynamicsController`` idiom: its own single-arm
+plant (:func:`MakeArmControllerPlant`, from the arm's model file with its base welded where the
+arm's base is in the simulated plant), never the simulated plant's context.
+
+The simulated plant must have *live* output ports (``plant.SetUseSampledOutputPorts(False)``
+before ``Finalize()``): with Drake's default sampled ports the plant's step is an unrestricted
+update run before the controllers' discrete updates at the same instant, so the observers would
+read ``q`` one plant step late; the tracking and force errors are then 2–4× larger.
+:func:`AddCooperativeController` refuses such a plant unless told otherwise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from pydrake.math import RigidTransform
+from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.tree import Frame, ModelInstanceIndex
+from pydrake.systems.framework import (
+    Context,
+    Diagram,
+    DiagramBuilder,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+)
+from pydrake.systems.primitives import Demultiplexer
+
+from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+from drake_coop.control.controller import Controller
+from drake_coop.control.finger import FingerLaw, check_period
+from drake_coop.control.momentum import MomentumObserver
+from drake_coop.control.observers import ForceObserver, VelocityObserver
+from drake_coop.control.sources import (
+    DifferenceVelocity,
+    MeasuredVelocity,
+    NoForceEstimate,
+    SensedForce,
+)
+from drake_coop.scenario.schema import Gains
+
+#: The choices of ``velocity_source`` and ``force_source``.
+VELOCITY_SOURCES = ("observer", "measured", "difference")
+FORCE_SOURCES = ("observer", "sensor", "none", "momentum")
+
+
+def build_control_block(name: str, law: FingerLaw, period: float,
+                        velocity_source: str = "observer", force_source: str = "observer",
+                        difference_cutoff_hz: float | None = None, momentum_gain: float = 50.0
+                        ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
+    """One robot's velocity source, force source and controller, wired as in the paper.
+
+    The sources are the paper's observers (``observer``) or the alternatives of
+    :mod:`drake_coop.control.sources`, with the same port names, so only the blocks change.
+    Most users want :func:`AddCooperativeController`, which also wires the block into a plant.
+
+    Parameters
+    ----------
+    name : str
+        Prefix of the systems' names; the Diagram is ``<name>_control``.
+    law : FingerLaw
+        The robot's law.
+    period : float
+        Sampling time ``h`` (s), > 0.
+    velocity_source, force_source : str
+        One of :data:`VELOCITY_SOURCES`, :data:`FORCE_SOURCES`.
+    difference_cutoff_hz : float, optional
+        Low-pass cutoff of ``velocity_source = difference``.
+    momentum_gain : float
+        ``K_O`` (1/s) of ``force_source = momentum``
+        (:class:`~drake_coop.control.momentum.MomentumObserver`).
+
+    Returns
+    -------
+    tuple
+        ``(diagram, velocity source, force source, controller)``. Exported inputs: ``q``,
+        ``reference``; ``state`` for ``velocity_source = measured`` (the true velocities);
+        ``lambda_sensor`` for ``force_source = sensor``. Exported outputs: ``tau``, ``q_hat``,
+        ``qdot_hat``, ``qdot_o``, ``lambda_hat``, ``Delta_F_tilde``, ``qddot_r_hat``; with
+        ``force_source = momentum`` (which reads ``q``, the velocity source's ``qdot_hat`` and
+        the commanded ``tau``) also ``tau_ext_hat`` and ``O_F_ext_hat``.
+    """
+    check_period(period)
+    if velocity_source not in VELOCITY_SOURCES:
+        raise ValueError(f"velocity_source: one of {', '.join(VELOCITY_SOURCES)} "
+                         f"(got {velocity_source!r})")
+    if force_source not in FORCE_SOURCES:
+        raise ValueError(f"force_source: one of {', '.join(FORCE_SOURCES)} "
+                         f"(got {force_source!r})")
+    b = DiagramBuilder()
+    if velocity_source == "measured":
+        vel = b.AddNamedSystem(f"{name}_measured_velocity", MeasuredVelocity(law.n))
+    elif velocity_source == "difference":
+        vel = b.AddNamedSystem(f"{name}_difference_velocity",
+                               DifferenceVelocity(law.n, period, difference_cutoff_hz))
+    else:
+        vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law, period))
+    if force_source == "sensor":
+        force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period, law.layout))
+    elif force_source == "none":
+        force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
+    elif force_source == "momentum":
+        force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
+            law.model, law.layout, period, momentum_gain))
+    else:
+        force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
+    ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
+    for port in ("q_hat", "qdot_hat", "qdot_o"):
+        b.Connect(vel.GetOutputPort(port), ctrl.GetInputPort(port))
+    b.Connect(force.GetOutputPort("lambda_hat"), ctrl.get_lambda_hat_input_port())
+    b.Connect(force.GetOutputPort("Delta_F_tilde"), ctrl.get_Delta_F_tilde_input_port())
+    b.ExportInput(ctrl.get_q_input_port(), "q")
+    if velocity_source == "measured":
+        b.ExportInput(vel.get_state_input_port(), "state")
+    if velocity_source == "observer":
+        b.Connect(ctrl.get_qddot_r_hat_output_port(), vel.get_qddot_r_hat_input_port())
+    b.ConnectInput("q", vel.get_q_input_port())
+    b.ExportInput(ctrl.get_reference_input_port(), "reference")
+    b.ConnectInput("reference", force.get_reference_input_port())
+    if force_source == "observer":
+        b.ConnectInput("q", force.get_q_input_port())
+        b.Connect(vel.get_q_hat_output_port(), force.get_q_hat_input_port())
+        b.Connect(vel.get_qdot_o_output_port(), force.get_qdot_o_input_port())
+    elif force_source == "sensor":
+        b.ExportInput(force.get_lambda_sensor_input_port(), "lambda_sensor")
+    elif force_source == "momentum":
+        b.ConnectInput("q", force.GetInputPort("q"))
+        b.Connect(vel.GetOutputPort("qdot_hat"), force.GetInputPort("qdot_hat"))
+        b.Connect(ctrl.get_tau_output_port(), force.GetInputPort("tau"))
+        b.ExportOutput(force.GetOutputPort("tau_ext_hat"), "tau_ext_hat")
+        b.ExportOutput(force.GetOutputPort("O_F_ext_hat"), "O_F_ext_hat")
+    b.ExportOutput(ctrl.get_tau_output_port(), "tau")
+    for port in ("q_hat", "qdot_hat", "qdot_o"):
+        b.ExportOutput(vel.GetOutputPort(port), port)
+    b.ExportOutput(force.GetOutputPort("lambda_hat"), "lambda_hat")
+    b.ExportOutput(force.GetOutputPort("Delta_F_tilde"), "Delta_F_tilde")
+    b.ExportOutput(ctrl.get_qddot_r_hat_output_port(), "qddot_r_hat")
+    diagram = b.Build()
+    diagram.set_name(f"{name}_control")
+    return diagram, vel, force, ctrl
+
+
+@dataclass
+class ControllerHandles:
+    """What :func:`AddCooperativeController` added: the block, its systems and its ports.
+
+    Attributes
+    ----------
+    system : Diagram
+        The control block ``<name>_control``.
+    law : FingerLaw
+        The robot's law (its model, gains, reference layout ``law.layout``).
+    velocity_source, force_source, controller : LeafSystem
+        The block's three systems.
+    reference_input : InputPort
+        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.finger.ReferenceLayout`):
+        the one input the user must connect.
+    q_input : InputPort
+        The measured ``q`` (already connected).
+    tau_output : OutputPort
+        The torque ``τ(k)``, held over ``[t_k, t_{k+1})``.
+    q_hat_output, qdot_hat_output, qdot_o_output : OutputPort
+        The velocity source's ``q̂``, ``d/dt q̂``, ``q̇_o`` (for logging).
+    lambda_hat_output, Delta_F_tilde_output : OutputPort
+        The force source's ``λ̂`` and ``ΔF̃`` (for logging).
+    plant : MultibodyPlant
+        The simulated plant.
+    model_instance : ModelInstanceIndex
+        The arm in ``plant``.
+    lambda_sensor_input : InputPort or None
+        The F/T reading of ``force_source = sensor`` (connected when given).
+    q_selector : Demultiplexer or None
+        The C++ block taking ``q`` out of the plant's ``[q, v]`` (None when the user gave ``q``).
+    """
+
+    system: Diagram
+    law: FingerLaw
+    velocity_source: object
+    force_source: object
+    controller: Controller
+    reference_input: InputPort
+    q_input: InputPort
+    tau_output: OutputPort
+    q_hat_output: OutputPort
+    qdot_hat_output: OutputPort
+    qdot_o_output: OutputPort
+    lambda_hat_output: OutputPort
+    Delta_F_tilde_output: OutputPort
+    plant: MultibodyPlant
+    model_instance: ModelInstanceIndex
+    lambda_sensor_input: InputPort | None = None
+    q_selector: Demultiplexer | None = None
+
+    def set_initial_state(self, root_context: Context, q_hat: np.ndarray | None = None,
+                          qdot_hat_o: np.ndarray | None = None) -> None:
+        """Start the velocity source at ``q̂(0) = q_hat`` (default: the arm's positions in
+        the plant's context inside ``root_context``) and ``q̇̂_o(0)`` (default 0).
+
+        Optional: without it ``Simulator.Initialize`` starts the observer at the first
+        measured ``q``. Call it after setting the plant's positions and before ``Initialize``.
+        """
+        if q_hat is None:
+            plant_context = self.plant.GetMyContextFromRoot(root_context)
+            q_hat = self.plant.GetPositions(plant_context, self.model_instance)
+        source = self.velocity_source
+        if isinstance(source, MeasuredVelocity):
+            return
+        source.set_initial_state(source.GetMyMutableContextFromRoot(root_context),
+                                 np.asarray(q_hat, dtype=float), qdot_hat_o)
+
+
+def MakeArmControllerPlant(model_file: str | Path, plant: MultibodyPlant,
+                           model_instance: ModelInstanceIndex) -> MultibodyPlant:
+    """The controller's own single-arm plant for one arm of ``plant``.
+
+    The arm's model file is parsed into a new continuous plant and the body the arm's model
+    instance welds to the world is welded at the same pose (read from ``plant``'s default
+    context), so that ``φ``, ``J_φ`` and gravity are expressed in the simulated world frame.
+
+    Parameters
+    ----------
+    model_file : str or Path
+        The arm's URDF/SDFormat (a file or a ``package://`` URL); a perturbed model gives a
+        model-error study.
+    plant : MultibodyPlant
+        The simulated plant (finalized).
+    model_instance : ModelInstanceIndex
+        The arm in ``plant``; its base must be welded to the world.
+
+    Returns
+    -------
+    MultibodyPlant
+        Finalized, time step 0.
+    """
+    base = _base_body(plant, model_instance)
+    X_WB = plant.EvalBodyPoseInWorld(plant.CreateDefaultContext(), base)
+    return make_arm_controller_plant(model_file, base.name(), X_WB)
+
+
+def _base_body(plant: MultibodyPlant, model_instance: ModelInstanceIndex):
+    """The arm's body welded to the world (``ValueError`` naming ``model_instance`` if none)."""
+    world = plant.world_body().index()
+    for j in plant.GetJointIndices(model_instance):
+        joint = plant.get_joint(j)
+        if joint.parent_body().index() == world and joint.num_velocities() == 0:
+            return joint.child_body()
+    raise ValueError(f"model_instance: {plant.GetModelInstanceName(model_instance)!r} has no "
+                     "body welded to the world (weld the arm's base before Finalize)")
+
+
+def AddCooperativeController(
+        builder: DiagramBuilder, plant: MultibodyPlant, model_instance: ModelInstanceIndex, *,
+        gains: Gains, period: float, controller_model: str | Path | MultibodyPlant | ArmModel,
+        ee_frame: str | Frame | None = None, normals=None, contact_point=None,
+        velocity_source: str = "observer", force_source: str = "observer",
+        difference_cutoff_hz: float | None = None, momentum_gain: float = 50.0,
+        q: OutputPort | None = None,
+        lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
+        name: str | None = None, allow_sampled_output_ports: bool = False
+) -> ControllerHandles:
+    """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The user's builder, holding ``plant``.
+    plant : MultibodyPlant
+        The simulated plant, finalized, with live output ports
+        (``plant.SetUseSampledOutputPorts(False)`` before ``Finalize()``).
+    model_instance : ModelInstanceIndex
+        The arm (``n`` positions, ``n`` velocities, ``n`` actuators; base welded to the world).
+    gains : Gains
+        The law's gains (:class:`~drake_coop.scenario.schema.Gains`): ``K_R`` has ``n``
+        entries, ``xi_matrix`` (if any) is ``m × m`` SPD; checked here, by name.
+    period : float
+        Sampling time ``h`` (s), > 0; a multiple of the plant's time step for exact sampling.
+    controller_model : str, Path, MultibodyPlant or ArmModel
+        The controller's own model: the arm's model file (built with
+        :func:`MakeArmControllerPlant`), a finalized single-arm plant welded as the arm is, or
+        an :class:`~drake_coop.control.arm_model.ArmModel` (which carries its own frame,
+        normals and contact point: then leave ``ee_frame``, ``normals``, ``contact_point``
+        unset).
+    ee_frame : str or Frame
+        The end-effector frame (its origin is ``x(q)`` of (2)); a name or a frame of ``plant``.
+    normals : array_like, shape (m, 3) or (3,)
+        The object's outward normals at the contact (``m = 1..3`` independent rows):
+        ``φ(q) = N (x(q) − c)``; ``λ > 0`` pushes the end effector outwards (a squeeze).
+    contact_point : array_like, shape (3,)
+        ``c`` of (2), in the world frame.
+    velocity_source : {"observer", "measured", "difference"}
+        The paper's observer (default) or a comparison baseline
+        (:mod:`drake_coop.control.sources`); ``measured`` reads the plant's velocities.
+    force_source : {"observer", "sensor", "none", "momentum"}
+        The paper's observer (default), an F/T reading (``lambda_sensor``), none, or the
+        generalized-momentum observer.
+    difference_cutoff_hz : float, optional
+        Low-pass cutoff of ``velocity_source = "difference"``.
+    momentum_gain : float
+        ``K_O`` (1/s) of ``force_source = "momentum"``.
+    q : OutputPort, optional
+        The measured positions (the user's own encoder model); default: the plant's exact
+        ``q`` through a C++ ``Demultiplexer``.
+    lambda_sensor : OutputPort, optional
+        The F/T reading for ``force_source = "sensor"`` (else the input is left to connect).
+    connect_actuation : bool
+        Connect ``tau`` to ``plant.get_actuation_input_port(model_instance)`` (default); False
+        leaves it to the user (actuator models, delays).
+    name : str, optional
+        Prefix of the systems' names (default: the model instance's name).
+    allow_sampled_output_ports : bool
+        Accept a plant with sampled output ports (a one-step-late ``q``; not the paper's
+        timing).
+
+    Returns
+    -------
+    ControllerHandles
+        The block, its systems and ports, and ``set_initial_state``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the argument at fault.
+    """
+    if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
+        raise ValueError("plant: a finalized MultibodyPlant is required (call Finalize() "
+                         "before AddCooperativeController)")
+    if plant.has_sampled_output_ports() and not allow_sampled_output_ports:
+        raise ValueError("plant: its output ports are sampled (Drake's default): call "
+                         "plant.SetUseSampledOutputPorts(False) before Finalize() so that "
+                         "the observers read q(t_k), or pass allow_sampled_output_ports=True")
+    if not isinstance(model_instance, ModelInstanceIndex) or not plant.HasModelInstanceNamed(
+            plant.GetModelInstanceName(model_instance)):
+        raise ValueError("model_instance: a model instance of plant is required")
+    check_period(period)
+    if isinstance(controller_model, ArmModel):
+        if ee_frame is not None or normals is not None or contact_point is not None:
+            raise ValueError("controller_model: an ArmModel carries its own ee_frame, normals "
+                             "and contact_point; leave those arguments unset")
+        model = controller_model
+    else:
+        if ee_frame is None or normals is None or contact_point is None:
+            raise ValueError("ee_frame, normals, contact_point: all three are required "
+                             "(the end effector and the constraint (2))")
+        frame_name = ee_frame.name() if isinstance(ee_frame, Frame) else str(ee_frame)
+        if not plant.HasFrameNamed(frame_name, model_instance):
+            raise ValueError(f"ee_frame: the arm {plant.GetModelInstanceName(model_instance)!r}"
+                             f" has no frame named {frame_name!r}")
+        if isinstance(controller_model, MultibodyPlant):
+            arm_plant = controller_model
+        elif isinstance(controller_model, (str, Path)):
+            arm_plant = MakeArmControllerPlant(controller_model, plant, model_instance)
+        else:
+            raise ValueError("controller_model: a model file, a single-arm MultibodyPlant or "
+                             f"an ArmModel is required (got {type(controller_model).__name__})")
+        model = ArmModel.from_plant(arm_plant, frame_name, normals, contact_point)
+    n = plant.num_positions(model_instance)
+    if model.n != n or plant.num_velocities(model_instance) != n:
+        raise ValueError(f"controller_model: it has {model.n} joints, the arm "
+                         f"{plant.GetModelInstanceName(model_instance)!r} {n} positions and "
+                         f"{plant.num_velocities(model_instance)} velocities")
+    if connect_actuation and plant.num_actuated_dofs(model_instance) != n:
+        raise ValueError(f"model_instance: the arm has {plant.num_actuated_dofs(model_instance)} "
+                         f"actuators for {n} joints; actuate every joint or pass "
+                         "connect_actuation=False")
+    if q is not None and q.size() != n:
+        raise ValueError(f"q: an output port of size {n} is required (got {q.size()})")
+    law = FingerLaw(model, gains)
+    name = name or plant.GetModelInstanceName(model_instance)
+    block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
+                                                  force_source, difference_cutoff_hz,
+                                                  momentum_gain)
+    builder.AddSystem(block)
+    state = plant.get_state_output_port(model_instance)
+    selector = None
+    if q is None:
+        selector = builder.AddNamedSystem(f"{name}_q_selector",
+                                          Demultiplexer([n, plant.num_velocities(model_instance)]))
+        builder.Connect(state, selector.get_input_port(0))
+        q = selector.get_output_port(0)
+    builder.Connect(q, block.GetInputPort("q"))
+    if velocity_source == "measured":
+        builder.Connect(state, block.GetInputPort("state"))
+    lambda_in = None
+    if force_source == "sensor":
+        lambda_in = block.GetInputPort("lambda_sensor")
+        if lambda_sensor is not None:
+            builder.Connect(lambda_sensor, lambda_in)
+    if connect_actuation:
+        builder.Connect(block.GetOutputPort("tau"),
+                        plant.get_actuation_input_port(model_instance))
+    return ControllerHandles(
+        system=block, law=law, velocity_source=vel, force_source=force, controller=ctrl,
+        reference_input=block.GetInputPort("reference"), q_input=block.GetInputPort("q"),
+        tau_output=block.GetOutputPort("tau"), q_hat_output=block.GetOutputPort("q_hat"),
+        qdot_hat_output=block.GetOutputPort("qdot_hat"),
+        qdot_o_output=block.GetOutputPort("qdot_o"),
+        lambda_hat_output=block.GetOutputPort("lambda_hat"),
+        Delta_F_tilde_output=block.GetOutputPort("Delta_F_tilde"),
+        plant=plant, model_instance=model_instance, lambda_sensor_input=lambda_in,
+        q_selector=selector)
