@@ -130,6 +130,29 @@ def test_the_estimate_does_not_depend_on_the_torque_of_the_same_tick():
         assert not obs.HasDirectFeedthrough(tau, obs.GetOutputPort(name).get_index())
 
 
+def test_a_forced_update_on_a_default_context_takes_the_first_tick_of_the_closed_form():
+    # pydrake's unit-test idiom: FixValue the inputs, CalcForcedDiscreteVariableUpdate. An arm
+    # at rest whose commanded torque is g(q) − τ_ext (statics under a constant external torque):
+    # r(1) = h K_O τ_ext, the k = 1 term of r(k) = (1 − (1 − h K_O)^k) τ_ext.
+    arm = _arm(0)
+    model, gain = ArmModel(arm), 50.0
+    layout = ReferenceLayout(3, 1)
+    obs = MomentumObserver(model, layout, H_PERIOD, gain)
+    context = obs.CreateDefaultContext()
+    q = np.array([0.1, 0.6, -0.4])
+    tau_ext = np.array([1.5, -2.0, 0.7])
+    obs.get_q_input_port().FixValue(context, q)
+    obs.get_qdot_hat_input_port().FixValue(context, np.zeros(3))
+    obs.get_tau_input_port().FixValue(context, model.g(q) - tau_ext)
+    obs.get_reference_input_port().FixValue(context, np.zeros(layout.size))
+    np.testing.assert_array_equal(obs.get_tau_ext_hat_output_port().Eval(context), np.zeros(3))
+    update = obs.AllocateDiscreteVariables()
+    obs.CalcForcedDiscreteVariableUpdate(context, update)
+    context.SetDiscreteState(update)
+    np.testing.assert_allclose(obs.get_tau_ext_hat_output_port().Eval(context),
+                               H_PERIOD * gain * tau_ext, rtol=1e-12, atol=1e-12)
+
+
 def test_momentum_gain_beyond_one_over_h_is_rejected_with_the_field_named():
     text = ("robots:\n- {name: robot1, force_source: momentum, gains: {momentum_gain: 200.0}}\n"
             "- {name: robot2, model: crs_a255, base_xyz: [1.16, 0, 0], base_yaw_deg: 180,"

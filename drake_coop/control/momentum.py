@@ -118,6 +118,7 @@ class MomentumObserver(LeafSystem):
         self._sigma = self.DeclareDiscreteState(n)
         self._DF = self.DeclareDiscreteState(m)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclareForcedDiscreteUpdateEvent(self._update)   # one tick in a unit test
         inputs = {self.xd_ticket(), self._q.ticket(), self._v.ticket(),
                   self._reference.ticket()}
         self._estimate = self.DeclareCacheEntry(
