@@ -50,11 +50,7 @@ from drake_coop.control.sources import (
     NoForceEstimate,
     SensedForce,
 )
-from drake_coop.scenario.schema import Gains
-
-#: The choices of ``velocity_source`` and ``force_source``.
-VELOCITY_SOURCES = ("observer", "measured", "difference")
-FORCE_SOURCES = ("observer", "sensor", "none", "momentum")
+from drake_coop.scenario.schema import FORCE_SOURCES, VELOCITY_SOURCES, Gains
 
 
 def build_control_block(name: str, law: FingerLaw, period: float,
@@ -76,7 +72,7 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     period : float
         Sampling time ``h`` (s), > 0.
     velocity_source, force_source : str
-        One of :data:`VELOCITY_SOURCES`, :data:`FORCE_SOURCES`.
+        One of :data:`~drake_coop.scenario.VELOCITY_SOURCES`, :data:`~drake_coop.scenario.FORCE_SOURCES`.
     difference_cutoff_hz : float, optional
         Low-pass cutoff of ``velocity_source = difference``.
     momentum_gain : float
