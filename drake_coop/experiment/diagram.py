@@ -212,7 +212,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
                                            robot.model_error.coulomb_friction, state)
-        # Computation delay / jitter (issue 20): a block of its own, only when enabled, so
+        # Computation delay / jitter: a block of its own, only when enabled, so
         # that the paper's diagram is unchanged at the defaults.
         latency = None
         timing = robot.timing
