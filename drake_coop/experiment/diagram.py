@@ -41,6 +41,7 @@ from pydrake.systems.primitives import (
     Saturation,
     TrajectorySource,
     VectorLogSink,
+    ZeroOrderHold,
 )
 
 from drake_coop.control.controller import Controller
@@ -62,7 +63,7 @@ from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.timing import aligned_periods
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
-from drake_coop.sensing.force_sensor import FTSensor
+from drake_coop.sensing.force_sensor import FTSensor, add_ft_sensor
 from drake_coop.sensing.latency import ActuationDelay
 from drake_coop.sensing.model_error import controller_arm_model
 
@@ -109,7 +110,7 @@ class RobotSystems:
     controller: Controller
     force_sensor: ForceSensor
     encoders: Encoders | Demultiplexer | None = None
-    ft_sensor: FTSensor | None = None
+    ft_sensor: FTSensor | ZeroOrderHold | None = None
     actuators: Saturation | None = None
     latency: ActuationDelay | None = None
     log: RobotLog | None = None
@@ -251,13 +252,13 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
         encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
         b.Connect(q_port, control.GetInputPort("q"))
-        ft = b.AddNamedSystem(f"{name}_ft_sensor",
-                              FTSensor(h, dt, robot.force_sensor, i, law.m))
-        b.Connect(sensors[i].GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
+        ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, law.m,
+                                          sensors[i].GetOutputPort("lambda_meas"),
+                                          sensors[i].lambda_last_step)
         if robot.velocity_source == "measured":   # the comparison baseline, not the paper's
             b.Connect(state, control.GetInputPort("state"))
         if robot.force_source == "sensor":        # classical force feedback
-            b.Connect(ft.GetOutputPort("lambda_sensor"), control.GetInputPort("lambda_sensor"))
+            b.Connect(lambda_sensor, control.GetInputPort("lambda_sensor"))
         b.Connect(ref.get_output_port(), control.GetInputPort("reference"))
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
@@ -285,9 +286,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 "Delta_F_tilde": control.GetOutputPort("Delta_F_tilde"),
                 "tau": actuators.get_output_port(),
                 "tau_cmd": control.GetOutputPort("tau"),
-                "F_meas": sensors[i].GetOutputPort("F_step"),
-                "lambda_meas": sensors[i].GetOutputPort("lambda_step"),
-                "lambda_sensor": ft.GetOutputPort("lambda_sensor"),
+                "F_meas": sensors[i].F_step,
+                "lambda_meas": sensors[i].lambda_step,
+                "lambda_sensor": lambda_sensor,
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,
             }
