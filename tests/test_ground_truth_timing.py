@@ -99,3 +99,19 @@ def test_latched_force_of_every_tick_is_the_step_the_plant_takes_from_it(run):
     lam = np.array([[steps[N * k][i] for i in range(2)] for k in range(TICKS)])
     assert np.ptp(lam[:, 0]) > 1.0
     np.testing.assert_allclose(latched, lam, rtol=1e-12, atol=1e-12)
+
+
+def test_three_by_three_solve_of_the_ground_truth_satisfies_its_equation():
+    """``_solve_transposed3`` (the adjugate on floats) against the equation itself: the
+    residual ``Jᵀ F − b`` over random, also ill-conditioned, 3×3 Jacobians."""
+    from drake_coop.plant.wrist import _solve_transposed3
+
+    rng = np.random.default_rng(7)
+    for scale in (1.0, 1e-3):
+        for _ in range(500):
+            J = rng.normal(size=(3, 3))
+            J[:, 2] = J[:, 1] + scale * J[:, 2]          # columns close to dependent
+            b = rng.normal(size=3)
+            F = _solve_transposed3(J.tolist(), b.tolist())
+            residual = np.abs(J.T @ F - b).max()
+            assert residual <= 1e-13 * np.abs(J).max() * np.abs(F).max(), (scale, residual)

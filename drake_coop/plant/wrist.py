@@ -237,7 +237,7 @@ class WristDynamics(LeafSystem):
             J = plant.CalcJacobianTranslationalVelocity(
                 pc, JacobianWrtVariable.kV, frame, np.zeros(3), world, world)[:, columns]
             if J.shape[1] == 3:
-                out.append(np.linalg.solve(J.T, generalized[columns]))
+                out.append(_solve_transposed3(J.tolist(), generalized[columns].tolist()))
             else:
                 out.append(np.linalg.lstsq(J.T, generalized[columns], rcond=None)[0])
         return out
@@ -260,6 +260,23 @@ class WristDynamics(LeafSystem):
         x, u = held[:self._nx], held[self._nx:]
         a = (self._state.Eval(context)[self._nq:] - x[self._nq:]) / self._dt
         value.set_value([N @ F for N, F in zip(self._normals, self._arm_forces(x, a, u))])
+
+
+def _solve_transposed3(J: list[list[float]], b: list[float]) -> np.ndarray:
+    """``F`` with ``Jᵀ F = b`` for a 3×3 ``J`` (rows), by the adjugate on plain floats.
+
+    With ``c_i`` the columns of ``J`` (the rows of ``Jᵀ``),
+    ``F = (b_0 (c_1 × c_2) + b_1 (c_2 × c_0) + b_2 (c_0 × c_1)) / (c_0 · (c_1 × c_2))``.
+    ``np.linalg.solve`` costs ~5 µs on a 3×3 (call overhead); this costs ~1 µs.
+    """
+    (a0, a1, a2), (b0, b1, b2), (e0, e1, e2) = J        # rows x, y, z; columns c_0, c_1, c_2
+    # c_0 = (a0, b0, e0), c_1 = (a1, b1, e1), c_2 = (a2, b2, e2)
+    x12 = (b1 * e2 - e1 * b2, e1 * a2 - a1 * e2, a1 * b2 - b1 * a2)      # c_1 × c_2
+    x20 = (b2 * e0 - e2 * b0, e2 * a0 - a2 * e0, a2 * b0 - b2 * a0)      # c_2 × c_0
+    x01 = (b0 * e1 - e0 * b1, e0 * a1 - a0 * e1, a0 * b1 - b0 * a1)      # c_0 × c_1
+    det = a0 * x12[0] + b0 * x12[1] + e0 * x12[2]
+    g0, g1, g2 = b
+    return np.array([(g0 * x12[i] + g1 * x20[i] + g2 * x01[i]) / det for i in range(3)])
 
 
 def _holds_last_step(period: float, time_step: float) -> bool:
