@@ -250,8 +250,9 @@ class WristDynamics(LeafSystem):
     def _update_step(self, context: Context, discrete_state) -> None:
         """Latch every arm's ``F`` and ``N_i F`` of the step the plant takes from this tick
         (same context as the plant's update: its solve is shared)."""
-        for (F_index, lam_index), N, F in zip(self._latched, self._normals,
-                                              self._signals.Eval(context)):
+        forces = self._arm_forces(self._state.Eval(context), self._acceleration.Eval(context),
+                                  self._actuation.Eval(context))     # no cache: one call less
+        for (F_index, lam_index), N, F in zip(self._latched, self._normals, forces):
             discrete_state.set_value(F_index, F)
             discrete_state.set_value(lam_index, N @ F)
 
