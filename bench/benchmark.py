@@ -22,6 +22,15 @@ if __name__ == "__main__":
                              "(e.g. scenarios/contact.yaml)")
     parser.add_argument("--t-scenario", type=float, default=None,
                         help="simulated seconds of that run (default: its whole task)")
+    parser.add_argument("--t-attribution", type=float, default=10.0,
+                        help="simulated seconds of each run of the ground truth's attribution "
+                             "(0 skips it)")
+    parser.add_argument("--attribution-repeats", type=int, default=5)
+    parser.add_argument("--t-callbacks", type=float, default=16.2,
+                        help="simulated seconds of the run whose Python callbacks are counted "
+                             "(0 skips it)")
     args = parser.parse_args()
     run_benchmark(args.t_end, args.repeats, args.out, t_scaling=args.t_scaling,
-                  extra_scenario=args.scenario, t_extra=args.t_scenario)
+                  extra_scenario=args.scenario, t_extra=args.t_scenario,
+                  t_attribution=args.t_attribution,
+                  attribution_repeats=args.attribution_repeats, t_callbacks=args.t_callbacks)

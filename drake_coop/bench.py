@@ -37,8 +37,11 @@ import numpy as np
 
 
 # ---------------------------------------------------------------------------- single runs
-def _plant_alone(scenario, t_end: float) -> tuple[float, float]:
-    """Wall and CPU seconds of the plant alone (held constraints, constant torques)."""
+def _plant_alone(scenario, t_end: float, extras=None) -> tuple[float, float]:
+    """Wall and CPU seconds of the plant alone (held constraints, constant torques).
+
+    ``extras(builder, coop, h, dt)``, if given, adds systems to that diagram before it is built
+    (the ground truth and sensor models of :func:`_sensing_attribution`)."""
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource
@@ -54,6 +57,10 @@ def _plant_alone(scenario, t_end: float) -> tuple[float, float]:
     for i, h in enumerate(coop.arms):
         src = b.AddSystem(ConstantVectorSource(ArmModel(h.arm).g(q0[i])))
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
+    if extras is not None:
+        from drake_coop.scenario.timing import aligned_periods
+
+        extras(b, coop, *aligned_periods(scenario.control_period, scenario.plant.time_step))
     diagram = b.Build()
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
@@ -79,6 +86,79 @@ def _experiment(scenario, t_end: float) -> tuple[float, float]:
     return result.wall_time, cpu
 
 
+# ------------------------------------------------------------- ground truth and sensors
+def _hold(port_of, offset_of):
+    """``extras`` for :func:`_plant_alone`: a C++ ``ZeroOrderHold`` of one plant port, period
+    ``h``, at ``offset_of(h, dt)`` (no Python: what a read of that port costs the plant)."""
+    def extras(b, coop, h, dt):
+        from pydrake.systems.primitives import ZeroOrderHold
+
+        port = port_of(coop.plant)
+        hold = b.AddSystem(ZeroOrderHold(h, port.size(), offset_of(h, dt)))
+        b.Connect(port, hold.get_input_port())
+    return extras
+
+
+def _ground_truth(with_models: bool):
+    """``extras`` for :func:`_plant_alone`: the experiment's ground truth
+    (:func:`~drake_coop.plant.wrist.add_force_sensors`, latched at every tick) and, with
+    ``with_models``, the F/T sensor models wired as in the experiment."""
+    def extras(b, coop, h, dt):
+        from drake_coop.plant.wrist import add_force_sensors
+        from drake_coop.sensing import force_sensor
+
+        sensors = add_force_sensors(b, coop, h)
+        if with_models:
+            for i, (handles, sensor) in enumerate(zip(coop.arms, sensors)):
+                live = sensor.GetOutputPort("lambda_meas")
+                if hasattr(force_sensor, "add_ft_sensor"):
+                    force_sensor.add_ft_sensor(b, handles.arm.name, h, dt, None, i,
+                                               handles.arm.m, live, sensor.lambda_last_step)
+                else:     # the first pass's wiring (for a before/after run of this bench)
+                    ft = b.AddSystem(force_sensor.FTSensor(h, dt, None, i, handles.arm.m))
+                    b.Connect(live, ft.GetInputPort("lambda_true"))
+    return extras
+
+
+#: Diagrams of :func:`_sensing_attribution`: the plant alone plus one addition each.
+_ATTRIBUTION = {
+    "C++ hold of the plant state at t_k - 3dt/2 (an event, no solve)":
+        _hold(lambda plant: plant.get_state_output_port(), lambda h, dt: h - 1.5 * dt),
+    "C++ hold of the acceleration port at t_k - 3dt/2 (a solve off the plant's update)":
+        _hold(lambda plant: plant.get_generalized_acceleration_output_port(),
+              lambda h, dt: h - 1.5 * dt),
+    "C++ hold of the acceleration port at t_k (the plant's own update's solve)":
+        _hold(lambda plant: plant.get_generalized_acceleration_output_port(),
+              lambda h, dt: 0.0),
+    "ground truth, latched at every tick": _ground_truth(False),
+    "ground truth + both F/T sensor models (the experiment's chain)": _ground_truth(True),
+}
+
+
+def _sensing_attribution(scenario, t_end: float, repeats: int) -> dict:
+    """CPU seconds of the plant alone and of the plant with each addition of
+    :data:`_ATTRIBUTION`, alternated ``repeats`` times in this process; each addition's extra
+    cost per control tick (median of its pairs with the plant alone run just before it) and as
+    a share of the plant alone's cost per tick."""
+    from drake_coop.experiment.plan import num_ticks_until
+    from drake_coop.scenario.timing import aligned_periods
+
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    ticks = num_ticks_until(t_end, h)
+    extra: dict[str, list[float]] = defaultdict(list)
+    plant: list[float] = []
+    for _ in range(max(1, repeats)):
+        for label, extras in _ATTRIBUTION.items():
+            alone = _plant_alone(scenario, t_end)[1]
+            with_it = _plant_alone(scenario, t_end, extras)[1]
+            plant.append(alone)
+            extra[label].append(1e6 * (with_it - alone) / ticks)
+    plant_us = 1e6 * statistics.median(plant) / ticks
+    rows = {label: {**_spread(v), "share": statistics.median(v) / plant_us}
+            for label, v in extra.items()}
+    return {"plant_alone_us_per_tick": plant_us, "extra_us_per_tick": rows}
+
+
 # ----------------------------------------------------------------------- per-system timing
 _TIMED = {
     "velocity observer (15)-(16)": ("drake_coop.control.observers", "VelocityObserver",
@@ -95,7 +175,7 @@ _TIMED = {
     "wrist kinematics (all arms)": ("drake_coop.plant.wrist", "WristKinematics",
                                     ("_calc_signals",)),
     "wrist dynamics (all arms)": ("drake_coop.plant.wrist", "WristDynamics",
-                                  ("_calc_signals",)),
+                                  ("_calc_signals", "_calc_last_step", "_update_step")),
 }
 
 
@@ -140,6 +220,52 @@ def _timed_callbacks(totals: dict):
     finally:
         for cls, m, original in patched:
             setattr(cls, m, original)
+
+
+def _count_callbacks(scenario, t_end: float) -> dict:
+    """Python callbacks per control tick of a run to ``t_end``: every Python function that
+    C++ calls (an event, an output port, a cache entry, a monitor), counted with
+    ``sys.setprofile`` as a call of a ``drake_coop`` function (not a generator) made directly
+    from inside a builtin (pybind) call.
+    Returns the total per tick and the count per tick of each function (``module.qualname``).
+    """
+    import inspect
+    import sys
+
+    from drake_coop.experiment.plan import num_ticks_until
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.scenario.timing import aligned_periods
+
+    counts: dict[str, int] = defaultdict(int)
+    inside: list = []        # frames that are inside a builtin call
+
+    def hook(frame, event, arg):
+        if event == "c_call":
+            inside.append(frame)
+        elif event in ("c_return", "c_exception"):
+            if inside:
+                inside.pop()
+        elif event == "call" and inside and inside[-1] is frame.f_back:
+            code, module = frame.f_code, frame.f_globals.get("__name__", "?")
+            # Not a generator resumed by sum()/tuple(), not NumPy's own Python.
+            if module.startswith("drake_coop") and not code.co_flags & inspect.CO_GENERATOR:
+                counts[f"{module}.{code.co_qualname}"] += 1
+
+    def start(exp, simulator):
+        counts.clear()
+        sys.setprofile(hook)
+
+    try:
+        result = simulate(scenario, t_end=t_end, on_start=start)
+    finally:
+        sys.setprofile(None)
+    if not result.ok:
+        raise RuntimeError(f"benchmark run failed: {result.meta['message']}")
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    ticks = num_ticks_until(t_end, h)
+    return {"per_tick": sum(counts.values()) / ticks,
+            "by_function": {k: v / ticks for k, v in sorted(counts.items(),
+                                                          key=lambda kv: -kv[1])}}
 
 
 def _tick_costs(scenario) -> dict[str, float]:
@@ -201,7 +327,8 @@ def _spread(values: list[float]) -> dict[str, float]:
 # ------------------------------------------------------------------------------ the bench
 def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
                   t_scaling: float = 20.0, extra_scenario: str | None = None,
-                  t_extra: float | None = None) -> dict:
+                  t_extra: float | None = None, t_attribution: float = 10.0,
+                  attribution_repeats: int = 5, t_callbacks: float = 16.2) -> dict:
     """Run the benchmark, print its tables and return the numbers.
 
     Parameters
@@ -218,6 +345,12 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         A scenario file whose realtime factor is also measured (e.g. the contact mode).
     t_extra : float, optional
         Simulated seconds of that run (default: the scenario's whole task).
+    t_attribution, attribution_repeats : float, int
+        Simulated seconds and alternated repeats of the ground truth's attribution
+        (:func:`_sensing_attribution`; 0 s skips it).
+    t_callbacks : float
+        Simulated seconds of the run whose Python callbacks are counted
+        (:func:`_count_callbacks`; 0 skips it).
     """
     from drake_coop.experiment.plan import num_ticks_until
     from drake_coop.scenario.loading import default_scenario, load_scenario
@@ -280,6 +413,25 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
     print(f"  ground truth + sensor models {sensing_us:.0f} us per tick = "
           f"{100 * log_share:.1f} % of the plant's cost (target <= 10 %)")
 
+    # 2b. the ground truth's and the sensor models' true extra cost (plant alone + each)
+    attribution = None
+    if t_attribution > 0:
+        attribution = _sensing_attribution(scenario, t_attribution, attribution_repeats)
+        print(line)
+        print(f"extra CPU per control tick over the plant alone "
+              f"({attribution['plant_alone_us_per_tick']:.0f} us), {attribution_repeats} "
+              f"alternated pairs of {t_attribution:g} s, median [min, max]:")
+        for label, r in attribution["extra_us_per_tick"].items():
+            print(f"  {r['median']:7.1f} us [{r['min']:7.1f}, {r['max']:7.1f}] "
+                  f"= {100 * r['share']:5.1f} %  {label}")
+    callbacks = None
+    if t_callbacks > 0:
+        callbacks = _count_callbacks(scenario, t_callbacks)
+        print(f"Python callbacks per control tick (both robots, 0-{t_callbacks:g} s): "
+              f"{callbacks['per_tick']:.1f}")
+        for name, c in callbacks["by_function"].items():
+            print(f"  {c:5.2f}  {name}")
+
     # 4. one tick's equations in isolation
     costs = _tick_costs(scenario)
     print("isolated equations, us per tick (timeit, held samples of robot 1; target for all "
@@ -323,14 +475,27 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         with _timed_callbacks(totals):
             timed_cpu = _experiment(s, T)[1]
         python_s = sum(totals.values())
+        by_label: dict[str, float] = defaultdict(float)
+        for (label, _), seconds in totals.items():
+            by_label[label] += seconds
+        s_h, _ = aligned_periods(s.control_period, s.plant.time_step)
+        extra_ticks = num_ticks_until(T, s_h)
+        profile = {label: 1e6 * v / extra_ticks for label, v in by_label.items()}
+        profile["plant, framework and C++ systems (the rest)"] = \
+            1e6 * (timed_cpu - python_s) / extra_ticks
         extra = {"scenario": extra_scenario, "simulated_s": T, "wall_s": wall, "cpu_s": cpu,
                  "realtime_factor_wall": T / wall, "realtime_factor_cpu": T / cpu,
-                 "python_callbacks_share": python_s / timed_cpu}
+                 "python_callbacks_share": python_s / timed_cpu,
+                 "instrumented_us_per_tick": profile}
         print(line)
         print(f"{extra_scenario}: {T:g} s in {wall:.2f} s wall / {cpu:.2f} s CPU "
               f"(realtime x{T / wall:.2f} wall, x{T / cpu:.2f} CPU); the Python callbacks are "
               f"{100 * python_s / timed_cpu:.0f} % of an instrumented run, the rest is the plant "
               f"and the framework")
+        print(f"  where a tick goes (instrumented run, {1e6 * timed_cpu / extra_ticks:.0f} us "
+              f"CPU per tick in all; wrist kinematics = the reaction forces and body lists):")
+        for label, us in sorted(profile.items(), key=lambda kv: -kv[1]):
+            print(f"    {us:8.1f} us  {label}")
 
     numbers = {
         "machine": f"{platform.processor() or platform.machine()}, Python "
@@ -349,6 +514,8 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         "scaling_plant_step": scaling,
         "control_loop_us_per_robot_per_tick": per_robot,
         "extra": extra,
+        "sensing_attribution": attribution,
+        "callbacks_per_tick": callbacks,
     }
     if out:
         from drake_coop.results.io import atomic_write_text

@@ -110,14 +110,21 @@ def test_events_fire_at_ticks_and_the_ft_read_without_tiny_steps():
     steps = np.diff(times)
     steps = steps[steps > 0]
     # No ~1e-17 s steps from 0.009 vs 0.001: every step is one plant step (1 ms), except that
-    # the F/T sensor's read at t_k − 1.5 ms (mid-way between two plant updates, issue 19)
-    # splits the plant's last step before each tick into two halves.
+    # the ground truth's C++ hold at t_k − 1.5 ms and the F/T sensor's read at t_k − 0.5 ms
+    # (each mid-way between two plant updates, issue 19) split the plant's last two steps
+    # before each tick into halves.
     half = np.abs(steps - 0.0005) < 0.0005 * 1e-9
     assert np.all(half | (np.abs(steps - 0.001) < 0.001 * 1e-9)), steps.min()
     h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
     ends = np.asarray(times[1:])[np.diff(times) > 0][half]
-    reads = ends[np.abs((ends + 1.5 * dt) / h - np.round((ends + 1.5 * dt) / h)) < 1e-9]
-    assert reads.size == half.sum() // 2 >= 50       # one read per tick, and only there
+
+    def at(lead):
+        return ends[np.abs((ends + lead) / h - np.round((ends + lead) / h)) < 1e-9]
+
+    holds, reads = at(1.5 * dt), at(0.5 * dt)
+    # One hold and one read per tick, and only there.
+    assert holds.size == reads.size == half.sum() // 4 >= 50
+    np.testing.assert_allclose(reads - holds, dt, rtol=1e-9)
     # The controller latched one torque per tick: last latched tick is that of t = 0.495 s.
     ctrl = exp.robots[0].controller
     assert ctrl.latched_tick(ctrl.GetMyContextFromRoot(ctx)) == 55

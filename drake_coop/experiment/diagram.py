@@ -43,6 +43,7 @@ from pydrake.systems.primitives import (
     Saturation,
     TrajectorySource,
     VectorLogSink,
+    ZeroOrderHold,
 )
 
 from drake_coop.control.block import AddCooperativeController
@@ -66,7 +67,7 @@ from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.timing import aligned_periods
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
-from drake_coop.sensing.force_sensor import FTSensor
+from drake_coop.sensing.force_sensor import FTSensor, add_ft_sensor
 from drake_coop.sensing.latency import ActuationDelay
 from drake_coop.sensing.model_error import controller_arm_model
 
@@ -113,7 +114,7 @@ class RobotSystems:
     controller: Controller
     force_sensor: ForceSensor
     encoders: Encoders | Demultiplexer | None = None
-    ft_sensor: FTSensor | None = None
+    ft_sensor: FTSensor | ZeroOrderHold | None = None
     actuators: Saturation | None = None
     latency: ActuationDelay | None = None
     log: RobotLog | None = None
@@ -190,9 +191,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
         encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
-        ft = b.AddNamedSystem(f"{name}_ft_sensor",
-                              FTSensor(h, dt, robot.force_sensor, i, model.m))
-        b.Connect(sensors[i].GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
+        ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
+                                          sensors[i].GetOutputPort("lambda_meas"),
+                                          sensors[i].lambda_last_step)
         # The control block, through the public API (the same path as a user's diagram): the
         # encoders' q in; the F/T reading for classical force feedback; tau left to the
         # actuators below. The measured-velocity baseline reads the plant's state.
@@ -201,7 +202,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             velocity_source=robot.velocity_source, force_source=robot.force_source,
             difference_cutoff_hz=robot.difference_cutoff_hz,
             momentum_gain=robot.gains.momentum_gain, q=q_port,
-            lambda_sensor=ft.GetOutputPort("lambda_sensor"), connect_actuation=False,
+            lambda_sensor=lambda_sensor, connect_actuation=False,
             name=name)
         law, control = block.law, block.system
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller
@@ -235,9 +236,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 "Delta_F_tilde": control.GetOutputPort("Delta_F_tilde"),
                 "tau": actuators.get_output_port(),
                 "tau_cmd": control.GetOutputPort("tau"),
-                "F_meas": sensors[i].GetOutputPort("F_step"),
-                "lambda_meas": sensors[i].GetOutputPort("lambda_step"),
-                "lambda_sensor": ft.GetOutputPort("lambda_sensor"),
+                "F_meas": sensors[i].F_step,
+                "lambda_meas": sensors[i].lambda_step,
+                "lambda_sensor": lambda_sensor,
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,
             }

@@ -14,8 +14,9 @@ Two kinds of systems, so that the cost per tick grows linearly with the number o
 * one :class:`ForceSensor` per arm (``<robot>_force_sensor``) turns that vector into the force
   and its components along the object's outward normals.
 
-Logged force of a tick (``F_step``, ``lambda_step``): with a control period, the sensor latches
-at every tick ``t_k`` the force of the plant step actually taken from ``t_k``: its discrete
+Logged force of a tick (``F_step``, ``lambda_step``): with a control period, the ground truth
+(:class:`WristDynamics` once for all arms, or each :class:`ForceSensor` in ``contact`` mode)
+latches at every tick ``t_k`` the force of the plant step actually taken from ``t_k``: its discrete
 update runs after the controller's unrestricted update (so under ``τ(k)``) and after a grasp
 switch made between two ``AdvanceTo`` calls (so a grasp or release tick logs the step of the
 new form), from the same context as the plant's own update (the step's solve is shared). A
@@ -31,7 +32,14 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
-from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem, ValueProducer
+from pydrake.systems.framework import (
+    Context,
+    DiagramBuilder,
+    LeafSystem,
+    OutputPort,
+    ValueProducer,
+)
+from pydrake.systems.primitives import Multiplexer, ZeroOrderHold
 
 from drake_coop.plant.cooperative import ArmHandles, CoopPlant
 
@@ -106,38 +114,63 @@ class WristDynamics(LeafSystem):
     modes where the object's pull on the end-effector point is the only external force on an
     arm (``planes``, ``rigid``: a ball constraint at the end-effector body's origin).
 
-    For the plant step from ``(q_k, v_k)`` to ``v_{k+1} = v_k + Δt a`` under the actuation
+    For the plant step from ``(q_j, v_j)`` to ``v_{j+1} = v_j + Δt a`` under the actuation
     ``u``, SAP's momentum balance with the joints' damping taken implicitly is
 
     .. math::
-        J_x(q_k)^T F = M(q_k)\\,a + C(q_k, v_k) v_k - \\tau_g(q_k) + D (v_k + \\Delta t\\, a)
+        J_x(q_j)^T F = M(q_j)\\,a + C(q_j, v_j) v_j - \\tau_g(q_j) + D (v_j + \\Delta t\\, a)
                        - B u,
 
     ``J_x`` the translational Jacobian of the end-effector point (columns of the arm's
     joints), ``B`` the actuation matrix. The right-hand side is one inverse-dynamics call on a
-    private context of the plant (force elements: gravity and ``D v_k``) plus ``D Δt a − B u``;
-    ``a`` is the plant's generalized-acceleration port, which reuses the step's solve. No
-    reaction forces and no per-body lists cross into Python. ``F`` solves the arm's rows by
-    least squares (exact for a full-rank ``J_x``: ``n = 3`` square, ``n > 3`` tall).
+    private context of the plant (force elements: gravity and ``D v_j``) plus ``D Δt a − B u``.
+    ``F`` solves the arm's rows (``n = 3``: square; ``n > 3``: least squares, exact for a
+    full-rank ``J_x``). No reaction forces and no per-body lists cross into Python.
+
+    Two steps are served, each from quantities the plant computes anyway:
+
+    * ``<robot>_wrist``, the step that starts at the context's state (the step the plant takes
+      at that time): ``a`` is the plant's generalized-acceleration port, which reuses the
+      solve of the plant's own update when read at the same time (the latch at a tick);
+    * with a control ``period`` of at least two plant steps, ``<robot>_lambda_last_step``,
+      ``N_i F`` of the step that *ended* at the context's state: ``(q_j, v_j, u)`` held by a
+      C++ hold at ``t_k − 3Δt/2`` (input ``held``, see :func:`add_force_sensors`) and
+      ``a = (v_{j+1} − v_j)/Δt`` from the live state (the acceleration port's own formula,
+      bit for bit). Read in ``(t_k − Δt, t_k]`` it is the step ``[t_k − Δt, t_k)``: the F/T
+      sensor model's reading of tick ``k``. The plant's solve is not repeated: reading the
+      acceleration port between two plant updates would solve that step a second time
+      (a change of time invalidates the solve; measured in ``docs/benchmark.md``).
 
     Input ports
     -----------
     state, generalized_acceleration, net_actuation
         The plant's ports of the same names (``net_actuation`` per actuator).
+    held : (n_x + n_u)-vector, with a ``period``
+        ``[state, net_actuation]`` held at ``t_k − 3Δt/2``.
 
     Output ports
     ------------
     <robot>_wrist : 3-vector, one per arm
-        ``F``, the force of the object on the end effector (palm frame).
+        ``F``, the force of the object on the end effector (palm frame), of the step from the
+        context's state.
+    <robot>_F_step, <robot>_lambda_step : 3- and m-vectors, one per arm, with a ``period``
+        ``F`` and ``N_i F`` of the step taken from the last tick, latched at that tick by one
+        discrete update for all arms (state only: see the module's docstring).
+    <robot>_lambda_last_step : m-vector, one per arm, with a ``period`` of at least two plant
+        steps
+        ``N_i F`` of the step that ended at the context's state.
     """
 
-    def __init__(self, plant: MultibodyPlant, arms: list[ArmHandles], time_step: float):
+    def __init__(self, plant: MultibodyPlant, arms: list[ArmHandles], time_step: float,
+                 period: float | None = None):
         super().__init__()
         self._plant = plant
         self._context = plant.CreateDefaultContext()
         self._forces = MultibodyForces(plant)
         self._dt = float(time_step)
         nv = plant.num_velocities()
+        self._nq = plant.num_positions()
+        self._nx = plant.num_multibody_states()
         self._B = plant.MakeActuationMatrix()
         damping = np.zeros(nv)
         for j in plant.GetJointIndices():
@@ -151,36 +184,106 @@ class WristDynamics(LeafSystem):
             columns = plant.GetVelocitiesFromArray(h.instance,
                                                    np.arange(nv, dtype=float)).astype(int)
             self._arms.append((h.ee_body.body_frame(), columns))
-        self._state = self.DeclareVectorInputPort(
-            "state", plant.num_multibody_states())
+        self._normals = [np.asarray(h.arm.N, dtype=float) for h in arms]
+        self._state = self.DeclareVectorInputPort("state", self._nx)
         self._acceleration = self.DeclareVectorInputPort("generalized_acceleration", nv)
         self._actuation = self.DeclareVectorInputPort("net_actuation", plant.num_actuators())
         self._signals = self.DeclareCacheEntry(
             "wrist forces of every arm",
             ValueProducer(allocate=AbstractValue.Make([np.zeros(0)]).Clone,
                           calc=self._calc_signals),
-            {self.all_input_ports_ticket()})
+            {self._state.ticket(), self._acceleration.ticket(), self._actuation.ticket()})
         for i, h in enumerate(arms):
             self.DeclareVectorOutputPort(
                 f"{h.arm.name}_wrist", 3,
                 lambda context, output, i=i: output.SetFromVector(
                     self._signals.Eval(context)[i]),
                 prerequisites_of_calc={self._signals.ticket()})
+        self._latched = []
+        if period is not None:
+            for h in arms:
+                F = self.DeclareDiscreteState(3)
+                lam = self.DeclareDiscreteState(h.arm.m)
+                self._latched.append((F, lam))
+                self.DeclareStateOutputPort(f"{h.arm.name}_F_step", F)
+                self.DeclareStateOutputPort(f"{h.arm.name}_lambda_step", lam)
+            self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_step)
+        self._held = None
+        if period is not None and _holds_last_step(period, time_step):
+            self._held = self.DeclareVectorInputPort("held", self._nx + plant.num_actuators())
+            self._last = self.DeclareCacheEntry(
+                "squeeze of the last step of every arm",
+                ValueProducer(allocate=AbstractValue.Make([np.zeros(0)]).Clone,
+                              calc=self._calc_last_step),
+                {self._state.ticket(), self._held.ticket()})
+            for i, h in enumerate(arms):
+                self.DeclareVectorOutputPort(
+                    f"{h.arm.name}_lambda_last_step", h.arm.m,
+                    lambda context, output, i=i: output.SetFromVector(
+                        self._last.Eval(context)[i]),
+                    prerequisites_of_calc={self._last.ticket()})
 
-    def _calc_signals(self, context: Context, value: AbstractValue) -> None:
+    def _arm_forces(self, x: np.ndarray, a: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
+        """``F`` of every arm for the step from the plant state ``x`` with acceleration ``a``
+        under the actuation ``u`` (the class's equation)."""
         plant, pc = self._plant, self._context
-        plant.SetPositionsAndVelocities(pc, self._state.Eval(context))
-        a = self._acceleration.Eval(context)
+        plant.SetPositionsAndVelocities(pc, x)
         plant.CalcForceElementsContribution(pc, self._forces)
         generalized = (plant.CalcInverseDynamics(pc, a, self._forces) + self._damping_dt * a
-                       - self._B @ self._actuation.Eval(context))
+                       - self._B @ u)
         world = plant.world_frame()
         out = []
         for frame, columns in self._arms:
             J = plant.CalcJacobianTranslationalVelocity(
                 pc, JacobianWrtVariable.kV, frame, np.zeros(3), world, world)[:, columns]
-            out.append(np.linalg.lstsq(J.T, generalized[columns], rcond=None)[0])
-        value.set_value(out)
+            if J.shape[1] == 3:
+                out.append(_solve_transposed3(J.tolist(), generalized[columns].tolist()))
+            else:
+                out.append(np.linalg.lstsq(J.T, generalized[columns], rcond=None)[0])
+        return out
+
+    def _calc_signals(self, context: Context, value: AbstractValue) -> None:
+        value.set_value(self._arm_forces(self._state.Eval(context),
+                                         self._acceleration.Eval(context),
+                                         self._actuation.Eval(context)))
+
+    def _update_step(self, context: Context, discrete_state) -> None:
+        """Latch every arm's ``F`` and ``N_i F`` of the step the plant takes from this tick
+        (same context as the plant's update: its solve is shared)."""
+        forces = self._arm_forces(self._state.Eval(context), self._acceleration.Eval(context),
+                                  self._actuation.Eval(context))     # no cache: one call less
+        for (F_index, lam_index), N, F in zip(self._latched, self._normals, forces):
+            discrete_state.set_value(F_index, F)
+            discrete_state.set_value(lam_index, N @ F)
+
+    def _calc_last_step(self, context: Context, value: AbstractValue) -> None:
+        held = self._held.Eval(context)
+        x, u = held[:self._nx], held[self._nx:]
+        a = (self._state.Eval(context)[self._nq:] - x[self._nq:]) / self._dt
+        value.set_value([N @ F for N, F in zip(self._normals, self._arm_forces(x, a, u))])
+
+
+def _solve_transposed3(J: list[list[float]], b: list[float]) -> np.ndarray:
+    """``F`` with ``Jᵀ F = b`` for a 3×3 ``J`` (rows), by the adjugate on plain floats.
+
+    With ``c_i`` the columns of ``J`` (the rows of ``Jᵀ``),
+    ``F = (b_0 (c_1 × c_2) + b_1 (c_2 × c_0) + b_2 (c_0 × c_1)) / (c_0 · (c_1 × c_2))``.
+    ``np.linalg.solve`` costs ~5 µs on a 3×3 (call overhead); this costs ~1 µs.
+    """
+    (a0, a1, a2), (b0, b1, b2), (e0, e1, e2) = J        # rows x, y, z; columns c_0, c_1, c_2
+    # c_0 = (a0, b0, e0), c_1 = (a1, b1, e1), c_2 = (a2, b2, e2)
+    x12 = (b1 * e2 - e1 * b2, e1 * a2 - a1 * e2, a1 * b2 - b1 * a2)      # c_1 × c_2
+    x20 = (b2 * e0 - e2 * b0, e2 * a0 - a2 * e0, a2 * b0 - b2 * a0)      # c_2 × c_0
+    x01 = (b0 * e1 - e0 * b1, e0 * a1 - a0 * e1, a0 * b1 - b0 * a1)      # c_0 × c_1
+    det = a0 * x12[0] + b0 * x12[1] + e0 * x12[2]
+    g0, g1, g2 = b
+    return np.array([(g0 * x12[i] + g1 * x20[i] + g2 * x01[i]) / det for i in range(3)])
+
+
+def _holds_last_step(period: float, time_step: float) -> bool:
+    """Whether a plant update lies between two ticks (``h ≥ 2Δt``): then the step before a
+    tick is read from a state held at ``t_k − 3Δt/2`` (:class:`WristDynamics`)."""
+    return int(round(period / time_step)) >= 2
 
 
 class ForceSensor(LeafSystem):
@@ -199,8 +302,10 @@ class ForceSensor(LeafSystem):
     lambda_meas : m-vector
         ``N_i F_meas``, ``N_i`` the object's outward normals (rows): positive when squeezing (N).
     F_step, lambda_step : 3- and m-vectors
-        With a ``period``: ``[F_meas, lambda_meas]`` of the step taken from the last tick,
-        latched at that tick (state only; see the module's docstring).
+        With a ``period`` and the :class:`WristKinematics` input: ``[F_meas, lambda_meas]`` of
+        the step taken from the last tick, latched at that tick (state only; see the module's
+        docstring). With the :class:`WristDynamics` input they are that system's ports (the
+        attributes :attr:`F_step`, :attr:`lambda_step` give them in both cases).
     """
 
     def __init__(self, plant: MultibodyPlant, handles: ArmHandles, period: float | None = None,
@@ -210,6 +315,10 @@ class ForceSensor(LeafSystem):
         self._g_list = plant.gravity_field().gravity_vector().tolist()
         self._N = handles.arm.N
         self._direct = direct      # the input is the force itself (WristDynamics)
+        #: ``λ`` of the plant step before each tick, read in ``(t_k − Δt, t_k]`` without a
+        #: second solve (a :class:`WristDynamics` port), or None; set by
+        #: :func:`add_force_sensors`.
+        self.lambda_last_step: OutputPort | None = None
         self._wrist = self.DeclareVectorInputPort("wrist", 3 if direct else _wrist_size(handles))
         self._force_cache = self.DeclareCacheEntry(
             "measured force", ValueProducer(allocate=AbstractValue.Make(np.zeros(3)).Clone,
@@ -217,12 +326,17 @@ class ForceSensor(LeafSystem):
             {self.all_input_ports_ticket()})
         self.DeclareVectorOutputPort("F_meas", 3, self._calc_force)
         self.DeclareVectorOutputPort("lambda_meas", handles.arm.m, self._calc_lambda)
-        if period is not None:
+        #: The latched ``F_step`` and ``lambda_step`` ports (with a ``period``, else None): this
+        #: system's own, or with ``direct``, :class:`WristDynamics`'s ``<robot>_F_step`` and
+        #: ``<robot>_lambda_step`` (one latch for all arms; set by :func:`add_force_sensors`).
+        self.F_step: OutputPort | None = None
+        self.lambda_step: OutputPort | None = None
+        if period is not None and not direct:
             self._F_step = self.DeclareDiscreteState(3)
             self._lambda_step = self.DeclareDiscreteState(handles.arm.m)
             self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_step)
-            self.DeclareStateOutputPort("F_step", self._F_step)
-            self.DeclareStateOutputPort("lambda_step", self._lambda_step)
+            self.F_step = self.DeclareStateOutputPort("F_step", self._F_step)
+            self.lambda_step = self.DeclareStateOutputPort("lambda_step", self._lambda_step)
 
     def force(self, context: Context) -> np.ndarray:
         """The measured force vector (palm frame)."""
@@ -271,17 +385,37 @@ def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | 
     ``planes`` and ``rigid`` modes, ``wrist_kinematics`` (:class:`WristKinematics`, Newton's
     law from the reaction forces: other contacts may touch an arm) in ``contact`` mode, and one
     :class:`ForceSensor` per arm (``<robot>_force_sensor``); with a control ``period``, each
-    latches the force of every tick's step (``F_step``, ``lambda_step``)."""
+    latches the force of every tick's step (``F_step``, ``lambda_step``).
+
+    With ``wrist_dynamics`` and a ``period`` of at least two plant steps, a C++
+    ``ZeroOrderHold`` (``wrist_dynamics_hold``, period ``h``, offset ``h − 3Δt/2``) holds the
+    plant's ``[state, net_actuation]`` of the step before each tick, and each sensor's
+    :attr:`ForceSensor.lambda_last_step` is the ``<robot>_lambda_last_step`` port of
+    :class:`WristDynamics` (the F/T sensor models read it at ``t_k − Δt/2``); otherwise it is
+    ``None`` (the models read the live ``lambda_meas`` at ``t_k − 3Δt/2``)."""
     plant = coop.plant
     direct = coop.mode in ("planes", "rigid")
+    last_step = {}
     if direct:
-        wrist = builder.AddNamedSystem("wrist_dynamics",
-                                       WristDynamics(plant, coop.arms, plant.time_step()))
+        wrist = builder.AddNamedSystem(
+            "wrist_dynamics", WristDynamics(plant, coop.arms, plant.time_step(), period))
         names = ("state", "generalized_acceleration", "net_actuation")
         ports = (plant.get_state_output_port(), plant.get_generalized_acceleration_output_port(),
                  plant.get_net_actuation_output_port())
         for name, port in zip(names, ports):
             builder.Connect(port, wrist.GetInputPort(name))
+        if wrist.HasInputPort("held"):
+            sizes = [plant.num_multibody_states(), plant.num_actuators()]
+            mux = builder.AddNamedSystem("wrist_dynamics_held_signals", Multiplexer(sizes))
+            builder.Connect(plant.get_state_output_port(), mux.get_input_port(0))
+            builder.Connect(plant.get_net_actuation_output_port(), mux.get_input_port(1))
+            dt = plant.time_step()
+            hold = builder.AddNamedSystem(
+                "wrist_dynamics_hold", ZeroOrderHold(period, sum(sizes), period - 1.5 * dt))
+            builder.Connect(mux.get_output_port(0), hold.get_input_port())
+            builder.Connect(hold.get_output_port(), wrist.GetInputPort("held"))
+            last_step = {h.arm.name: wrist.GetOutputPort(f"{h.arm.name}_lambda_last_step")
+                         for h in coop.arms}
     else:
         wrist = builder.AddNamedSystem("wrist_kinematics", WristKinematics(plant, coop.arms))
         for name in ("reaction_forces", "body_poses", "body_spatial_velocities",
@@ -292,5 +426,9 @@ def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | 
         sensor = builder.AddNamedSystem(f"{h.arm.name}_force_sensor",
                                         ForceSensor(plant, h, period, direct))
         builder.Connect(wrist.GetOutputPort(f"{h.arm.name}_wrist"), sensor.GetInputPort("wrist"))
+        sensor.lambda_last_step = last_step.get(h.arm.name)
+        if direct and period is not None:
+            sensor.F_step = wrist.GetOutputPort(f"{h.arm.name}_F_step")
+            sensor.lambda_step = wrist.GetOutputPort(f"{h.arm.name}_lambda_step")
         sensors.append(sensor)
     return sensors

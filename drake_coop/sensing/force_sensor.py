@@ -26,6 +26,16 @@ one. When ``h = Δt`` there is no step in between: the update is at the previous
 ``t_{k−1}`` (offset 0, on the plant's own grid), where the live port is the step
 ``[t_{k−1}, t_k)`` under ``τ(k − 1)``.
 
+Without a second solve (``planes`` and ``rigid`` modes, ``h ≥ 2Δt``): reading the plant's
+live port between two plant updates makes the plant solve that step once for the read and
+once more for its own update (a change of time invalidates the solve). There,
+:func:`add_ft_sensor` feeds the model the ground truth's ``lambda_last_step``
+(:class:`~drake_coop.plant.wrist.WristDynamics`: the step before the tick, from the plant
+state held at ``t_k − 3Δt/2`` and the state the plant's update at ``t_k − Δt`` produced), read
+at ``t_k − Δt/2``, also half a plant step from every update: the same values without the
+second solve. An ideal model (no filter, bias or noise) is then a C++ ``ZeroOrderHold`` of that
+port: ``λ_s(k)`` is ``λ`` of the step itself.
+
 The output is state only, so a controller reading it forms no algebraic loop; it holds
 ``λ_s(k)`` from the read to the next one.
 """
@@ -33,7 +43,14 @@ The output is state only, so a controller reading it forms no algebraic loop; it
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import Context, DiscreteValues, LeafSystem
+from pydrake.systems.framework import (
+    Context,
+    DiagramBuilder,
+    DiscreteValues,
+    LeafSystem,
+    OutputPort,
+)
+from pydrake.systems.primitives import ZeroOrderHold
 
 from drake_coop.scenario.schema import ForceSensorModel
 from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
@@ -57,11 +74,17 @@ class FTSensor(LeafSystem):
         Index of the robot (noise stream).
     m : int
         Constraint rows: ``λ`` has one component per outward normal (the same model on each).
+    read_lead : float, optional
+        Time from the read to the tick it serves. Default: ``3Δt/2`` (``h`` when ``h = Δt``),
+        for a live input; ``Δt/2`` for the ground truth's ``lambda_last_step``
+        (:func:`add_ft_sensor`).
 
     Input ports
     -----------
     lambda_true : m-vector
-        The ground-truth ``λ`` (``robotN_force_sensor``'s ``lambda_meas``).
+        The ground-truth ``λ`` of the step ``[t_k − Δt, t_k)`` at the read
+        (``robotN_force_sensor``'s ``lambda_meas``, or ``wrist_dynamics``'s
+        ``robotN_lambda_last_step``).
 
     Output ports
     ------------
@@ -70,7 +93,8 @@ class FTSensor(LeafSystem):
     """
 
     def __init__(self, period: float, plant_step: float,
-                 settings: ForceSensorModel | None = None, robot_index: int = 0, m: int = 1):
+                 settings: ForceSensorModel | None = None, robot_index: int = 0, m: int = 1,
+                 read_lead: float | None = None):
         super().__init__()
         s = settings or ForceSensorModel()
         self._h = period
@@ -86,14 +110,17 @@ class FTSensor(LeafSystem):
         self._reading = self.DeclareDiscreteState(np.full(m, self._bias))  # held reading
         # Time from the read to the tick it serves (see the module's docstring).
         steps = int(round(period / plant_step))
-        self._lead = 1.5 * plant_step if steps >= 2 else period
+        if read_lead is None:
+            read_lead = 1.5 * plant_step if steps >= 2 else period
+        self._lead = float(read_lead)
         self.DeclarePeriodicDiscreteUpdateEvent(period, period - self._lead,
                                                 self._update_reading)
         self.DeclareStateOutputPort("lambda_sensor", self._reading)
 
     @property
     def read_lead(self) -> float:
-        """Time from the read to the tick it serves: ``3Δt/2`` (``h`` when ``h = Δt``)."""
+        """Time from the read to the tick it serves: ``3Δt/2`` (``h`` when ``h = Δt``) for a
+        live input, ``Δt/2`` for ``lambda_last_step``."""
         return self._lead
 
     @property
@@ -108,3 +135,37 @@ class FTSensor(LeafSystem):
         noise = white_noise(self._seed, self._robot, FORCE_SENSOR_STREAM, k, self._std, self._m)
         discrete_state.set_value(self._y, y)
         discrete_state.set_value(self._reading, y + self._bias + noise)
+
+
+def _is_ideal(settings: ForceSensorModel | None) -> bool:
+    """No filter, no bias, no noise: ``λ_s(k)`` is the ground truth of the step before ``t_k``."""
+    s = settings or ForceSensorModel()
+    return s.cutoff_hz is None and s.bias == 0.0 and s.noise_std == 0.0
+
+
+def add_ft_sensor(builder: DiagramBuilder, name: str, period: float, plant_step: float,
+                  settings: ForceSensorModel | None, robot_index: int, m: int,
+                  lambda_live: OutputPort, lambda_last_step: OutputPort | None = None
+                  ) -> tuple[LeafSystem, OutputPort]:
+    """``<name>_ft_sensor`` wired to the ground truth; returns it and its ``lambda_sensor``.
+
+    With ``lambda_last_step`` (the ground truth's step before the tick, see the module's
+    docstring) the model reads it at ``t_k − Δt/2``; an ideal model is then a C++
+    ``ZeroOrderHold`` (period ``h``, offset ``h − Δt/2``, initial value 0: no Python at all).
+    Otherwise an :class:`FTSensor` reads the live ``lambda_live`` at ``t_k − 3Δt/2``.
+    """
+    if lambda_last_step is not None:
+        if _is_ideal(settings):
+            ft = builder.AddNamedSystem(f"{name}_ft_sensor",
+                                        ZeroOrderHold(period, m, period - 0.5 * plant_step))
+            builder.Connect(lambda_last_step, ft.get_input_port())
+            return ft, ft.get_output_port()
+        ft = builder.AddNamedSystem(f"{name}_ft_sensor",
+                                    FTSensor(period, plant_step, settings, robot_index, m,
+                                             read_lead=0.5 * plant_step))
+        builder.Connect(lambda_last_step, ft.GetInputPort("lambda_true"))
+    else:
+        ft = builder.AddNamedSystem(f"{name}_ft_sensor",
+                                    FTSensor(period, plant_step, settings, robot_index, m))
+        builder.Connect(lambda_live, ft.GetInputPort("lambda_true"))
+    return ft, ft.GetOutputPort("lambda_sensor")

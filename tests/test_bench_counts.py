@@ -1,0 +1,39 @@
+"""The benchmark's count of Python callbacks per tick (``drake_coop.bench``) against the
+diagram's known events: every robot's controller latches once per tick, and the ideal F/T
+models of the paper's run are C++ holds (no Python call at all)."""
+
+from __future__ import annotations
+
+import pytest
+
+from drake_coop.bench import _count_callbacks
+from drake_coop.experiment.plan import num_ticks_until
+from drake_coop.scenario.loading import default_scenario
+from drake_coop.scenario.timing import aligned_periods
+
+
+@pytest.fixture(scope="module")
+def counts():
+    scenario = default_scenario()
+    t_end = 0.27
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    return scenario, num_ticks_until(t_end, h), _count_callbacks(scenario, t_end)
+
+
+def test_each_controller_latch_counts_once_per_tick(counts):
+    scenario, ticks, result = counts
+    latches = result["by_function"]["drake_coop.control.controller.Controller._update_latch"]
+    # One latch per robot at each of the ticks 0..K (the last one by finish_last_tick).
+    assert latches * ticks == pytest.approx(len(scenario.robots) * (ticks + 1), rel=1e-12)
+
+
+def test_ground_truth_costs_one_latch_and_one_last_step_read_per_tick(counts):
+    scenario, ticks, result = counts
+    by = result["by_function"]
+    # The latch at ticks 0..K; the read of the step before each tick 1..K.
+    assert by["drake_coop.plant.wrist.WristDynamics._update_step"] * ticks == \
+        pytest.approx(ticks + 1, rel=1e-12)
+    assert by["drake_coop.plant.wrist.WristDynamics._calc_last_step"] * ticks == \
+        pytest.approx(ticks, rel=1e-12)
+    assert not [name for name in by if "FTSensor" in name or "ForceSensor._update" in name]
+    assert result["per_tick"] == pytest.approx(sum(by.values()))
