@@ -20,7 +20,7 @@ at ``t_k − 3Δt/2``, the middle of the step before, and not at ``t_k − Δt``
 periodic event's time as ``offset + k h``, which rounds differently from the plant's
 ``j Δt`` on some ticks, and an event one rounding *after* the plant's update at ``t_k − Δt``
 reads the step ``[t_k, t_k + Δt)`` under the old torque ``τ(k − 1)`` — a step that never
-happens (the fault of issue 19: 23 of 2 000 ticks of ``scenarios/realistic.yaml``, up to
+happens (the fault of an earlier version: 23 of 2 000 ticks of ``scenarios/realistic.yaml``, up to
 0.58 N). Half a plant step from every plant update, no rounding can move the read across
 one. When ``h = Δt`` there is no step in between: the update is at the previous tick
 ``t_{k−1}`` (offset 0, on the plant's own grid), where the live port is the step
