@@ -180,8 +180,8 @@ def test_a_worker_whose_study_is_gone_exits_quietly(tmp_path):
 
 def _quiet_child(sender, log: str) -> None:
     sys.stderr = open(log, "w", buffering=1)
-    from drake_coop.studies.engines import _child
-    _child(sender, "not: [a scenario", None)           # a quick 'error' record, then send
+    from drake_coop.studies.engines import _child, run_case
+    _child(sender, run_case, ("not: [a scenario", None))   # a quick 'error' record, then send
 
 
 _DRIVER = """

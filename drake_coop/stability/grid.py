@@ -3,22 +3,19 @@
 The grid uses the study syntax (:mod:`drake_coop.studies.expand`: ``control_period``,
 ``robots.*.gains.k_d``, ``robots.*.gains.K_R``, variants …) and its validation; each grid point
 is one :class:`~drake_coop.studies.expand.Case` whose canonical scenario YAML crosses the process
-boundary (no pydrake object is pickled). The study engines of :mod:`drake_coop.studies.engines`
-run *simulations* (their workers call ``run_case``); the same engine design — a fresh ``spawn``
-process per point (Python LeafSystems leak across diagrams), or one ``@ray.remote(max_calls=1)``
-task per point — is repeated here for :func:`point_rows`, because the study engines take no
-other work function.
+boundary (no pydrake object is pickled). Locally the points run on the study engines' loop
+(:func:`~drake_coop.studies.engines.run_in_processes`: a fresh ``spawn`` process per point,
+since Python LeafSystems leak across diagrams, each dying with its parent); on Ray, one
+``@ray.remote(max_calls=1)`` task per point.
 """
 
 from __future__ import annotations
 
 import math
-import multiprocessing
-import multiprocessing.connection
-import signal
 import time
 from typing import Callable
 
+from drake_coop.studies.engines import run_in_processes
 from drake_coop.studies.expand import Case, expand
 from drake_coop.studies.spec import Study
 
@@ -85,12 +82,6 @@ def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-5) -> 
     return rows
 
 
-def _child(conn, scenario_yaml: str, points: list[str], epsilon: float) -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    conn.send(point_rows(scenario_yaml, points, epsilon))
-    conn.close()
-
-
 def run_grid(cases: list[Case], points: list[str], on_result: Callable[[Case, list], None], *,
              workers: int = 2, engine: str = "local", address: str | None = None,
              epsilon: float = 1e-5) -> None:
@@ -119,33 +110,10 @@ def run_grid(cases: list[Case], points: list[str], on_result: Callable[[Case, li
             if started:
                 ray.shutdown()
         return
-    context = multiprocessing.get_context("spawn")
-    queue = list(cases)
-    running: dict = {}
-    try:
-        while queue or running:
-            while queue and len(running) < max(1, workers):
-                case = queue.pop(0)
-                receiver, sender = context.Pipe(duplex=False)
-                process = context.Process(target=_child, daemon=True,
-                                          args=(sender, case.scenario_yaml, points, epsilon))
-                process.start()
-                sender.close()
-                running[receiver] = (process, case)
-            for receiver in multiprocessing.connection.wait(list(running)):
-                process, case = running.pop(receiver)
-                try:
-                    rows = receiver.recv()
-                except EOFError:
-                    rows = [{"point": p, "rho": math.nan, "status": "error",
-                             "message": f"process died (exit code {process.exitcode})"}
-                            for p in points]
-                receiver.close()
-                process.join()
-                on_result(case, rows)
-    finally:
-        for process, _ in running.values():
-            process.terminate()
-        for receiver, (process, _) in running.items():
-            process.join(timeout=10)
-            receiver.close()
+
+    def death(message: str) -> list[dict]:
+        return [{"point": p, "rho": math.nan, "status": "error", "message": message}
+                for p in points]
+
+    run_in_processes(cases, point_rows, lambda case: (case.scenario_yaml, points, epsilon),
+                     on_result, death, workers=workers)

@@ -36,7 +36,7 @@ from typing import Callable
 
 from drake_coop.studies.expand import Case
 
-__all__ = ["died", "die_with_parent", "run_case", "run_local", "run_ray"]
+__all__ = ["died", "die_with_parent", "run_case", "run_in_processes", "run_local", "run_ray"]
 
 OnResult = Callable[[Case, dict], None]
 
@@ -112,16 +112,16 @@ def die_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
-def _child(conn, scenario_yaml: str, t_end: float | None, parent: int | None = None) -> None:
-    """Worker process: run one case, send its record, exit (Ctrl-C is the parent's business).
+def _child(conn, work: Callable, args: tuple, parent: int | None = None) -> None:
+    """Worker process: ``work(*args)``, send its result, exit (Ctrl-C is the parent's business).
 
-    Dies with its parent (:func:`die_with_parent`); a parent gone by the time the record is
+    Dies with its parent (:func:`die_with_parent`); a parent gone by the time the result is
     sent ends the worker quietly.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if parent is not None:
         die_with_parent(parent)
-    result = run_case(scenario_yaml, t_end)
+    result = work(*args)
     try:
         conn.send(result)
         conn.close()
@@ -129,12 +129,19 @@ def _child(conn, scenario_yaml: str, t_end: float | None, parent: int | None = N
         os._exit(1)
 
 
-def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
-              workers: int = 2) -> None:
-    """Run ``cases`` in at most ``workers`` parallel processes, one fresh process per case.
+def run_in_processes(cases: list[Case], work: Callable, args_of: Callable[[Case], tuple],
+                     on_result: Callable, on_death: Callable[[str], object], *,
+                     workers: int = 2) -> None:
+    """``work(*args_of(case))`` for every case in at most ``workers`` parallel processes, one
+    fresh ``spawn`` process per case, each result handed to ``on_result(case, result)`` as it
+    arrives.
 
-    An exception in the parent (Ctrl-C, SIGTERM, ``on_result`` failing) terminates the running
-    cases and propagates; queued cases are not started.
+    ``work`` must be a module-level function (it is pickled into the child). A child that dies
+    without a result (a crash, ``kill -9``, the OOM killer) gives ``on_death(message)`` instead.
+    Every child dies with this process (:func:`die_with_parent`) and ignores Ctrl-C. An
+    exception in the parent (Ctrl-C, SIGTERM, ``on_result`` failing) terminates the running
+    children and propagates; queued cases are not started. :func:`run_local` (studies) and the
+    stability map's grid share this loop.
     """
     context = multiprocessing.get_context("spawn")
     queue = list(cases)
@@ -145,8 +152,7 @@ def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
                 case = queue.pop(0)
                 receiver, sender = context.Pipe(duplex=False)
                 process = context.Process(target=_child, name=f"case-{case.hash}",
-                                          args=(sender, case.scenario_yaml, t_end,
-                                                os.getpid()),
+                                          args=(sender, work, args_of(case), os.getpid()),
                                           daemon=True)
                 process.start()
                 sender.close()
@@ -157,7 +163,7 @@ def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
                     result = receiver.recv()
                 except (EOFError, OSError):
                     process.join()
-                    result = died(_exit_message(process.exitcode))
+                    result = on_death(_exit_message(process.exitcode))
                 receiver.close()
                 process.join()
                 on_result(case, result)
@@ -167,6 +173,18 @@ def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
         for receiver, (process, _) in running.items():
             process.join(timeout=10)
             receiver.close()
+
+
+def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
+              workers: int = 2) -> None:
+    """Run ``cases`` in at most ``workers`` parallel processes, one fresh process per case
+    (:func:`run_in_processes` with :func:`run_case`; a died case gives a :func:`died` record).
+
+    An exception in the parent (Ctrl-C, SIGTERM, ``on_result`` failing) terminates the running
+    cases and propagates; queued cases are not started.
+    """
+    run_in_processes(cases, run_case, lambda case: (case.scenario_yaml, t_end), on_result,
+                     died, workers=workers)
 
 
 def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
