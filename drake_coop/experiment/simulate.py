@@ -69,12 +69,19 @@ def initialize(exp: Experiment, context) -> None:
     ideal encoders)."""
     scenario = exp.scenario
     coop = exp.coop
-    plant_context = coop.plant.GetMyMutableContextFromRoot(context)
     q0 = [np.asarray(joint_reference(h.arm, *cartesian_reference(scenario.task, robot, [0.0]))[0])
           .reshape(-1)
           for h, robot in zip(coop.arms, scenario.robots)]
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
-    initialize_plant_context(coop, plant_context, q0, z_grasp)
+    set_rest_state(exp, context, q0, z_grasp)
+
+
+def set_rest_state(exp: Experiment, context, q0: list[np.ndarray], z_grasp: float) -> None:
+    """Arms at rest at ``q0`` (one posture per robot), the object's sliders at the grasp
+    height ``z_grasp``, encoders' delay lines holding the reading at rest and the velocity
+    observers at ``q̂ = `` that reading, ``q̇̂_o = 0``."""
+    plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
+    initialize_plant_context(exp.coop, plant_context, q0, z_grasp)
     for rs, q in zip(exp.robots, q0):
         if isinstance(rs.encoders, Encoders):   # the delay line holds the reading at rest
             rs.encoders.set_initial_state(rs.encoders.GetMyMutableContextFromRoot(context), q)

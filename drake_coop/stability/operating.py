@@ -28,9 +28,8 @@ from drake_coop.control.finger import ReferenceLayout
 from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.references import reference_samples
-from drake_coop.plant.cooperative import initialize_plant_context
+from drake_coop.experiment.simulate import set_rest_state
 from drake_coop.scenario.schema import Scenario, ScenarioError
-from drake_coop.sensing.encoders import Encoders
 from drake_coop.stability.period_map import PeriodMap
 
 __all__ = ["POINTS", "OperatingPoint", "linearizable", "operating_point"]
@@ -112,17 +111,10 @@ def operating_point(scenario: Scenario, point: str = "free", t_star: float | Non
     exp = build_experiment(scenario, log=False, references=refs)
     context = exp.diagram.CreateDefaultContext()
     coop = exp.coop
-    pc = coop.plant.GetMyMutableContextFromRoot(context)
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
-    initialize_plant_context(coop, pc, q_star, z_grasp)
+    set_rest_state(exp, context, q_star, z_grasp)    # (quantization is off: reading = q*)
     if held:
-        coop.set_held(pc, True)
-    for rs, q in zip(exp.robots, q_star):
-        if isinstance(rs.encoders, Encoders):   # ideal encoders are a stateless Demultiplexer
-            rs.encoders.set_initial_state(rs.encoders.GetMyMutableContextFromRoot(context), q)
-        if hasattr(rs.velocity_observer, "set_initial_state"):
-            rs.velocity_observer.set_initial_state(
-                rs.velocity_observer.GetMyMutableContextFromRoot(context), q)
+        coop.set_held(coop.plant.GetMyMutableContextFromRoot(context), True)
     # One period of warm-up: the map then starts at t_0 = h, where every sampled system has a
     # previous tick behind it (a latch's "nothing latched yet" start, e.g. the actuation delay
     # applying the very first torque at once, must not be part of every evaluation).
