@@ -111,3 +111,16 @@ def test_ctrl_c_stops_the_run_and_still_writes_the_logs(tmp_path):
     assert meta["status"] == "interrupted"
     t = np.load(out / "robot1.npz")["t"]
     assert 0.0 < t[-1] < 90.0
+
+
+def test_the_argument_parser_loads_no_pydrake():
+    # A Ctrl-C during start-up must arrive as an interrupt (exit 130); one that lands inside
+    # pydrake's own initialization surfaces as an ImportError instead. Building the parser
+    # (every subcommand's options) therefore stays free of pydrake.
+    import subprocess
+    import sys
+    code = ("import sys; from drake_coop.cli import build_parser; build_parser(); "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'pydrake'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "[]"

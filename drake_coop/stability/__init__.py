@@ -9,6 +9,15 @@ Modules: :mod:`~drake_coop.stability.state` (the loop's state, generically),
 :mod:`~drake_coop.stability.output` (``stability.csv``, maps), :mod:`~drake_coop.stability.cli`.
 """
 
-from drake_coop.stability.period_map import MapReport, PeriodMap, analyse
-
 __all__ = ["MapReport", "PeriodMap", "analyse"]
+
+
+def __getattr__(name: str):
+    """The re-exported names, imported on first use: ``drake-coop``'s argument parser imports
+    :mod:`drake_coop.stability.cli` at start-up, which must not load pydrake (a Ctrl-C inside
+    pydrake's own initialization surfaces as an ImportError, not as an interrupt)."""
+    if name in __all__:
+        from drake_coop.stability import period_map
+
+        return getattr(period_map, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
