@@ -227,8 +227,12 @@ def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
                     result = died(f"the case's Ray task failed: {type(exc).__name__}")
                 on_result(refs[ref], result)
     except BaseException:
-        for ref in pending:
-            ray.cancel(ref, force=True)
+        # On a cluster of others the cases must stop; a local instance of ours stops with
+        # ray.shutdown() below. Force-cancelling there too raced with replies in flight and
+        # aborted the driver inside Ray ("Tried to complete task that was not pending").
+        if not (started and address is None):
+            for ref in pending:
+                ray.cancel(ref, force=True)
         raise
     finally:
         if started:
