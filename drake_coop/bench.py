@@ -162,12 +162,11 @@ def _sensing_attribution(scenario, t_end: float, repeats: int) -> dict:
 # ----------------------------------------------------------------------- per-system timing
 _TIMED = {
     "velocity observer (15)-(16)": ("drake_coop.control.observers", "VelocityObserver",
-                                    ("_calc_signals", "_calc_qdot_hat", "_calc_qdot_o",
-                                     "_update_observer")),
+                                    ("_calc_qdot_hat", "_calc_qdot_o", "_update_observer")),
     "force observer (22)": ("drake_coop.control.observers", "ForceObserver",
-                            ("_calc_estimate", "_calc_lambda_hat", "_update_integral")),
+                            ("_calc_lambda_hat", "_update_integral")),
     "controller (13)": ("drake_coop.control.controller", "Controller",
-                        ("_calc_terms", "_calc_tau", "_calc_qddot_r_hat", "_update_latch")),
+                        ("_update_latch",)),
     "force sensor (ground truth)": ("drake_coop.plant.wrist", "ForceSensor",
                                     ("_calc_force_cache", "_calc_force", "_calc_lambda",
                                      "_update_step")),

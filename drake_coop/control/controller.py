@@ -28,7 +28,6 @@ inputs). Loggers therefore see ``τ(k)`` at ``t_{k+1}``;
 from __future__ import annotations
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import (
     Context,
     DiscreteValues,
@@ -36,7 +35,6 @@ from pydrake.systems.framework import (
     LeafSystem,
     OutputPort,
     State,
-    ValueProducer,
 )
 
 from drake_coop.control.finger import FingerLaw, check_period
@@ -120,10 +118,6 @@ class Controller(LeafSystem):
                                                     else np.asarray(tau0, dtype=float))
         self._qddot_state = self.DeclareDiscreteState(np.zeros(n))
         self._tick_state = self.DeclareDiscreteState([-1.0])
-        self._terms = self.DeclareCacheEntry(
-            "control terms of (13)",
-            ValueProducer(allocate=AbstractValue.Make(dict()).Clone, calc=self._calc_terms),
-            {self.all_sources_ticket()})
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update_latch)
         self.DeclareForcedDiscreteUpdateEvent(self._latch)
         self._tau_out = self.DeclareStateOutputPort("tau", self._tau_state)
@@ -171,18 +165,16 @@ class Controller(LeafSystem):
         """The tick index if the context's time is a sampling instant, else None."""
         return tick_of(context.get_time(), self._h)
 
-    def _calc_terms(self, context: Context, value: AbstractValue) -> None:
-        ref = self._layout.unpack(self._reference.Eval(context))
-        terms = self._law.control(
-            self._q.Eval(context), self._q_hat.Eval(context), self._qdot_hat.Eval(context),
-            self._qdot_o.Eval(context), self._lambda_hat.Eval(context),
-            self._Delta_F.Eval(context), ref)
-        value.set_value(terms)
-
     def terms(self, context: Context) -> dict[str, np.ndarray]:
         """``tau``, ``qdot_r``, ``qddot_r_hat``, ``Delta_lambda_tilde`` from the current inputs:
-        at a tick, what the tick's update latches."""
-        return self._terms.Eval(context)
+        at a tick, what the tick's update latches.
+
+        Computed on each call (no cache entry: the latch, the one caller per tick in a
+        simulation, would pay a second Python callback for it)."""
+        return self._law.control(
+            self._q.Eval(context), self._q_hat.Eval(context), self._qdot_hat.Eval(context),
+            self._qdot_o.Eval(context), self._lambda_hat.Eval(context),
+            self._Delta_F.Eval(context), self._layout.unpack(self._reference.Eval(context)))
 
     def next_tau(self, context: Context) -> np.ndarray:
         """``τ(k)`` of (13) at the current inputs: at tick ``k`` before its events, the torque

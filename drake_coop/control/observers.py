@@ -21,7 +21,6 @@ from pydrake.systems.framework import (
     LeafSystem,
     OutputPort,
     State,
-    ValueProducer,
 )
 
 from drake_coop.control.finger import FingerLaw, check_period
@@ -58,8 +57,12 @@ class VelocityObserver(LeafSystem):
     omission (with the paper's gains that start squeezed 111 N for 24 N desired). A default
     context that is never initialized holds ``q̂ = 0``, ``q̇̂_o = 0``.
 
-    Cost: ``d/dt q̂`` and ``q̇_o`` are computed once per tick into a cache entry that both
-    outputs and the update read; ``q_hat`` is a state output port (no Python call).
+    Cost: each of ``d/dt q̂`` and ``q̇_o`` is computed once per tick (Drake caches an output
+    port's value until ``q`` or the state change; the update reads the cached ``d/dt q̂``);
+    ``q_hat`` is a state output port (no Python call). One Python call per output and tick
+    costs less than a cache entry shared by both (one more call) or than building the
+    outputs from C++ gains (each added system costs at every plant step; measured in
+    ``docs/benchmark.md``).
 
     Parameters
     ----------
@@ -102,17 +105,14 @@ class VelocityObserver(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_observer)
         self.DeclareForcedDiscreteUpdateEvent(self._update_observer)
         self.DeclareInitializationUnrestrictedUpdateEvent(self._initialize_from_q)
+        # The outputs depend on q and the state only (not on time or q̈̂_r): Drake caches each
+        # and recomputes it once per tick, when q or the state changed.
         depends_on_q = {self.xd_ticket(), self._q.ticket()}
-        self._signals = self.DeclareCacheEntry(
-            "d/dt q_hat (15) and qdot_o (8)",
-            ValueProducer(allocate=AbstractValue.Make((np.zeros(n), np.zeros(n))).Clone,
-                          calc=self._calc_signals),
-            depends_on_q)
         self._q_hat_out = self.DeclareStateOutputPort("q_hat", self._q_hat_state)
         self._qdot_hat_out = self.DeclareVectorOutputPort(
-            "qdot_hat", n, self._calc_qdot_hat, prerequisites_of_calc={self._signals.ticket()})
+            "qdot_hat", n, self._calc_qdot_hat, prerequisites_of_calc=depends_on_q)
         self._qdot_o_out = self.DeclareVectorOutputPort(
-            "qdot_o", n, self._calc_qdot_o, prerequisites_of_calc={self._signals.ticket()})
+            "qdot_o", n, self._calc_qdot_o, prerequisites_of_calc=depends_on_q)
 
     # ------------------------------------------------------------------ ports
     def get_q_input_port(self) -> InputPort:
@@ -158,20 +158,20 @@ class VelocityObserver(LeafSystem):
         return (context.get_discrete_state(self._q_hat_state).value(),
                 context.get_discrete_state(self._qdot_hat_o_state).value())
 
-    def _calc_signals(self, context: Context, value: AbstractValue) -> None:
-        q_hat, qdot_hat_o = self._split(context)
-        value.set_value(self._law.observer_derivative(self._q.Eval(context), q_hat, qdot_hat_o))
-
     def _calc_qdot_hat(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._signals.Eval(context)[0])
+        """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15)."""
+        output.SetFromVector(self._law.observer_derivative(
+            self._q.Eval(context), *self._split(context))[0])
 
     def _calc_qdot_o(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._signals.Eval(context)[1])
+        """``q̇_o = q̇̂_o + k_d z`` of (8)."""
+        output.SetFromVector(self._law.observer_derivative(
+            self._q.Eval(context), *self._split(context))[1])
 
     def _update_observer(self, context: Context, discrete_state: DiscreteValues) -> None:
         q = self._q.Eval(context)
         q_hat, qdot_hat_o = self._split(context)
-        qdot_hat = self._signals.Eval(context)[0]
+        qdot_hat = self._qdot_hat_out.Eval(context)
         qddot_hat_o = self._law.observer_acceleration(q, q_hat, self._qddot_r.Eval(context))
         discrete_state.set_value(self._q_hat_state, q_hat + self._h * qdot_hat)
         discrete_state.set_value(self._qdot_hat_o_state, qdot_hat_o + self._h * qddot_hat_o)
@@ -238,15 +238,11 @@ class ForceObserver(LeafSystem):
         self._state = self.DeclareDiscreteState(m)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
         self.DeclareForcedDiscreteUpdateEvent(self._update_integral)
-        # λ̂(k) once per tick: the output and the update of ΔF̃ read the same cache entry.
-        self._estimate = self.DeclareCacheEntry(
-            "lambda_hat (22)",
-            ValueProducer(allocate=AbstractValue.Make((np.zeros(m), np.zeros(m), False)).Clone,
-                          calc=self._calc_estimate),
-            {self.xd_ticket(), self.all_input_ports_ticket()})
+        # λ̂(k) is computed once per tick: the update reads the output port, whose value
+        # Drake caches (it depends on this system's state and inputs only).
         self._lambda_hat_out = self.DeclareVectorOutputPort(
             "lambda_hat", m, self._calc_lambda_hat,
-            prerequisites_of_calc={self._estimate.ticket()})
+            prerequisites_of_calc={self.xd_ticket(), self.all_input_ports_ticket()})
         self._Delta_F_out = self.DeclareStateOutputPort("Delta_F_tilde", self._state)
 
     def get_q_input_port(self) -> InputPort:
@@ -273,20 +269,20 @@ class ForceObserver(LeafSystem):
         """The integral ``ΔF̃`` of (6)."""
         return self._Delta_F_out
 
-    def _calc_estimate(self, context: Context, value: AbstractValue) -> None:
-        """``(λ̂(k), λ_d(k), held)`` from the inputs and ``ΔF̃(k)``."""
-        ref = self._layout.unpack(self._reference.Eval(context))
-        DF = context.get_discrete_state(self._state).CopyToVector()
-        lam = self._law.force_estimate(self._q.Eval(context), self._q_hat.Eval(context),
-                                       self._qdot_o.Eval(context), ref, DF)
-        value.set_value((lam, ref.lambda_d.copy(), ref.held))
-
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(self._estimate.Eval(context)[0])
+        """``λ̂(k)`` of (22) from the inputs and ``ΔF̃(k)``."""
+        ref = self._layout.unpack(self._reference.Eval(context))
+        DF = context.get_discrete_state(self._state).value()
+        output.SetFromVector(self._law.force_estimate(
+            self._q.Eval(context), self._q_hat.Eval(context), self._qdot_o.Eval(context), ref,
+            DF))
 
     def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
-        lam, lambda_d, held = self._estimate.Eval(context)
-        DF = context.get_discrete_state(self._state).CopyToVector()
-        new = DF + self._h * (lam - lambda_d) if held else np.zeros_like(DF)
+        ref = self._layout.unpack(self._reference.Eval(context))
+        DF = context.get_discrete_state(self._state).value()
+        if ref.held:
+            new = DF + self._h * (self._lambda_hat_out.Eval(context) - ref.lambda_d)
+        else:
+            new = np.zeros_like(DF)
         discrete_state.set_value(self._state, new)
 
