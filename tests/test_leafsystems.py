@@ -153,3 +153,22 @@ def test_measured_velocity_baseline_passes_the_plant_state_on():
     np.testing.assert_array_equal(mv.GetOutputPort("q_hat").Eval(ctx), [1.0, 2.0, 3.0])
     np.testing.assert_array_equal(mv.GetOutputPort("qdot_o").Eval(ctx), [0.1, 0.2, 0.3])
     np.testing.assert_array_equal(mv.GetOutputPort("qdot_hat").Eval(ctx), [0.1, 0.2, 0.3])
+
+
+def test_controller_in_free_motion_is_13_with_identity_projection_and_no_force(law, posture):
+    """Before the grasp (13) has ``Q = I``, ``J⁺ = 0``, ``J_φ = 0``: written out here with the
+    model's H, C, D, g evaluated one by one (the law takes one inverse-dynamics call)."""
+    model = law.model
+    q_hat = posture + np.array([1e-3, -2e-3, 5e-4])
+    qdot_hat, qdot_o = np.array([0.02, -0.01, 0.03]), np.array([0.01, 0.0, -0.02])
+    ref = law.layout.unpack(_reference(posture - 1e-3, held=False))
+    terms = law.control(posture, q_hat, qdot_hat, qdot_o, np.array([7.0]), np.array([0.4]),
+                        ref)
+    qdot_r = ref.qdot_d - G.Lambda * (q_hat - ref.q_d)
+    qddot_r = ref.qddot_d - G.Lambda * (qdot_hat - ref.qdot_d)
+    tau = (model.H(posture) @ qddot_r + model.Cv(posture, qdot_r) + model.D @ qdot_r
+           + model.g(posture) - np.diag(G.K_R) @ (qdot_o - qdot_r))
+    np.testing.assert_allclose(terms["qdot_r"], qdot_r, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(terms["qddot_r_hat"], qddot_r, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(terms["tau"], tau, rtol=1e-12, atol=1e-12)
+    assert terms["Delta_lambda_tilde"].tolist() == [0.0]

@@ -275,6 +275,21 @@ class FingerLaw:
         return {"tau": tau, "qdot_r": qdot_r_a, "qddot_r_hat": qddot_r_a,
                 "Delta_lambda_tilde": np.array([dlt])}
 
+    def _control_free(self, q, q_hat, qdot_hat, qdot_o, ref: Reference) -> dict[str, np.ndarray]:
+        """(4), (11), (13) in free motion (before the grasp, after the release).
+
+        With ``Q = I``, ``J⁺ = 0``, ``Q̇ = 0``, ``J̇⁺ = 0`` and no force term:
+        ``q̇_r = q̇_d − Λ(q̂ − q_d)``, ``q̈̂_r = q̈_d − Λ(d/dt q̂ − q̇_d)`` and
+        ``τ = H q̈̂_r + C(q, q̇_r) q̇_r + D q̇_r + g − K_R(q̇_o − q̇_r)``.
+        """
+        L = self.Lambda
+        qdot_r = ref.qdot_d - L * (q_hat - ref.q_d)
+        qddot_r_hat = ref.qddot_d - L * (qdot_hat - ref.qdot_d)
+        tau = (self.model.inverse_dynamics_terms(q, qdot_r, qddot_r_hat)
+               - self.K_R @ (qdot_o - qdot_r))
+        return {"tau": tau, "qdot_r": qdot_r, "qddot_r_hat": qddot_r_hat,
+                "Delta_lambda_tilde": np.zeros(self.m)}
+
     # ------------------------------------------------------------------ force observer (22)
     def force_estimate(self, q: np.ndarray, q_hat: np.ndarray, qdot_o: np.ndarray,
                        ref: Reference, Delta_F_tilde: np.ndarray) -> np.ndarray:
@@ -315,29 +330,26 @@ class FingerLaw:
 
         The paper's case (one constraint, scalar ξ, closed-form kinematics: :attr:`fast`)
         runs on plain floats (:meth:`_control_m1`); the same equations, other roundings.
+        Free motion, for any arm, takes :meth:`_control_free` (the same equations with
+        ``Q = I``, ``J⁺ = 0``, ``J_φ = 0``, without forming those matrices).
         """
-        if ref.held and self.fast:
+        if not ref.held:
+            return self._control_free(q, q_hat, qdot_hat, qdot_o, ref)
+        if self.fast:
             return self._control_m1(q, q_hat, qdot_hat, qdot_o, lambda_hat, Delta_F_tilde, ref)
-        if ref.held:
-            J_phi, J_phi_dot = self.model.J_phi_and_derivative(q, qdot_o)
-            J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot)
-            c = self.constraint(q, True, J_phi)
-            Delta_lambda_tilde = lambda_hat - ref.lambda_d
-        else:
-            J_pinv_dot, Q_dot = np.zeros((self.n, self.m)), np.zeros((self.n, self.n))
-            c = self.constraint(q, False)
-            Delta_lambda_tilde = self._zero_m
+        J_phi, J_phi_dot = self.model.J_phi_and_derivative(q, qdot_o)
+        J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot)
+        c = self.constraint(q, True, J_phi)
+        Delta_lambda_tilde = lambda_hat - ref.lambda_d
         qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)
         qddot_r_hat = orthogonal.reference_acceleration(
             c.Q, c.J_pinv, Q_dot, J_pinv_dot, q_hat=q_hat, qdot_hat=qdot_hat, q_d=ref.q_d,
             qdot_d=ref.qdot_d, qddot_d=ref.qddot_d, Lambda=self.Lambda, Delta_p=c.Delta_p,
             beta=self.beta, xi=self.xi, Delta_F_tilde=Delta_F_tilde,
             Delta_lambda_tilde=Delta_lambda_tilde)
+        force = ref.lambda_d - self.k_F * Delta_F_tilde - self.zeta * Delta_lambda_tilde
         tau = (self.model.inverse_dynamics_terms(q, qdot_r, qddot_r_hat)
-               - self.K_R @ (qdot_o - qdot_r))
-        if ref.held:
-            force = ref.lambda_d - self.k_F * Delta_F_tilde - self.zeta * Delta_lambda_tilde
-            tau = tau - c.J_phi.T @ force
+               - self.K_R @ (qdot_o - qdot_r) - c.J_phi.T @ force)
         return {"tau": tau, "qdot_r": qdot_r, "qddot_r_hat": qddot_r_hat,
                 "Delta_lambda_tilde": np.array(Delta_lambda_tilde, dtype=float)}
 
