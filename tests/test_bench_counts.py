@@ -37,3 +37,20 @@ def test_ground_truth_costs_one_latch_and_one_last_step_read_per_tick(counts):
         pytest.approx(ticks, rel=1e-12)
     assert not [name for name in by if "FTSensor" in name or "ForceSensor._update" in name]
     assert result["per_tick"] == pytest.approx(sum(by.values()))
+
+
+def test_plant_replay_reproduces_the_runs_joint_angles_exactly_through_grasp_and_release():
+    """The replay baseline is the run's own physics: the plant alone, driven by the run's
+    logged torques (one sample later or earlier would move the arms), lands on the run's joint
+    angles at every tick through the grasp and the release."""
+    from drake_coop.bench import _experiment, _plant_replay
+
+    from .conftest import short_scenario
+
+    scenario = short_scenario(t_pregrasp=0.3, t_grasp=0.5, t_circle_start=0.8,
+                              t_circle_end=1.2, t_release=1.4, t_end=1.6)
+    kept: list = []
+    _experiment(scenario, 1.6, kept)
+    assert _plant_replay(scenario, 1.6, kept[0])[2] == 0.0
+    kept[0].logs[scenario.robots[0].name]["tau"][5:] *= 1.01     # from tick 5 on, 1 % more
+    assert _plant_replay(scenario, 1.6, kept[0])[2] > 1e-6
