@@ -167,6 +167,7 @@ class FingerLaw:
         self.Lambda = float(gains.Lambda)
         self.K_R = np.diag(np.asarray(gains.K_R, dtype=float))
         self.k_d = float(gains.k_d)
+        self._Lambda_plus_k_d = self.Lambda + self.k_d
         self.k_F = float(gains.k_F)
         # ξ of (4): the m×m matrix when given, else the scalar of ξ I (the same doubles).
         self.xi = (float(gains.xi) if gains.xi_matrix is None
@@ -179,6 +180,8 @@ class FingerLaw:
         self.fast = (self.m == 1 and np.ndim(self.xi) == 0
                      and getattr(model, "closed_form", False))
         self._K_R_diag = np.diag(self.K_R).tolist()
+        # K_R is diagonal: K_R x as an elementwise product (the same doubles as K_R @ x).
+        self._K_R_vector = np.diag(self.K_R).copy()
 
     # ------------------------------------------------------------------ observer (15), (8)
     def observer_derivative(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
@@ -188,9 +191,18 @@ class FingerLaw:
         ``d/dt q̂ = q̇̂_o + Λ z + k_d z`` and ``q̇_o = d/dt q̂ − Λ z = q̇̂_o + k_d z``.
         """
         z = q - q_hat
-        qdot_hat = qdot_hat_o + (self.Lambda + self.k_d) * z
-        qdot_o = qdot_hat_o + self.k_d * z
-        return qdot_hat, qdot_o
+        return qdot_hat_o + self._Lambda_plus_k_d * z, qdot_hat_o + self.k_d * z
+
+    def observer_qdot_hat(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
+                          ) -> np.ndarray:
+        """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15) alone (the first of
+        :meth:`observer_derivative`, the same doubles)."""
+        return qdot_hat_o + self._Lambda_plus_k_d * (q - q_hat)
+
+    def observer_qdot_o(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
+                        ) -> np.ndarray:
+        """``q̇_o = q̇̂_o + k_d z`` of (8) alone (the second of :meth:`observer_derivative`)."""
+        return qdot_hat_o + self.k_d * (q - q_hat)
 
     def observer_acceleration(self, q: np.ndarray, q_hat: np.ndarray,
                               qddot_r_hat: np.ndarray) -> np.ndarray:
@@ -271,7 +283,7 @@ class FingerLaw:
         qdot_r_a, qddot_r_a = np.array(qdot_r), np.array(qddot_r)
         force = lam_d - self.k_F * DF - self.zeta * dlt
         tau = (self.model.inverse_dynamics_terms(q, qdot_r_a, qddot_r_a)
-               - self.K_R @ (qdot_o - qdot_r_a) - np.array(j) * force)
+               - self._K_R_vector * (qdot_o - qdot_r_a) - np.array(j) * force)
         return {"tau": tau, "qdot_r": qdot_r_a, "qddot_r_hat": qddot_r_a,
                 "Delta_lambda_tilde": np.array([dlt])}
 
@@ -286,7 +298,7 @@ class FingerLaw:
         qdot_r = ref.qdot_d - L * (q_hat - ref.q_d)
         qddot_r_hat = ref.qddot_d - L * (qdot_hat - ref.qdot_d)
         tau = (self.model.inverse_dynamics_terms(q, qdot_r, qddot_r_hat)
-               - self.K_R @ (qdot_o - qdot_r))
+               - self._K_R_vector * (qdot_o - qdot_r))
         return {"tau": tau, "qdot_r": qdot_r, "qddot_r_hat": qddot_r_hat,
                 "Delta_lambda_tilde": np.zeros(self.m)}
 

@@ -160,13 +160,13 @@ class VelocityObserver(LeafSystem):
 
     def _calc_qdot_hat(self, context: Context, output: BasicVector) -> None:
         """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15)."""
-        output.SetFromVector(self._law.observer_derivative(
-            self._q.Eval(context), *self._split(context))[0])
+        output.SetFromVector(self._law.observer_qdot_hat(self._q.Eval(context),
+                                                         *self._split(context)))
 
     def _calc_qdot_o(self, context: Context, output: BasicVector) -> None:
         """``q̇_o = q̇̂_o + k_d z`` of (8)."""
-        output.SetFromVector(self._law.observer_derivative(
-            self._q.Eval(context), *self._split(context))[1])
+        output.SetFromVector(self._law.observer_qdot_o(self._q.Eval(context),
+                                                       *self._split(context)))
 
     def _update_observer(self, context: Context, discrete_state: DiscreteValues) -> None:
         q = self._q.Eval(context)
@@ -231,6 +231,9 @@ class ForceObserver(LeafSystem):
         self._h = period
         n, m = law.n, law.m
         self._layout = law.layout
+        self._held_row = law.layout.slices()["held"].start
+        self._lambda_d_rows = law.layout.slices()["lambda_d"]
+        self._zero_m = np.zeros(m)
         self._q = self.DeclareVectorInputPort("q", n)
         self._q_hat = self.DeclareVectorInputPort("q_hat", n)
         self._qdot_o = self.DeclareVectorInputPort("qdot_o", n)
@@ -278,11 +281,11 @@ class ForceObserver(LeafSystem):
             DF))
 
     def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
-        ref = self._layout.unpack(self._reference.Eval(context))
-        DF = context.get_discrete_state(self._state).value()
-        if ref.held:
-            new = DF + self._h * (self._lambda_hat_out.Eval(context) - ref.lambda_d)
+        r = self._reference.Eval(context)
+        if r[self._held_row] > 0.5:      # held (ReferenceLayout.unpack's rule)
+            DF = context.get_discrete_state(self._state).value()
+            new = DF + self._h * (self._lambda_hat_out.Eval(context) - r[self._lambda_d_rows])
         else:
-            new = np.zeros_like(DF)
+            new = self._zero_m
         discrete_state.set_value(self._state, new)
 
