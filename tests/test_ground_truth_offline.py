@@ -80,13 +80,13 @@ def test_offline_path_has_no_python_ground_truth_in_the_diagram():
     assert all(rs.force_sensor is None and rs.ft_sensor is None for rs in exp.robots)
 
 
-@pytest.mark.parametrize("change", ["sensor", "contact"])
-def test_live_path_is_automatic_and_required_with_a_sensor_feedback_or_contact(change):
+@pytest.mark.parametrize("change", ["sensor", "contact", "none"])
+def test_live_path_is_automatic_and_required_with_a_sensor_feedback_or_other_modes(change):
     scenario = short_scenario("planes", 0.003)
     if change == "sensor":
         scenario.robots[1].force_source = "sensor"
     else:
-        scenario.plant.object_mode = "contact"
+        scenario.plant.object_mode = change
     exp = build_experiment(scenario, log=False)
     assert exp.ground_truth is None and all(rs.force_sensor is not None for rs in exp.robots)
     with pytest.raises(ValueError, match="live_ground_truth=False"):

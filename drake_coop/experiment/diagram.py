@@ -171,11 +171,12 @@ def add_encoders(builder: DiagramBuilder, name: str, n: int, period: float, sett
 
 
 def uses_live_ground_truth(scenario: Scenario) -> bool:
-    """Whether the ground truth must run inside the loop: in ``contact`` mode (Newton's law on
-    the reaction forces), or when a robot's controller reads the F/T sensor
-    (``force_source: sensor``). Otherwise it is computed after the run from held plant data
-    (:mod:`drake_coop.plant.ground_truth`)."""
-    return (scenario.plant.object_mode == "contact"
+    """Whether the ground truth must run inside the loop: in the modes other than ``planes``
+    and ``rigid`` (``contact``, ``none``: Newton's law on the reaction forces,
+    :class:`~drake_coop.plant.wrist.WristKinematics`), or when a robot's controller reads the
+    F/T sensor (``force_source: sensor``). Otherwise it is computed after the run from held
+    plant data (:mod:`drake_coop.plant.ground_truth`)."""
+    return (scenario.plant.object_mode not in ("planes", "rigid")
             or any(r.force_source == "sensor" for r in scenario.robots))
 
 
@@ -211,8 +212,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     Raises
     ------
     ValueError
-        ``live_ground_truth=False`` in ``contact`` mode or with a robot's
-        ``force_source: sensor``.
+        ``live_ground_truth=False`` in a mode other than ``planes`` or ``rigid``, or with a
+        robot's ``force_source: sensor``.
     """
     h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
     needs_live = uses_live_ground_truth(scenario)
