@@ -57,7 +57,8 @@ def _plant_alone(scenario, t_end: float, extras=None) -> tuple[float, float]:
     q0 = [reference_samples(scenario, i, 0.0)[1][0, :h.arm.kinematics.n]
           for i, h in enumerate(coop.arms)]
     for i, h in enumerate(coop.arms):
-        src = b.AddSystem(ConstantVectorSource(ArmModel(h.arm).g(q0[i])))
+        src = b.AddNamedSystem(f"{h.arm.name}_torque",
+                               ConstantVectorSource(ArmModel(h.arm).g(q0[i])))
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
     finish = None
     if extras is not None:
@@ -134,7 +135,9 @@ def _offline_ground_truth(b, coop, h, dt):
     from drake_coop.sensing.force_sensor import FTModel
 
     gt = add_ground_truth(b, coop, h, [FTModel.from_settings(None, h, i, a.arm.m)
-                                       for i, a in enumerate(coop.arms)])
+                                       for i, a in enumerate(coop.arms)],
+                          [b.GetSubsystemByName(f"{a.arm.name}_torque").get_output_port()
+                           for a in coop.arms])
 
     def finish(context):
         published = gt.logger.FindLog(context).num_samples()

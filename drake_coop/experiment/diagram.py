@@ -226,12 +226,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     coop = build_plant(b, scenario)
     plant = coop.plant
     sensors = add_force_sensors(b, coop, h) if live_ground_truth else [None] * len(coop.arms)
-    ground_truth = None
-    if not live_ground_truth and log:
-        ground_truth = add_ground_truth(
-            b, coop, h, [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
-                         for i, (r, arm) in enumerate(zip(scenario.robots, coop.arms))])
     robots = []
+    actuation = []           # each arm's actuation input (for the offline ground truth)
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         robot = scenario.robots[i]
@@ -275,6 +271,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         else:
             b.Connect(control.GetOutputPort("tau"), actuators.get_input_port())
         b.Connect(applied, plant.get_actuation_input_port(handles.instance))
+        actuation.append(applied)
         rs = RobotSystems(name=name, law=law, control=control, velocity_observer=vel,
                           force_observer=force, controller=ctrl, force_sensor=sensors[i],
                           encoders=encoder, ft_sensor=ft, actuators=actuators, latency=latency)
@@ -305,6 +302,12 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             rs.log = RobotLog(logger, {k: slice(int(starts[j]), int(starts[j + 1]))
                                        for j, k in enumerate(sources)}, dict(sources))
         robots.append(rs)
+    ground_truth = None
+    if not live_ground_truth and log:
+        ground_truth = add_ground_truth(
+            b, coop, h, [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
+                         for i, (r, arm) in enumerate(zip(scenario.robots, coop.arms))],
+            actuation)
     if before_build is not None:
         before_build(b, coop)
     diagram = b.Build()

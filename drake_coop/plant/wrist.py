@@ -197,19 +197,26 @@ class ArmForces:
         u = np.asarray(u, dtype=float).reshape(-1, self.nu)
         K = x.shape[0]
         a = (v_next - x[:, self.nq:]) / self.dt
-        J, b = [], []
-        for i in range(K):
-            rows = self._rows(x[i], a[i], u[i])
-            J.append([r[0] for r in rows])
-            b.append([r[1] for r in rows])
+        plant, pc, forces = self._plant, self._context, self._forces
+        world = plant.world_frame()
+        origin = np.zeros(3)
+        inverse = np.empty_like(a)
+        jacobians = [np.empty((K, 3, a.shape[1])) for _ in self._arms]
+        for i in range(K):           # the plant's calls only; the rest is vectorized below
+            plant.SetPositionsAndVelocities(pc, x[i])
+            plant.CalcForceElementsContribution(pc, forces)
+            inverse[i] = plant.CalcInverseDynamics(pc, a[i], forces)
+            for J, (frame, _) in zip(jacobians, self._arms):
+                J[i] = plant.CalcJacobianTranslationalVelocity(
+                    pc, JacobianWrtVariable.kV, frame, origin, world, world)
+        generalized = inverse + self._damping_dt * a - u @ self._B.T
         out = []
-        for arm in range(len(self._arms)):
+        for J, (_, columns) in zip(jacobians, self._arms):
+            Jt = np.transpose(J[:, :, columns], (0, 2, 1))                   # (K, n, 3)
+            rhs = generalized[:, columns]                                     # (K, n)
             if K == 0:
                 out.append(np.zeros((0, 3)))
-                continue
-            Jt = np.transpose(np.array([j[arm] for j in J]), (0, 2, 1))      # (K, n, 3)
-            rhs = np.array([r[arm] for r in b])                               # (K, n)
-            if Jt.shape[1] == 3:
+            elif Jt.shape[1] == 3:
                 out.append(np.linalg.solve(Jt, rhs[:, :, None])[:, :, 0])
             else:
                 out.append(np.einsum("kij,kj->ki", np.linalg.pinv(Jt), rhs))
