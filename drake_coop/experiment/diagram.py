@@ -9,14 +9,20 @@
       │            (Encoders, or a C++   └───────────────────────────────────────────────────┘
       │             Demultiplexer when ideal)    tau ─▶ robotN_actuators (Saturation) ─▶ plant
       │                     (robotN_latency between them with a computation delay or jitter)
-      └─ state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor (ground truth)
-         (contact mode: reaction forces, body poses ─▶ wrist_kinematics)
-                                          └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
+      ├─ live ground truth (force_source: sensor on a robot; contact and none modes):
+      │  state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor
+      │  (contact, none: reaction forces, body poses ─▶ wrist_kinematics)
+      │                                   └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
+      └─ otherwise, offline: [state, actuation] ─▶ ground_truth_hold_tick (t_k),
+         ground_truth_hold_step_end (t_k + Δt/2), ground_truth_hold_before_tick
+         (t_k − 3Δt/2) (C++ ZeroOrderHolds) ─▶ ground_truth_log; F_meas, lambda_meas and
+         lambda_sensor computed after the run (drake_coop.plant.ground_truth)
     every logged signal of a robot ─▶ robotN_log_signals (Multiplexer) ─▶ robotN_log
 
 Timing at a tick ``t_k``: the controller latches ``τ(k)`` by an unrestricted update (before
 every discrete update, so the plant's step at ``t_k`` applies it); the observers, the
-encoders and the ground truth's latch then update from the same context as the plant's step.
+encoders and the ground truth's latch (or the offline ground truth's tick hold) then update
+from the same context as the plant's step.
 Loggers publish before the tick's updates (see
 :func:`~drake_coop.experiment.simulate.collect_logs` for the alignment).
 

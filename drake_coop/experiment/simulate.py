@@ -9,6 +9,13 @@ control ticks), after the step that reaches each chunk's end: a non-finite state
 its limit or a force beyond ``guards.max_force`` ends the run with ``status = "diverged"`` and
 whatever was logged so far; so does an exception inside Drake. No Python call happens at the
 plant's steps for the guards (a Simulator monitor would be one per plant step).
+
+The ground truth: with the offline path (:attr:`Experiment.ground_truth`, the default when no
+controller reads the F/T sensor in ``planes`` and ``rigid`` modes), ``F_meas``,
+``lambda_meas`` and ``lambda_sensor`` are computed by :func:`collect_logs` from plant data
+held at every tick, and the guards read the force of the plant step before the checked tick
+from the held data (no plant solve); with the live path they are logged latches and the
+guards read the live force port.
 """
 
 from __future__ import annotations

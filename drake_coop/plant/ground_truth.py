@@ -132,10 +132,10 @@ class GroundTruthLog:
             prior = [np.vstack([np.zeros((min(n, 1), len(N))), F[:max(n - 1, 0)] @ N.T])
                      for F, N in zip(prior, eq.normals)]
         else:                                              # h = Δt: the previous tick's step
-            prior = [np.vstack([np.zeros((min(n, 1), l.shape[1])), l[:max(n - 1, 0)]])
-                     for l in lam]
-        return [{"F_meas": F, "lambda_meas": l, "lambda_sensor": model.readings(p)}
-                for F, l, p, model in zip(forces, lam, prior, self.models)]
+            prior = [np.vstack([np.zeros((min(n, 1), squeeze.shape[1])),
+                                squeeze[:max(n - 1, 0)]]) for squeeze in lam]
+        return [{"F_meas": F, "lambda_meas": squeeze, "lambda_sensor": model.readings(p)}
+                for F, squeeze, p, model in zip(forces, lam, prior, self.models)]
 
     def force_before_tick(self, context: Context) -> list[np.ndarray]:
         """Every arm's ``F`` of the plant step ``[t_k − Δt, t_k)`` at a tick ``t_k ≥ t_1``

@@ -6,6 +6,14 @@ the last link exerts on the sensor body through the arm's ``sensor_joint`` (Drak
 the child body, in the joint's child frame; SAP constraint impulses are included). The plant's
 output ports are live: at time t the values belong to the plant step that starts at t.
 
+Where it runs: in the ``planes`` and ``rigid`` modes the force follows from each arm's own
+equations of motion for one plant step (:class:`ArmForces`). When nothing in the control
+loop reads it (no robot with ``force_source: sensor``), the experiment computes it *after* the
+run from plant data held by C++ blocks (:mod:`drake_coop.plant.ground_truth`): no system of
+this module is then in the diagram. The systems below are the live path: a controller that
+reads the F/T sensor, the ``contact`` and ``none`` modes, or
+``build_experiment(..., live_ground_truth=True)``.
+
 Two kinds of systems, so that the cost per tick grows linearly with the number of arms:
 
 * one :class:`WristKinematics` (``wrist_kinematics``) reads the plant's per-body ports once
@@ -239,7 +247,10 @@ class WristDynamics(LeafSystem):
     joints), ``B`` the actuation matrix. The right-hand side is one inverse-dynamics call on a
     private context of the plant (force elements: gravity and ``D v_j``) plus ``D Δt a − B u``.
     ``F`` solves the arm's rows (``n = 3``: square; ``n > 3``: least squares, exact for a
-    full-rank ``J_x``). No reaction forces and no per-body lists cross into Python.
+    full-rank ``J_x``). No reaction forces and no per-body lists cross into Python. The
+    equation is :class:`ArmForces`, which the offline ground truth
+    (:mod:`drake_coop.plant.ground_truth`) evaluates after the run instead of this system when
+    no controller reads the F/T sensor.
 
     Two steps are served, each from quantities the plant computes anyway:
 

@@ -38,6 +38,13 @@ port: ``λ_s(k)`` is ``λ`` of the step itself.
 
 The output is state only, so a controller reading it forms no algebraic loop; it holds
 ``λ_s(k)`` from the read to the next one.
+
+Offline: when no controller reads the sensor (no robot with ``force_source: sensor``) in the
+``planes`` and ``rigid`` modes, no sensor system is built at all: the experiment logs the
+plant data of the step before every tick with C++ holds and
+:class:`~drake_coop.plant.ground_truth.GroundTruthLog` applies :meth:`FTModel.readings` to
+``λ`` of those steps after the run, the same recursion, noise and tick numbering as the live
+:class:`FTSensor` (which steps the same :class:`FTModel`).
 """
 
 from __future__ import annotations
