@@ -80,11 +80,12 @@ from drake_coop.sensing.model_error import controller_arm_model
 
 
 #: The signals each robot logs, in the order of its ``<robot>_log_signals`` Multiplexer's
-#: inputs (:class:`RobotLog`). With the offline ground truth (:data:`GROUND_TRUTH_KEYS` come
-#: from :class:`~drake_coop.plant.ground_truth.GroundTruthLog` after the run) the others.
+#: inputs (:class:`RobotLog`); with the offline ground truth, those of
+#: :data:`GROUND_TRUTH_KEYS` are left out (computed after the run).
 LOG_KEYS = ("q", "q_hat", "reference", "lambda_hat", "Delta_F_tilde", "tau", "tau_cmd",
             "F_meas", "lambda_meas", "lambda_sensor", "qdot_hat", "state")
-#: The logged signals the offline ground truth computes after the run.
+#: The logged signals the offline ground truth computes after the run
+#: (:meth:`~drake_coop.plant.ground_truth.GroundTruthLog.evaluate`).
 GROUND_TRUTH_KEYS = ("F_meas", "lambda_meas", "lambda_sensor")
 
 
@@ -292,12 +293,14 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 "tau_cmd": control.GetOutputPort("tau"),
                 "F_meas": sensors[i].F_step if live_ground_truth else None,
                 "lambda_meas": sensors[i].lambda_step if live_ground_truth else None,
-                "lambda_sensor": lambda_sensor,
+                "lambda_sensor": lambda_sensor,      # None on the offline path
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,
             }
             assert tuple(sources) == LOG_KEYS
-            sources = {k: port for k, port in sources.items() if port is not None}
+            if not live_ground_truth:
+                sources = {k: port for k, port in sources.items()
+                           if k not in GROUND_TRUTH_KEYS}
             sizes = [port.size() for port in sources.values()]
             mux = b.AddNamedSystem(f"{name}_log_signals", Multiplexer(sizes))
             for j, port in enumerate(sources.values()):

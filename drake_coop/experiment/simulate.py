@@ -274,7 +274,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     live_ground_truth : bool, optional
         Passed to :func:`~drake_coop.experiment.diagram.build_experiment`: where the ground
         truth and the F/T sensor model are computed (None: inside the loop only when a
-        controller reads the sensor or in ``contact`` mode; otherwise after the run).
+        controller reads the sensor or outside the ``planes`` and ``rigid`` modes; otherwise
+        after the run).
 
     Returns
     -------
