@@ -23,9 +23,11 @@ def make_short_scenario():
     return short_scenario
 
 
-def advance_to_tick(scenario, k: int):
+def advance_to_tick(scenario, k: int, live_ground_truth: bool | None = None):
     """The experiment's simulator stopped exactly at control tick ``k`` (its events not yet
     processed), with the grasp switched on at its tick as :func:`simulate` does.
+    ``live_ground_truth=True`` keeps the live ground truth (``RobotSystems.force_sensor``);
+    built without logs, the offline one is absent.
 
     Returns ``(experiment, simulator, context)``.
     """
@@ -36,7 +38,7 @@ def advance_to_tick(scenario, k: int):
     from drake_coop.experiment.simulate import initialize
     from drake_coop.scenario import aligned_periods
 
-    exp = build_experiment(scenario, log=False)
+    exp = build_experiment(scenario, log=False, live_ground_truth=live_ground_truth)
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()
     initialize(exp, ctx)

@@ -1,6 +1,8 @@
 """The benchmark's count of Python callbacks per tick (``drake_coop.bench``) against the
-diagram's known events: every robot's controller latches once per tick, and the ideal F/T
-models of the paper's run are C++ holds (no Python call at all)."""
+diagram's known events: every robot's controller latches once per tick; in the paper's run
+the ground truth and the F/T sensor models are C++ holds evaluated after the run (no Python
+call at all); with a robot reading its F/T sensor the live ground truth latches once and reads
+the step before the tick once per tick."""
 
 from __future__ import annotations
 
@@ -27,8 +29,24 @@ def test_each_controller_latch_counts_once_per_tick(counts):
     assert latches * ticks == pytest.approx(len(scenario.robots) * (ticks + 1), rel=1e-12)
 
 
-def test_ground_truth_costs_one_latch_and_one_last_step_read_per_tick(counts):
-    scenario, ticks, result = counts
+def test_paper_run_calls_no_ground_truth_or_sensor_model_in_the_loop(counts):
+    _, _, result = counts
+    by = result["by_function"]
+    assert not [name for name in by
+                if any(word in name for word in ("wrist", "ForceSensor", "FTSensor", "FTModel",
+                                                 "ground_truth"))]
+    assert result["per_tick"] == pytest.approx(sum(by.values()))
+
+
+def test_live_ground_truth_costs_one_latch_and_one_last_step_read_per_tick():
+    """``force_source: sensor`` on robot 1 (its ideal F/T model, a C++ hold, feeds (13)):
+    the live path."""
+    scenario = default_scenario()
+    scenario.robots[0].force_source = "sensor"
+    t_end = 0.27
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    ticks = num_ticks_until(t_end, h)
+    result = _count_callbacks(scenario, t_end)
     by = result["by_function"]
     # The latch at ticks 0..K; the read of the step before each tick 1..K.
     assert by["drake_coop.plant.wrist.WristDynamics._update_step"] * ticks == \

@@ -261,7 +261,9 @@ def test_wrist_dynamics_ground_truth_equals_the_reaction_force_chain():
     """planes mode: the force from each arm's own equations of motion and the plant's
     acceleration port (``WristDynamics``, SAP's implicit damping) equals Newton's law on the
     carried bodies from Drake's reaction forces (``WristKinematics``), at every plant step of
-    free motion, the grasp and the lift."""
+    free motion, the grasp and the lift. On the live path (``live_ground_truth=True``): the
+    offline path evaluates the same equation (``ArmForces``) from held data and is checked
+    against the live one in ``tests/test_ground_truth_offline.py``."""
     from drake_coop.experiment.simulate import simulate
     from drake_coop.plant.wrist import WristDynamics, WristKinematics
     from tests.conftest import short_scenario
@@ -296,7 +298,8 @@ def test_wrist_dynamics_ground_truth_equals_the_reaction_force_chain():
                 peak[0] = max(peak[0], np.abs(b).max())
         simulator.set_monitor(compare)
 
-    result = simulate(scenario, t_end=1.5, before_build=before_build, on_start=on_start)
+    result = simulate(scenario, t_end=1.5, before_build=before_build, on_start=on_start,
+                      live_ground_truth=True)
     assert result.ok
     assert peak[0] > 10.0                  # the grasp's squeeze is in the comparison
     assert max(diffs) < 1e-9, max(diffs)   # N (measured ~5e-13)

@@ -52,7 +52,8 @@ def _tau_before_and_after_perturbation(scenario):
     """τ(k) at a held tick, then after changing the plant's velocities and contact force."""
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
     k_grasp, _ = grasp_ticks(scenario.task, h)
-    exp, sim, ctx = advance_to_tick(scenario, k_grasp + 40)
+    # The live ground truth: its ports show that the perturbation reaches the plant's force.
+    exp, sim, ctx = advance_to_tick(scenario, k_grasp + 40, live_ground_truth=True)
     pc = exp.coop.plant.GetMyMutableContextFromRoot(ctx)
 
     def taus():
@@ -166,30 +167,40 @@ def test_measured_velocity_without_force_estimate_completes_with_model_error():
 
 # --------------------------------------------------------------------------- F/T sensor timing
 def _ft_readings_and_step_forces(t_end):
-    """``scenarios/realistic.yaml`` to ``t_end``: the logged F/T readings and, recorded by a
-    Simulator monitor at every plant step time ``j Δt`` (publishes run before that time's
-    updates), the ground truth ``λ`` of each plant step: the plant's live port there is the
-    step the plant then takes."""
+    """``scenarios/realistic.yaml`` to ``t_end``: the logged F/T readings (the offline path:
+    computed after the run from held plant data) and, recorded by a Simulator monitor at every
+    plant step time ``j Δt`` (publishes run before that time's updates), the ground truth ``λ``
+    of each plant step from a probe (:func:`~drake_coop.plant.wrist.add_force_sensors` without
+    a period: output ports only, evaluated by the monitor alone): the plant's live port there
+    is the step the plant then takes."""
     from pathlib import Path
 
+    from drake_coop.plant.wrist import add_force_sensors
     from drake_coop.scenario import load_scenario
 
     scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "realistic.yaml")
     h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
     steps = {}
+    probes = []
+
+    def before_build(builder, coop):
+        probes.extend(add_force_sensors(builder, coop))
 
     def on_start(exp, simulator):
+        assert exp.ground_truth is not None and all(rs.force_sensor is None
+                                                    for rs in exp.robots)
+
         def record(context):
             # Only at the plant's own step times j Δt (Drake's periodic event time): an event
             # one rounding off the grid makes a ~1e-18 s step whose live port is not a step.
             t = context.get_time()
             j = int(round(t / dt))
             if t == j * dt and j not in steps:
-                steps[j] = [rs.force_sensor.GetOutputPort("lambda_meas").Eval(
-                    rs.force_sensor.GetMyContextFromRoot(context)).copy() for rs in exp.robots]
+                steps[j] = [probe.GetOutputPort("lambda_meas").Eval(
+                    probe.GetMyContextFromRoot(context)).copy() for probe in probes]
         simulator.set_monitor(record)
 
-    result = simulate(scenario, t_end=t_end, on_start=on_start)
+    result = simulate(scenario, t_end=t_end, before_build=before_build, on_start=on_start)
     assert result.ok, result.meta["message"]
     return scenario, h, dt, result, steps
 

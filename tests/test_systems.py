@@ -35,7 +35,8 @@ def short_run():
 def test_next_torque_ignores_plant_velocities_and_constraint_state():
     scenario = short_scenario("planes", 0.003)
     k_grasp, _ = grasp_ticks(scenario.task, scenario.control_period)
-    exp, sim, ctx = advance_to_tick(scenario, k_grasp + 40)
+    # The live ground truth: its ports show that the perturbation reaches the plant's force.
+    exp, sim, ctx = advance_to_tick(scenario, k_grasp + 40, live_ground_truth=True)
     plant = exp.coop.plant
     pc = plant.GetMyMutableContextFromRoot(ctx)
     # τ(k) of the tick the simulator stopped at, before its events: what the tick's update
@@ -99,7 +100,9 @@ def test_control_block_has_no_direct_feedthrough_on_state_outputs():
 
 def test_events_fire_at_ticks_and_the_ft_read_without_tiny_steps():
     scenario = short_scenario("planes", 0.001)
-    exp = build_experiment(scenario, log=False)
+    # The live ground truth and F/T sensor model: their reads are what this test times (the
+    # offline ground truth's holds are timed by tests/test_ground_truth_offline.py).
+    exp = build_experiment(scenario, log=False, live_ground_truth=True)
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()
     initialize(exp, ctx)

@@ -9,14 +9,20 @@
       │            (Encoders, or a C++   └───────────────────────────────────────────────────┘
       │             Demultiplexer when ideal)    tau ─▶ robotN_actuators (Saturation) ─▶ plant
       │                     (robotN_latency between them with a computation delay or jitter)
-      └─ state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor (ground truth)
-         (contact mode: reaction forces, body poses ─▶ wrist_kinematics)
-                                          └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
+      ├─ live ground truth (force_source: sensor on a robot; contact and none modes):
+      │  state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor
+      │  (contact, none: reaction forces, body poses ─▶ wrist_kinematics)
+      │                                   └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
+      └─ otherwise, offline: [state, actuation] ─▶ ground_truth_hold_tick (t_k),
+         ground_truth_hold_step_end (t_k + Δt/2), ground_truth_hold_before_tick
+         (t_k − 3Δt/2) (C++ ZeroOrderHolds) ─▶ ground_truth_log; F_meas, lambda_meas and
+         lambda_sensor computed after the run (drake_coop.plant.ground_truth)
     every logged signal of a robot ─▶ robotN_log_signals (Multiplexer) ─▶ robotN_log
 
 Timing at a tick ``t_k``: the controller latches ``τ(k)`` by an unrestricted update (before
 every discrete update, so the plant's step at ``t_k`` applies it); the observers, the
-encoders and the ground truth's latch then update from the same context as the plant's step.
+encoders and the ground truth's latch (or the offline ground truth's tick hold) then update
+from the same context as the plant's step.
 Loggers publish before the tick's updates (see
 :func:`~drake_coop.experiment.simulate.collect_logs` for the alignment).
 
@@ -62,20 +68,25 @@ from drake_coop.plant.cooperative import (
     CoopPlant,
     build_plant,
 )
+from drake_coop.plant.ground_truth import GroundTruthLog, add_ground_truth
 from drake_coop.plant.wrist import ForceSensor, add_force_sensors
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.timing import aligned_periods
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
-from drake_coop.sensing.force_sensor import FTSensor, add_ft_sensor
+from drake_coop.sensing.force_sensor import FTModel, FTSensor, add_ft_sensor
 from drake_coop.sensing.latency import ActuationDelay
 from drake_coop.sensing.model_error import controller_arm_model
 
 
 #: The signals each robot logs, in the order of its ``<robot>_log_signals`` Multiplexer's
-#: inputs (:class:`RobotLog`).
+#: inputs (:class:`RobotLog`); with the offline ground truth, those of
+#: :data:`GROUND_TRUTH_KEYS` are left out (computed after the run).
 LOG_KEYS = ("q", "q_hat", "reference", "lambda_hat", "Delta_F_tilde", "tau", "tau_cmd",
             "F_meas", "lambda_meas", "lambda_sensor", "qdot_hat", "state")
+#: The logged signals the offline ground truth computes after the run
+#: (:meth:`~drake_coop.plant.ground_truth.GroundTruthLog.evaluate`).
+GROUND_TRUTH_KEYS = ("F_meas", "lambda_meas", "lambda_sensor")
 
 
 @dataclass
@@ -104,7 +115,11 @@ class RobotLog:
 
 @dataclass
 class RobotSystems:
-    """The systems of one robot inside the experiment diagram."""
+    """The systems of one robot inside the experiment diagram.
+
+    ``force_sensor`` and ``ft_sensor`` are None with the offline ground truth
+    (:attr:`Experiment.ground_truth`): no system computes the wrist force during the run.
+    """
 
     name: str
     law: FingerLaw
@@ -112,7 +127,7 @@ class RobotSystems:
     velocity_observer: VelocityObserver | MeasuredVelocity | DifferenceVelocity
     force_observer: ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
     controller: Controller
-    force_sensor: ForceSensor
+    force_sensor: ForceSensor | None
     encoders: Encoders | Demultiplexer | None = None
     ft_sensor: FTSensor | ZeroOrderHold | None = None
     actuators: Saturation | None = None
@@ -122,12 +137,16 @@ class RobotSystems:
 
 @dataclass
 class Experiment:
-    """A built experiment: the diagram, the plant handles and each robot's systems."""
+    """A built experiment: the diagram, the plant handles and each robot's systems.
+
+    ``ground_truth`` is the offline ground truth's holds and log (None on the live path or
+    without logging)."""
 
     scenario: Scenario
     diagram: Diagram
     coop: CoopPlant
     robots: list[RobotSystems]
+    ground_truth: GroundTruthLog | None = None
 
 
 VelocitySource = VelocityObserver | MeasuredVelocity | DifferenceVelocity
@@ -158,8 +177,19 @@ def add_encoders(builder: DiagramBuilder, name: str, n: int, period: float, sett
     return encoder, encoder.GetOutputPort("q")
 
 
+def uses_live_ground_truth(scenario: Scenario) -> bool:
+    """Whether the ground truth must run inside the loop: in the modes other than ``planes``
+    and ``rigid`` (``contact``, ``none``: Newton's law on the reaction forces,
+    :class:`~drake_coop.plant.wrist.WristKinematics`), or when a robot's controller reads the
+    F/T sensor (``force_source: sensor``). Otherwise it is computed after the run from held
+    plant data (:mod:`drake_coop.plant.ground_truth`)."""
+    return (scenario.plant.object_mode not in ("planes", "rigid")
+            or any(r.force_source == "sensor" for r in scenario.robots))
+
+
 def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = None,
-                     log: bool = True, before_build=None, references=None) -> Experiment:
+                     log: bool = True, before_build=None, references=None,
+                     live_ground_truth: bool | None = None) -> Experiment:
     """Build the experiment's Diagram from a scenario.
 
     Parameters
@@ -176,13 +206,35 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         One reference trajectory per robot (rows of
         :class:`~drake_coop.control.finger.ReferenceLayout`) instead of the scenario's
         (studies and tests, e.g. a constant posture for Theorem 1).
+    live_ground_truth : bool, optional
+        Where the ground truth (``F_meas``, ``lambda_meas``) and the F/T sensor model
+        (``lambda_sensor``) are computed. True: inside the loop, by
+        :func:`~drake_coop.plant.wrist.add_force_sensors` and
+        :func:`~drake_coop.sensing.force_sensor.add_ft_sensor` (Python systems latching at every
+        tick). False: after the run, from C++ holds of the plant's data logged at every tick
+        (:func:`~drake_coop.plant.ground_truth.add_ground_truth`; without ``log`` nothing at
+        all), allowed only when :func:`uses_live_ground_truth` is False. None (default): that
+        function decides. Both give the same logs (to rounding, ~1e-12 N).
+
+    Raises
+    ------
+    ValueError
+        ``live_ground_truth=False`` in a mode other than ``planes`` or ``rigid``, or with a
+        robot's ``force_source: sensor``.
     """
     h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    needs_live = uses_live_ground_truth(scenario)
+    if live_ground_truth is None:
+        live_ground_truth = needs_live
+    elif not live_ground_truth and needs_live:
+        raise ValueError("live_ground_truth=False needs planes or rigid mode and no robot "
+                         "with force_source: sensor")
     b = builder or DiagramBuilder()
     coop = build_plant(b, scenario)
     plant = coop.plant
-    sensors = add_force_sensors(b, coop, h)
+    sensors = add_force_sensors(b, coop, h) if live_ground_truth else [None] * len(coop.arms)
     robots = []
+    actuation = []           # each arm's actuation input (for the offline ground truth)
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         robot = scenario.robots[i]
@@ -191,9 +243,11 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
         encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
-        ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
-                                          sensors[i].GetOutputPort("lambda_meas"),
-                                          sensors[i].lambda_last_step)
+        ft = lambda_sensor = None
+        if live_ground_truth:
+            ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
+                                              sensors[i].GetOutputPort("lambda_meas"),
+                                              sensors[i].lambda_last_step)
         # The control block, through the public API (the same path as a user's diagram): the
         # encoders' q in; the F/T reading for classical force feedback; tau left to the
         # actuators below. The measured-velocity baseline reads the plant's state.
@@ -224,6 +278,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         else:
             b.Connect(control.GetOutputPort("tau"), actuators.get_input_port())
         b.Connect(applied, plant.get_actuation_input_port(handles.instance))
+        actuation.append(applied)
         rs = RobotSystems(name=name, law=law, control=control, velocity_observer=vel,
                           force_observer=force, controller=ctrl, force_sensor=sensors[i],
                           encoders=encoder, ft_sensor=ft, actuators=actuators, latency=latency)
@@ -236,13 +291,16 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 "Delta_F_tilde": control.GetOutputPort("Delta_F_tilde"),
                 "tau": actuators.get_output_port(),
                 "tau_cmd": control.GetOutputPort("tau"),
-                "F_meas": sensors[i].F_step,
-                "lambda_meas": sensors[i].lambda_step,
-                "lambda_sensor": lambda_sensor,
+                "F_meas": sensors[i].F_step if live_ground_truth else None,
+                "lambda_meas": sensors[i].lambda_step if live_ground_truth else None,
+                "lambda_sensor": lambda_sensor,      # None on the offline path
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,
             }
             assert tuple(sources) == LOG_KEYS
+            if not live_ground_truth:
+                sources = {k: port for k, port in sources.items()
+                           if k not in GROUND_TRUTH_KEYS}
             sizes = [port.size() for port in sources.values()]
             mux = b.AddNamedSystem(f"{name}_log_signals", Multiplexer(sizes))
             for j, port in enumerate(sources.values()):
@@ -253,8 +311,15 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             rs.log = RobotLog(logger, {k: slice(int(starts[j]), int(starts[j + 1]))
                                        for j, k in enumerate(sources)}, dict(sources))
         robots.append(rs)
+    ground_truth = None
+    if not live_ground_truth and log:
+        ground_truth = add_ground_truth(
+            b, coop, h, [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
+                         for i, (r, arm) in enumerate(zip(scenario.robots, coop.arms))],
+            actuation)
     if before_build is not None:
         before_build(b, coop)
     diagram = b.Build()
     diagram.set_name("drake_coop_experiment")
-    return Experiment(scenario=scenario, diagram=diagram, coop=coop, robots=robots)
+    return Experiment(scenario=scenario, diagram=diagram, coop=coop, robots=robots,
+                      ground_truth=ground_truth)

@@ -9,6 +9,13 @@ control ticks), after the step that reaches each chunk's end: a non-finite state
 its limit or a force beyond ``guards.max_force`` ends the run with ``status = "diverged"`` and
 whatever was logged so far; so does an exception inside Drake. No Python call happens at the
 plant's steps for the guards (a Simulator monitor would be one per plant step).
+
+The ground truth: with the offline path (:attr:`Experiment.ground_truth`, the default when no
+controller reads the F/T sensor in ``planes`` and ``rigid`` modes), ``F_meas``,
+``lambda_meas`` and ``lambda_sensor`` are computed by :func:`collect_logs` from plant data
+held at every tick, and the guards read the force of the plant step before the checked tick
+from the held data (no plant solve); with the live path they are logged latches and the
+guards read the live force port.
 """
 
 from __future__ import annotations
@@ -91,13 +98,21 @@ def set_rest_state(exp: Experiment, context, q0: list[np.ndarray], z_grasp: floa
 
 
 def _check_guards(exp: Experiment, context) -> str | None:
-    """A message if a guard trips, else None."""
+    """A message if a guard trips, else None.
+
+    At a tick ``t_k`` (before its updates). The measured force is, with the offline ground
+    truth, the force of the plant step ``[t_k − Δt, t_k)`` from the held data and the current
+    state (:meth:`~drake_coop.plant.ground_truth.GroundTruthLog.force_before_tick`, no plant
+    solve); on the live path, the live ``F_meas`` port (the step from ``t_k`` under the torque
+    still applied, solved for the read)."""
     g = exp.scenario.guards
     plant = exp.coop.plant
     pc = plant.GetMyContextFromRoot(context)
     x = plant.GetPositionsAndVelocities(pc)
     if not np.all(np.isfinite(x)):
         return "non-finite plant state"
+    offline = (exp.ground_truth.force_before_tick(context)
+               if exp.ground_truth is not None else None)
     margin = math.radians(g.joint_limit_margin_deg)
     for i, rs in enumerate(exp.robots):
         arm = exp.coop.arms[i].arm
@@ -110,10 +125,13 @@ def _check_guards(exp: Experiment, context) -> str | None:
                     f"[{math.degrees(lo[j]):.0f}, {math.degrees(hi[j]):.0f}] deg")
         lam_hat = rs.control.GetOutputPort("lambda_hat").Eval(
             rs.control.GetMyContextFromRoot(context))
-        lam = rs.force_sensor.GetOutputPort("F_meas").Eval(
-            rs.force_sensor.GetMyContextFromRoot(context))
+        if offline is not None:
+            F = offline[i]
+        else:
+            F = rs.force_sensor.GetOutputPort("F_meas").Eval(
+                rs.force_sensor.GetMyContextFromRoot(context))
         for label, value in (("estimated force", float(np.max(np.abs(lam_hat)))),
-                             ("measured force", float(np.linalg.norm(lam)))):
+                             ("measured force", float(np.linalg.norm(F)))):
             if not math.isfinite(value) or value > g.max_force:
                 return (f"{rs.name} {label} {value:.1f} N exceeds guards.max_force = "
                         f"{g.max_force} N")
@@ -132,8 +150,10 @@ def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
 
     ``AdvanceTo(k h)`` ends with the loggers' publish at ``t_k``, *before* that tick's updates:
     ``τ(k)`` and the force of the step from ``t_k`` are not latched yet. A run that ended
-    normally or by a guard takes half a plant step more (the tick's updates and the plant's step
-    from ``t_k``; nothing is published, the reported end stays ``t_k``). A run that stopped
+    normally or by a guard takes three quarters of a plant step more (the tick's updates, the
+    plant's step from ``t_k`` and the offline ground truth's hold at ``t_k + Δt/2`` of the
+    state that step produced; nothing is published, the reported end stays ``t_k``, the
+    plant's next update at ``t_k + Δt`` is not reached). A run that stopped
     inside a step (an exception, Ctrl-C) is left as it is; :func:`collect_logs` then keeps only
     the ticks whose signals were latched.
     """
@@ -146,7 +166,7 @@ def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
     if k is None or ctrl.latched_tick(ctrl.GetMyContextFromRoot(context)) == k:
         return
     try:
-        simulator.AdvanceTo(t + 0.5 * exp.scenario.plant.time_step)
+        simulator.AdvanceTo(t + 0.75 * exp.scenario.plant.time_step)
     except RuntimeError:      # the blown-up state of a diverged run: keep what was latched
         pass
 
@@ -161,9 +181,16 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
     current values when its updates have run (:func:`finish_last_tick`). Rule for a run that
     stopped before the last published tick's updates ran (an exception or Ctrl-C during them):
     its logs end one tick earlier, at the last tick whose torque is known.
+
+    With the offline ground truth (:attr:`Experiment.ground_truth`), ``F_meas``,
+    ``lambda_meas`` and ``lambda_sensor`` are computed here from the held plant data
+    (:meth:`~drake_coop.plant.ground_truth.GroundTruthLog.evaluate`), under the same rules:
+    the holds of tick ``k`` are published at ``t_{k+1}``, the last tick's are the holds'
+    current values, and the rows end where the torque's do.
     """
     logs = {}
     task = exp.scenario.task
+    offline: dict[tuple[int, bool], list] = {}
     for i, rs in enumerate(exp.robots):
         times, raw = rs.log.raw(context)
         published = times.size
@@ -181,6 +208,10 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
             if complete:
                 rows = np.vstack([rows, np.reshape(rs.log.now(context, key), (1, -1))])
             data[key] = rows[:n]
+        if exp.ground_truth is not None:
+            if (n, complete) not in offline:
+                offline[(n, complete)] = exp.ground_truth.evaluate(context, n, complete)
+            data.update(offline[(n, complete)][i])
         arm = exp.coop.arms[i].arm
         arm_dofs = rs.law.n
         layout = rs.law.layout
@@ -218,7 +249,8 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
 def simulate(scenario: Scenario, *, t_end: float | None = None,
              progress: Callable[[float, float, float], None] | None = None,
              before_build=None, on_start=None,
-             hold_signals: Callable[[], ContextManager] | None = None) -> RunResult:
+             hold_signals: Callable[[], ContextManager] | None = None,
+             live_ground_truth: bool | None = None) -> RunResult:
     """Simulate the experiment and return its logs.
 
     Parameters
@@ -239,6 +271,11 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         A context manager factory entered once the loop has stopped, around the collection of
         the logs (the command line defers SIGINT/SIGTERM there, so that a second Ctrl-C cannot
         lose what was logged).
+    live_ground_truth : bool, optional
+        Passed to :func:`~drake_coop.experiment.diagram.build_experiment`: where the ground
+        truth and the F/T sensor model are computed (None: inside the loop only when a
+        controller reads the sensor or outside the ``planes`` and ``rigid`` modes; otherwise
+        after the run).
 
     Returns
     -------
@@ -258,7 +295,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     # References only to the run's end: a long task stopped early stays cheap.
     references = [reference_trajectory(scenario, i, T, plan)
                   for i in range(len(scenario.robots))]
-    exp = build_experiment(scenario, before_build=before_build, references=references)
+    exp = build_experiment(scenario, before_build=before_build, references=references,
+                           live_ground_truth=live_ground_truth)
     simulator = Simulator(exp.diagram)
     context = simulator.get_mutable_context()
     initialize(exp, context)

@@ -6,6 +6,14 @@ the last link exerts on the sensor body through the arm's ``sensor_joint`` (Drak
 the child body, in the joint's child frame; SAP constraint impulses are included). The plant's
 output ports are live: at time t the values belong to the plant step that starts at t.
 
+Where it runs: in the ``planes`` and ``rigid`` modes the force follows from each arm's own
+equations of motion for one plant step (:class:`ArmForces`). When nothing in the control
+loop reads it (no robot with ``force_source: sensor``), the experiment computes it *after* the
+run from plant data held by C++ blocks (:mod:`drake_coop.plant.ground_truth`): no system of
+this module is then in the diagram. The systems below are the live path: a controller that
+reads the F/T sensor, the ``contact`` and ``none`` modes, or
+``build_experiment(..., live_ground_truth=True)``.
+
 Two kinds of systems, so that the cost per tick grows linearly with the number of arms:
 
 * one :class:`WristKinematics` (``wrist_kinematics``) reads the plant's per-body ports once
@@ -109,6 +117,120 @@ class WristKinematics(LeafSystem):
         value.set_value(out)
 
 
+class ArmForces:
+    """The equation of :class:`WristDynamics` without a system: every arm's wrist force ``F``
+    of one plant step, from the step's start state, acceleration and actuation.
+
+    .. math::
+        J_x(q_j)^T F = M(q_j)\\,a + C(q_j, v_j) v_j - \\tau_g(q_j) + D (v_j + \\Delta t\\, a)
+                       - B u
+
+    (SAP's momentum balance with the joints' damping taken implicitly; ``J_x`` the
+    translational Jacobian of the end-effector point, columns of the arm's joints). The
+    right-hand side is one inverse-dynamics call on a private context of the plant; ``F``
+    solves the arm's rows (``n = 3``: square; ``n > 3``: least squares, exact for a full-rank
+    ``J_x``). The live :class:`WristDynamics` calls it once per step it serves; the offline
+    ground truth (:class:`~drake_coop.plant.ground_truth.GroundTruthLog`) calls
+    :meth:`steps` once for all the steps of a run, from held plant data.
+
+    Parameters
+    ----------
+    plant : MultibodyPlant
+        The finalized plant (a private context is made from it).
+    arms : list of ArmHandles
+        The arms, in order.
+    time_step : float
+        The plant's step ``Δt`` (s).
+    """
+
+    def __init__(self, plant: MultibodyPlant, arms: list[ArmHandles], time_step: float):
+        self._plant = plant
+        self._context = plant.CreateDefaultContext()
+        self._forces = MultibodyForces(plant)
+        self.dt = float(time_step)
+        nv = plant.num_velocities()
+        #: Sizes of the plant's state ``[q, v]`` and of its actuation ``u``.
+        self.nq, self.nx, self.nu = (plant.num_positions(), plant.num_multibody_states(),
+                                     plant.num_actuators())
+        self._B = plant.MakeActuationMatrix()
+        damping = np.zeros(nv)
+        for j in plant.GetJointIndices():
+            joint = plant.get_joint(j)
+            if joint.num_velocities() > 0:
+                damping[joint.velocity_start():joint.velocity_start() + joint.num_velocities()] \
+                    = joint.default_damping_vector()
+        self._damping_dt = damping * self.dt
+        self._arms = []
+        for h in arms:
+            columns = plant.GetVelocitiesFromArray(h.instance,
+                                                   np.arange(nv, dtype=float)).astype(int)
+            self._arms.append((h.ee_body.body_frame(), columns))
+        #: Each arm's outward normals ``N_i`` (rows): ``λ_i = N_i F_i``.
+        self.normals = [np.asarray(h.arm.N, dtype=float) for h in arms]
+
+    def _rows(self, x: np.ndarray, a: np.ndarray, u: np.ndarray
+              ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Every arm's ``(J_x, b)`` of ``J_xᵀ F = b`` for one step."""
+        plant, pc = self._plant, self._context
+        plant.SetPositionsAndVelocities(pc, x)
+        plant.CalcForceElementsContribution(pc, self._forces)
+        generalized = (plant.CalcInverseDynamics(pc, a, self._forces) + self._damping_dt * a
+                       - self._B @ u)
+        world = plant.world_frame()
+        return [(plant.CalcJacobianTranslationalVelocity(
+                    pc, JacobianWrtVariable.kV, frame, np.zeros(3), world, world)[:, columns],
+                 generalized[columns]) for frame, columns in self._arms]
+
+    def __call__(self, x: np.ndarray, a: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
+        """``F`` of every arm for the step from the plant state ``x`` with acceleration ``a``
+        under the actuation ``u``."""
+        out = []
+        for J, b in self._rows(x, a, u):
+            if J.shape[1] == 3:
+                out.append(_solve_transposed3(J.tolist(), b.tolist()))
+            else:
+                out.append(np.linalg.lstsq(J.T, b, rcond=None)[0])
+        return out
+
+    def steps(self, x: np.ndarray, v_next: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
+        """``F`` of every arm for ``K`` plant steps at once: step ``i`` starts at ``x[i]``
+        (plant state ``[q, v]``), ends at the velocities ``v_next[i]`` (so
+        ``a = (v_next − v)/Δt``, the acceleration port's own formula) under ``u[i]``.
+
+        Returns one ``(K, 3)`` array per arm; the square solves are batched (NumPy's LU), the
+        plant's calls are one inverse dynamics and one Jacobian per arm and step.
+        """
+        x = np.asarray(x, dtype=float).reshape(-1, self.nx)
+        v_next = np.asarray(v_next, dtype=float).reshape(-1, self.nx - self.nq)
+        u = np.asarray(u, dtype=float).reshape(-1, self.nu)
+        K = x.shape[0]
+        a = (v_next - x[:, self.nq:]) / self.dt
+        plant, pc, forces = self._plant, self._context, self._forces
+        world = plant.world_frame()
+        origin = np.zeros(3)
+        inverse = np.empty_like(a)
+        jacobians = [np.empty((K, 3, a.shape[1])) for _ in self._arms]
+        for i in range(K):           # the plant's calls only; the rest is vectorized below
+            plant.SetPositionsAndVelocities(pc, x[i])
+            plant.CalcForceElementsContribution(pc, forces)
+            inverse[i] = plant.CalcInverseDynamics(pc, a[i], forces)
+            for J, (frame, _) in zip(jacobians, self._arms):
+                J[i] = plant.CalcJacobianTranslationalVelocity(
+                    pc, JacobianWrtVariable.kV, frame, origin, world, world)
+        generalized = inverse + self._damping_dt * a - u @ self._B.T
+        out = []
+        for J, (_, columns) in zip(jacobians, self._arms):
+            Jt = np.transpose(J[:, :, columns], (0, 2, 1))                   # (K, n, 3)
+            rhs = generalized[:, columns]                                     # (K, n)
+            if K == 0:
+                out.append(np.zeros((0, 3)))
+            elif Jt.shape[1] == 3:
+                out.append(np.linalg.solve(Jt, rhs[:, :, None])[:, :, 0])
+            else:
+                out.append(np.einsum("kij,kj->ki", np.linalg.pinv(Jt), rhs))
+        return out
+
+
 class WristDynamics(LeafSystem):
     """Every arm's ground-truth wrist force from the arm's own equations of motion, for the
     modes where the object's pull on the end-effector point is the only external force on an
@@ -125,7 +247,10 @@ class WristDynamics(LeafSystem):
     joints), ``B`` the actuation matrix. The right-hand side is one inverse-dynamics call on a
     private context of the plant (force elements: gravity and ``D v_j``) plus ``D Δt a − B u``.
     ``F`` solves the arm's rows (``n = 3``: square; ``n > 3``: least squares, exact for a
-    full-rank ``J_x``). No reaction forces and no per-body lists cross into Python.
+    full-rank ``J_x``). No reaction forces and no per-body lists cross into Python. The
+    equation is :class:`ArmForces`, which the offline ground truth
+    (:mod:`drake_coop.plant.ground_truth`) evaluates after the run instead of this system when
+    no controller reads the F/T sensor.
 
     Two steps are served, each from quantities the plant computes anyway:
 
@@ -164,27 +289,12 @@ class WristDynamics(LeafSystem):
     def __init__(self, plant: MultibodyPlant, arms: list[ArmHandles], time_step: float,
                  period: float | None = None):
         super().__init__()
-        self._plant = plant
-        self._context = plant.CreateDefaultContext()
-        self._forces = MultibodyForces(plant)
+        self._equation = ArmForces(plant, arms, time_step)
         self._dt = float(time_step)
         nv = plant.num_velocities()
         self._nq = plant.num_positions()
         self._nx = plant.num_multibody_states()
-        self._B = plant.MakeActuationMatrix()
-        damping = np.zeros(nv)
-        for j in plant.GetJointIndices():
-            joint = plant.get_joint(j)
-            if joint.num_velocities() > 0:
-                damping[joint.velocity_start():joint.velocity_start() + joint.num_velocities()] \
-                    = joint.default_damping_vector()
-        self._damping_dt = damping * self._dt
-        self._arms = []
-        for h in arms:
-            columns = plant.GetVelocitiesFromArray(h.instance,
-                                                   np.arange(nv, dtype=float)).astype(int)
-            self._arms.append((h.ee_body.body_frame(), columns))
-        self._normals = [np.asarray(h.arm.N, dtype=float) for h in arms]
+        self._normals = self._equation.normals
         self._state = self.DeclareVectorInputPort("state", self._nx)
         self._acceleration = self.DeclareVectorInputPort("generalized_acceleration", nv)
         self._actuation = self.DeclareVectorInputPort("net_actuation", plant.num_actuators())
@@ -224,23 +334,9 @@ class WristDynamics(LeafSystem):
                     prerequisites_of_calc={self._last.ticket()})
 
     def _arm_forces(self, x: np.ndarray, a: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
-        """``F`` of every arm for the step from the plant state ``x`` with acceleration ``a``
-        under the actuation ``u`` (the class's equation)."""
-        plant, pc = self._plant, self._context
-        plant.SetPositionsAndVelocities(pc, x)
-        plant.CalcForceElementsContribution(pc, self._forces)
-        generalized = (plant.CalcInverseDynamics(pc, a, self._forces) + self._damping_dt * a
-                       - self._B @ u)
-        world = plant.world_frame()
-        out = []
-        for frame, columns in self._arms:
-            J = plant.CalcJacobianTranslationalVelocity(
-                pc, JacobianWrtVariable.kV, frame, np.zeros(3), world, world)[:, columns]
-            if J.shape[1] == 3:
-                out.append(_solve_transposed3(J.tolist(), generalized[columns].tolist()))
-            else:
-                out.append(np.linalg.lstsq(J.T, generalized[columns], rcond=None)[0])
-        return out
+        """``F`` of every arm for the step from ``x`` with acceleration ``a`` under ``u``
+        (:class:`ArmForces`)."""
+        return self._equation(x, a, u)
 
     def _calc_signals(self, context: Context, value: AbstractValue) -> None:
         value.set_value(self._arm_forces(self._state.Eval(context),

@@ -38,9 +38,18 @@ port: ``λ_s(k)`` is ``λ`` of the step itself.
 
 The output is state only, so a controller reading it forms no algebraic loop; it holds
 ``λ_s(k)`` from the read to the next one.
+
+Offline: when no controller reads the sensor (no robot with ``force_source: sensor``) in the
+``planes`` and ``rigid`` modes, no sensor system is built at all: the experiment logs the
+plant data of the step before every tick with C++ holds and
+:class:`~drake_coop.plant.ground_truth.GroundTruthLog` applies :meth:`FTModel.readings` to
+``λ`` of those steps after the run, the same recursion, noise and tick numbering as the live
+:class:`FTSensor` (which steps the same :class:`FTModel`).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.systems.framework import (
@@ -54,6 +63,79 @@ from pydrake.systems.primitives import ZeroOrderHold
 
 from drake_coop.scenario.schema import ForceSensorModel
 from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
+
+
+@dataclass(frozen=True)
+class FTModel:
+    """The sensor model's equations of one arm, without a system: the one implementation
+    that both :class:`FTSensor` (live, one :meth:`step` per tick) and the offline ground truth
+    (:meth:`readings` over a whole run,
+    :class:`~drake_coop.plant.ground_truth.GroundTruthLog`) evaluate.
+
+    Attributes
+    ----------
+    alpha : float
+        Low-pass gain ``α`` (1 without a cutoff).
+    bias, noise_std : float
+        ``b`` and the standard deviation of ``v_k`` (N).
+    seed, robot, m : int
+        Noise seed, robot index (noise stream) and the number of components of ``λ``.
+    """
+
+    alpha: float
+    bias: float
+    noise_std: float
+    seed: int
+    robot: int
+    m: int
+
+    @classmethod
+    def from_settings(cls, settings: ForceSensorModel | None, period: float,
+                      robot_index: int, m: int) -> FTModel:
+        """The model of a scenario's ``force_sensor`` settings at the sampling time ``h``."""
+        s = settings or ForceSensorModel()
+        return cls(alpha=lowpass_alpha(s.cutoff_hz, period), bias=float(s.bias),
+                   noise_std=float(s.noise_std), seed=int(s.seed), robot=int(robot_index),
+                   m=int(m))
+
+    @property
+    def ideal(self) -> bool:
+        """No filter, no bias, no noise: ``λ_s(k)`` is the true ``λ`` itself (bit for bit, as
+        the C++ hold of :func:`add_ft_sensor` gives it)."""
+        return self.alpha == 1.0 and self.bias == 0.0 and self.noise_std == 0.0
+
+    def initial_reading(self) -> np.ndarray:
+        """``λ_s(0)``: the reading before any read (``y(0) = 0``): the bias."""
+        return np.full(self.m, self.bias)
+
+    def step(self, y_prev: np.ndarray, lambda_true: np.ndarray, k: int
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """``y(k) = y(k−1) + α (λ − y(k−1))`` and the reading ``y(k) + b + v_k`` of tick ``k``
+        (``y(k) = λ`` exactly when ``α = 1``)."""
+        y = (np.array(lambda_true, dtype=float) if self.alpha == 1.0
+             else y_prev + self.alpha * (lambda_true - y_prev))
+        noise = white_noise(self.seed, self.robot, FORCE_SENSOR_STREAM, k, self.noise_std,
+                            self.m)
+        return y, y + self.bias + noise
+
+    def readings(self, lambdas: np.ndarray) -> np.ndarray:
+        """The readings ``λ_s(0), …, λ_s(K−1)`` of a run, from ``lambdas[k]``, the true ``λ``
+        of the plant step before tick ``k`` (row 0 unused: no step precedes ``t_0``), by
+        :meth:`step` from ``y(0) = 0``; an ideal model's readings are ``λ`` itself (the C++
+        hold's initial value 0 at tick 0)."""
+        lambdas = np.asarray(lambdas, dtype=float).reshape(-1, self.m)
+        out = np.empty_like(lambdas)
+        if out.shape[0] == 0:
+            return out
+        if self.ideal:          # the C++ hold: λ itself, 0 before its first sample
+            out[1:] = lambdas[1:]
+            out[0] = 0.0
+            return out
+        out[0] = self.initial_reading()
+        y = np.zeros(self.m)
+        for k in range(1, lambdas.shape[0]):
+            y, out[k] = self.step(y, lambdas[k], k)
+        return out
 
 
 class FTSensor(LeafSystem):
@@ -96,18 +178,12 @@ class FTSensor(LeafSystem):
                  settings: ForceSensorModel | None = None, robot_index: int = 0, m: int = 1,
                  read_lead: float | None = None):
         super().__init__()
-        s = settings or ForceSensorModel()
         self._h = period
         self._dt = plant_step
-        self._alpha = lowpass_alpha(s.cutoff_hz, period)
-        self._bias = float(s.bias)
-        self._std = float(s.noise_std)
-        self._seed = int(s.seed)
-        self._robot = int(robot_index)
-        self._m = int(m)
+        self._model = FTModel.from_settings(settings, period, robot_index, m)
         self._input = self.DeclareVectorInputPort("lambda_true", m)
-        self._y = self.DeclareDiscreteState(np.zeros(m))                 # low-pass state
-        self._reading = self.DeclareDiscreteState(np.full(m, self._bias))  # held reading
+        self._y = self.DeclareDiscreteState(np.zeros(m))                          # low-pass state
+        self._reading = self.DeclareDiscreteState(self._model.initial_reading())  # held reading
         # Time from the read to the tick it serves (see the module's docstring).
         steps = int(round(period / plant_step))
         if read_lead is None:
@@ -126,21 +202,19 @@ class FTSensor(LeafSystem):
     @property
     def alpha(self) -> float:
         """The low-pass gain ``α``."""
-        return self._alpha
+        return self._model.alpha
+
+    @property
+    def model(self) -> FTModel:
+        """The model's equations (shared with the offline path, :meth:`FTModel.readings`)."""
+        return self._model
 
     def _update_reading(self, context: Context, discrete_state: DiscreteValues) -> None:
         k = int(round((context.get_time() + self._lead) / self._h))   # the tick being served
-        y_prev = context.get_discrete_state(self._y).CopyToVector()
-        y = y_prev + self._alpha * (self._input.Eval(context) - y_prev)
-        noise = white_noise(self._seed, self._robot, FORCE_SENSOR_STREAM, k, self._std, self._m)
+        y, reading = self._model.step(context.get_discrete_state(self._y).CopyToVector(),
+                                      self._input.Eval(context), k)
         discrete_state.set_value(self._y, y)
-        discrete_state.set_value(self._reading, y + self._bias + noise)
-
-
-def _is_ideal(settings: ForceSensorModel | None) -> bool:
-    """No filter, no bias, no noise: ``λ_s(k)`` is the ground truth of the step before ``t_k``."""
-    s = settings or ForceSensorModel()
-    return s.cutoff_hz is None and s.bias == 0.0 and s.noise_std == 0.0
+        discrete_state.set_value(self._reading, reading)
 
 
 def add_ft_sensor(builder: DiagramBuilder, name: str, period: float, plant_step: float,
@@ -155,7 +229,7 @@ def add_ft_sensor(builder: DiagramBuilder, name: str, period: float, plant_step:
     Otherwise an :class:`FTSensor` reads the live ``lambda_live`` at ``t_k − 3Δt/2``.
     """
     if lambda_last_step is not None:
-        if _is_ideal(settings):
+        if FTModel.from_settings(settings, period, robot_index, m).ideal:
             ft = builder.AddNamedSystem(f"{name}_ft_sensor",
                                         ZeroOrderHold(period, m, period - 0.5 * plant_step))
             builder.Connect(lambda_last_step, ft.get_input_port())
