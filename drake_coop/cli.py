@@ -224,13 +224,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"drake-coop: simulating {label} ({scenario.plant.object_mode} mode, "
                   f"h = {scenario.control_period * 1e3:g} ms, plant step "
                   f"{scenario.plant.time_step * 1e3:g} ms) -> {out}", file=sys.stderr)
-        # The force arrows of the live view and of the replay draw the logged F_meas during
-        # the run: the live ground truth then (the offline one exists only after the run).
-        drawn = bool(args.meshcat or not args.no_replay)
         result = simulate(scenario, t_end=args.t_end, progress=progress,
                           before_build=before_build, on_start=on_start,
-                          hold_signals=SIGNALS.deferred,
-                          live_ground_truth=True if drawn else None)
+                          hold_signals=SIGNALS.deferred)
         if progress is not None:
             progress.close()
         if result.meta["status"] == "interrupted":

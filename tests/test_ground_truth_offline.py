@@ -156,3 +156,29 @@ def test_ft_model_readings_follow_the_first_order_filter_and_the_seeded_noise():
     ideal = FTModel(alpha=1.0, bias=0.0, noise_std=0.0, seed=0, robot=0, m=1)
     lams = np.random.default_rng(1).normal(size=(5, 1))
     np.testing.assert_array_equal(ideal.readings(lams)[1:], lams[1:])   # λ itself, bit for bit
+
+
+def test_tick_forces_give_during_the_run_the_logged_force_of_the_last_ticks_step():
+    """``wrist_forces_at_tick`` (what the Meshcat arrows draw on the offline path) at a tick,
+    before the tick's updates, is the force of the step from the previous tick: the logged
+    ``F_meas`` of that tick, evaluated after the run from the same hold."""
+    scenario = short_scenario()
+    box, seen = {}, []
+
+    def progress(t, T, wall):
+        exp, sim = box["exp"], box["sim"]
+        system = exp.diagram.GetSubsystemByName("wrist_forces_at_tick")
+        ctx = system.GetMyContextFromRoot(sim.get_context())
+        seen.append((t, [system.GetOutputPort(f"{rs.name}_F_step").Eval(ctx).copy()
+                         for rs in exp.robots]))
+
+    result = simulate(scenario, t_end=1.5, progress=progress,
+                      on_start=lambda exp, sim: box.update(exp=exp, sim=sim))
+    assert result.ok and len(seen) > 10
+    h = scenario.control_period
+    for t, forces in seen[1:]:
+        k = round(t / h)
+        for rs, F in zip(result.experiment.robots, forces):
+            np.testing.assert_allclose(F, result.logs[rs.name]["F_meas"][k - 1],
+                                       rtol=0, atol=1e-12)
+    assert max(np.linalg.norm(F) for _, forces in seen for F in forces) > 1.0   # held

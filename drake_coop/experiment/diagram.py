@@ -13,10 +13,11 @@
       │  state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor
       │  (contact, none: reaction forces, body poses ─▶ wrist_kinematics)
       │                                   └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
-      └─ otherwise, offline: [state, actuation] ─▶ ground_truth_hold_tick (t_k),
-         ground_truth_hold_step_end (t_k + Δt/2), ground_truth_hold_before_tick
-         (t_k − 3Δt/2) (C++ ZeroOrderHolds) ─▶ ground_truth_log; F_meas, lambda_meas and
-         lambda_sensor computed after the run (drake_coop.plant.ground_truth)
+      └─ otherwise, offline: [state, actuation, acceleration] ─▶ ground_truth_hold_tick
+         (t_k), [state, actuation] ─▶ ground_truth_hold_before_tick (t_k − 3Δt/2) (C++
+         ZeroOrderHolds) ─▶ ground_truth_log; F_meas, lambda_meas and lambda_sensor computed
+         after the run (drake_coop.plant.ground_truth); wrist_forces_at_tick gives F_meas
+         during the run to a reader that asks (the Meshcat arrows)
     every logged signal of a robot ─▶ robotN_log_signals (Multiplexer) ─▶ robotN_log
 
 Timing at a tick ``t_k``: the controller latches ``τ(k)`` by an unrestricted update (before

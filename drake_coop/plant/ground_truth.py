@@ -13,22 +13,24 @@ Holds (period ``h``, the plant step ``Δt``; each reads the context half a plant
 every plant update, or at a tick itself, so no floating-point rounding of an event time can
 move it across a plant update):
 
-* ``ground_truth_hold_tick``, offset 0: ``[x(t_k), u_k]``, the plant's state and the
+* ``ground_truth_hold_tick``, offset 0: ``[x(t_k), u_k, a_k]``, the plant's state, the
   actuation its inputs receive (the arms' actuators' outputs: the plant's ``net_actuation``
-  without PD-controlled actuators) in the discrete phase of ``t_k``, i.e. after the
-  controller's unrestricted latch of ``τ(k)``, from the context the plant's own update reads:
-  the start and the actuation of the step ``[t_k, t_k + Δt)``;
-* ``ground_truth_hold_step_end``, offset ``Δt/2``: ``x(t_k + Δt)``, the state that step
-  produced (``a = (v(t_k + Δt) − v(t_k))/Δt``, the acceleration port's own formula). Never at
-  offset ``Δt``: Drake computes an event's time as ``offset + k h``, which rounds differently
-  from the plant's ``j Δt`` on some ticks;
+  without PD-controlled actuators) and its generalized acceleration, in the discrete phase of
+  ``t_k``, i.e. after the controller's unrestricted latch of ``τ(k)``, from the context the
+  plant's own update reads: the start, actuation and acceleration of the step
+  ``[t_k, t_k + Δt)``. Reading the acceleration port there costs no solve of its own: the
+  plant's update at the same instant reuses it (``a = (v(t_k + Δt) − v(t_k))/Δt``, the port's
+  own formula, bit for bit);
 * with ``h ≥ 2Δt``, ``ground_truth_hold_before_tick``, offset ``h − 3Δt/2``:
   ``[x(t_k − Δt), u]`` of the step ``[t_k − Δt, t_k)``, which ends at ``x(t_k)``: the F/T
   sensor model's reading of tick ``k``
-  (:mod:`drake_coop.sensing.force_sensor`). With ``h = Δt`` that step is the previous tick's.
+  (:mod:`drake_coop.sensing.force_sensor`). Never at offset ``h − Δt``: Drake computes an
+  event's time as ``offset + k h``, which rounds differently from the plant's ``j Δt`` on
+  some ticks, and a read one rounding after the plant's update would make the plant solve the
+  next step for it. With ``h = Δt`` that step is the previous tick's.
 
 A :class:`~pydrake.systems.primitives.VectorLogSink` (``ground_truth_log``) publishes them at
-every tick, *before* the tick's updates: the sample at ``t_{k+1}`` holds the two tick holds of
+every tick, *before* the tick's updates: the sample at ``t_{k+1}`` holds the tick hold of
 tick ``k`` (shifted back as every latched signal, see
 :func:`~drake_coop.experiment.simulate.collect_logs`), the sample at ``t_k`` the step before
 ``t_k``. :meth:`GroundTruthLog.evaluate` returns per robot ``F_meas`` and ``lambda_meas`` of
@@ -36,7 +38,9 @@ the step taken from every tick and ``lambda_sensor``, the F/T model's reading
 (:class:`~drake_coop.sensing.force_sensor.FTModel`, the same function the live
 :class:`~drake_coop.sensing.force_sensor.FTSensor` steps). :meth:`GroundTruthLog.force_before_tick`
 gives the divergence guards the force of the step before the current tick, from the held data
-and the current state (no plant solve).
+and the current state (no plant solve). :class:`TickForces` (``wrist_forces_at_tick``) gives
+the same equation's ``F`` of the step from the last tick as output ports, computed only when
+read (the Meshcat force arrows, 30 times a simulated second).
 """
 
 from __future__ import annotations
@@ -44,7 +48,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.systems.framework import Context, DiagramBuilder, OutputPort
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import (
+    Context,
+    DiagramBuilder,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+    ValueProducer,
+)
 from pydrake.systems.primitives import (
     LogVectorOutput,
     Multiplexer,
@@ -64,13 +76,13 @@ class GroundTruthLog:
     Attributes
     ----------
     logger : VectorLogSink
-        ``ground_truth_log``: ``[x, u]`` of the tick hold, ``x`` of the step-end hold and, with
-        ``h ≥ 2Δt``, ``[x, u]`` of the before-tick hold, published at every tick.
+        ``ground_truth_log``: ``[x, u, a]`` of the tick hold and, with ``h ≥ 2Δt``, ``[x, u]``
+        of the before-tick hold, published at every tick.
     equation : ArmForces
         The wrist-force equation of every arm.
     models : list of FTModel
         Each robot's F/T sensor model.
-    tick, step_end, before_tick : OutputPort
+    tick, before_tick : OutputPort
         The holds' output ports (``before_tick`` None when ``h = Δt``).
     state : OutputPort
         The plant's state port (``x(t_k)`` at a tick, for the guards).
@@ -85,7 +97,6 @@ class GroundTruthLog:
     equation: ArmForces
     models: list[FTModel]
     tick: OutputPort
-    step_end: OutputPort
     before_tick: OutputPort | None
     state: OutputPort
     period: float
@@ -99,36 +110,34 @@ class GroundTruthLog:
         the ticks ``0 … n − 1``.
 
         ``F_meas`` of tick ``k`` is the force of the step ``[t_k, t_k + Δt)``: the tick hold of
-        ``k`` (published at ``t_{k+1}``) and the step-end hold. With ``complete`` (the last
-        published tick's updates ran, :func:`~drake_coop.experiment.simulate.finish_last_tick`)
-        the last tick's come from the holds' current values when both holds have sampled
-        after that tick (the context's time is past ``t_K + Δt/2``), else that row is NaN.
-        ``lambda_sensor`` of tick ``k ≥ 1`` is the model's reading of ``λ`` of the step
-        ``[t_k − Δt, t_k)``; tick 0's is the model's initial reading.
+        ``k``, published at ``t_{k+1}``. With ``complete`` (the last published tick's updates
+        ran, :func:`~drake_coop.experiment.simulate.finish_last_tick`) the last tick's come from
+        the hold's current value when it has sampled that tick (the context's time is past
+        ``t_K``), else that row is NaN. ``lambda_sensor`` of tick ``k ≥ 1`` is the model's
+        reading of ``λ`` of the step ``[t_k − Δt, t_k)``; tick 0's is the model's initial
+        reading.
         """
         eq = self.equation
         nx, nq = eq.nx, eq.nq
         nu = self.actuation_order.shape[1]            # held actuation values
+        width = nx + nu + (nx - nq)                   # the tick hold: [x, u, a]
         P = self.actuation_order.T
         log = self.logger.FindLog(context)
         times, data = log.sample_times(), log.data()
         published = times.size
-        tick = data[:nx + nu, 1:published].T
-        end = data[nx + nu:2 * nx + nu, 1:published].T
+        tick = data[:width, 1:published].T
         if complete and published > 0:
-            dt = eq.dt
-            valid = context.get_time() > times[published - 1] + 0.5 * dt
-            last_tick = self._now(context, self.tick) if valid else np.full(nx + nu, np.nan)
-            last_end = self._now(context, self.step_end) if valid else np.full(nx, np.nan)
+            valid = context.get_time() > times[published - 1]
+            last_tick = self._now(context, self.tick) if valid else np.full(width, np.nan)
             tick = np.vstack([tick, last_tick])
-            end = np.vstack([end, last_end])
-        tick, end = tick[:n], end[:n]
+        tick = tick[:n]
         n = tick.shape[0]
-        forces = _steps(eq, tick[:, :nx], end[:, nq:], tick[:, nx:] @ P)
+        forces = _steps(eq, tick[:, :nx], tick[:, nx + nu:], tick[:, nx:nx + nu] @ P)
         lam = [F @ N.T for F, N in zip(forces, eq.normals)]
         if self.before_tick is not None:
-            before = data[2 * nx + nu:, 1:n].T            # published at t_k: the step before t_k
-            prior = _steps(eq, before[:, :nx], tick[1:n, nq:nx], before[:, nx:] @ P)
+            before = data[width:, 1:n].T                  # published at t_k: the step before t_k
+            a_before = (tick[1:n, nq:nx] - before[:, nq:nx]) / eq.dt
+            prior = _steps(eq, before[:, :nx], a_before, before[:, nx:] @ P)
             prior = [np.vstack([np.zeros((min(n, 1), len(N))), F[:max(n - 1, 0)] @ N.T])
                      for F, N in zip(prior, eq.normals)]
         else:                                              # h = Δt: the previous tick's step
@@ -145,24 +154,88 @@ class GroundTruthLog:
         held = self._now(context, self.before_tick if self.before_tick is not None
                          else self.tick)
         x = held[:eq.nx]
+        u = held[eq.nx:eq.nx + self.actuation_order.shape[1]]
         v_now = self._now(context, self.state)[eq.nq:]
-        return eq(x, (v_now - x[eq.nq:]) / eq.dt, self.actuation_order @ held[eq.nx:])
+        return eq(x, (v_now - x[eq.nq:]) / eq.dt, self.actuation_order @ u)
 
 
-def _steps(eq: ArmForces, x: np.ndarray, v_next: np.ndarray, u: np.ndarray
+class TickForces(LeafSystem):
+    """Every arm's wrist force ``F`` of the plant step from the last tick, from the tick hold.
+
+    .. pydrake_system::
+
+        name: TickForces
+        input_ports:
+        - tick_hold
+        output_ports:
+        - <robot>_F_step
+
+    Reads ``[x(t_k), u_k, a_k]`` of ``ground_truth_hold_tick`` and evaluates
+    :class:`~drake_coop.plant.wrist.ArmForces` for every arm, once per tick and only when an
+    output is read (no event of its own): what the live ground truth's ``<robot>_F_step``
+    latches, for readers during the run (the Meshcat force arrows). The logs do not use it.
+
+    Parameters
+    ----------
+    equation : ArmForces
+        The wrist-force equation of every arm.
+    names : list of str
+        The robots' names, in the order of ``equation``'s arms.
+    actuation_order : ndarray
+        ``(n_u, w)``: the plant's actuation from the held actuation values.
+
+    Input ports
+    -----------
+    tick_hold : (n_x + w + n_v)-vector
+        ``[x, held actuation, a]``.
+
+    Output ports
+    ------------
+    <robot>_F_step : 3-vector, one per arm
+        ``F`` of the step from the last tick (N, palm frame).
+    """
+
+    def __init__(self, equation: ArmForces, names: list[str], actuation_order: np.ndarray):
+        super().__init__()
+        self._eq = equation
+        self._order = np.asarray(actuation_order, dtype=float)
+        nx, nv, w = equation.nx, equation.nx - equation.nq, self._order.shape[1]
+        self._hold = self.DeclareVectorInputPort("tick_hold", nx + w + nv)
+        self._forces = self.DeclareCacheEntry(
+            "wrist force of every arm",
+            ValueProducer(allocate=AbstractValue.Make([np.zeros(3)]).Clone,
+                          calc=self._calc_forces),
+            {self._hold.ticket()})
+        for i, name in enumerate(names):
+            self.DeclareVectorOutputPort(
+                f"{name}_F_step", 3,
+                lambda context, output, i=i: output.SetFromVector(
+                    self._forces.Eval(context)[i]),
+                prerequisites_of_calc={self._forces.ticket()})
+
+    def get_tick_hold_input_port(self) -> InputPort:
+        """``[x, held actuation, a]`` of the tick hold."""
+        return self._hold
+
+    def _calc_forces(self, context: Context, value: AbstractValue) -> None:
+        held = self._hold.Eval(context)
+        eq, w = self._eq, self._order.shape[1]
+        value.set_value(eq(held[:eq.nx], held[eq.nx + w:], self._order @ held[eq.nx:eq.nx + w]))
+
+
+def _steps(eq: ArmForces, x: np.ndarray, a: np.ndarray, u: np.ndarray
            ) -> list[np.ndarray]:
     """:meth:`ArmForces.steps` on the rows whose data are finite (a diverged run's last rows
     may not be), NaN on the others."""
     K = x.shape[0]
-    ok = np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(v_next), axis=1) \
+    ok = np.all(np.isfinite(x), axis=1) & np.all(np.isfinite(a), axis=1) \
         & np.all(np.isfinite(u), axis=1)
     out = [np.full((K, 3), np.nan) for _ in eq.normals]
     if ok.any():
         try:
-            values = eq.steps(x[ok], v_next[ok], u[ok])
+            values = eq.steps(x[ok], a[ok], u[ok])
         except np.linalg.LinAlgError:           # a singular Jacobian: row by row
-            rows = [eq(xi, (vi - xi[eq.nq:]) / eq.dt, ui)
-                    for xi, vi, ui in zip(x[ok], v_next[ok], u[ok])]
+            rows = [eq(xi, ai, ui) for xi, ai, ui in zip(x[ok], a[ok], u[ok])]
             values = [np.array([r[arm] for r in rows]) for arm in range(len(eq.normals))]
         for o, v in zip(out, values):
             o[ok] = v
@@ -211,17 +284,20 @@ def add_ground_truth(builder: DiagramBuilder, coop: CoopPlant, period: float,
                 order[:, start + j] = column
             start += port.size()
     width = nx + order.shape[1]
+    nv = plant.num_velocities()
     signals = builder.AddNamedSystem("ground_truth_signals",
                                      Multiplexer([nx] + [p.size() for p in sources]))
     builder.Connect(plant.get_state_output_port(), signals.get_input_port(0))
     for j, port in enumerate(sources):
         builder.Connect(port, signals.get_input_port(j + 1))
-    tick = builder.AddNamedSystem("ground_truth_hold_tick", ZeroOrderHold(period, width, 0.0))
-    builder.Connect(signals.get_output_port(0), tick.get_input_port())
-    end = builder.AddNamedSystem("ground_truth_hold_step_end",
-                                 ZeroOrderHold(period, nx, 0.5 * dt))
-    builder.Connect(plant.get_state_output_port(), end.get_input_port())
-    held = [tick, end]
+    with_a = builder.AddNamedSystem("ground_truth_signals_and_acceleration",
+                                    Multiplexer([width, nv]))
+    builder.Connect(signals.get_output_port(0), with_a.get_input_port(0))
+    builder.Connect(plant.get_generalized_acceleration_output_port(), with_a.get_input_port(1))
+    tick = builder.AddNamedSystem("ground_truth_hold_tick",
+                                  ZeroOrderHold(period, width + nv, 0.0))
+    builder.Connect(with_a.get_output_port(0), tick.get_input_port())
+    held = [tick]
     before = None
     if _holds_last_step(period, dt):
         before = builder.AddNamedSystem("ground_truth_hold_before_tick",
@@ -234,9 +310,12 @@ def add_ground_truth(builder: DiagramBuilder, coop: CoopPlant, period: float,
         builder.Connect(s.get_output_port(), mux.get_input_port(j))
     logger = LogVectorOutput(mux.get_output_port(0), builder, publish_period=period)
     logger.set_name("ground_truth_log")
-    return GroundTruthLog(logger=logger, equation=ArmForces(plant, coop.arms, dt),
+    equation = ArmForces(plant, coop.arms, dt)
+    forces = builder.AddNamedSystem("wrist_forces_at_tick", TickForces(
+        equation, [h.arm.name for h in coop.arms], order))
+    builder.Connect(tick.get_output_port(), forces.get_input_port())
+    return GroundTruthLog(logger=logger, equation=equation,
                           models=list(models), tick=tick.get_output_port(),
-                          step_end=end.get_output_port(),
                           before_tick=None if before is None else before.get_output_port(),
                           state=plant.get_state_output_port(), period=float(period),
                           actuation_order=order)

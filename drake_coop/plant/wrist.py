@@ -192,19 +192,18 @@ class ArmForces:
                 out.append(np.linalg.lstsq(J.T, b, rcond=None)[0])
         return out
 
-    def steps(self, x: np.ndarray, v_next: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
+    def steps(self, x: np.ndarray, a: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
         """``F`` of every arm for ``K`` plant steps at once: step ``i`` starts at ``x[i]``
-        (plant state ``[q, v]``), ends at the velocities ``v_next[i]`` (so
-        ``a = (v_next − v)/Δt``, the acceleration port's own formula) under ``u[i]``.
+        (plant state ``[q, v]``) with the acceleration ``a[i]`` (the plant's
+        generalized-acceleration port, ``(v_{j+1} − v_j)/Δt``) under ``u[i]``.
 
         Returns one ``(K, 3)`` array per arm; the square solves are batched (NumPy's LU), the
         plant's calls are one inverse dynamics and one Jacobian per arm and step.
         """
         x = np.asarray(x, dtype=float).reshape(-1, self.nx)
-        v_next = np.asarray(v_next, dtype=float).reshape(-1, self.nx - self.nq)
+        a = np.asarray(a, dtype=float).reshape(-1, self.nx - self.nq)
         u = np.asarray(u, dtype=float).reshape(-1, self.nu)
         K = x.shape[0]
-        a = (v_next - x[:, self.nq:]) / self.dt
         plant, pc, forces = self._plant, self._context, self._forces
         world = plant.world_frame()
         origin = np.zeros(3)

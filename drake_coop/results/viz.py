@@ -281,14 +281,24 @@ class ForceArrows(LeafSystem):
                 m.SetProperty(f"{ROOT}/held_object/scaled", "scale", list(size), t)
 
 
+def _named(builder: DiagramBuilder, name: str):
+    """The builder's system called ``name``, or None."""
+    return next((s for s in builder.GetSystems() if s.get_name() == name), None)
+
+
 def _logged_source(builder: DiagramBuilder, robot: str, key: str) -> OutputPort:
     """The output port that feeds the logged signal ``key`` of ``robot`` (an input of its
     ``<robot>_log_signals`` Multiplexer, in the order of
-    :data:`~drake_coop.experiment.diagram.LOG_KEYS`)."""
-    from drake_coop.experiment.diagram import LOG_KEYS
+    :data:`~drake_coop.experiment.diagram.LOG_KEYS`, without
+    :data:`~drake_coop.experiment.diagram.GROUND_TRUTH_KEYS` when the ground truth is computed
+    after the run)."""
+    from drake_coop.experiment.diagram import GROUND_TRUTH_KEYS, LOG_KEYS
 
     mux = builder.GetSubsystemByName(f"{robot}_log_signals")
-    index = LOG_KEYS.index(key)
+    keys = list(LOG_KEYS)
+    if mux.num_input_ports() != len(keys):          # the offline ground truth
+        keys = [k for k in keys if k not in GROUND_TRUTH_KEYS]
+    index = keys.index(key)
     for (system, port), (source, out_index) in builder.connection_map().items():
         if system is mux and int(port) == index:
             return source.get_output_port(out_index)
@@ -299,8 +309,11 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
                      scale: float = 0.002, publish_period: float = 1 / 30) -> ForceArrows:
     """Add :class:`ForceArrows` to an experiment's builder, fed by the robots' logged signals.
 
-    Call it from ``build_experiment``'s ``before_build`` hook (the logged ``reference``,
-    ``F_meas`` and ``lambda_hat`` of each robot must exist, i.e. ``log=True``).
+    Call it from ``build_experiment``'s ``before_build`` hook (the logged ``reference`` and
+    ``lambda_hat`` of each robot must exist, i.e. ``log=True``). ``F_meas`` is the logged
+    live ground truth's or, when the ground truth is computed after the run, the
+    ``wrist_forces_at_tick`` system's ``<robot>_F_step`` (the same force of the step from the
+    last tick, evaluated only when the arrows are drawn).
 
     Parameters
     ----------
@@ -322,9 +335,13 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
         name = h.arm.name
         builder.Connect(coop.plant.get_state_output_port(h.instance),
                         arrows.GetInputPort(f"{name}_state"))
-        for key in ("reference", "F_meas", "lambda_hat"):
+        for key in ("reference", "lambda_hat"):
             builder.Connect(_logged_source(builder, name, key),
                             arrows.GetInputPort(f"{name}_{key}"))
+        offline = _named(builder, "wrist_forces_at_tick")
+        builder.Connect(offline.GetOutputPort(f"{name}_F_step") if offline is not None
+                        else _logged_source(builder, name, "F_meas"),
+                        arrows.GetInputPort(f"{name}_F_meas"))
     return arrows
 
 
