@@ -47,7 +47,9 @@ def theorem_run():
         refs.append(PiecewisePolynomial(
             np.concatenate([q, np.zeros(6), [LAMBDA_D], [1.0]]).reshape(-1, 1)))
         q0.append(arm.ik([r.contact_xy[0], 0.002, 0.587]))
-    exp = build_experiment(s, references=refs)
+    # The live ground truth: this test reads the raw logs, where lambda_meas is logged (the
+    # offline path computes it in collect_logs).
+    exp = build_experiment(s, references=refs, live_ground_truth=True)
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()
     pc = exp.coop.plant.GetMyMutableContextFromRoot(ctx)

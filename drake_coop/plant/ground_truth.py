@@ -174,6 +174,8 @@ class TickForces(LeafSystem):
     :class:`~drake_coop.plant.wrist.ArmForces` for every arm, once per tick and only when an
     output is read (no event of its own): what the live ground truth's ``<robot>_F_step``
     latches, for readers during the run (the Meshcat force arrows). The logs do not use it.
+    Before the hold's first sample (its initial value, all zeros: at ``Simulator.Initialize``)
+    every force is zero.
 
     Parameters
     ----------
@@ -220,6 +222,9 @@ class TickForces(LeafSystem):
     def _calc_forces(self, context: Context, value: AbstractValue) -> None:
         held = self._hold.Eval(context)
         eq, w = self._eq, self._order.shape[1]
+        if not held.any():           # the hold's initial value: no tick sampled yet
+            value.set_value([np.zeros(3) for _ in eq.normals])
+            return
         value.set_value(eq(held[:eq.nx], held[eq.nx + w:], self._order @ held[eq.nx:eq.nx + w]))
 
 
