@@ -216,7 +216,7 @@ class ArmForces:
             for J, (frame, _) in zip(jacobians, self._arms):
                 J[i] = plant.CalcJacobianTranslationalVelocity(
                     pc, JacobianWrtVariable.kV, frame, origin, world, world)
-        generalized = inverse + self._damping_dt * a - u @ self._B.T
+        generalized = inverse + self._damping_dt * a - np.einsum("kj,ij->ki", u, self._B)
         out = []
         for J, (_, columns) in zip(jacobians, self._arms):
             Jt = np.transpose(J[:, :, columns], (0, 2, 1))                   # (K, n, 3)
