@@ -173,6 +173,7 @@ def test_tick_forces_give_during_the_run_the_logged_force_of_the_last_ticks_step
                          for rs in exp.robots]))
 
     result = simulate(scenario, t_end=1.5, progress=progress,
+                      before_build=lambda builder, coop: None,     # a visualizer's hook
                       on_start=lambda exp, sim: box.update(exp=exp, sim=sim))
     assert result.ok and len(seen) > 10
     h = scenario.control_period

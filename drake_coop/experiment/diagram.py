@@ -202,7 +202,10 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     log : bool
         Log every signal of :class:`RobotLog`, sampling every control period.
     before_build : callable, optional
-        ``before_build(builder, coop)`` called just before ``Build()`` (visualizers).
+        ``before_build(builder, coop)`` called just before ``Build()`` (visualizers). With it,
+        the offline ground truth also has ``wrist_forces_at_tick``
+        (:class:`~drake_coop.plant.ground_truth.TickForces`), the force during the run for the
+        Meshcat arrows.
     references : list of Trajectory, optional
         One reference trajectory per robot (rows of
         :class:`~drake_coop.control.finger.ReferenceLayout`) instead of the scenario's
@@ -317,7 +320,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         ground_truth = add_ground_truth(
             b, coop, h, [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
                          for i, (r, arm) in enumerate(zip(scenario.robots, coop.arms))],
-            actuation)
+            actuation, tick_forces=before_build is not None)    # for visualizers' readers
     if before_build is not None:
         before_build(b, coop)
     diagram = b.Build()

@@ -255,8 +255,8 @@ def _steps(eq: ArmForces, x: np.ndarray, a: np.ndarray, u: np.ndarray
 
 
 def add_ground_truth(builder: DiagramBuilder, coop: CoopPlant, period: float,
-                     models: list[FTModel], actuation: list[OutputPort] | None = None
-                     ) -> GroundTruthLog:
+                     models: list[FTModel], actuation: list[OutputPort] | None = None,
+                     tick_forces: bool = True) -> GroundTruthLog:
     """The holds and the logger of the offline ground truth (see the module's docstring),
     wired to the plant: C++ systems only, no Python call during the run.
 
@@ -275,6 +275,9 @@ def add_ground_truth(builder: DiagramBuilder, coop: CoopPlant, period: float,
         the holds sample as ``u``. Default: the plant's ``net_actuation`` port, the same
         values (no PD-controlled actuators), but its evaluation between two plant updates
         costs more than the sources' (measured ~4 % of the plant's cost per tick).
+    tick_forces : bool
+        Also add :class:`TickForces` (``wrist_forces_at_tick``) for readers during the run;
+        without it the diagram has one system less, whose per-step cost every run would pay.
     """
     if coop.mode not in ("planes", "rigid"):
         raise ValueError(f"the offline ground truth needs planes or rigid mode, not "
@@ -323,9 +326,10 @@ def add_ground_truth(builder: DiagramBuilder, coop: CoopPlant, period: float,
     logger = LogVectorOutput(mux.get_output_port(0), builder, publish_period=period)
     logger.set_name("ground_truth_log")
     equation = ArmForces(plant, coop.arms, dt)
-    forces = builder.AddNamedSystem("wrist_forces_at_tick", TickForces(
-        equation, [h.arm.name for h in coop.arms], order))
-    builder.Connect(tick.get_output_port(), forces.get_input_port())
+    if tick_forces:
+        forces = builder.AddNamedSystem("wrist_forces_at_tick", TickForces(
+            equation, [h.arm.name for h in coop.arms], order))
+        builder.Connect(tick.get_output_port(), forces.get_input_port())
     return GroundTruthLog(logger=logger, equation=equation,
                           models=list(models), tick=tick.get_output_port(),
                           before_tick=None if before is None else before.get_output_port(),
