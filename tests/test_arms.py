@@ -293,3 +293,17 @@ def test_whole_reference_path_is_reachable_away_from_singularities(index):
     print(f"{robot.name}: smallest singular value of the position Jacobian on the path "
           f"{sigma.min():.3f} m")
     assert sigma.min() > 0.05
+
+
+def test_one_sample_on_plain_floats_equals_the_batched_closed_form():
+    """``fk``, ``jacobian`` and ``jacobian_dot`` take a plain-float path for one sample (the
+    controller's); it gives the batched NumPy evaluation's values to rounding."""
+    for robot in paper_robots():
+        arm = Arm(robot)
+        rng = np.random.default_rng(3)
+        Q, V = rng.uniform(-1.2, 1.2, (8, 3)), rng.normal(size=(8, 3))
+        fk, J, Jd = arm.fk(Q), arm.jacobian(Q), arm.jacobian_dot(Q, V)
+        for k in range(len(Q)):
+            np.testing.assert_allclose(arm.fk(Q[k]), fk[k], rtol=0, atol=1e-15)
+            np.testing.assert_allclose(arm.jacobian(Q[k]), J[k], rtol=0, atol=1e-15)
+            np.testing.assert_allclose(arm.jacobian_dot(Q[k], V[k]), Jd[k], rtol=0, atol=1e-14)

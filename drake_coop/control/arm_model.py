@@ -64,6 +64,7 @@ class ArmModel:
         self.closed_form = (arm.closed_form and not arm.robot.controller_model
                             if closed_form is None else bool(closed_form))
         self._row_key = b""
+        self._J_phi_key = b""
         if self.closed_form:
             crs = arm.kinematics
             self._lengths = (crs.geometry.h1, crs.geometry.L2, crs.geometry.L3)
@@ -112,6 +113,7 @@ class ArmModel:
         self._setup(plant, ee_frame, normalized_normals(normals), contact_vector(contact_point))
         self.closed_form = False
         self._row_key = b""
+        self._J_phi_key = b""
         return self
 
     def _setup(self, plant: MultibodyPlant, ee_frame: str, N: np.ndarray, c: np.ndarray
@@ -249,9 +251,15 @@ class ArmModel:
         return self._N @ (self.ee_position(q) - self._c)
 
     def J_phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint Jacobian ``J_φ = ∂φ/∂q = N J_x`` (m×n)."""
+        """Constraint Jacobian ``J_φ = ∂φ/∂q = N J_x`` (m×n).
+
+        Closed form: cached for the last ``q`` (the force observer and the controller evaluate
+        it at the same sample of a tick); the caller must not modify the array."""
         if self.closed_form:
-            return self._N @ self.arm.jacobian(q)
+            key = np.asarray(q, dtype=float).tobytes()
+            if key != self._J_phi_key:
+                self._J_phi_key, self._J_phi = key, self._N @ self.arm.jacobian(q)
+            return self._J_phi
         self._set_q(q)
         Jv = self.plant.CalcJacobianTranslationalVelocity(
             self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
@@ -266,7 +274,7 @@ class ArmModel:
         with one derivative component seeded with ``direction``.
         """
         if self.closed_form:
-            return (self._N @ self.arm.jacobian(q),
+            return (self.J_phi(q),
                     self._N @ self.arm.jacobian_dot(q, np.asarray(direction, dtype=float)))
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))

@@ -118,6 +118,11 @@ class CrsKinematics:
         """End-effector point E in the palm frame, for q of shape (..., n)."""
         g = self.geometry
         q = np.asarray(q, dtype=float)
+        if q.ndim == 1:            # one sample: plain floats (NumPy's per-call cost dominates)
+            q1, q2, q3 = q.tolist()
+            r = g.L2 * math.sin(q2) + g.L3 * math.sin(q2 + q3)
+            z = g.h1 + g.L2 * math.cos(q2) + g.L3 * math.cos(q2 + q3)
+            return self.R_base @ np.array([r * math.cos(q1), r * math.sin(q1), z]) + self.p_base
         q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
         r = g.L2 * np.sin(q2) + g.L3 * np.sin(q2 + q3)
         z = g.h1 + g.L2 * np.cos(q2) + g.L3 * np.cos(q2 + q3)
@@ -129,6 +134,11 @@ class CrsKinematics:
         e = L3 s23 shared by the Jacobian and its derivative."""
         g = self.geometry
         q = np.asarray(q, dtype=float)
+        if q.ndim == 1:            # one sample: plain floats
+            q1, q2, q3 = q.tolist()
+            b, e = g.L3 * math.cos(q2 + q3), g.L3 * math.sin(q2 + q3)
+            return (math.sin(q1), math.cos(q1), g.L2 * math.sin(q2) + e,
+                    g.L2 * math.cos(q2) + b, b, e)
         q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
         b = g.L3 * np.cos(q2 + q3)
         e = g.L3 * np.sin(q2 + q3)
@@ -139,6 +149,9 @@ class CrsKinematics:
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """Translational Jacobian ∂E/∂q in the palm frame, shape (..., 3, 3)."""
         s1, c1, r, a, b, e = self._terms(q)
+        if np.ndim(q) == 1:
+            return self.R_base @ np.array([[-r * s1, a * c1, b * c1], [r * c1, a * s1, b * s1],
+                                           [0.0, -r, -e]])
         zero = np.zeros_like(s1)
         J = np.stack([
             np.stack([-r * s1, a * c1, b * c1], axis=-1),
@@ -151,6 +164,16 @@ class CrsKinematics:
         """Time derivative of :meth:`jacobian` along joint velocity v, shape (..., 3, 3)."""
         s1, c1, r, a, b, e = self._terms(q)
         v = np.asarray(v, dtype=float)
+        if np.ndim(q) == 1 and v.ndim == 1:
+            v1, v2, v3 = v.tolist()
+            rd = a * v2 + b * v3
+            ad = -self.geometry.L2 * math.sin(float(q[1])) * v2 - e * (v2 + v3)
+            bd = -e * (v2 + v3)
+            ed = b * (v2 + v3)
+            return self.R_base @ np.array([
+                [-rd * s1 - r * c1 * v1, ad * c1 - a * s1 * v1, bd * c1 - b * s1 * v1],
+                [rd * c1 - r * s1 * v1, ad * s1 + a * c1 * v1, bd * s1 + b * c1 * v1],
+                [0.0, -rd, -ed]])
         v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
         q2 = np.asarray(q, dtype=float)[..., 1]
         rd = a * v2 + b * v3
