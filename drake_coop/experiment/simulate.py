@@ -150,10 +150,9 @@ def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
 
     ``AdvanceTo(k h)`` ends with the loggers' publish at ``t_k``, *before* that tick's updates:
     ``τ(k)`` and the force of the step from ``t_k`` are not latched yet. A run that ended
-    normally or by a guard takes three quarters of a plant step more (the tick's updates, among
-    them the plant's step from ``t_k`` and the offline ground truth's tick hold; nothing is
-    published, the reported end stays ``t_k``, the plant's next update at ``t_k + Δt`` is not
-    reached). A run that stopped
+    normally or by a guard takes half a plant step more (the tick's updates, among them the
+    plant's step from ``t_k`` and the offline ground truth's tick hold; nothing is published,
+    the reported end stays ``t_k``). A run that stopped
     inside a step (an exception, Ctrl-C) is left as it is; :func:`collect_logs` then keeps only
     the ticks whose signals were latched.
     """
@@ -166,7 +165,7 @@ def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
     if k is None or ctrl.latched_tick(ctrl.GetMyContextFromRoot(context)) == k:
         return
     try:
-        simulator.AdvanceTo(t + 0.75 * exp.scenario.plant.time_step)
+        simulator.AdvanceTo(t + 0.5 * exp.scenario.plant.time_step)
     except RuntimeError:      # the blown-up state of a diverged run: keep what was latched
         pass
 
