@@ -265,3 +265,25 @@ def test_contact_mode_is_refused_in_one_line():
     s.plant.object_mode = "contact"
     with pytest.raises(ScenarioError, match="plant.object_mode"):
         operating_point(s, "free")
+
+
+def test_overlay_matches_a_studys_per_joint_gain_to_the_grids_value(tmp_path):
+    """A study's results.csv writes a ``*`` path into a per-joint list as the list
+    (``K_R`` = ``"30.0 30.0 30.0"``); the map's grid sweeps the scalar 30."""
+    from drake_coop.stability.output import read_outcomes
+
+    path = tmp_path / "results.csv"
+    path.write_text("robots.*.gains.k_d,robots.*.gains.K_R,status\n"
+                    "10,30.0 30.0 30.0,ok\n10,30.0 60.0 30.0,diverged\n")
+    assert read_outcomes(path, ["robots.*.gains.k_d", "robots.*.gains.K_R"]) == {
+        ("10", "30"): "ok", ("10", "30.0 60.0 30.0"): "diverged"}
+
+
+def test_cli_overlay_matching_no_grid_point_exits_2_naming_overlay(tmp_path, capsys):
+    path = tmp_path / "results.csv"
+    path.write_text("control_period,status\n0.005,ok\n")
+    code = main(["stability", "paper", "--out", str(tmp_path / "o"), "--overlay", str(path),
+                 "--grid", "control_period=0.009,0.025"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--overlay" in err[0]
+    assert not (tmp_path / "o").exists()

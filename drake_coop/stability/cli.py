@@ -92,6 +92,14 @@ def cmd_stability(args) -> int:
         cases = grid_cases(path.read_text(encoding="utf-8"), grid)
         swept = list(grid)
         outcomes = read_outcomes(args.overlay, swept) if args.overlay else None
+        if outcomes is not None:
+            from drake_coop.stability.output import _key
+
+            keys = {tuple(_key(case.params[k]) for k in swept) for case in cases}
+            if not keys & set(outcomes):
+                raise InputError(f"--overlay: {args.overlay} has no case at this grid's points "
+                                 f"(its columns {', '.join(swept)} never take the grid's "
+                                 "values)")
     except (InputError, ScenarioError, StudyError, OSError, ValueError) as exc:
         return _error(str(exc))
     points = ["free", "held"] if args.point == "both" else [args.point]

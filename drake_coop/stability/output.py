@@ -70,8 +70,16 @@ def read_outcomes(path: str | Path, swept: list[str]) -> dict[tuple, str]:
 
 
 def _key(v) -> str:
+    """A swept value as text for matching: numbers to 12 digits; a study's per-joint list
+    (``"30.0 30.0 30.0"``: a ``*`` path set every joint of a list to one grid value) as that
+    one value when all its entries are equal."""
     x = _num(v)
-    return f"{x:.12g}" if x is not None else str(v)
+    if x is not None:
+        return f"{x:.12g}"
+    parts = [_num(p) for p in str(v).split()]
+    if parts and all(p is not None for p in parts) and len(set(parts)) == 1:
+        return f"{parts[0]:.12g}"
+    return str(v)
 
 
 def plot_maps(out: Path, swept: list[str], rows: list[dict],
