@@ -169,8 +169,8 @@ class Controller(LeafSystem):
         """``tau``, ``qdot_r``, ``qddot_r_hat``, ``Delta_lambda_tilde`` from the current inputs:
         at a tick, what the tick's update latches.
 
-        Computed on each call (no cache entry: the latch, the one caller per tick in a
-        simulation, would pay a second Python callback for it)."""
+        Computed on each call (no cache entry: in a simulation the latch is its one caller
+        per tick)."""
         return self._law.control(
             self._q.Eval(context), self._q_hat.Eval(context), self._qdot_hat.Eval(context),
             self._qdot_o.Eval(context), self._lambda_hat.Eval(context),
