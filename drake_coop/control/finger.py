@@ -73,11 +73,14 @@ class ReferenceLayout:
         return {"q_d": slice(0, n), "qdot_d": slice(n, 2 * n), "qddot_d": slice(2 * n, 3 * n),
                 "lambda_d": slice(3 * n, 3 * n + m), "held": slice(3 * n + m, 3 * n + m + 1)}
 
+    def held(self, r: np.ndarray) -> bool:
+        """Whether the sample ``r`` holds the object (its ``held`` row above 1/2)."""
+        return bool(r[3 * self.n + self.m] > 0.5)
+
     def unpack(self, r: np.ndarray) -> Reference:
         """One sample from the vector."""
         n, m = self.n, self.m
-        return Reference(r[0:n], r[n:2 * n], r[2 * n:3 * n], r[3 * n:3 * n + m],
-                         bool(r[3 * n + m] > 0.5))
+        return Reference(r[0:n], r[n:2 * n], r[2 * n:3 * n], r[3 * n:3 * n + m], self.held(r))
 
     def pack(self, q_d: np.ndarray, qdot_d: np.ndarray, qddot_d: np.ndarray,
              lambda_d: np.ndarray, held: np.ndarray) -> np.ndarray:

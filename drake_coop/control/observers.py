@@ -230,7 +230,6 @@ class ForceObserver(LeafSystem):
         self._h = period
         n, m = law.n, law.m
         self._layout = law.layout
-        self._held_row = law.layout.slices()["held"].start
         self._lambda_d_rows = law.layout.slices()["lambda_d"]
         self._zero_m = np.zeros(m)
         self._q = self.DeclareVectorInputPort("q", n)
@@ -281,7 +280,7 @@ class ForceObserver(LeafSystem):
 
     def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
         r = self._reference.Eval(context)
-        if r[self._held_row] > 0.5:      # held (ReferenceLayout.unpack's rule)
+        if self._layout.held(r):
             DF = context.get_discrete_state(self._state).value()
             new = DF + self._h * (self._lambda_hat_out.Eval(context) - r[self._lambda_d_rows])
         else:

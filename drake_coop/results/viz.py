@@ -242,8 +242,7 @@ class ForceArrows(LeafSystem):
 
     def held(self, context: Context) -> bool:
         """Whether the first robot's reference says the object is held."""
-        held = self._layouts[0].slices()["held"]
-        return bool(self._ports[0]["reference"].Eval(context)[held][0] > 0.5)
+        return self._layouts[0].held(self._ports[0]["reference"].Eval(context))
 
     def ee_point(self, context: Context, i: int) -> np.ndarray:
         """End-effector point ``fk(q)`` of robot i (palm frame)."""
