@@ -77,7 +77,7 @@ def cmd_stability(args) -> int:
     from drake_coop.scenario.resources import find_scenario
     from drake_coop.scenario.schema import ScenarioError
     from drake_coop.stability.grid import grid_cases, run_grid
-    from drake_coop.stability.output import plot_maps, read_outcomes, write_csv
+    from drake_coop.stability.output import outcome_key, plot_maps, read_outcomes, write_csv
     from drake_coop.studies.spec import StudyError
 
     try:
@@ -93,9 +93,7 @@ def cmd_stability(args) -> int:
         swept = list(grid)
         outcomes = read_outcomes(args.overlay, swept) if args.overlay else None
         if outcomes is not None:
-            from drake_coop.stability.output import _key
-
-            keys = {tuple(_key(case.params[k]) for k in swept) for case in cases}
+            keys = {outcome_key(case.params, swept) for case in cases}
             if not keys & set(outcomes):
                 raise InputError(f"--overlay: {args.overlay} has no case at this grid's points "
                                  f"(its columns {', '.join(swept)} never take the grid's "

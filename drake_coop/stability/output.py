@@ -20,7 +20,7 @@ import numpy as np
 
 from drake_coop.stability.grid import COLUMNS
 
-__all__ = ["OUTPUT_NAMES", "plot_maps", "read_outcomes", "write_csv"]
+__all__ = ["OUTPUT_NAMES", "outcome_key", "plot_maps", "read_outcomes", "write_csv"]
 
 #: What ``drake-coop stability`` writes into its folder (prefixes).
 OUTPUT_NAMES = ("stability.csv", "stability_")
@@ -65,8 +65,14 @@ def read_outcomes(path: str | Path, swept: list[str]) -> dict[tuple, str]:
             if not all(k in r for k in swept):
                 raise ValueError(f"{path}: the study results lack the columns "
                                  f"{', '.join(k for k in swept if k not in r)}")
-            out[tuple(_key(r[k]) for k in swept)] = r["status"]
+            out[outcome_key(r, swept)] = r["status"]
     return out
+
+
+def outcome_key(values, swept: list[str]) -> tuple[str, ...]:
+    """The key of :func:`read_outcomes` for a grid point's ``values`` (a mapping of each swept
+    path to its value: a study's row or a stability case's parameters)."""
+    return tuple(_key(values[p]) for p in swept)
 
 
 def _key(v) -> str:
@@ -120,7 +126,7 @@ def plot_maps(out: Path, swept: list[str], rows: list[dict],
                 ax.text(i, j, f"{_num(r.get('rho')) or float('nan'):.2f}", ha="center",
                         va="top", fontsize=7)
                 if outcomes is not None:
-                    status = outcomes.get(tuple(_key(r[p]) for p in swept))
+                    status = outcomes.get(outcome_key(r, swept))
                     if status is not None:
                         ax.plot(i, j + 0.22, "x" if status != "ok" else "o", ms=7,
                                 mfc="none", color="k")
@@ -137,7 +143,7 @@ def plot_maps(out: Path, swept: list[str], rows: list[dict],
             ax.axhline(1.0, color="k", lw=1)
             if outcomes is not None:
                 for r in group:
-                    status = outcomes.get(tuple(_key(r[p]) for p in swept))
+                    status = outcomes.get(outcome_key(r, swept))
                     if status is not None:
                         ax.plot(_num(r[px]), _num(r.get("rho")) or math.nan,
                                 "x" if status != "ok" else "o", ms=10, mfc="none", color="k")
