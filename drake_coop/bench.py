@@ -116,7 +116,7 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
     from pydrake.trajectories import PiecewisePolynomial
 
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.references import cartesian_reference, joint_reference
+    from drake_coop.experiment.simulate import rest_posture
     from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 
     plan = plan_run(scenario, t_end)
@@ -136,9 +136,7 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
     pc = coop.plant.GetMyMutableContextFromRoot(ctx)
-    q0 = [np.asarray(joint_reference(h.arm, *cartesian_reference(scenario.task, robot, [0.0]))[0])
-          .reshape(-1) for h, robot in zip(coop.arms, scenario.robots)]
-    initialize_plant_context(coop, pc, q0, scenario.task.circle_top_z - scenario.task.lift_height)
+    initialize_plant_context(coop, pc, *rest_posture(scenario, [h.arm for h in coop.arms]))
     sim.Initialize()
     wall, cpu = time.perf_counter(), time.process_time()
     for k_stop in plan.stops:

@@ -74,13 +74,15 @@ def initialize(exp: Experiment, context) -> None:
 
     ``q(0)`` as the encoders read it at rest (quantized, no noise; the exact ``q(0)`` with
     ideal encoders)."""
-    scenario = exp.scenario
-    coop = exp.coop
-    q0 = [np.asarray(joint_reference(h.arm, *cartesian_reference(scenario.task, robot, [0.0]))[0])
-          .reshape(-1)
-          for h, robot in zip(coop.arms, scenario.robots)]
-    z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
-    set_rest_state(exp, context, q0, z_grasp)
+    set_rest_state(exp, context, *rest_posture(exp.scenario, [h.arm for h in exp.coop.arms]))
+
+
+def rest_posture(scenario: Scenario, arms: list) -> tuple[list[np.ndarray], float]:
+    """The run's start: each arm's ``q_d(0)`` (one posture per robot) and the height of the
+    object's sliders at the grasp (``circle_top_z − lift_height``)."""
+    q0 = [np.asarray(joint_reference(arm, *cartesian_reference(scenario.task, robot, [0.0]))[0])
+          .reshape(-1) for arm, robot in zip(arms, scenario.robots)]
+    return q0, scenario.task.circle_top_z - scenario.task.lift_height
 
 
 def set_rest_state(exp: Experiment, context, q0: list[np.ndarray], z_grasp: float) -> None:
