@@ -193,18 +193,17 @@ class FingerLaw:
 
         ``d/dt q̂ = q̇̂_o + Λ z + k_d z`` and ``q̇_o = d/dt q̂ − Λ z = q̇̂_o + k_d z``.
         """
-        z = q - q_hat
-        return qdot_hat_o + self._Lambda_plus_k_d * z, qdot_hat_o + self.k_d * z
+        return (self.observer_qdot_hat(q, q_hat, qdot_hat_o),
+                self.observer_qdot_o(q, q_hat, qdot_hat_o))
 
     def observer_qdot_hat(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
                           ) -> np.ndarray:
-        """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15) alone (the first of
-        :meth:`observer_derivative`, the same doubles)."""
+        """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15) alone (the velocity observer's output)."""
         return qdot_hat_o + self._Lambda_plus_k_d * (q - q_hat)
 
     def observer_qdot_o(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
                         ) -> np.ndarray:
-        """``q̇_o = q̇̂_o + k_d z`` of (8) alone (the second of :meth:`observer_derivative`)."""
+        """``q̇_o = q̇̂_o + k_d z`` of (8) alone (the velocity observer's output)."""
         return qdot_hat_o + self.k_d * (q - q_hat)
 
     def observer_acceleration(self, q: np.ndarray, q_hat: np.ndarray,
