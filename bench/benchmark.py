@@ -3,12 +3,16 @@
 Reports the paper experiment's wall and CPU time against the plant alone (ratios, spread over
 ``--repeats`` alternated pairs), the ground-truth force log's share, a per-system breakdown per
 tick, the scaling with the plant step and per robot, and optionally another scenario's
-realtime factor (``--scenario scenarios/contact.yaml``); see :mod:`drake_coop.bench`.
+realtime factor (``--scenario scenarios/contact.yaml``); see :mod:`bench.harness`.
 """
 
 import argparse
+import sys
+from pathlib import Path
 
-from drake_coop.bench import run_benchmark
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the checkout: bench.harness
+
+from bench.harness import run_benchmark  # noqa: E402
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)

@@ -2,7 +2,7 @@
 ``python bench/general_path.py``.
 
 One tick = (15)/(8), (22), (13) and (16) of one robot at one held sample, timed with ``timeit``
-outside the diagram (as :func:`drake_coop.bench._tick_costs`), for:
+outside the diagram (as :func:`bench.harness._tick_costs`), for:
 
 * the paper's arm (CRS A465, n = 3, m = 1, scalar ξ): the fast path on plain floats;
 * the same arm with Drake's kinematics (``closed_form=False``): the general path at m = 1;
@@ -14,7 +14,7 @@ import timeit
 
 import numpy as np
 
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.control.finger import FingerLaw, Reference
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario import load_scenario
@@ -27,7 +27,7 @@ NORMALS = {2: [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
 def tick_cost(robot, task, closed_form=None, q=None, n_calls=2000) -> float:
     """Microseconds of one held tick of ``robot``'s equations (best of 3 repeats)."""
     arm = Arm(robot, task)
-    law = FingerLaw(ArmModel(arm, closed_form=closed_form), robot.gains)
+    law = FingerLaw(arm_model(arm, closed_form=closed_form), robot.gains)
     n, m = law.n, law.m
     rng = np.random.default_rng(0)
     q = np.asarray(q if q is not None else rng.uniform(-0.5, 0.5, n) + 0.7, dtype=float)

@@ -1,10 +1,14 @@
 """Cost per control tick against the number of robots: ``python bench/robots.py
-[--robots 2 3 4 6] [--t-end 10] [--repeats 3] [--out robots.json]`` (see :mod:`drake_coop.bench_robots`)."""
+[--robots 2 3 4 6] [--t-end 10] [--repeats 3] [--out robots.json]`` (see :mod:`bench.robots_scaling`)."""
 
 import argparse
+import sys
+from pathlib import Path
 import json
 
-from drake_coop.bench_robots import robots_scaling
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the checkout: bench.*
+
+from bench.robots_scaling import robots_scaling  # noqa: E402
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__)

@@ -1,4 +1,4 @@
-"""Command line: ``drake-coop run | scenarios | plot | diagram | bench`` (also
+"""Command line: ``drake-coop run | scenarios | plot | diagram | study | stability | identify`` (also
 ``python -m drake_coop``).
 
 ``drake-coop run [SCENARIO] --out DIR [--meshcat]``
@@ -23,8 +23,6 @@
 ``drake-coop diagram [SCENARIO.yaml] [--out diagrams]``
     Draw the paper's block diagram (``block_diagram``) and, for debugging, the port-level
     diagrams of the top level (``experiment``) and robot 1's control block, without loggers.
-``drake-coop bench``
-    Realtime factor and cost per controller tick (see ``bench/benchmark.py``).
 ``drake-coop study STUDY.yaml --out DIR`` / ``drake-coop study --plot DIR``
     Parameter studies and Monte Carlo (see :mod:`drake_coop.studies.cli`).
 ``drake-coop stability SCENARIO --out DIR [--grid PATH=v1,v2,...] [--point free|held|both]``
@@ -365,14 +363,6 @@ def cmd_diagram(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_bench(args: argparse.Namespace) -> int:
-    """Run the benchmark (realtime factor, cost per tick)."""
-    from drake_coop.bench import run_benchmark
-
-    run_benchmark(t_end=args.t_end, repeats=args.repeats)
-    return 0
-
-
 def cmd_identify(args: argparse.Namespace) -> int:
     """Identify the scenario's robots and write DIR (exit 2 on bad input, one line)."""
     import math
@@ -448,10 +438,6 @@ def build_parser() -> argparse.ArgumentParser:
     diagram.add_argument("--out", default="diagrams")
     diagram.add_argument("--quiet", action="store_true")
     diagram.set_defaults(func=cmd_diagram)
-    bench = sub.add_parser("bench", help="realtime factor and cost per controller tick")
-    bench.add_argument("--t-end", type=float, default=90.0)
-    bench.add_argument("--repeats", type=int, default=1)
-    bench.set_defaults(func=cmd_bench)
     ident = sub.add_parser("identify", help="identify the arms' dynamic parameters and write "
                                             "identified URDFs and scenario")
     ident.add_argument("scenario", help="scenario YAML file or shipped scenario name")

@@ -75,7 +75,7 @@ def _pydrake_ports(system) -> tuple[list[str], list[str]]:
 
 
 def _systems(law):
-    return [VelocityObserver(law, H), ForceObserver(law, H), Controller(law, H),
+    return [VelocityObserver(law.n, law.Lambda, law.k_d, H), ForceObserver(law, H), Controller(law, H),
             MeasuredVelocity(3), DifferenceVelocity(3, H), SensedForce(H, law.layout),
             NoForceEstimate(law.layout)]
 
@@ -108,7 +108,7 @@ def test_every_port_has_its_get_port_accessor(law):
 
 
 def test_velocity_observer_forced_update_is_one_euler_step_of_15_16(law):
-    obs = VelocityObserver(law, H)
+    obs = VelocityObserver(law.n, law.Lambda, law.k_d, H)
     ctx = obs.CreateDefaultContext()
     q, q_hat, v_o = Q0, Q0 - [1e-3, -2e-3, 5e-4], np.array([0.1, -0.2, 0.3])
     qddot_r = np.array([0.5, 0.0, -0.4])
@@ -246,9 +246,10 @@ def test_wrong_gains_are_refused_naming_the_gain(law, field, gains, match):
 
 @pytest.mark.parametrize("period", [0.0, -0.009, float("nan")])
 def test_a_bad_period_is_refused_naming_period(law, period):
-    for cls in (VelocityObserver, ForceObserver, Controller):
+    for make in (lambda h: VelocityObserver(law.n, law.Lambda, law.k_d, h),
+                 lambda h: ForceObserver(law, h), lambda h: Controller(law, h)):
         with pytest.raises(ValueError, match="^period: "):
-            cls(law, period)
+            make(period)
 
 
 @pytest.mark.parametrize("normals, match", [

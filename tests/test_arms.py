@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.experiment.references import cartesian_reference
 from drake_coop.plant.arms import GEOMETRY, Arm, urdf_dir, urdf_joint_limits
 from drake_coop.scenario import default_scenario, paper_robots
@@ -32,7 +32,7 @@ EPS = 1e-6            # step of the central finite differences
 def arm_and_model(request):
     arm = Arm(ROBOTS[request.param])
     # Drake's kinematics (AutoDiff J̇_φ): checked here against the closed form, independently.
-    return arm, ArmModel(arm, closed_form=False)
+    return arm, arm_model(arm, closed_form=False)
 
 
 def _postures(arm, count=30, seed=0, fraction=0.9):
@@ -238,7 +238,7 @@ def test_constraint_jacobian_derivative_equals_finite_difference(arm_and_model):
 @pytest.mark.parametrize("index", [0, 1], ids=["robot1", "robot2"])
 def test_paper_arms_model_uses_the_closed_form_equal_to_drakes_kinematics(index):
     arm = Arm(ROBOTS[index])
-    fast, drake = ArmModel(arm), ArmModel(arm, closed_form=False)
+    fast, drake = arm_model(arm), arm_model(arm, closed_form=False)
     assert fast.closed_form and not drake.closed_form
     rng = np.random.default_rng(20 + index)
     for q in _postures(arm, 10, seed=21):

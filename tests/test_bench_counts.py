@@ -1,4 +1,4 @@
-"""The benchmark's count of Python callbacks per tick (``drake_coop.bench``) against the
+"""The benchmark's count of Python callbacks per tick (``bench/harness.py``) against the
 diagram's known events: every robot's controller latches once per tick; in the paper's run
 the ground truth and the F/T sensor models are C++ holds evaluated after the run (no Python
 call at all); with a robot reading its F/T sensor the live ground truth latches once and reads
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from drake_coop.bench import _count_callbacks
+from bench.harness import _count_callbacks
 from drake_coop.experiment.plan import num_ticks_until
 from drake_coop.scenario.loading import default_scenario
 from drake_coop.scenario.timing import aligned_periods
@@ -61,7 +61,7 @@ def test_plant_replay_reproduces_the_runs_joint_angles_exactly_through_grasp_and
     """The replay baseline is the run's own physics: the plant alone, driven by the run's
     logged torques (one sample later or earlier would move the arms), lands on the run's joint
     angles at every tick through the grasp and the release."""
-    from drake_coop.bench import _experiment, _plant_replay
+    from bench.harness import _experiment, _plant_replay
 
     from .conftest import short_scenario
 

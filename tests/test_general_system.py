@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.control.finger import ReferenceLayout
 from drake_coop.experiment.references import reference_samples
 from drake_coop.experiment.simulate import simulate
@@ -46,7 +46,7 @@ def test_constraint_jacobian_is_N_times_the_closed_form_jacobian(m):
     robot = load_scenario().robots[0]
     robot.normals = NORMALS[m]
     arm = Arm(robot)
-    model = ArmModel(arm, closed_form=False)     # Drake's kinematics against the closed form
+    model = arm_model(arm, closed_form=False)     # Drake's kinematics against the closed form
     rng = np.random.default_rng(m)
     for q in arm.ik([0.6, 0.0, 0.535]) + rng.uniform(-0.3, 0.3, size=(5, 3)):
         N = np.asarray(NORMALS[m])
@@ -207,7 +207,7 @@ def test_three_arms_squeeze_and_carry_the_object_symmetrically():
 
 @pytest.mark.slow
 def test_six_joint_arm_holds_its_orientation_and_squeezes():
-    from drake_coop.plant.kinematics import DrakeArmKinematics  # noqa: F401  (the arm's kind)
+    from drake_coop.kinematics.drake_arm import DrakeArmKinematics  # noqa: F401  (the arm's kind)
 
     s = _compressed("scenarios/six_joint.yaml")
     result = simulate(s)
@@ -317,7 +317,7 @@ def _law_for(m):
     A = np.random.default_rng(m).normal(size=(m, m))
     robot.gains.xi_matrix = (1e-5 * (A @ A.T + m * np.eye(m))).tolist()   # SPD, not diagonal
     arm = Arm(robot)
-    return robot, arm, FingerLaw(ArmModel(arm), robot.gains)
+    return robot, arm, FingerLaw(arm_model(arm), robot.gains)
 
 
 @pytest.mark.parametrize("m", [2, 3])
@@ -396,7 +396,7 @@ def test_force_observer_22_equals_21_for_m_constraints_in_the_loop():
 def test_ring_of_l_arms_is_valid_and_its_squeezes_balance(l):
     """The benchmark's l arms around one object: a valid scenario, each base facing the
     centre, and the l equal squeezes along the normals summing to zero."""
-    from drake_coop.bench_robots import BASE_RADIUS, ring_scenario
+    from drake_coop.scenario.ring import BASE_RADIUS, ring_scenario
 
     s = ring_scenario(l)
     assert [r.name for r in s.robots] == [f"robot{i + 1}" for i in range(l)]

@@ -17,7 +17,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ZeroOrderHold
 
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.experiment.references import waypoints
 from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 from drake_coop.plant.wrist import add_force_sensors
@@ -42,7 +42,7 @@ def run():
     coop = build_plant(b, s)
     sensors = add_force_sensors(b, coop, H)
     for h in coop.arms:
-        src = b.AddSystem(TorqueSource(ArmModel(h.arm), 30.0, damping=0.5))
+        src = b.AddSystem(TorqueSource(arm_model(h.arm), 30.0, damping=0.5))
         b.Connect(coop.plant.get_state_output_port(h.instance), src.get_input_port())
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
     fts = [add_ft_sensor(b, h.arm.name, H, DT, settings, i, h.arm.m,

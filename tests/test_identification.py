@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import MultibodyForces
 
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.identification.estimate import savgol_kernels, smooth_and_differentiate
 from drake_coop.identification.excitation import ExcitationLimits, FourierExcitation
 from drake_coop.identification.regressor import (
@@ -137,7 +137,7 @@ def test_written_urdf_of_the_true_parameters_has_the_true_dynamics():
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "x.urdf"
         path.write_text(text)
-        model = ArmModel(arm, path)
+        model = arm_model(arm, path)
     q, v, a = _states(20)
     got = np.concatenate([model.inverse_dynamics_terms(q[k], v[k], a[k]) for k in range(20)])
     no_coulomb = theta.copy()

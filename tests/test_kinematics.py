@@ -1,4 +1,4 @@
-"""Numeric kinematics from a URDF (:class:`drake_coop.plant.kinematics.DrakeArmKinematics`).
+"""Numeric kinematics from a URDF (:class:`drake_coop.kinematics.drake_arm.DrakeArmKinematics`).
 
 Each quantity against an independent computation: the Jacobian and its bias term against
 central differences of the forward kinematics; the joint reference against the Cartesian path
@@ -18,7 +18,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.tree import RevoluteJoint
 
 from drake_coop.plant.arms import Arm
-from drake_coop.plant.kinematics import SINGULAR_RATIO, DrakeArmKinematics
+from drake_coop.kinematics.drake_arm import SINGULAR_RATIO, DrakeArmKinematics
 from drake_coop.scenario import paper_robots
 
 URDF = Path(__file__).resolve().parents[1] / "urdf"

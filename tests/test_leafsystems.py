@@ -7,7 +7,7 @@ equations written out here.
 import numpy as np
 import pytest
 
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.observers import ForceObserver, VelocityObserver
@@ -22,7 +22,7 @@ G = ROBOT.gains
 
 @pytest.fixture(scope="module")
 def law():
-    return FingerLaw(ArmModel(Arm(ROBOT)), G)
+    return FingerLaw(arm_model(Arm(ROBOT)), G)
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +47,7 @@ def _update(system, context):
 
 
 def test_velocity_observer_outputs_follow_15_and_8(law, posture):
-    obs = VelocityObserver(law, H)
+    obs = VelocityObserver(law.n, law.Lambda, law.k_d, H)
     ctx = obs.CreateDefaultContext()
     q_hat, qdot_hat_o = posture - 1e-3, np.array([0.1, -0.2, 0.3])
     obs.set_initial_state(ctx, q_hat, qdot_hat_o)
@@ -61,7 +61,7 @@ def test_velocity_observer_outputs_follow_15_and_8(law, posture):
 
 
 def test_velocity_observer_update_is_an_euler_step_of_15_16(law, posture):
-    obs = VelocityObserver(law, H)
+    obs = VelocityObserver(law.n, law.Lambda, law.k_d, H)
     ctx = obs.CreateDefaultContext()
     q_hat, qdot_hat_o = posture + 2e-3, np.array([0.05, 0.0, -0.1])
     qddot_r = np.array([0.3, -0.1, 0.2])

@@ -23,7 +23,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource, MatrixGain
 from pydrake.common.value import AbstractValue
 
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.control.finger import ReferenceLayout
 from drake_coop.control.momentum import MomentumObserver
 from drake_coop.plant.arms import Arm
@@ -42,7 +42,7 @@ def _arm(i):
 @pytest.mark.parametrize("gain", [30.0, 100.0])
 def test_arm_at_rest_pushed_by_a_constant_force_converges_at_the_rate_of_the_gain(robot, gain):
     arm = _arm(robot)
-    model = ArmModel(arm)
+    model = arm_model(arm)
     n = model.n
     q0 = arm.ik(arm.c)                    # the grasp posture
     lam = 25.0                            # N, squeeze along the constraint's normal
@@ -101,7 +101,7 @@ def test_arm_at_rest_pushed_by_a_constant_force_converges_at_the_rate_of_the_gai
 
 def test_momentum_rate_is_torque_minus_beta_by_finite_differences():
     arm = _arm(0)
-    model = ArmModel(arm)
+    model = arm_model(arm)
     obs = MomentumObserver(model, ReferenceLayout(3, 1), H_PERIOD, 50.0)
     rng = np.random.default_rng(3)
     plant = model.plant
@@ -124,7 +124,7 @@ def test_momentum_rate_is_torque_minus_beta_by_finite_differences():
 
 def test_the_estimate_does_not_depend_on_the_torque_of_the_same_tick():
     arm = _arm(0)
-    obs = MomentumObserver(ArmModel(arm), ReferenceLayout(3, 1), H_PERIOD, 50.0)
+    obs = MomentumObserver(arm_model(arm), ReferenceLayout(3, 1), H_PERIOD, 50.0)
     tau = obs.get_tau_input_port().get_index()
     for name in ("tau_ext_hat", "O_F_ext_hat", "lambda_hat", "Delta_F_tilde"):
         assert not obs.HasDirectFeedthrough(tau, obs.GetOutputPort(name).get_index())
@@ -135,7 +135,7 @@ def test_a_forced_update_on_a_default_context_takes_the_first_tick_of_the_closed
     # at rest whose commanded torque is g(q) − τ_ext (statics under a constant external torque):
     # r(1) = h K_O τ_ext, the k = 1 term of r(k) = (1 − (1 − h K_O)^k) τ_ext.
     arm = _arm(0)
-    model, gain = ArmModel(arm), 50.0
+    model, gain = arm_model(arm), 50.0
     layout = ReferenceLayout(3, 1)
     obs = MomentumObserver(model, layout, H_PERIOD, gain)
     context = obs.CreateDefaultContext()

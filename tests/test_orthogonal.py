@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from drake_coop.control import orthogonal
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario import paper_robots
 
@@ -18,14 +18,14 @@ ROBOTS = paper_robots()
 
 @pytest.fixture(scope="module", params=[0, 1], ids=["robot1", "robot2"])
 def model(request):
-    return ArmModel(Arm(ROBOTS[request.param]))
+    return arm_model(Arm(ROBOTS[request.param]))
 
 
 def random_postures(model, count=20, seed=0):
     """Random postures around the grasp posture (well inside the workspace)."""
     rng = np.random.default_rng(seed)
-    arm = model.arm
-    q_grasp = arm.ik([arm.b, 0.0, 0.535])
+    arm = model.kinematics
+    q_grasp = arm.ik([model.c[0], 0.0, 0.535])
     return q_grasp + rng.uniform(-0.4, 0.4, size=(count, 3))
 
 
@@ -68,16 +68,16 @@ def test_directional_derivatives_match_central_differences(model):
 
 def test_reference_acceleration_is_time_derivative_of_reference_velocity(model):
     """With q̇_o = q̇ (r = 0 in (12)), (11) equals d/dt of (4) along a smooth trajectory."""
-    arm = model.arm
+    arm = model.kinematics
     Lambda, beta, xi = 26.0, 10.0, 1e-3
 
     # A smooth motion on the plane (so ṗ = 0 as (11) assumes), an observer estimate that
     # differs from it, a desired trajectory and a force integral, with closed-form derivatives.
-    q_c = arm.ik([arm.b, 0.0, 0.55])
+    q_c = arm.ik([model.c[0], 0.0, 0.55])
     a = np.array([1e-3, -2e-3, 1.5e-3])
 
     def motion(t):
-        x = np.array([arm.b, 0.03 * np.sin(1.3 * t), 0.55 + 0.04 * np.cos(0.7 * t)])
+        x = np.array([model.c[0], 0.03 * np.sin(1.3 * t), 0.55 + 0.04 * np.cos(0.7 * t)])
         xdot = np.array([0.0, 0.039 * np.cos(1.3 * t), -0.028 * np.sin(0.7 * t)])
         q = arm.ik(x)
         return q, np.linalg.solve(arm.jacobian(q), xdot)

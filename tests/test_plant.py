@@ -16,6 +16,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
 from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.experiment.references import cartesian_reference, waypoints
 from drake_coop.plant.arms import Arm
 from drake_coop.plant.cooperative import (
@@ -48,7 +49,7 @@ class TorqueSource(LeafSystem):
 
     def tau(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         model = self.model
-        tau = (model.g(q) - model.J_phi(q)[0] * self.f - model.arm.jacobian(q).T @ self.w
+        tau = (model.g(q) - model.J_phi(q)[0] * self.f - model.kinematics.jacobian(q).T @ self.w
                - self.damping * v)
         if self.q_ref is not None:
             tau += self.kp * (self.q_ref(t) - q) - self.kd * v
@@ -94,7 +95,7 @@ class Rig:
         """``F = J⁻ᵀ (g(q) − τ)``: the whole Cartesian force at rest, from ``τ + Jᵀ F = g``."""
         q = self.coop.arm_positions(self.pc, i)
         model = self.ctrls[i].model
-        return np.linalg.solve(model.arm.jacobian(q).T, model.g(q) - self.tau(i))
+        return np.linalg.solve(model.kinematics.jacobian(q).T, model.g(q) - self.tau(i))
 
 
 def build(mode: str, f: float, carry: float = 0.0, damping: float = 0.0, held: bool = True,
@@ -110,7 +111,7 @@ def build(mode: str, f: float, carry: float = 0.0, damping: float = 0.0, held: b
     ctrls = []
     for i, h in enumerate(coop.arms):
         ctrl = builder.AddSystem(TorqueSource(
-            ArmModel(h.arm), f, carry, damping, None if q_refs is None else q_refs[i], kp, kd))
+            arm_model(h.arm), f, carry, damping, None if q_refs is None else q_refs[i], kp, kd))
         builder.Connect(coop.plant.get_state_output_port(h.instance), ctrl.get_input_port())
         builder.Connect(ctrl.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
         ctrls.append(ctrl)

@@ -22,6 +22,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
 from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.experiment.references import cartesian_reference, quintic, waypoints
 from drake_coop.plant.cooperative import (
     CoopPlant,
@@ -65,7 +66,7 @@ class GraspController(LeafSystem):
         self.DeclareVectorOutputPort("tau", 3, self._calc)
 
     def tau(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
-        arm = self.model.arm
+        arm = self.model.kinematics
         J = arm.jacobian(q)
         s = _ramp(t)
         F = self.kp * (self.x_ref(t) - arm.fk(q)) - self.kd * (J @ v)
@@ -136,7 +137,7 @@ def build_rig(task: Task, at: str = "grasp", squeeze: float = SQUEEZE,
         robot = scenario.robots[i]
         x_ref = x_reference(task, robot) if at == "grasp" else (
             lambda t, p=waypoints(task, robot)[at]: p)
-        ctrl = builder.AddSystem(GraspController(ArmModel(h.arm), x_ref, carry, squeeze))
+        ctrl = builder.AddSystem(GraspController(arm_model(h.arm), x_ref, carry, squeeze))
         builder.Connect(coop.plant.get_state_output_port(h.instance), ctrl.get_input_port())
         builder.Connect(ctrl.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
         controllers.append(ctrl)

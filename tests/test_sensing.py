@@ -18,7 +18,7 @@ from drake_coop.scenario import ForceSensorModel, ModelError, paper_robots
 from drake_coop.sensing.actuators import FRICTION_VELOCITY, add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.sensing.force_sensor import FTSensor
-from drake_coop.sensing.model_error import add_payload, scaled_urdf_text
+from drake_coop.plant.model_error import add_payload, scaled_urdf_text
 
 H = 0.009
 DT = 0.001

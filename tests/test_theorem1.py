@@ -23,7 +23,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control import orthogonal
-from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.experiment.diagram import build_experiment
 from drake_coop.plant.arms import Arm
 from drake_coop.plant.cooperative import initialize_plant_context
@@ -69,7 +69,7 @@ def theorem_run():
             t=t[:-1], q=raw["q"].T[:-1], q_hat=raw["q_hat"].T[:-1],
             lam=raw["lambda_meas"][0][1:], lam_hat=raw["lambda_hat"][0][:-1],
             DF=raw["Delta_F_tilde"][0][:-1], q_star=q_star[i],
-            model=ArmModel(exp.coop.arms[i].arm)))
+            model=arm_model(exp.coop.arms[i].arm)))
     return out
 
 

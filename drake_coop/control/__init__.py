@@ -8,28 +8,38 @@ diagram (see ``docs/api_usage.md``); the systems it holds — :class:`VelocityOb
 (:class:`ArmModel`), the reference layout (:class:`ReferenceLayout`, :class:`Reference`) and the
 gains (:class:`Gains`).
 
-Modules: the model (arm_model), Property 1 (orthogonal), the law at one sample (finger), its Drake
-systems (observers, controller, sources) and the wiring (block).
+Modules: the parameters (params), the time grid (timing), the model (arm_model), Property 1
+(orthogonal), the law at one sample (finger), its Drake systems (observers, controller, sources,
+momentum) and the wiring (block).
+
+The library imports only Drake, NumPy and itself. Its names load on first use (PEP 562), so
+that ``import drake_coop.control.params`` (the scenario's parameter types) does not load pydrake.
 """
 
-from drake_coop.control.arm_model import ArmModel
-from drake_coop.control.block import (
-    AddCooperativeController,
-    ControllerHandles,
-    MakeArmControllerPlant,
-    build_control_block,
-)
-from drake_coop.control.controller import Controller
-from drake_coop.control.finger import FingerLaw, Reference, ReferenceLayout
-from drake_coop.control.momentum import MomentumObserver
-from drake_coop.control.observers import ForceObserver, VelocityObserver
-from drake_coop.control.sources import (
-    DifferenceVelocity,
-    MeasuredVelocity,
-    NoForceEstimate,
-    SensedForce,
-)
-from drake_coop.scenario.schema import Gains
+import importlib
+
+#: Each public name and the module that defines it.
+_EXPORTS = {
+    "AddCooperativeController": "block",
+    "ControllerHandles": "block",
+    "MakeArmControllerPlant": "block",
+    "build_control_block": "block",
+    "ArmModel": "arm_model",
+    "Controller": "controller",
+    "FingerLaw": "finger",
+    "Reference": "finger",
+    "ReferenceLayout": "finger",
+    "MomentumObserver": "momentum",
+    "ForceObserver": "observers",
+    "VelocityObserver": "observers",
+    "DifferenceVelocity": "sources",
+    "MeasuredVelocity": "sources",
+    "NoForceEstimate": "sources",
+    "SensedForce": "sources",
+    "FORCE_SOURCES": "params",
+    "VELOCITY_SOURCES": "params",
+    "Gains": "params",
+}
 
 __all__ = [
     "AddCooperativeController",
@@ -37,6 +47,7 @@ __all__ = [
     "Controller",
     "ControllerHandles",
     "DifferenceVelocity",
+    "FORCE_SOURCES",
     "FingerLaw",
     "ForceObserver",
     "Gains",
@@ -47,6 +58,20 @@ __all__ = [
     "Reference",
     "ReferenceLayout",
     "SensedForce",
+    "VELOCITY_SOURCES",
     "VelocityObserver",
     "build_control_block",
 ]
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'drake_coop.control' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"drake_coop.control.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -13,12 +13,11 @@ Quantities (robot ``i``, ``n`` joints, ``m`` constraints):
 * ``D`` diagonal viscous friction (the joints' damping);
 * ``g(q)`` gravity torques on the left-hand side of (1) (``g = −τ_g`` in Drake's sign);
 * ``φ(q) = N (x(q) − c)`` and ``J_φ = ∂φ/∂q = N J_x`` (m×n), ``J̇_φ`` along a direction
-  (``N`` the outward normals, ``c`` the contact point: :class:`~drake_coop.plant.arms.Arm`).
+  (``N`` the outward normals, ``c`` the contact point).
 
-Kinematics: the closed form of the paper's arms (:mod:`drake_coop.plant.crs`) when it applies
-(:attr:`Arm.closed_form` and the controller's URDF is the simulated model, whose masses,
-inertias and damping model errors may scale but whose geometry they never change); otherwise
-Drake's, with ``J̇_φ`` by forward-mode AutoDiff. Both are exact; they differ by roundings.
+Kinematics: a closed form when one is given (the paper's arms: the application passes
+:class:`~drake_coop.kinematics.crs.CrsKinematics` when the controller's URDF has the simulated
+arm's geometry); otherwise Drake's, with ``J̇_φ`` by forward-mode AutoDiff. Both are exact; they differ by roundings.
 Dynamics: ``H a + C v + D v + g`` is one inverse-dynamics call
 (``CalcForceElementsContribution`` — gravity and joint damping — then
 ``CalcInverseDynamics``).
@@ -31,13 +30,12 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
-from pydrake.math import RigidTransform, RotationMatrix
+from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import MultibodyForces
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_coop.plant.arms import Arm
 
 
 class ArmModel:
@@ -45,58 +43,33 @@ class ArmModel:
 
     Parameters
     ----------
-    arm : Arm
-        The robot (base pose, frames, constraint normals and contact point).
-    urdf : Path, optional
-        The model to use; defaults to ``arm.controller_urdf_path``.
-    closed_form : bool, optional
-        Use the closed-form kinematics of :mod:`drake_coop.plant.crs` for ``φ``, ``J_φ`` and
-        ``J̇_φ``; default: when the arm has them and the controller's URDF is the simulated
-        model (``controller_model`` unset; scaled masses and inertias keep the geometry).
+    plant : MultibodyPlant
+        A finalized plant holding the arm alone, its base welded where it is in the world
+        of the simulated plant (:func:`make_arm_controller_plant`, or
+        :func:`~drake_coop.control.block.MakeArmControllerPlant` from a model instance of the
+        simulated plant); continuous or discrete, only its kinematics and dynamics functions
+        are used.
+    ee_frame : str
+        Name of the end-effector frame whose origin is the contact point ``x(q)`` of (2).
+    normals : array_like, shape (m, 3) or (3,)
+        The object's outward normals at the contact (rows, normalized here); ``m = 1..3``,
+        linearly independent.
+    contact_point : array_like, shape (3,)
+        ``c`` of ``φ(q) = N (x(q) − c)``, in the world frame.
+    closed_form : object, optional
+        Closed-form kinematics of a three-joint arm of the paper's kind (``fk(q)``,
+        ``jacobian(q)``, ``jacobian_dot(q, v)``, ``geometry`` with ``h1, L2, L3``, ``R_base``,
+        ``p_base``: :class:`~drake_coop.kinematics.crs.CrsKinematics`), used for ``φ``, ``J_φ`` and
+        ``J̇_φ`` instead of Drake's; it must describe the same arm as ``plant``.
+
+    Raises
+    ------
+    ValueError
+        Naming ``plant``, ``ee_frame``, ``normals`` or ``contact_point``.
     """
 
-    def __init__(self, arm: Arm, urdf: Path | None = None, closed_form: bool | None = None):
-        self.arm = arm
-        self.urdf = Path(urdf) if urdf is not None else arm.controller_urdf_path
-        X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
-        plant = make_arm_controller_plant(self.urdf, arm.base_frame, X_WB)
-        self._setup(plant, arm.ee_frame, arm.N, arm.c)
-        self.closed_form = (arm.closed_form and not arm.robot.controller_model
-                            if closed_form is None else bool(closed_form))
-        self._row_key = b""
-        self._J_phi_key = b""
-        if self.closed_form:
-            crs = arm.kinematics
-            self._lengths = (crs.geometry.h1, crs.geometry.L2, crs.geometry.L3)
-            n = self._N[0]
-            nl = crs.R_base.T @ n            # the first normal in the base frame
-            self._row_constants = (float(nl[0]), float(nl[1]), float(nl[2]),
-                                   float(n @ (crs.p_base - self._c)))
-
-    @classmethod
-    def from_plant(cls, plant: MultibodyPlant, ee_frame: str, normals, contact_point
-                   ) -> "ArmModel":
-        """The model of an arm given as its own single-arm plant (any arm, Drake's kinematics).
-
-        Parameters
-        ----------
-        plant : MultibodyPlant
-            A finalized plant holding the arm alone, its base welded where it is in the world
-            of the simulated plant (:func:`make_arm_controller_plant`); continuous or discrete,
-            only its kinematics and dynamics functions are used.
-        ee_frame : str
-            Name of the end-effector frame whose origin is the contact point ``x(q)`` of (2).
-        normals : array_like, shape (m, 3) or (3,)
-            The object's outward normals at the contact (rows, normalized here); ``m = 1..3``,
-            linearly independent.
-        contact_point : array_like, shape (3,)
-            ``c`` of ``φ(q) = N (x(q) − c)``, in the world frame.
-
-        Raises
-        ------
-        ValueError
-            Naming ``plant``, ``ee_frame``, ``normals`` or ``contact_point``.
-        """
+    def __init__(self, plant: MultibodyPlant, ee_frame: str, normals, contact_point,
+                 closed_form=None):
         if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
             raise ValueError("plant: a finalized single-arm MultibodyPlant is required "
                              "(see make_arm_controller_plant)")
@@ -104,17 +77,28 @@ class ArmModel:
             raise ValueError(f"plant: the arm must have as many positions as velocities and "
                              f"at least one (it has {plant.num_positions()} and "
                              f"{plant.num_velocities()}; weld its base)")
-        if not plant.HasFrameNamed(ee_frame):
+        if not isinstance(ee_frame, str) or not plant.HasFrameNamed(ee_frame):
             raise ValueError(f"ee_frame: the controller's plant has no frame named "
                              f"{ee_frame!r}")
-        self = cls.__new__(cls)
-        self.arm = None
-        self.urdf = None
         self._setup(plant, ee_frame, normalized_normals(normals), contact_vector(contact_point))
-        self.closed_form = False
+        self.kinematics = closed_form
+        self.closed_form = closed_form is not None
         self._row_key = b""
         self._J_phi_key = b""
-        return self
+        if self.closed_form:
+            geometry = closed_form.geometry
+            self._lengths = (geometry.h1, geometry.L2, geometry.L3)
+            n = self._N[0]
+            nl = closed_form.R_base.T @ n            # the first normal in the base frame
+            self._row_constants = (float(nl[0]), float(nl[1]), float(nl[2]),
+                                   float(n @ (closed_form.p_base - self._c)))
+
+    @classmethod
+    def from_plant(cls, plant: MultibodyPlant, ee_frame: str, normals, contact_point
+                   ) -> "ArmModel":
+        """The model of an arm given as its own single-arm plant, with Drake's kinematics
+        (the constructor without ``closed_form``)."""
+        return cls(plant, ee_frame, normals, contact_point)
 
     def _setup(self, plant: MultibodyPlant, ee_frame: str, N: np.ndarray, c: np.ndarray
                ) -> None:
@@ -151,7 +135,7 @@ class ArmModel:
         """``φ(q)`` and ``J_φ(q)`` (as a list) of a one-constraint arm in closed form.
 
         Plain floats (a 3-vector per NumPy call costs more than the arithmetic), the same
-        formulas as :class:`~drake_coop.plant.crs.CrsKinematics` with the normal ``n``
+        formulas as :class:`~drake_coop.kinematics.crs.CrsKinematics` with the normal ``n``
         rotated into the base frame: ``φ = (R_bᵀ n)·x_local(q) + n·(p_b − c)``,
         ``J_φ = (R_bᵀ n)ᵀ J_local(q)``. Cached for the last ``q``: the force observer and the
         controller evaluate it at the same sample of a tick.
@@ -242,7 +226,7 @@ class ArmModel:
     def ee_position(self, q: np.ndarray) -> np.ndarray:
         """End-effector point (pad centre) in the palm frame."""
         if self.closed_form:
-            return self.arm.fk(q)
+            return self.kinematics.fk(q)
         self._set_q(q)
         return self.ee_frame.CalcPoseInWorld(self.context).translation()
 
@@ -258,7 +242,7 @@ class ArmModel:
         if self.closed_form:
             key = np.asarray(q, dtype=float).tobytes()
             if key != self._J_phi_key:
-                self._J_phi_key, self._J_phi = key, self._N @ self.arm.jacobian(q)
+                self._J_phi_key, self._J_phi = key, self._N @ self.kinematics.jacobian(q)
             return self._J_phi
         self._set_q(q)
         Jv = self.plant.CalcJacobianTranslationalVelocity(
@@ -275,7 +259,7 @@ class ArmModel:
         """
         if self.closed_form:
             return (self.J_phi(q),
-                    self._N @ self.arm.jacobian_dot(q, np.asarray(direction, dtype=float)))
+                    self._N @ self.kinematics.jacobian_dot(q, np.asarray(direction, dtype=float)))
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))
         Jv = self.plant_ad.CalcJacobianTranslationalVelocity(

@@ -40,7 +40,8 @@ from pydrake.systems.primitives import Demultiplexer
 
 from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
 from drake_coop.control.controller import Controller
-from drake_coop.control.finger import FingerLaw, check_period
+from drake_coop.control.finger import FingerLaw
+from drake_coop.control.params import check_period
 from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import (
@@ -49,7 +50,7 @@ from drake_coop.control.sources import (
     NoForceEstimate,
     SensedForce,
 )
-from drake_coop.scenario.schema import FORCE_SOURCES, VELOCITY_SOURCES, Gains
+from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains
 
 
 def build_control_block(name: str, law: FingerLaw, period: float,
@@ -102,7 +103,7 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         vel = b.AddNamedSystem(f"{name}_difference_velocity",
                                DifferenceVelocity(law.n, period, difference_cutoff_hz))
     else:
-        vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law, period))
+        vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law.n, law.Lambda, law.k_d, period))
     if force_source == "sensor":
         force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period, law.layout))
     elif force_source == "none":

@@ -37,8 +37,9 @@ from pydrake.systems.framework import (
     State,
 )
 
-from drake_coop.control.finger import FingerLaw, check_period
-from drake_coop.scenario.timing import tick_of
+from drake_coop.control.finger import FingerLaw
+from drake_coop.control.params import check_period
+from drake_coop.control.timing import tick_of
 
 
 class Controller(LeafSystem):

@@ -27,7 +27,7 @@ import numpy as np
 
 from drake_coop.control import orthogonal
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.scenario.schema import Gains
+from drake_coop.control.params import Gains, check_gains
 
 #: Rows of the reference signal fed to each robot's controller and observers, in order
 #: (their sizes: n, n, n, m, 1; see :class:`ReferenceLayout`).
@@ -94,44 +94,22 @@ class ReferenceLayout:
         return samples[:, self.slices()[row]]
 
 
-def check_gains(gains: Gains, n: int, m: int) -> None:
-    """Refuse gains that do not fit an arm of ``n`` joints and ``m`` constraints.
+def observer_qdot_hat(q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray,
+                      Lambda_plus_k_d: float) -> np.ndarray:
+    """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15), ``z = q − q̂`` (the velocity estimate)."""
+    return qdot_hat_o + Lambda_plus_k_d * (q - q_hat)
 
-    ``Λ``, ``k_d`` and the ``n`` entries of ``K_R`` must be finite and positive (the observer
-    (15)–(16) and the passivity of (13) need them); ``k_F``, ``ζ``, ``β`` and a scalar ``ξ``
-    finite and non-negative; a ``ξ`` matrix ``m × m``, symmetric positive definite.
 
-    Raises
-    ------
-    ValueError
-        One line naming the gain and what is allowed.
-    """
-    K_R = np.asarray(gains.K_R, dtype=float)
-    if K_R.shape != (n,):
-        raise ValueError(f"K_R: {n} diagonal entries are required, one per joint "
-                         f"(got shape {K_R.shape})")
-    if not np.all(np.isfinite(K_R)) or np.any(K_R <= 0.0):
-        raise ValueError(f"K_R: every entry must be finite and > 0 (got {K_R.tolist()})")
-    for name in ("Lambda", "k_d"):
-        value = float(getattr(gains, name))
-        if not np.isfinite(value) or value <= 0.0:
-            raise ValueError(f"{name}: must be finite and > 0 (got {value})")
-    for name in ("k_F", "zeta", "beta"):
-        value = float(getattr(gains, name))
-        if not np.isfinite(value) or value < 0.0:
-            raise ValueError(f"{name}: must be finite and >= 0 (got {value})")
-    if gains.xi_matrix is None:
-        xi = float(gains.xi)
-        if not np.isfinite(xi) or xi < 0.0:
-            raise ValueError(f"xi: must be finite and >= 0 (got {xi})")
-        return
-    xi = np.asarray(gains.xi_matrix, dtype=float)
-    if xi.shape != (m, m):
-        raise ValueError(f"xi_matrix: an {m}x{m} matrix is required, one row per constraint "
-                         f"(got shape {xi.shape})")
-    if (not np.all(np.isfinite(xi)) or not np.allclose(xi, xi.T, rtol=0.0, atol=1e-12)
-            or np.linalg.eigvalsh(xi).min() <= 0.0):
-        raise ValueError("xi_matrix: must be symmetric positive definite")
+def observer_qdot_o(q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray, k_d: float
+                    ) -> np.ndarray:
+    """``q̇_o = d/dt q̂ − Λ z = q̇̂_o + k_d z`` of (8)."""
+    return qdot_hat_o + k_d * (q - q_hat)
+
+
+def observer_acceleration(q: np.ndarray, q_hat: np.ndarray, qddot_r_hat: np.ndarray,
+                          k_d_Lambda: float) -> np.ndarray:
+    """``d/dt q̇̂_o = q̈̂_r + k_d Λ z`` of (16)."""
+    return qddot_r_hat + k_d_Lambda * (q - q_hat)
 
 
 @dataclass
@@ -189,27 +167,14 @@ class FingerLaw:
     # ------------------------------------------------------------------ observer (15), (8)
     def observer_derivative(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
                             ) -> tuple[np.ndarray, np.ndarray]:
-        """``d/dt q̂`` of (15) and ``q̇_o`` of (8).
-
-        ``d/dt q̂ = q̇̂_o + Λ z + k_d z`` and ``q̇_o = d/dt q̂ − Λ z = q̇̂_o + k_d z``.
-        """
-        return (self.observer_qdot_hat(q, q_hat, qdot_hat_o),
-                self.observer_qdot_o(q, q_hat, qdot_hat_o))
-
-    def observer_qdot_hat(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
-                          ) -> np.ndarray:
-        """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15) alone (the velocity observer's output)."""
-        return qdot_hat_o + self._Lambda_plus_k_d * (q - q_hat)
-
-    def observer_qdot_o(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
-                        ) -> np.ndarray:
-        """``q̇_o = q̇̂_o + k_d z`` of (8) alone (the velocity observer's output)."""
-        return qdot_hat_o + self.k_d * (q - q_hat)
+        """``d/dt q̂`` of (15) and ``q̇_o`` of (8) with this law's ``Λ``, ``k_d``."""
+        return (observer_qdot_hat(q, q_hat, qdot_hat_o, self._Lambda_plus_k_d),
+                observer_qdot_o(q, q_hat, qdot_hat_o, self.k_d))
 
     def observer_acceleration(self, q: np.ndarray, q_hat: np.ndarray,
                               qddot_r_hat: np.ndarray) -> np.ndarray:
-        """``d/dt q̇̂_o = q̈̂_r + k_d Λ z`` of (16)."""
-        return qddot_r_hat + self.k_d * self.Lambda * (q - q_hat)
+        """``d/dt q̇̂_o`` of (16) with this law's ``Λ``, ``k_d``."""
+        return observer_acceleration(q, q_hat, qddot_r_hat, self.k_d * self.Lambda)
 
     # ------------------------------------------------------------------ constraint
     def constraint(self, q: np.ndarray, held: bool, J_phi: np.ndarray | None = None
@@ -366,15 +331,3 @@ class FingerLaw:
                - self.K_R @ (qdot_o - qdot_r) - c.J_phi.T @ force)
         return {"tau": tau, "qdot_r": qdot_r, "qddot_r_hat": qddot_r_hat,
                 "Delta_lambda_tilde": np.array(Delta_lambda_tilde, dtype=float)}
-
-
-def check_period(period: float) -> None:
-    """Refuse a sampling time that is not a finite number > 0 (``ValueError`` naming
-    ``period``)."""
-    try:
-        h = float(period)
-    except (TypeError, ValueError):
-        raise ValueError(f"period: the sampling time h must be a number of seconds > 0 "
-                         f"(got {period!r})") from None
-    if not np.isfinite(h) or h <= 0.0:
-        raise ValueError(f"period: the sampling time h must be finite and > 0 s (got {h})")

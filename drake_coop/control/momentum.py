@@ -43,15 +43,15 @@ from pydrake.systems.framework import (
     BasicVector,
     Context,
     DiscreteValues,
-    LeafSystem,
     ValueProducer,
 )
 
+from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.finger import ReferenceLayout
 
 
-class MomentumObserver(LeafSystem):
+class MomentumObserver(ForceSource):
     """Generalized-momentum observer of one robot (module docstring).
 
     Parameters
@@ -149,20 +149,11 @@ class MomentumObserver(LeafSystem):
     def get_tau_input_port(self):
         return self._tau
 
-    def get_reference_input_port(self):
-        return self._reference
-
     def get_tau_ext_hat_output_port(self):
         return self.GetOutputPort("tau_ext_hat")
 
     def get_O_F_ext_hat_output_port(self):
         return self.GetOutputPort("O_F_ext_hat")
-
-    def get_lambda_hat_output_port(self):
-        return self.GetOutputPort("lambda_hat")
-
-    def get_Delta_F_tilde_output_port(self):
-        return self.GetOutputPort("Delta_F_tilde")
 
     def set_initial_state(self, context: Context, q0: np.ndarray,
                           v0: np.ndarray | None = None) -> None:

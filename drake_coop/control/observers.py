@@ -18,15 +18,20 @@ from pydrake.systems.framework import (
     Context,
     DiscreteValues,
     InputPort,
-    LeafSystem,
-    OutputPort,
     State,
 )
 
-from drake_coop.control.finger import FingerLaw, check_period
+from drake_coop.control.interfaces import ForceSource, VelocitySource
+from drake_coop.control.finger import (
+    FingerLaw,
+    observer_acceleration,
+    observer_qdot_hat,
+    observer_qdot_o,
+)
+from drake_coop.control.params import check_period, check_positive
 
 
-class VelocityObserver(LeafSystem):
+class VelocityObserver(VelocitySource):
     """Model-based joint-velocity observer (15)–(16) of one robot.
 
     .. pydrake_system::
@@ -63,12 +68,25 @@ class VelocityObserver(LeafSystem):
     whole observer as a C++ ``LinearSystem``, were measured and ran no faster: every added
     system costs at every plant step (``docs/benchmark.md``).
 
+    It needs nothing of the controller but ``q̈̂_r`` (an input): use it under any controller
+    that provides one (its own reference acceleration; zero gives a plain second-order
+    observer).
+
     Parameters
     ----------
-    law : FingerLaw
-        The robot's law (its gains ``Λ``, ``k_d`` and ``n``).
+    n : int
+        Number of joints.
+    Lambda : float
+        ``k`` of ``Λ = k I`` (1/s), > 0: the gain of ``z`` in (15) and (8).
+    k_d : float
+        The observer gain ``k_d`` of (15)–(16) (1/s), > 0.
     period : float
-        Sampling time ``h`` (s), > 0.
+        Sampling time ``h`` (s).
+
+    Raises
+    ------
+    TypeError, ValueError
+        Naming ``n``, ``Lambda``, ``k_d`` or ``period``.
 
     Input ports
     -----------
@@ -87,12 +105,17 @@ class VelocityObserver(LeafSystem):
         ``q̇_o = d/dt q̂ − Λ z`` of (8) (depends on ``q``).
     """
 
-    def __init__(self, law: FingerLaw, period: float):
+    def __init__(self, n: int, Lambda: float, k_d: float, period: float):
         super().__init__()
-        check_period(period)
-        self._law = law
-        self._h = period
-        n = law.n
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise TypeError(f"n: a number of joints >= 1 is required (got {n!r})")
+        Lambda = check_positive(Lambda, "Lambda")
+        k_d = check_positive(k_d, "k_d")
+        self._h = check_period(period)
+        self._Lambda_plus_k_d = Lambda + k_d
+        self._k_d = k_d
+        self._k_d_Lambda = k_d * Lambda
+        n = int(n)
         self._n = n
         self._q = self.DeclareVectorInputPort("q", n)
         self._qddot_r = self.DeclareVectorInputPort("qddot_r_hat", n)
@@ -114,25 +137,9 @@ class VelocityObserver(LeafSystem):
             "qdot_o", n, self._calc_qdot_o, prerequisites_of_calc=depends_on_q)
 
     # ------------------------------------------------------------------ ports
-    def get_q_input_port(self) -> InputPort:
-        """Measured joint positions ``q``."""
-        return self._q
-
     def get_qddot_r_hat_input_port(self) -> InputPort:
         """``q̈̂_r`` of (11) from the controller."""
         return self._qddot_r
-
-    def get_q_hat_output_port(self) -> OutputPort:
-        """The estimate ``q̂``."""
-        return self._q_hat_out
-
-    def get_qdot_hat_output_port(self) -> OutputPort:
-        """``d/dt q̂`` of (15)."""
-        return self._qdot_hat_out
-
-    def get_qdot_o_output_port(self) -> OutputPort:
-        """``q̇_o`` of (8)."""
-        return self._qdot_o_out
 
     # ------------------------------------------------------------------ state
     def set_initial_state(self, context: Context, q_hat: np.ndarray,
@@ -159,24 +166,25 @@ class VelocityObserver(LeafSystem):
 
     def _calc_qdot_hat(self, context: Context, output: BasicVector) -> None:
         """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15)."""
-        output.SetFromVector(self._law.observer_qdot_hat(self._q.Eval(context),
-                                                         *self._split(context)))
+        output.SetFromVector(observer_qdot_hat(self._q.Eval(context), *self._split(context),
+                                               self._Lambda_plus_k_d))
 
     def _calc_qdot_o(self, context: Context, output: BasicVector) -> None:
         """``q̇_o = q̇̂_o + k_d z`` of (8)."""
-        output.SetFromVector(self._law.observer_qdot_o(self._q.Eval(context),
-                                                       *self._split(context)))
+        output.SetFromVector(observer_qdot_o(self._q.Eval(context), *self._split(context),
+                                             self._k_d))
 
     def _update_observer(self, context: Context, discrete_state: DiscreteValues) -> None:
         q = self._q.Eval(context)
         q_hat, qdot_hat_o = self._split(context)
         qdot_hat = self._qdot_hat_out.Eval(context)
-        qddot_hat_o = self._law.observer_acceleration(q, q_hat, self._qddot_r.Eval(context))
+        qddot_hat_o = observer_acceleration(q, q_hat, self._qddot_r.Eval(context),
+                                            self._k_d_Lambda)
         discrete_state.set_value(self._q_hat_state, q_hat + self._h * qdot_hat)
         discrete_state.set_value(self._qdot_hat_o_state, qdot_hat_o + self._h * qddot_hat_o)
 
 
-class ForceObserver(LeafSystem):
+class ForceObserver(ForceSource):
     """Contact-force observer (22) of one robot, with the force integral ΔF̃ (6) as state.
 
     .. pydrake_system::
@@ -257,18 +265,6 @@ class ForceObserver(LeafSystem):
     def get_qdot_o_input_port(self) -> InputPort:
         """The velocity observer's ``q̇_o``."""
         return self._qdot_o
-
-    def get_reference_input_port(self) -> InputPort:
-        """The reference ``[q_d, q̇_d, q̈_d, λ_d, held]``."""
-        return self._reference
-
-    def get_lambda_hat_output_port(self) -> OutputPort:
-        """The estimate ``λ̂`` of (22)."""
-        return self._lambda_hat_out
-
-    def get_Delta_F_tilde_output_port(self) -> OutputPort:
-        """The integral ``ΔF̃`` of (6)."""
-        return self._Delta_F_out
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
         """``λ̂(k)`` of (22) from the inputs and ``ΔF̃(k)``."""

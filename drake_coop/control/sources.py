@@ -31,16 +31,16 @@ from pydrake.systems.framework import (
     Context,
     DiscreteValues,
     InputPort,
-    LeafSystem,
-    OutputPort,
     State,
 )
 
-from drake_coop.control.finger import ReferenceLayout, check_period
-from drake_coop.sensing.sampling import lowpass_alpha
+from drake_coop.control.interfaces import ForceSource, VelocitySource
+from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.params import check_period
+from drake_coop.control.timing import lowpass_alpha
 
 
-class MeasuredVelocity(LeafSystem):
+class MeasuredVelocity(VelocitySource):
     """Baseline for comparisons, *not* the paper's scheme: the true joint velocities.
 
     .. pydrake_system::
@@ -88,22 +88,6 @@ class MeasuredVelocity(LeafSystem):
         """The arm's ``[q, q̇]``."""
         return self._state
 
-    def get_q_input_port(self) -> InputPort:
-        """The encoder reading ``q`` (optional)."""
-        return self._q
-
-    def get_q_hat_output_port(self) -> OutputPort:
-        """``q̂ = q``."""
-        return self._q_hat_out
-
-    def get_qdot_hat_output_port(self) -> OutputPort:
-        """``q̇``."""
-        return self._qdot_hat_out
-
-    def get_qdot_o_output_port(self) -> OutputPort:
-        """``q̇``."""
-        return self._qdot_o_out
-
     def set_initial_state(self, context: Context, q_hat: np.ndarray,
                           qdot_hat_o: np.ndarray | None = None) -> None:
         """Nothing to initialize (stateless); kept for the same interface as the observer."""
@@ -118,7 +102,7 @@ class MeasuredVelocity(LeafSystem):
         output.SetFromVector(self._state.Eval(context)[self._n:])
 
 
-class DifferenceVelocity(LeafSystem):
+class DifferenceVelocity(VelocitySource):
     """Backward difference of the encoder signal, with an optional first-order low-pass.
 
     .. pydrake_system::
@@ -184,22 +168,6 @@ class DifferenceVelocity(LeafSystem):
         self._qdot_hat_out = self.DeclareVectorOutputPort("qdot_hat", n, self._calc_velocity)
         self._qdot_o_out = self.DeclareVectorOutputPort("qdot_o", n, self._calc_velocity)
 
-    def get_q_input_port(self) -> InputPort:
-        """The encoder reading ``q``."""
-        return self._q
-
-    def get_q_hat_output_port(self) -> OutputPort:
-        """``q(k)``."""
-        return self._q_hat_out
-
-    def get_qdot_hat_output_port(self) -> OutputPort:
-        """The velocity estimate."""
-        return self._qdot_hat_out
-
-    def get_qdot_o_output_port(self) -> OutputPort:
-        """The velocity estimate."""
-        return self._qdot_o_out
-
     @property
     def alpha(self) -> float:
         """The low-pass gain ``α``."""
@@ -237,7 +205,7 @@ class DifferenceVelocity(LeafSystem):
             [self._q.Eval(context), self._velocity(context)]))
 
 
-class SensedForce(LeafSystem):
+class SensedForce(ForceSource):
     """Classical force feedback: the sensor's ``λ_s`` in place of ``λ̂`` in (13) and (6).
 
     .. pydrake_system::
@@ -296,18 +264,6 @@ class SensedForce(LeafSystem):
         """The sensor's reading ``λ_s``."""
         return self._lambda
 
-    def get_reference_input_port(self) -> InputPort:
-        """The reference ``[q_d, q̇_d, q̈_d, λ_d, held]``."""
-        return self._reference
-
-    def get_lambda_hat_output_port(self) -> OutputPort:
-        """``λ_s`` while held, else 0."""
-        return self._lambda_hat_out
-
-    def get_Delta_F_tilde_output_port(self) -> OutputPort:
-        """The integral ``ΔF̃`` of (6) on ``λ_s``."""
-        return self._Delta_F_out
-
     def set_initial_state(self, context: Context, Delta_F_tilde: np.ndarray | None = None
                           ) -> None:
         """``ΔF̃(0)`` (default zero)."""
@@ -331,7 +287,7 @@ class SensedForce(LeafSystem):
                                  DF + self._h * (lam - ref.lambda_d) if ref.held else self._zero)
 
 
-class NoForceEstimate(LeafSystem):
+class NoForceEstimate(ForceSource):
     """No force information (implicit force control, reference [9]): ``λ̂ := λ_d``, ``ΔF̃ ≡ 0``.
 
     .. pydrake_system::
@@ -373,18 +329,6 @@ class NoForceEstimate(LeafSystem):
         self._Delta_F_out = self.DeclareVectorOutputPort(
             "Delta_F_tilde", layout.m, self._calc_Delta_F_tilde,
             prerequisites_of_calc={self.nothing_ticket()})
-
-    def get_reference_input_port(self) -> InputPort:
-        """The reference ``[q_d, q̇_d, q̈_d, λ_d, held]``."""
-        return self._reference
-
-    def get_lambda_hat_output_port(self) -> OutputPort:
-        """``λ_d`` while held, else 0."""
-        return self._lambda_hat_out
-
-    def get_Delta_F_tilde_output_port(self) -> OutputPort:
-        """Zero."""
-        return self._Delta_F_out
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
         ref = self._layout.unpack(self._reference.Eval(context))

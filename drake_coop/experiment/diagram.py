@@ -77,7 +77,7 @@ from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.sensing.force_sensor import FTModel, FTSensor, add_ft_sensor
 from drake_coop.sensing.latency import ActuationDelay
-from drake_coop.sensing.model_error import controller_arm_model
+from drake_coop.plant.model_error import controller_arm_model
 
 
 #: The signals each robot logs, in the order of its ``<robot>_log_signals`` Multiplexer's

@@ -33,7 +33,7 @@ from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.timing import aligned_periods, tick_of
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
-from drake_coop.sensing.model_error import add_payload
+from drake_coop.plant.model_error import add_payload
 
 
 class JointTracker(LeafSystem):

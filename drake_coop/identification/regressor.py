@@ -137,10 +137,10 @@ def load_structure(urdf: str | Path, base_frame: str, X_WB: RigidTransform | Non
     base_frame : str
         The frame welded to the world at ``X_WB`` (identity by default).
     payload_mass : float
-        A payload (:func:`drake_coop.sensing.model_error.add_payload`) welded to the flange; it
+        A payload (:func:`drake_coop.plant.model_error.add_payload`) welded to the flange; it
         joins the last link's composite.
     """
-    from drake_coop.sensing.model_error import add_payload
+    from drake_coop.plant.model_error import add_payload
 
     plant = MultibodyPlant(0.0)
     (instance,) = Parser(plant).AddModels(str(urdf))

@@ -93,7 +93,7 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     """
     from drake_coop.identification.excitation import ExcitationError
     from drake_coop.plant.arms import Arm
-    from drake_coop.sensing.model_error import controller_arm_model
+    from drake_coop.plant.model_error import controller_arm_model
 
     robot = scenario.robots[index]
     arm = Arm(robot, scenario.task)
@@ -151,7 +151,7 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     fit = {"t": prepared.t, "tau": prepared.tau,
            "identified": (Y @ estimate.theta).reshape(-1, n),
            "nominal": (Y @ theta_nominal).reshape(-1, n)}
-    nominal_text = Path(nominal.arm.controller_urdf_path).read_text()
+    nominal_text = Path(arm.controller_urdf_path).read_text()
     urdf_text = identified_urdf_text(
         nominal_text, structure, estimate.theta,
         note=f"Robot {robot.name}, {duration:g} s of excitation.")

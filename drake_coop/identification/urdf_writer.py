@@ -17,7 +17,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 
 from drake_coop.identification.regressor import ArmStructure
-from drake_coop.sensing.model_error import DRAKE_NS
+from drake_coop.plant.model_error import DRAKE_NS
 
 
 def central_inertia(theta_b: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:

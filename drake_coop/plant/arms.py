@@ -7,8 +7,8 @@ effector: a positive λ is the object pushing the end effector outwards, i.e. a 
 paper's Section IV is ``m_i = 1``, ``N_i = (s_i, 0, 0)``: ``φ_i = s_i (x_i − b_i)`` with
 ``s_1 = −1``, ``s_2 = +1``.
 
-The kinematics are the closed form of the paper's arms (:mod:`drake_coop.plant.crs`) or
-Drake's for any other arm (:mod:`drake_coop.plant.kinematics`), chosen by
+The kinematics are the closed form of the paper's arms (:mod:`drake_coop.kinematics.crs`) or
+Drake's for any other arm (:mod:`drake_coop.kinematics.drake_arm`), chosen by
 :func:`drake_coop.scenario.reach.robot_kinematics`.
 """
 
@@ -19,8 +19,10 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from pydrake.math import RigidTransform, RotationMatrix
 
-from drake_coop.plant.crs import (
+from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+from drake_coop.kinematics.crs import (
     GEOMETRY,
     ArmGeometry,
     CrsKinematics,
@@ -31,7 +33,8 @@ from drake_coop.scenario.reach import has_closed_form, robot_kinematics
 from drake_coop.scenario.resources import controller_urdf_path, model_urdf_path
 from drake_coop.scenario.schema import Robot, Task
 
-__all__ = ["GEOMETRY", "Arm", "ArmGeometry", "CrsKinematics", "urdf_dir", "urdf_joint_limits"]
+__all__ = ["GEOMETRY", "Arm", "ArmGeometry", "CrsKinematics", "arm_model", "urdf_dir",
+           "urdf_joint_limits"]
 
 
 def urdf_dir() -> Path:
@@ -106,8 +109,8 @@ class Arm:
     @cached_property
     def kinematics(self):
         """Forward kinematics, joint references and path checks:
-        :class:`~drake_coop.plant.crs.CrsKinematics` for the paper's arms,
-        :class:`~drake_coop.plant.kinematics.DrakeArmKinematics` otherwise."""
+        :class:`~drake_coop.kinematics.crs.CrsKinematics` for the paper's arms,
+        :class:`~drake_coop.kinematics.drake_arm.DrakeArmKinematics` otherwise."""
         return robot_kinematics(self.robot)
 
     @property
@@ -161,3 +164,30 @@ class Arm:
     def J_phi(self, q: np.ndarray) -> np.ndarray:
         """Constraint Jacobian ``J_φ = N ∂x/∂q`` (closed form), shape (..., m, 3)."""
         return self.N @ self.jacobian(q)
+
+
+def arm_model(arm: Arm, urdf: str | Path | None = None, closed_form: bool | None = None
+              ) -> ArmModel:
+    """The controller's model of a scenario's arm (:class:`~drake_coop.control.ArmModel`).
+
+    Parameters
+    ----------
+    arm : Arm
+        The robot (base pose, frames, constraint normals and contact point).
+    urdf : str or Path, optional
+        The model to use; defaults to ``arm.controller_urdf_path``.
+    closed_form : bool, optional
+        Use the closed-form kinematics of :mod:`drake_coop.kinematics.crs` for ``φ``, ``J_φ`` and
+        ``J̇_φ``; default: when the arm has them and the controller's URDF is the simulated
+        model (``controller_model`` unset; scaled masses and inertias keep the geometry).
+    """
+    path = Path(urdf) if urdf is not None else arm.controller_urdf_path
+    X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
+    plant = make_arm_controller_plant(path, arm.base_frame, X_WB)
+    use = (arm.closed_form and not arm.robot.controller_model if closed_form is None
+           else bool(closed_form))
+    if use and not arm.closed_form:
+        raise ValueError(f"closed_form: {arm.name} ({arm.robot.model!r}) has no closed-form "
+                         "kinematics")
+    return ArmModel(plant, arm.ee_frame, arm.N, arm.c,
+                    closed_form=arm.kinematics if use else None)

@@ -283,7 +283,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
     # that starts at t_k, under the torque τ(k) of that tick.
     plant.SetUseSampledOutputPorts(False)
     arms = add_arms(plant, scene_graph, scenario)
-    from drake_coop.sensing.model_error import add_payload  # the unmodelled payloads
+    from drake_coop.plant.model_error import add_payload  # the unmodelled payloads
 
     for h, robot in zip(arms, scenario.robots):
         add_payload(plant, h.instance, robot.model_error.payload_mass, robot.sensor_joint)

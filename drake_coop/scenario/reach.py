@@ -1,8 +1,8 @@
 """Each robot's kinematics, chosen from its scenario entry, and the reachability check.
 
 The paper's arms (``crs_a465``, ``crs_a255`` with their default frames and a position-only
-reference) get their closed form (:class:`~drake_coop.plant.crs.CrsKinematics`); any other arm
-gets Drake's (:class:`~drake_coop.plant.kinematics.DrakeArmKinematics`: its URDF, frames,
+reference) get their closed form (:class:`~drake_coop.kinematics.crs.CrsKinematics`); any other arm
+gets Drake's (:class:`~drake_coop.kinematics.drake_arm.DrakeArmKinematics`: its URDF, frames,
 orientation reference ``ee_rpy_deg`` and IK seed ``q_seed``). Both kinematics modules import
 nothing of the scenario, so this module, the scenario's validation and the plant's
 :class:`~drake_coop.plant.arms.Arm` share them without an import cycle.
@@ -21,7 +21,7 @@ from drake_coop.scenario.task_path import cartesian_reference
 
 def has_closed_form(robot: Robot) -> bool:
     """Whether the robot is one of the paper's arms, used as the paper uses it."""
-    from drake_coop.plant.crs import GEOMETRY
+    from drake_coop.kinematics.crs import GEOMETRY
 
     return (robot.model in GEOMETRY and robot.base_frame == "base_link"
             and robot.ee_frame == "pad" and robot.ee_rpy_deg is None)
@@ -34,13 +34,13 @@ def robot_kinematics(robot: Robot):
     yaw = math.radians(robot.base_yaw_deg)
     urdf = model_urdf_path(robot)
     if has_closed_form(robot):
-        from drake_coop.plant.crs import GEOMETRY, CrsKinematics, urdf_joint_limits
+        from drake_coop.kinematics.crs import GEOMETRY, CrsKinematics, urdf_joint_limits
 
         return CrsKinematics(GEOMETRY[robot.model], p_base, yaw, *urdf_joint_limits(urdf),
                              name=robot.name)
     from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-    from drake_coop.plant.kinematics import DrakeArmKinematics
+    from drake_coop.kinematics.drake_arm import DrakeArmKinematics
 
     R_d = None
     if robot.ee_rpy_deg is not None:

@@ -15,11 +15,10 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
+from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains  # noqa: F401 (re-exported)
 from drake_coop.scenario.bounds import one_line
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
-VELOCITY_SOURCES = ("observer", "measured", "difference")
-FORCE_SOURCES = ("observer", "sensor", "none", "momentum")
 #: The shipped arm models (``urdf/<file>``); a robot's ``model`` may also be a ``.urdf`` path.
 SHIPPED_ARMS = {"crs_a465": "crs_a465_3dof.urdf", "crs_a255": "crs_a255_3dof.urdf",
                 "coop6": "coop6_6dof.urdf"}
@@ -34,46 +33,6 @@ class ScenarioError(ValueError):
 
     def __init__(self, message: str):
         super().__init__(one_line(message))
-
-
-@dataclass
-class Gains:
-    """Gains of the controller (13) and observers (15)-(16), (22) of one robot.
-
-    Attributes
-    ----------
-    Lambda : float
-        k of the paper's ``Lambda = k I`` (1/s): the gain of q̃ in q̇_r (4) and of z in (8).
-    K_R : list[float]
-        Diagonal of ``K_R`` (N·m·s/rad), the velocity-error gain of (13), one per joint.
-    k_d : float
-        Observer gain of (15)-(16) (1/s).
-    k_F : float
-        Gain of the force integral ΔF̃ in (13) (dimensionless).
-    xi : float
-        ``xi`` of (4): ``ξ = xi I`` (m×m), weight of ΔF̃ in the reference velocity.
-    xi_matrix : list[list[float]] or None
-        ``ξ`` of (4) as a full m×m matrix (symmetric positive definite); replaces ``xi`` when
-        given.
-    zeta : float
-        ``zeta`` of (13), weight of Δλ̃ (dimensionless).
-    beta : float
-        ``beta`` of (4), position-constraint gain (1/s). Not given by the paper.
-    momentum_gain : float
-        ``K_O`` of the generalized-momentum observer (``force_source: momentum``,
-        :mod:`drake_coop.control.momentum`), 1/s: the estimate follows the external torque
-        as a first-order filter of time constant ``1/K_O``; ``0 < h K_O <= 1``.
-    """
-
-    Lambda: float = 35.0
-    K_R: list[float] = field(default_factory=lambda: [120.0, 120.0, 120.0])
-    k_d: float = 40.0
-    k_F: float = 0.05
-    xi: float = 1e-5
-    xi_matrix: Optional[list[list[float]]] = None
-    zeta: float = 1e-3
-    beta: float = 10.0
-    momentum_gain: float = 50.0
 
 
 @dataclass
@@ -183,7 +142,7 @@ class Timing:
 
 @dataclass
 class ModelError:
-    """What the controller's model gets wrong (:mod:`drake_coop.sensing.model_error`).
+    """What the controller's model gets wrong (:mod:`drake_coop.plant.model_error`).
 
     The controller's model is the URDF of the simulated arm (or ``controller_model``) with
     every link's mass multiplied by ``mass_scale``, every link's rotational inertia and every

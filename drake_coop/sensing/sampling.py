@@ -1,16 +1,18 @@
 """What the sampled sensor models share: seeded white noise and the first-order low-pass.
 
 All sensors are sampled at the control period ``h`` (their tick index is
-:func:`drake_coop.scenario.timing.tick_of`). Their noise is a deterministic function of
+:func:`drake_coop.control.timing.tick_of`). Their noise is a deterministic function of
 ``(seed, stream, tick)``, so a run is reproducible and a sensor read twice at the same tick
 (e.g. by the controller and by a logger) returns the same value.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
+
+from drake_coop.control.timing import lowpass_alpha
+
+__all__ = ["ENCODER_STREAM", "FORCE_SENSOR_STREAM", "white_noise", "lowpass_alpha"]
 
 #: Noise streams: one per robot and sensor, so that equal seeds give independent noises.
 ENCODER_STREAM = 0
@@ -29,15 +31,3 @@ def white_noise(seed: int, robot: int, stream: int, k: int, std: float, size: in
         return np.zeros(size)
     rng = np.random.default_rng([int(seed), int(robot), int(stream), int(k)])
     return std * rng.standard_normal(size)
-
-
-def lowpass_alpha(cutoff_hz: float | None, h: float) -> float:
-    """Gain ``α`` of the sampled first-order low-pass ``y(k) = y(k−1) + α (u(k) − y(k−1))``.
-
-    ``α = 1 − exp(−2π f_c h)``: the exact (step-invariant) discretization of
-    ``T ẏ = u − y``, ``T = 1/(2π f_c)``, for an input held over each sample. ``α = 1`` (no
-    filter) when ``cutoff_hz`` is None.
-    """
-    if cutoff_hz is None:
-        return 1.0
-    return 1.0 - math.exp(-2.0 * math.pi * cutoff_hz * h)

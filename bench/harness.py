@@ -1,6 +1,6 @@
 """Benchmark: the control loop's cost against the plant's, measured as ratios in one process.
 
-``drake-coop bench`` (or ``python bench/benchmark.py``) measures, on this machine:
+``python bench/benchmark.py`` measures, on this machine:
 
 1. **ratio**: the paper's experiment (``planes`` mode, everything logged, progress off) against
    the plant alone (the same plant and constraints, stepped the same way at the same step,
@@ -18,7 +18,7 @@
    (22), velocity observer (15)-(16)) timed with ``timeit`` outside the diagram.
 5. **scaling**: cost per control tick (full run and plant alone) at plant steps of 1, 3 and
    9 ms, and the paper run's cost per robot; the growth with the number of robots is measured
-   by :mod:`drake_coop.bench_robots` (``python bench/robots.py``).
+   by :mod:`bench.robots_scaling` (``python bench/robots.py``).
 6. optionally the realtime factor of another scenario (e.g. ``scenarios/contact.yaml``).
 """
 
@@ -48,7 +48,7 @@ def _plant_alone(scenario, t_end: float, extras=None) -> tuple[float, float]:
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import ConstantVectorSource
 
-    from drake_coop.control.arm_model import ArmModel
+    from drake_coop.plant.arms import arm_model
     from drake_coop.experiment.references import reference_samples
     from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 
@@ -58,7 +58,7 @@ def _plant_alone(scenario, t_end: float, extras=None) -> tuple[float, float]:
           for i, h in enumerate(coop.arms)]
     for i, h in enumerate(coop.arms):
         src = b.AddNamedSystem(f"{h.arm.name}_torque",
-                               ConstantVectorSource(ArmModel(h.arm).g(q0[i])))
+                               ConstantVectorSource(arm_model(h.arm).g(q0[i])))
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
     finish = None
     if extras is not None:
@@ -362,13 +362,13 @@ def _tick_costs(scenario) -> dict[str, float]:
     keeps its kinematics while ``q`` is unchanged). The last entry is one whole tick of the
     robot: (15)/(8), (22), (13) and (16) at the same sample.
     """
-    from drake_coop.control.arm_model import ArmModel
+    from drake_coop.plant.arms import arm_model
     from drake_coop.control.finger import FingerLaw
     from drake_coop.experiment.references import reference_samples
     from drake_coop.plant.arms import Arm
 
     robot = scenario.robots[0]
-    law = FingerLaw(ArmModel(Arm(robot, scenario.task)), robot.gains)
+    law = FingerLaw(arm_model(Arm(robot, scenario.task)), robot.gains)
     _, r = reference_samples(scenario, 0)
     k = int(np.argmax(law.layout.column(r, "held")[:, 0] > 0.5)) + 1000
     ref = law.layout.unpack(r[k])
@@ -476,7 +476,7 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
           f"[{ratio_cpu['min']:.2f}, {ratio_cpu['max']:.2f}]   (target <= 1.4, aim 1.3)")
     print(f"  experiment realtime factor x{t_end / best:.2f} (best run)")
     ratio_replay = _spread([p["ratio_cpu_replay"] for p in pairs])
-    print(f"  plant alone replaying the run's torques: "
+    print("  plant alone replaying the run's torques: "
           + ", ".join(f"{p['replay_cpu_s']:.2f} s CPU" for p in pairs)
           + f" (joint angles within {max(p['replay_max_q_deviation_rad'] for p in pairs):.1e}"
           f" rad of the run's); ratio CPU {ratio_replay['median']:.2f} "

@@ -7,49 +7,19 @@ experiment and of the plant alone (the same plant and constraints, constant torq
 system) for each ``l``. Reported per control tick: the plant alone, the control loop (the
 difference: the ``l`` control blocks, sensors, references and loggers, plus whatever the
 plant costs more under control than with constant torques) and, from one more run with every
-Python callback timed (:func:`drake_coop.bench._timed_callbacks`), the Python systems' own time
+Python callback timed (:func:`bench.harness._timed_callbacks`), the Python systems' own time
 per robot. A per-robot cost that stays flat as ``l`` grows is the linear growth the paper's
 decentralized scheme promises.
 """
 
 from __future__ import annotations
 
-import math
 import statistics
 import time
 
 import numpy as np
 
-from drake_coop.scenario.schema import Robot, Scenario
-
-#: Distances from the object's centre (m): the contact points and the bases.
-CONTACT_RADIUS, BASE_RADIUS = 0.1, 0.44
-
-
-def ring_scenario(l: int) -> Scenario:
-    """``l`` A255 arms ``360°/l`` apart around the palm origin, each pushing on its own plane
-    towards the centre; the object dips along z instead of the circle (as three_arms.yaml)."""
-    from drake_coop.scenario.loading import load_scenario
-    from drake_coop.scenario.resources import scenarios_dir
-
-    s = load_scenario(scenarios_dir() / "three_arms.yaml")
-    template = s.robots[0]
-    robots = []
-    for i in range(l):
-        a = 2 * math.pi * i / l
-        c, sn = math.cos(a), math.sin(a)
-        robots.append(Robot(
-            name=f"robot{i + 1}", model=template.model, base_xyz=[BASE_RADIUS * c,
-                                                                  BASE_RADIUS * sn, 0.0],
-            base_yaw_deg=math.degrees(a) + 180.0 - (360.0 if a > math.pi else 0.0),
-            contact_xy=[CONTACT_RADIUS * c, CONTACT_RADIUS * sn], normals=[[c, sn, 0.0]],
-            home=[2 * CONTACT_RADIUS * c, 2 * CONTACT_RADIUS * sn, 0.6], gains=template.gains))
-    s.robots = robots
-    from drake_coop.scenario.validation import validate
-
-    validate(s)
-    return s
-
+from drake_coop.scenario.ring import ring_scenario
 
 def robots_scaling(counts: tuple[int, ...] = (2, 3, 4, 6), t_end: float = 10.0,
                    repeats: int = 1) -> list[dict]:
@@ -64,7 +34,7 @@ def robots_scaling(counts: tuple[int, ...] = (2, 3, 4, 6), t_end: float = 10.0,
     """
     from collections import defaultdict
 
-    from drake_coop.bench import _experiment, _plant_alone, _timed_callbacks
+    from bench.harness import _experiment, _plant_alone, _timed_callbacks
     from drake_coop.experiment.plan import plan_run
 
     rows = []

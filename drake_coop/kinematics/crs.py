@@ -9,7 +9,7 @@ elbow along the forearm: forearm + wrist-to-flange + force sensor + pad radius.
 
 :class:`CrsKinematics` holds the forward kinematics, Jacobian, its time derivative and inverse
 kinematics (NumPy, vectorised; tests check them against the MultibodyPlant built from the URDF
-files), behind the same interface as :class:`~drake_coop.plant.kinematics.DrakeArmKinematics`
+files), behind the same interface as :class:`~drake_coop.kinematics.drake_arm.DrakeArmKinematics`
 (``n``, ``q_min``, ``q_max``, ``fk``, ``joint_reference``, ``check_path``). Like that module,
 it imports nothing of the scenario, so the scenario's checks can use both.
 """

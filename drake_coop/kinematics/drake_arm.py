@@ -1,6 +1,6 @@
 """Numeric kinematics of one arm from its URDF: Drake's forward kinematics, Jacobians and IK.
 
-The closed forms of :class:`drake_coop.plant.crs.CrsKinematics` exist for the paper's two 3-joint arms
+The closed forms of :class:`drake_coop.kinematics.crs.CrsKinematics` exist for the paper's two 3-joint arms
 only. :class:`DrakeArmKinematics` gives the same quantities for any serial arm, numerically,
 from a single-arm :class:`~pydrake.multibody.plant.MultibodyPlant` (the URDF parsed, its
 ``base_frame`` welded to the world at ``X_WB``).

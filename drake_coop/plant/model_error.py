@@ -24,6 +24,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import RigidBody, SpatialInertia, UnitInertia
 
 from drake_coop.control.arm_model import ArmModel
+from drake_coop.plant.arms import arm_model
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import ModelError
 
@@ -77,15 +78,15 @@ def has_scaling(error: ModelError) -> bool:
 def controller_arm_model(arm: Arm, error: ModelError | None = None) -> ArmModel:
     """The controller's model of ``arm``: its controller URDF with ``error``'s scales.
 
-    Without scaling (all scales 1) this is ``ArmModel(arm)`` itself, parsed from the file.
+    Without scaling (all scales 1) this is ``arm_model(arm)`` itself, parsed from the file.
     """
     if error is None or not has_scaling(error):
-        return ArmModel(arm)
+        return arm_model(arm)
     text = scaled_urdf_text(Path(arm.controller_urdf_path).read_text(), error)
     with tempfile.TemporaryDirectory(prefix="drake_coop_model_") as folder:
         path = Path(folder) / f"{arm.name}_controller_model.urdf"
         path.write_text(text)
-        return ArmModel(arm, path)
+        return arm_model(arm, path)
 
 
 def add_payload(plant: MultibodyPlant, instance, mass: float,

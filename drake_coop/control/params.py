@@ -1,0 +1,178 @@
+"""The parameters of the paper's blocks: the gains, the interchangeable sources, their checks.
+
+Everything a block of :mod:`drake_coop.control` is configured with is defined here, so that the
+library stands on Drake and NumPy alone (the scenario files of the application build these
+types; :mod:`drake_coop.scenario.schema` re-exports them). Each check raises ``TypeError`` for a
+value of the wrong type and ``ValueError`` for one out of range, always in one line naming the
+argument (``gains.K_R``, ``period``, ...).
+"""
+
+
+import math
+from dataclasses import dataclass, field
+from numbers import Real
+from typing import Optional
+
+import numpy as np
+
+#: The velocity sources a robot's control block can use: the paper's observer (15)-(16), the
+#: true velocities (a tachometer) or a backward difference of the encoders.
+VELOCITY_SOURCES = ("observer", "measured", "difference")
+#: The force sources: the paper's observer (22), an F/T sensor, none, the momentum observer.
+FORCE_SOURCES = ("observer", "sensor", "none", "momentum")
+
+#: The control periods a block accepts (s): below 10 µs no arm's driver samples, above 1 s
+#: the law's forward-Euler integrals mean nothing.
+PERIOD_RANGE = (1e-5, 1.0)
+
+
+@dataclass
+class Gains:
+    """Gains of the controller (13) and observers (15)-(16), (22) of one robot.
+
+    Attributes
+    ----------
+    Lambda : float
+        k of the paper's ``Lambda = k I`` (1/s): the gain of q̃ in q̇_r (4) and of z in (8).
+    K_R : list[float]
+        Diagonal of ``K_R`` (N·m·s/rad), the velocity-error gain of (13), one per joint.
+    k_d : float
+        Observer gain of (15)-(16) (1/s).
+    k_F : float
+        Gain of the force integral ΔF̃ in (13) (dimensionless).
+    xi : float
+        ``xi`` of (4): ``ξ = xi I`` (m×m), weight of ΔF̃ in the reference velocity.
+    xi_matrix : list[list[float]] or None
+        ``ξ`` of (4) as a full m×m matrix (symmetric positive definite); replaces ``xi`` when
+        given.
+    zeta : float
+        ``zeta`` of (13), weight of Δλ̃ (dimensionless).
+    beta : float
+        ``beta`` of (4), position-constraint gain (1/s). Not given by the paper.
+    momentum_gain : float
+        ``K_O`` of the generalized-momentum observer (``force_source: momentum``,
+        :mod:`drake_coop.control.momentum`), 1/s: the estimate follows the external torque
+        as a first-order filter of time constant ``1/K_O``; ``0 < h K_O <= 1``.
+    """
+
+    Lambda: float = 35.0
+    K_R: list[float] = field(default_factory=lambda: [120.0, 120.0, 120.0])
+    k_d: float = 40.0
+    k_F: float = 0.05
+    xi: float = 1e-5
+    xi_matrix: Optional[list[list[float]]] = None
+    zeta: float = 1e-3
+    beta: float = 10.0
+    momentum_gain: float = 50.0
+
+
+def _number(value, name: str) -> float:
+    """``value`` as a float; ``TypeError`` naming ``name`` for a string, a bool or a container."""
+    if isinstance(value, bool) or not isinstance(value, (Real, np.floating, np.integer)):
+        raise TypeError(f"{name}: a number is required (got {type(value).__name__} {value!r})")
+    return float(value)
+
+
+def _vector(value, name: str) -> np.ndarray:
+    """``value`` as a float array; ``TypeError`` naming ``name`` for strings or mappings."""
+    if isinstance(value, (str, bytes, dict)):
+        raise TypeError(f"{name}: a list of numbers is required (got {type(value).__name__} "
+                        f"{value!r})")
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}: a list of numbers is required (got {value!r})") from None
+    return arr
+
+
+def check_positive(value, name: str) -> float:
+    """``value`` as a float, finite and > 0 (``TypeError``/``ValueError`` naming ``name``)."""
+    x = _number(value, name)
+    if not math.isfinite(x) or x <= 0.0:
+        raise ValueError(f"{name}: must be finite and > 0 (got {x!r})")
+    return x
+
+
+def check_gains(gains: Gains, n: int, m: int, period: float | None = None,
+                force_source: str | None = None) -> None:
+    """Refuse gains that do not fit an arm of ``n`` joints and ``m`` constraints.
+
+    ``Λ``, ``k_d`` and the ``n`` entries of ``K_R`` must be finite and positive (the observer
+    (15)–(16) and the passivity of (13) need them); ``k_F``, ``ζ``, ``β`` and a scalar ``ξ``
+    finite and non-negative; a ``ξ`` matrix ``m × m``, symmetric positive definite. With
+    ``force_source = "momentum"`` and the period ``h`` given, the momentum observer's
+    ``K_O`` must satisfy ``0 < h K_O <= 1`` (its error shrinks by ``1 − h K_O`` per tick).
+
+    Raises
+    ------
+    TypeError
+        ``gains`` is not a :class:`Gains`, or a gain is not a number (a string, a dict).
+    ValueError
+        One line naming the gain and what is allowed.
+    """
+    if not isinstance(gains, Gains):
+        raise TypeError(f"gains: a drake_coop.control.Gains is required "
+                        f"(got {type(gains).__name__})")
+    K_R = _vector(gains.K_R, "K_R")
+    if K_R.shape != (n,):
+        raise ValueError(f"K_R: {n} diagonal entries are required, one per joint "
+                         f"(got shape {K_R.shape})")
+    if not np.all(np.isfinite(K_R)) or np.any(K_R <= 0.0):
+        raise ValueError(f"K_R: every entry must be finite and > 0 (got {K_R.tolist()})")
+    for name in ("Lambda", "k_d"):
+        value = _number(getattr(gains, name), name)
+        if not np.isfinite(value) or value <= 0.0:
+            raise ValueError(f"{name}: must be finite and > 0 (got {value})")
+    for name in ("k_F", "zeta", "beta"):
+        value = _number(getattr(gains, name), name)
+        if not np.isfinite(value) or value < 0.0:
+            raise ValueError(f"{name}: must be finite and >= 0 (got {value})")
+    K_O = _number(gains.momentum_gain, "momentum_gain")
+    if force_source == "momentum":
+        if not np.isfinite(K_O) or K_O <= 0.0:
+            raise ValueError(f"momentum_gain: must be finite and > 0 (got {K_O})")
+        if period is not None and K_O * float(period) > 1.0:
+            raise ValueError(f"momentum_gain: must be at most 1/h = {1.0 / float(period):g} "
+                             f"1/s (got {K_O:g})")
+    if gains.xi_matrix is None:
+        xi = _number(gains.xi, "xi")
+        if not np.isfinite(xi) or xi < 0.0:
+            raise ValueError(f"xi: must be finite and >= 0 (got {xi})")
+        return
+    xi = _vector(gains.xi_matrix, "xi_matrix")
+    if xi.shape != (m, m):
+        raise ValueError(f"xi_matrix: an {m}x{m} matrix is required, one row per constraint "
+                         f"(got shape {xi.shape})")
+    if (not np.all(np.isfinite(xi)) or not np.allclose(xi, xi.T, rtol=0.0, atol=1e-12)
+            or np.linalg.eigvalsh(xi).min() <= 0.0):
+        raise ValueError("xi_matrix: must be symmetric positive definite")
+
+
+def check_period(period: float, time_step: float | None = None) -> float:
+    """The sampling time ``h`` (s) checked: a number in :data:`PERIOD_RANGE` and, when the
+    plant's step ``time_step`` is given, a whole multiple of it (to 1e-9 relative), so every
+    tick falls on a plant step.
+
+    Returns
+    -------
+    float
+        ``h``.
+
+    Raises
+    ------
+    TypeError
+        ``period`` is not a number (a string, ``None``).
+    ValueError
+        Naming ``period`` and what is allowed.
+    """
+    h = _number(period, "period")
+    lo, hi = PERIOD_RANGE
+    if not math.isfinite(h) or not lo <= h <= hi:
+        raise ValueError(f"period: the sampling time h must be between {lo:g} and {hi:g} s "
+                         f"(got {h!r})")
+    if time_step is not None and time_step > 0.0:
+        ratio = h / time_step
+        if round(ratio) < 1 or abs(ratio - round(ratio)) > 1e-9 * ratio:
+            raise ValueError(f"period: must be a whole multiple of the plant's time step "
+                             f"{time_step:g} s (got {h:g} s, {ratio:.6g} steps)")
+    return h
