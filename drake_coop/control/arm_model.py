@@ -230,6 +230,16 @@ class ArmModel:
         self._set_q(q)
         return self.ee_frame.CalcPoseInWorld(self.context).translation()
 
+    def J_x(self, q: np.ndarray) -> np.ndarray:
+        """Translational Jacobian ``J_x = ∂x/∂q`` of the end-effector point (3×n), world frame
+        (``J_φ = N J_x``); closed form when the arm has it."""
+        if self.closed_form:
+            return self.kinematics.jacobian(q)
+        self._set_q(q)
+        return self.plant.CalcJacobianTranslationalVelocity(
+            self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
+            self.plant.world_frame(), self.plant.world_frame())
+
     def phi(self, q: np.ndarray) -> np.ndarray:
         """Constraint (2), ``φ = N (x − c)`` (m), an m-vector."""
         return self._N @ (self.ee_position(q) - self._c)

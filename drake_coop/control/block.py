@@ -41,7 +41,7 @@ from pydrake.systems.primitives import Demultiplexer
 from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
-from drake_coop.control.params import check_period
+from drake_coop.control.params import check_momentum_gain, check_period
 from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import (
@@ -55,7 +55,7 @@ from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains
 
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
-                        difference_cutoff_hz: float | None = None, momentum_gain: float = 50.0
+                        difference_cutoff_hz: float | None = None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -75,9 +75,9 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         One of :data:`~drake_coop.scenario.VELOCITY_SOURCES`, :data:`~drake_coop.scenario.FORCE_SOURCES`.
     difference_cutoff_hz : float, optional
         Low-pass cutoff of ``velocity_source = difference``.
-    momentum_gain : float
-        ``K_O`` (1/s) of ``force_source = momentum``
-        (:class:`~drake_coop.control.momentum.MomentumObserver`).
+
+    The momentum observer's gain ``K_O`` of ``force_source = momentum`` is the law's
+    (``Gains.momentum_gain``).
 
     Returns
     -------
@@ -110,7 +110,7 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
     elif force_source == "momentum":
         force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
-            law.model, law.layout, period, momentum_gain))
+            law.model, law.layout, period, check_momentum_gain(law.momentum_gain, period)))
     else:
         force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
@@ -262,7 +262,7 @@ def AddCooperativeController(
         gains: Gains, period: float, controller_model: str | Path | MultibodyPlant | ArmModel,
         ee_frame: str | Frame | None = None, normals=None, contact_point=None,
         velocity_source: str = "observer", force_source: str = "observer",
-        difference_cutoff_hz: float | None = None, momentum_gain: float = 50.0,
+        difference_cutoff_hz: float | None = None,
         q: OutputPort | None = None,
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
         name: str | None = None, allow_sampled_output_ports: bool = False
@@ -279,10 +279,12 @@ def AddCooperativeController(
     model_instance : ModelInstanceIndex
         The arm (``n`` positions, ``n`` velocities, ``n`` actuators; base welded to the world).
     gains : Gains
-        The law's gains (:class:`~drake_coop.scenario.schema.Gains`): ``K_R`` has ``n``
-        entries, ``xi_matrix`` (if any) is ``m × m`` SPD; checked here, by name.
+        The law's gains (:class:`~drake_coop.control.Gains`): ``K_R`` has ``n``
+        entries, ``xi_matrix`` (if any) is ``m × m`` SPD, ``momentum_gain`` the ``K_O`` of
+        ``force_source = "momentum"`` (``0 < h K_O <= 1``); checked here, by name.
     period : float
-        Sampling time ``h`` (s), > 0; a multiple of the plant's time step for exact sampling.
+        Sampling time ``h`` (s), between 1e-5 and 1 s; for a discrete plant a whole multiple
+        of its time step (every tick falls on a plant step).
     controller_model : str, Path, MultibodyPlant or ArmModel
         The controller's own model: the arm's model file (built with
         :func:`MakeArmControllerPlant`), a finalized single-arm plant welded as the arm is, or
@@ -304,8 +306,6 @@ def AddCooperativeController(
         generalized-momentum observer.
     difference_cutoff_hz : float, optional
         Low-pass cutoff of ``velocity_source = "difference"``.
-    momentum_gain : float
-        ``K_O`` (1/s) of ``force_source = "momentum"``.
     q : OutputPort, optional
         The measured positions (the user's own encoder model); default: the plant's exact
         ``q`` through a C++ ``Demultiplexer``.
@@ -327,9 +327,14 @@ def AddCooperativeController(
 
     Raises
     ------
+    TypeError
+        An argument of the wrong type (a string for a number, a dict for ``gains``), naming it.
     ValueError
-        One line naming the argument at fault.
+        One line naming the argument at fault; also for a second controller on an arm whose
+        actuation input is already connected, or a ``name`` already used in ``builder``.
     """
+    if not isinstance(builder, DiagramBuilder):
+        raise TypeError(f"builder: a DiagramBuilder is required (got {type(builder).__name__})")
     if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
         raise ValueError("plant: a finalized MultibodyPlant is required (call Finalize() "
                          "before AddCooperativeController)")
@@ -340,7 +345,26 @@ def AddCooperativeController(
     if not isinstance(model_instance, ModelInstanceIndex) or not plant.HasModelInstanceNamed(
             plant.GetModelInstanceName(model_instance)):
         raise ValueError("model_instance: a model instance of plant is required")
-    check_period(period)
+    check_period(period, plant.time_step() if plant.time_step() > 0 else None)
+    if velocity_source not in VELOCITY_SOURCES:
+        raise ValueError(f"velocity_source: one of {', '.join(VELOCITY_SOURCES)} "
+                         f"(got {velocity_source!r})")
+    if force_source not in FORCE_SOURCES:
+        raise ValueError(f"force_source: one of {', '.join(FORCE_SOURCES)} "
+                         f"(got {force_source!r})")
+    arm_name = plant.GetModelInstanceName(model_instance)
+    name = arm_name if name is None else name
+    if not isinstance(name, str) or not name:
+        raise TypeError(f"name: a non-empty string is required (got {name!r})")
+    if connect_actuation and builder.IsConnectedOrExported(
+            plant.get_actuation_input_port(model_instance)):
+        raise ValueError(f"model_instance: the arm {arm_name!r} already has its actuation "
+                         "input connected (a second controller on one arm?); pass "
+                         "connect_actuation=False to wire tau yourself")
+    if any(system.get_name() == f"{name}_control" for system in builder.GetSystems()):
+        raise ValueError(f"name: {name!r} is already used in this builder (a second "
+                         "controller on one arm?); give each controller its own name")
+
     if isinstance(controller_model, ArmModel):
         if ee_frame is not None or normals is not None or contact_point is not None:
             raise ValueError("controller_model: an ArmModel carries its own ee_frame, normals "
@@ -374,10 +398,8 @@ def AddCooperativeController(
     if q is not None and q.size() != n:
         raise ValueError(f"q: an output port of size {n} is required (got {q.size()})")
     law = FingerLaw(model, gains)
-    name = name or plant.GetModelInstanceName(model_instance)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
-                                                  force_source, difference_cutoff_hz,
-                                                  momentum_gain)
+                                                  force_source, difference_cutoff_hz)
     builder.AddSystem(block)
     state = plant.get_state_output_port(model_instance)
     selector = None

@@ -155,6 +155,8 @@ class FingerLaw:
                    else np.asarray(gains.xi_matrix, dtype=float))
         self.zeta = float(gains.zeta)
         self.beta = float(gains.beta)
+        #: ``K_O`` of the momentum observer (``force_source = "momentum"``), 1/s.
+        self.momentum_gain = float(gains.momentum_gain)
         self._zero_m = np.zeros(self.m)
         #: The paper's case on plain floats (see :meth:`_held_m1`): one constraint, scalar ξ,
         #: closed-form kinematics. Anything else takes the general path (any n, m, ξ matrix).

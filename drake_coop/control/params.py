@@ -93,15 +93,14 @@ def check_positive(value, name: str) -> float:
     return x
 
 
-def check_gains(gains: Gains, n: int, m: int, period: float | None = None,
-                force_source: str | None = None) -> None:
+def check_gains(gains: Gains, n: int, m: int) -> None:
     """Refuse gains that do not fit an arm of ``n`` joints and ``m`` constraints.
 
     ``Λ``, ``k_d`` and the ``n`` entries of ``K_R`` must be finite and positive (the observer
     (15)–(16) and the passivity of (13) need them); ``k_F``, ``ζ``, ``β`` and a scalar ``ξ``
-    finite and non-negative; a ``ξ`` matrix ``m × m``, symmetric positive definite. With
-    ``force_source = "momentum"`` and the period ``h`` given, the momentum observer's
-    ``K_O`` must satisfy ``0 < h K_O <= 1`` (its error shrinks by ``1 − h K_O`` per tick).
+    finite and non-negative; a ``ξ`` matrix ``m × m``, symmetric positive definite;
+    ``momentum_gain`` a number (its range depends on ``h``: :func:`check_momentum_gain`, where
+    the momentum observer is built).
 
     Raises
     ------
@@ -127,13 +126,7 @@ def check_gains(gains: Gains, n: int, m: int, period: float | None = None,
         value = _number(getattr(gains, name), name)
         if not np.isfinite(value) or value < 0.0:
             raise ValueError(f"{name}: must be finite and >= 0 (got {value})")
-    K_O = _number(gains.momentum_gain, "momentum_gain")
-    if force_source == "momentum":
-        if not np.isfinite(K_O) or K_O <= 0.0:
-            raise ValueError(f"momentum_gain: must be finite and > 0 (got {K_O})")
-        if period is not None and K_O * float(period) > 1.0:
-            raise ValueError(f"momentum_gain: must be at most 1/h = {1.0 / float(period):g} "
-                             f"1/s (got {K_O:g})")
+    _number(gains.momentum_gain, "momentum_gain")
     if gains.xi_matrix is None:
         xi = _number(gains.xi, "xi")
         if not np.isfinite(xi) or xi < 0.0:
@@ -146,6 +139,22 @@ def check_gains(gains: Gains, n: int, m: int, period: float | None = None,
     if (not np.all(np.isfinite(xi)) or not np.allclose(xi, xi.T, rtol=0.0, atol=1e-12)
             or np.linalg.eigvalsh(xi).min() <= 0.0):
         raise ValueError("xi_matrix: must be symmetric positive definite")
+
+
+def check_momentum_gain(momentum_gain: float, period: float) -> float:
+    """The momentum observer's gain ``K_O`` (1/s) checked: finite, ``0 < h K_O <= 1`` (its
+    error shrinks by ``1 − h K_O`` per tick; beyond 1 it alternates and grows past 2).
+
+    Raises
+    ------
+    TypeError, ValueError
+        Naming ``momentum_gain``.
+    """
+    K_O = check_positive(momentum_gain, "momentum_gain")
+    if K_O * float(period) > 1.0:
+        raise ValueError(f"momentum_gain: must be at most 1/h = {1.0 / float(period):g} 1/s "
+                         f"(got {K_O:g})")
+    return K_O
 
 
 def check_period(period: float, time_step: float | None = None) -> float:

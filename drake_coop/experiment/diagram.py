@@ -259,7 +259,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             b, plant, handles.instance, gains=robot.gains, period=h, controller_model=model,
             velocity_source=robot.velocity_source, force_source=robot.force_source,
             difference_cutoff_hz=robot.difference_cutoff_hz,
-            momentum_gain=robot.gains.momentum_gain, q=q_port,
+            q=q_port,
             lambda_sensor=lambda_sensor, connect_actuation=False,
             name=name)
         law, control = block.law, block.system
