@@ -309,43 +309,112 @@ def _timed_callbacks(totals: dict):
             setattr(cls, m, original)
 
 
+def _builtin(callable_):
+    """The compiled function a call reaches (a builtin, a pybind11 or nanobind function), or
+    None for anything else (a Python function, a class): a bound method's function is
+    unwrapped, as the interpreter does before calling it."""
+    import types
+
+    func = callable_.__func__ if isinstance(callable_, types.MethodType) else callable_
+    if isinstance(func, (types.BuiltinFunctionType, types.MethodDescriptorType)) \
+            or type(func).__module__ == "nanobind":      # drake >= 1.52 binds with nanobind
+        return func
+    return None
+
+
+@contextlib.contextmanager
+def _calls_from_builtins(count):
+    """Call ``count(frame)`` for every Python frame entered directly from inside a builtin
+    (pybind) call while the block runs.
+
+    Drake 1.51 (Python 3.11) binds with pybind11, whose functions are builtins that
+    ``sys.setprofile`` reports (``c_call``/``c_return``). Drake 1.58 (Python 3.12+) binds with
+    nanobind, whose functions ``sys.setprofile`` does not report at all (and 3.12 drops the
+    ``c_call`` of any bound builtin method), so from 3.12 on the calls are taken from
+    ``sys.monitoring``, whose ``CALL``/``C_RETURN`` events see every callable.
+    """
+    import sys
+
+    inside: list = []        # (frame, builtin) of the builtin calls in progress
+
+    if sys.version_info < (3, 12):
+        def hook(frame, event, arg):
+            if event == "c_call":
+                inside.append((frame, arg))
+            elif event in ("c_return", "c_exception"):
+                if inside:
+                    inside.pop()
+            elif event == "call" and inside and inside[-1][0] is frame.f_back:
+                count(frame)
+
+        sys.setprofile(hook)
+        try:
+            yield
+        finally:
+            sys.setprofile(None)
+        return
+
+    mon = sys.monitoring
+    E = mon.events
+    tool = next((i for i in range(mon.PROFILER_ID, 6) if mon.get_tool(i) is None), None)
+    if tool is None:
+        raise RuntimeError("no free sys.monitoring tool id to count callbacks")
+
+    def on_call(code, offset, callable_, arg0):
+        func = _builtin(callable_)
+        if func is not None:
+            inside.append((sys._getframe(1), func))
+
+    def on_c_end(code, offset, callable_, arg0, *exc):
+        if inside and inside[-1][1] is _builtin(callable_):
+            inside.pop()
+
+    def on_start(code, offset):
+        frame = sys._getframe(1)
+        if inside and inside[-1][0] is frame.f_back:
+            count(frame)
+
+    mon.use_tool_id(tool, "drake_coop bench")
+    try:
+        mon.register_callback(tool, E.CALL, on_call)
+        mon.register_callback(tool, E.C_RETURN, on_c_end)
+        mon.register_callback(tool, E.C_RAISE, on_c_end)
+        mon.register_callback(tool, E.PY_START, on_start)
+        mon.set_events(tool, E.CALL | E.C_RETURN | E.C_RAISE | E.PY_START)
+        yield
+    finally:
+        mon.set_events(tool, 0)
+        mon.free_tool_id(tool)
+
+
 def _count_callbacks(scenario, t_end: float) -> dict:
     """Python callbacks per control tick of a run to ``t_end``: every Python function that
-    C++ calls (an event, an output port, a cache entry, a monitor), counted with
-    ``sys.setprofile`` as a call of a ``drake_coop`` function (not a generator) made directly
-    from inside a builtin (pybind) call.
+    C++ calls (an event, an output port, a cache entry, a monitor), counted as a call of a
+    ``drake_coop`` function (not a generator) made directly from inside a builtin (pybind)
+    call (:func:`_calls_from_builtins`).
     Returns the total per tick and the count per tick of each function (``module.qualname``).
     """
     import inspect
-    import sys
 
     from drake_coop.experiment.plan import num_ticks_until
     from drake_coop.experiment.simulate import simulate
     from drake_coop.scenario.timing import aligned_periods
 
     counts: dict[str, int] = defaultdict(int)
-    inside: list = []        # frames that are inside a builtin call
+    counting = contextlib.ExitStack()
 
-    def hook(frame, event, arg):
-        if event == "c_call":
-            inside.append(frame)
-        elif event in ("c_return", "c_exception"):
-            if inside:
-                inside.pop()
-        elif event == "call" and inside and inside[-1] is frame.f_back:
-            code, module = frame.f_code, frame.f_globals.get("__name__", "?")
-            # Not a generator resumed by sum()/tuple(), not NumPy's own Python.
-            if module.startswith("drake_coop") and not code.co_flags & inspect.CO_GENERATOR:
-                counts[f"{module}.{code.co_qualname}"] += 1
+    def count(frame):
+        code, module = frame.f_code, frame.f_globals.get("__name__", "?")
+        # Not a generator resumed by sum()/tuple(), not NumPy's own Python.
+        if module.startswith("drake_coop") and not code.co_flags & inspect.CO_GENERATOR:
+            counts[f"{module}.{code.co_qualname}"] += 1
 
     def start(exp, simulator):
         counts.clear()
-        sys.setprofile(hook)
+        counting.enter_context(_calls_from_builtins(count))
 
-    try:
+    with counting:
         result = simulate(scenario, t_end=t_end, on_start=start)
-    finally:
-        sys.setprofile(None)
     if not result.ok:
         raise RuntimeError(f"benchmark run failed: {result.meta['message']}")
     h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
