@@ -112,6 +112,9 @@ def die_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="parent-watchdog", daemon=True).start()
 
 
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
 def _child(conn, work: Callable, args: tuple, parent: int | None = None) -> None:
     """Worker process: ``work(*args)``, send its result, exit (Ctrl-C is the parent's business).
 
@@ -119,6 +122,9 @@ def _child(conn, work: Callable, args: tuple, parent: int | None = None) -> None
     sent ends the worker quietly.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # The parent blocked SIGINT/SIGTERM while starting this process (the mask is inherited):
+    # a SIGTERM it sent since then is delivered here and ends the worker.
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)
     if parent is not None:
         die_with_parent(parent)
     result = work(*args)
@@ -154,9 +160,16 @@ def run_in_processes(cases: list[Case], work: Callable, args_of: Callable[[Case]
                 process = context.Process(target=_child, name=f"case-{case.hash}",
                                           args=(sender, work, args_of(case), os.getpid()),
                                           daemon=True)
-                process.start()
+                # Ctrl-C/SIGTERM wait until the child is started and registered: arriving
+                # inside start(), between the spawn and the write of the child's data, they
+                # left an unregistered child that printed an EOFError traceback.
+                blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+                try:
+                    process.start()
+                    running[receiver] = (process, case)
+                finally:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
                 sender.close()
-                running[receiver] = (process, case)
             for receiver in multiprocessing.connection.wait(list(running)):
                 process, case = running.pop(receiver)
                 try:
