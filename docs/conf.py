@@ -41,13 +41,19 @@ myst_heading_anchors = 3
 # (tests/test_tutorials.py), not here: three of them run 10-90 s simulations.
 nb_execution_mode = "off"
 
-source_suffix = {".md": "myst-nb", ".ipynb": "myst-nb", ".rst": "restructuredtext"}
+# ".rst" first: autosummary writes its generated pages (docs/api/generated/) with the first
+# suffix parsed as reStructuredText, and a ".md" page holding reST directives would show them
+# as text (every API page did, before this order).
+source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 exclude_patterns = ["_build", "_ext", "_templates", "**.ipynb_checkpoints",
                     "_generated/scenario_fields.md"]
 templates_path = ["_templates"]
 
 autosummary_generate = True
 autosummary_imported_members = False
+# A name exported by two subpackages is indexed once, where it is defined; the other page says
+# where (docs/_templates/autosummary/class.rst).
+autosummary_context = {"aliases": {"drake_coop.scenario.Gains": "drake_coop.control.Gains"}}
 autodoc_default_options = {"member-order": "bysource"}
 autodoc_typehints = "none"          # numpydoc's Parameters sections carry the types
 numpydoc_show_class_members = False
@@ -58,7 +64,34 @@ numpydoc_validation_checks: set[str] = set()
 
 html_theme = "alabaster"
 html_title = f"drake_coop {release}"
-html_static_path: list[str] = []
+
+
+def _stage_mathjax() -> Path:
+    """MathJax 3 from the ``django-static-mathjax`` wheel (the ``docs`` extra; plain static
+    files, no Django needed), staged under docs/_generated/mathjax_static/mathjax/: the one
+    script Sphinx loads and the fonts it fetches next to itself (1.5 MB). The site then
+    renders its equations with no network; a CDN would leave raw LaTeX on an offline machine."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("mathjax")
+    es5 = Path(next(iter(spec.submodule_search_locations))) / "static" / "mathjax" / "es5" \
+        if spec and spec.submodule_search_locations else None
+    if es5 is None or not (es5 / "tex-mml-chtml.js").is_file():
+        raise RuntimeError("MathJax not found: install the documentation's extra, "
+                           "pip install -e \".[docs]\" (django-static-mathjax)")
+    static = DOCS / "_generated" / "mathjax_static"
+    target = static / "mathjax"
+    fonts = Path("output") / "chtml" / "fonts" / "woff-v2"
+    (target / fonts).mkdir(parents=True, exist_ok=True)
+    for rel in [Path("tex-mml-chtml.js")] + [fonts / f.name for f in (es5 / fonts).iterdir()]:
+        if not (target / rel).exists() or (target / rel).read_bytes() != (es5 / rel).read_bytes():
+            shutil.copyfile(es5 / rel, target / rel)
+    return static
+
+
+# Math rendered in the browser by a local MathJax (no CDN): _static/mathjax/tex-mml-chtml.js.
+html_static_path = [str(_stage_mathjax())]
+mathjax_path = "mathjax/tex-mml-chtml.js"
 
 
 

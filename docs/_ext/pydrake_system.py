@@ -15,9 +15,16 @@ This directive reads that block (``name``, ``input_ports``, ``output_ports``; li
 ``- name`` lines or as ``[a, b]``) and renders it as a three-column table: inputs, the
 system's name, outputs. Anything it cannot read is a Sphinx warning naming the line, so a
 malformed block fails a ``-W`` build.
+
+The docstrings describe each port in numpydoc-style ``Input ports`` / ``Output ports``
+sections, which numpydoc does not know and drops (with a Python warning, not a Sphinx one).
+:func:`move_port_sections` turns them into rubrics with definition lists placed before the
+first numpydoc section, before numpydoc reads the docstring.
 """
 
 from __future__ import annotations
+
+import re
 
 from docutils import nodes
 from docutils.parsers.rst import Directive
@@ -97,6 +104,52 @@ class PydrakeSystem(Directive):
         return row
 
 
+_PORT_HEADER = re.compile(r"^(Input|Output) ports\b")
+_TERM = re.compile(r"^(\S+?)(\s+:\s+.*)?$")
+
+
+def _is_header(lines: list[str], i: int) -> bool:
+    """``lines[i]`` is a numpydoc section title (an unindented line underlined by dashes)."""
+    return (i + 1 < len(lines) and lines[i].strip() != "" and not lines[i].startswith(" ")
+            and set(lines[i + 1].strip()) == {"-"})
+
+
+def move_port_sections(lines: list[str]) -> list[str]:
+    """The docstring's lines with its ``Input ports ...`` / ``Output ports ...`` sections
+    moved before its first numpydoc section, each as a rubric (its title) and a definition
+    list (``name : type`` then the indented description, the name set as code)."""
+    moved: list[str] = []
+    kept: list[str] = []
+    i = 0
+    while i < len(lines):
+        if _is_header(lines, i) and _PORT_HEADER.match(lines[i]):
+            moved += [f".. rubric:: {lines[i].strip()}", ""]
+            i += 2
+            while i < len(lines) and not _is_header(lines, i):
+                line = lines[i]
+                term = _TERM.match(line) if line and not line.startswith(" ") else None
+                if term:
+                    line = f"``{term.group(1)}``{term.group(2) or ''}"
+                    if moved[-1] != "":      # a port without a description ends its item
+                        moved.append("")
+                moved.append(line)
+                i += 1
+            moved.append("")
+        else:
+            kept.append(lines[i])
+            i += 1
+    if not moved:
+        return lines
+    first = next((j for j in range(len(kept)) if _is_header(kept, j)), len(kept))
+    return kept[:first] + moved + kept[first:]
+
+
+def _process_docstring(app, what, name, obj, options, lines: list[str]) -> None:
+    lines[:] = move_port_sections(lines)
+
+
 def setup(app):
     app.add_directive("pydrake_system", PydrakeSystem)
+    # Before numpydoc's own handler (priority 500), which would drop the port sections.
+    app.connect("autodoc-process-docstring", _process_docstring, priority=400)
     return {"version": "1.0", "parallel_read_safe": True, "parallel_write_safe": True}

@@ -346,7 +346,7 @@ class Guards:
     Attributes
     ----------
     max_force : float
-        Bound on |λ̂| and on the measured force (N); beyond it the run stops.
+        Bound on ``|λ̂|`` and on the measured force (N); beyond it the run stops.
     joint_limit_margin_deg : float
         A joint passing its URDF limit by more than this stops the run (degrees).
     check_period : float
