@@ -7,6 +7,7 @@ Build (from the repository's root, warnings as errors):
 
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -85,7 +86,9 @@ def _stage_mathjax() -> Path:
     (target / fonts).mkdir(parents=True, exist_ok=True)
     for rel in [Path("tex-mml-chtml.js")] + [fonts / f.name for f in (es5 / fonts).iterdir()]:
         if not (target / rel).exists() or (target / rel).read_bytes() != (es5 / rel).read_bytes():
-            shutil.copyfile(es5 / rel, target / rel)
+            partial = (target / rel).with_name(f".{rel.name}.{os.getpid()}")
+            shutil.copyfile(es5 / rel, partial)      # whole or not at all: two builds may race
+            os.replace(partial, target / rel)
     return static
 
 
@@ -103,7 +106,9 @@ def _copy_tutorials(app) -> None:
     for nb in sorted((ROOT / "tutorials").glob("*.ipynb")):
         dest = target / nb.name
         if not dest.exists() or dest.read_bytes() != nb.read_bytes():
-            shutil.copyfile(nb, dest)
+            partial = dest.with_name(f".{dest.name}.{os.getpid()}")
+            shutil.copyfile(nb, partial)
+            os.replace(partial, dest)
 
 
 def setup(app):
