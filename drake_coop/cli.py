@@ -428,15 +428,18 @@ def build_parser() -> argparse.ArgumentParser:
     scen.add_argument("name", nargs="?", default=None, help="print this scenario's YAML")
     scen.set_defaults(func=cmd_scenarios)
     plot = sub.add_parser("plot", help="redraw figures and metrics from a run directory")
-    plot.add_argument("dir")
-    plot.add_argument("--quiet", action="store_true")
+    plot.add_argument("dir", help="a run's output directory (drake-coop run --out DIR)")
+    plot.add_argument("--quiet", action="store_true", help="no messages")
     plot.set_defaults(func=cmd_plot)
     diagram = sub.add_parser("diagram", help="draw the paper's block diagram, and the "
                                              "port-level diagrams (top level, robot 1's "
                                              "control block)")
-    diagram.add_argument("scenario", nargs="?", default=None)
-    diagram.add_argument("--out", default="diagrams")
-    diagram.add_argument("--quiet", action="store_true")
+    diagram.add_argument("scenario", nargs="?", default=None,
+                         help="scenario YAML file or shipped scenario name (default: paper)")
+    diagram.add_argument("--out", default="diagrams",
+                         help="output directory of the .dot (and, with graphviz, .svg) files "
+                              "(default: diagrams)")
+    diagram.add_argument("--quiet", action="store_true", help="no messages")
     diagram.set_defaults(func=cmd_diagram)
     ident = sub.add_parser("identify", help="identify the arms' dynamic parameters and write "
                                             "identified URDFs and scenario")
@@ -446,7 +449,7 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--duration", type=float, default=10.0,
                        help="excitation length in seconds (1 to 120, default 10)")
     ident.add_argument("--seed", type=int, default=0, help="seed of the excitation's design")
-    ident.add_argument("--quiet", action="store_true")
+    ident.add_argument("--quiet", action="store_true", help="no progress messages")
     ident.set_defaults(func=cmd_identify)
     from drake_coop.studies.cli import add_study_parser
     add_study_parser(sub)

@@ -124,3 +124,18 @@ def test_the_argument_parser_loads_no_pydrake():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()
     assert out == "[]"
+
+
+def test_every_option_and_argument_of_every_command_has_help_text():
+    """``drake-coop CMD --help`` explains each of its options and arguments."""
+    import argparse
+
+    from drake_coop.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    missing = [f"{name} {action.option_strings or action.dest}"
+               for name, parser in sub.choices.items() for action in parser._actions
+               if not isinstance(action, argparse._HelpAction) and not action.help]
+    assert missing == []
+    study = sub.choices["study"].format_help()
+    assert "a bound, not a worker count" in " ".join(study.split())

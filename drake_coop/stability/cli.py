@@ -48,14 +48,18 @@ def add_stability_parser(sub) -> None:
     p.add_argument("--out", required=True, help="output folder (new, or one of ours)")
     p.add_argument("--grid", action="append", default=[], metavar="PATH=v1,v2,...",
                    help="a dotted scenario path and its values (repeatable)")
-    p.add_argument("--point", default="free", choices=["free", "held", "both"])
+    p.add_argument("--point", default="free", choices=["free", "held", "both"],
+                   help="operating point of the map: free (arms before the grasp, t = 0), "
+                        "held (object held, at the circle's start) or both (default free)")
     p.add_argument("--overlay", default=None, metavar="RESULTS.csv",
                    help="a study's results.csv to mark its simulated outcomes on the maps")
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS")
+    p.add_argument("--workers", type=int, default=2,
+                   help="parallel processes, one grid point each (default 2)")
+    p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
+                   help="run on Ray: a local instance, or the cluster at ADDRESS")
     p.add_argument("--epsilon", type=float, default=1e-5,
                    help="central-difference step (default 1e-5)")
-    p.add_argument("--quiet", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_stability)
 
 

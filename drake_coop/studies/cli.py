@@ -287,7 +287,8 @@ def add_study_parser(sub) -> None:
                    help=f"refuse a study of more than N cases (default {MAX_CASES}); raise "
                         "it on purpose for a larger study")
     p.add_argument("--max-workers", type=int, default=None, metavar="N",
-                   help="refuse --workers above N (default 4 per CPU)")
+                   help="a bound, not a worker count: refuse --workers above N "
+                        "(default 4 per CPU); --workers sets the count")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="run on Ray: a local instance, or the cluster at ADDRESS")
     p.add_argument("--plot", default=None, metavar="DIR", help="only redraw DIR's figures")
