@@ -139,3 +139,23 @@ def test_every_option_and_argument_of_every_command_has_help_text():
     assert missing == []
     study = sub.choices["study"].format_help()
     assert "a bound, not a worker count" in " ".join(study.split())
+
+
+def test_every_documented_command_writes_under_an_ignored_folder():
+    """Following the README and the docs leaves no untracked folder in a checkout: every
+    ``drake-coop ... --out PATH`` they show writes under a folder .gitignore names."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    ignored = [line.strip() for line in (root / ".gitignore").read_text().splitlines()
+               if line.strip().endswith("/") and not line.startswith("#")]
+    pages = [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
+    outs = {(p.relative_to(root).as_posix(), m) for p in pages if "_build" not in p.parts
+            for m in re.findall(r"drake-coop [a-z]+[^`|\n]*?--out +([^ `|\n]+)",
+                                p.read_text(encoding="utf-8"))}
+    assert len(outs) > 10
+    loose = sorted((page, out) for page, out in outs
+                   if out != "DIR" and not out.startswith("/tmp")
+                   and not any(out.startswith(folder) for folder in ignored))
+    assert loose == []
