@@ -159,3 +159,18 @@ def test_every_documented_command_writes_under_an_ignored_folder():
                    if out != "DIR" and not out.startswith("/tmp")
                    and not any(out.startswith(folder) for folder in ignored))
     assert loose == []
+
+
+def test_the_getting_started_command_table_lists_every_command():
+    import argparse
+    import re
+    from pathlib import Path
+
+    from drake_coop.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    page = (Path(__file__).resolve().parents[1] / "docs" / "guide" /
+            "getting_started.md").read_text(encoding="utf-8")
+    table = page.split("## Commands", 1)[1].split("\n\n", 2)[1]
+    listed = set(re.findall(r"^\| `drake-coop ([a-z-]+)", table, flags=re.M))
+    assert sorted(set(sub.choices) - listed) == []

@@ -29,7 +29,7 @@ if TYPE_CHECKING:
     from pydrake.geometry import Meshcat, MeshcatVisualizer, SceneGraph
     from pydrake.systems.framework import DiagramBuilder, System
 
-__all__ = ["MeshcatReplay", "add_meshcat", "live_meshcat", "shared_meshcat", "write_diagram",
+__all__ = ["MeshcatReplay", "add_meshcat", "draw_missing_svgs", "live_meshcat", "shared_meshcat", "write_diagram",
            "write_subsystem_diagram"]
 
 DOT_TIMEOUT = 60.0
@@ -74,6 +74,25 @@ def _render_svg(dot_text: str, path: Path) -> Path | None:
             raise RuntimeError(f"graphviz's dot took over {DOT_TIMEOUT:g} s on {path.name}"
                                ) from exc
     return path
+
+
+def draw_missing_svgs(out_dir: str | Path) -> list[Path]:
+    """Draw the ``.svg`` of every ``.dot`` in ``out_dir`` that has none (a run written before
+    graphviz was installed), when graphviz's ``dot`` is installed now.
+
+    Returns
+    -------
+    list of Path
+        The ``.svg`` files drawn (empty without ``dot``: no warning, the run already gave one).
+    """
+    if shutil.which("dot") is None:
+        return []
+    drawn = []
+    for dot in sorted(Path(out_dir).glob("*.dot")):
+        svg = dot.with_suffix(".svg")
+        if not svg.exists():
+            drawn.append(_render_svg(dot.read_text(encoding="utf-8"), svg))
+    return drawn
 
 
 def write_diagram(diagram: System, out_dir: str | Path, name: str = "system_diagram",

@@ -443,7 +443,8 @@ def replot(out_dir: str | Path) -> list[Path]:
     Returns
     -------
     list of Path
-        Figures 2–6, the reference figure (PNG and SVG) and ``metrics.json``.
+        Figures 2–6, the reference figure (PNG and SVG), ``metrics.json`` and the block
+        diagrams' ``.svg`` that the run could not draw (graphviz installed since).
 
     Raises
     ------
@@ -457,4 +458,7 @@ def replot(out_dir: str | Path) -> list[Path]:
     paths = plot_figures(logs, meta, out_dir)
     paths += fig_references(logs, meta, out_dir)
     paths.append(write_metrics(out_dir, compute_metrics(logs, meta)))
+    from drake_coop.results.export import draw_missing_svgs
+
+    paths += draw_missing_svgs(out_dir)
     return paths
