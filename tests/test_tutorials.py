@@ -1,5 +1,6 @@
 """The tutorials run top to bottom (nbclient) and print what they promise."""
 
+import re
 from pathlib import Path
 
 import nbformat
@@ -48,3 +49,22 @@ def test_tutorial_05_runs_the_control_on_a_users_own_plant():
     assert "forced update matches (15)-(16)" in text
     assert "refused: K_R: 3 diagonal entries" in text and "refused: period:" in text
     assert "wrote my_two_arm_diagram.dot arm1_control.dot" in text
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in TUTORIALS.glob("*.ipynb")))
+def test_tutorial_is_stored_with_its_outputs_and_says_what_it_shows_and_how_long(name):
+    nb = nbformat.read(TUTORIALS / name, as_version=4)
+    intro = nb.cells[0]
+    assert intro.cell_type == "markdown"
+    assert "**Shows:**" in intro.source and re.search(r"\*\*Runs in\*\* about \d+ s", intro.source)
+    code = [c for c in nb.cells if c.cell_type == "code"]
+    assert code and all(c.execution_count is not None for c in code if c.source.strip())
+    assert sum(bool(c.outputs) for c in code) >= len(code) - 1
+
+
+def test_the_notebooks_extra_installs_jupyter_and_a_kernel():
+    import tomllib
+
+    pyproject = tomllib.loads((TUTORIALS.parent / "pyproject.toml").read_text(encoding="utf-8"))
+    extra = " ".join(pyproject["project"]["optional-dependencies"]["notebooks"])
+    assert all(name in extra for name in ("notebook", "ipykernel", "nbclient"))
