@@ -141,7 +141,24 @@ def _value(case: dict, metric: str) -> float:
     return float(v) if v is not None else math.nan
 
 
-def _plot_vs(doc: dict, param: str, out: Path) -> Path:
+def _category_labels(values: list) -> list[str]:
+    """Tick labels of a categorical axis: a variant one ``key=value`` per line, other text
+    wrapped at spaces to 20 characters (a number is never cut)."""
+    import textwrap
+
+    def text(v) -> str:
+        if isinstance(v, dict):
+            return "\n".join(f"{k}={_label(x)}" for k, x in v.items())
+        return "\n".join(textwrap.wrap(_label(v), 20, break_long_words=False,
+                                        break_on_hyphens=False)) or "''"
+    return [text(v) for v in values]
+
+
+def _figure_vs(doc: dict, param: str) -> Figure:
+    """The metrics against one swept parameter: a numeric parameter on a numeric axis, one
+    line per group with its min–max band; a categorical one (names, variants) with each value
+    its own category, median markers and min–max bars, nothing drawn between categories, the
+    labels on lines and, when they would not fit side by side, upright."""
     cases, metrics = doc["cases"], doc["metrics"]
     values = list(dict.fromkeys(json.dumps(v) for v in doc["grid"][param]))
     xs_raw = [json.loads(v) for v in values]
@@ -152,9 +169,16 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
     split = next((k for k in _swept(doc) if k != param and not _numeric(doc["grid"][k])), None)
     groups = list(dict.fromkeys(json.dumps(c["params"][split]) for c in cases)) if split else [
         None]
-    fig = Figure(figsize=(7.5, 2.6 * len(metrics)), dpi=DPI, layout="constrained")
+    labels = [] if numeric else _category_labels(xs_raw)
+    longest = max((len(line) for t in labels for line in t.split("\n")), default=0)
+    # Turned upright when level labels would not fit side by side (7 pt: ~0.065 in a character).
+    turned = not numeric and longest * 0.065 > 6.5 / max(1, len(labels))
+    lines = max((t.count("\n") + 1 for t in labels), default=0)
+    extra = 0.0 if numeric else (0.065 * longest if turned else 0.14 * lines)
+    fig = Figure(figsize=(7.5, 2.6 * len(metrics) + extra), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(len(metrics), 1, sharex=True, squeeze=False)[:, 0]
+    width = 0.6 / len(groups)               # categorical: the groups side by side in a slot
     for ax, metric in zip(axes, metrics):
         top = []
         factor, unit = _metric_unit(metric, [_value(c, metric) for c in cases])
@@ -171,10 +195,16 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
                 hi.append(y.max() if y.size else math.nan)
                 n_div.append(sum(c["status"] == "diverged" for c in at))
             label = "median" if group is None else _label(json.loads(group))
-            line, = ax.plot(xs, med, "o-", ms=3, label=label)
-            ax.fill_between(xs, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
+            if numeric:
+                gx = xs
+                line, = ax.plot(gx, med, "o-", ms=3, label=label)
+                ax.fill_between(gx, lo, hi, color=line.get_color(), alpha=0.2, lw=0)
+            else:
+                gx = xs + (g_index - (len(groups) - 1) / 2) * width
+                line, = ax.plot(gx, med, "o", ls="none", ms=5, label=label)
+                ax.vlines(gx, lo, hi, color=line.get_color(), lw=2, alpha=0.4)
             top += [v for v in hi if np.isfinite(v)]
-            for x, n in zip(xs, n_div):
+            for x, n in zip(gx, n_div):
                 if n:
                     level = 0.96 - 0.12 * g_index      # one row of marks per curve
                     ax.plot([x], [level], "x", color=line.get_color(), ms=7,
@@ -186,21 +216,28 @@ def _plot_vs(doc: dict, param: str, out: Path) -> Path:
         if _log_scale(finite):
             ax.set_yscale("log")
         ax.set_ylabel(metric_label(metric, unit), fontsize=8)
-        ax.grid(True, alpha=0.3)
+        ax.grid(True, alpha=0.3, axis="y" if not numeric else "both")
         if split is not None or len(groups) > 1:
             ax.legend(fontsize=7)
     if not numeric:
-        axes[-1].set_xticks(xs, [_label(x) for x in xs_raw], fontsize=7)
-    if numeric and _log_scale(xs):
+        axes[-1].set_xticks(xs, labels, fontsize=7, rotation=90 if turned else 0,
+                            ha="center", va="top")
+        axes[-1].set_xlim(-0.5, len(xs) - 0.5)
+    elif _log_scale(xs):
         axes[-1].set_xscale("log")
         axes[-1].set_xlim(xs.min() / 1.2, xs.max() * 1.2)
     else:
         pad = 0.05 * (xs.max() - xs.min()) or 0.5
         axes[-1].set_xlim(xs.min() - pad, xs.max() + pad)
     axes[-1].set_xlabel(xlabel)
-    fig.suptitle(f"{doc['name']}: median and min–max over the other parameters "
+    what = "median (line) and min–max (band)" if numeric else "median (dot) and min–max (bar)"
+    fig.suptitle(f"{doc['name']}: {what} over the other parameters "
                  f"(phase {doc['phase']}; ✕ n: n cases diverged)", fontsize=9)
-    return _save(fig, out / f"{file_stem(doc['name'])}_vs_{_slug(param)}.png")
+    return fig
+
+
+def _plot_vs(doc: dict, param: str, out: Path) -> Path:
+    return _save(_figure_vs(doc, param), out / f"{file_stem(doc['name'])}_vs_{_slug(param)}.png")
 
 
 def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
