@@ -88,9 +88,27 @@ def _key(v) -> str:
     return str(v)
 
 
+def _rho_axis(ax, rho: list[float]) -> None:
+    """ρ on a linear axis when it spans less than a factor 3 (a log axis would show one or
+    two ticks), else on a log axis with ticks at 1, 2 and 5 per decade written as plain
+    numbers (no minor labels)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    finite = [v for v in rho if np.isfinite(v) and v > 0]
+    if not finite or max(finite) < 3 * min(finite):
+        return
+    ax.set_yscale("log")
+    ax.yaxis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.yaxis.set_minor_formatter(NullFormatter())
+
+
 def plot_maps(out: Path, swept: list[str], rows: list[dict],
               outcomes: dict[tuple, str] | None = None) -> list[Path]:
-    """Heat maps (two numeric paths) or curves (one) of ρ; returns the files written."""
+    """Heat maps (two numeric paths) or curves (one) of ρ; returns the files written. Axes
+    are labelled with their unit (:func:`drake_coop.studies.plots.param_label`: a period in ms)."""
+    from drake_coop.studies.plots import param_label
+
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -130,25 +148,29 @@ def plot_maps(out: Path, swept: list[str], rows: list[dict],
                     if status is not None:
                         ax.plot(i, j + 0.22, "x" if status != "ok" else "o", ms=7,
                                 mfc="none", color="k")
-            ax.set_xticks(range(len(xs)), [f"{v:g}" for v in xs])
-            ax.set_yticks(range(len(ys)), [f"{v:g}" for v in ys])
-            ax.set_xlabel(px)
-            ax.set_ylabel(py)
+            (xlabel, fx), (ylabel, fy) = param_label(px), param_label(py)
+            ax.set_xticks(range(len(xs)), [f"{fx * v:g}" for v in xs])
+            ax.set_yticks(range(len(ys)), [f"{fy * v:g}" for v in ys])
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel(ylabel)
             ax.set_title(f"ρ(Φ), black line ρ = 1; {label}" +
                          ("\nsimulated: o ok, x diverged" if outcomes else ""), fontsize=9)
         elif len(numeric) == 1:
             px = numeric[0]
-            pts = sorted((_num(r[px]), _num(r.get("rho")) or math.nan) for r in group)
-            ax.semilogy([p[0] for p in pts], [p[1] for p in pts], "o-", label="ρ(Φ)")
+            xlabel, factor = param_label(px)
+            pts = sorted((factor * _num(r[px]), _num(r.get("rho")) or math.nan) for r in group)
+            ax.plot([p[0] for p in pts], [p[1] for p in pts], "o-", label="ρ(Φ)")
             ax.axhline(1.0, color="k", lw=1)
             if outcomes is not None:
                 for r in group:
                     status = outcomes.get(outcome_key(r, swept))
                     if status is not None:
-                        ax.plot(_num(r[px]), _num(r.get("rho")) or math.nan,
+                        ax.plot(factor * _num(r[px]), _num(r.get("rho")) or math.nan,
                                 "x" if status != "ok" else "o", ms=10, mfc="none", color="k")
-            ax.set_xlabel(px)
-            ax.set_ylabel("ρ(Φ)")
+            _rho_axis(ax, [p[1] for p in pts])
+            ax.set_xlabel(xlabel)
+            ax.set_ylabel("spectral radius ρ(Φ)")
+            ax.grid(True, which="major", alpha=0.3)
             ax.set_title(f"{label}" + ("; simulated: o ok, x diverged" if outcomes else ""),
                          fontsize=9)
         else:
