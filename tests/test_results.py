@@ -100,7 +100,7 @@ def test_metrics_skip_non_finite_samples_and_count_them():
 def test_figures_are_valid_png_and_svg(tmp_path, t_end):
     logs, meta = synthetic_logs(t_end=t_end)
     paths = plot_figures(logs, meta, tmp_path)
-    assert len(paths) == 10
+    assert len(paths) == 12
     for p in paths:
         if p.suffix == ".png":
             assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -22,7 +22,7 @@ from drake_coop.results import (
 from tests.test_results_io import synthetic_run
 
 FIGURES = ["fig2_tracking_errors", "fig3_force_tracking", "fig4_force_estimate",
-           "fig5_aux_force_error", "fig6_observation_errors"]
+           "fig5_aux_force_error", "fig6_observation_errors", "fig_force_errors"]
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 SVG_NS = "{http://www.w3.org/2000/svg}"
 
@@ -76,6 +76,9 @@ def check_panels(out, phases: list[str], absent: list[str]) -> None:
     assert text["fig4_force_estimate"].count("F_x(squeeze)[N]") == 2
     assert text["fig2_tracking_errors"].count("[mm]") == 6
     assert text["fig6_observation_errors"].count("[µrad]") == 6      # z of 1–3 µrad
+    # λ − λ_d (0.1–0.5 N by phase) and λ − λ̂ (0.25 N) on their own scale: mN, four panels.
+    assert text["fig_force_errors"].count("[mN]") == 4
+    assert all(f"({c})" in text["fig_force_errors"] for c in "abcd")
     for name in FIGURES:
         assert "t[s]" in text[name]
         assert all(p in text[name] for p in phases)
@@ -89,9 +92,10 @@ def test_full_run_draws_every_figure_with_its_panels(tmp_path):
     heights = check_files(paths, FIGURES + ["fig_references"])
     assert heights == {"fig2_tracking_errors": 624, "fig3_force_tracking": 408,
                        "fig4_force_estimate": 408, "fig5_aux_force_error": 624,
-                       "fig6_observation_errors": 624, "fig_references": 792}
+                       "fig6_observation_errors": 624, "fig_force_errors": 624,
+                       "fig_references": 792}
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in paths)
-    check_panels(tmp_path, ["free", "lift", "circle", "down", "return"], [])
+    check_panels(tmp_path, ["free", "lift", "circle", "put_down", "return"], [])
 
 
 def test_run_stopped_at_20s_is_replotted_from_its_logs(tmp_path):
@@ -109,14 +113,14 @@ def test_run_stopped_at_20s_is_replotted_from_its_logs(tmp_path):
     assert metrics == compute_metrics(logs, meta)
     assert list(metrics["robot1"]) == ["free", "lift", "all"]
     assert metrics["robot2"]["lift"]["n_nonfinite"] == 10
-    check_panels(tmp_path, ["free", "lift"], ["circle", "down", "return"])
+    check_panels(tmp_path, ["free", "lift"], ["circle", "put_down", "return"])
 
 
 def test_empty_run_still_draws_every_figure(tmp_path):
     logs, meta = synthetic_run(t_end=0.0)
     logs = {r: {k: v[:0] for k, v in log.items()} for r, log in logs.items()}
     paths = plot_figures(logs, meta, tmp_path, formats=("png",))
-    assert len(paths) == 5 and all(check_png(p)[1] == 1200 for p in paths)
+    assert len(paths) == 6 and all(check_png(p)[1] == 1200 for p in paths)
 
 
 def test_unknown_format_is_refused_before_anything_is_written(tmp_path):

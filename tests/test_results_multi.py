@@ -184,7 +184,8 @@ def test_three_robots_with_six_and_three_joints_draw_every_figure(tmp_path):
     with matplotlib.rc_context({"svg.fonttype": "none"}):
         paths = plot_figures(logs, meta, tmp_path) + fig_references(logs, meta, tmp_path)
     names = ["fig2_tracking_errors", "fig3_force_tracking", "fig4_force_estimate",
-             "fig5_aux_force_error", "fig6_observation_errors", "fig7_velocity_estimate",
+             "fig5_aux_force_error", "fig6_observation_errors", "fig_force_errors",
+             "fig7_velocity_estimate",
              "fig_references"]
     assert [p.name for p in paths] == [f"{n}.{f}" for n in names for f in ("png", "svg")]
     assert all(p.stat().st_size > 10_000 for p in paths)

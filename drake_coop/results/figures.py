@@ -11,6 +11,9 @@ file                         content (panels as in the paper; one row or panel p
 ``fig5_aux_force_error``     auxiliary force errors λ̂ − λ_d (mN), robots 1 (a), 2 (b), …
 ``fig6_observation_errors``  observation errors z = q − q̂ (µrad), one panel per joint: robot 1
                              (a–c), robot 2 (d–f), … for the paper's 3-joint arms
+``fig_force_errors``         ours: the headline errors on their own scale, squeeze tracking
+                             λ − λ_d and force observer λ − λ̂ (mN), one row per robot
+                             (Figures 3–4 overlay λ on a 0–50 N scale, where 0.05 N is a line)
 ``fig7_velocity_estimate``   Fig. 7 (ours): velocity-estimate errors q̇ − q̇̂ (mrad/s) per
                              joint, laid out as Fig. 6; only for logs holding ``qdot`` and
                              ``qdot_hat`` (runs with the sensing models)
@@ -53,10 +56,6 @@ WIDTH = 10.0
 """Figure width (in)."""
 DPI = 120
 """Resolution of raster formats."""
-SHORT = {"put_down": "down"}
-"""Phase names shortened to fit above a panel."""
-NARROW = {"put_down": "down", "return": "ret."}
-"""Phase names above narrow panels (more than three columns), where they are also staggered."""
 #: Units of the figures, smallest first: (factor from SI, name). A figure takes the first unit
 #: in which its largest value is below 1000, one unit for all its panels.
 LENGTH_UNITS = ((1e6, "µm"), (1e3, "mm"), (1.0, "m"))
@@ -85,18 +84,18 @@ def _t_end(log: Log) -> float | None:
 
 def _phases(ax: Axes, meta: dict, t_end: float | None, label: bool,
             narrow: bool = False) -> None:
-    """Grey lines at the phase boundaries up to ``t_end``; names above the axes if ``label``
-    (``narrow``: shorter names on two alternating heights, so that neighbours do not overlap)."""
+    """Grey lines at the phase boundaries up to ``t_end``; names above the axes if ``label``,
+    the names of ``run.json`` and ``metrics.json`` (``put_down``), on two alternating heights
+    when ``narrow`` so that neighbours do not overlap."""
     if t_end is None:
         return
-    names = NARROW if narrow else SHORT
     for k, (name, a, b) in enumerate(meta["phases"]):
         if a >= t_end:
             break
         if a > 0:
             ax.axvline(a, color="0.6", lw=0.6, zorder=0)
         if label:   # above the y axis' offset text (×1e-6), below the title
-            ax.annotate(names.get(name, name), ((a + min(b, t_end)) / 2, 1.0),
+            ax.annotate(name, ((a + min(b, t_end)) / 2, 1.0),
                         xycoords=ax.get_xaxis_transform(),
                         xytext=(0, 18 if narrow and k % 2 else 10),
                         textcoords="offset points", fontsize=6.5, color="0.35",
@@ -321,6 +320,16 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
         "fig6_observation_errors": _grid(
             logs, meta, joints("q", "q_hat", "$z_{{#,{j}}}$", "$z_{{#,{j}}}$ [{{unit}}]"),
             r"Fig. 6 — observation errors $z = q - \hat q$ (robot, joint)", ANGLE_UNITS),
+        "fig_force_errors": _grid(
+            logs, meta,
+            [(r"robot #: squeeze tracking $\lambda - \lambda_d$",
+              r"$\lambda - \lambda_d$ [{unit}]",
+              lambda log: log["lambda_meas"] - log["lambda_d"]),
+             (r"robot #: force observer $\lambda - \hat\lambda$",
+              r"$\lambda - \hat\lambda$ [{unit}]",
+              lambda log: log["lambda_meas"] - log["lambda_hat"])],
+            r"Force errors (the headline numbers): $\lambda - \lambda_d$ and "
+            r"$\lambda - \hat\lambda$", FORCE_UNITS, symbol=r"$\lambda_{k}$"),
     }
     if all("qdot" in logs[r] and "qdot_hat" in logs[r] for r in meta["robots"]):
         figures["fig7_velocity_estimate"] = _grid(

@@ -64,6 +64,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import zipfile
 from pathlib import Path
 
@@ -201,8 +202,22 @@ def _csv_text(log: dict[str, np.ndarray]) -> str:
     return buffer.getvalue()
 
 
+def _rounded(value):
+    """Floats (also inside lists and mappings) to 12 significant digits: ``run.json`` says
+    ``0.009``, not the ``0.009000000000000008`` of a period aligned in floating point."""
+    if isinstance(value, (np.generic, np.ndarray)):
+        value = value.tolist()
+    if isinstance(value, float):
+        return float(f"{value:.12g}") if math.isfinite(value) else value
+    if isinstance(value, dict):
+        return {k: _rounded(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_rounded(v) for v in value]
+    return value
+
+
 def _meta_text(meta: dict) -> str:
-    return json.dumps(meta, indent=2, default=_json_default)
+    return json.dumps(_rounded(meta), indent=2, default=_json_default)
 
 
 def write_meta(out_dir: str | Path, meta: dict) -> Path:
