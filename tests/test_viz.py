@@ -133,11 +133,11 @@ def test_published_arrows_and_box_match_the_inputs(held):
             if not visible:
                 continue
             M = np.array(_last(scene, "set_transform", path)["matrix"]).reshape(4, 4).T
-            tail = p_E + np.array([0.0, 0.0, ARROW_KINDS[kind][1]])
-            np.testing.assert_allclose(M[:3, 3], tail, atol=1e-12)
+            tip = p_E + np.array([0.0, 0.0, ARROW_KINDS[kind][1]])      # on the pad
+            np.testing.assert_allclose(M[:3, 3], tip - 0.002 * F, atol=1e-12)
             np.testing.assert_allclose(M[:3, 2], F / np.linalg.norm(F), atol=1e-12)
             head = np.array(_last(scene, "set_transform", f"{path}/head")["matrix"])
-            assert head[14] == pytest.approx(L)          # the tip at tail + 0.002 F
+            assert head[14] == pytest.approx(L)          # the tip at tail + 0.002 F, the pad
             scale = _last(scene, "set_property", f"{path}/shaft", "scale")["value"]
             assert scale == pytest.approx([1.0, 1.0, L - HEAD_LENGTH])
     box = "/drake/coop/held_object"
@@ -177,3 +177,14 @@ def test_three_arms_draw_a_held_disc_touching_each_pad_and_arrows_along_their_no
         M = np.array(_last(scene, "set_transform", f"/drake/coop/forces/{arm.name}/desired")
                      ["matrix"]).reshape(4, 4).T
         np.testing.assert_allclose(M[:3, 2], -arm.N[0], atol=1e-12)   # into the object
+
+
+def test_default_arrows_are_long_enough_to_see_beside_the_arms():
+    """The paper's 24 N squeeze draws a 12 cm arrow (it was 4.8 cm, ~30 px in the replay)."""
+    import inspect
+
+    from drake_coop.results.viz import ARROW_SCALE, add_force_arrows
+
+    assert inspect.signature(ForceArrows).parameters["scale"].default == ARROW_SCALE
+    assert inspect.signature(add_force_arrows).parameters["scale"].default == ARROW_SCALE
+    assert arrow_pose(np.zeros(3), np.array([24.0, 0.0, 0.0]), ARROW_SCALE)[1] >= 0.1

@@ -13,8 +13,10 @@ object's force on the end effector (Decision 1), so a squeeze (λ > 0) draws arr
 into the object. For the paper (m_i = 1) ``N_i = n_iᵀ = (s_i, 0, 0)`` and the arrows are
 ``−λ n_i``. λ_d and the held flag are read from the reference vector through its
 :class:`~drake_coop.control.finger.ReferenceLayout` (``3 n_i + m_i + 1`` rows). An arrow of
-force F starts at ``p_E + o_k`` (``o_k`` a small vertical offset per kind so the three stay
-apart) and its tip is at ``p_E + o_k + scale · F``. In ``planes`` mode it also draws the held
+force F ends at ``p_E + o_k`` (``o_k`` a small vertical offset per kind so the three stay
+apart) and starts at ``p_E + o_k − scale · F``: it pushes on the pad from outside the object,
+so a squeeze's arrows are never hidden inside the held box (5 mm per newton by default: 12 cm
+for the paper's 24 N). In ``planes`` mode it also draws the held
 object while the reference says it is held: for two robots a translucent box between the two
 pads (facing each other along x, the paper's geometry), for three or more a translucent
 vertical disc touching every pad (:func:`held_disc_pose`).
@@ -58,6 +60,8 @@ HEAD_LENGTH = 0.015
 SHAFT_RADIUS = 0.004
 MIN_LENGTH = 1e-3
 """Arrows shorter than this (m) are hidden."""
+ARROW_SCALE = 0.005
+"""Metres of arrow per newton (the paper's 24 N squeeze: 12 cm, visible beside 0.5 m arms)."""
 BOX_SECTION = 0.06
 """Height and depth of the planes mode's held box, height of the held disc (m)."""
 PAD_RADIUS = 0.015
@@ -180,7 +184,7 @@ class ForceArrows(LeafSystem):
     """
 
     def __init__(self, meshcat: Meshcat, arms: list[Arm], *, n_joints: list[int] | None = None,
-                 scale: float = 0.002, show_held_box: bool = False,
+                 scale: float = ARROW_SCALE, show_held_box: bool = False,
                  publish_period: float = 1 / 30) -> None:
         super().__init__()
         self._meshcat = meshcat
@@ -258,7 +262,8 @@ class ForceArrows(LeafSystem):
             for kind, F in self.forces(context, i).items():
                 path = f"{ROOT}/forces/{arm.name}/{kind}"
                 offset = np.array([0.0, 0.0, ARROW_KINDS[kind][1]])
-                X, L = arrow_pose(p_E + offset, F, self._scale)
+                # The tip on the pad, the tail outside the object.
+                X, L = arrow_pose(p_E + offset - self._scale * np.asarray(F), F, self._scale)
                 visible = L >= MIN_LENGTH
                 m.SetProperty(path, "visible", visible, t)
                 if not visible:
@@ -305,7 +310,7 @@ def _logged_source(builder: DiagramBuilder, robot: str, key: str) -> OutputPort:
 
 
 def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat, *,
-                     scale: float = 0.002, publish_period: float = 1 / 30) -> ForceArrows:
+                     scale: float = ARROW_SCALE, publish_period: float = 1 / 30) -> ForceArrows:
     """Add :class:`ForceArrows` to an experiment's builder, fed by the robots' logged signals.
 
     Call it from ``build_experiment``'s ``before_build`` hook (the logged ``reference`` and
