@@ -178,3 +178,18 @@ def test_pydrake_system_blocks_are_read_into_their_ports():
         parse_block(["name: X", "inputs: [q]"])
     with pytest.raises(ValueError, match="no name"):
         parse_block(["input_ports: [q]"])
+
+
+def test_readme_and_getting_started_state_the_same_timings():
+    """Each timing is measured once and stated alike where it is stated: the paper run's wall
+    time, the whole suite's and the fast tests' time (no second, different figure)."""
+    readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    guide = " ".join((ROOT / "docs" / "guide" / "getting_started.md").read_text(
+        encoding="utf-8").split())
+    patterns = [r"about (\d+) s of wall time", r"about (\d+) min on 2 cores",
+                r"fast ones only \(([\d.]+) min of CPU time"]
+    for pattern in patterns:
+        found = {re.findall(pattern, readme)[0] if re.findall(pattern, readme) else None,
+                 re.findall(pattern, guide)[0] if re.findall(pattern, guide) else None}
+        assert len(found) == 1 and None not in found, (pattern, found)
+    assert "1–1.5 min" not in guide and "about 2 min" not in readme
