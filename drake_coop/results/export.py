@@ -29,7 +29,8 @@ if TYPE_CHECKING:
     from pydrake.geometry import Meshcat, MeshcatVisualizer, SceneGraph
     from pydrake.systems.framework import DiagramBuilder, System
 
-__all__ = ["MeshcatReplay", "add_meshcat", "draw_missing_svgs", "live_meshcat", "shared_meshcat", "write_diagram",
+__all__ = ["MeshcatReplay", "add_meshcat", "draw_missing_svgs", "live_meshcat",
+           "with_time_label", "shared_meshcat", "write_diagram",
            "write_subsystem_diagram"]
 
 DOT_TIMEOUT = 60.0
@@ -74,6 +75,40 @@ def _render_svg(dot_text: str, path: Path) -> Path | None:
             raise RuntimeError(f"graphviz's dot took over {DOT_TIMEOUT:g} s on {path.name}"
                                ) from exc
     return path
+
+
+TIME_LABEL = """
+<div id="drake-coop-time" style="position: fixed; left: 12px; bottom: 12px; z-index: 10;
+  font: 16px monospace; background: rgba(255, 255, 255, 0.8); padding: 2px 6px;">t = 0.00 s</div>
+<script>
+  // drake_coop: the replay's simulated time (Meshcat's animation clock, in seconds).
+  (function () {
+    var label = document.getElementById("drake-coop-time");
+    function show() {
+      if (typeof viewer !== "undefined" && viewer.animator && isFinite(viewer.animator.time)) {
+        label.textContent = "t = " + Number(viewer.animator.time).toFixed(2) + " s";
+      }
+      requestAnimationFrame(show);
+    }
+    show();
+  })();
+</script>
+"""
+"""A label in the corner of the HTML replay showing the animation's time (simulated seconds)."""
+
+
+def with_time_label(html: str) -> str:
+    """Meshcat's static HTML with :data:`TIME_LABEL` added before ``</body>``.
+
+    Raises
+    ------
+    ValueError
+        If the HTML has no ``</body>`` (not Meshcat's page).
+    """
+    head, sep, tail = html.rpartition("</body>")
+    if not sep:
+        raise ValueError("html: no </body> to add the time label before")
+    return head + TIME_LABEL + sep + tail
 
 
 def draw_missing_svgs(out_dir: str | Path) -> list[Path]:
@@ -311,4 +346,4 @@ class MeshcatReplay:
         """
         self.visualizer.StopRecording()
         self.visualizer.PublishRecording()
-        return atomic_write_text(path, self.meshcat.StaticHtml())
+        return atomic_write_text(path, with_time_label(self.meshcat.StaticHtml()))

@@ -51,3 +51,18 @@ def test_plot_draws_the_svg_a_run_without_graphviz_left_out(tmp_path, monkeypatc
     for dot in dots:
         svg = dot.with_suffix(".svg").read_text()
         assert svg.startswith("<svg>") and dot.read_text().strip() in svg
+
+
+def test_replay_html_gets_a_time_label_reading_meshcats_animation_clock():
+    from drake_coop.results.export import shared_meshcat, with_time_label
+
+    html = shared_meshcat().StaticHtml()
+    labelled = with_time_label(html)
+    assert labelled.count('id="drake-coop-time"') == 1
+    assert labelled.index("drake-coop-time") < labelled.rindex("</body>")
+    # The label reads the viewer Meshcat's page declares, through its animator's clock.
+    assert "var viewer = new MeshCat.Viewer" in html and "class Animator" in html
+    assert "this.time=" in html.replace(" ", "")
+    assert "viewer.animator.time" in labelled
+    with pytest.raises(ValueError, match="no </body>"):
+        with_time_label("<html>")
