@@ -43,6 +43,7 @@ import time
 import warnings
 from pathlib import Path
 
+from drake_coop.console import error as _error
 from drake_coop.scenario.resources import (
     find_scenario,
     scenario_summary,
@@ -129,13 +130,6 @@ class ProgressBar:
             self.stream.write("\n")
             self.stream.flush()
             self._open = False
-
-
-def _error(message: str) -> int:
-    from drake_coop.scenario.bounds import one_line
-
-    print(f"drake-coop: error: {one_line(message)}", file=sys.stderr)
-    return 2
 
 
 def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: bool

@@ -73,7 +73,7 @@ def _check_out(out: Path) -> None:
 
 
 def cmd_stability(args) -> int:
-    from drake_coop.cli import _error
+    from drake_coop.console import error as _error
     from drake_coop.scenario.resources import find_scenario
     from drake_coop.scenario.schema import ScenarioError
     from drake_coop.stability.grid import grid_cases, run_grid
