@@ -260,7 +260,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             velocity_source=robot.velocity_source, force_source=robot.force_source,
             difference_cutoff_hz=robot.difference_cutoff_hz,
             q=q_port,
-            lambda_sensor=lambda_sensor, connect_actuation=False,
+            lambda_sensor=lambda_sensor if robot.force_source == "sensor" else None,
+            connect_actuation=False,
             name=name)
         law, control = block.law, block.system
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller
