@@ -379,6 +379,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
                               (lambda m: print(m, flush=True)))
     except (ScenarioError, IdentifyInputError) as exc:
         return _error(str(exc))
+    except OSError as exc:                 # a full disk while writing: nothing was replaced
+        _error(f"--out {args.out}: writing the outputs failed ({exc.strerror or exc}); "
+               "nothing was replaced")
+        return 1
     if not args.quiet:
         for name, r in report["robots"].items():
             v = r["validation"]

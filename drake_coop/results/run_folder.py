@@ -25,6 +25,8 @@ import secrets
 import shutil
 from pathlib import Path
 
+from drake_coop.results.io import Locked, lock_file
+
 __all__ = ["OutputFolderError", "RunFolder", "previous_run"]
 
 #: Files a run writes (names or suffixes); an existing folder holding anything else is kept.
@@ -97,6 +99,19 @@ class RunFolder:
     def __init__(self, out: str | Path):
         self.out = Path(out)
         self.staging: Path | None = None
+        self._lock_fd: int | None = None
+
+    @property
+    def lock_path(self) -> Path:
+        """The lock of the target, beside it: two runs into one ``--out`` cannot both claim
+        it (:func:`drake_coop.results.io.lock_file`, the lock studies use)."""
+        return self.out.parent / f".{self.out.name}.drake-coop.lock"
+
+    def _release(self) -> None:
+        if self._lock_fd is not None:
+            self.lock_path.unlink(missing_ok=True)
+            os.close(self._lock_fd)
+            self._lock_fd = None
 
     def _pattern(self) -> re.Pattern:
         return re.compile(rf"\.{re.escape(self.out.name)}\.drake-coop-(\d+)-[0-9a-f]+\.(tmp|old)")
@@ -126,6 +141,15 @@ class RunFolder:
         try:
             if out.is_symlink():
                 raise OutputFolderError(f"--out {out} is a symbolic link; give the folder itself")
+            if out.parent.exists() and not out.parent.is_dir():
+                raise OutputFolderError(f"--out {out}: {out.parent} exists and is not a folder")
+            out.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                self._lock_fd = lock_file(self.lock_path)
+            except Locked as exc:
+                raise OutputFolderError(
+                    f"--out {out} is being written by another drake-coop run{exc.by()}; wait "
+                    "for it to end or choose another folder") from None
             if out.exists() and not out.is_dir():
                 raise OutputFolderError(f"--out {out} exists and is not a folder")
             if out.is_dir():
@@ -139,7 +163,6 @@ class RunFolder:
                     raise OutputFolderError(
                         f"--out {out} holds a previous run ({held}); add --force to replace "
                         "it, or choose another folder")
-            out.parent.mkdir(parents=True, exist_ok=True)
             self._remove_stale()
             staging = out.parent / f".{out.name}.drake-coop-{os.getpid()}-" \
                                    f"{secrets.token_hex(4)}.tmp"
@@ -149,6 +172,9 @@ class RunFolder:
             (staging / ".write-test").unlink()
             need = BYTES_FIXED + BYTES_PER_ROBOT_TICK * robots * ticks
             free = shutil.disk_usage(staging).free
+        except OutputFolderError:
+            self.discard()
+            raise
         except OSError as exc:
             self.discard()
             raise OutputFolderError(f"--out {out}: cannot write there "
@@ -185,6 +211,7 @@ class RunFolder:
                 os.rename(old, self.out)
             raise
         self.staging = None
+        self._release()
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
         return self.out
@@ -194,3 +221,4 @@ class RunFolder:
         if self.staging is not None:
             shutil.rmtree(self.staging, ignore_errors=True)
             self.staging = None
+        self._release()

@@ -30,8 +30,15 @@ def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
     Raises
     ------
     ScenarioError
-        Naming ``task.t_end`` and the period, with the limit.
+        Naming ``task.t_end`` (or ``t_end``) and the period, with the limit; also a run
+        shorter than one control period (nothing to control).
     """
+    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    T = scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
+    if not T >= h:
+        name = "task.t_end" if t_end is None or t_end >= scenario.task.t_end else "t_end"
+        raise ScenarioError(f"{name}: the run ({T:g} s) is shorter than one control period "
+                            f"(h = {h:g} s); it must last at least h")
     ticks, steps = run_size(scenario, t_end)
     if ticks > MAX_TICKS:
         raise ScenarioError(
