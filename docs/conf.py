@@ -73,5 +73,17 @@ def _copy_tutorials(app) -> None:
             shutil.copyfile(nb, dest)
 
 
+def _copy_diagrams(app) -> None:
+    """Copy the generated diagrams ``diagrams/*.svg`` (``drake-coop diagram``) under
+    ``docs/_generated/diagrams``: the repository keeps one copy, at the top level."""
+    target = DOCS / "_generated" / "diagrams"
+    target.mkdir(parents=True, exist_ok=True)
+    for svg in sorted((ROOT / "diagrams").glob("*.svg")):
+        dest = target / svg.name
+        if not dest.exists() or dest.read_bytes() != svg.read_bytes():
+            shutil.copyfile(svg, dest)
+
+
 def setup(app):
     app.connect("builder-inited", _copy_tutorials, priority=100)
+    app.connect("builder-inited", _copy_diagrams, priority=100)

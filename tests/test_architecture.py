@@ -182,6 +182,24 @@ def test_the_page_states_the_layers_of_the_test():
 
 
 def test_the_page_makes_no_false_claims():
+    """Claims the page made that the code contradicted: the guards are no Simulator monitor
+    (the runner checks them between ``AdvanceTo`` chunks), ``RunPlan`` is not computed once for
+    everyone (the stability map and the benchmark make their own)."""
     page = _page()
-    assert "Simulator` monitor" not in page and "as a `Simulator` monitor" not in page
-    assert "computed once and read by everyone" not in page or "RunPlan" in page
+    assert "monitor" not in page
+    assert "computed once and read by everyone" not in page
+    assert "between the chunks" in page and "between" in page
+    simulate = (PACKAGE / "experiment" / "simulate.py").read_text(encoding="utf-8")
+    assert "set_monitor(" not in simulate.replace("``simulator.set_monitor``", "")
+
+
+def test_each_generated_diagram_has_one_copy():
+    """The diagrams ``drake-coop diagram`` writes are kept once, in ``diagrams/``; the docs
+    show them through a copy made at build time (``docs/conf.py``), never a committed one."""
+    committed = [p for p in (ROOT / "docs").rglob("*.svg")
+                 if (ROOT / "diagrams" / p.name).exists()]
+    assert committed == []
+    shown = set()
+    for md in (ROOT / "docs").rglob("*.md"):
+        shown |= set(re.findall(r"_generated/diagrams/([\w.]+\.svg)", md.read_text()))
+    assert shown and all((ROOT / "diagrams" / name).is_file() for name in shown)

@@ -11,7 +11,7 @@ import pytest
 from bench.harness import _count_callbacks
 from drake_coop.experiment.plan import num_ticks_until
 from drake_coop.scenario.loading import default_scenario
-from drake_coop.scenario.timing import aligned_periods
+from drake_coop.control.timing import aligned_periods
 
 
 @pytest.fixture(scope="module")

@@ -23,7 +23,7 @@ from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 from drake_coop.plant.wrist import add_force_sensors
 from drake_coop.scenario import default_scenario
 from drake_coop.scenario.schema import ForceSensorModel
-from drake_coop.scenario.timing import aligned_periods
+from drake_coop.control.timing import aligned_periods
 from drake_coop.sensing.force_sensor import FTSensor, add_ft_sensor
 from tests.test_plant import TorqueSource
 
@@ -39,7 +39,7 @@ def run():
     s = default_scenario()
     s.plant.time_step = DT
     b = DiagramBuilder()
-    coop = build_plant(b, s)
+    coop = build_plant(b, s, time_step=DT)
     sensors = add_force_sensors(b, coop, H)
     for h in coop.arms:
         src = b.AddSystem(TorqueSource(arm_model(h.arm), 30.0, damping=0.5))

@@ -16,7 +16,7 @@ from drake_coop.cli import main
 from drake_coop.experiment.diagram import build_experiment
 from drake_coop.scenario import ScenarioError, default_scenario, load_scenario
 from drake_coop.scenario.schema import Timing
-from drake_coop.scenario.timing import aligned_periods
+from drake_coop.control.timing import aligned_periods
 from drake_coop.sensing.latency import ActuationDelay, lateness, switch_step
 
 ROOT = Path(__file__).resolve().parents[1]

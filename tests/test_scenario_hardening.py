@@ -12,14 +12,13 @@ import tracemalloc
 
 import pytest
 
+from drake_coop.experiment.plan import MAX_TICKS, check_run_size
 from drake_coop.experiment.references import reference_samples
 from drake_coop.scenario import (
     BOUNDS,
     LENGTHS,
-    MAX_TICKS,
     Scenario,
     ScenarioError,
-    check_run_size,
     load_scenario,
 )
 from drake_coop.scenario.bounds import MAX_MESSAGE, Bound, numeric_fields

@@ -142,7 +142,7 @@ def test_grid_times_monte_carlo_uses_the_same_draws_at_every_grid_point():
     ("grid: {robots.*.gains.k_d: [40, abc]}", "grid.robots.*.gains.k_d = 'abc':"),
     ("grid: {control_period: []}", "grid.control_period: must be a non-empty list"),
     ("grids: {control_period: [0.009]}", "grids: no such field"),
-    ("t_end: 0\ngrid: {control_period: [0.009]}", "t_end: must be > 0"),
+    ("t_end: 0\ngrid: {control_period: [0.009]}", "t_end: must be at least 1e-05 s"),
     ("monte_carlo: {n: 3, seed: 1, perturb: {robots.0.gains.k_d: {beta: [1, 2]}}}",
      "monte_carlo.perturb.robots.0.gains.k_d: unknown distribution 'beta'"),
     ("monte_carlo: {n: 0, seed: 1, perturb: {robots.0.gains.k_d: {uniform: [1, 2]}}}",

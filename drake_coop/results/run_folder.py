@@ -119,6 +119,9 @@ class RunFolder:
     def prepare(self, ticks: int, robots: int = 2, replace: bool = False) -> Path:
         """Check the target and create the staging folder; return it.
 
+        The target is locked first (:attr:`lock_path`, released by :meth:`commit` or
+        :meth:`discard`), then checked: two runs into one new ``--out`` cannot both claim it.
+
         Parameters
         ----------
         ticks : int
@@ -141,8 +144,6 @@ class RunFolder:
         try:
             if out.is_symlink():
                 raise OutputFolderError(f"--out {out} is a symbolic link; give the folder itself")
-            if out.parent.exists() and not out.parent.is_dir():
-                raise OutputFolderError(f"--out {out}: {out.parent} exists and is not a folder")
             out.parent.mkdir(parents=True, exist_ok=True)
             try:
                 self._lock_fd = lock_file(self.lock_path)

@@ -48,7 +48,7 @@ The number of cases (grid points × samples) is computed from the study before a
 expanded and refused above ``max_cases`` (:data:`MAX_CASES` unless raised on purpose). Every
 case is validated as ``drake-coop run`` validates its scenario (the field checks of
 :func:`~drake_coop.scenario.validation.validate` and the run size of
-:func:`~drake_coop.scenario.timing.check_run_size` at the study's ``t_end``). Numbers and lists
+:func:`~drake_coop.experiment.plan.check_run_size` at the study's ``t_end``). Numbers and lists
 of numbers are set on a copy of the validated base :class:`~drake_coop.scenario.Scenario`
 (converted as the YAML loader converts them), other values (variants, texts, ``null``) go
 through the scenario's YAML loading; the reachability check, which reads only the task and the
@@ -388,7 +388,7 @@ class _Builder:
     def build(self, assignments: list[Assignment], where: str
               ) -> tuple[Scenario, str | None]:
         """The validated scenario (and its YAML when it went through the YAML loading)."""
-        from drake_coop.scenario.timing import check_run_size
+        from drake_coop.experiment.plan import check_run_size
         from drake_coop.scenario.validation import validate
 
         scenario = copy.deepcopy(self.base)
