@@ -17,8 +17,8 @@ import shutil
 from pathlib import Path
 from typing import Iterator
 
-__all__ = ["Locked", "OutputError", "atomic_path", "lock_file", "atomic_write_bytes", "atomic_write_text",
-           "check_output_folder", "staged_folder"]
+__all__ = ["Locked", "OutputError", "atomic_path", "lock_file", "lock_folder", "atomic_write_bytes", "atomic_write_text",
+           "check_output_folder", "replace_folder", "staged_folder"]
 
 #: Free space a command's output folder needs at least (figures, tables, URDFs).
 MIN_FREE_BYTES = 20_000_000
@@ -163,21 +163,28 @@ def staged_folder(out: str | Path) -> Iterator[Path]:
     staging.mkdir()
     try:
         yield staging
-        old = None
-        if out.is_dir():
-            old = staging.with_suffix(".old")
-            os.rename(out, old)
-        try:
-            os.rename(staging, out)
-        except OSError:
-            if old is not None:
-                os.rename(old, out)
-            raise
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        replace_folder(staging, out)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+
+
+def replace_folder(staging: Path, out: Path) -> None:
+    """Rename the folder ``staging`` onto ``out``; a previous ``out`` is renamed aside to
+    ``staging`` with the suffix ``.old`` first and removed after (put back if the rename
+    fails). Between the two renames ``out`` is briefly absent: call with signals deferred."""
+    old = None
+    if out.is_dir():
+        old = staging.with_suffix(".old")
+        os.rename(out, old)
+    try:
+        os.rename(staging, out)
+    except OSError:
+        if old is not None:
+            os.rename(old, out)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
 
 
 class Locked(Exception):
@@ -220,4 +227,27 @@ def lock_file(path: str | Path) -> int:
         raise
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    return fd
+
+
+def lock_folder(path: str | Path) -> int:
+    """Take an exclusive ``fcntl.flock`` on the folder ``path`` itself without waiting (the lock
+    of :func:`lock_file`, with no file to leave behind) and return its descriptor.
+
+    Raises
+    ------
+    Locked
+        Another process (or another descriptor of this one) holds it.
+    OSError
+        ``path`` is not a folder or cannot be opened.
+    """
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) | getattr(os, "O_CLOEXEC", 0))
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        raise Locked("") from None
+    except OSError:
+        os.close(fd)
+        raise
     return fd

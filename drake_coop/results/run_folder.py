@@ -25,7 +25,7 @@ import secrets
 import shutil
 from pathlib import Path
 
-from drake_coop.results.io import Locked, lock_file
+from drake_coop.results.io import Locked, lock_folder, replace_folder
 
 __all__ = ["OutputFolderError", "RunFolder", "previous_run"]
 
@@ -100,16 +100,10 @@ class RunFolder:
         self.out = Path(out)
         self.staging: Path | None = None
         self._lock_fd: int | None = None
-
-    @property
-    def lock_path(self) -> Path:
-        """The lock of the target, beside it: two runs into one ``--out`` cannot both claim
-        it (:func:`drake_coop.results.io.lock_file`, the lock studies use)."""
-        return self.out.parent / f".{self.out.name}.drake-coop.lock"
+        self._created = False
 
     def _release(self) -> None:
         if self._lock_fd is not None:
-            self.lock_path.unlink(missing_ok=True)
             os.close(self._lock_fd)
             self._lock_fd = None
 
@@ -119,7 +113,8 @@ class RunFolder:
     def prepare(self, ticks: int, robots: int = 2, replace: bool = False) -> Path:
         """Check the target and create the staging folder; return it.
 
-        The target is locked first (:attr:`lock_path`, released by :meth:`commit` or
+        The target is locked first (a new one is created empty; the lock,
+        :func:`drake_coop.results.io.lock_folder`, is released by :meth:`commit` or
         :meth:`discard`), then checked: two runs into one new ``--out`` cannot both claim it.
 
         Parameters
@@ -144,15 +139,19 @@ class RunFolder:
         try:
             if out.is_symlink():
                 raise OutputFolderError(f"--out {out} is a symbolic link; give the folder itself")
-            out.parent.mkdir(parents=True, exist_ok=True)
-            try:
-                self._lock_fd = lock_file(self.lock_path)
-            except Locked as exc:
-                raise OutputFolderError(
-                    f"--out {out} is being written by another drake-coop run{exc.by()}; wait "
-                    "for it to end or choose another folder") from None
             if out.exists() and not out.is_dir():
                 raise OutputFolderError(f"--out {out} exists and is not a folder")
+            out.parent.mkdir(parents=True, exist_ok=True)
+            if not out.exists():            # a new --out: created empty, to be locked
+                out.mkdir()
+                self._created = True
+            try:
+                self._lock_fd = lock_folder(out)
+            except Locked:
+                self._created = False
+                raise OutputFolderError(
+                    f"--out {out} is being written by another drake-coop run; wait for it to "
+                    "end or choose another folder") from None
             if out.is_dir():
                 usable, foreign = _is_run_folder(out)
                 if not usable:
@@ -201,20 +200,10 @@ class RunFolder:
         absent (the previous run is in ``.<name>.drake-coop-…old``, removed right after).
         """
         assert self.staging is not None, "prepare() first"
-        old = None
-        if self.out.is_dir():
-            old = self.staging.with_suffix(".old")
-            os.rename(self.out, old)
-        try:
-            os.rename(self.staging, self.out)
-        except OSError:
-            if old is not None:
-                os.rename(old, self.out)
-            raise
+        replace_folder(self.staging, self.out)
         self.staging = None
+        self._created = False
         self._release()
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
         return self.out
 
     def discard(self) -> None:
@@ -222,4 +211,10 @@ class RunFolder:
         if self.staging is not None:
             shutil.rmtree(self.staging, ignore_errors=True)
             self.staging = None
+        if self._created:                   # the empty --out this run created
+            try:
+                self.out.rmdir()
+            except OSError:
+                pass
+            self._created = False
         self._release()
