@@ -65,6 +65,16 @@ class Gains:
     beta: float = 10.0
     momentum_gain: float = 50.0
 
+    def __post_init__(self) -> None:
+        """Types only (a string or a dict for a gain is a ``TypeError`` naming it); the
+        ranges depend on the arm and the period: :func:`check_gains`,
+        :func:`check_momentum_gain`."""
+        for name in ("Lambda", "k_d", "k_F", "xi", "zeta", "beta", "momentum_gain"):
+            as_number(getattr(self, name), name)
+        as_array(self.K_R, "K_R")
+        if self.xi_matrix is not None:
+            as_array(self.xi_matrix, "xi_matrix")
+
 
 def as_number(value, name: str) -> float:
     """``value`` as a float; ``TypeError`` naming ``name`` for a string, a bool or a container."""
