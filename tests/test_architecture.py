@@ -139,18 +139,25 @@ def test_the_graph_reader_sees_a_circle_and_an_upward_arrow(tmp_path, monkeypatc
 
 def test_the_library_loads_nothing_of_the_application():
     """Importing ``drake_coop.control`` and every one of its modules (its public names load
-    on first use) loads no ``drake_coop`` module outside it."""
+    on first use) loads no ``drake_coop`` module outside it, and nothing third-party but
+    Drake and NumPy."""
     control = sorted(m for m in package_modules() if m.startswith("drake_coop.control"))
     code = ("import sys, importlib\n"
+            "before = set(sys.modules)\n"
             f"for m in {control!r}: importlib.import_module(m)\n"
             "import drake_coop.control as c\n"
             "[getattr(c, n) for n in c.__all__]\n"
-            "print('\\n'.join(sorted(m for m in sys.modules if m.startswith('drake_coop'))))\n")
-    loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True, cwd=ROOT).stdout.split()
+            "print('\\n'.join(sorted(m for m in sys.modules if m.startswith('drake_coop'))))\n"
+            "print('third-party', *sorted({m.split('.')[0] for m in set(sys.modules) - before}\n"
+            "                             - set(sys.stdlib_module_names)))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=ROOT).stdout
+    loaded, third_party = out.split("third-party")
+    loaded = loaded.split()
     assert "drake_coop.control.block" in loaded
     outside = [m for m in loaded if m != "drake_coop" and not m.startswith("drake_coop.control")]
     assert outside == []
+    assert set(third_party.split()) <= {"drake", "drake_coop", "numpy", "pydrake"}
 
 
 # --- the architecture page ------------------------------------------------------------------
