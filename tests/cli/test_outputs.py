@@ -145,7 +145,7 @@ def paper_free_map():
 
 def test_the_maps_own_step_check_catches_a_wrong_rho(paper_free_map):
     """At ε = 1e-16 rounding gives ρ = 1.11 for the paper's loop (ρ = 0.896 on the plateau,
-    tests/test_stability.py); the second step disagrees, so the report says so."""
+    tests/stability/test_stability.py); the second step disagrees, so the report says so."""
     from drake_coop.stability.period_map import analyse
 
     good = analyse(paper_free_map, epsilon=1e-5)

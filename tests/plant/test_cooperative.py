@@ -265,7 +265,7 @@ def test_wrist_dynamics_ground_truth_equals_the_reaction_force_chain():
     carried bodies from Drake's reaction forces (``WristKinematics``), at every plant step of
     free motion, the grasp and the lift. On the live path (``live_ground_truth=True``): the
     offline path evaluates the same equation (``ArmForces``) from held data and is checked
-    against the live one in ``tests/test_ground_truth_offline.py``."""
+    against the live one in ``tests/plant/test_ground_truth.py``."""
     from drake_coop.experiment.simulate import simulate
     from drake_coop.plant.wrist import WristDynamics, WristKinematics
     from tests.conftest import short_scenario

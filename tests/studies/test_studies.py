@@ -263,7 +263,7 @@ def test_the_shipped_model_mismatch_study_draws_its_published_cases():
     import csv
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     cases = expand(load_study(root / "studies" / "model_mismatch.yaml"))
     with open(root / "docs" / "figures" / "studies" / "model_mismatch_results.csv") as f:
         published = list(csv.DictReader(f))

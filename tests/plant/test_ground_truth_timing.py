@@ -25,7 +25,7 @@ from drake_coop.scenario import default_scenario
 from drake_coop.scenario.schema import ForceSensorModel
 from drake_coop.control.timing import aligned_periods
 from drake_coop.sensing.force_sensor import FTSensor, add_ft_sensor
-from tests.test_plant import TorqueSource
+from tests.plant.test_cooperative import TorqueSource
 
 TICKS = 40
 H, DT = aligned_periods(0.009, 0.001)      # the experiment's grid (h = 9 Δt exactly)

@@ -13,7 +13,7 @@ from drake_coop.scenario import (
     load_scenario,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _with_robot1(fields: str) -> str:

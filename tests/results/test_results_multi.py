@@ -19,7 +19,7 @@ from drake_coop.results import (
     save_logs,
 )
 from drake_coop.results.figures import path_plane
-from tests.test_results_io import PHASES, bits
+from tests.results.test_io import PHASES, bits
 
 H = 0.05
 #: Robots of the synthetic run: (joints n, constraints m).
@@ -234,7 +234,7 @@ def test_arrows_of_two_constraints_are_the_sum_of_the_normals_times_lambda():
     from drake_coop.results.export import shared_meshcat
     from drake_coop.results.viz import ARROW_KINDS, ForceArrows
     from drake_coop.scenario import load_scenario
-    from tests.test_viz import _last, _scene
+    from tests.results.test_viz import _last, _scene
 
     s = load_scenario("scenarios/six_joint.yaml")
     n1 = np.array([-1.0, 0.0, 0.0])

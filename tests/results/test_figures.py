@@ -19,7 +19,7 @@ from drake_coop.results import (
     replot,
     save_logs,
 )
-from tests.test_results_io import synthetic_run
+from tests.results.test_io import synthetic_run
 
 FIGURES = ["fig2_tracking_errors", "fig3_force_tracking", "fig4_force_estimate",
            "fig5_aux_force_error", "fig6_observation_errors"]

@@ -19,7 +19,7 @@ from drake_coop.scenario.schema import Timing
 from drake_coop.control.timing import aligned_periods
 from drake_coop.sensing.latency import ActuationDelay, lateness, switch_step
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 H, DT = aligned_periods(0.009, 0.001)
 
 

@@ -3,8 +3,8 @@
 Without a controller reading the F/T sensor, ``planes`` and ``rigid`` runs hold the plant's
 data with C++ blocks and compute ``F_meas``, ``lambda_meas`` and ``lambda_sensor`` after the
 run. The reference is the live path (``live_ground_truth=True``: the Python systems latching
-at every tick, themselves checked against Drake's reaction forces in ``tests/test_plant.py``
-and against every plant step in ``tests/test_ground_truth_timing.py``), on the same scenario:
+at every tick, themselves checked against Drake's reaction forces in ``tests/plant/test_cooperative.py``
+and against every plant step in ``tests/plant/test_ground_truth_timing.py``), on the same scenario:
 the two runs' trajectories are identical, so their logs must agree tick for tick.
 """
 
@@ -22,7 +22,7 @@ from drake_coop.sensing.force_sensor import FTModel
 from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, white_noise
 from tests.conftest import short_scenario
 
-SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 KEYS = ("F_meas", "lambda_meas", "lambda_sensor")
 
 

@@ -15,7 +15,7 @@ from drake_coop.results.run_folder import OutputFolderError, RunFolder
 from drake_coop.results.summary import sanity_warnings, summary_lines
 from drake_coop.scenario import dump_scenario
 from tests.conftest import short_scenario
-from tests.test_results_io import SINE_AMPLITUDE, Y_OFFSET, Z_OBS, synthetic_run
+from tests.results.test_io import SINE_AMPLITUDE, Y_OFFSET, Z_OBS, synthetic_run
 
 # ---------------------------------------------------------------- the summary table
 

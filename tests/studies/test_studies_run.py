@@ -14,7 +14,7 @@ import pytest
 from drake_coop.cli import main
 from drake_coop.studies import expand, load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 # 2 x 2 with a short t_end; k_d = 1000 makes the forward-Euler observer (15)-(16) unstable
 # (|1 - h k_d| >= 2): its error grows every tick until a joint passes its limit, so two cases

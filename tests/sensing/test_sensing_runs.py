@@ -178,7 +178,7 @@ def _ft_readings_and_step_forces(t_end):
     from drake_coop.plant.wrist import add_force_sensors
     from drake_coop.scenario import load_scenario
 
-    scenario = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "realistic.yaml")
+    scenario = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" / "realistic.yaml")
     h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
     steps = {}
     probes = []

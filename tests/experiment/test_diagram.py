@@ -101,7 +101,7 @@ def test_control_block_has_no_direct_feedthrough_on_state_outputs():
 def test_events_fire_at_ticks_and_the_ft_read_without_tiny_steps():
     scenario = short_scenario("planes", 0.001)
     # The live ground truth and F/T sensor model: their reads are what this test times (the
-    # offline ground truth's holds are timed by tests/test_ground_truth_offline.py).
+    # offline ground truth's holds are timed by tests/plant/test_ground_truth.py).
     exp = build_experiment(scenario, log=False, live_ground_truth=True)
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()

@@ -63,7 +63,7 @@ def test_plant_replay_reproduces_the_runs_joint_angles_exactly_through_grasp_and
     angles at every tick through the grasp and the release."""
     from bench.harness import _experiment, _plant_replay
 
-    from .conftest import short_scenario
+    from tests.conftest import short_scenario
 
     scenario = short_scenario(t_pregrasp=0.3, t_grasp=0.5, t_circle_start=0.8,
                               t_circle_end=1.2, t_release=1.4, t_end=1.6)

@@ -15,7 +15,7 @@ import pytest
 
 from drake_coop.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
 
 # 2 x 2 with a short t_end; k_d = 1000 makes the observer diverge within 0.2 s (a result).

@@ -24,7 +24,7 @@ from drake_coop.results import save_logs
 from drake_coop.results.run_folder import OutputFolderError, RunFolder
 from drake_coop.scenario import dump_scenario
 from tests.conftest import short_scenario, start_paper_run
-from tests.test_results_io import synthetic_run
+from tests.results.test_io import synthetic_run
 
 
 def _previous_run(out: Path) -> dict:

@@ -1,7 +1,7 @@
 """A study under faults: owned and locked ``--out``, bounded study files and sizes, validation
 as ``run`` validates, truthful tables with overlapping paths, names that stay inside ``--out``,
 one-line exits on I/O failures, damaged files (no simulation in this file except where a
-test says so; the killed-process tests are in tests/test_studies_kill.py)."""
+test says so; the killed-process tests are in tests/studies/test_studies_kill.py)."""
 
 import errno
 import json
@@ -23,7 +23,7 @@ from drake_coop.studies.plots import plot_study
 from drake_coop.studies.spec import file_stem
 from drake_coop.studies.store import ResultStore
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 SMALL = """
 name: small

@@ -23,7 +23,7 @@ from drake_coop.scenario import (
     resources,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_checkout_reads_the_top_level_folders(monkeypatch):

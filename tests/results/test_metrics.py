@@ -9,7 +9,7 @@ import pytest
 
 from drake_coop.results import compute_metrics, write_metrics
 from drake_coop.results.metrics import phase_masks
-from tests.test_results_io import (
+from tests.results.test_io import (
     FORCE_OFFSET,
     PHASES,
     SINE_AMPLITUDE,

@@ -13,7 +13,7 @@ from drake_coop.scenario import (
     load_scenario,
 )
 
-PAPER = Path(__file__).resolve().parents[1] / "scenarios" / "paper.yaml"
+PAPER = Path(__file__).resolve().parents[2] / "scenarios" / "paper.yaml"
 
 
 def test_paper_yaml_holds_the_papers_numbers():

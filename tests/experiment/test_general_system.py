@@ -19,7 +19,7 @@ from drake_coop.experiment.simulate import simulate
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario import ScenarioError, Task, load_scenario
 
-from .conftest import short_scenario
+from tests.conftest import short_scenario
 
 #: Normals of the m = 2 and m = 3 cases: a vertical line, and a point held in place.
 NORMALS = {1: [[-1.0, 0.0, 0.0]], 2: [[-1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
@@ -375,7 +375,7 @@ def test_force_observer_22_equals_21_for_m_constraints_in_the_loop():
     """(22) is (21) with the controller's own torque substituted, for every row (m = 2, 3)."""
     from drake_coop.experiment.plan import plan_run
 
-    from .conftest import advance_to_tick
+    from tests.conftest import advance_to_tick
 
     scenario = multi_constraint_scenario()
     k = plan_run(scenario).k_grasp + 60

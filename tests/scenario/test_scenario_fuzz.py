@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from drake_coop.scenario import BOUNDS, ScenarioError, load_scenario
 from drake_coop.scenario.bounds import MAX_MESSAGE
 
-PAPER = Path(__file__).resolve().parents[1] / "scenarios" / "paper.yaml"
+PAPER = Path(__file__).resolve().parents[2] / "scenarios" / "paper.yaml"
 PAPER_DATA = yaml.safe_load(PAPER.read_text())
 
 

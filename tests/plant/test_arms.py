@@ -43,7 +43,7 @@ def _postures(arm, count=30, seed=0, fraction=0.9):
 
 def _load_generate():
     spec = importlib.util.spec_from_file_location(
-        "urdf_generate", Path(__file__).resolve().parents[1] / "urdf" / "generate.py")
+        "urdf_generate", Path(__file__).resolve().parents[2] / "urdf" / "generate.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

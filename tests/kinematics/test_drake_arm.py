@@ -21,7 +21,7 @@ from drake_coop.plant.arms import Arm
 from drake_coop.kinematics.drake_arm import SINGULAR_RATIO, DrakeArmKinematics
 from drake_coop.scenario import paper_robots
 
-URDF = Path(__file__).resolve().parents[1] / "urdf"
+URDF = Path(__file__).resolve().parents[2] / "urdf"
 CRS_MODELS = ("crs_a465", "crs_a255")    # paper_robots()[0], [1]
 PLANES_B = (0.6, 0.8192)                  # their constraint planes x = b_i (Section IV)
 EPS = 1e-6                                # step of the central differences in q
