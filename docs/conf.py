@@ -98,18 +98,22 @@ mathjax_path = "mathjax/tex-mml-chtml.js"
 
 
 
-def _copy_tutorials(app) -> None:
-    """Copy ``tutorials/*.ipynb`` under ``docs/_generated/tutorials`` (sources must be under
-    docs/; the repository keeps one copy, the one the tests run)."""
-    target = DOCS / "_generated" / "tutorials"
+def _copy_into_docs(folder: str, pattern: str) -> None:
+    """Copy ``<checkout>/<folder>/<pattern>`` under ``docs/_generated/<folder>`` (sources must
+    be under docs/; the repository keeps one copy: the tutorials the tests run, the diagrams
+    ``drake-coop diagram`` writes)."""
+    target = DOCS / "_generated" / folder
     target.mkdir(parents=True, exist_ok=True)
-    for nb in sorted((ROOT / "tutorials").glob("*.ipynb")):
-        dest = target / nb.name
-        if not dest.exists() or dest.read_bytes() != nb.read_bytes():
+    for source in sorted((ROOT / folder).glob(pattern)):
+        dest = target / source.name
+        if not dest.exists() or dest.read_bytes() != source.read_bytes():
             partial = dest.with_name(f".{dest.name}.{os.getpid()}")
-            shutil.copyfile(nb, partial)
+            shutil.copyfile(source, partial)      # whole or not at all: two builds may race
             os.replace(partial, dest)
 
 
 def setup(app):
-    app.connect("builder-inited", _copy_tutorials, priority=100)
+    app.connect("builder-inited", lambda app: _copy_into_docs("tutorials", "*.ipynb"),
+                priority=100)
+    app.connect("builder-inited", lambda app: _copy_into_docs("diagrams", "*.svg"),
+                priority=100)

@@ -7,7 +7,7 @@ import json
 import numpy as np
 
 from drake_coop.results.logs import load_logs, save_logs
-from tests.test_results_io import synthetic_run
+from tests.results.test_io import synthetic_run
 
 
 def test_run_json_numbers_are_rounded_to_12_significant_digits(tmp_path):
