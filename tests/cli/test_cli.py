@@ -147,7 +147,7 @@ def test_every_documented_command_writes_under_an_ignored_folder():
     import re
     from pathlib import Path
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     ignored = [line.strip() for line in (root / ".gitignore").read_text().splitlines()
                if line.strip().endswith("/") and not line.startswith("#")]
     pages = [root / "README.md", *sorted((root / "docs").rglob("*.md"))]
@@ -169,7 +169,7 @@ def test_the_getting_started_command_table_lists_every_command():
     from drake_coop.cli import build_parser
 
     sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
-    page = (Path(__file__).resolve().parents[1] / "docs" / "guide" /
+    page = (Path(__file__).resolve().parents[2] / "docs" / "guide" /
             "getting_started.md").read_text(encoding="utf-8")
     table = page.split("## Commands", 1)[1].split("\n\n", 2)[1]
     listed = set(re.findall(r"^\| `drake-coop ([a-z-]+)", table, flags=re.M))

@@ -233,7 +233,7 @@ def test_arrows_of_two_constraints_are_the_sum_of_the_normals_times_lambda():
     from drake_coop.control.finger import ReferenceLayout
     from drake_coop.plant.arms import Arm
     from drake_coop.results.export import shared_meshcat
-    from drake_coop.results.viz import ARROW_KINDS, ForceArrows
+    from drake_coop.results.viz import ARROW_KINDS, ARROW_SCALE, ForceArrows
     from drake_coop.scenario import load_scenario
     from tests.results.test_viz import _last, _scene
 
@@ -268,6 +268,6 @@ def test_arrows_of_two_constraints_are_the_sum_of_the_normals_times_lambda():
         M = np.array(_last(scene, "set_transform", path)["matrix"]).reshape(4, 4).T
         np.testing.assert_allclose(M[:3, 2], F / np.linalg.norm(F), atol=1e-12)
         head = np.array(_last(scene, "set_transform", f"{path}/head")["matrix"])
-        assert head[14] == pytest.approx(0.002 * math.sqrt(F @ F))
-        tail = arms[0].fk(q6) + [0.0, 0.0, ARROW_KINDS[kind][1]]
-        np.testing.assert_allclose(M[:3, 3], tail, atol=1e-12)
+        assert head[14] == pytest.approx(ARROW_SCALE * math.sqrt(F @ F))
+        tip = arms[0].fk(q6) + [0.0, 0.0, ARROW_KINDS[kind][1]]       # on the pad
+        np.testing.assert_allclose(M[:3, 3], tip - ARROW_SCALE * F, atol=1e-12)
