@@ -36,7 +36,7 @@ from drake_coop.scenario.task_path import (
 
 #: The task's paths are the scenario's; they are re-exported for the callers of this module.
 __all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", "quintic",
-           "segments", "waypoints", "joint_reference", "redundant_joint_reference",
+           "segments", "waypoints", "joint_reference", "redundant_joint_reference", "start_posture",
            "reference_samples",
            "reference_trajectory"]
 
@@ -46,6 +46,16 @@ def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
     """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the arm's IK (an arm
     with as many joints as task coordinates)."""
     return arm.kinematics.joint_reference(x, xd, xdd)
+
+
+def start_posture(arm: Arm, task) -> np.ndarray:
+    """``q_d(0)``: the reference's posture at ``t = 0`` (the run's rest posture), for either
+    kind of arm (the same doubles as the first sample of :func:`reference_samples`)."""
+    x, xd, xdd = cartesian_reference(task, arm.robot, [0.0])
+    kin = arm.kinematics
+    if getattr(kin, "redundant", False):
+        return kin.start_posture(x[0], kin.nominal_posture(arm.robot.q_nominal))
+    return np.asarray(joint_reference(arm, x, xd, xdd)[0]).reshape(-1)
 
 
 def redundant_joint_reference(arm: Arm, task, t: np.ndarray

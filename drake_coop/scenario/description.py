@@ -18,6 +18,9 @@ error's scaled copy, identification), derived from the package's file and the ro
 * ``tool``: a ``force_sensor`` link welded to ``tool.flange`` by ``flange_sensor_weld`` and a
   ``pad`` link (a compliant-hydroelastic sphere, the end-effector point) welded to the sensor
   by ``sensor_pad_weld`` (:class:`~drake_coop.scenario.schema.Tool`);
+* actuators: a ``SimpleTransmission`` for every moving joint without one (the Panda's URDF
+  has none, and Drake actuates a URDF joint only through one); the joint's effort limit
+  stays the actuator's;
 * meshes: ``package://`` mesh URLs become absolute paths. Visual meshes stay; Drake 1.51 reads
   ``.obj``, ``.gltf``/``.glb`` (shown in Meshcat) and passes other formats (``.dae``, ``.stl``)
   to Meshcat as files, which it shows when the browser's loader reads them;
@@ -58,7 +61,7 @@ TOOL_NAMES = ("force_sensor", "pad", "flange_sensor_weld", "sensor_pad_weld")
 _DRAKE = "{http://drake.mit.edu}"
 _MOVING = ("revolute", "continuous", "prismatic")
 #: Bump when the prepared file's layout changes (part of the cache key).
-_VERSION = "1"
+_VERSION = "2"
 
 
 def cache_dir() -> Path:
@@ -200,6 +203,20 @@ def _add_tool(root: ET.Element, robot: Robot, where: str) -> None:
     _set_origin(weld, np.asarray(tool.pad_xyz, dtype=float), np.eye(3))
 
 
+def _actuate(root: ET.Element) -> None:
+    """A ``SimpleTransmission`` (an actuator) for every moving joint that has none: Drake makes
+    an actuator only from a transmission, and a description's URDF (the Panda's) may have none.
+    The joint's ``<limit effort>`` becomes the actuator's effort limit, as Drake reads it."""
+    driven = {j.get("name") for t in root.findall("transmission") for j in t.findall("joint")}
+    for joint in root.findall("joint"):
+        name = joint.get("name")
+        if joint.get("type") in _MOVING and name not in driven:
+            transmission = ET.SubElement(root, "transmission", type="SimpleTransmission",
+                                         name=f"{name}_transmission")
+            ET.SubElement(transmission, "joint", name=name)
+            ET.SubElement(transmission, "actuator", name=f"{name}_motor")
+
+
 def _resolve_meshes(root: ET.Element, resolve) -> None:
     """Visual meshes' ``package://`` URLs as absolute paths; collision geometry removed (and
     the joints' ``safety_controller`` and ``calibration``, which Drake ignores with a
@@ -266,6 +283,7 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
         _lock(root, name, float(value), f"{where}locked_joints")
     if robot.tool is not None:
         _add_tool(root, robot, where)
+    _actuate(root)
     body = ET.tostring(root, encoding="unicode")
     out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=".tmp")
