@@ -31,7 +31,8 @@ error's scaled copy, identification), derived from the package's file and the ro
   other and the object.
 
 The base is welded where the scenario says (``base_frame`` at ``base_xyz``, ``base_yaw_deg``)
-by every loader, which also removes a floating base.
+by every loader, which also removes a floating base (the Panda's); a ``world`` link of the
+package's file and the joint that welds it (the UR5's) are removed.
 
 The prepared file is written once per source file and fields, atomically, under
 ``$DRAKE_COOP_CACHE_DIR`` (default ``$XDG_CACHE_HOME/drake_coop/arms``, else
@@ -61,7 +62,7 @@ TOOL_NAMES = ("force_sensor", "pad", "flange_sensor_weld", "sensor_pad_weld")
 _DRAKE = "{http://drake.mit.edu}"
 _MOVING = ("revolute", "continuous", "prismatic")
 #: Bump when the prepared file's layout changes (part of the cache key).
-_VERSION = "2"
+_VERSION = "3"
 
 
 def cache_dir() -> Path:
@@ -218,10 +219,18 @@ def _actuate(root: ET.Element) -> None:
 
 
 def _resolve_meshes(root: ET.Element, resolve) -> None:
-    """Visual meshes' ``package://`` URLs as absolute paths; collision geometry removed (and
-    the joints' ``safety_controller`` and ``calibration``, which Drake ignores with a
-    warning)."""
+    """Visual meshes' ``package://`` URLs as absolute paths; collision geometry removed; a
+    ``world`` link and its joints removed (the UR5's: the base is welded where the scenario
+    says); the joints' ``safety_controller`` and ``calibration`` removed (Drake ignores them
+    with a warning)."""
+    for link in root.findall("link"):
+        if link.get("name") == "world":
+            root.remove(link)
     for joint in root.findall("joint"):
+        if (joint.find("parent") is not None
+                and joint.find("parent").get("link") == "world"):
+            root.remove(joint)
+            continue
         for tag in ("safety_controller", "calibration"):
             for old in joint.findall(tag):
                 joint.remove(old)

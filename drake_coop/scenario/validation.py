@@ -231,9 +231,10 @@ def _validate_two_sided(scenario: Scenario) -> None:
         raise ScenarioError(f"plant.object_mode {mode} holds one object between exactly 2 "
                             "robots with normals [-1, 0, 0] and [1, 0, 0]; use planes for "
                             "other grasps")
-    if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") for r in robots):
+    if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") and r.tool is None
+                                 for r in robots):
         raise ScenarioError("plant.object_mode contact needs the shipped arms crs_a465 / "
-                            "crs_a255 (their pads)")
+                            "crs_a255 or arms with a tool (their spherical pads)")
 
 
 def _validate_description(robot: Robot, where: str) -> None:
