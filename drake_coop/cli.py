@@ -388,8 +388,11 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if not args.quiet:
         for name, r in report["robots"].items():
             v = r["validation"]
+            share = v['torque_error_rms_identified'] / max(v['torque_rms'], 1e-300)
             print(f"{name}: model torque error {v['torque_error_rms_identified']:.3g} N·m RMS "
-                  f"(nominal model {v['torque_error_rms_nominal']:.3g}), residual "
+                  f"({100 * share:.2g} % of the torque RMS on fresh data; nominal model "
+                  f"{v['torque_error_rms_nominal']:.3g}), base parameters "
+                  f"{r['identifiable_combinations']}, residual "
                   f"{max(r['residual_torque_rms']):.3g} N·m, condition number "
                   f"{r['regressor_condition_number']:.3g}")
         print(f"wrote {args.out}")
