@@ -158,10 +158,14 @@ class FingerLaw:
         #: ``K_O`` of the momentum observer (``force_source = "momentum"``), 1/s.
         self.momentum_gain = float(gains.momentum_gain)
         self._zero_m = np.zeros(self.m)
-        #: The paper's case on plain floats (see :meth:`_held_m1`): one constraint, scalar ξ,
-        #: closed-form kinematics. Anything else takes the general path (any n, m, ξ matrix).
+        self._constraint_key = b""
+        self._constraint: Constraint | None = None
+        #: One constraint and a scalar ξ, on plain floats (see :meth:`_held_m1`): the paper's
+        #: case (closed-form kinematics) and any arm with Drake's (its row ``J_φ`` and
+        #: ``J̇_φ q̇_o`` from the tick's one kinematics evaluation). Anything else takes the
+        #: general path (any n, m, ξ matrix).
         self.fast = (self.m == 1 and np.ndim(self.xi) == 0
-                     and getattr(model, "closed_form", False))
+                     and hasattr(model, "constraint_row"))
         self._K_R_diag = np.diag(self.K_R).tolist()
         # K_R is diagonal: K_R x as an elementwise product (the same doubles as K_R @ x).
         self._K_R_vector = np.diag(self.K_R).copy()
@@ -183,15 +187,22 @@ class FingerLaw:
                    ) -> Constraint:
         """Projections of Property 1 at ``q`` (free-motion form when not held).
 
-        ``J_phi`` may be passed when already computed at ``q``.
+        ``J_phi`` may be passed when already computed at ``q``. Held, the result is kept for
+        the last ``q``: the force observer and the controller of a tick share it (the caller
+        must not modify its arrays).
         """
         if not held:
             J_pinv, Q = orthogonal.free_motion_projections(self.n, self.m)
             return Constraint(np.zeros((self.m, self.n)), J_pinv, Q, self._zero_m)
+        key = np.asarray(q, dtype=float).tobytes()
+        if key == self._constraint_key:      # the force observer's, at the same sample
+            return self._constraint
         if J_phi is None:
             J_phi = self.model.J_phi(q)
         J_pinv, Q = orthogonal.projections(J_phi)
-        return Constraint(J_phi, J_pinv, Q, self.model.phi(q))
+        c = Constraint(J_phi, J_pinv, Q, self.model.phi(q))
+        self._constraint_key, self._constraint = key, c
+        return c
 
     def reference_velocity(self, c: Constraint, q_hat: np.ndarray, ref: Reference,
                            Delta_F_tilde: np.ndarray) -> np.ndarray:
@@ -309,8 +320,8 @@ class FingerLaw:
         dict
             ``tau``, ``qdot_r`` (4), ``qddot_r_hat`` (11), ``Delta_lambda_tilde`` (m).
 
-        The paper's case (one constraint, scalar ξ, closed-form kinematics: :attr:`fast`)
-        runs on plain floats (:meth:`_control_m1`); the same equations, other roundings.
+        One constraint and a scalar ξ (:attr:`fast`: the paper's case, and any arm at
+        ``m = 1``) runs on plain floats (:meth:`_control_m1`); the same equations, other roundings.
         Free motion, for any arm, takes :meth:`_control_free` (the same equations with
         ``Q = I``, ``J⁺ = 0``, ``J_φ = 0``, without forming those matrices).
         """
