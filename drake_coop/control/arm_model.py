@@ -73,6 +73,13 @@ class ArmModel:
         linearly independent.
     contact_point : array_like, shape (3,)
         ``c`` of ``φ(q) = N (x(q) − c)``, in the world frame.
+    coulomb : array_like, shape (n,), optional
+        Coulomb friction torques ``F_c`` of the joints (N·m, ``≥ 0``; e.g. the identified
+        ones of ``drake-coop identify``), compensated in the model:
+        :meth:`inverse_dynamics_terms` then adds ``F_c ⊙ tanh(v / v_c)`` (the identification's
+        own smoothing of ``sign v``). None (the paper's model, the default): no such term.
+    coulomb_velocity : float
+        ``v_c`` (rad/s) of that smoothing, > 0 (default 0.02, the identification's).
     closed_form : object, optional
         Closed-form kinematics of a three-joint arm of the paper's kind (``fk(q)``,
         ``jacobian(q)``, ``jacobian_dot(q, v)``, ``geometry`` with ``h1, L2, L3``, ``R_base``,
@@ -86,7 +93,7 @@ class ArmModel:
     """
 
     def __init__(self, plant: MultibodyPlant, ee_frame: str, normals, contact_point,
-                 closed_form=None):
+                 closed_form=None, coulomb=None, coulomb_velocity: float = 0.02):
         if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
             raise ValueError("plant: a finalized single-arm MultibodyPlant is required "
                              "(see make_arm_controller_plant)")
@@ -98,6 +105,18 @@ class ArmModel:
             raise ValueError(f"ee_frame: the controller's plant has no frame named "
                              f"{ee_frame!r}")
         self._setup(plant, ee_frame, normalized_normals(normals), contact_vector(contact_point))
+        self.coulomb = None
+        if coulomb is not None:
+            F_c = np.asarray(coulomb, dtype=float)
+            if F_c.shape != (self.n,) or not np.all(np.isfinite(F_c)) or np.any(F_c < 0):
+                raise ValueError(f"coulomb: {self.n} finite torques >= 0 are required (got "
+                                 f"{np.shape(coulomb)})")
+            if not (isinstance(coulomb_velocity, (int, float)) and coulomb_velocity > 0
+                    and math.isfinite(coulomb_velocity)):
+                raise ValueError(f"coulomb_velocity: a finite number > 0 is required (got "
+                                 f"{coulomb_velocity!r})")
+            self.coulomb = F_c
+        self.coulomb_velocity = float(coulomb_velocity)
         self.kinematics = closed_form
         self.closed_form = closed_form is not None
         self._row_key = b""
@@ -245,14 +264,24 @@ class ArmModel:
         self._set_q(q)
         return -self.plant.CalcGravityGeneralizedForces(self.context)
 
+    def friction_torque(self, v: np.ndarray) -> np.ndarray:
+        """``F_c ⊙ tanh(v / v_c)``, the compensated Coulomb friction (zeros without it)."""
+        if self.coulomb is None:
+            return np.zeros(self.n)
+        return self.coulomb * np.tanh(np.asarray(v, dtype=float) / self.coulomb_velocity)
+
     def inverse_dynamics_terms(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-        """``H(q) a + C(q, v) v + D v + g(q)``: the model part of (13) and (21)."""
+        """``H(q) a + C(q, v) v + D v + g(q)``: the model part of (13) and (21); plus
+        :meth:`friction_torque` when the model has Coulomb friction (``coulomb``)."""
         self._set(q, v)
         # Drake's inverse dynamics is M a + C v − τ_app; the force elements give
         # τ_app = τ_g − D v (gravity, and the joints' damping).
         self.plant.CalcForceElementsContribution(self.context, self._forces)
-        return self.plant.CalcInverseDynamics(self.context, np.asarray(a, dtype=float),
-                                              self._forces)
+        tau = self.plant.CalcInverseDynamics(self.context, np.asarray(a, dtype=float),
+                                             self._forces)
+        if self.coulomb is not None:
+            tau = tau + self.friction_torque(v)
+        return tau
 
     # ----------------------------------------------------------------------- kinematics
     def ee_kinematics(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -132,15 +132,29 @@ class FingerLaw:
     gains : Gains
         ``Λ = k I``, ``K_R``, ``k_d``, ``k_F``, ``ξ`` (m×m, or ``ξ I``), ``ζ``, ``β``,
         checked by :func:`check_gains` against the model's ``n`` and ``m``.
+    pinv_damping : float, optional
+        ``μ`` of the damped pseudo-inverse ``J⁺ = J_φᵀ (J_φ J_φᵀ + μ² I)⁻¹`` used in (4),
+        (11), (22) and its derivative (7) (:func:`~drake_coop.control.orthogonal.projections`):
+        0 (the paper's exact ``J⁺``, the default) or > 0 for arms that pass near a singular
+        posture of ``J_φ`` (opt-in; ``J⁺`` stays below ``1/(2μ)``, at the price of exact
+        orthogonality).
 
     Raises
     ------
     ValueError
-        A gain of the wrong shape or sign, naming it (``K_R``, ``xi_matrix``, ...).
+        A gain of the wrong shape or sign, naming it (``K_R``, ``xi_matrix``, ...), or a
+        negative or non-finite ``pinv_damping``.
     """
 
-    def __init__(self, model: ArmModel, gains: Gains):
+    def __init__(self, model: ArmModel, gains: Gains, pinv_damping: float = 0.0):
         check_gains(gains, model.n, model.m)
+        if (isinstance(pinv_damping, bool) or not isinstance(pinv_damping, (int, float))
+                or not np.isfinite(pinv_damping) or pinv_damping < 0.0):
+            raise ValueError(f"pinv_damping: a finite number >= 0 is required (got "
+                             f"{pinv_damping!r})")
+        #: ``μ`` of the damped pseudo-inverse (0: the paper's ``J⁺``).
+        self.pinv_damping = float(pinv_damping)
+        self._mu2 = self.pinv_damping ** 2
         self.model = model
         self.n = model.n
         self.m = model.m
@@ -199,7 +213,7 @@ class FingerLaw:
             return self._constraint
         if J_phi is None:
             J_phi = self.model.J_phi(q)
-        J_pinv, Q = orthogonal.projections(J_phi)
+        J_pinv, Q = orthogonal.projections(J_phi, self.pinv_damping)
         c = Constraint(J_phi, J_pinv, Q, self.model.phi(q))
         self._constraint_key, self._constraint = key, c
         return c
@@ -216,12 +230,14 @@ class FingerLaw:
                  ) -> tuple[list[float], float, float, list[float], list[float]]:
         """The held form of (4) for one constraint, on plain floats.
 
-        With the row ``j = J_φ`` (1×n) and ``ν = j jᵀ``: ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``,
-        ``q̇_r = Q (q̇_d − Λ(q̂ − q_d)) + J⁺ (−β φ + ξ ΔF̃)``. Returns ``j``, ``ν``, the force
+        With the row ``j = J_φ`` (1×n) and ``ν = j jᵀ`` (``+ μ²`` when damped):
+        ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``, ``q̇_r = Q (q̇_d − Λ(q̂ − q_d)) + J⁺ (−β φ + ξ ΔF̃)``. Returns ``j``, ``ν``, the force
         part ``−β φ + ξ ΔF̃``, the motion part ``q̇_d − Λ(q̂ − q_d)`` and ``q̇_r``.
         """
         phi, j = self.model.constraint_row(q)
         nu = j[0] * j[0] + j[1] * j[1] + j[2] * j[2] if len(j) == 3 else sum(x * x for x in j)
+        if self._mu2:                    # the damped J⁺ = jᵀ/(ν + μ²); its ν̇ is unchanged
+            nu = nu + self._mu2
         f = -self.beta * phi + self.xi * DF
         L = self.Lambda
         motion = [vd - L * (qh - qd) for vd, qh, qd in
@@ -330,7 +346,8 @@ class FingerLaw:
         if self.fast:
             return self._control_m1(q, q_hat, qdot_hat, qdot_o, lambda_hat, Delta_F_tilde, ref)
         J_phi, J_phi_dot = self.model.J_phi_and_derivative(q, qdot_o)
-        J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot)
+        J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot,
+                                                              self.pinv_damping)
         c = self.constraint(q, True, J_phi)
         Delta_lambda_tilde = lambda_hat - ref.lambda_d
         qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)

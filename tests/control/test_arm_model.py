@@ -114,3 +114,22 @@ def test_one_kinematics_evaluation_per_tick_and_both_paths_agree(seven, m):
             general = law.control(q, q_hat, qdot_hat, qdot_o, lam, DF, ref)
             for key in ("tau", "qdot_r", "qddot_r_hat"):
                 np.testing.assert_allclose(terms[key], general[key], rtol=1e-10, atol=1e-10)
+
+
+def test_coulomb_compensation_is_the_smoothed_sign_added_to_the_inverse_dynamics(seven):
+    F_c = np.array([1.0, 2.0, 0.5, 0.8, 0.3, 0.2, 0.1])
+    with_friction = ArmModel(seven.plant, "pad", [1.0, 0.0, 0.0], [0.5, 0.0, 0.5],
+                             coulomb=F_c, coulomb_velocity=0.05)
+    plain = ArmModel(seven.plant, "pad", [1.0, 0.0, 0.0], [0.5, 0.0, 0.5])
+    rng = np.random.default_rng(8)
+    q, v, a = rng.uniform(-1, 1, 7), rng.uniform(-0.2, 0.2, 7), rng.normal(size=7)
+    np.testing.assert_allclose(with_friction.inverse_dynamics_terms(q, v, a)
+                               - plain.inverse_dynamics_terms(q, v, a),
+                               [f * np.tanh(x / 0.05) for f, x in zip(F_c, v)], atol=1e-12)
+    np.testing.assert_array_equal(plain.friction_torque(v), np.zeros(7))
+    for bad in ([1.0] * 6, [-1.0] * 7):
+        with pytest.raises(ValueError, match="coulomb"):
+            ArmModel(seven.plant, "pad", [1.0, 0.0, 0.0], [0.5, 0.0, 0.5], coulomb=bad)
+    with pytest.raises(ValueError, match="coulomb_velocity"):
+        ArmModel(seven.plant, "pad", [1.0, 0.0, 0.0], [0.5, 0.0, 0.5], coulomb=F_c,
+                 coulomb_velocity=0.0)
