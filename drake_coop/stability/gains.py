@@ -45,8 +45,8 @@ import numpy as np
 
 from drake_coop.scenario.schema import Gains, Scenario
 
-__all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_gains",
-           "derive_robot_gains", "gains_for_scenario", "task_postures"]
+__all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_and_check", "derive_gains",
+           "derive_robot_gains", "gains_for_scenario", "map_copy", "task_postures"]
 
 #: Target ``h K_R,j / J_j`` (half the single-joint bound 2).
 KAPPA = 1.0
