@@ -377,6 +377,36 @@ class ArmModel:
         return self._N @ value, self._N @ deriv
 
 
+#: Description packages found in the Python environment: the package name the URDFs use,
+#: and the data folder under ``site-packages`` (``example-robot-data``'s wheel holds no Python
+#: module; its ``package.xml`` names it ``example_robot_descriptions``, its URDFs say
+#: ``package://example-robot-data/...``).
+DESCRIPTION_PACKAGES = {"example-robot-data": "cmeel.prefix/share/example-robot-data"}
+
+
+def description_packages() -> dict[str, Path]:
+    """The installed description packages by the name their URDFs use (folders holding a
+    ``package.xml`` under an entry of ``sys.path``); empty when none is installed."""
+    import sys
+
+    found = {}
+    for name, sub in DESCRIPTION_PACKAGES.items():
+        for entry in sys.path:
+            folder = Path(entry or ".") / sub
+            if (folder / "package.xml").is_file():
+                found[name] = folder.resolve()
+                break
+    return found
+
+
+def add_description_packages(package_map) -> None:
+    """Add :func:`description_packages` to a :class:`~pydrake.multibody.parsing.PackageMap`
+    (those it does not know yet), so a parser reads ``package://example-robot-data/...``."""
+    for name, folder in description_packages().items():
+        if not package_map.Contains(name):
+            package_map.Add(name, str(folder))
+
+
 def make_arm_controller_plant(model_file: str | Path, base_frame: str,
                               X_WB: RigidTransform | None = None) -> MultibodyPlant:
     """The controller's own single-arm plant, as Drake's ``InverseDynamicsController`` wants.
@@ -384,7 +414,8 @@ def make_arm_controller_plant(model_file: str | Path, base_frame: str,
     Parameters
     ----------
     model_file : str or Path
-        The arm's URDF or SDFormat file (``package://`` URLs resolved by Drake's parser).
+        The arm's URDF or SDFormat file (``package://`` URLs resolved by Drake's parser, which
+        also knows the installed description packages, :func:`add_description_packages`).
     base_frame : str
         The frame welded to the world.
     X_WB : RigidTransform, optional
@@ -397,6 +428,7 @@ def make_arm_controller_plant(model_file: str | Path, base_frame: str,
     """
     plant = MultibodyPlant(0.0)
     parser = Parser(plant)
+    add_description_packages(parser.package_map())
     text = str(model_file)
     if "://" in text:
         parser.AddModelsFromUrl(text)
