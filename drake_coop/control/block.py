@@ -55,7 +55,8 @@ from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains
 
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
-                        difference_cutoff_hz: float | None = None
+                        difference_cutoff_hz: float | None = None,
+                        momentum_torque_limits=None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -75,6 +76,10 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         One of :data:`~drake_coop.scenario.VELOCITY_SOURCES`, :data:`~drake_coop.scenario.FORCE_SOURCES`.
     difference_cutoff_hz : float, optional
         Low-pass cutoff of ``velocity_source = difference``.
+    momentum_torque_limits : array_like, optional
+        ``force_source = momentum`` only: the actuators' torque limits, so the observer
+        integrates the torque actually applied (after saturation) instead of the commanded
+        one (opt-in; :class:`~drake_coop.control.momentum.MomentumObserver`).
 
     The momentum observer's gain ``K_O`` of ``force_source = momentum`` is the law's
     (``Gains.momentum_gain``).
@@ -110,7 +115,8 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
     elif force_source == "momentum":
         force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
-            law.model, law.layout, period, check_momentum_gain(law.momentum_gain, period)))
+            law.model, law.layout, period, check_momentum_gain(law.momentum_gain, period),
+            torque_limits=momentum_torque_limits))
     else:
         force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
