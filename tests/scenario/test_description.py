@@ -180,3 +180,17 @@ def test_a_locked_revolute_joint_of_a_local_urdf_holds_the_links_where_they_were
     X0 = original.GetFrameByName("pad").CalcPoseInWorld(c0)
     X1 = prepared.GetFrameByName("pad").CalcPoseInWorld(c1)
     assert X0.IsNearlyEqualTo(X1, 1e-12)
+
+
+@needs_robots
+def test_the_controller_plant_reads_the_package_url_and_the_prepared_file():
+    """make_arm_controller_plant (the ArmModel of AddCooperativeController) knows the package
+    by the URDFs' name: the package's own file parses (9 positions: the fingers are free), and
+    the prepared file is the 7-joint arm whose model the controller uses."""
+    from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+
+    raw = make_arm_controller_plant(PANDA, "panda_link0")
+    assert raw.num_positions() == 9
+    plant = make_arm_controller_plant(model_urdf_path(panda_robot()), "panda_link0")
+    model = ArmModel(plant, "pad", [[1.0, 0.0, 0.0]], [0.5, 0.0, 0.5])
+    assert model.n == 7 and model.H(np.zeros(7)).shape == (7, 7)
