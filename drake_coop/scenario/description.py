@@ -133,8 +133,8 @@ def _lock(root: ET.Element, name: str, value: float, field: str) -> None:
             raise ScenarioError(f"{field}[{name}] must be within the joint's limits "
                                 f"[{lo:g}, {hi:g}], got {value!r}")
     axis_el = joint.find("axis")
-    axis = (np.array([float(v) for v in axis_el.get("xyz").split()]) if axis_el is not None
-            else np.array([1.0, 0.0, 0.0]))
+    axis = np.array([float(v) for v in (axis_el.get("xyz", "1 0 0") if axis_el is not None
+                                         else "1 0 0").split()])
     xyz, R = _origin(joint.find("origin"))
     if joint.get("type") == "prismatic":
         xyz = xyz + R @ (value * axis / np.linalg.norm(axis))
