@@ -123,3 +123,15 @@ def test_the_posture_error_never_grows_while_the_task_holds(kin):
     q_best = kin.start_posture(x_hold, q_nom)                   # the nearest posture on the task
     np.testing.assert_allclose(q[-1], q_best, atol=1e-3)
     np.testing.assert_allclose(kin.fk(q), np.tile(x_hold, (len(t_hold), 1)), atol=1e-9)
+
+
+def test_a_reference_that_leaves_the_joint_limits_is_refused_naming_the_joint(kin):
+    """The limits are checked along the whole integrated path: a nominal posture beyond
+    joint 1's limit (3.054 rad) pulls the posture past it."""
+    t = np.arange(0.0, 3.0, 0.05)
+    q_nom = Q_NOM.copy()
+    q_nom[0] = 4.0
+    message = kin.check_redundant_path(t, circle, q_nom, nullspace_gain=3.0)
+    assert message.startswith("r: joint joint1 at ") and "outside its limits" in message
+    assert "choose q_nominal or nullspace_gain" in message
+    assert kin.check_redundant_path(t, circle, Q_NOM, nullspace_gain=3.0) == ""
