@@ -271,7 +271,8 @@ def AddCooperativeController(
         difference_cutoff_hz: float | None = None,
         q: OutputPort | None = None,
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
-        name: str | None = None, allow_sampled_output_ports: bool = False
+        name: str | None = None, allow_sampled_output_ports: bool = False,
+        pinv_damping: float = 0.0, momentum_torque_limits=None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -325,6 +326,16 @@ def AddCooperativeController(
     allow_sampled_output_ports : bool
         Accept a plant with sampled output ports (a one-step-late ``q``; not the paper's
         timing).
+    pinv_damping : float
+        ``μ`` of the damped pseudo-inverse near singular postures (0, the paper's exact
+        ``J⁺``, by default; :class:`~drake_coop.control.finger.FingerLaw`).
+    momentum_torque_limits : array_like, optional
+        ``force_source = "momentum"``: the actuators' torque limits, so the momentum observer
+        integrates the applied (saturated) torque (see :func:`build_control_block`).
+
+    The identified Coulomb friction is compensated by passing an
+    :class:`~drake_coop.control.arm_model.ArmModel` built with ``coulomb=`` as
+    ``controller_model``.
 
     Returns
     -------
@@ -403,9 +414,10 @@ def AddCooperativeController(
                          "connect_actuation=False")
     if q is not None and q.size() != n:
         raise ValueError(f"q: an output port of size {n} is required (got {q.size()})")
-    law = FingerLaw(model, gains)
+    law = FingerLaw(model, gains, pinv_damping=pinv_damping)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
-                                                  force_source, difference_cutoff_hz)
+                                                  force_source, difference_cutoff_hz,
+                                                  momentum_torque_limits)
     builder.AddSystem(block)
     state = plant.get_state_output_port(model_instance)
     selector = None
