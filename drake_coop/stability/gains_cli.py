@@ -8,7 +8,7 @@ derived gains), ``gains.csv`` (one row per robot: every gain, the inertias ``J_j
 ``h p_f``), ``stability.csv`` (ρ at each operating point, at the gains and with the ``K_R``
 margin) and ``run.json`` (all of it, the rules' constants and the outcome). Exit codes: 0 the
 gains pass the check, 1 no gains passed it after the back-offs (the outputs are written: a
-result), 2 bad input (one line, before any computation), 130 Ctrl-C, 143 SIGTERM.
+result) or the derivation failed (one line, nothing written), 2 bad input (one line, before any computation), 130 Ctrl-C, 143 SIGTERM.
 """
 
 from __future__ import annotations
@@ -109,7 +109,16 @@ def cmd_gains(args) -> int:
                 print(f"[{time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr,
                       flush=True)
 
-        report = derive_and_check(scenario, progress=progress)
+        try:
+            report = derive_and_check(scenario, progress=progress)
+        except ScenarioError as exc:          # what the map refuses: bad input
+            folder.discard()
+            return _error(str(exc))
+        except Exception as exc:              # the derivation or the map failed: no output
+            folder.discard()
+            print(f"drake-coop: gains failed: {type(exc).__name__}: "
+                  f"{' '.join(str(exc).split())[:300]}", file=sys.stderr)
+            return 1
         texts = _outputs(scenario, report, time.perf_counter() - start)
         with SIGNALS.deferred():
             for name, text in texts.items():

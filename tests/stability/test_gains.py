@@ -142,3 +142,14 @@ def test_a_previous_output_is_replaced_only_with_force(tmp_path, monkeypatch):
     assert main(["gains", "paper", "--out", str(out), "--quiet", "--force"]) == 0
     assert math.isclose(json.loads((out / "run.json").read_text())["rho"]["free"], 0.5)
     assert len(load_scenario(data=(out / "scenario.yaml").read_text()).robots) == len(s.robots)
+
+
+def test_a_failing_derivation_is_one_line_exit_1_and_no_output(tmp_path, monkeypatch, capsys):
+    def broken(*a, **k):
+        raise RuntimeError("no equilibrium\nat all")
+
+    monkeypatch.setattr(rules, "derive_and_check", broken)
+    assert main(["gains", "paper", "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == "drake-coop: gains failed: RuntimeError: no equilibrium at all"
+    assert list(tmp_path.iterdir()) == []
