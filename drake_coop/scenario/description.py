@@ -62,7 +62,7 @@ TOOL_NAMES = ("force_sensor", "pad", "flange_sensor_weld", "sensor_pad_weld")
 _DRAKE = "{http://drake.mit.edu}"
 _MOVING = ("revolute", "continuous", "prismatic")
 #: Bump when the prepared file's layout changes (part of the cache key).
-_VERSION = "3"
+_VERSION = "4"
 
 
 def cache_dir() -> Path:
@@ -77,9 +77,12 @@ def cache_dir() -> Path:
 
 def needs_preparation(robot: Robot, value: str) -> bool:
     """Whether the model file ``value`` of ``robot`` is loaded through :func:`prepared_urdf`:
-    a ``package://`` URL, locked joints or a tool."""
-    return (value.startswith("package://") or bool(robot.locked_joints)
-            or robot.tool is not None)
+    a URL of a description package (:data:`~drake_coop.control.arm_model.DESCRIPTION_PACKAGES`),
+    locked joints or a tool. Another package's file (on ``ROS_PACKAGE_PATH``) is used as it is."""
+    from drake_coop.control.arm_model import DESCRIPTION_PACKAGES
+
+    package = value[len("package://"):].split("/", 1)[0] if value.startswith("package://") else ""
+    return package in DESCRIPTION_PACKAGES or bool(robot.locked_joints) or robot.tool is not None
 
 
 def _where(field: str) -> str:
@@ -130,8 +133,8 @@ def _lock(root: ET.Element, name: str, value: float, field: str) -> None:
             raise ScenarioError(f"{field}[{name}] must be within the joint's limits "
                                 f"[{lo:g}, {hi:g}], got {value!r}")
     axis_el = joint.find("axis")
-    axis = (np.array([float(v) for v in axis_el.get("xyz").split()]) if axis_el is not None
-            else np.array([1.0, 0.0, 0.0]))
+    axis = np.array([float(v) for v in (axis_el.get("xyz", "1 0 0") if axis_el is not None
+                                         else "1 0 0").split()])
     xyz, R = _origin(joint.find("origin"))
     if joint.get("type") == "prismatic":
         xyz = xyz + R @ (value * axis / np.linalg.norm(axis))
@@ -218,14 +221,17 @@ def _actuate(root: ET.Element) -> None:
             ET.SubElement(transmission, "actuator", name=f"{name}_motor")
 
 
-def _resolve_meshes(root: ET.Element, resolve) -> None:
-    """Visual meshes' ``package://`` URLs as absolute paths; collision geometry removed; a
-    ``world`` link and its joints removed (the UR5's: the base is welded where the scenario
-    says); the joints' ``safety_controller`` and ``calibration`` removed (Drake ignores them
-    with a warning)."""
+def _clean(root: ET.Element) -> None:
+    """A description package's file made loadable: collision geometry removed; a ``world``
+    link and its joints removed (the UR5's: the base is welded where the scenario says); the
+    joints' ``safety_controller`` and ``calibration`` removed (Drake ignores them with a
+    warning)."""
     for link in root.findall("link"):
         if link.get("name") == "world":
             root.remove(link)
+            continue
+        for collision in link.findall("collision"):
+            link.remove(collision)
     for joint in root.findall("joint"):
         if (joint.find("parent") is not None
                 and joint.find("parent").get("link") == "world"):
@@ -234,16 +240,21 @@ def _resolve_meshes(root: ET.Element, resolve) -> None:
         for tag in ("safety_controller", "calibration"):
             for old in joint.findall(tag):
                 joint.remove(old)
-    for link in root.findall("link"):
-        for collision in link.findall("collision"):
-            link.remove(collision)
-        for mesh in link.iter("mesh"):
-            name = mesh.get("filename", "")
-            if "://" in name:
-                mesh.set("filename", str(resolve(name)))
 
 
-def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None) -> Path:
+def _absolute_meshes(root: ET.Element, resolve, base_dir: Path) -> None:
+    """Mesh file names as absolute paths (the prepared file lives elsewhere): ``package://``
+    URLs through ``resolve``, relative paths from the source file's folder."""
+    for mesh in root.iter("mesh"):
+        name = mesh.get("filename", "")
+        if name.startswith("package://") and resolve is not None:
+            mesh.set("filename", str(resolve(name)))
+        elif name and "://" not in name and not Path(name).is_absolute():
+            mesh.set("filename", str((base_dir / name).resolve()))
+
+
+def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None,
+                  from_package: bool = False) -> Path:
     """The URDF a run loads for ``robot`` (see the module's docstring).
 
     Parameters
@@ -257,6 +268,9 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
     resolve : callable, optional
         ``package://`` URL → Path for the meshes (the package map of
         :func:`~drake_coop.scenario.resources.resolve_package_url`).
+    from_package : bool
+        The source is a description package's file: its collision geometry, ``world`` link and
+        ignored joint tags are removed (see the module's docstring).
 
     Raises
     ------
@@ -274,7 +288,7 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
         raise ScenarioError(f"{field}: {one_line(source, 120)} must not declare a DTD or "
                             "entities")
     key = hashlib.sha256(repr((_VERSION, str(source), raw, sorted(robot.locked_joints.items()),
-                               robot.tool)).encode()).hexdigest()[:24]
+                               robot.tool, from_package)).encode()).hexdigest()[:24]
     out = cache_dir() / f"{Path(source).stem}_{key}.urdf"
     if out.is_file():
         return out
@@ -286,8 +300,9 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
                             f"({one_line(exc, 80)})") from None
     if root.tag != "robot":
         raise ScenarioError(f"{field}: {one_line(source, 120)} is not a URDF (no <robot> root)")
-    if resolve is not None:
-        _resolve_meshes(root, resolve)
+    if from_package:
+        _clean(root)
+    _absolute_meshes(root, resolve, Path(source).parent)
     for name, value in robot.locked_joints.items():
         _lock(root, name, float(value), f"{where}locked_joints")
     if robot.tool is not None:

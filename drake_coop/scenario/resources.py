@@ -136,9 +136,13 @@ def _model_path(value: str, field: str, robot: Robot | None = None) -> Path:
 
     if not needs_preparation(robot, value):
         return source
+    from drake_coop.control.arm_model import DESCRIPTION_PACKAGES
+
+    package = value[len(PACKAGE_SCHEME):].split("/", 1)[0] if value.startswith(
+        PACKAGE_SCHEME) else ""
     return prepared_urdf(robot, source, field,
-                         resolve=(lambda url: resolve_package_url(url, field))
-                         if value.startswith(PACKAGE_SCHEME) else None)
+                         resolve=lambda url: resolve_package_url(url, field),
+                         from_package=package in DESCRIPTION_PACKAGES)
 
 
 def model_urdf_path(robot: Robot, field: str = "model") -> Path:

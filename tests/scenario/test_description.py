@@ -157,3 +157,40 @@ def test_a_missing_robots_extra_is_named(monkeypatch, tmp_path, capsys):
     assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'pip install -e ".[robots]"' in err[0]
+
+
+def test_a_locked_revolute_joint_of_a_local_urdf_holds_the_links_where_they_were():
+    """Locking is not only for packages: coop6's wrist joint 6 locked at 0.3 rad gives a
+    5-joint arm whose pad is where the 6-joint arm's is with q6 = 0.3 (independent: the
+    original file at that posture)."""
+    from drake_coop.scenario.resources import urdf_dir
+
+    robot = Robot(model="coop6", locked_joints={"joint6": 0.3})
+    original, prepared = MultibodyPlant(0.0), MultibodyPlant(0.0)
+    Parser(original).AddModels(str(urdf_dir() / "coop6_6dof.urdf"))
+    Parser(prepared).AddModels(str(model_urdf_path(robot)))
+    for plant in (original, prepared):
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"))
+        plant.Finalize()
+    assert prepared.num_positions() == 5 and prepared.num_actuators() == 5
+    q = np.array([0.2, 0.4, 0.9, -0.3, 0.5])
+    c0, c1 = original.CreateDefaultContext(), prepared.CreateDefaultContext()
+    original.SetPositions(c0, np.append(q, 0.3))
+    prepared.SetPositions(c1, q)
+    X0 = original.GetFrameByName("pad").CalcPoseInWorld(c0)
+    X1 = prepared.GetFrameByName("pad").CalcPoseInWorld(c1)
+    assert X0.IsNearlyEqualTo(X1, 1e-12)
+
+
+@needs_robots
+def test_the_controller_plant_reads_the_package_url_and_the_prepared_file():
+    """make_arm_controller_plant (the ArmModel of AddCooperativeController) knows the package
+    by the URDFs' name: the package's own file parses (9 positions: the fingers are free), and
+    the prepared file is the 7-joint arm whose model the controller uses."""
+    from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+
+    raw = make_arm_controller_plant(PANDA, "panda_link0")
+    assert raw.num_positions() == 9
+    plant = make_arm_controller_plant(model_urdf_path(panda_robot()), "panda_link0")
+    model = ArmModel(plant, "pad", [[1.0, 0.0, 0.0]], [0.5, 0.0, 0.5])
+    assert model.n == 7 and model.H(np.zeros(7)).shape == (7, 7)
