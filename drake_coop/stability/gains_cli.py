@@ -80,25 +80,45 @@ def _outputs(scenario, report, wall: float) -> dict[str, str]:
             "run.json": json.dumps(meta, indent=2, default=float) + "\n"}
 
 
+def _signals_blocked():
+    """SIGINT and SIGTERM held back while the outputs are written and renamed into place
+    (delivered right after: the folder is then whole, and the command ends as interrupted)."""
+    import contextlib
+    import signal
+
+    @contextlib.contextmanager
+    def blocked():
+        signals = {signal.SIGINT, signal.SIGTERM}
+        try:
+            previous = signal.pthread_sigmask(signal.SIG_BLOCK, signals)
+        except (ValueError, OSError):        # not the main thread: nothing to hold back
+            yield
+            return
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+    return blocked()
+
+
 def cmd_gains(args) -> int:
     """Derive, check, write (see the module docstring for the exit codes)."""
-    from drake_coop.cli import SIGNALS, _error
+    from drake_coop.console import error as _error
+    from drake_coop.results.run_folder import OutputFolderError, RunFolder
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import find_scenario
+    from drake_coop.scenario.schema import ScenarioError
 
-    with SIGNALS.deferred():
-        from drake_coop.results.run_folder import OutputFolderError, RunFolder
-        from drake_coop.scenario.loading import load_scenario
-        from drake_coop.scenario.resources import find_scenario
-        from drake_coop.scenario.schema import ScenarioError
-
-        try:
-            scenario = load_scenario(find_scenario(args.scenario))
-        except (ScenarioError, OSError, ValueError) as exc:
-            return _error(str(exc))
-        folder = RunFolder(args.out)
-        try:
-            staging = folder.prepare(ticks=0, robots=len(scenario.robots), replace=args.force)
-        except OutputFolderError as exc:
-            return _error(str(exc))
+    try:
+        scenario = load_scenario(find_scenario(args.scenario))
+    except (ScenarioError, OSError, ValueError) as exc:
+        return _error(str(exc))
+    folder = RunFolder(args.out)
+    try:
+        staging = folder.prepare(ticks=0, robots=len(scenario.robots), replace=args.force)
+    except OutputFolderError as exc:
+        return _error(str(exc))
     try:
         from drake_coop.stability.gains import derive_and_check
 
@@ -120,7 +140,7 @@ def cmd_gains(args) -> int:
                   f"{' '.join(str(exc).split())[:300]}", file=sys.stderr)
             return 1
         texts = _outputs(scenario, report, time.perf_counter() - start)
-        with SIGNALS.deferred():
+        with _signals_blocked():
             for name, text in texts.items():
                 (staging / name).write_text(text, encoding="utf-8")
             folder.commit()
