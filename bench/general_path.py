@@ -17,9 +17,11 @@ any ``m`` and ``J̇_φ`` by forward-mode AutoDiff, ``ArmModel.J_phi_and_derivati
 so the ratio holds on a loaded machine even when the absolute numbers do not.
 """
 
+import sys
 import tempfile
 import time
 import timeit
+from pathlib import Path
 
 import numpy as np
 
@@ -30,7 +32,8 @@ from drake_coop.plant.arms import Arm, arm_model
 from drake_coop.scenario import load_scenario
 from drake_coop.scenario.resources import find_scenario
 
-from bench.seven_joint import write_seven_joint_urdf
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the checkout: bench.*
+from bench.seven_joint import write_seven_joint_urdf  # noqa: E402
 
 NORMALS = {2: [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
            3: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]}

@@ -49,6 +49,7 @@ from pydrake.systems.framework import (
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.params import check_momentum_gain, check_period
 
 
 class MomentumObserver(ForceSource):
@@ -113,6 +114,9 @@ class MomentumObserver(ForceSource):
                  torque_limits=None):
         super().__init__()
         self._model = model
+        self._layout = layout = ReferenceLayout.check(layout)
+        self._h = period = check_period(period)
+        self._gain = check_momentum_gain(gain, period)
         self._limits = None
         if torque_limits is not None:
             limits = np.asarray(torque_limits, dtype=float)
@@ -121,9 +125,6 @@ class MomentumObserver(ForceSource):
                 raise ValueError(f"torque_limits: {layout.n} finite torques > 0 are required "
                                  f"(got {np.shape(torque_limits)})")
             self._limits = limits
-        self._layout = layout
-        self._h = float(period)
-        self._gain = float(gain)
         n, m = layout.n, layout.m
         self._n, self._m = n, m
         self._q = self.DeclareVectorInputPort("q", n)

@@ -8,7 +8,7 @@ derived gains), ``gains.csv`` (one row per robot: every gain, the inertias ``J_j
 ``h p_f``), ``stability.csv`` (ρ at each operating point, at the gains and with the ``K_R``
 margin) and ``run.json`` (all of it, the rules' constants and the outcome). Exit codes: 0 the
 gains pass the check, 1 no gains passed it after the back-offs (the outputs are written: a
-result), 2 bad input (one line, before any computation), 130 Ctrl-C, 143 SIGTERM.
+result) or the derivation failed (one line, nothing written), 2 bad input (one line, before any computation), 130 Ctrl-C, 143 SIGTERM.
 """
 
 from __future__ import annotations
@@ -80,25 +80,45 @@ def _outputs(scenario, report, wall: float) -> dict[str, str]:
             "run.json": json.dumps(meta, indent=2, default=float) + "\n"}
 
 
+def _signals_blocked():
+    """SIGINT and SIGTERM held back while the outputs are written and renamed into place
+    (delivered right after: the folder is then whole, and the command ends as interrupted)."""
+    import contextlib
+    import signal
+
+    @contextlib.contextmanager
+    def blocked():
+        signals = {signal.SIGINT, signal.SIGTERM}
+        try:
+            previous = signal.pthread_sigmask(signal.SIG_BLOCK, signals)
+        except (ValueError, OSError):        # not the main thread: nothing to hold back
+            yield
+            return
+        try:
+            yield
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+    return blocked()
+
+
 def cmd_gains(args) -> int:
     """Derive, check, write (see the module docstring for the exit codes)."""
-    from drake_coop.cli import SIGNALS, _error
+    from drake_coop.console import error as _error
+    from drake_coop.results.run_folder import OutputFolderError, RunFolder
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import find_scenario
+    from drake_coop.scenario.schema import ScenarioError
 
-    with SIGNALS.deferred():
-        from drake_coop.results.run_folder import OutputFolderError, RunFolder
-        from drake_coop.scenario.loading import load_scenario
-        from drake_coop.scenario.resources import find_scenario
-        from drake_coop.scenario.schema import ScenarioError
-
-        try:
-            scenario = load_scenario(find_scenario(args.scenario))
-        except (ScenarioError, OSError, ValueError) as exc:
-            return _error(str(exc))
-        folder = RunFolder(args.out)
-        try:
-            staging = folder.prepare(ticks=0, robots=len(scenario.robots), replace=args.force)
-        except OutputFolderError as exc:
-            return _error(str(exc))
+    try:
+        scenario = load_scenario(find_scenario(args.scenario))
+    except (ScenarioError, OSError, ValueError) as exc:
+        return _error(str(exc))
+    folder = RunFolder(args.out)
+    try:
+        staging = folder.prepare(ticks=0, robots=len(scenario.robots), replace=args.force)
+    except OutputFolderError as exc:
+        return _error(str(exc))
     try:
         from drake_coop.stability.gains import derive_and_check
 
@@ -109,9 +129,18 @@ def cmd_gains(args) -> int:
                 print(f"[{time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr,
                       flush=True)
 
-        report = derive_and_check(scenario, progress=progress)
+        try:
+            report = derive_and_check(scenario, progress=progress)
+        except ScenarioError as exc:          # what the map refuses: bad input
+            folder.discard()
+            return _error(str(exc))
+        except Exception as exc:              # the derivation or the map failed: no output
+            folder.discard()
+            print(f"drake-coop: gains failed: {type(exc).__name__}: "
+                  f"{' '.join(str(exc).split())[:300]}", file=sys.stderr)
+            return 1
         texts = _outputs(scenario, report, time.perf_counter() - start)
-        with SIGNALS.deferred():
+        with _signals_blocked():
             for name, text in texts.items():
                 (staging / name).write_text(text, encoding="utf-8")
             folder.commit()

@@ -65,3 +65,36 @@ def test_the_crs_arms_have_22_base_parameters_and_a_round_off_column_is_not_one(
     naive[naive == 0.0] = 1.0
     sv = np.linalg.svd(Y / naive, compute_uv=False)
     assert int(np.sum(sv > 1e-8 * sv[0])) == 23
+
+
+def _scenario_arms():
+    """Every robot model of the shipped scenarios (the lab arms when the robots extra is
+    installed), once each: (id, urdf path, base frame, sensor joint)."""
+    from drake_coop.plant.arms import Arm
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import find_scenario, shipped_scenarios
+
+    seen = {}
+    for name in shipped_scenarios():
+        try:
+            s = load_scenario(find_scenario(name))
+        except Exception:           # a scenario that needs a missing extra
+            continue
+        for robot in s.robots:
+            arm = Arm(robot, s.task)
+            seen.setdefault(robot.model, (str(arm.urdf_path), arm.base_frame, robot.sensor_joint))
+    return sorted(seen.items())
+
+
+@pytest.mark.parametrize("where", [pytest.param(w, id=m.rsplit("/", 1)[-1])
+                                   for m, w in _scenario_arms()])
+def test_rank_is_the_singular_value_gap_on_every_scenario_arm(where):
+    urdf, base, sensor = where
+    s = load_structure(urdf, base, payload_mass=0.5, sensor_joint=sensor)
+    rng = np.random.default_rng(0)
+    N = 30 * s.n
+    q, v, a = (rng.uniform(-lim, lim, (N, s.n)) for lim in (1.0, 2.0, 4.0))
+    Y = Regressor(s).matrix(q, v, a)
+    expected, drop = _gap_rank(Y)
+    assert drop > 1e8
+    assert condition_number(Y)[1] == expected

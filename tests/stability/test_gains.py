@@ -142,3 +142,24 @@ def test_a_previous_output_is_replaced_only_with_force(tmp_path, monkeypatch):
     assert main(["gains", "paper", "--out", str(out), "--quiet", "--force"]) == 0
     assert math.isclose(json.loads((out / "run.json").read_text())["rho"]["free"], 0.5)
     assert len(load_scenario(data=(out / "scenario.yaml").read_text()).robots) == len(s.robots)
+
+
+def test_a_failing_derivation_is_one_line_exit_1_and_no_output(tmp_path, monkeypatch, capsys):
+    def broken(*a, **k):
+        raise RuntimeError("no equilibrium\nat all")
+
+    monkeypatch.setattr(rules, "derive_and_check", broken)
+    assert main(["gains", "paper", "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == "drake-coop: gains failed: RuntimeError: no equilibrium at all"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_contact_scenario_is_checked_on_its_planes_copy():
+    s = load_scenario(find_scenario("contact"))
+    assert s.plant.object_mode == "contact"
+    checked, mode = rules.map_copy(s)
+    assert mode == "planes" and checked.plant.object_mode == "planes"
+    assert s.plant.object_mode == "contact"          # the input is left as it is
+    same, mode = rules.map_copy(load_scenario())
+    assert mode == "planes" and same.plant.object_mode == "planes"
