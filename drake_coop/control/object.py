@@ -290,6 +290,9 @@ class ContactStiffness:
     exponent : float
         ``p`` (1 for a linear spring ``k = a`` N/m; about 2 for a hydroelastic sphere against
         a flat face, whose contact patch grows with the compression), in [1, 3].
+    integral_time : float
+        ``T_i`` (s), > 0: the time in which the force integral of (4) removes this model's
+        own error (:meth:`integral_gain`); default 0.5 s.
 
     The remedy of the ``−β Δp`` lag on a compliant contact: the controller's reference for the
     constrained position becomes ``p_d = −δ(λ_d)`` (:class:`~drake_coop.control.finger.FingerLaw`'s
@@ -299,12 +302,29 @@ class ContactStiffness:
 
     a: float
     exponent: float = 1.0
+    integral_time: float = 0.5
 
     def __post_init__(self):
         if not (np.isfinite(self.a) and self.a > 0):
             raise ValueError(f"a: a stiffness > 0 is required, got {self.a!r}")
         if not (np.isfinite(self.exponent) and 1.0 <= self.exponent <= 3.0):
             raise ValueError(f"exponent: a number in [1, 3] is required, got {self.exponent!r}")
+        if not (np.isfinite(self.integral_time) and self.integral_time > 0):
+            raise ValueError(f"integral_time: a time > 0 is required (s), got "
+                             f"{self.integral_time!r}")
+
+    def compliance(self, lam: float) -> float:
+        """``c = dδ/dλ = δ/(p λ)`` (m/N) at ``max(λ, 1 N)`` (a Hertz-like contact is
+        infinitely compliant at zero force)."""
+        lam = max(float(lam), 1.0)
+        return float(self.compression(lam)) / (self.exponent * lam)
+
+    def integral_gain(self, lam: float) -> float:
+        """``c(λ)/T_i`` (m/(N·s)): times ``β``, the force integral's gain ``ξ_c`` that
+        :class:`~drake_coop.control.finger.FingerLaw` adds to ``ξ`` on this contact, so that
+        ``β Δp = ξ_c ΔF̃`` moves the pad by the compression a force error asks for within
+        ``T_i``."""
+        return self.compliance(lam) / self.integral_time
 
     def compression(self, lam) -> np.ndarray:
         """``δ(λ) = (max(λ, 0)/a)^{1/p}`` (m), elementwise."""

@@ -216,11 +216,19 @@ def test_contact_stiffness_inverse_and_checks():
         ContactStiffness(0.0)
     with pytest.raises(ValueError, match="exponent"):
         ContactStiffness(1e5, 5.0)
+    with pytest.raises(ValueError, match="integral_time"):
+        ContactStiffness(1e5, 1.0, 0.0)
+    # dδ/dλ by a central difference; 1 N floor below.
+    lam, eps = 20.0, 1e-4
+    fd = (k.compression(lam + eps) - k.compression(lam - eps)) / (2 * eps)
+    assert np.isclose(k.compliance(lam), fd, rtol=1e-6)
+    assert k.compliance(0.0) == k.compliance(1.0)
 
 
 def test_law_with_a_compliant_contact_is_the_law_with_the_contact_point_pressed_in():
     """p_d = −δ(λ_d): the same as the paper's law whose contact point c is moved by δ along
-    the outward normal's opposite (φ = N (x − c) grows by δ) — an independent model."""
+    the outward normal's opposite (φ = N (x − c) grows by δ) — an independent model — with
+    ξ raised by β c(λ_d)/T_i, c = dδ/dλ = √(λ/a)/(2λ) written out here."""
     _, plant, arm = _arm()
     arm_plant = MakeArmControllerPlant(URDF, plant, arm)
     stiff = ContactStiffness(1.6e7, 2.0)
@@ -230,7 +238,10 @@ def test_law_with_a_compliant_contact_is_the_law_with_the_contact_point_pressed_
     c = np.array([0.5, 0.0, 0.4])
     compliant = FingerLaw(ArmModel.from_plant(arm_plant, "pad", [N], c), Gains(),
                           contact_stiffness=stiff)
-    moved = FingerLaw(ArmModel.from_plant(arm_plant, "pad", [N], c - delta * N), Gains())
+    gains = Gains()
+    xi_c = gains.beta * np.sqrt(lam_d / 1.6e7) / (2 * lam_d) / stiff.integral_time
+    moved = FingerLaw(ArmModel.from_plant(arm_plant, "pad", [N], c - delta * N),
+                      Gains(xi=gains.xi + xi_c))
     layout = compliant.layout
     rng = np.random.default_rng(0)
     q, q_hat = Q0, Q0 + 1e-3 * rng.normal(size=3)
