@@ -325,9 +325,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             }
             assert tuple(sources) == LOG_KEYS
             if objects is not None:
-                sources.update({"tau_ff": objects.feedforward.get_tau_ff_output_port(),
-                                "f_load": objects.feedforward.get_f_load_output_port(),
-                                "mass_share": objects.mass_share})
+                sources.update(zip(OBJECT_LOG_KEYS, (
+                    objects.feedforward.get_tau_ff_output_port(),
+                    objects.feedforward.get_f_load_output_port(), objects.mass_share)))
             if not live_ground_truth:
                 sources = {k: port for k, port in sources.items()
                            if k not in GROUND_TRUTH_KEYS}
