@@ -146,6 +146,10 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
     _choice(p.object_mode, OBJECT_MODES, "plant.object_mode")
     _choice(scenario.object_model.mode, OBJECT_MODEL_MODES, "object_model.mode")
     _choice(scenario.object_model.squeeze, SQUEEZE_SOURCES, "object_model.squeeze")
+    if scenario.object_model.mode != "none" and p.object_mode not in ("rigid", "contact"):
+        raise ScenarioError(f"object_model.mode: {scenario.object_model.mode} needs a held "
+                            f"object (plant.object_mode rigid or contact), got "
+                            f"{show(p.object_mode)}")
     if scenario.object_model.squeeze == "friction" and scenario.object_model.mode == "none":
         raise ScenarioError("object_model.squeeze: friction needs object_model.mode known or "
                             "estimated (the controllers must know the object's load)")
