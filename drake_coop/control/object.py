@@ -499,14 +499,16 @@ class MassEstimator(LeafSystem):
     model : ArmModel
         The controller's model of the arm (identified or nominal).
     period : float
-        ``h`` (s).
+        The update period (s): the control period ``h`` or a whole multiple of it (the
+        estimate is slow; :mod:`drake_coop.experiment.object_blocks` updates it every 5 ticks).
     prior : float
         ``θ̂(0)``, the prior share (kg), >= 0.
     prior_std : float
         Its standard deviation (kg), > 0: ``P(0) = prior_std²``.
     forgetting : float
-        ``ρ`` in (0, 1]; default 0.995 (a 1.8 s horizon at 9 ms: the stand carries the
-        object during the first moments of the grasp, whose samples are then forgotten).
+        ``ρ`` in (0, 1] per update; default 0.995 (a horizon of 200 updates, 1.8 s at 9 ms:
+        the stand carries the object during the first moments of the grasp, whose samples are
+        then forgotten).
     noise_std : float
         ``√R`` (N), the spread of ``F̂_z``; default 1 N.
     gravity : float
@@ -603,7 +605,13 @@ class MassEstimator(LeafSystem):
         """``F̂ = J_x^{+T} (H q̈̂_r + C(q, q̇_o) q̇_o + D q̇_o + g − τ)``: the object's force
         on the pad, from the arm's model (N)."""
         rhs = self._model.inverse_dynamics_terms(q, qdot_o, qddot_r_hat) - tau
-        return np.linalg.lstsq(self._model.J_x(q).T, rhs, rcond=None)[0]
+        J = self._model.J_x(q)
+        if J.shape[1] == 3:
+            try:
+                return np.linalg.solve(J.T, rhs)
+            except np.linalg.LinAlgError:     # a singular posture: the least-squares force
+                pass
+        return np.linalg.lstsq(J.T, rhs, rcond=None)[0]
 
     def _update(self, context: Context, xd: DiscreteValues) -> None:
         if not self._layout.held(self._reference.Eval(context)):

@@ -6,7 +6,7 @@ nothing: the paper's diagram)::
 
     robotN_acceleration_d (TrajectorySource: a_d of the shared path) ──┐
     robotN_mass_share (ConstantVectorSource, known) or                 │
-    robotN_mass_estimator (MassEstimator, estimated) ── mass_share ────┤
+    robotN_mass_estimator (MassEstimator, every 5 ticks) ── mass_share ┤
     q, reference ─────────────────────────────────────────────────────┴▶ robotN_load_feedforward
     robotN_control.tau + robotN_load_feedforward.tau_ff ─▶ robotN_tau_sum (Adder) ─▶ actuators
 
@@ -39,6 +39,10 @@ from drake_coop.control.object import (
 )
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.task_path import cartesian_reference
+
+
+#: The mass estimator updates every this many control ticks.
+ESTIMATOR_TICKS = 5
 
 
 @dataclass
@@ -154,9 +158,12 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
     b.Connect(ff.get_tau_ff_output_port(), tau_sum.get_input_port(1))
     estimator = None
     if om.mode == "estimated":
+        # Every ESTIMATOR_TICKS ticks, with the forgetting per tick of the scenario (ρ^N per
+        # update): the same horizon in seconds at a fifth of the cost.
         estimator = b.AddNamedSystem(f"{name}_mass_estimator", MassEstimator(
-            model, period, prior=share0, prior_std=om.prior_std_factor * share0,
-            forgetting=om.forgetting))
+            model, ESTIMATOR_TICKS * period, prior=share0,
+            prior_std=om.prior_std_factor * share0,
+            forgetting=om.forgetting ** ESTIMATOR_TICKS))
         b.Connect(q, estimator.get_q_input_port())
         b.Connect(control.GetOutputPort("qdot_o"), estimator.get_qdot_o_input_port())
         b.Connect(control.GetOutputPort("qddot_r_hat"),
