@@ -3,7 +3,6 @@ blocks it adds to the experiment's diagram, the references it changes, a short r
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
