@@ -112,6 +112,31 @@ def pad_modulus(robot) -> float | None:
     return None if value is None else float(value.group(1))
 
 
+def pad_radius(robot) -> float | None:
+    """The radius (m) of the end-effector link's spherical collision geometry in the robot's
+    model file, None if it has none."""
+    from drake_coop.scenario.resources import model_urdf_path
+    text = model_urdf_path(robot).read_text()
+    link = re.search(r'<link\s+name="%s"(.*?)</link>' % re.escape(robot.ee_frame), text, re.S)
+    collision = link and re.search(r"<collision.*?</collision>", link.group(1), re.S)
+    sphere = collision and re.search(r'<sphere\s+radius="([^"]+)"', collision.group(0))
+    return float(sphere.group(1)) if sphere else None
+
+
+def contact_offset(scenario: Scenario, index: int) -> np.ndarray | None:
+    """Where the object's force acts on robot ``index``'s pad, from its centre E: in
+    ``contact`` mode the pad's surface along the inward normal (``ρ n``, ``ρ`` its sphere's
+    radius); None (at E) in ``rigid`` mode, whose ball constraint holds E itself."""
+    if scenario.plant.object_mode != "contact":
+        return None
+    robot = scenario.robots[index]
+    rho = pad_radius(robot)
+    if rho is None:
+        return None
+    n = -np.asarray(robot.normals[0], dtype=float)
+    return rho * n / np.linalg.norm(n)
+
+
 def acceleration_samples(scenario: Scenario, index: int, t: np.ndarray) -> np.ndarray:
     """The object's desired acceleration along robot ``index``'s path (N, 3): the pad's
     ``ẍ_d`` (the path translates the object)."""
@@ -149,7 +174,9 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
     acc = b.AddNamedSystem(f"{name}_acceleration_d", TrajectorySource(
         PiecewisePolynomial.FirstOrderHold(t_samples, a.T)))
     share0 = float(mass_shares(scenario_object(scenario, controller_mass(scenario)))[index])
-    ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(model, period))
+    r = contact_offset(scenario, index)
+    ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(model, period,
+                                                                       contact_offset=r))
     tau_sum = b.AddNamedSystem(f"{name}_tau_sum", Adder(2, model.n))
     b.Connect(q, ff.get_q_input_port())
     b.Connect(reference, ff.get_reference_input_port())
@@ -163,7 +190,7 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
         estimator = b.AddNamedSystem(f"{name}_mass_estimator", MassEstimator(
             model, ESTIMATOR_TICKS * period, prior=share0,
             prior_std=om.prior_std_factor * share0,
-            forgetting=om.forgetting ** ESTIMATOR_TICKS))
+            forgetting=om.forgetting ** ESTIMATOR_TICKS, contact_offset=r))
         b.Connect(q, estimator.get_q_input_port())
         b.Connect(control.GetOutputPort("qdot_o"), estimator.get_qdot_o_input_port())
         b.Connect(control.GetOutputPort("qddot_r_hat"),
