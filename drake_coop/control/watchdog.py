@@ -46,6 +46,7 @@ class Watchdog(LeafSystem):
         - tau
         - lambda_hat
         output_ports:
+        - q_checked
         - tau_safe
         - tripped
 
@@ -67,6 +68,10 @@ class Watchdog(LeafSystem):
     torque, from the caller's model, at the last reading that passed the checks), itself clipped
     and finite (0 where it is not). So the first bad tick already sends ``τ_safe``.
 
+    The controller reads its positions through ``q_checked``: the reading itself (the same
+    doubles) when it is finite, else the last good reading, so that a NaN never reaches the
+    control blocks (Drake's models refuse non-finite positions); the tick that sees it trips.
+
     Input ports
     -----------
     q : n-vector
@@ -80,6 +85,8 @@ class Watchdog(LeafSystem):
 
     Output ports
     ------------
+    q_checked : n-vector
+        ``q`` if finite, else the last good reading (for the control blocks).
     tau_safe : n-vector
         What to send to the driver.
     tripped : 1-vector
@@ -145,6 +152,9 @@ class Watchdog(LeafSystem):
         self._safe = self.DeclareDiscreteState(n)
         self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
         self.DeclareVectorOutputPort(
+            "q_checked", n, self._calc_q,
+            prerequisites_of_calc={self.xd_ticket(), self._q.ticket()})
+        self.DeclareVectorOutputPort(
             "tau_safe", n, self._calc_tau,
             prerequisites_of_calc={self.xd_ticket(), self._tau.ticket()})
         self.DeclareVectorOutputPort("tripped", 1, self._calc_tripped,
@@ -161,6 +171,9 @@ class Watchdog(LeafSystem):
 
     def get_lambda_hat_input_port(self):
         return self._lambda
+
+    def get_q_checked_output_port(self):
+        return self.GetOutputPort("q_checked")
 
     def get_tau_safe_output_port(self):
         return self.GetOutputPort("tau_safe")
@@ -219,6 +232,11 @@ class Watchdog(LeafSystem):
         else:
             q_good = context.get_discrete_state(self._q_good).get_value()
             discrete.set_value(self._safe, self._safe_torque(q_good))
+
+    def _calc_q(self, context: Context, output: BasicVector) -> None:
+        q = self._q.Eval(context)
+        output.SetFromVector(q if np.all(np.isfinite(q))
+                             else context.get_discrete_state(self._q_good).get_value())
 
     def _calc_tau(self, context: Context, output: BasicVector) -> None:
         tau = self._tau.Eval(context)

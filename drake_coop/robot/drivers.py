@@ -3,9 +3,10 @@ joined only by the driver's LCM messages.
 
 Controller side (:func:`add_controller_side`), per arm::
 
-    status channel ─▶ LcmSubscriberSystem ─▶ PandaStatusReceiver ─ position_measured ─▶ q
+    status channel ─▶ LcmSubscriberSystem ─▶ PandaStatusReceiver ─ position_measured ─▶ Watchdog
                      (lcmt_panda_status)      (velocity, torque: not connected)
-    reference ─▶ AddCooperativeController(q, connect_actuation=False) ─ tau ─▶ Watchdog
+    Watchdog ─ q_checked ─▶ AddCooperativeController(q, connect_actuation=False) ─ tau ─▶ Watchdog
+    reference ─▶ AddCooperativeController
     Watchdog ─ tau_safe ─▶ PandaCommandSender (torque mode) ─▶ LcmPublisherSystem ─▶ command channel
 
 The control blocks read the driver's measured position only, never its velocity or torque
@@ -281,7 +282,15 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
         stamp = builder.AddNamedSystem(f"{name}_status_stamp", MessageStamp(lcmt_panda_status))
         builder.Connect(stamp_sub.get_output_port(), stamp.get_input_port(0))
         model = controller_arm_model(handles.arm, robot.model_error)
-        q = receiver.get_position_measured_output_port()
+        arm = handles.arm
+        watchdog = builder.AddNamedSystem(f"{name}_watchdog", Watchdog(
+            n, arm.m, plan.h, max_status_age=spec.max_status_age,
+            q_min=arm.q_min - margin, q_max=arm.q_max + margin, max_force=guards.max_force,
+            torque_limits=spec.torque_limits, safe_command=spec.safe_command,
+            hold_torque=model.g))
+        builder.Connect(receiver.get_position_measured_output_port(),
+                        watchdog.get_q_input_port())
+        q = watchdog.get_q_checked_output_port()
         block = AddCooperativeController(
             builder, coop.plant, handles.instance, gains=robot.gains, period=plan.h,
             controller_model=model, velocity_source=robot.velocity_source,
@@ -290,13 +299,6 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
         ref = builder.AddNamedSystem(f"{name}_reference", TrajectorySource(
             reference_trajectory(scenario, i, plan.t_end, plan)))
         builder.Connect(ref.get_output_port(), block.reference_input)
-        arm = handles.arm
-        watchdog = builder.AddNamedSystem(f"{name}_watchdog", Watchdog(
-            n, block.law.layout.m, plan.h, max_status_age=spec.max_status_age,
-            q_min=arm.q_min - margin, q_max=arm.q_max + margin, max_force=guards.max_force,
-            torque_limits=spec.torque_limits, safe_command=spec.safe_command,
-            hold_torque=model.g))
-        builder.Connect(q, watchdog.get_q_input_port())
         builder.Connect(stamp.get_output_port(0), watchdog.get_status_stamp_input_port())
         builder.Connect(block.tau_output, watchdog.get_tau_input_port())
         builder.Connect(block.lambda_hat_output, watchdog.get_lambda_hat_input_port())
