@@ -61,10 +61,10 @@ def _error(message: str) -> int:
 
 def _load(args):
     """The scenario and its driver specs, or an exit code (2) after one line."""
-    from drake_coop.cli import find_scenario
     from drake_coop.robot.drivers import driver_specs
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.model_check import check_models
+    from drake_coop.scenario.resources import find_scenario
     from drake_coop.scenario.schema import ScenarioError
     from drake_coop.scenario.timing import check_run_size
 
