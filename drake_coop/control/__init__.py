@@ -39,6 +39,7 @@ _EXPORTS = {
     "FORCE_SOURCES": "params",
     "VELOCITY_SOURCES": "params",
     "Gains": "params",
+    "Watchdog": "watchdog",
 }
 
 __all__ = [
@@ -60,6 +61,7 @@ __all__ = [
     "SensedForce",
     "VELOCITY_SOURCES",
     "VelocityObserver",
+    "Watchdog",
     "build_control_block",
 ]
 

@@ -125,3 +125,31 @@ def test_bad_arguments_name_the_field(kw, field):
     args.update(kw)
     with pytest.raises(ValueError, match=field):
         Watchdog(N, 1, H, **args)
+
+
+def test_q_checked_is_the_reading_itself_or_the_last_good_one():
+    wd, sim, ctx, fixed = make()
+    good = np.array([0.1, -0.2, 0.3])
+    advance_tick(sim, 0)
+    q_checked = wd.get_q_checked_output_port()
+    assert q_checked.Eval(ctx).tobytes() == good.tobytes()
+    fixed["q"].GetMutableData().set_value(np.array([0.2, math.nan, 0.0]))
+    np.testing.assert_array_equal(q_checked.Eval(ctx), good)
+
+
+def test_ports_match_the_docstring_block_and_have_accessors():
+    import re
+
+    wd = make()[0]
+    block = Watchdog.__doc__.split(".. pydrake_system::")[1].split("\n\n")[1]
+    inputs, outputs = block.split("output_ports:")
+    assert re.findall(r"- (\w+)", inputs) == [wd.get_input_port(i).get_name()
+                                             for i in range(wd.num_input_ports())]
+    assert re.findall(r"- (\w+)", outputs) == [wd.get_output_port(i).get_name()
+                                              for i in range(wd.num_output_ports())]
+    for i in range(wd.num_input_ports()):
+        port = wd.get_input_port(i)
+        assert getattr(wd, f"get_{port.get_name()}_input_port")().get_index() == i
+    for i in range(wd.num_output_ports()):
+        port = wd.get_output_port(i)
+        assert getattr(wd, f"get_{port.get_name()}_output_port")().get_index() == i
