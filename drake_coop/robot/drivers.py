@@ -71,6 +71,38 @@ from drake_coop.scenario.validation import driver_channels
 COMMAND_OFFSET = 1e-4
 
 
+def shared_message_type(lcm_type):
+    """``lcm_type`` whose decoded messages are shared, not deep-copied, when Drake copies the
+    subscriber's state (pydrake deep-copies Python values; a status at 1 kHz costs a deep copy
+    of its eight arrays several times per message, most of the split run's time).
+
+    Safe because a decoded message is never modified: its arrays are tuples and nothing here
+    writes its fields."""
+
+    class Shared(lcm_type):
+        __slots__ = []
+
+        @staticmethod
+        def decode(data):
+            msg = lcm_type.decode(data)
+            msg.__class__ = Shared
+            return msg
+
+        def __copy__(self):
+            return self
+
+        def __deepcopy__(self, memo):
+            return self
+
+    Shared.__name__ = Shared.__qualname__ = f"Shared_{lcm_type.__name__}"
+    return Shared
+
+
+#: The Python-typed messages the stamps are read from (shared, see :func:`shared_message_type`).
+SharedPandaStatus = shared_message_type(lcmt_panda_status)
+SharedPandaCommand = shared_message_type(lcmt_panda_command)
+
+
 @dataclass(frozen=True)
 class DriverSpec:
     """One arm's driver, resolved from ``robots[i].driver`` (defaults filled in)."""
@@ -276,10 +308,10 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
             spec.status_channel, lcmt_panda_status, lcm, use_cpp_serializer=True))
         stamp_sub = builder.AddNamedSystem(f"{name}_status_stamp_subscriber",
                                            LcmSubscriberSystem.Make(spec.status_channel,
-                                                                    lcmt_panda_status, lcm))
+                                                                    SharedPandaStatus, lcm))
         receiver = builder.AddNamedSystem(f"{name}_status_receiver", PandaStatusReceiver(n))
         builder.Connect(status_sub.get_output_port(), receiver.get_input_port(0))
-        stamp = builder.AddNamedSystem(f"{name}_status_stamp", MessageStamp(lcmt_panda_status))
+        stamp = builder.AddNamedSystem(f"{name}_status_stamp", MessageStamp(SharedPandaStatus))
         builder.Connect(stamp_sub.get_output_port(), stamp.get_input_port(0))
         model = controller_arm_model(handles.arm, robot.model_error)
         arm = handles.arm
@@ -332,7 +364,7 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
             spec.command_channel, lcmt_panda_command, lcm, use_cpp_serializer=True))
         cmd_stamp = builder.AddNamedSystem(f"{name}_command_stamp_subscriber",
                                            LcmSubscriberSystem.Make(spec.command_channel,
-                                                                    lcmt_panda_command, lcm))
+                                                                    SharedPandaCommand, lcm))
         receiver = builder.AddNamedSystem(f"{name}_command_receiver",
                                           PandaCommandReceiver(n, PandaControlMode.kTorque))
         builder.Connect(cmd_sub.get_output_port(), receiver.get_message_input_port())
