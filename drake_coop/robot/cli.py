@@ -303,6 +303,7 @@ def cmd_sim_driver(args) -> int:
             arm.status_publisher.ForcedPublish(arm.status_publisher.GetMyContextFromRoot(context))
         pump_until(lcm, time.perf_counter() + period)
     simulator.set_target_realtime_rate(1.0)
+    simulator.ResetStatistics()      # the wall clock starts now, not at Initialize()
     plant_context = side.coop.plant.GetMyMutableContextFromRoot(context)
     start = time.perf_counter()
     worst = 0.0          # how far the simulated time fell behind the wall clock (s)
