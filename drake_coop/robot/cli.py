@@ -138,7 +138,6 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
     from drake_coop.robot.drivers import (
         COMMAND_OFFSET,
         add_controller_side,
-        add_lcm_interface,
         safe_command_message,
     )
     from drake_coop.robot.loopback import initialize_sides, tripped
@@ -164,7 +163,8 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
         margin = delay_margin(scenario)
         margin = None if math.isnan(margin) else margin
     builder = DiagramBuilder()
-    add_lcm_interface(builder, lcm)
+    # No LcmInterfaceSystem: the wall-clock loop pumps LCM between ticks (and records each
+    # status's arrival with a plain handler, which must not run inside AdvanceTo).
     side = add_controller_side(builder, scenario, lcm, plan, specs)
     diagram = builder.Build()
     arrivals = StatusArrivals(lcm, [s.status_channel for s in specs])
@@ -275,14 +275,13 @@ def cmd_sim_driver(args) -> int:
     from drake_coop.experiment.simulate import guard_chunks
     from drake_coop.robot.drivers import add_driver_side, add_lcm_interface
     from drake_coop.robot.loopback import initialize_sides
-    from drake_coop.robot.pacing import StatusArrivals, pump_until
+    from drake_coop.robot.pacing import pump_until
 
     plan = plan_run(scenario, args.t_end)
     builder = DiagramBuilder()
     add_lcm_interface(builder, lcm)
     side = add_driver_side(builder, scenario, lcm, specs)
     diagram = builder.Build()
-    commands = StatusArrivals(lcm, [s.command_channel for s in specs])
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
     initialize_sides(scenario, plan, context, side, None)
@@ -294,7 +293,10 @@ def cmd_sim_driver(args) -> int:
         print("drake-coop: sim-driver publishing "
               + ", ".join(s.status_channel for s in specs) + "; waiting for a command",
               file=sys.stderr)
-    while commands.count and not any(commands.count.values()):
+    # (the command subscribers' own counts: a plain Python handler must not be pumped by the
+    # LcmInterfaceSystem inside AdvanceTo, see add_lcm_interface)
+    while not any(arm.command_subscriber.WaitForMessage(0, None, 1e-6) > 0
+                  for arm in side.arms):
         if time.perf_counter() > deadline:
             print(f"drake-coop: no command on {', '.join(s.command_channel for s in specs)} "
                   f"within {args.command_wait:g} s", file=sys.stderr)

@@ -257,6 +257,7 @@ class ArmDriver:
     """One arm's simulated-driver systems."""
 
     spec: DriverSpec
+    command_subscriber: LcmSubscriberSystem
     command_receiver: PandaCommandReceiver
     hold: CommandHold
     status_sender: PandaStatusSender
@@ -282,7 +283,14 @@ class DriverSide:
 
 
 def add_lcm_interface(builder: DiagramBuilder, lcm: DrakeLcm) -> LcmInterfaceSystem:
-    """The one ``LcmInterfaceSystem`` that pumps ``lcm``'s messages; add it first."""
+    """The one ``LcmInterfaceSystem`` that pumps ``lcm``'s messages inside the Simulator's
+    steps; add it first.
+
+    Without it, messages reach the subscriber systems when the caller pumps
+    (``lcm.HandleSubscriptions``) between ``AdvanceTo`` calls, as ``drake-coop serve`` does.
+    Plain Python handlers (``lcm.Subscribe``) must not be pumped inside ``AdvanceTo``: drake
+    1.58 releases the GIL there and such a handler crashes the process (drake 1.51 does not).
+    """
     return builder.AddNamedSystem("lcm_interface", LcmInterfaceSystem(lcm))
 
 
@@ -385,7 +393,8 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
             spec.status_channel, lcmt_panda_status, lcm, publish_period=spec.period,
             use_cpp_serializer=True))
         builder.Connect(sender.get_output_port(), publisher.get_input_port())
-        arms.append(ArmDriver(spec=spec, command_receiver=receiver, hold=hold,
+        arms.append(ArmDriver(spec=spec, command_subscriber=cmd_sub, command_receiver=receiver,
+                              hold=hold,
                               status_sender=sender, status_publisher=publisher))
     return DriverSide(coop=coop, arms=arms)
 

@@ -60,7 +60,8 @@ class PacingRecord:
 
 class StatusArrivals:
     """Wall time at which the newest message of each channel arrived in this process
-    (a plain ``DrakeLcm`` subscription beside the Diagram's subscribers)."""
+    (a plain ``DrakeLcm`` subscription beside the Diagram's subscribers; pump it outside
+    ``AdvanceTo`` only, see :func:`~drake_coop.robot.drivers.add_lcm_interface`)."""
 
     def __init__(self, lcm, channels: list[str]):
         self.last = {c: math.nan for c in channels}

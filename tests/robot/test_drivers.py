@@ -19,7 +19,6 @@ from drake_coop.robot.drivers import (
     COMMAND_OFFSET,
     CommandHold,
     add_controller_side,
-    add_lcm_interface,
     safe_command_message,
 )
 from drake_coop.robot.loopback import initialize_sides
@@ -55,8 +54,7 @@ def run_controller(scenario, positions, rng=None, ticks=6, stop_after=None):
     watchdogs' reasons at the end."""
     plan = plan_run(scenario, 1.0)
     lcm = DrakeLcm("memq://")
-    builder = DiagramBuilder()
-    add_lcm_interface(builder, lcm)
+    builder = DiagramBuilder()            # pumped here between ticks, as serve does
     side = add_controller_side(builder, scenario, lcm, plan)
     commands = {a.spec.robot: [] for a in side.arms}
     for a in side.arms:
@@ -80,6 +78,7 @@ def run_controller(scenario, positions, rng=None, ticks=6, stop_after=None):
     for k in range(1, ticks):
         if stop_after is None or k <= stop_after:
             publish(k)
+        lcm.HandleSubscriptions(0)
         sim.AdvanceTo(k * plan.h + COMMAND_OFFSET)
     lcm.HandleSubscriptions(0)
     reasons = {a.spec.robot: a.watchdog.reason(a.watchdog.GetMyContextFromRoot(ctx))
