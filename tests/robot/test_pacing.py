@@ -1,6 +1,5 @@
 """Pacing figures: the summary against the delay margin, the files, the wall-clock loop."""
 
-import math
 import time
 
 import numpy as np
