@@ -68,7 +68,7 @@ def test_a_bad_lcm_url_exits_2(tmp_path, capsys):
     assert "--lcm-url" in capsys.readouterr().err
 
 
-def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None):
+def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None, joints=3):
     """Make serve use ``lcm`` and play the driver in its pump: a status per arm at rest
     (fresh stamps) at every pump, until ``stop_status_after`` pumps; ``signal_after`` pumps
     then send that signal to this process."""
@@ -89,12 +89,12 @@ def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None):
             for name, q in zip(("robot1", "robot2"), q0):
                 msg = lcmt_panda_status()
                 msg.utime = calls["n"]
-                msg.num_joints = 3
-                msg.joint_position = list(q)
+                msg.num_joints = joints
+                msg.joint_position = list(np.resize(q, joints))
                 for f in ("joint_velocity", "joint_torque", "joint_torque_external",
                           "joint_position_desired", "joint_velocity_desired",
                           "joint_acceleration_desired", "joint_torque_desired"):
-                    setattr(msg, f, [0.0] * 3)
+                    setattr(msg, f, [0.0] * joints)
                 lcm.Publish(f"PANDA_STATUS_{name}", msg.encode())
         if signal_after is not None and calls["n"] == signal_after[0]:
             os.kill(os.getpid(), signal_after[1])
@@ -144,3 +144,17 @@ def test_a_stale_status_stops_serve_with_one_line_and_zero_torque(tmp_path, monk
         assert list(msgs[-1].joint_torque) == [0.0, 0.0, 0.0]
     meta = json.loads((out / "run.json").read_text())
     assert meta["status"] == "stopped" and meta["pacing"]["ticks"] < 2 / 0.009
+
+
+def test_a_driver_reporting_another_joint_count_exits_2_naming_the_driver(tmp_path, monkeypatch,
+                                                                          capsys):
+    lcm = DrakeLcm("memq://")
+    commands = played_driver(monkeypatch, lcm, joints=7)      # a 7-joint Panda's status
+    out = tmp_path / "run"
+    assert main(["serve", "paper", "--lcm-url", "memq://", "--out", str(out),
+                 "--delay-margin", "0.002", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "robots[0].driver" in err[0] and "7 joints" in err[0]
+    lcm.HandleSubscriptions(0)
+    assert all(list(m[-1].joint_torque) == [0.0] * 3 for m in commands.values())
+    assert not out.exists()
