@@ -48,6 +48,7 @@ import time
 import warnings
 from pathlib import Path
 
+from drake_coop.console import error as _error
 from drake_coop.scenario.resources import (
     find_scenario,
     scenario_summary,
@@ -136,13 +137,6 @@ class ProgressBar:
             self._open = False
 
 
-def _error(message: str) -> int:
-    from drake_coop.scenario.bounds import one_line
-
-    print(f"drake-coop: error: {one_line(message)}", file=sys.stderr)
-    return 2
-
-
 def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: bool
                           ) -> list[Path]:
     """The paper's block diagram (``block_diagram``), and for debugging the top-level
@@ -175,7 +169,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from drake_coop.results.viz import add_force_arrows, frame_workspace
         from drake_coop.scenario.loading import load_scenario
         from drake_coop.scenario.schema import ScenarioError
-        from drake_coop.scenario.timing import check_run_size, run_size
+        from drake_coop.experiment.plan import check_run_size, run_size
 
         if args.t_end is not None and not (0 < args.t_end < float("inf")):
             return _error(f"--t-end must be a finite number > 0, got {args.t_end}")
@@ -390,6 +384,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
                               (lambda m: print(m, flush=True)))
     except (ScenarioError, IdentifyInputError) as exc:
         return _error(str(exc))
+    except OSError as exc:                 # a full disk while writing: nothing was replaced
+        _error(f"--out {args.out}: writing the outputs failed ({exc.strerror or exc}); "
+               "nothing was replaced")
+        return 1
     if not args.quiet:
         for name, r in report["robots"].items():
             v = r["validation"]

@@ -55,8 +55,9 @@ def add_robot_parsers(sub) -> None:
 
 
 def _error(message: str) -> int:
-    print(f"drake-coop: {message}", file=sys.stderr)
-    return 2
+    from drake_coop.console import error
+
+    return error(message)
 
 
 def _load(args):
@@ -66,7 +67,7 @@ def _load(args):
     from drake_coop.scenario.model_check import check_models
     from drake_coop.scenario.resources import find_scenario
     from drake_coop.scenario.schema import ScenarioError
-    from drake_coop.scenario.timing import check_run_size
+    from drake_coop.experiment.plan import check_run_size
 
     if args.t_end is not None and not (0 < args.t_end < math.inf):
         return _error(f"--t-end must be a finite number > 0, got {args.t_end}")
@@ -93,33 +94,27 @@ def _make_lcm(url):
 
 def cmd_serve(args) -> int:
     """``drake-coop serve``: see the module's docstring."""
-    from drake_coop.cli import SIGNALS
+    loaded = _load(args)
+    if isinstance(loaded, int):
+        return loaded
+    scenario, specs = loaded
+    if args.delay_margin is not None and not (0 <= args.delay_margin < 1):
+        return _error(f"--delay-margin must be a number in [0, 1) s, got {args.delay_margin}")
+    if not (0 < args.status_wait < math.inf):
+        return _error(f"--status-wait must be a finite number > 0, got {args.status_wait}")
+    try:
+        lcm = _make_lcm(args.lcm_url)
+    except ValueError as exc:
+        return _error(str(exc))
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.results.run_folder import OutputFolderError, RunFolder
 
-    with SIGNALS.deferred():
-        loaded = _load(args)
-        if isinstance(loaded, int):
-            return loaded
-        scenario, specs = loaded
-        if args.delay_margin is not None and not (0 <= args.delay_margin < 1):
-            return _error(f"--delay-margin must be a number in [0, 1) s, got {args.delay_margin}")
-        if not (0 < args.status_wait < math.inf):
-            return _error(f"--status-wait must be a finite number > 0, got {args.status_wait}")
-        try:
-            lcm = _make_lcm(args.lcm_url)
-        except ValueError as exc:
-            return _error(str(exc))
-        from drake_coop.experiment.plan import plan_run
-        from drake_coop.results.run_folder import OutputFolderError, RunFolder
-
-        plan = plan_run(scenario, args.t_end)
-        folder = RunFolder(args.out)
-        try:
-            staging = folder.prepare(plan.k_end + 1, robots=len(specs), replace=args.force)
-        except OutputFolderError as exc:
-            return _error(str(exc))
-    if SIGNALS.received is not None:
-        folder.discard()
-        return SIGNALS.exit_code()
+    plan = plan_run(scenario, args.t_end)
+    folder = RunFolder(args.out)
+    try:
+        staging = folder.prepare(plan.k_end + 1, robots=len(specs), replace=args.force)
+    except OutputFolderError as exc:
+        return _error(str(exc))
     try:
         return _serve(args, scenario, specs, plan, lcm, folder, staging)
     except BaseException:
@@ -133,7 +128,6 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
     from pydrake.systems.framework import DiagramBuilder
 
     from drake import lcmt_panda_status
-    from drake_coop.cli import SIGNALS
     from drake_coop.results.io import atomic_write_text
     from drake_coop.robot.drivers import (
         COMMAND_OFFSET,
@@ -172,6 +166,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
     context = simulator.get_mutable_context()
     record = PacingRecord(period=plan.h, driver_period=max(s.period for s in specs))
     status, message, code = "ok", f"completed {plan.t_end:g} s", 0
+    interrupted: BaseException | None = None
     last_q = [None] * len(specs)
 
     def send_safe() -> None:
@@ -227,47 +222,43 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
         if reason:
             status, code = "stopped", 1
             message = f"watchdog at t = {context.get_time():.3f} s: {reason}"
-    except KeyboardInterrupt:
-        status, code = "interrupted", SIGNALS.exit_code()
-        message = f"interrupted ({SIGNALS.name}) at t = {context.get_time():.3f} s"
+    except KeyboardInterrupt as exc:    # Ctrl-C, or SIGTERM (raised as one by the command line)
+        status, interrupted = "interrupted", exc
+        message = f"interrupted at t = {context.get_time():.3f} s"
     finally:
         send_safe()
-    with SIGNALS.deferred():
-        summary = pacing_summary(record, margin)
-        meta = {"status": status, "message": message, "command": "serve",
-                "lcm_url": args.lcm_url, "control_period": plan.h,
-                "channels": {s.robot: [s.status_channel, s.command_channel] for s in specs},
-                "safe_command": {s.robot: s.safe_command for s in specs},
-                "pacing": summary}
-        write_pacing_csv(staging / "pacing.csv", record)
-        if record.k:
-            plot_pacing(staging / "pacing.png", record, summary)
-        atomic_write_text(staging / "scenario.yaml", dump_scenario(scenario))
-        atomic_write_text(staging / "run.json", json.dumps(meta, indent=1, default=float))
-        folder.commit()
+    summary = pacing_summary(record, margin)
+    meta = {"status": status, "message": message, "command": "serve",
+            "lcm_url": args.lcm_url, "control_period": plan.h,
+            "channels": {s.robot: [s.status_channel, s.command_channel] for s in specs},
+            "safe_command": {s.robot: s.safe_command for s in specs},
+            "pacing": summary}
+    write_pacing_csv(staging / "pacing.csv", record)
+    if record.k:
+        plot_pacing(staging / "pacing.png", record, summary)
+    atomic_write_text(staging / "scenario.yaml", dump_scenario(scenario))
+    atomic_write_text(staging / "run.json", json.dumps(meta, indent=1, default=float))
+    folder.commit()
     print(f"drake-coop: {message}; safe command sent", file=sys.stderr)
     if record.k:
         print(f"drake-coop: {summary_line(summary)}", file=sys.stderr)
+    if interrupted is not None:
+        raise interrupted      # the command line's exit code: 130 (Ctrl-C) or 143 (SIGTERM)
     return code
 
 
 def cmd_sim_driver(args) -> int:
     """``drake-coop sim-driver``: see the module's docstring."""
-    from drake_coop.cli import SIGNALS
-
-    with SIGNALS.deferred():
-        loaded = _load(args)
-        if isinstance(loaded, int):
-            return loaded
-        scenario, specs = loaded
-        if not (0 < args.command_wait < math.inf):
-            return _error(f"--command-wait must be a finite number > 0, got {args.command_wait}")
-        try:
-            lcm = _make_lcm(args.lcm_url)
-        except ValueError as exc:
-            return _error(str(exc))
-    if SIGNALS.received is not None:
-        return SIGNALS.exit_code()
+    loaded = _load(args)
+    if isinstance(loaded, int):
+        return loaded
+    scenario, specs = loaded
+    if not (0 < args.command_wait < math.inf):
+        return _error(f"--command-wait must be a finite number > 0, got {args.command_wait}")
+    try:
+        lcm = _make_lcm(args.lcm_url)
+    except ValueError as exc:
+        return _error(str(exc))
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
 

@@ -59,7 +59,7 @@ from pydrake.systems.primitives import Demultiplexer, TrajectorySource
 from drake import lcmt_panda_command, lcmt_panda_status
 from drake_coop.control.block import AddCooperativeController, ControllerHandles
 from drake_coop.control.watchdog import Watchdog
-from drake_coop.experiment.plan import RunPlan
+from drake_coop.experiment.plan import RunPlan, time_grid
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import CoopPlant, build_plant
 from drake_coop.plant.model_error import controller_arm_model
@@ -304,7 +304,7 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     built from the scenario in a builder of its own (never simulated).
     """
     model_builder = DiagramBuilder()
-    coop = build_plant(model_builder, scenario)
+    coop = build_plant(model_builder, scenario, plan.dt)
     joints = [coop.plant.num_positions(a.instance) for a in coop.arms]
     specs = specs if specs is not None else driver_specs(scenario, joints)
     guards = scenario.guards
@@ -358,8 +358,9 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
 
 def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
                     specs: list[DriverSpec] | None = None) -> DriverSide:
-    """Add the scenario's cooperative plant and each arm's simulated driver to ``builder``."""
-    coop = build_plant(builder, scenario)
+    """Add the scenario's cooperative plant (on the run's time grid) and each arm's simulated
+    driver to ``builder``."""
+    coop = build_plant(builder, scenario, time_grid(scenario)[1])
     plant = coop.plant
     joints = [plant.num_positions(a.instance) for a in coop.arms]
     specs = specs if specs is not None else driver_specs(scenario, joints)

@@ -19,7 +19,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder
 
 from drake_coop.control.finger import ReferenceLayout
-from drake_coop.experiment.plan import RunPlan, plan_run
+from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.experiment.simulate import guard_chunks, phases, rest_posture
 from drake_coop.plant.cooperative import initialize_plant_context
@@ -33,7 +33,6 @@ from drake_coop.robot.drivers import (
     add_lcm_interface,
 )
 from drake_coop.scenario.schema import Scenario, ScenarioError
-from drake_coop.scenario.timing import check_run_size
 from drake_coop.sensing.force_sensor import FTModel
 
 

@@ -175,10 +175,10 @@ def delay_margin(scenario, *, epsilon: float = 1e-5) -> float:
     import copy
 
     from drake_coop.scenario.loading import dump_scenario
-    from drake_coop.scenario.timing import aligned_periods
+    from drake_coop.experiment.plan import time_grid
     from drake_coop.stability.grid import point_rows
 
-    h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    h, dt = time_grid(scenario)
     margin = math.nan
     for steps in range(int(round(h / dt)) + 1):
         s = copy.deepcopy(scenario)

@@ -22,7 +22,7 @@ from drake_coop.scenario.schema import (
 
 _POS = dict(lo_open=True)
 #: Allowed range of every number of a scenario, by dotted field (``[]``: any index). A new
-#: ``float`` or ``list[float]`` field gets its entry here (``tests/test_scenario_bounds.py``
+#: ``float`` or ``list[float]`` field gets its entry here (``tests/scenario/test_validation.py``
 #: checks that every numeric field has one); :func:`validate` then checks it, and the message
 #: states the bound.
 BOUNDS: dict[str, Bound] = {
