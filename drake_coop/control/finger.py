@@ -239,7 +239,8 @@ class FingerLaw:
         """The held form of (4) for one constraint, on plain floats.
 
         With the row ``j = J_φ`` (1×n) and ``ν = j jᵀ`` (``+ μ²`` when damped):
-        ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``, ``q̇_r = Q (q̇_d − Λ(q̂ − q_d)) + J⁺ (−β φ + ξ ΔF̃)``. Returns ``j``, ``ν``, the force
+        ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``,
+        ``q̇_r = Q (q̇_d − Λ(q̂ − q_d)) + J⁺ (−β φ + ξ ΔF̃)``. Returns ``j``, ``ν``, the force
         part ``−β φ + ξ ΔF̃``, the motion part ``q̇_d − Λ(q̂ − q_d)`` and ``q̇_r``.
         """
         phi, j = self.model.constraint_row(q)
