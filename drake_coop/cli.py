@@ -1,4 +1,5 @@
-"""Command line: ``drake-coop run | scenarios | plot | diagram | study | stability | gains | identify`` (also
+"""Command line: ``drake-coop run | scenarios | plot | diagram | study | stability | gains |
+identify | serve | sim-driver`` (also
 ``python -m drake_coop``).
 
 ``drake-coop run [SCENARIO] --out DIR [--meshcat]``
@@ -34,6 +35,10 @@
     Identify each robot's dynamic parameters on the simulated true arm from encoder readings
     and commanded torques; write ``robotN_identified.urdf``, ``identify.json``,
     ``identify_fit.png`` and ``identified.yaml`` (see :mod:`drake_coop.identification.report`).
+``drake-coop serve SCENARIO --lcm-url URL --out DIR`` / ``drake-coop sim-driver SCENARIO --lcm-url URL``
+    The control blocks against the wall clock over each arm's LCM driver, with a watchdog and
+    the pacing figures; the scenario's simulated arms behind the same messages (see
+    :mod:`drake_coop.robot.cli`).
 """
 
 from __future__ import annotations
@@ -458,6 +463,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_stability_parser(sub)
     from drake_coop.stability.gains_cli import add_gains_parser
     add_gains_parser(sub)
+    from drake_coop.robot.cli import add_robot_parsers
+    add_robot_parsers(sub)
     return parser
 
 

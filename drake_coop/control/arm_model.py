@@ -317,6 +317,14 @@ class ArmModel:
             return self.kinematics.jacobian(q)
         return self.ee_kinematics(q)[2]
 
+    def J_omega(self, q: np.ndarray) -> np.ndarray:
+        """Rotational Jacobian ``J_ω`` of the end-effector frame (3×n), world frame: its
+        angular velocity is ``J_ω q̇``."""
+        self._set_q(q)
+        return self.plant.CalcJacobianSpatialVelocity(
+            self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
+            self.plant.world_frame(), self.plant.world_frame())[:3]
+
     def phi(self, q: np.ndarray) -> np.ndarray:
         """Constraint (2), ``φ = N (x − c)`` (m), an m-vector."""
         return self._N @ (self.ee_position(q) - self._c)

@@ -26,6 +26,7 @@ from drake_coop.scenario.schema import (
     Gains,
     Guards,
     ModelError,
+    ObjectModelSettings,
     PlantSettings,
     Robot,
     Scenario,
@@ -38,8 +39,8 @@ from drake_coop.scenario.validation import BOUNDS, LENGTHS, validate
 
 __all__ = [
     "ARM_MODELS", "FORCE_SOURCES", "OBJECT_MODES", "VELOCITY_SOURCES", "Actuators", "Encoders",
-    "ForceSensorModel", "Gains", "Guards", "ModelError", "PlantSettings", "Robot", "Scenario",
-    "ScenarioError", "Task", "Tool", "default_scenario", "paper_robots",
+    "ForceSensorModel", "Gains", "Guards", "ModelError", "ObjectModelSettings", "PlantSettings",
+    "Robot", "Scenario", "ScenarioError", "Task", "Tool", "default_scenario", "paper_robots",
     "aligned_periods", "BOUNDS", "LENGTHS", "validate",
     "dump_scenario", "load_scenario",
 ]

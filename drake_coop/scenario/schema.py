@@ -19,6 +19,10 @@ from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains  # 
 from drake_coop.scenario.bounds import one_line
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
+#: What the controllers know of the held object (``object_model.mode``).
+OBJECT_MODEL_MODES = ("none", "known", "estimated")
+#: Where the desired squeeze comes from (``object_model.squeeze``).
+SQUEEZE_SOURCES = ("profile", "friction")
 #: The shipped arm models (``urdf/<file>``); a robot's ``model`` may also be a ``.urdf`` path.
 SHIPPED_ARMS = {"crs_a465": "crs_a465_3dof.urdf", "crs_a255": "crs_a255_3dof.urdf",
                 "coop6": "coop6_6dof.urdf"}
@@ -171,6 +175,54 @@ class ModelError:
     coulomb_friction: list[float] = field(default_factory=list)
 
 
+#: The LCM drivers ``drake-coop serve`` and ``sim-driver`` speak (:class:`Driver`).
+DRIVER_KINDS = ("panda",)
+#: What a driver is sent when the watchdog trips or the controller stops (:class:`Driver`).
+SAFE_COMMANDS = ("zero_torque", "hold")
+
+
+@dataclass
+class Driver:
+    """The arm's LCM driver, for ``drake-coop serve`` and ``drake-coop sim-driver``
+    (:mod:`drake_coop.robot`); unused by simulated runs. Null (the default): a Panda driver
+    with the defaults below.
+
+    Attributes
+    ----------
+    kind : str
+        The driver's messages: ``panda`` (``lcmt_panda_status`` / ``lcmt_panda_command``,
+        torque mode, as drake-franka-driver speaks them).
+    status_channel, command_channel : str
+        LCM channels; empty: ``PANDA_STATUS_<name>`` and ``PANDA_COMMAND_<name>``. Every
+        channel of a scenario is distinct.
+    num_joints : int or None
+        The driver's joint count; it must equal the arm's ``n_i``. Null: the arm's.
+    rate_hz : float
+        The driver's cycle (status published and command applied every ``1/rate_hz`` s; the
+        Panda's is 1 kHz); ``control_period`` must be a whole number of cycles.
+    torque_limits : list[float] or None
+        Per-joint limits of the commanded torque (N·m, > 0), applied by the controller before
+        sending (and by the simulated driver); null: ``actuators.torque_limits``, else none.
+    max_status_age : float
+        The controller's watchdog trips when the newest status is older than this (s).
+    command_timeout : float
+        The (simulated) driver applies zero torque when the newest command is older (s).
+    safe_command : str
+        What the controller sends when its watchdog trips or it stops: ``zero_torque`` or
+        ``hold`` (the controller model's gravity torque at the last good position).
+    """
+
+    kind: str = "panda"
+    status_channel: str = ""
+    command_channel: str = ""
+    num_joints: Optional[int] = None
+    rate_hz: float = 1000.0
+    torque_limits: Optional[list[float]] = None
+    max_status_age: float = 0.05
+    command_timeout: float = 0.05
+    safe_command: str = "zero_torque"
+
+
 @dataclass
 class Tool:
     """The tool mounted on an arm from a description package: a wrist F/T sensor and a
@@ -291,6 +343,9 @@ class Robot:
         DrakeArmKinematics.redundant_reference`); null: the middle of the joint limits.
     nullspace_gain : float
         Redundant arms: the gain ``K_n`` (1/s) of that objective.
+    driver : Driver or None
+        The arm's LCM driver (``drake-coop serve`` / ``sim-driver`` only); null: a Panda
+        driver with :class:`Driver`'s defaults.
     """
 
     name: str = "robot1"
@@ -320,6 +375,7 @@ class Robot:
     tool: Optional[Tool] = None
     q_nominal: Optional[list[float]] = None
     nullspace_gain: float = 1.0
+    driver: Optional[Driver] = None
 
 
 @dataclass
@@ -416,6 +472,56 @@ class Guards:
 
 
 @dataclass
+class ObjectModelSettings:
+    """What the controllers know of the held object (:mod:`drake_coop.control.object`).
+
+    Attributes
+    ----------
+    mode : str
+        ``none`` (the paper's control: no object model, the default), ``known`` (each arm's
+        feedforward uses the true object) or ``estimated`` (each arm estimates its share of
+        the mass online, from ``prior_mass_factor`` times its true share).
+    mass : float, optional
+        The object's mass the controllers are given in ``known`` mode (kg); default the
+        plant's ``object_mass`` (the truth).
+    prior_mass_factor : float
+        ``estimated``: the prior is this times the true mass (1.5: +50 %).
+    prior_std_factor : float
+        ``estimated``: the prior's standard deviation as a fraction of the prior.
+    forgetting : float
+        ``estimated``: the RLS forgetting factor ``ρ`` (per tick).
+    squeeze : str
+        ``profile`` (the task's force profile (29)) or ``friction`` (the least squeeze that
+        holds the object in the friction cone along the desired path, times ``margin``).
+    mu : float, optional
+        The friction coefficient the controllers assume (default ``plant.friction``).
+    margin : float
+        ``friction``: the squeeze's safety factor (>= 1).
+    squeeze_min : float
+        ``friction``: the least squeeze (N) whatever the load.
+    contact_stiffness : float, optional
+        ``a`` of the contact's law ``λ = a δᵖ`` (N/mᵖ) for the compliant-contact reference
+        offset; default (None): derived from the plant with an object model (``contact`` mode:
+        ``π E_pad`` of a hydroelastic sphere on a rigid face, 1.57e7 N/m² for the shipped
+        pads; rigid otherwise); 0: none.
+    contact_exponent : float
+        ``p`` of that law (2 for a hydroelastic sphere, 1 for a linear spring).
+    """
+
+    mode: str = "none"
+    mass: Optional[float] = None
+    prior_mass_factor: float = 1.5
+    prior_std_factor: float = 0.5
+    forgetting: float = 0.995
+    squeeze: str = "profile"
+    mu: Optional[float] = None
+    margin: float = 1.5
+    squeeze_min: float = 2.0
+    contact_stiffness: Optional[float] = None
+    contact_exponent: float = 2.0
+
+
+@dataclass
 class Scenario:
     """A complete experiment.
 
@@ -428,6 +534,8 @@ class Scenario:
         ``l >= 2`` robots (the paper: robot 1 on the left, normal −x; robot 2 on the right).
     task : Task
     guards : Guards
+    object_model : ObjectModelSettings
+        What the controllers know of the held object (default: nothing, the paper's).
     """
 
     control_period: float = 0.009
@@ -435,6 +543,7 @@ class Scenario:
     robots: list[Robot] = field(default_factory=list)
     task: Task = field(default_factory=Task)
     guards: Guards = field(default_factory=Guards)
+    object_model: ObjectModelSettings = field(default_factory=ObjectModelSettings)
 
 
 # --------------------------------------------------------------------------- timing
