@@ -175,7 +175,8 @@ class ArmModel:
         """``φ(q)`` and ``J_φ(q)`` (as a list) of the first constraint row.
 
         With Drake's kinematics: from the tick's one evaluation (:meth:`ee_kinematics`).
-        In closed form: plain floats (a 3-vector per NumPy call costs more than the arithmetic), the same
+        In closed form: plain floats (a 3-vector per NumPy call costs more than the
+        arithmetic), the same
         formulas as :class:`~drake_coop.kinematics.crs.CrsKinematics` with the normal ``n``
         rotated into the base frame: ``φ = (R_bᵀ n)·x_local(q) + n·(p_b − c)``,
         ``J_φ = (R_bᵀ n)ᵀ J_local(q)``. Cached for the last ``q``: the force observer and the

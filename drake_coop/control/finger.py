@@ -140,6 +140,12 @@ class FingerLaw:
     gains : Gains
         ``Λ = k I``, ``K_R``, ``k_d``, ``k_F``, ``ξ`` (m×m, or ``ξ I``), ``ζ``, ``β``,
         checked by :func:`check_gains` against the model's ``n`` and ``m``.
+    pinv_damping : float, optional
+        ``μ`` of the damped pseudo-inverse ``J⁺ = J_φᵀ (J_φ J_φᵀ + μ² I)⁻¹`` used in (4),
+        (11), (22) and its derivative (7) (:func:`~drake_coop.control.orthogonal.projections`):
+        0 (the paper's exact ``J⁺``, the default) or > 0 for arms that pass near a singular
+        posture of ``J_φ`` (opt-in; ``J⁺`` stays below ``1/(2μ)``, at the price of exact
+        orthogonality).
     contact_stiffness : ContactStiffness, optional
         A compliant contact's stiffness model (:class:`~drake_coop.control.object.ContactStiffness`):
         the constrained position's reference becomes ``p_d = −δ(λ_d)``, the compression the
@@ -149,12 +155,6 @@ class FingerLaw:
         ``max(λ_d, 1 N)``, ``T_i`` its ``integral_time``), which integrates the stiffness
         model's own error out in about ``T_i``. Default None: ``p_d = 0``, the paper's law,
         the same doubles.
-    pinv_damping : float, optional
-        ``μ`` of the damped pseudo-inverse ``J⁺ = J_φᵀ (J_φ J_φᵀ + μ² I)⁻¹`` used in (4),
-        (11), (22) and its derivative (7) (:func:`~drake_coop.control.orthogonal.projections`):
-        0 (the paper's exact ``J⁺``, the default) or > 0 for arms that pass near a singular
-        posture of ``J_φ`` (opt-in; ``J⁺`` stays below ``1/(2μ)``, at the price of exact
-        orthogonality).
 
     Raises
     ------
@@ -270,7 +270,8 @@ class FingerLaw:
         """The held form of (4) for one constraint, on plain floats.
 
         With the row ``j = J_φ`` (1×n) and ``ν = j jᵀ`` (``+ μ²`` when damped):
-        ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``, ``q̇_r = Q (q̇_d − Λ(q̂ − q_d)) + J⁺ (−β φ + ξ ΔF̃)``. Returns ``j``, ``ν``, the force
+        ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``,
+        ``q̇_r = Q (q̇_d − Λ(q̂ − q_d)) + J⁺ (−β φ + ξ ΔF̃)``. Returns ``j``, ``ν``, the force
         part ``−β φ + ξ ΔF̃``, the motion part ``q̇_d − Λ(q̂ − q_d)`` and ``q̇_r``.
         """
         phi, j = self.model.constraint_row(q)

@@ -112,7 +112,8 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     t = k * h
     arm = plan.arms[index]
     redundant = getattr(arm.kinematics, "redundant", False)
-    x, xd, xdd = cartesian_reference(task, robot, t)
+    if not redundant:
+        x, xd, xdd = cartesian_reference(task, robot, t)
     held = ((k >= plan.k_grasp) & (k < plan.k_release)).astype(float)
     profile = force_reference(task, t)
     if scenario.object_model.mode != "none" and scenario.object_model.squeeze == "friction":
@@ -121,17 +122,13 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     lam = profile[:, None] * np.asarray(robot.force_weights, dtype=float)
     from drake_coop.experiment.object_blocks import contact_stiffness
     stiffness = contact_stiffness(scenario, index)
-    if stiffness is not None and redundant:
-        raise ValueError(f"{robot.name}: a compliant contact's compressed path is not "
-                         "available for a redundant arm (its reference integrates the "
-                         "Cartesian path in time); use a non-redundant arm")
-    if stiffness is not None:
+    if stiffness is not None and not redundant:
         # A compliant contact: the pad is held where the contact carries λ_d, pressed in by
         # δ(λ_d) along the inward normal, in the joint references too (else the tangent
         # part of (4) sees the compression as a position error: the pad sags).
         x, xd, xdd = compressed_path(stiffness, x, xd, xdd, lam[:, 0] * held, h,
                                      -np.asarray(robot.normals[0], dtype=float))
-    if redundant:
+    if redundant:     # the null-space reference follows the task itself (no compressed path)
         q, qd, qdd = redundant_joint_reference(arm, task, t)
     else:
         q, qd, qdd = joint_reference(arm, x, xd, xdd)

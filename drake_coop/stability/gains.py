@@ -213,6 +213,7 @@ def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 
         if max(rho.values()) < 1.0 and len(rho) == 4:
             report.stable = True
             return report
-        report.messages.append(f"kappa {kappa:.3g}: rho {', '.join(f'{k} {v:.4g}' for k, v in rho.items())}")
+        found = ", ".join(f"{k} {v:.4g}" for k, v in rho.items())
+        report.messages.append(f"kappa {kappa:.3g}: rho {found}")
         kappa *= BACKOFF
     return report

@@ -8,7 +8,8 @@ derived gains), ``gains.csv`` (one row per robot: every gain, the inertias ``J_j
 ``h p_f``), ``stability.csv`` (ρ at each operating point, at the gains and with the ``K_R``
 margin) and ``run.json`` (all of it, the rules' constants and the outcome). Exit codes: 0 the
 gains pass the check, 1 no gains passed it after the back-offs (the outputs are written: a
-result) or the derivation failed (one line, nothing written), 2 bad input (one line, before any computation), 130 Ctrl-C, 143 SIGTERM.
+result) or the derivation failed (one line, nothing written), 2 bad input (one line, before
+any computation), 130 Ctrl-C, 143 SIGTERM.
 """
 
 from __future__ import annotations
