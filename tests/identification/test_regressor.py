@@ -72,13 +72,17 @@ def _scenario_arms():
     installed), once each: (id, urdf path, base frame, sensor joint)."""
     from drake_coop.plant.arms import Arm
     from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.description import ROBOTS_EXTRA
     from drake_coop.scenario.resources import find_scenario, shipped_scenarios
+    from drake_coop.scenario.schema import ScenarioError
 
     seen = {}
     for name in shipped_scenarios():
         try:
             s = load_scenario(find_scenario(name))
-        except Exception:           # a scenario that needs a missing extra
+        except ScenarioError as error:      # a scenario that needs the robots extra, only
+            if ROBOTS_EXTRA not in str(error):
+                raise
             continue
         for robot in s.robots:
             arm = Arm(robot, s.task)
