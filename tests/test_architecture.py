@@ -31,6 +31,7 @@ LAYERS = [
     ("identification", "results"),
     ("studies",),
     ("stability",),
+    ("robot",),
     ("cli", "__main__"),
 ]
 LAYER_OF = {group: i for i, groups in enumerate(LAYERS) for group in groups}

@@ -61,6 +61,22 @@ def test_tutorial_05_runs_the_control_on_a_users_own_plant():
     assert "MomentumObserver inputs: ['q', 'qdot_hat', 'tau', 'reference']" in text
 
 
+def _have_robots() -> bool:
+    from drake_coop.control.arm_model import description_packages
+
+    return "example-robot-data" in description_packages()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not _have_robots(),
+                    reason='example-robot-data is not installed (pip install -e ".[robots]")')
+def test_tutorial_06_runs_two_pandas_from_example_robot_data():
+    text = _run("06_your_lab_arms.ipynb")
+    assert "7 joints, 7 actuators; pad: True  F/T sensor weld: True" in text
+    assert "scenario valid" in text and "free: rho = 0.88" in text and "(stable)" in text
+    assert "completed 14 s" in text and text.count(" circle: |x - x_d|") == 2
+
+
 @pytest.mark.parametrize("name", sorted(p.name for p in TUTORIALS.glob("*.ipynb")))
 def test_tutorial_is_stored_with_its_outputs_and_says_what_it_shows_and_how_long(name):
     nb = nbformat.read(TUTORIALS / name, as_version=4)

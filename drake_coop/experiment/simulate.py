@@ -33,8 +33,8 @@ from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
 from drake_coop.experiment.references import (
     cartesian_reference,
-    joint_reference,
     reference_trajectory,
+    start_posture,
 )
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.scenario.loading import dump_scenario
@@ -44,7 +44,7 @@ from drake_coop.sensing.encoders import Encoders
 
 #: Logged signals latched at a tick by its own updates (the torque, the force of the step
 #: taken): a logger publishing at ``t_{k+1}`` holds the value of tick ``k``.
-LATCHED_SIGNALS = ("tau", "tau_cmd", "F_meas", "lambda_meas")
+LATCHED_SIGNALS = ("tau", "tau_cmd", "F_meas", "lambda_meas", "tau_ff", "f_load")
 
 
 @dataclass
@@ -80,8 +80,7 @@ def initialize(exp: Experiment, context) -> None:
 def rest_posture(scenario: Scenario, arms: list) -> tuple[list[np.ndarray], float]:
     """The run's start: each arm's ``q_d(0)`` (one posture per robot) and the height of the
     object's sliders at the grasp (``circle_top_z − lift_height``)."""
-    q0 = [np.asarray(joint_reference(arm, *cartesian_reference(scenario.task, robot, [0.0]))[0])
-          .reshape(-1) for arm, robot in zip(arms, scenario.robots)]
+    q0 = [start_posture(arm, scenario.task) for arm in arms]
     return q0, scenario.task.circle_top_z - scenario.task.lift_height
 
 
@@ -242,6 +241,11 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
             "lambda_sensor": forces(data["lambda_sensor"]) if "lambda_sensor" in data
             else None,
             "tau_cmd": data.get("tau_cmd"),
+            # object_model known / estimated: the load feedforward, the arm's load, its
+            # mass share (the estimate available at the tick when estimated)
+            "tau_ff": data.get("tau_ff"),
+            "f_load": data.get("f_load"),
+            "mass_share": data["mass_share"][:, 0].copy() if "mass_share" in data else None,
         }
         logs[rs.name].update({k: v for k, v in optional.items() if v is not None})
     return logs

@@ -19,6 +19,10 @@ from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains  # 
 from drake_coop.scenario.bounds import one_line
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
+#: What the controllers know of the held object (``object_model.mode``).
+OBJECT_MODEL_MODES = ("none", "known", "estimated")
+#: Where the desired squeeze comes from (``object_model.squeeze``).
+SQUEEZE_SOURCES = ("profile", "friction")
 #: The shipped arm models (``urdf/<file>``); a robot's ``model`` may also be a ``.urdf`` path.
 SHIPPED_ARMS = {"crs_a465": "crs_a465_3dof.urdf", "crs_a255": "crs_a255_3dof.urdf",
                 "coop6": "coop6_6dof.urdf"}
@@ -171,6 +175,92 @@ class ModelError:
     coulomb_friction: list[float] = field(default_factory=list)
 
 
+#: The LCM drivers ``drake-coop serve`` and ``sim-driver`` speak (:class:`Driver`).
+DRIVER_KINDS = ("panda",)
+#: What a driver is sent when the watchdog trips or the controller stops (:class:`Driver`).
+SAFE_COMMANDS = ("zero_torque", "hold")
+
+
+@dataclass
+class Driver:
+    """The arm's LCM driver, for ``drake-coop serve`` and ``drake-coop sim-driver``
+    (:mod:`drake_coop.robot`); unused by simulated runs. Null (the default): a Panda driver
+    with the defaults below.
+
+    Attributes
+    ----------
+    kind : str
+        The driver's messages: ``panda`` (``lcmt_panda_status`` / ``lcmt_panda_command``,
+        torque mode, as drake-franka-driver speaks them).
+    status_channel, command_channel : str
+        LCM channels; empty: ``PANDA_STATUS_<name>`` and ``PANDA_COMMAND_<name>``. Every
+        channel of a scenario is distinct.
+    num_joints : int or None
+        The driver's joint count; it must equal the arm's ``n_i``. Null: the arm's.
+    rate_hz : float
+        The driver's cycle (status published and command applied every ``1/rate_hz`` s; the
+        Panda's is 1 kHz); ``control_period`` must be a whole number of cycles.
+    torque_limits : list[float] or None
+        Per-joint limits of the commanded torque (N·m, > 0), applied by the controller before
+        sending (and by the simulated driver); null: ``actuators.torque_limits``, else none.
+    max_status_age : float
+        The controller's watchdog trips when the newest status is older than this (s).
+    command_timeout : float
+        The (simulated) driver applies zero torque when the newest command is older (s).
+    safe_command : str
+        What the controller sends when its watchdog trips or it stops: ``zero_torque`` or
+        ``hold`` (the controller model's gravity torque at the last good position).
+    """
+
+    kind: str = "panda"
+    status_channel: str = ""
+    command_channel: str = ""
+    num_joints: Optional[int] = None
+    rate_hz: float = 1000.0
+    torque_limits: Optional[list[float]] = None
+    max_status_age: float = 0.05
+    command_timeout: float = 0.05
+    safe_command: str = "zero_torque"
+
+
+@dataclass
+class Tool:
+    """The tool mounted on an arm from a description package: a wrist F/T sensor and a
+    spherical pad (:mod:`drake_coop.scenario.description`).
+
+    The arm's URDF gets two links and two fixed joints: ``force_sensor`` welded to ``flange``
+    by ``flange_sensor_weld`` at ``sensor_xyz`` / ``sensor_rpy_deg`` (the F/T sensor frame, in
+    the flange frame), and ``pad`` (a sphere of ``pad_radius``, compliant-hydroelastic like the
+    shipped arms' pads) welded to the sensor by ``sensor_pad_weld`` at ``pad_xyz`` (in the sensor
+    frame). The pad's centre is the end-effector point (``ee_frame: pad``); the ground-truth
+    wrist sensor weighs the sensor and the pad (``sensor_joint: flange_sensor_weld``).
+
+    Attributes
+    ----------
+    flange : str
+        The link the sensor is mounted on (a Panda's ``panda_hand``, a UR5's ``tool0``).
+    sensor_xyz : list[float]
+        Origin of the sensor frame in the flange frame (m).
+    sensor_rpy_deg : list[float]
+        Orientation of the sensor frame in the flange frame (roll, pitch, yaw, degrees).
+    pad_xyz : list[float]
+        Centre of the pad in the sensor frame (m).
+    pad_radius : float
+        Radius of the spherical pad (m).
+    sensor_mass, pad_mass : float
+        Masses of the sensor (a solid cylinder of radius 0.035 m, 0.03 m long) and of the pad
+        (a solid sphere) (kg).
+    """
+
+    flange: str = ""
+    sensor_xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    sensor_rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    pad_xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.045])
+    pad_radius: float = 0.015
+    sensor_mass: float = 0.2
+    pad_mass: float = 0.02
+
+
 @dataclass
 class Robot:
     """One arm ("finger") of the cooperative system.
@@ -180,8 +270,10 @@ class Robot:
     name : str
         Model-instance and subsystem prefix (``robot1``, ``robot2``).
     model : str
-        A shipped arm (``crs_a465``, ``crs_a255``: 3 joints; ``coop6``: 6 joints) or the path
-        of a ``.urdf`` file (absolute, beside the scenario file, or in ``urdf/``).
+        A shipped arm (``crs_a465``, ``crs_a255``: 3 joints; ``coop6``: 6 joints), the path
+        of a ``.urdf`` file (absolute, beside the scenario file, or in ``urdf/``), or a
+        ``package://`` URL, e.g. ``package://example-robot-data/robots/panda_description/urdf/
+        panda.urdf`` (the ``robots`` extra; see :mod:`drake_coop.scenario.description`).
     controller_model : str
         URDF file (relative to ``urdf/`` or absolute) of the controller's own model of the arm;
         empty means the same URDF as the simulated arm (exact model knowledge).
@@ -238,6 +330,22 @@ class Robot:
         The controller's model error, payload and joint friction of the simulated arm.
     timing : Timing
         Computation delay and sampling jitter of the robot's controller.
+    locked_joints : dict[str, float]
+        Joints of the model held fixed at the given position (rad or m), e.g. a Panda's two
+        finger joints: each becomes a fixed joint of the arm's URDF
+        (:mod:`drake_coop.scenario.description`). Empty: none.
+    tool : Tool or None
+        The F/T sensor and pad mounted on ``tool.flange`` (an arm from a description package
+        has neither); null: the model has its own ``sensor_joint`` and ``ee_frame``.
+    q_nominal : list[float] or None
+        Redundant arms (more joints than task coordinates): the posture ``q_nom`` the reference's
+        null-space objective pulls towards (:meth:`~drake_coop.kinematics.drake_arm.
+        DrakeArmKinematics.redundant_reference`); null: the middle of the joint limits.
+    nullspace_gain : float
+        Redundant arms: the gain ``K_n`` (1/s) of that objective.
+    driver : Driver or None
+        The arm's LCM driver (``drake-coop serve`` / ``sim-driver`` only); null: a Panda
+        driver with :class:`Driver`'s defaults.
     """
 
     name: str = "robot1"
@@ -263,6 +371,11 @@ class Robot:
     actuators: Actuators = field(default_factory=Actuators)
     model_error: ModelError = field(default_factory=ModelError)
     timing: Timing = field(default_factory=Timing)
+    locked_joints: dict[str, float] = field(default_factory=dict)
+    tool: Optional[Tool] = None
+    q_nominal: Optional[list[float]] = None
+    nullspace_gain: float = 1.0
+    driver: Optional[Driver] = None
 
 
 @dataclass
@@ -359,6 +472,56 @@ class Guards:
 
 
 @dataclass
+class ObjectModelSettings:
+    """What the controllers know of the held object (:mod:`drake_coop.control.object`).
+
+    Attributes
+    ----------
+    mode : str
+        ``none`` (the paper's control: no object model, the default), ``known`` (each arm's
+        feedforward uses the true object) or ``estimated`` (each arm estimates its share of
+        the mass online, from ``prior_mass_factor`` times its true share).
+    mass : float, optional
+        The object's mass the controllers are given in ``known`` mode (kg); default the
+        plant's ``object_mass`` (the truth).
+    prior_mass_factor : float
+        ``estimated``: the prior is this times the true mass (1.5: +50 %).
+    prior_std_factor : float
+        ``estimated``: the prior's standard deviation as a fraction of the prior.
+    forgetting : float
+        ``estimated``: the RLS forgetting factor ``ρ`` (per tick).
+    squeeze : str
+        ``profile`` (the task's force profile (29)) or ``friction`` (the least squeeze that
+        holds the object in the friction cone along the desired path, times ``margin``).
+    mu : float, optional
+        The friction coefficient the controllers assume (default ``plant.friction``).
+    margin : float
+        ``friction``: the squeeze's safety factor (>= 1).
+    squeeze_min : float
+        ``friction``: the least squeeze (N) whatever the load.
+    contact_stiffness : float, optional
+        ``a`` of the contact's law ``λ = a δᵖ`` (N/mᵖ) for the compliant-contact reference
+        offset; default (None): derived from the plant with an object model (``contact`` mode:
+        ``π E_pad`` of a hydroelastic sphere on a rigid face, 1.57e7 N/m² for the shipped
+        pads; rigid otherwise); 0: none.
+    contact_exponent : float
+        ``p`` of that law (2 for a hydroelastic sphere, 1 for a linear spring).
+    """
+
+    mode: str = "none"
+    mass: Optional[float] = None
+    prior_mass_factor: float = 1.5
+    prior_std_factor: float = 0.5
+    forgetting: float = 0.995
+    squeeze: str = "profile"
+    mu: Optional[float] = None
+    margin: float = 1.5
+    squeeze_min: float = 2.0
+    contact_stiffness: Optional[float] = None
+    contact_exponent: float = 2.0
+
+
+@dataclass
 class Scenario:
     """A complete experiment.
 
@@ -371,6 +534,8 @@ class Scenario:
         ``l >= 2`` robots (the paper: robot 1 on the left, normal −x; robot 2 on the right).
     task : Task
     guards : Guards
+    object_model : ObjectModelSettings
+        What the controllers know of the held object (default: nothing, the paper's).
     """
 
     control_period: float = 0.009
@@ -378,6 +543,7 @@ class Scenario:
     robots: list[Robot] = field(default_factory=list)
     task: Task = field(default_factory=Task)
     guards: Guards = field(default_factory=Guards)
+    object_model: ObjectModelSettings = field(default_factory=ObjectModelSettings)
 
 
 # --------------------------------------------------------------------------- timing

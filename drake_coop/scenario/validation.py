@@ -9,9 +9,13 @@ kinematics late, so that this package imports nothing outside it at import time)
 from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
+    DRIVER_KINDS,
+    SAFE_COMMANDS,
     FORCE_SOURCES,
     JITTER_DISTRIBUTIONS,
+    OBJECT_MODEL_MODES,
     OBJECT_MODES,
+    SQUEEZE_SOURCES,
     VELOCITY_SOURCES,
     Robot,
     Scenario,
@@ -63,6 +67,19 @@ BOUNDS: dict[str, Bound] = {
     "robots[].timing.computation_delay": Bound(0.0, 0.1, "s"),
     "robots[].timing.jitter_scale": Bound(0.0, 0.1, "s"),
     "robots[].timing.seed": Bound(0, 2**63 - 1),
+    "robots[].tool.sensor_xyz[]": Bound(-1.0, 1.0, "m"),
+    "robots[].tool.sensor_rpy_deg[]": Bound(-360.0, 360.0, "deg"),
+    "robots[].tool.pad_xyz[]": Bound(-1.0, 1.0, "m"),
+    "robots[].tool.pad_radius": Bound(0.001, 0.1, "m"),
+    "robots[].tool.sensor_mass": Bound(0.0, 10.0, "kg", **_POS),
+    "robots[].tool.pad_mass": Bound(0.0, 10.0, "kg", **_POS),
+    "robots[].q_nominal[]": Bound(-10.0, 10.0, "rad"),
+    "robots[].nullspace_gain": Bound(0.0, 100.0, "1/s", **_POS),
+    "robots[].driver.num_joints": Bound(1, 64, "joints"),
+    "robots[].driver.rate_hz": Bound(1.0, 1e5, "Hz"),
+    "robots[].driver.torque_limits[]": Bound(0.0, 1e4, "N·m", **_POS),
+    "robots[].driver.max_status_age": Bound(0.0, 10.0, "s", **_POS),
+    "robots[].driver.command_timeout": Bound(0.0, 10.0, "s", **_POS),
     **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
         "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
@@ -73,6 +90,15 @@ BOUNDS: dict[str, Bound] = {
     "task.force_mean": Bound(0.0, 1e3, "N"),
     "task.force_amplitude": Bound(0.0, 1e3, "N"),
     "task.force_omega": Bound(0.0, 100.0, "rad/s"),
+    "object_model.mass": Bound(0.0, 100.0, "kg", **_POS),
+    "object_model.prior_mass_factor": Bound(0.0, 10.0, "", **_POS),
+    "object_model.prior_std_factor": Bound(0.0, 10.0, "", **_POS),
+    "object_model.forgetting": Bound(0.5, 1.0, "", **_POS),
+    "object_model.mu": Bound(0.0, 5.0, "", **_POS),
+    "object_model.margin": Bound(1.0, 10.0, ""),
+    "object_model.squeeze_min": Bound(0.0, 1e3, "N"),
+    "object_model.contact_stiffness": Bound(0.0, 1e12, "N/m^p"),
+    "object_model.contact_exponent": Bound(1.0, 3.0, ""),
     "guards.max_force": Bound(0.0, 1e5, "N", **_POS),
     "guards.joint_limit_margin_deg": Bound(0.0, 180.0, "deg"),
     "guards.check_period": Bound(0.0, 100.0, "s", **_POS),
@@ -83,6 +109,8 @@ BOUNDS: dict[str, Bound] = {
 LENGTHS: dict[str, int] = {"robots[].base_xyz": 3, "robots[].home": 3,
                            "robots[].contact_xy": 2, "robots[].normals[]": 3,
                            "robots[].ee_rpy_deg": 3, "task.circle_axes": 2,
+                           "robots[].tool.sensor_xyz": 3, "robots[].tool.sensor_rpy_deg": 3,
+                           "robots[].tool.pad_xyz": 3,
                            "task.circle_axes[]": 3}
 #: At most this many robots in one scenario (as many as a run folder holds, results.logs).
 MAX_ROBOTS = 8
@@ -133,6 +161,15 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
             f"control_period ({scenario.control_period}) must be an integer multiple of "
             f"plant.time_step ({p.time_step}); e.g. 0.001, 0.003, 0.0045 or 0.009 for h = 0.009")
     _choice(p.object_mode, OBJECT_MODES, "plant.object_mode")
+    _choice(scenario.object_model.mode, OBJECT_MODEL_MODES, "object_model.mode")
+    _choice(scenario.object_model.squeeze, SQUEEZE_SOURCES, "object_model.squeeze")
+    if scenario.object_model.mode != "none" and p.object_mode not in ("rigid", "contact"):
+        raise ScenarioError(f"object_model.mode: {scenario.object_model.mode} needs a held "
+                            f"object (plant.object_mode rigid or contact), got "
+                            f"{show(p.object_mode)}")
+    if scenario.object_model.squeeze == "friction" and scenario.object_model.mode == "none":
+        raise ScenarioError("object_model.squeeze: friction needs object_model.mode known or "
+                            "estimated (the controllers must know the object's load)")
 
     names = [r.name for r in scenario.robots]
     for i, r in enumerate(scenario.robots):
@@ -149,10 +186,12 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
             if not (isinstance(value, str) and 0 < len(value) <= 100):
                 raise ScenarioError(f"{where}.{key} must be a name of 1 to 100 characters, "
                                     f"got {show(value)}")
+        _validate_description(r, where)
         _validate_sensing(r, where, scenario.control_period)
     if len(set(names)) != len(names):
         raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
     _validate_two_sided(scenario)
+    _validate_drivers(scenario)
 
     t = scenario.task
     times = ["t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end"]
@@ -179,6 +218,7 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
 
     for i, (robot, n) in enumerate(zip(scenario.robots, check_models(scenario))):
         check_dimensions(robot, n, f"robots[{i}]")
+        _validate_driver_joints(robot, n, f"robots[{i}]")
     check_axes(scenario)
     if cache is None:
         check_reachable(scenario)
@@ -194,6 +234,53 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
         raise ScenarioError(cache[key])
 
 
+def driver_channels(robot: Robot) -> tuple[str, str]:
+    """``(status, command)`` channels of a robot's driver (the defaults for an empty name)."""
+    d = robot.driver
+    status = d.status_channel if d is not None and d.status_channel else f"PANDA_STATUS_{robot.name}"
+    command = (d.command_channel if d is not None and d.command_channel
+               else f"PANDA_COMMAND_{robot.name}")
+    return status, command
+
+
+def _validate_drivers(scenario: Scenario) -> None:
+    """Each robot's ``driver``: its kind, safe command, rate against ``control_period`` and
+    channels (non-empty names, all distinct in the scenario)."""
+    seen: dict[str, str] = {}
+    for i, r in enumerate(scenario.robots):
+        where = f"robots[{i}].driver"
+        d = r.driver
+        if d is not None:
+            _choice(d.kind, DRIVER_KINDS, f"{where}.kind")
+            _choice(d.safe_command, SAFE_COMMANDS, f"{where}.safe_command")
+            if not _is_multiple(scenario.control_period, 1.0 / d.rate_hz):
+                raise ScenarioError(f"{where}.rate_hz ({d.rate_hz}) must make control_period "
+                                    f"({scenario.control_period}) a whole number of cycles")
+            for key in ("status_channel", "command_channel"):
+                value = getattr(d, key)
+                if not isinstance(value, str) or len(value) > 100 or not value.isprintable():
+                    raise ScenarioError(f"{where}.{key} must be a channel name of at most "
+                                        f"100 printable characters, got {show(value)}")
+        for key, channel in zip(("status_channel", "command_channel"), driver_channels(r)):
+            if channel in seen:
+                raise ScenarioError(f"{where}.{key} {show(channel)} is already used by "
+                                    f"{seen[channel]}: every driver channel must be distinct")
+            seen[channel] = f"{where}.{key}"
+
+
+def _validate_driver_joints(robot: Robot, n: int, where: str) -> None:
+    """The driver's joint count and torque limits against the arm's ``n``."""
+    d = robot.driver
+    if d is None:
+        return
+    if d.num_joints is not None and d.num_joints != n:
+        raise ScenarioError(f"{where}.driver.num_joints is {d.num_joints} but the arm "
+                            f"{show(robot.model)} has {n} joints")
+    if d.torque_limits is not None and len(d.torque_limits) != n:
+        raise ScenarioError(f"{where}.driver.torque_limits must list {n} limits (one per "
+                            f"joint), got {len(d.torque_limits)}")
+
+
 def reach_inputs(scenario: Scenario) -> str:
     """Everything the reachability check reads, as text: the task and each robot's model,
     frames, base pose, contact point, normals, orientation reference, IK seed and home
@@ -202,7 +289,8 @@ def reach_inputs(scenario: Scenario) -> str:
 
     return repr((dataclasses.asdict(scenario.task), [
         (r.name, r.model, r.controller_model, r.base_frame, r.ee_frame, r.base_xyz,
-         r.base_yaw_deg, r.contact_xy, r.normals, r.ee_rpy_deg, r.q_seed, r.home)
+         r.base_yaw_deg, r.contact_xy, r.normals, r.ee_rpy_deg, r.q_seed, r.home,
+         sorted(r.locked_joints.items()), r.tool, r.q_nominal, r.nullspace_gain)
         for r in scenario.robots]))
 
 
@@ -219,9 +307,25 @@ def _validate_two_sided(scenario: Scenario) -> None:
         raise ScenarioError(f"plant.object_mode {mode} holds one object between exactly 2 "
                             "robots with normals [-1, 0, 0] and [1, 0, 0]; use planes for "
                             "other grasps")
-    if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") for r in robots):
+    if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") and r.tool is None
+                                 for r in robots):
         raise ScenarioError("plant.object_mode contact needs the shipped arms crs_a465 / "
-                            "crs_a255 (their pads)")
+                            "crs_a255 or arms with a tool (their spherical pads)")
+
+
+def _validate_description(robot: Robot, where: str) -> None:
+    """The fields of an arm from a description package (:mod:`drake_coop.scenario.description`):
+    locked joints' positions finite, a tool's flange named; the model file checks the names."""
+    import math
+
+    for name, value in robot.locked_joints.items():
+        if not (isinstance(value, (int, float)) and math.isfinite(value)):
+            raise ScenarioError(f"{where}.locked_joints[{name}] must be a finite position, "
+                                f"got {show(value)}")
+    if robot.tool is not None and not (isinstance(robot.tool.flange, str)
+                                       and 0 < len(robot.tool.flange) <= 100):
+        raise ScenarioError(f"{where}.tool.flange must name the link the tool is mounted on "
+                            f"(1 to 100 characters), got {show(robot.tool.flange)}")
 
 
 # --------------------------------------------------------------------------- sensing

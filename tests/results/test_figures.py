@@ -178,3 +178,19 @@ def test_fig6_and_fig7_name_the_figure_and_the_robot_of_each_panel(tmp_path):
         for joint in (1, 2, 3):
             # Panel title and y label: z_{i,j} with the robot's index i.
             assert fig6.count(f"z{robot},{joint}") == 2, (robot, joint)
+
+
+def test_object_mass_figure_only_with_mass_shares_and_its_sum_line(tmp_path):
+    logs, meta = synthetic_run(h=0.03)
+    assert not any(p.stem == "fig_object_mass" for p in plot_figures(logs, meta, tmp_path / "a",
+                                                                      formats=("png",)))
+    for k, log in enumerate(logs.values()):
+        log["mass_share"] = np.full(log["t"].shape, 0.2 + 0.1 * k)
+    fig = __import__("drake_coop.results.figures", fromlist=["_object_mass"])._object_mass(
+        logs, meta)
+    lines = fig.axes[0].get_lines()
+    sums = [ln for ln in lines if ln.get_label().startswith(r"$\sum")]
+    expected = sum(0.2 + 0.1 * k for k in range(len(logs)))
+    assert len(sums) == 1 and np.allclose(sums[0].get_ydata(), expected)
+    paths = plot_figures(logs, meta, tmp_path / "b", formats=("png",))
+    check_png(next(p for p in paths if p.stem == "fig_object_mass"))
