@@ -41,7 +41,7 @@ def add_robot_parsers(sub) -> None:
                        help="the loop's delay margin (default: computed by the stability map)")
     serve.add_argument("--status-wait", type=float, default=STATUS_WAIT,
                        help=f"wait for the first status (s, default {STATUS_WAIT:g})")
-    serve.add_argument("--quiet", action="store_true")
+    serve.add_argument("--quiet", action="store_true", help="no progress messages")
     serve.set_defaults(func=cmd_serve)
     drv = sub.add_parser("sim-driver", help="the scenario's simulated arms behind their "
                                             "drivers' LCM messages, at real time")
@@ -50,7 +50,7 @@ def add_robot_parsers(sub) -> None:
     drv.add_argument("--t-end", type=float, default=None, help="stop earlier (s)")
     drv.add_argument("--command-wait", type=float, default=60.0,
                      help="wait for the first command (s, default 60)")
-    drv.add_argument("--quiet", action="store_true")
+    drv.add_argument("--quiet", action="store_true", help="no progress messages")
     drv.set_defaults(func=cmd_sim_driver)
 
 
