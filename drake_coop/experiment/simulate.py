@@ -37,6 +37,7 @@ from drake_coop.experiment.references import (
     reference_trajectory,
 )
 from drake_coop.plant.cooperative import initialize_plant_context
+from drake_coop.plant.grasp import pad_contact_components
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.timing import check_run_size, tick_of
@@ -244,7 +245,25 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
             "tau_cmd": data.get("tau_cmd"),
         }
         logs[rs.name].update({k: v for k, v in optional.items() if v is not None})
+        if "object_state" in data:              # contact mode: the box and this pad
+            pose = data["object_state"][:, :7].copy()
+            f_n, f_t, p_B = pad_contact_components(data["F_meas"], logs[rs.name]["x"], pose)
+            logs[rs.name].update({"object_pose": pose, "pad_normal_force": f_n,
+                                  "pad_tangential_force": f_t, "pad_in_object": p_B,
+                                  "pad_rotation": _pad_rotations(exp, i, data["q"])})
     return logs
+
+
+def _pad_rotations(exp: Experiment, i: int, q: np.ndarray) -> np.ndarray:
+    """``R_WE`` ``(K, 3, 3)`` of arm ``i``'s end-effector body (the pad) at the logged ``q``."""
+    plant = exp.coop.plant
+    handles = exp.coop.arms[i]
+    context = plant.CreateDefaultContext()
+    out = np.empty((q.shape[0], 3, 3))
+    for k, qk in enumerate(q):
+        plant.SetPositions(context, handles.instance, qk)
+        out[k] = plant.EvalBodyPoseInWorld(context, handles.ee_body).rotation().matrix()
+    return out
 
 
 def simulate(scenario: Scenario, *, t_end: float | None = None,
@@ -347,6 +366,9 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         "control_period": plan.h,
         "plant_time_step": scenario.plant.time_step,
         "object_mode": scenario.plant.object_mode,
+        "friction": scenario.plant.friction,
+        **({"object_size": [float(v) for v in exp.coop.grasp.size]}
+           if exp.coop.grasp is not None else {}),
         "t_end": t_stop,
         "wall_time_s": wall,
         "realtime_factor": t_stop / wall if wall > 0 else None,

@@ -279,12 +279,23 @@ class PlantSettings:
         Mass of the carried object in ``rigid`` and ``contact`` modes (kg).
     friction : float
         Coulomb friction coefficient between pads and box (``contact``).
+    stand_clearance : float
+        How far below the grasp height the box rests (``contact``, m): the stand's top is
+        lowered by it, so the box sits that much lower and the pads grip it that far above its
+        centre. 0 (the default) is the original geometry, where the circle's lowest point
+        (the grasp height) brings the carried box back onto its stand (a brush at 43–46 s);
+        ``scenarios/contact.yaml`` uses 5 mm (``scenarios/contact_brush.yaml``: 0).
+    pad_modulus : float or None
+        Hydroelastic modulus of both pads (``contact``, Pa); None (the default) keeps the arm
+        models' own (5 MPa in the shipped URDFs).
     """
 
     time_step: float = 0.001
     object_mode: str = "planes"
     object_mass: float = 0.5
     friction: float = 1.0
+    stand_clearance: float = 0.0
+    pad_modulus: Optional[float] = None
 
 
 @dataclass
