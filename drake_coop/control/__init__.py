@@ -5,7 +5,9 @@ diagram (see ``docs/api_usage.md``); the systems it holds — :class:`VelocityOb
 :class:`ForceObserver` (22), :class:`Controller` (13) and the alternative sources
 (:class:`MeasuredVelocity`, :class:`DifferenceVelocity`, :class:`SensedForce`,
 :class:`NoForceEstimate`, :class:`MomentumObserver`) — the law at one sample (:class:`FingerLaw`), the controller's arm model
-(:class:`ArmModel`), the reference layout (:class:`ReferenceLayout`, :class:`Reference`) and the
+(:class:`ArmModel`), the object-aware blocks (:class:`ObjectModel`, :class:`LoadFeedforward`,
+:class:`MassEstimator`, :class:`ContactStiffness`, :func:`squeeze_for_grasp`,
+:func:`load_distribution`, :func:`mass_shares`), the reference layout (:class:`ReferenceLayout`, :class:`Reference`) and the
 gains (:class:`Gains`).
 
 Modules: the parameters (params), the time grid (timing), the model (arm_model), Property 1
@@ -39,11 +41,25 @@ _EXPORTS = {
     "FORCE_SOURCES": "params",
     "VELOCITY_SOURCES": "params",
     "Gains": "params",
+    "ContactStiffness": "object",
+    "LoadFeedforward": "object",
+    "MassEstimator": "object",
+    "ObjectModel": "object",
+    "load_distribution": "object",
+    "mass_shares": "object",
+    "squeeze_for_grasp": "object",
 }
 
 __all__ = [
     "AddCooperativeController",
     "ArmModel",
+    "ContactStiffness",
+    "LoadFeedforward",
+    "MassEstimator",
+    "ObjectModel",
+    "load_distribution",
+    "mass_shares",
+    "squeeze_for_grasp",
     "Controller",
     "ControllerHandles",
     "DifferenceVelocity",

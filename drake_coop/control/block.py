@@ -265,7 +265,8 @@ def AddCooperativeController(
         difference_cutoff_hz: float | None = None,
         q: OutputPort | None = None,
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
-        name: str | None = None, allow_sampled_output_ports: bool = False
+        name: str | None = None, allow_sampled_output_ports: bool = False,
+        contact_stiffness=None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -297,7 +298,23 @@ def AddCooperativeController(
         The object's outward normals at the contact (``m = 1..3`` independent rows):
         ``φ(q) = N (x(q) − c)``; ``λ > 0`` pushes the end effector outwards (a squeeze).
     contact_point : array_like, shape (3,)
-        ``c`` of (2), in the world frame.
+        ``c`` of (2), in the world frame: where the end-effector point ``x(q)`` is when the
+        contact *just touches* (zero force). On a rigid surface ``φ = 0`` holds under any
+        squeeze. On a compliant one, the contact carries ``λ`` only once pressed in by its
+        compression ``δ(λ)``: with ``c`` on the undeformed surface and no
+        ``contact_stiffness``, the term ``−β Δp`` of (4) pulls the end effector back out of
+        that compression and the squeeze lags ``λ_d`` (the shipped ``contact`` pads, 1.4 mm at
+        32 N: 3.1 N RMS behind); a point placed 1 mm inside instead makes the arm push to a
+        fixed depth whatever ``λ_d`` asks. Keep ``c`` on the undeformed surface and pass
+        ``contact_stiffness``.
+    contact_stiffness : ContactStiffness, optional
+        The compliant contact's law ``λ = a δᵖ``
+        (:class:`~drake_coop.control.object.ContactStiffness`): the law then holds
+        ``Δp = φ(q) + δ(λ_d)`` at zero (the reference offset ``p_d = −δ(λ_d)`` of (4)), so the
+        pad sits where the contact carries ``λ_d``. ``λ̂`` still estimates the normal force
+        through the arm's dynamics (22); on a compliant contact it is the force of the pad's
+        pressure patch along the normal, not a position-derived quantity. Default None: the
+        paper's ``p_d = 0`` (rigid surface).
     velocity_source : {"observer", "measured", "difference"}
         The paper's observer (default) or a comparison baseline
         (:mod:`drake_coop.control.sources`); ``measured`` reads the plant's velocities.
@@ -397,7 +414,7 @@ def AddCooperativeController(
                          "connect_actuation=False")
     if q is not None and q.size() != n:
         raise ValueError(f"q: an output port of size {n} is required (got {q.size()})")
-    law = FingerLaw(model, gains)
+    law = FingerLaw(model, gains, contact_stiffness)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
                                                   force_source, difference_cutoff_hz)
     builder.AddSystem(block)

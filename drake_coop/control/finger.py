@@ -132,6 +132,15 @@ class FingerLaw:
     gains : Gains
         ``Λ = k I``, ``K_R``, ``k_d``, ``k_F``, ``ξ`` (m×m, or ``ξ I``), ``ζ``, ``β``,
         checked by :func:`check_gains` against the model's ``n`` and ``m``.
+    contact_stiffness : ContactStiffness, optional
+        A compliant contact's stiffness model (:class:`~drake_coop.control.object.ContactStiffness`):
+        the constrained position's reference becomes ``p_d = −δ(λ_d)``, the compression the
+        contact takes at the desired squeeze, so (4) reads ``Δp = φ(q) + δ(λ_d)`` (``ṗ_d`` is
+        not fed forward: ``λ_d`` is slow); and the force integral ``ξ ΔF̃`` of (4) gets the
+        gain ``ξ_c = β c(λ_d)/T_i`` on top of ``ξ`` (``c = dδ/dλ`` the model's compliance at
+        ``max(λ_d, 1 N)``, ``T_i`` its ``integral_time``), which integrates the stiffness
+        model's own error out in about ``T_i``. Default None: ``p_d = 0``, the paper's law,
+        the same doubles.
 
     Raises
     ------
@@ -139,8 +148,14 @@ class FingerLaw:
         A gain of the wrong shape or sign, naming it (``K_R``, ``xi_matrix``, ...).
     """
 
-    def __init__(self, model: ArmModel, gains: Gains):
+    def __init__(self, model: ArmModel, gains: Gains, contact_stiffness=None):
         check_gains(gains, model.n, model.m)
+        if contact_stiffness is not None and not callable(
+                getattr(contact_stiffness, "compression", None)):
+            raise TypeError("contact_stiffness: a ContactStiffness (with compression(λ)) or "
+                            f"None is required, got {type(contact_stiffness).__name__}")
+        #: The compliant contact's model (None: rigid, ``p_d = 0``).
+        self.contact_stiffness = contact_stiffness
         self.model = model
         self.n = model.n
         self.m = model.m
@@ -193,12 +208,27 @@ class FingerLaw:
         J_pinv, Q = orthogonal.projections(J_phi)
         return Constraint(J_phi, J_pinv, Q, self.model.phi(q))
 
+    def _offset(self, c: Constraint, ref: Reference) -> Constraint:
+        """``Δp = φ(q) − p_d`` with ``p_d = −δ(λ_d)`` on a compliant contact (else ``c``)."""
+        if self.contact_stiffness is None:
+            return c
+        return Constraint(c.J_phi, c.J_pinv, c.Q,
+                          c.Delta_p + self.contact_stiffness.compression(ref.lambda_d))
+
+    def xi_at(self, ref: Reference):
+        """``ξ`` of (4) at a sample: the gains' ``ξ``, plus ``ξ_c = β c(λ_d)/T_i`` on a
+        compliant contact (see ``contact_stiffness``)."""
+        if self.contact_stiffness is None:
+            return self.xi
+        xi_c = self.beta * self.contact_stiffness.integral_gain(float(np.max(ref.lambda_d)))
+        return self.xi + (xi_c if np.ndim(self.xi) == 0 else xi_c * np.eye(self.m))
+
     def reference_velocity(self, c: Constraint, q_hat: np.ndarray, ref: Reference,
                            Delta_F_tilde: np.ndarray) -> np.ndarray:
         """``q̇_r`` of (4)."""
         return orthogonal.reference_velocity(
             c.Q, c.J_pinv, q_hat=q_hat, q_d=ref.q_d, qdot_d=ref.qdot_d, Lambda=self.Lambda,
-            Delta_p=c.Delta_p, beta=self.beta, xi=self.xi, Delta_F_tilde=Delta_F_tilde)
+            Delta_p=c.Delta_p, beta=self.beta, xi=self.xi_at(ref), Delta_F_tilde=Delta_F_tilde)
 
     # ------------------------------------------------------------------ m = 1 on plain floats
     def _held_m1(self, q: np.ndarray, q_hat: np.ndarray, ref: Reference, DF: float
@@ -210,8 +240,12 @@ class FingerLaw:
         part ``−β φ + ξ ΔF̃``, the motion part ``q̇_d − Λ(q̂ − q_d)`` and ``q̇_r``.
         """
         phi, j = self.model.constraint_row(q)
+        xi = self.xi
+        if self.contact_stiffness is not None:
+            phi = phi + float(self.contact_stiffness.compression(ref.lambda_d)[0])
+            xi = self.xi_at(ref)
         nu = j[0] * j[0] + j[1] * j[1] + j[2] * j[2] if len(j) == 3 else sum(x * x for x in j)
-        f = -self.beta * phi + self.xi * DF
+        f = -self.beta * phi + xi * DF
         L = self.Lambda
         motion = [vd - L * (qh - qd) for vd, qh, qd in
                   zip(ref.qdot_d.tolist(), q_hat.tolist(), ref.q_d.tolist())]
@@ -244,7 +278,7 @@ class FingerLaw:
         jmd = sum(a * b for a, b in zip(j, motion_dot))
         jm = sum(a * b for a, b in zip(j, motion))
         jdm = sum(a * b for a, b in zip(jd, motion))
-        xi_dl = self.xi * dlt
+        xi_dl = (self.xi if self.contact_stiffness is None else self.xi_at(ref)) * dlt
         qddot_r = []
         for jk, jdk, md in zip(j, jd, motion_dot):
             jp, jpd = jk / nu, jdk / nu - jk * 2.0 * jdj / (nu * nu)
@@ -279,7 +313,7 @@ class FingerLaw:
             return self._zero_m
         if self.fast:
             return self._force_estimate_m1(q, q_hat, qdot_o, ref, Delta_F_tilde)
-        c = self.constraint(q, True)
+        c = self._offset(self.constraint(q, True), ref)
         qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)
         s = c.J_pinv.T @ self.K_R @ (qdot_o - qdot_r)
         return (s - self.k_F * Delta_F_tilde) / (1.0 + self.zeta) + ref.lambda_d
@@ -320,13 +354,13 @@ class FingerLaw:
             return self._control_m1(q, q_hat, qdot_hat, qdot_o, lambda_hat, Delta_F_tilde, ref)
         J_phi, J_phi_dot = self.model.J_phi_and_derivative(q, qdot_o)
         J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot)
-        c = self.constraint(q, True, J_phi)
+        c = self._offset(self.constraint(q, True, J_phi), ref)
         Delta_lambda_tilde = lambda_hat - ref.lambda_d
         qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)
         qddot_r_hat = orthogonal.reference_acceleration(
             c.Q, c.J_pinv, Q_dot, J_pinv_dot, q_hat=q_hat, qdot_hat=qdot_hat, q_d=ref.q_d,
             qdot_d=ref.qdot_d, qddot_d=ref.qddot_d, Lambda=self.Lambda, Delta_p=c.Delta_p,
-            beta=self.beta, xi=self.xi, Delta_F_tilde=Delta_F_tilde,
+            beta=self.beta, xi=self.xi_at(ref), Delta_F_tilde=Delta_F_tilde,
             Delta_lambda_tilde=Delta_lambda_tilde)
         force = ref.lambda_d - self.k_F * Delta_F_tilde - self.zeta * Delta_lambda_tilde
         tau = (self.model.inverse_dynamics_terms(q, qdot_r, qddot_r_hat)

@@ -65,6 +65,12 @@ from drake_coop.control.sources import (
     NoForceEstimate,
     SensedForce,
 )
+from drake_coop.experiment.object_blocks import (
+    ObjectBlocks,
+    add_object_blocks,
+    contact_stiffness,
+    object_enabled,
+)
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import (
     CoopPlant,
@@ -91,6 +97,10 @@ LOG_KEYS = ("q", "q_hat", "reference", "lambda_hat", "Delta_F_tilde", "tau", "ta
 #: The logged signals the offline ground truth computes after the run
 #: (:meth:`~drake_coop.plant.ground_truth.GroundTruthLog.evaluate`).
 GROUND_TRUTH_KEYS = ("F_meas", "lambda_meas", "lambda_sensor")
+#: The signals a robot logs besides :data:`LOG_KEYS` when the controllers have an object
+#: model (``object_model.mode`` known or estimated): the load feedforward ``τ_ff``, the
+#: arm's load ``f_i`` and its mass share ``m_i`` (the estimate when estimated).
+OBJECT_LOG_KEYS = ("tau_ff", "f_load", "mass_share")
 
 
 @dataclass
@@ -137,6 +147,7 @@ class RobotSystems:
     actuators: Saturation | None = None
     latency: ActuationDelay | None = None
     log: RobotLog | None = None
+    object_blocks: ObjectBlocks | None = None
 
 
 @dataclass
@@ -264,6 +275,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             difference_cutoff_hz=robot.difference_cutoff_hz,
             q=q_port,
             lambda_sensor=lambda_sensor, connect_actuation=False,
+            contact_stiffness=contact_stiffness(scenario, i),
             name=name)
         law, control = block.law, block.system
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller
@@ -271,6 +283,15 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                       else references[i])
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
         b.Connect(ref.get_output_port(), block.reference_input)
+        # The object-aware blocks (object_model: known / estimated): the load feedforward
+        # added to the controller's torque; none in the paper's diagram.
+        objects = None
+        tau_port = control.GetOutputPort("tau")
+        if object_enabled(scenario):
+            objects = add_object_blocks(b, scenario, i, name, model, h, q_port,
+                                        ref.get_output_port(), control,
+                                        np.asarray(trajectory.get_segment_times()))
+            tau_port = objects.tau
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
                                            robot.model_error.coulomb_friction, state)
@@ -280,15 +301,16 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         timing = robot.timing
         if timing.computation_delay > 0.0 or timing.jitter != "none":
             latency = b.AddNamedSystem(f"{name}_latency", ActuationDelay(n, h, dt, timing, i))
-            b.Connect(control.GetOutputPort("tau"), latency.get_tau_cmd_input_port())
+            b.Connect(tau_port, latency.get_tau_cmd_input_port())
             b.Connect(latency.get_tau_output_port(), actuators.get_input_port())
         else:
-            b.Connect(control.GetOutputPort("tau"), actuators.get_input_port())
+            b.Connect(tau_port, actuators.get_input_port())
         b.Connect(applied, plant.get_actuation_input_port(handles.instance))
         actuation.append(applied)
         rs = RobotSystems(name=name, law=law, control=control, velocity_observer=vel,
                           force_observer=force, controller=ctrl, force_sensor=sensors[i],
-                          encoders=encoder, ft_sensor=ft, actuators=actuators, latency=latency)
+                          encoders=encoder, ft_sensor=ft, actuators=actuators, latency=latency,
+                          object_blocks=objects)
         if log:
             sources = {
                 "q": q_port,
@@ -305,6 +327,10 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 "state": state,
             }
             assert tuple(sources) == LOG_KEYS
+            if objects is not None:
+                sources.update(zip(OBJECT_LOG_KEYS, (
+                    objects.feedforward.get_tau_ff_output_port(),
+                    objects.feedforward.get_f_load_output_port(), objects.mass_share)))
             if coop.grasp is not None:          # contact mode: the box's state too
                 sources["object_state"] = plant.get_state_output_port(
                     coop.grasp.box.model_instance())

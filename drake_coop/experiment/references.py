@@ -35,7 +35,7 @@ from drake_coop.scenario.task_path import (
 #: The task's paths are the scenario's; they are re-exported for the callers of this module.
 __all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", "quintic",
            "segments", "waypoints", "joint_reference", "reference_samples",
-           "reference_trajectory"]
+           "reference_trajectory", "compressed_path"]
 
 
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
@@ -72,10 +72,34 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     t = k * h
     x, xd, xdd = cartesian_reference(task, robot, t)
     arm = plan.arms[index]
-    q, qd, qdd = joint_reference(arm, x, xd, xdd)
     held = ((k >= plan.k_grasp) & (k < plan.k_release)).astype(float)
-    lam = force_reference(task, t)[:, None] * np.asarray(robot.force_weights, dtype=float)
+    profile = force_reference(task, t)
+    if scenario.object_model.mode != "none" and scenario.object_model.squeeze == "friction":
+        from drake_coop.experiment.object_blocks import friction_squeeze
+        profile = friction_squeeze(scenario, t)
+    lam = profile[:, None] * np.asarray(robot.force_weights, dtype=float)
+    from drake_coop.experiment.object_blocks import contact_stiffness
+    stiffness = contact_stiffness(scenario, index)
+    if stiffness is not None:
+        # A compliant contact: the pad is held where the contact carries λ_d, pressed in by
+        # δ(λ_d) along the inward normal, in the joint references too (else the tangent
+        # part of (4) sees the compression as a position error: the pad sags).
+        x, xd, xdd = compressed_path(stiffness, x, xd, xdd, lam[:, 0] * held, h,
+                                     -np.asarray(robot.normals[0], dtype=float))
+    q, qd, qdd = joint_reference(arm, x, xd, xdd)
     return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
+
+
+def compressed_path(stiffness, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
+                    lam: np.ndarray, h: float, inward: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The path pressed in by the contact's compression: ``x_d + δ(λ_d) n``, ``n`` the unit
+    inward normal, with ``δ̇``, ``δ̈`` by central differences on the tick grid ``h``."""
+    n = inward / np.linalg.norm(inward)
+    delta = stiffness.compression(lam)
+    d1 = np.gradient(delta, h) if delta.size > 1 else np.zeros_like(delta)
+    d2 = np.gradient(d1, h) if delta.size > 1 else np.zeros_like(delta)
+    return (x + delta[:, None] * n, xd + d1[:, None] * n, xdd + d2[:, None] * n)
 
 
 def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = None,

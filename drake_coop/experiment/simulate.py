@@ -45,7 +45,7 @@ from drake_coop.sensing.encoders import Encoders
 
 #: Logged signals latched at a tick by its own updates (the torque, the force of the step
 #: taken): a logger publishing at ``t_{k+1}`` holds the value of tick ``k``.
-LATCHED_SIGNALS = ("tau", "tau_cmd", "F_meas", "lambda_meas")
+LATCHED_SIGNALS = ("tau", "tau_cmd", "F_meas", "lambda_meas", "tau_ff", "f_load")
 
 
 @dataclass
@@ -243,6 +243,11 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
             "lambda_sensor": forces(data["lambda_sensor"]) if "lambda_sensor" in data
             else None,
             "tau_cmd": data.get("tau_cmd"),
+            # object_model known / estimated: the load feedforward, the arm's load, its
+            # mass share (the estimate available at the tick when estimated)
+            "tau_ff": data.get("tau_ff"),
+            "f_load": data.get("f_load"),
+            "mass_share": data["mass_share"][:, 0].copy() if "mass_share" in data else None,
         }
         logs[rs.name].update({k: v for k, v in optional.items() if v is not None})
         if "object_state" in data:              # contact mode: the box and this pad

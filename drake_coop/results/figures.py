@@ -14,6 +14,9 @@ file                         content (panels as in the paper; one row or panel p
 ``fig7_velocity_estimate``   Fig. 7 (ours): velocity-estimate errors q̇ − q̇̂ (mrad/s) per
                              joint, laid out as Fig. 6; only for logs holding ``qdot`` and
                              ``qdot_hat`` (runs with the sensing models)
+``fig_object_mass``          the object's mass as the controllers know it: each robot's share
+                             m̂_i and their sum (kg); only for logs holding ``mass_share``
+                             (``object_model`` known or estimated)
 ``fig_references``           the designed references: x_d, y_d, z_d of each robot, the path
                              (in the y–z plane for the paper, see :func:`path_plane`) and λ_d
 ===========================  ===================================================================
@@ -329,10 +332,31 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
                    "$\\dot q_{{#,{j}}} - \\hat{{\\dot q}}_{{#,{j}}}$ [{{unit}}]"),
             r"Fig. 7 — velocity-estimate errors $\dot q - \hat{\dot q}$ (robot, joint)",
             RATE_UNITS)
+    if all("mass_share" in logs[r] for r in meta["robots"]):
+        figures["fig_object_mass"] = _object_mass(logs, meta)
     paths = []
     for name, fig in figures.items():
         paths += _save(fig, out, name, formats)
     return paths
+
+
+def _object_mass(logs: dict[str, Log], meta: dict) -> Figure:
+    """Each robot's mass share ``m̂_i`` and their sum against time (the estimate's
+    convergence with ``object_model: estimated``)."""
+    fig, axes = _figure(1, 1, 3.0)
+    ax = axes[0, 0]
+    robots = meta["robots"]
+    total = None
+    for i, r in enumerate(robots):
+        log = logs[r]
+        ax.plot(log["t"], log["mass_share"], color=f"C{i}", lw=0.9, label=rf"$\hat m_{i + 1}$")
+        total = log["mass_share"] if total is None else total + log["mass_share"]
+    t = logs[robots[0]]["t"]
+    ax.plot(t, total, color="k", lw=1.0, label=r"$\sum_i \hat m_i$")
+    _phases(ax, meta, _t_end(logs[robots[0]]), label=True)
+    _style(ax, "", "mass [kg]", top=True)
+    ax.legend(fontsize=7, loc="best")
+    return _finish(fig, "The object's mass as the controllers know it (shares and sum)")
 
 
 #: Line styles of the robots in the shared panels of the reference figure (robot i: colour

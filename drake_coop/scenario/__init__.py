@@ -26,6 +26,7 @@ from drake_coop.scenario.schema import (
     Gains,
     Guards,
     ModelError,
+    ObjectModelSettings,
     PlantSettings,
     Robot,
     Scenario,
@@ -43,7 +44,7 @@ from drake_coop.scenario.validation import BOUNDS, LENGTHS, validate
 
 __all__ = [
     "ARM_MODELS", "FORCE_SOURCES", "OBJECT_MODES", "VELOCITY_SOURCES", "Actuators", "Encoders",
-    "ForceSensorModel", "Gains", "Guards", "ModelError", "PlantSettings", "Robot", "Scenario",
+    "ForceSensorModel", "Gains", "Guards", "ModelError", "ObjectModelSettings", "PlantSettings", "Robot", "Scenario",
     "ScenarioError", "Task", "default_scenario", "paper_robots", "MAX_PLANT_STEPS", "MAX_TICKS",
     "aligned_periods", "check_run_size", "run_size", "BOUNDS", "LENGTHS", "validate",
     "dump_scenario", "load_scenario",

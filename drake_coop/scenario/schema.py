@@ -19,6 +19,10 @@ from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains  # 
 from drake_coop.scenario.bounds import one_line
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
+#: What the controllers know of the held object (``object_model.mode``).
+OBJECT_MODEL_MODES = ("none", "known", "estimated")
+#: Where the desired squeeze comes from (``object_model.squeeze``).
+SQUEEZE_SOURCES = ("profile", "friction")
 #: The shipped arm models (``urdf/<file>``); a robot's ``model`` may also be a ``.urdf`` path.
 SHIPPED_ARMS = {"crs_a465": "crs_a465_3dof.urdf", "crs_a255": "crs_a255_3dof.urdf",
                 "coop6": "coop6_6dof.urdf"}
@@ -370,6 +374,56 @@ class Guards:
 
 
 @dataclass
+class ObjectModelSettings:
+    """What the controllers know of the held object (:mod:`drake_coop.control.object`).
+
+    Attributes
+    ----------
+    mode : str
+        ``none`` (the paper's control: no object model, the default), ``known`` (each arm's
+        feedforward uses the true object) or ``estimated`` (each arm estimates its share of
+        the mass online, from ``prior_mass_factor`` times its true share).
+    mass : float, optional
+        The object's mass the controllers are given in ``known`` mode (kg); default the
+        plant's ``object_mass`` (the truth).
+    prior_mass_factor : float
+        ``estimated``: the prior is this times the true mass (1.5: +50 %).
+    prior_std_factor : float
+        ``estimated``: the prior's standard deviation as a fraction of the prior.
+    forgetting : float
+        ``estimated``: the RLS forgetting factor ``ρ`` (per tick).
+    squeeze : str
+        ``profile`` (the task's force profile (29)) or ``friction`` (the least squeeze that
+        holds the object in the friction cone along the desired path, times ``margin``).
+    mu : float, optional
+        The friction coefficient the controllers assume (default ``plant.friction``).
+    margin : float
+        ``friction``: the squeeze's safety factor (>= 1).
+    squeeze_min : float
+        ``friction``: the least squeeze (N) whatever the load.
+    contact_stiffness : float, optional
+        ``a`` of the contact's law ``λ = a δᵖ`` (N/mᵖ) for the compliant-contact reference
+        offset; default (None): derived from the plant with an object model (``contact`` mode:
+        ``π E_pad`` of a hydroelastic sphere on a rigid face, 1.57e7 N/m² for the shipped
+        pads; rigid otherwise); 0: none.
+    contact_exponent : float
+        ``p`` of that law (2 for a hydroelastic sphere, 1 for a linear spring).
+    """
+
+    mode: str = "none"
+    mass: Optional[float] = None
+    prior_mass_factor: float = 1.5
+    prior_std_factor: float = 0.5
+    forgetting: float = 0.995
+    squeeze: str = "profile"
+    mu: Optional[float] = None
+    margin: float = 1.5
+    squeeze_min: float = 2.0
+    contact_stiffness: Optional[float] = None
+    contact_exponent: float = 2.0
+
+
+@dataclass
 class Scenario:
     """A complete experiment.
 
@@ -382,6 +436,8 @@ class Scenario:
         ``l >= 2`` robots (the paper: robot 1 on the left, normal −x; robot 2 on the right).
     task : Task
     guards : Guards
+    object_model : ObjectModelSettings
+        What the controllers know of the held object (default: nothing, the paper's).
     """
 
     control_period: float = 0.009
@@ -389,6 +445,7 @@ class Scenario:
     robots: list[Robot] = field(default_factory=list)
     task: Task = field(default_factory=Task)
     guards: Guards = field(default_factory=Guards)
+    object_model: ObjectModelSettings = field(default_factory=ObjectModelSettings)
 
 
 # --------------------------------------------------------------------------- timing

@@ -11,7 +11,9 @@ from drake_coop.scenario.schema import (
     ARM_MODELS,
     FORCE_SOURCES,
     JITTER_DISTRIBUTIONS,
+    OBJECT_MODEL_MODES,
     OBJECT_MODES,
+    SQUEEZE_SOURCES,
     VELOCITY_SOURCES,
     Robot,
     Scenario,
@@ -75,6 +77,15 @@ BOUNDS: dict[str, Bound] = {
     "task.force_mean": Bound(0.0, 1e3, "N"),
     "task.force_amplitude": Bound(0.0, 1e3, "N"),
     "task.force_omega": Bound(0.0, 100.0, "rad/s"),
+    "object_model.mass": Bound(0.0, 100.0, "kg", **_POS),
+    "object_model.prior_mass_factor": Bound(0.0, 10.0, "", **_POS),
+    "object_model.prior_std_factor": Bound(0.0, 10.0, "", **_POS),
+    "object_model.forgetting": Bound(0.5, 1.0, "", **_POS),
+    "object_model.mu": Bound(0.0, 5.0, "", **_POS),
+    "object_model.margin": Bound(1.0, 10.0, ""),
+    "object_model.squeeze_min": Bound(0.0, 1e3, "N"),
+    "object_model.contact_stiffness": Bound(0.0, 1e12, "N/m^p"),
+    "object_model.contact_exponent": Bound(1.0, 3.0, ""),
     "guards.max_force": Bound(0.0, 1e5, "N", **_POS),
     "guards.joint_limit_margin_deg": Bound(0.0, 180.0, "deg"),
     "guards.check_period": Bound(0.0, 100.0, "s", **_POS),
@@ -135,6 +146,11 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
             f"control_period ({scenario.control_period}) must be an integer multiple of "
             f"plant.time_step ({p.time_step}); e.g. 0.001, 0.003, 0.0045 or 0.009 for h = 0.009")
     _choice(p.object_mode, OBJECT_MODES, "plant.object_mode")
+    _choice(scenario.object_model.mode, OBJECT_MODEL_MODES, "object_model.mode")
+    _choice(scenario.object_model.squeeze, SQUEEZE_SOURCES, "object_model.squeeze")
+    if scenario.object_model.squeeze == "friction" and scenario.object_model.mode == "none":
+        raise ScenarioError("object_model.squeeze: friction needs object_model.mode known or "
+                            "estimated (the controllers must know the object's load)")
 
     names = [r.name for r in scenario.robots]
     for i, r in enumerate(scenario.robots):

@@ -1,0 +1,621 @@
+"""The held object as part of the controller: its model, the load each arm carries, the
+squeeze that holds it, its mass estimated online, and the compliant contact's stiffness.
+
+The paper's controllers know nothing about the object: its weight and inertia reach each arm
+as a load that the force observer (22) cannot tell from squeeze. The blocks here add, per arm
+and beside the paper's (which stay unchanged):
+
+* :class:`ObjectModel`: mass, centre of mass, inertia and the grasp (contact points, inward
+  normals), all in an object frame aligned with the world (the desired path translates the
+  object without turning it);
+* :func:`grasp_matrix`, :func:`object_wrench`, :func:`load_distribution`: the wrench the
+  contacts must apply along the desired motion, ``w = [m (a − g); I α + ω × I ω]`` about the
+  centre of mass, split by the grasp matrix ``G`` into its minimum-norm (load) part
+  ``f_L = G⁺ w`` and an internal (squeeze) part in the null space of ``G`` (the load
+  distribution of Walker, Freeman & Marcus with equal weights; Uchiyama & Dauchez's
+  external/internal decomposition);
+* :func:`mass_shares`: each contact's share ``m_i`` of the mass in that split (the lever rule
+  for two opposing pads), so that arm ``i``'s load is ``f_i = m_i (a_d − g)``;
+* :class:`LoadFeedforward` (LeafSystem): ``τ_ff,i = J_x(q)ᵀ m_i (a_d − g)``, added to the
+  paper's torque (13);
+* :class:`MassEstimator` (LeafSystem): recursive least squares of ``m_i`` from the arm's own
+  model, ``q``, the commanded ``τ`` and the observer's signals (no F/T sensor);
+* :func:`squeeze_for_grasp`, :func:`max_squeeze`: the least squeeze that keeps every contact in
+  its friction cone, times a margin, within the torque limits;
+* :class:`ContactStiffness`: ``λ = a δᵖ``, the compression ``δ(λ)`` that
+  :class:`~drake_coop.control.finger.FingerLaw` takes as the constrained position's reference
+  on a compliant contact.
+
+What each arm's blocks know, and communication: the object model (or its prior) and the shared
+desired path ``a_d(t)`` — both given before the run, as the paper's desired force (29) is —
+and the arm's own model and signals. The arms exchange nothing during the run (the paper's
+decentralization is kept): each estimates its own share ``m_i``.
+
+Why (22) then estimates the squeeze net of the load: with the arm's dynamics
+``H q̈ + C q̇ + D q̇ + g = τ_13 + τ_ff + J_φᵀ λ + J_xᵀ f_t`` (``f_t`` the object's load on the
+pad, ``f_t = −f_i`` when the object follows its path) and ``τ_ff = J_xᵀ f_i``, the load terms
+cancel and the arm obeys the paper's model (1) with ``τ = τ_13``. The force observer is left
+as it is: its closed form (22) is (21) with ``τ = τ_13``, i.e. (21) with the feedforward moved
+to the model side, ``λ̂ = J⁺ᵀ {H q̈̂_r + C q̇_r + D q̇_r + g − (τ − τ_ff)}``. Nothing of
+the feedforward is fed into the observer: it sees the arm as the paper's.
+
+This module imports only NumPy and Drake.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.systems.framework import (
+    Context,
+    DiscreteValues,
+    InputPort,
+    LeafSystem,
+    OutputPort,
+    State,
+)
+
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.params import check_period
+
+#: Standard gravity (m/s²); gravity is ``g = (0, 0, −GRAVITY)`` in the world frame.
+GRAVITY = 9.81
+
+
+def _vector(value, name: str, size: int = 3) -> np.ndarray:
+    v = np.asarray(value, dtype=float)
+    if v.shape != (size,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{name}: {size} finite numbers are required (got {np.shape(value)})")
+    return v
+
+
+@dataclass(frozen=True)
+class ObjectModel:
+    """The held object: mass, centre of mass, inertia and the grasp.
+
+    Every vector is in the object frame, aligned with the world frame (the desired path
+    translates the object), with its origin at a point the user picks (e.g. the grasp
+    points' midpoint).
+
+    Parameters
+    ----------
+    mass : float
+        ``m`` (kg), > 0.
+    com : array_like, shape (3,)
+        Centre of mass (m).
+    inertia : array_like, shape (3, 3)
+        Rotational inertia about the centre of mass (kg·m²), symmetric positive semidefinite.
+    grasp_points : array_like, shape (k, 3)
+        The contact points (m), one per arm, k >= 1.
+    grasp_normals : array_like, shape (k, 3)
+        Each contact's normal pointing into the object (the direction the arm pushes to
+        squeeze), unit after normalization.
+
+    Raises
+    ------
+    ValueError
+        Naming the field: a mass <= 0 or not finite, wrong shapes, a zero normal.
+    """
+
+    mass: float
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    grasp_points: np.ndarray = field(default_factory=lambda: np.array([[-1.0, 0, 0],
+                                                                       [1.0, 0, 0]]))
+    grasp_normals: np.ndarray = field(default_factory=lambda: np.array([[1.0, 0, 0],
+                                                                        [-1.0, 0, 0]]))
+
+    def __post_init__(self):
+        m = self.mass
+        if isinstance(m, bool) or not isinstance(m, (int, float, np.floating)) \
+                or not np.isfinite(m) or m <= 0:
+            raise ValueError(f"mass: a finite number > 0 is required (kg), got {m!r}")
+        object.__setattr__(self, "mass", float(m))
+        object.__setattr__(self, "com", _vector(self.com, "com"))
+        inertia = np.asarray(self.inertia, dtype=float)
+        if inertia.shape != (3, 3) or not np.all(np.isfinite(inertia)) \
+                or not np.allclose(inertia, inertia.T) \
+                or np.min(np.linalg.eigvalsh(inertia)) < -1e-12:
+            raise ValueError("inertia: a symmetric positive semidefinite 3x3 matrix is required")
+        object.__setattr__(self, "inertia", inertia)
+        points = np.asarray(self.grasp_points, dtype=float)
+        normals = np.asarray(self.grasp_normals, dtype=float)
+        if points.ndim != 2 or points.shape[1] != 3 or len(points) < 1 \
+                or not np.all(np.isfinite(points)):
+            raise ValueError("grasp_points: k >= 1 rows of 3 finite numbers are required")
+        if normals.shape != points.shape or not np.all(np.isfinite(normals)):
+            raise ValueError(f"grasp_normals: {points.shape} finite numbers are required "
+                             f"(one normal per grasp point), got {normals.shape}")
+        norms = np.linalg.norm(normals, axis=1)
+        if np.any(norms < 1e-9):
+            raise ValueError("grasp_normals: every normal must be nonzero")
+        object.__setattr__(self, "grasp_points", points)
+        object.__setattr__(self, "grasp_normals", normals / norms[:, None])
+
+    @property
+    def contacts(self) -> int:
+        """The number of contacts ``k``."""
+        return len(self.grasp_points)
+
+
+def _skew(r: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+
+
+def grasp_matrix(points: np.ndarray, reference_point=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """The grasp matrix ``G`` (6 × 3k) of point contacts: ``w = G [f_1; …; f_k]``.
+
+    .. math::
+        G = \\begin{bmatrix} I & \\cdots & I \\\\ [r_1]_\\times & \\cdots & [r_k]_\\times
+            \\end{bmatrix}, \\qquad r_i = p_i - p_\\mathrm{ref}
+
+    maps the contact forces ``f_i`` (applied to the object at ``p_i``) to their resultant
+    force and moment about ``reference_point``.
+    """
+    points = np.asarray(points, dtype=float)
+    ref = _vector(reference_point, "reference_point")
+    blocks = [np.vstack([np.eye(3), _skew(p - ref)]) for p in points]
+    return np.hstack(blocks)
+
+
+def object_wrench(model: ObjectModel, acceleration, angular_velocity=(0.0, 0.0, 0.0),
+                  angular_acceleration=(0.0, 0.0, 0.0), gravity: float = GRAVITY
+                  ) -> np.ndarray:
+    """The wrench the contacts must apply to the object, about its centre of mass:
+    ``w = [m (a − g); I α + ω × I ω]`` with ``g = (0, 0, −gravity)`` (Newton–Euler)."""
+    a = _vector(acceleration, "acceleration")
+    w = _vector(angular_velocity, "angular_velocity")
+    alpha = _vector(angular_acceleration, "angular_acceleration")
+    force = model.mass * (a - np.array([0.0, 0.0, -gravity]))
+    moment = model.inertia @ alpha + np.cross(w, model.inertia @ w)
+    return np.concatenate([force, moment])
+
+
+def load_distribution(model: ObjectModel, acceleration, angular_velocity=(0.0, 0.0, 0.0),
+                      angular_acceleration=(0.0, 0.0, 0.0), gravity: float = GRAVITY
+                      ) -> np.ndarray:
+    """Each contact's load ``f_L,i`` (k × 3): the minimum-norm contact forces that apply the
+    object's wrench (:func:`object_wrench`), ``f_L = G⁺ w`` with ``G`` the grasp matrix about
+    the centre of mass.
+
+    ``f_L`` has no internal part (it is orthogonal to the null space of ``G``); any squeeze
+    ``f_I`` with ``G f_I = 0`` (for two opposing pads, equal and opposite forces along the
+    grasp line) can be added without changing the object's motion (:func:`internal_part`).
+    """
+    G = grasp_matrix(model.grasp_points, model.com)
+    w = object_wrench(model, acceleration, angular_velocity, angular_acceleration, gravity)
+    f = np.linalg.pinv(G) @ w
+    return f.reshape(model.contacts, 3)
+
+
+def internal_part(model: ObjectModel, forces) -> np.ndarray:
+    """The internal (squeeze) part of contact forces (k × 3): their projection on the null
+    space of ``G``, ``(I − G⁺ G) f`` (what moves no object)."""
+    G = grasp_matrix(model.grasp_points, model.com)
+    f = np.asarray(forces, dtype=float).reshape(-1)
+    return ((np.eye(f.size) - np.linalg.pinv(G) @ G) @ f).reshape(model.contacts, 3)
+
+
+def mass_shares(model: ObjectModel) -> np.ndarray:
+    """Each contact's share ``m_i`` (kg) of the object's weight in the minimum-norm split
+    (:func:`load_distribution` of a static hold): ``m_i = f_L,i,z / g``, ``Σ m_i = m``.
+
+    For two opposing pads with the centre of mass on the grasp line, the lever rule:
+    ``m_1 = m · |p_2 − c| / |p_2 − p_1|``. Arm ``i``'s load along the desired motion is then
+    ``f_i = m_i (a − g)`` (exact for the components across the grasp line; along it, any two
+    splits differ by an internal force, which the squeeze control sets).
+    """
+    f = load_distribution(model, np.zeros(3))
+    return f[:, 2] / GRAVITY
+
+
+def squeeze_for_grasp(loads, normals, mu: float, margin: float = 1.5,
+                      lambda_max: float | None = None, lambda_min: float = 0.0
+                      ) -> tuple[float, bool]:
+    """The least squeeze that holds every contact in its friction cone, times a margin.
+
+    Contact ``i`` carries its load ``f_i`` (the force the arm applies to the object for the
+    object's motion, :func:`load_distribution`) plus the squeeze ``λ`` along its inward
+    normal ``n_i``. Its normal force is ``λ + n_i·f_i`` and its tangential force
+    ``t_i = |f_i − (n_i·f_i) n_i|``; Coulomb's cone asks ``t_i ≤ μ (λ + n_i·f_i)``, so
+
+    .. math::
+        \\lambda = \\max\\Big(\\lambda_\\min,\\ \\mathrm{margin}\\cdot
+                   \\max_i\\big(t_i/\\mu - n_i\\cdot f_i\\big)\\Big)
+
+    (``margin >= 1`` scales the least squeeze: ``t_i ≤ μ (λ + n_i·f_i)/margin`` when
+    ``n_i·f_i = 0``). With ``lambda_max`` (the torque limits', :func:`max_squeeze`) the result
+    is clipped to it and ``feasible`` is False when it had to be.
+
+    Returns
+    -------
+    lam : float
+        The squeeze (N).
+    feasible : bool
+        Whether ``lam`` holds the margin within ``lambda_max``.
+
+    Raises
+    ------
+    ValueError
+        ``mu`` <= 0, ``margin`` < 1, a negative ``lambda_min``, shapes.
+    """
+    if not (np.isfinite(mu) and mu > 0):
+        raise ValueError(f"mu: a friction coefficient > 0 is required, got {mu!r}")
+    if not (np.isfinite(margin) and margin >= 1.0):
+        raise ValueError(f"margin: a number >= 1 is required, got {margin!r}")
+    if not (np.isfinite(lambda_min) and lambda_min >= 0):
+        raise ValueError(f"lambda_min: a number >= 0 is required, got {lambda_min!r}")
+    f = np.atleast_2d(np.asarray(loads, dtype=float))
+    n = np.atleast_2d(np.asarray(normals, dtype=float))
+    if f.shape != n.shape or f.shape[1] != 3:
+        raise ValueError(f"loads, normals: k x 3 each are required, got {f.shape}, {n.shape}")
+    n = n / np.linalg.norm(n, axis=1)[:, None]
+    fn = np.sum(f * n, axis=1)
+    ft = np.linalg.norm(f - fn[:, None] * n, axis=1)
+    lam = max(lambda_min, margin * float(np.max(ft / mu - fn)))
+    if lambda_max is not None and lam > lambda_max:
+        return float(lambda_max), False
+    return float(lam), True
+
+
+def max_squeeze(J_phi, tau_limits, tau_other) -> float:
+    """The largest squeeze ``λ`` whose torque ``−J_φᵀ λ`` (13) stays, with the other torques
+    ``tau_other`` (gravity, load), within ``|τ_j| ≤ tau_limits_j`` at one posture
+    (one constraint): ``min_j`` over the joints of the room left in the pushing direction."""
+    j = np.asarray(J_phi, dtype=float).reshape(-1)
+    lim = np.asarray(tau_limits, dtype=float).reshape(-1)
+    other = np.asarray(tau_other, dtype=float).reshape(-1)
+    if not (j.shape == lim.shape == other.shape):
+        raise ValueError("J_phi, tau_limits, tau_other: one entry per joint each is required")
+    best = np.inf
+    for jj, L, o in zip(j, lim, other):
+        if abs(jj) < 1e-12:
+            continue
+        # τ_j = o − jj λ within [−L, L], λ >= 0.
+        bound = (o + L) / jj if jj > 0 else (o - L) / jj
+        best = min(best, bound)
+    return float(max(best, 0.0))
+
+
+@dataclass(frozen=True)
+class ContactStiffness:
+    """A compliant contact's force–compression law ``λ = a δᵖ`` along its normal.
+
+    Parameters
+    ----------
+    a : float
+        Stiffness coefficient (N/mᵖ), > 0.
+    exponent : float
+        ``p`` (1 for a linear spring ``k = a`` N/m; about 2 for a hydroelastic sphere against
+        a flat face, whose contact patch grows with the compression), in [1, 3].
+    integral_time : float
+        ``T_i`` (s), > 0: the time in which the force integral of (4) removes this model's
+        own error (:meth:`integral_gain`); default 0.5 s.
+
+    The remedy of the ``−β Δp`` lag on a compliant contact: the controller's reference for the
+    constrained position becomes ``p_d = −δ(λ_d)`` (:class:`~drake_coop.control.finger.FingerLaw`'s
+    ``contact_stiffness``), so the pad is held where the contact carries ``λ_d``; without it,
+    ``−β φ`` pulls the pad back out of its own compression and the squeeze lags.
+    """
+
+    a: float
+    exponent: float = 1.0
+    integral_time: float = 0.5
+
+    def __post_init__(self):
+        if not (np.isfinite(self.a) and self.a > 0):
+            raise ValueError(f"a: a stiffness > 0 is required, got {self.a!r}")
+        if not (np.isfinite(self.exponent) and 1.0 <= self.exponent <= 3.0):
+            raise ValueError(f"exponent: a number in [1, 3] is required, got {self.exponent!r}")
+        if not (np.isfinite(self.integral_time) and self.integral_time > 0):
+            raise ValueError(f"integral_time: a time > 0 is required (s), got "
+                             f"{self.integral_time!r}")
+
+    def compliance(self, lam: float) -> float:
+        """``c = dδ/dλ = δ/(p λ)`` (m/N) at ``max(λ, 1 N)`` (a Hertz-like contact is
+        infinitely compliant at zero force)."""
+        lam = max(float(lam), 1.0)
+        return float(self.compression(lam)) / (self.exponent * lam)
+
+    def integral_gain(self, lam: float) -> float:
+        """``c(λ)/T_i`` (m/(N·s)): times ``β``, the force integral's gain ``ξ_c`` that
+        :class:`~drake_coop.control.finger.FingerLaw` adds to ``ξ`` on this contact, so that
+        ``β Δp = ξ_c ΔF̃`` moves the pad by the compression a force error asks for within
+        ``T_i``."""
+        return self.compliance(lam) / self.integral_time
+
+    def compression(self, lam) -> np.ndarray:
+        """``δ(λ) = (max(λ, 0)/a)^{1/p}`` (m), elementwise."""
+        lam = np.maximum(np.asarray(lam, dtype=float), 0.0)
+        return (lam / self.a) ** (1.0 / self.exponent)
+
+    def force(self, delta) -> np.ndarray:
+        """``λ(δ) = a max(δ, 0)ᵖ`` (N), elementwise."""
+        return self.a * np.maximum(np.asarray(delta, dtype=float), 0.0) ** self.exponent
+
+
+class LoadFeedforward(LeafSystem):
+    """One arm's share of the object's load, fed forward as joint torques.
+
+    .. math::
+        \\tau_{ff} = J_x(q)^T f_i, \\qquad f_i = m_i\\,(a_d - g) \\quad\\text{while held,}
+        \\qquad \\tau_{ff} = 0 \\text{ otherwise}
+
+    with ``m_i`` the arm's share of the object's mass (:func:`mass_shares`, or
+    :class:`MassEstimator`'s estimate), ``a_d`` the object's desired acceleration along the
+    shared path and ``g = (0, 0, −g)``. Add ``tau_ff`` to the controller's ``τ`` (13) before
+    the actuators; the force observer (22) is left as it is (see the module docstring).
+
+    .. pydrake_system::
+
+        name: LoadFeedforward
+        input_ports:
+        - q
+        - reference
+        - acceleration_d
+        - mass_share
+        output_ports:
+        - tau_ff
+        - f_load
+
+    Latched by a periodic unrestricted update at ``t_k`` (as the controller's ``τ(k)``), so
+    the plant's step at ``t_k`` applies it; both outputs are state output ports.
+
+    Parameters
+    ----------
+    model : ArmModel
+        The arm's model (``J_x``).
+    period : float
+        ``h`` (s).
+    gravity : float
+        ``g`` (m/s²).
+
+    Input ports
+    -----------
+    q : n-vector
+        Measured joint positions.
+    reference : (3n + m + 1)-vector
+        The arm's reference (only its ``held`` row is read).
+    acceleration_d : 3-vector
+        The object's desired acceleration ``a_d`` (world frame, m/s²).
+    mass_share : 1-vector
+        ``m_i`` (kg).
+
+    Output ports
+    ------------
+    tau_ff : n-vector
+        ``J_xᵀ f_i`` (N·m).
+    f_load : 3-vector
+        ``f_i`` (N), the force the arm applies to the object for its motion.
+    """
+
+    def __init__(self, model: ArmModel, period: float, gravity: float = GRAVITY):
+        super().__init__()
+        check_period(period)
+        self._model = model
+        n = model.n
+        self._layout = ReferenceLayout(n, model.m)
+        self._g = np.array([0.0, 0.0, -float(gravity)])
+        self._q = self.DeclareVectorInputPort("q", n)
+        self._reference = self.DeclareVectorInputPort("reference", self._layout.size)
+        self._a_d = self.DeclareVectorInputPort("acceleration_d", 3)
+        self._mass = self.DeclareVectorInputPort("mass_share", 1)
+        self._tau_state = self.DeclareDiscreteState(np.zeros(n))
+        self._f_state = self.DeclareDiscreteState(np.zeros(3))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
+        self._tau_out = self.DeclareStateOutputPort("tau_ff", self._tau_state)
+        self._f_out = self.DeclareStateOutputPort("f_load", self._f_state)
+
+    def get_q_input_port(self) -> InputPort:
+        """Measured joint positions ``q``."""
+        return self._q
+
+    def get_reference_input_port(self) -> InputPort:
+        """The arm's reference (its ``held`` row)."""
+        return self._reference
+
+    def get_acceleration_d_input_port(self) -> InputPort:
+        """The object's desired acceleration ``a_d``."""
+        return self._a_d
+
+    def get_mass_share_input_port(self) -> InputPort:
+        """The arm's share ``m_i`` of the object's mass."""
+        return self._mass
+
+    def get_tau_ff_output_port(self) -> OutputPort:
+        """``τ_ff = J_xᵀ f_i``."""
+        return self._tau_out
+
+    def get_f_load_output_port(self) -> OutputPort:
+        """``f_i = m_i (a_d − g)``."""
+        return self._f_out
+
+    def load(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
+        """``(τ_ff, f_i)`` at the current inputs (what a tick latches)."""
+        if not self._layout.held(self._reference.Eval(context)):
+            return np.zeros(self._model.n), np.zeros(3)
+        q = self._q.Eval(context)
+        f = float(self._mass.Eval(context)[0]) * (self._a_d.Eval(context) - self._g)
+        return self._model.J_x(q).T @ f, f
+
+    def _update(self, context: Context, state: State) -> None:
+        tau, f = self.load(context)
+        xd = state.get_mutable_discrete_state()
+        xd.set_value(self._tau_state, tau)
+        xd.set_value(self._f_state, f)
+
+
+class MassEstimator(LeafSystem):
+    """Recursive least squares of one arm's share ``m_i`` of the object's mass, from the
+    arm's model, its measured ``q``, the commanded ``τ`` and the velocity observer — no F/T
+    sensor.
+
+    The force the object applies to the pad, from the arm's own model with the controller's
+    reference acceleration and the observer's velocity (the loop tracks ``q̈̂_r``):
+
+    .. math::
+        \\hat F = J_x(q)^{+T}\\big(H(q)\\ddot{\\hat q}_r + C(q,\\dot q_o)\\dot q_o
+                  + D\\dot q_o + g(q) - \\tau\\big)
+
+    (``J_x^{+T}`` the least-squares inverse of ``J_xᵀ``; the inverse for a 3-joint arm). The
+    arm applies ``−F̂`` to the object, whose vertical part is ``m_i (g + a_d,z)``: a linear
+    regression ``y = φ θ`` with ``y = −F̂_z``, ``φ = g + a_d,z``, ``θ = m_i``, solved by RLS
+    with forgetting factor ``ρ`` and measurement variance ``R``:
+
+    .. math::
+        K = \\frac{P\\varphi}{\\rho R + \\varphi^2 P},\\quad
+        \\hat\\theta \\leftarrow \\hat\\theta + K(y - \\varphi\\hat\\theta),\\quad
+        P \\leftarrow (P - K\\varphi P)/\\rho
+
+    updated at every tick while the object is held (``held`` row of the reference), frozen
+    otherwise. The squeeze (along the grasp line, horizontal here) does not enter ``F̂_z``.
+
+    Persistence of excitation: the regressor must satisfy
+    ``Σ_{window} φ² ≥ α > 0`` over every window of the forgetting horizon ``1/(1 − ρ)``
+    samples; with ``φ = g + a_d,z`` this holds whenever the desired vertical acceleration stays
+    away from free fall (``a_d,z > −g``), i.e. always in a carrying task: gravity itself
+    excites the mass. A centre-of-mass offset along the grasp line is identifiable only from
+    both arms' shares together (``c = (m_1 p_1 + m_2 p_2)/(m_1 + m_2)`` on that line); each
+    arm alone estimates what its own feedforward needs, its share ``m_i``.
+
+    .. pydrake_system::
+
+        name: MassEstimator
+        input_ports:
+        - q
+        - qdot_o
+        - qddot_r_hat
+        - tau
+        - acceleration_d
+        - reference
+        output_ports:
+        - mass_share
+        - force_estimate
+
+    Parameters
+    ----------
+    model : ArmModel
+        The controller's model of the arm (identified or nominal).
+    period : float
+        ``h`` (s).
+    prior : float
+        ``θ̂(0)``, the prior share (kg), >= 0.
+    prior_std : float
+        Its standard deviation (kg), > 0: ``P(0) = prior_std²``.
+    forgetting : float
+        ``ρ`` in (0, 1]; default 0.995 (a 1.8 s horizon at 9 ms: the stand carries the
+        object during the first moments of the grasp, whose samples are then forgotten).
+    noise_std : float
+        ``√R`` (N), the spread of ``F̂_z``; default 1 N.
+    gravity : float
+        ``g`` (m/s²).
+
+    Input ports
+    -----------
+    q : n-vector
+        Measured joint positions.
+    qdot_o : n-vector
+        The velocity observer's ``q̇_o`` (8).
+    qddot_r_hat : n-vector
+        The controller's ``q̈̂_r(k)`` (11).
+    tau : n-vector
+        The torque commanded at the tick (the controller's plus the feedforward).
+    acceleration_d : 3-vector
+        The object's desired acceleration.
+    reference : (3n + m + 1)-vector
+        The arm's reference (its ``held`` row).
+
+    Output ports
+    ------------
+    mass_share : 1-vector
+        ``θ̂ = m̂_i`` (kg), state.
+    force_estimate : 3-vector
+        The last ``F̂`` (N), state.
+    """
+
+    def __init__(self, model: ArmModel, period: float, prior: float, prior_std: float,
+                 forgetting: float = 0.995, noise_std: float = 1.0,
+                 gravity: float = GRAVITY):
+        super().__init__()
+        check_period(period)
+        if not (np.isfinite(prior) and prior >= 0):
+            raise ValueError(f"prior: a mass >= 0 is required (kg), got {prior!r}")
+        if not (np.isfinite(prior_std) and prior_std > 0):
+            raise ValueError(f"prior_std: a number > 0 is required (kg), got {prior_std!r}")
+        if not (0 < forgetting <= 1):
+            raise ValueError(f"forgetting: a number in (0, 1] is required, got {forgetting!r}")
+        if not (np.isfinite(noise_std) and noise_std > 0):
+            raise ValueError(f"noise_std: a number > 0 is required (N), got {noise_std!r}")
+        self._model = model
+        n = model.n
+        self._layout = ReferenceLayout(n, model.m)
+        self._rho = float(forgetting)
+        self._R = float(noise_std) ** 2
+        self._g = float(gravity)
+        self._q = self.DeclareVectorInputPort("q", n)
+        self._qdot_o = self.DeclareVectorInputPort("qdot_o", n)
+        self._qddot = self.DeclareVectorInputPort("qddot_r_hat", n)
+        self._tau = self.DeclareVectorInputPort("tau", n)
+        self._a_d = self.DeclareVectorInputPort("acceleration_d", 3)
+        self._reference = self.DeclareVectorInputPort("reference", self._layout.size)
+        self._theta = self.DeclareDiscreteState([float(prior)])
+        self._P = self.DeclareDiscreteState([float(prior_std) ** 2])
+        self._F = self.DeclareDiscreteState(np.zeros(3))
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self._mass_out = self.DeclareStateOutputPort("mass_share", self._theta)
+        self._F_out = self.DeclareStateOutputPort("force_estimate", self._F)
+
+    def get_q_input_port(self) -> InputPort:
+        """Measured joint positions ``q``."""
+        return self._q
+
+    def get_qdot_o_input_port(self) -> InputPort:
+        """The observer's ``q̇_o``."""
+        return self._qdot_o
+
+    def get_qddot_r_hat_input_port(self) -> InputPort:
+        """The controller's ``q̈̂_r``."""
+        return self._qddot
+
+    def get_tau_input_port(self) -> InputPort:
+        """The commanded torque."""
+        return self._tau
+
+    def get_acceleration_d_input_port(self) -> InputPort:
+        """The object's desired acceleration."""
+        return self._a_d
+
+    def get_reference_input_port(self) -> InputPort:
+        """The arm's reference (its ``held`` row)."""
+        return self._reference
+
+    def get_mass_share_output_port(self) -> OutputPort:
+        """``m̂_i`` (kg)."""
+        return self._mass_out
+
+    def get_force_estimate_output_port(self) -> OutputPort:
+        """``F̂`` (N)."""
+        return self._F_out
+
+    def pad_force(self, q, qdot_o, qddot_r_hat, tau) -> np.ndarray:
+        """``F̂ = J_x^{+T} (H q̈̂_r + C(q, q̇_o) q̇_o + D q̇_o + g − τ)``: the object's force
+        on the pad, from the arm's model (N)."""
+        rhs = self._model.inverse_dynamics_terms(q, qdot_o, qddot_r_hat) - tau
+        return np.linalg.lstsq(self._model.J_x(q).T, rhs, rcond=None)[0]
+
+    def _update(self, context: Context, xd: DiscreteValues) -> None:
+        if not self._layout.held(self._reference.Eval(context)):
+            return
+        F = self.pad_force(self._q.Eval(context), self._qdot_o.Eval(context),
+                           self._qddot.Eval(context), self._tau.Eval(context))
+        phi = self._g + float(self._a_d.Eval(context)[2])
+        theta = float(context.get_discrete_state(self._theta).value()[0])
+        P = float(context.get_discrete_state(self._P).value()[0])
+        K = P * phi / (self._rho * self._R + phi * phi * P)
+        theta += K * (-F[2] - phi * theta)
+        P = (P - K * phi * P) / self._rho
+        xd.set_value(self._theta, [theta])
+        xd.set_value(self._P, [P])
+        xd.set_value(self._F, F)

@@ -1,0 +1,175 @@
+"""The object-aware blocks of a run (``object_model:`` of a scenario), built from the library's
+:mod:`drake_coop.control.object`.
+
+Per robot, with ``object_model.mode`` ``known`` or ``estimated`` (``none``, the default, adds
+nothing: the paper's diagram)::
+
+    robotN_acceleration_d (TrajectorySource: a_d of the shared path) ──┐
+    robotN_mass_share (ConstantVectorSource, known) or                 │
+    robotN_mass_estimator (MassEstimator, estimated) ── mass_share ────┤
+    q, reference ─────────────────────────────────────────────────────┴▶ robotN_load_feedforward
+    robotN_control.tau + robotN_load_feedforward.tau_ff ─▶ robotN_tau_sum (Adder) ─▶ actuators
+
+The estimator reads the arm's own ``q``, the control block's ``qdot_o`` and ``qddot_r_hat``
+and the summed torque: nothing of the other arm (decentralized). The object model the blocks
+get is built from the scenario: the grasp points are the robots' contact points, the inward
+normals their constraint normals reversed, the centre of mass their midpoint (the shipped
+boxes are uniform).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import DiagramBuilder, OutputPort
+from pydrake.systems.primitives import Adder, ConstantVectorSource, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
+
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.object import (
+    ContactStiffness,
+    LoadFeedforward,
+    MassEstimator,
+    ObjectModel,
+    load_distribution,
+    mass_shares,
+    squeeze_for_grasp,
+)
+from drake_coop.scenario.schema import Scenario
+from drake_coop.scenario.task_path import cartesian_reference
+
+
+@dataclass
+class ObjectBlocks:
+    """One robot's object-aware systems (None where the mode has none)."""
+
+    feedforward: LoadFeedforward
+    tau_sum: Adder
+    tau: OutputPort
+    mass_share: OutputPort
+    estimator: MassEstimator | None = None
+
+
+def object_enabled(scenario: Scenario) -> bool:
+    """Whether the controllers get an object model (``object_model.mode`` not ``none``)."""
+    return scenario.object_model.mode != "none"
+
+
+def true_mass(scenario: Scenario) -> float:
+    """The simulated object's mass (kg)."""
+    return float(scenario.plant.object_mass)
+
+
+def controller_mass(scenario: Scenario) -> float:
+    """The mass the controllers start from: the truth (or ``object_model.mass``) when
+    ``known``, ``prior_mass_factor`` times the truth when ``estimated``."""
+    om = scenario.object_model
+    if om.mode == "estimated":
+        return om.prior_mass_factor * true_mass(scenario)
+    return float(om.mass) if om.mass is not None else true_mass(scenario)
+
+
+def scenario_object(scenario: Scenario, mass: float) -> ObjectModel:
+    """The object model the controllers get: grasp points at the robots' contact points
+    (``contact_xy``, at a common height), inward normals ``−N_i`` (first row), centre of mass
+    at the points' midpoint."""
+    points = np.array([[r.contact_xy[0], r.contact_xy[1], 0.0] for r in scenario.robots])
+    normals = -np.array([np.asarray(r.normals[0], dtype=float) for r in scenario.robots])
+    return ObjectModel(mass=mass, com=points.mean(axis=0), grasp_points=points,
+                       grasp_normals=normals)
+
+
+def contact_stiffness(scenario: Scenario, index: int) -> ContactStiffness | None:
+    """The compliant-contact model of robot ``index``'s pad (``object_model.contact_stiffness``;
+    by default, with an object model in ``contact`` mode, ``a = π E`` of Drake's hydroelastic
+    sphere pressed on a rigid face, ``λ = π E δ²`` to first order in ``δ/r``, from the pad's
+    hydroelastic modulus ``E``: ``plant.pad_modulus``, else the arm's model file's); None for
+    a rigid contact."""
+    om = scenario.object_model
+    if om.contact_stiffness is not None:
+        return (ContactStiffness(om.contact_stiffness, om.contact_exponent)
+                if om.contact_stiffness > 0 else None)
+    if not object_enabled(scenario) or scenario.plant.object_mode != "contact":
+        return None
+    E = (scenario.plant.pad_modulus if scenario.plant.pad_modulus is not None
+         else pad_modulus(scenario.robots[index]))
+    return None if E is None else ContactStiffness(np.pi * E, 2.0)
+
+
+def pad_modulus(robot) -> float | None:
+    """The hydroelastic modulus (Pa) of the end-effector link's collision geometry in the
+    robot's model file (``drake:hydroelastic_modulus``), None if it has none."""
+    from drake_coop.scenario.resources import model_urdf_path
+    text = model_urdf_path(robot).read_text()
+    link = re.search(r'<link\s+name="%s"(.*?)</link>' % re.escape(robot.ee_frame), text, re.S)
+    if link is None:
+        return None
+    value = re.search(r'hydroelastic_modulus\s+value="([^"]+)"', link.group(1))
+    return None if value is None else float(value.group(1))
+
+
+def acceleration_samples(scenario: Scenario, index: int, t: np.ndarray) -> np.ndarray:
+    """The object's desired acceleration along robot ``index``'s path (N, 3): the pad's
+    ``ẍ_d`` (the path translates the object)."""
+    return cartesian_reference(scenario.task, scenario.robots[index], t)[2]
+
+
+def friction_squeeze(scenario: Scenario, t: np.ndarray, ramp: float = 1.0) -> np.ndarray:
+    """``object_model.squeeze: friction``: the least squeeze holding the object in every
+    friction cone along the desired path (:func:`~drake_coop.control.object.squeeze_for_grasp`
+    on the loads of :func:`~drake_coop.control.object.load_distribution`, the controllers'
+    mass, ``mu``, ``margin``, ``squeeze_min``), between the grasp and the release, ramped
+    linearly over ``ramp`` seconds after the grasp and before the release (N, one per time)."""
+    om, task = scenario.object_model, scenario.task
+    obj = scenario_object(scenario, controller_mass(scenario))
+    mu = om.mu if om.mu is not None else scenario.plant.friction
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    xdd = acceleration_samples(scenario, 0, t)
+    lam = np.zeros_like(t)
+    held = (t >= task.t_grasp) & (t <= task.t_release)
+    for k in np.flatnonzero(held):
+        loads = load_distribution(obj, xdd[k])
+        lam[k] = squeeze_for_grasp(loads, obj.grasp_normals, mu, om.margin,
+                                   lambda_min=om.squeeze_min)[0]
+    scale = np.clip(np.minimum(t - task.t_grasp, task.t_release - t) / ramp, 0.0, 1.0)
+    return lam * scale
+
+
+def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: str,
+                      model: ArmModel, period: float, q: OutputPort, reference: OutputPort,
+                      control, t_samples: np.ndarray) -> ObjectBlocks:
+    """Add robot ``index``'s feedforward (and, when ``estimated``, its mass estimator); return
+    the summed torque port to connect to the actuators."""
+    om = scenario.object_model
+    a = acceleration_samples(scenario, index, t_samples)
+    acc = b.AddNamedSystem(f"{name}_acceleration_d", TrajectorySource(
+        PiecewisePolynomial.FirstOrderHold(t_samples, a.T)))
+    share0 = float(mass_shares(scenario_object(scenario, controller_mass(scenario)))[index])
+    ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(model, period))
+    tau_sum = b.AddNamedSystem(f"{name}_tau_sum", Adder(2, model.n))
+    b.Connect(q, ff.get_q_input_port())
+    b.Connect(reference, ff.get_reference_input_port())
+    b.Connect(acc.get_output_port(), ff.get_acceleration_d_input_port())
+    b.Connect(control.GetOutputPort("tau"), tau_sum.get_input_port(0))
+    b.Connect(ff.get_tau_ff_output_port(), tau_sum.get_input_port(1))
+    estimator = None
+    if om.mode == "estimated":
+        estimator = b.AddNamedSystem(f"{name}_mass_estimator", MassEstimator(
+            model, period, prior=share0, prior_std=om.prior_std_factor * share0,
+            forgetting=om.forgetting))
+        b.Connect(q, estimator.get_q_input_port())
+        b.Connect(control.GetOutputPort("qdot_o"), estimator.get_qdot_o_input_port())
+        b.Connect(control.GetOutputPort("qddot_r_hat"),
+                  estimator.get_qddot_r_hat_input_port())
+        b.Connect(tau_sum.get_output_port(), estimator.get_tau_input_port())
+        b.Connect(acc.get_output_port(), estimator.get_acceleration_d_input_port())
+        b.Connect(reference, estimator.get_reference_input_port())
+        mass = estimator.get_mass_share_output_port()
+    else:
+        mass = b.AddNamedSystem(f"{name}_mass_share",
+                                ConstantVectorSource([share0])).get_output_port()
+    b.Connect(mass, ff.get_mass_share_input_port())
+    return ObjectBlocks(feedforward=ff, tau_sum=tau_sum, tau=tau_sum.get_output_port(),
+                        mass_share=mass, estimator=estimator)

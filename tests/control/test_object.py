@@ -1,0 +1,301 @@
+"""The object-aware blocks (drake_coop.control.object) against independent computations:
+the virtual work of a held weight (finite differences of the pad's height), the lever rule,
+Newton–Euler on the grasp's forces, Coulomb's cone, a simulated payload, and the constraint
+with a moved contact point."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from pydrake.math import RigidTransform
+from pydrake.multibody.parsing import Parser
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
+from pydrake.multibody.tree import SpatialInertia, UnitInertia
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.controllers import InverseDynamicsController
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer
+
+from drake_coop.control import ArmModel, FingerLaw, Gains, MakeArmControllerPlant
+from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.object import (
+    GRAVITY,
+    ContactStiffness,
+    LoadFeedforward,
+    MassEstimator,
+    ObjectModel,
+    grasp_matrix,
+    internal_part,
+    load_distribution,
+    mass_shares,
+    max_squeeze,
+    object_wrench,
+    squeeze_for_grasp,
+)
+from drake_coop.scenario.resources import urdf_dir
+
+H = 0.009
+URDF = str(urdf_dir() / "crs_a465_3dof.urdf")
+Q0 = np.array([0.1, 0.3, 1.7])
+
+
+def _arm(time_step=1e-3, payload=None):
+    """One arm welded at the origin; ``payload`` (kg): a point mass welded at the pad."""
+    builder = DiagramBuilder()
+    plant, _ = AddMultibodyPlantSceneGraph(builder, time_step=time_step)
+    plant.SetUseSampledOutputPorts(False)
+    (arm,) = Parser(plant, "arm").AddModels(URDF)
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link", arm))
+    if payload:
+        body = plant.AddRigidBody("payload", arm, SpatialInertia(
+            payload, np.zeros(3), UnitInertia.SolidSphere(0.01)))
+        plant.WeldFrames(plant.GetFrameByName("pad", arm), body.body_frame())
+    plant.Finalize()
+    return builder, plant, arm
+
+
+@pytest.fixture(scope="module")
+def model():
+    _, plant, arm = _arm()
+    return ArmModel.from_plant(MakeArmControllerPlant(URDF, plant, arm), "pad",
+                               [[-1.0, 0.0, 0.0]], [0.5, 0.0, 0.4])
+
+
+def _held_reference(n=3, m=1, held=True):
+    return ReferenceLayout(n, m).pack(np.zeros((1, n)), np.zeros((1, n)), np.zeros((1, n)),
+                                      np.zeros((1, m)), np.array([float(held)]))[0]
+
+
+# ------------------------------------------------------------------ grasp and load split
+def test_load_distribution_applies_the_wrench_and_has_no_internal_part():
+    rng = np.random.default_rng(1)
+    obj = ObjectModel(mass=0.7, com=[0.01, 0.0, 0.0], inertia=np.diag([1e-3, 2e-3, 3e-3]),
+                      grasp_points=[[-0.1, 0, 0], [0.1, 0, 0]],
+                      grasp_normals=[[1, 0, 0], [-1, 0, 0]])
+    a, w, alpha = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+    f = load_distribution(obj, a, w, alpha)
+    # Newton–Euler written out: the contact forces' resultant and moment about the CoM.
+    r = obj.grasp_points - obj.com
+    force = f.sum(axis=0)
+    moment = sum(np.cross(ri, fi) for ri, fi in zip(r, f))
+    assert np.allclose(force, 0.7 * (a + [0, 0, GRAVITY]))
+    # Two point contacts cannot apply a moment about their common line (x): only y, z.
+    expected = obj.inertia @ alpha + np.cross(w, obj.inertia @ w)
+    assert np.allclose(moment[1:], expected[1:])
+    # Minimum norm: no part along the squeeze direction (equal and opposite along x).
+    squeeze = np.array([1.0, 0, 0, -1.0, 0, 0]) / np.sqrt(2)
+    assert abs(f.reshape(-1) @ squeeze) < 1e-12
+    assert np.allclose(internal_part(obj, f), 0.0, atol=1e-12)
+    assert np.allclose(internal_part(obj, [[5, 0, 0], [-5, 0, 0]]), [[5, 0, 0], [-5, 0, 0]])
+
+
+def test_mass_shares_follow_the_lever_rule():
+    p1, p2, c = -0.1, 0.12, 0.03
+    obj = ObjectModel(mass=2.0, com=[c, 0, 0], grasp_points=[[p1, 0, 0], [p2, 0, 0]],
+                      grasp_normals=[[1, 0, 0], [-1, 0, 0]])
+    m1 = 2.0 * (p2 - c) / (p2 - p1)
+    assert np.allclose(mass_shares(obj), [m1, 2.0 - m1])
+
+
+def test_grasp_matrix_maps_forces_to_resultant_and_moment():
+    points = np.array([[0.1, 0.2, 0.3], [-0.2, 0.1, 0.0]])
+    f = np.array([[1.0, -2.0, 0.5], [0.3, 0.1, -1.0]])
+    w = grasp_matrix(points, [0.05, 0.0, 0.1]) @ f.reshape(-1)
+    r = points - [0.05, 0.0, 0.1]
+    assert np.allclose(w[:3], f.sum(axis=0))
+    assert np.allclose(w[3:], np.cross(r[0], f[0]) + np.cross(r[1], f[1]))
+
+
+def test_object_wrench_is_newton_euler():
+    obj = ObjectModel(mass=1.5, inertia=np.diag([0.1, 0.2, 0.3]))
+    w = object_wrench(obj, [0.1, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 2.0])
+    assert np.allclose(w, [0.15, 0.0, 1.5 * GRAVITY, 0.0, 0.0, 0.6])
+
+
+@pytest.mark.parametrize("field, kwargs", [
+    ("mass", dict(mass=-1.0)), ("mass", dict(mass=0.0)), ("mass", dict(mass=float("nan"))),
+    ("inertia", dict(mass=1.0, inertia=-np.eye(3))),
+    ("grasp_normals", dict(mass=1.0, grasp_normals=[[0, 0, 0], [1, 0, 0]])),
+])
+def test_object_model_rejects_bad_fields_naming_them(field, kwargs):
+    with pytest.raises(ValueError, match=field):
+        ObjectModel(**kwargs)
+
+
+# ------------------------------------------------------------------ feedforward
+def test_feedforward_of_a_static_hold_is_the_virtual_work_of_the_weight(model):
+    """τ_ff = J_xᵀ [0, 0, m_i g]: the gradient of the held weight's potential m_i g z(q),
+    here by central differences of the model's pad height."""
+    m_i = 0.37
+    ff = LoadFeedforward(model, H)
+    ctx = ff.CreateDefaultContext()
+    ff.get_q_input_port().FixValue(ctx, Q0)
+    ff.get_reference_input_port().FixValue(ctx, _held_reference())
+    ff.get_acceleration_d_input_port().FixValue(ctx, np.zeros(3))
+    ff.get_mass_share_input_port().FixValue(ctx, [m_i])
+    eps = 1e-6
+    expected = np.array([m_i * GRAVITY * (model.ee_position(Q0 + eps * e)[2]
+                                          - model.ee_position(Q0 - eps * e)[2]) / (2 * eps)
+                         for e in np.eye(3)])
+    sim = Simulator(ff, ctx)
+    sim.AdvanceTo(0.0)      # the tick at t = 0 latches
+    assert np.allclose(ff.get_tau_ff_output_port().Eval(ctx), expected, rtol=1e-6, atol=1e-9)
+    assert np.allclose(ff.get_f_load_output_port().Eval(ctx), [0, 0, m_i * GRAVITY])
+
+
+def test_feedforward_is_zero_in_free_motion_and_follows_the_acceleration(model):
+    ff = LoadFeedforward(model, H)
+    ctx = ff.CreateDefaultContext()
+    ff.get_q_input_port().FixValue(ctx, Q0)
+    ff.get_acceleration_d_input_port().FixValue(ctx, [0.2, -0.1, 0.5])
+    ff.get_mass_share_input_port().FixValue(ctx, [0.25])
+    ff.get_reference_input_port().FixValue(ctx, _held_reference(held=False))
+    assert np.allclose(ff.load(ctx)[0], 0.0)
+    ff.get_reference_input_port().FixValue(ctx, _held_reference(held=True))
+    tau, f = ff.load(ctx)
+    assert np.allclose(f, 0.25 * np.array([0.2, -0.1, 0.5 + GRAVITY]))
+    # Virtual work of that force along a joint displacement, by finite differences.
+    eps = 1e-6
+    fd = [f @ (model.ee_position(Q0 + eps * e) - model.ee_position(Q0 - eps * e)) / (2 * eps)
+          for e in np.eye(3)]
+    assert np.allclose(tau, fd, rtol=1e-6)
+
+
+# ------------------------------------------------------------------ squeeze selection
+def test_squeeze_is_the_least_inside_every_friction_cone():
+    rng = np.random.default_rng(7)
+    normals = np.array([[1.0, 0, 0], [-1.0, 0, 0]])
+    for _ in range(200):
+        loads = rng.normal(scale=5.0, size=(2, 3))
+        mu = rng.uniform(0.2, 1.2)
+        lam, ok = squeeze_for_grasp(loads, normals, mu, margin=1.0)
+        assert ok
+        fn = np.sum(loads * normals, axis=1)
+        ft = np.linalg.norm(loads - fn[:, None] * normals, axis=1)
+        normal_force = lam + fn
+        assert np.all(ft <= mu * normal_force + 1e-9)            # inside every cone
+        if lam > 0:                                                # and the least
+            assert np.any(ft > mu * (lam - 1e-6 + fn))
+        # A margin scales it.
+        lam2, _ = squeeze_for_grasp(loads, normals, mu, margin=1.5)
+        assert np.isclose(lam2, max(0.0, 1.5 * np.max(ft / mu - fn)))
+
+
+def test_squeeze_for_a_hanging_weight_and_the_torque_limit():
+    # 2 kg split over two pads, μ = 0.5: each pad carries m g / 2 tangentially.
+    loads = np.array([[0, 0, GRAVITY], [0, 0, GRAVITY]])
+    normals = [[1, 0, 0], [-1, 0, 0]]
+    lam, ok = squeeze_for_grasp(loads, normals, 0.5, margin=1.5)
+    assert ok and np.isclose(lam, 1.5 * GRAVITY / 0.5)
+    lam, ok = squeeze_for_grasp(loads, normals, 0.5, margin=1.5, lambda_max=20.0)
+    assert not ok and lam == 20.0
+    for bad in (dict(mu=0.0), dict(mu=-1.0), dict(margin=0.5)):
+        args = dict(mu=0.5, margin=1.5) | bad
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            squeeze_for_grasp(loads, normals, **args)
+
+
+def test_max_squeeze_against_a_scan():
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        j, other = rng.normal(size=3), rng.normal(scale=5, size=3)
+        lim = np.abs(other) + rng.uniform(1, 20, size=3)
+        lam = max_squeeze(j, lim, other)
+        grid = np.linspace(0, 200, 200001)
+        ok = np.all(np.abs(other[None, :] - grid[:, None] * j[None, :]) <= lim, axis=1)
+        assert np.isclose(lam, grid[ok].max() if lam < 200 else lam, atol=2e-3)
+
+
+# ------------------------------------------------------------------ compliant contact
+def test_contact_stiffness_inverse_and_checks():
+    k = ContactStiffness(1.6e7, 2.0)
+    assert np.isclose(k.compression(32.0), np.sqrt(32.0 / 1.6e7))
+    assert np.allclose(k.force(k.compression([0.0, 5.0, 32.0])), [0.0, 5.0, 32.0])
+    assert k.compression(-3.0) == 0.0
+    with pytest.raises(ValueError, match="a:"):
+        ContactStiffness(0.0)
+    with pytest.raises(ValueError, match="exponent"):
+        ContactStiffness(1e5, 5.0)
+    with pytest.raises(ValueError, match="integral_time"):
+        ContactStiffness(1e5, 1.0, 0.0)
+    # dδ/dλ by a central difference; 1 N floor below.
+    lam, eps = 20.0, 1e-4
+    fd = (k.compression(lam + eps) - k.compression(lam - eps)) / (2 * eps)
+    assert np.isclose(k.compliance(lam), fd, rtol=1e-6)
+    assert k.compliance(0.0) == k.compliance(1.0)
+
+
+def test_law_with_a_compliant_contact_is_the_law_with_the_contact_point_pressed_in():
+    """p_d = −δ(λ_d): the same as the paper's law whose contact point c is moved by δ along
+    the outward normal's opposite (φ = N (x − c) grows by δ) — an independent model — with
+    ξ raised by β c(λ_d)/T_i, c = dδ/dλ = √(λ/a)/(2λ) written out here."""
+    _, plant, arm = _arm()
+    arm_plant = MakeArmControllerPlant(URDF, plant, arm)
+    stiff = ContactStiffness(1.6e7, 2.0)
+    lam_d = 27.0
+    delta = float(stiff.compression(lam_d))
+    N = np.array([-1.0, 0.0, 0.0])
+    c = np.array([0.5, 0.0, 0.4])
+    compliant = FingerLaw(ArmModel.from_plant(arm_plant, "pad", [N], c), Gains(),
+                          contact_stiffness=stiff)
+    gains = Gains()
+    xi_c = gains.beta * np.sqrt(lam_d / 1.6e7) / (2 * lam_d) / stiff.integral_time
+    moved = FingerLaw(ArmModel.from_plant(arm_plant, "pad", [N], c - delta * N),
+                      Gains(xi=gains.xi + xi_c))
+    layout = compliant.layout
+    rng = np.random.default_rng(0)
+    q, q_hat = Q0, Q0 + 1e-3 * rng.normal(size=3)
+    qdot_hat, qdot_o = 0.01 * rng.normal(size=3), 0.01 * rng.normal(size=3)
+    ref = layout.unpack(layout.pack(Q0[None] + 0.01, 0.02 * np.ones((1, 3)),
+                                    0.03 * np.ones((1, 3)), [[lam_d]], np.array([1.0]))[0])
+    DF = np.array([0.3])
+    assert np.allclose(compliant.force_estimate(q, q_hat, qdot_o, ref, DF),
+                       moved.force_estimate(q, q_hat, qdot_o, ref, DF), rtol=1e-12)
+    a = compliant.control(q, q_hat, qdot_hat, qdot_o, np.array([25.0]), DF, ref)
+    b = moved.control(q, q_hat, qdot_hat, qdot_o, np.array([25.0]), DF, ref)
+    assert np.allclose(a["tau"], b["tau"], rtol=1e-10)
+    with pytest.raises(TypeError, match="contact_stiffness"):
+        FingerLaw(compliant.model, Gains(), contact_stiffness=3.0)
+
+
+# ------------------------------------------------------------------ mass estimator
+def test_mass_estimator_finds_a_simulated_payload(model):
+    """An arm holding a payload (a point mass welded at its pad in the simulated plant,
+    unknown to the controller's model) still under Drake's inverse-dynamics PID; the
+    estimator reads q, v (as q̇_o), zero q̈̂_r and the commanded τ."""
+    payload = 0.42
+    builder, plant, arm = _arm(time_step=1e-3, payload=payload)
+    ctrl_plant = MakeArmControllerPlant(URDF, plant, arm)
+    pid = builder.AddSystem(InverseDynamicsController(
+        ctrl_plant, kp=[400.0] * 3, ki=[200.0] * 3, kd=[40.0] * 3,
+        has_reference_acceleration=False))
+    builder.Connect(plant.get_state_output_port(arm), pid.get_input_port_estimated_state())
+    desired = builder.AddSystem(ConstantVectorSource(np.concatenate([Q0, np.zeros(3)])))
+    builder.Connect(desired.get_output_port(), pid.get_input_port_desired_state())
+    builder.Connect(pid.get_output_port_control(), plant.get_actuation_input_port(arm))
+    demux = builder.AddSystem(Demultiplexer([3, 3]))
+    builder.Connect(plant.get_state_output_port(arm), demux.get_input_port(0))
+    est = builder.AddSystem(MassEstimator(model, H, prior=0.1, prior_std=0.3))
+    builder.Connect(demux.get_output_port(0), est.get_q_input_port())
+    builder.Connect(demux.get_output_port(1), est.get_qdot_o_input_port())
+    zeros = builder.AddSystem(ConstantVectorSource(np.zeros(3)))
+    builder.Connect(zeros.get_output_port(), est.get_qddot_r_hat_input_port())
+    builder.Connect(zeros.get_output_port(), est.get_acceleration_d_input_port())
+    builder.Connect(pid.get_output_port_control(), est.get_tau_input_port())
+    held = builder.AddSystem(ConstantVectorSource(_held_reference()))
+    builder.Connect(held.get_output_port(), est.get_reference_input_port())
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    plant.SetPositions(plant.GetMyMutableContextFromRoot(ctx), arm, Q0)
+    sim.AdvanceTo(3.0)
+    m_hat = est.get_mass_share_output_port().Eval(est.GetMyContextFromRoot(ctx))[0]
+    assert abs(m_hat - payload) < 0.01 * payload
+
+
+def test_mass_estimator_checks_its_arguments(model):
+    for kwargs, name in ((dict(prior=-1.0, prior_std=0.1), "prior"),
+                         (dict(prior=0.1, prior_std=0.0), "prior_std"),
+                         (dict(prior=0.1, prior_std=0.1, forgetting=1.5), "forgetting")):
+        with pytest.raises(ValueError, match=name):
+            MassEstimator(model, H, **kwargs)

@@ -1,0 +1,120 @@
+"""The scenario's ``object_model:`` section: its checks (CLI exit 2 naming the field), the
+blocks it adds to the experiment's diagram, the references it changes, a short run's logs."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from drake_coop.cli import main
+from drake_coop.scenario import ObjectModelSettings, Scenario, load_scenario, validate
+from drake_coop.scenario.resources import shipped_scenarios
+from tests.conftest import short_scenario
+
+CONTACT = "plant: {object_mode: contact, object_mass: 0.5, friction: 1.0, time_step: 0.003}\n"
+
+
+@pytest.mark.parametrize("section, field", [
+    ("{mode: known, mass: -1}", "object_model.mass"),
+    ("{mode: known, mu: 0}", "object_model.mu"),
+    ("{mode: estimated, mu: -0.5}", "object_model.mu"),
+    ("{mode: bogus}", "object_model.mode"),
+    ("{mode: known, squeeze: tight}", "object_model.squeeze"),
+    ("{squeeze: friction}", "object_model.squeeze"),
+    ("{mode: estimated, prior_mass_factor: 0}", "object_model.prior_mass_factor"),
+    ("{mode: known, margin: 0.5}", "object_model.margin"),
+    ("{mode: known, colour: red}", "object_model.colour"),
+])
+def test_bad_object_model_fields_exit_2_naming_the_field(tmp_path, capsys, section, field):
+    path = tmp_path / "bad.yaml"
+    path.write_text(CONTACT + f"object_model: {section}\n")
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and field in err and "Traceback" not in err
+
+
+def test_none_is_the_default_everywhere():
+    assert Scenario().object_model == ObjectModelSettings()
+    assert ObjectModelSettings().mode == "none"
+    for name, path in shipped_scenarios().items():
+        assert load_scenario(path).object_model.mode == "none", name
+
+
+def _blocks(scenario):
+    from drake_coop.experiment.diagram import build_experiment
+    exp = build_experiment(scenario)
+    return {exp.diagram.GetSubsystemByName(n).get_name() for n in (
+        s.get_name() for s in exp.diagram.GetSystems())}
+
+
+def test_the_blocks_appear_in_the_diagram_only_with_an_object_model():
+    s = short_scenario("rigid")
+    names = _blocks(s)
+    assert not any("feedforward" in n or "mass_" in n or "tau_sum" in n for n in names)
+    s.object_model.mode = "known"
+    names = _blocks(s)
+    assert {"robot1_load_feedforward", "robot1_tau_sum", "robot1_mass_share",
+            "robot2_load_feedforward"} <= names
+    assert "robot1_mass_estimator" not in names
+    s.object_model.mode = "estimated"
+    assert {"robot1_mass_estimator", "robot2_mass_estimator"} <= _blocks(s)
+
+
+def test_a_compliant_contact_presses_the_joint_references_in():
+    """With an object model in contact mode, q_d puts the pad δ(λ_d) inside the undeformed
+    face along the inward normal, δ = √(λ_d/(π E)) with the pads' E = 5 MPa
+    (urdf/README.md); the force profile is unchanged."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.experiment.references import reference_samples
+    from drake_coop.control.finger import ReferenceLayout
+    base = load_scenario(data=CONTACT)
+    known = load_scenario(data=CONTACT + "object_model: {mode: known}\n")
+    for i in range(2):
+        t, r0 = reference_samples(base, i, t_end=30.0)
+        _, r1 = reference_samples(known, i, t_end=30.0)
+        layout = ReferenceLayout(3, 1)
+        arm = plan_run(base).arms[i]
+        lam = layout.column(r0, "lambda_d")[:, 0]
+        assert np.array_equal(lam, layout.column(r1, "lambda_d")[:, 0])
+        k = np.searchsorted(t, 27.0)
+        x0 = arm.fk(layout.column(r0, "q_d")[k:k + 1])[0]
+        x1 = arm.fk(layout.column(r1, "q_d")[k:k + 1])[0]
+        inward = -np.asarray(base.robots[i].normals[0], dtype=float)
+        delta = np.sqrt(lam[k] / (np.pi * 5e6))
+        assert np.allclose(x1 - x0, delta * inward, atol=1e-9)
+
+
+def test_friction_squeeze_is_the_cone_bound_times_the_margin():
+    """squeeze: friction at the circle's start (zero acceleration): each pad carries m g / 2
+    tangentially, so λ_d = margin · m g / (2 μ)."""
+    from drake_coop.experiment.references import reference_samples
+    from drake_coop.control.finger import ReferenceLayout
+    s = load_scenario(data=CONTACT.replace("friction: 1.0", "friction: 0.6") +
+                      "object_model: {mode: known, squeeze: friction, margin: 1.4}\n")
+    t, r = reference_samples(s, 0, t_end=26.0)
+    lam = ReferenceLayout(3, 1).column(r, "lambda_d")[:, 0]
+    k = int(np.argmin(abs(t - 25.0)))
+    assert np.isclose(lam[k], 1.4 * 0.5 * 9.81 / (2 * 0.6), rtol=1e-9)
+    assert lam[np.searchsorted(t, 5.0)] == 0.0          # not held
+
+
+@pytest.mark.slow
+def test_a_short_rigid_run_estimates_the_mass_and_logs_the_new_signals():
+    from drake_coop.experiment.simulate import simulate
+    s = short_scenario("rigid")
+    s.object_model.mode = "estimated"
+    validate(s)
+    res = simulate(s)
+    assert res.ok
+    logs = res.logs
+    t = logs["robot1"]["t"]
+    for name in ("robot1", "robot2"):
+        assert {"tau_ff", "f_load", "mass_share"} <= set(logs[name])
+    total = logs["robot1"]["mass_share"] + logs["robot2"]["mass_share"]
+    # The prior is 1.5 × 0.5 kg; by the end of the circle (6 s) within 5 % of the truth.
+    assert total[np.searchsorted(t, 1.0)] == pytest.approx(0.75)
+    assert total[np.searchsorted(t, 5.9)] == pytest.approx(0.5, rel=0.05)
+    # Nothing fed forward before the grasp.
+    assert np.all(logs["robot1"]["tau_ff"][t < 0.99] == 0.0)
