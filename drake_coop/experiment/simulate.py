@@ -372,6 +372,7 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         "plant_time_step": scenario.plant.time_step,
         "object_mode": scenario.plant.object_mode,
         "friction": scenario.plant.friction,
+        "object_mass": scenario.plant.object_mass,
         **({"object_size": [float(v) for v in exp.coop.grasp.size]}
            if exp.coop.grasp is not None else {}),
         "t_end": t_stop,

@@ -29,6 +29,11 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
 ``slips`` (a count, ``{"count": k}``)
     Slides of :data:`SLIP_DISTANCE` each: every time the summed slip has moved that far from
     where the last count left it, one more (a continuous slide of 5 mm counts 2).
+``mass_estimate_error`` (kg), ``mass_convergence_time`` (``{"time": s}``)
+    With an object model (``mass_share`` logs, ``object_model`` known or estimated): the sum
+    of the arms' mass shares less the true mass (held phases), and the time from the grasp
+    after which it stays within :data:`MASS_TOLERANCE` of it until the release (null: never;
+    the same in every phase).
 ``drops`` (a count)
     Episodes where the box is lost: after both pads have pressed with
     :data:`CONTACT_FORCE` (the grasp established) and before the release, its position
@@ -42,7 +47,7 @@ import numpy as np
 
 from drake_coop.plant.grasp import quaternion_rotations
 
-__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "SLIP_DISTANCE", "object_metrics",
+__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "SLIP_DISTANCE", "object_metrics",
            "object_signals"]
 
 #: A pad presses on the box when its normal force is at least this (N).
@@ -51,6 +56,9 @@ CONTACT_FORCE = 0.5
 SLIP_DISTANCE = 2e-3
 #: The box is dropped when its centre is this far from the desired path (m).
 DROP_DISTANCE = 0.02
+#: The mass estimate has converged when the arms' shares sum to within this fraction of the
+#: true mass (and stay there until the release).
+MASS_TOLERANCE = 0.05
 #: The phases where the box is held.
 HELD_PHASES = ("lift", "circle", "put_down")
 
@@ -122,6 +130,23 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
         out[r] = {"friction_use": use, "object_position_error": position_error,
                   "object_angle_error": angle_error, "slip": slip,
                   "slip_events": slip_events, "drop_events": drop_events}
+    if all("mass_share" in logs[r] for r in robots) and "object_mass" in meta:
+        m = float(meta["object_mass"])
+        estimate = np.sum([np.asarray(logs[r]["mass_share"], dtype=float) for r in robots],
+                          axis=0)
+        error = np.where(held, estimate - m, np.nan)
+        ok = np.abs(estimate - m) <= MASS_TOLERANCE * m
+        # The first held sample after which the estimate stays within the tolerance.
+        bad = np.flatnonzero(held & ~ok)
+        after = t >= t_grasp
+        converged: float | None = None
+        if after.any() and bad.size == 0:
+            converged = 0.0
+        elif after.any() and bad[-1] + 1 < K and held[bad[-1] + 1]:
+            converged = float(t[bad[-1] + 1] - t_grasp)
+        for r in robots:
+            out[r]["mass_error"] = error
+            out[r]["mass_convergence_time"] = converged
     return out
 
 
@@ -188,6 +213,15 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
                 if x.size:
                     entry[name] = {"rms": float(np.sqrt(np.mean(x ** 2))),
                                    "max": float(np.max(np.abs(x))), "unit": unit}
+            if "mass_error" in sig:
+                x = sig["mass_error"][mask]
+                x = x[np.isfinite(x)]
+                if x.size:
+                    entry["mass_estimate_error"] = {"rms": float(np.sqrt(np.mean(x ** 2))),
+                                                    "max": float(np.max(np.abs(x))),
+                                                    "unit": "kg"}
+                entry["mass_convergence_time"] = {"time": sig["mass_convergence_time"],
+                                                  "unit": "s"}
             index = np.flatnonzero(mask)
             for name in ("slips", "drops"):
                 events = sig.get(f"{name[:-1]}_events", np.zeros(0, dtype=int))
