@@ -400,6 +400,7 @@ class PadForces(LeafSystem):
                               self._grasp.pad_forces(self._held.Eval(context)))),
             {self._held.ticket()})
         self._tick = [self.DeclareDiscreteState(3) for _ in names]
+        self._squeeze: list = []
         for i, name in enumerate(names):
             self.DeclareVectorOutputPort(
                 f"{name}_wrist", 3,
@@ -408,11 +409,8 @@ class PadForces(LeafSystem):
                 prerequisites_of_calc={self._results.ticket()})
             self.DeclareStateOutputPort(f"{name}_F_step", self._tick[i])
             m = self._normals[i].shape[0]
-            self.DeclareVectorOutputPort(
-                f"{name}_lambda_step", m,
-                lambda context, output, i=i: output.SetFromVector(
-                    self._normals[i] @ context.get_discrete_state(self._tick[i]).value()),
-                prerequisites_of_calc={self.discrete_state_ticket(self._tick[i])})
+            self._squeeze.append(self.DeclareDiscreteState(m))
+            self.DeclareStateOutputPort(f"{name}_lambda_step", self._squeeze[i])
             self.DeclareVectorOutputPort(
                 f"{name}_lambda_last_step", m,
                 lambda context, output, i=i: output.SetFromVector(
@@ -429,8 +427,10 @@ class PadForces(LeafSystem):
         return self._held
 
     def _update(self, context: Context, discrete_state) -> None:
-        for index, F in zip(self._tick, self._grasp.pad_forces(self._results.Eval(context))):
+        forces = self._grasp.pad_forces(self._results.Eval(context))
+        for index, squeeze, N, F in zip(self._tick, self._squeeze, self._normals, forces):
             discrete_state.set_value(index, F)
+            discrete_state.set_value(squeeze, N @ F)
 
 
 def quaternion_rotations(quaternions: np.ndarray) -> np.ndarray:
