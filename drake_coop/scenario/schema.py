@@ -288,7 +288,7 @@ class PlantSettings:
         lowered by it, so the box sits that much lower and the pads grip it that far above its
         centre. 0 (the default) is the original geometry, where the circle's lowest point
         (the grasp height) brings the carried box back onto its stand (a brush at 43–46 s);
-        ``scenarios/contact.yaml`` uses 5 mm (``scenarios/contact_brush.yaml``: 0).
+        ``scenarios/contact.yaml`` uses 10 mm (``scenarios/contact_brush.yaml``: 0).
     pad_modulus : float or None
         Hydroelastic modulus of both pads (``contact``, Pa); None (the default) keeps the arm
         models' own (5 MPa in the shipped URDFs).
