@@ -5,7 +5,10 @@ where the plant changes: the grasp constraints are switched on exactly at the fi
 control tick ``k_grasp h`` and off at ``k_release h`` (between two ``AdvanceTo`` calls, before
 that tick's updates), so the plant and the controllers change form at the same instant. The
 divergence guards run between ``AdvanceTo`` chunks of ``guards.check_period`` (rounded to whole
-control ticks), after the step that reaches each chunk's end: a non-finite state, a joint past
+control ticks), after the step that reaches each chunk's end (in ``contact`` mode with
+``plant.stand_clearance`` > 0, the stand is lowered at the first chunk's end in the circle
+phase and put back at the first after it:
+:meth:`~drake_coop.plant.grasp.ContactObject.set_stand_lowered`): a non-finite state, a joint past
 its limit or a force beyond ``guards.max_force`` ends the run with ``status = "diverged"`` and
 whatever was logged so far; so does an exception inside Drake. No Python call happens at the
 plant's steps for the guards (a Simulator monitor would be one per plant step).
@@ -330,6 +333,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         on_start(exp, simulator)
     status, message = "ok", ""
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
+    grasp = exp.coop.grasp
+    stand = grasp if grasp is not None and grasp.stand_drop > 0 else None
     start = time.perf_counter()
     try:
         # Stop where the plant changes (grasp, release), at the end, and every guard period,
@@ -352,6 +357,10 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
                 break
             if k_stop in plan.switches:
                 exp.coop.set_held(plant_context, plan.switches[k_stop])
+            if stand is not None:     # lowered while the box goes around the circle
+                t_now = context.get_time()
+                stand.set_stand_lowered(plant_context, scenario.task.t_circle_start <= t_now
+                                        < scenario.task.t_circle_end)
             if progress is not None and k_stop != plan.k_end:
                 progress(context.get_time(), T, time.perf_counter() - start)
         if status == "ok" and progress is not None:

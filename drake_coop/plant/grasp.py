@@ -7,16 +7,18 @@ Box
     (default 0.5 kg), a solid cuboid of size ``(b_2 − b_1 − 2 r_pad) × 0.08 × 0.10`` m. The
     end-effector point E_i is the centre of the spherical pad, so the box's x faces lie where the
     pads' surfaces are when E_i is on its plane ``x = b_i``: at ``b_1 + r_pad`` and
-    ``b_2 − r_pad``. At rest its centre is at ``(½(b_1 + b_2), 0, z_grasp − d)``, ``z_grasp =
-    circle_top_z − lift_height`` (0.535 m), ``d = plant.stand_clearance``: the grasp points
-    are d above the centres of its x faces.
+    ``b_2 − r_pad``. At rest its centre is at ``(½(b_1 + b_2), 0, z_grasp)``, ``z_grasp =
+    circle_top_z − lift_height`` (0.535 m): the grasp points are the centres of its x faces.
 Stand
     A body (``stand``) welded to the world, a box under the object: half the object's width in x
     (so it never reaches the pads, which touch the object 5 cm above its bottom face), the
-    object's depth in y, from the floor (z = 0) to the object's bottom face. With
-    ``scenario.plant.stand_clearance`` = d the stand is d lower and the box rests at
-    ``z_grasp − d``: the pads grip it d above its centre, and the carried box passes d above
-    its stand at the circle's lowest point (at d = 0 it brushes it there).
+    object's depth in y, from the floor (z = 0) to the object's bottom face, on a locked
+    vertical slide (model instance ``stand``). The circle (28) passes through the grasp pose
+    at its lowest point (43–46 s), so a box carried along it comes back onto its stand there.
+    With ``scenario.plant.stand_clearance`` = d > 0 the run lowers the stand by d while the
+    box is carried around the circle (:meth:`ContactObject.set_stand_lowered`, from the
+    circle's start, when the box is 10 cm up, to its end) and puts it back for the put-down:
+    the carried box then passes d above it. At d = 0 it brushes it.
 Floor
     A slab under everything (world geometry), so that a dropped box lands somewhere.
 
@@ -64,7 +66,9 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import ContactResults, CoulombFriction, MultibodyPlant
 from pydrake.multibody.tree import (
+    FixedOffsetFrame,
     ModelInstanceIndex,
+    PrismaticJoint,
     RigidBody,
     SpatialInertia,
     UnitInertia,
@@ -122,6 +126,15 @@ class ContactObject:
     X_WBox0: RigidTransform
     box_geometry: GeometryId | None = None
     pad_geometries: list[GeometryId] = field(default_factory=list)
+    stand_slide: PrismaticJoint | None = None
+    stand_drop: float = 0.0
+
+    def set_stand_lowered(self, context: Context, lowered: bool) -> None:
+        """Put the stand :attr:`stand_drop` below its place (``lowered``) or back; its slide
+        stays locked (between two ``AdvanceTo`` calls, as the grasp is switched)."""
+        if self.stand_slide is not None:
+            self.stand_slide.set_translation(context, -self.stand_drop if lowered else 0.0)
+            self.stand_slide.set_translation_rate(context, 0.0)
 
     def initialize(self, plant: MultibodyPlant, context: Context) -> None:
         """Put the box at rest on the stand, :data:`SETTLE_GAP` above it.
@@ -137,6 +150,9 @@ class ContactObject:
                            self.X_WBox0.translation() + np.array([0.0, 0.0, SETTLE_GAP]))
         plant.SetFreeBodyPose(context, self.box, X)
         plant.SetFreeBodySpatialVelocity(context, self.box, SpatialVelocity.Zero())
+        if self.stand_slide is not None:
+            self.set_stand_lowered(context, False)
+            self.stand_slide.Lock(context)
 
     def pad_force(self, results: ContactResults, pad: GeometryId) -> np.ndarray:
         """Total contact force of the box on one pad, world frame (N).
@@ -285,8 +301,7 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
                          f"(|b_2 − b_1| = {hi - lo} m, pad radius {r_pad} m)")
     size = np.array([width, BOX_DEPTH, BOX_HEIGHT])
     z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
-    # The box rests stand_clearance below the grasp height (the stand's top lowered by it).
-    center = np.array([0.5 * (lo + hi), 0.0, z_grasp - scenario.plant.stand_clearance])
+    center = np.array([0.5 * (lo + hi), 0.0, z_grasp])
     mu = scenario.plant.friction
 
     instance = plant.AddModelInstance("object")
@@ -299,11 +314,16 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
 
     stand_top = center[2] - BOX_HEIGHT / 2
     stand_shape = Box(STAND_WIDTH_FRACTION * width, BOX_DEPTH, stand_top)
-    stand = plant.AddRigidBody("stand", instance,
+    # The stand in a model instance of its own, on a locked vertical slide (the box's state
+    # stays the "object" instance's alone); lowered by stand_clearance during the circle.
+    stand = plant.AddRigidBody("stand", plant.AddModelInstance("stand"),
                                SpatialInertia(1.0, np.zeros(3), UnitInertia.SolidBox(
                                    STAND_WIDTH_FRACTION * width, BOX_DEPTH, stand_top)))
-    plant.WeldFrames(plant.world_frame(), stand.body_frame(),
-                     RigidTransform(np.array([center[0], 0.0, stand_top / 2])))
+    anchor = plant.AddFrame(FixedOffsetFrame(
+        "stand_anchor", plant.world_frame(),
+        RigidTransform(np.array([center[0], 0.0, stand_top / 2]))))
+    stand_slide = plant.AddJoint(PrismaticJoint("stand_slide", anchor, stand.body_frame(),
+                                                [0.0, 0.0, 1.0]))
     stand_geometry = plant.RegisterCollisionGeometry(
         stand, RigidTransform(), stand_shape, "stand_collision",
         _props(STAND_FRICTION, compliant_modulus=STAND_MODULUS))
@@ -326,7 +346,9 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
                   .ExcludeBetween(GeometrySet(pads), statics)
                   .ExcludeWithin(GeometrySet(pads)))
     return ContactObject(box=box, stand=stand, size=size, X_WBox0=RigidTransform(center),
-                         box_geometry=box_geometry, pad_geometries=pads)
+                         box_geometry=box_geometry, pad_geometries=pads,
+                         stand_slide=stand_slide,
+                         stand_drop=float(scenario.plant.stand_clearance))
 
 
 class PadForces(LeafSystem):

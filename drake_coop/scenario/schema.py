@@ -284,11 +284,11 @@ class PlantSettings:
     friction : float
         Coulomb friction coefficient between pads and box (``contact``).
     stand_clearance : float
-        How far below the grasp height the box rests (``contact``, m): the stand's top is
-        lowered by it, so the box sits that much lower and the pads grip it that far above its
-        centre. 0 (the default) is the original geometry, where the circle's lowest point
-        (the grasp height) brings the carried box back onto its stand (a brush at 43–46 s);
-        ``scenarios/contact.yaml`` uses 10 mm (``scenarios/contact_brush.yaml``: 0).
+        How far the stand is lowered while the box is carried around the circle (``contact``,
+        m; from the circle's start, when the box is ``lift_height`` up, to its end, back for
+        the put-down). The circle (28) passes through the grasp pose at its lowest point, so
+        at 0 (the default, the original run) the carried box brushes its stand there
+        (43–46 s); ``scenarios/contact.yaml`` uses 10 mm (``scenarios/contact_brush.yaml``: 0).
     pad_modulus : float or None
         Hydroelastic modulus of both pads (``contact``, Pa); None (the default) keeps the arm
         models' own (5 MPa in the shipped URDFs).

@@ -130,7 +130,7 @@ def test_normal_and_tangential_forces_match_the_contact_surfaces(squeezed):
     assert seen == 2
 
 
-def test_stand_clearance_lowers_the_stand_and_the_box():
+def test_stand_clearance_lowers_the_stand_only_when_asked():
     d = 0.004
     scenario = _contact_scenario(d)
     scenario.plant.friction = 0.5
@@ -138,15 +138,26 @@ def test_stand_clearance_lowers_the_stand_and_the_box():
     builder = DiagramBuilder()
     coop = build_plant(builder, scenario)
     z_grasp = TASK.circle_top_z - TASK.lift_height
-    assert coop.grasp.X_WBox0.translation()[2] == pytest.approx(z_grasp - d)
+    assert coop.grasp.X_WBox0.translation()[2] == pytest.approx(z_grasp)
+    assert coop.grasp.stand.model_instance() != coop.grasp.box.model_instance()
+    plant = coop.plant
+    context = plant.CreateDefaultContext()
+    q0 = [h.arm.ik(waypoints(TASK, scenario.robots[i])["grasp"])
+          for i, h in enumerate(coop.arms)]
+    initialize_plant_context(coop, context, q0, z_grasp)
+    (stand,) = plant.GetCollisionGeometriesForBody(coop.grasp.stand)
+    height = coop.scene_graph.model_inspector().GetShape(stand).height()
+
+    def top() -> float:
+        return plant.EvalBodyPoseInWorld(context, coop.grasp.stand).translation()[2] + height / 2
+
+    assert top() == pytest.approx(z_grasp - coop.grasp.size[2] / 2)     # under the box
+    assert coop.grasp.stand_slide.is_locked(context)
+    coop.grasp.set_stand_lowered(context, True)
+    assert top() == pytest.approx(z_grasp - coop.grasp.size[2] / 2 - d)
+    coop.grasp.set_stand_lowered(context, False)
+    assert top() == pytest.approx(z_grasp - coop.grasp.size[2] / 2)
     inspector = coop.scene_graph.model_inspector()
-    (stand,) = coop.plant.GetCollisionGeometriesForBody(coop.grasp.stand)
-    X_WS = coop.plant.GetBodyByName("stand").body_frame()   # welded: its default pose
-    shape = inspector.GetShape(stand)
-    top = coop.plant.CalcRelativeTransform(coop.plant.CreateDefaultContext(),
-                                           coop.plant.world_frame(), X_WS).translation()[2] \
-        + shape.height() / 2
-    assert top == pytest.approx(z_grasp - d - coop.grasp.size[2] / 2)
     for pad in coop.grasp.pad_geometries:
         props = inspector.GetProximityProperties(pad)
         assert props.GetProperty("material", "coulomb_friction").static_friction() == 0.5

@@ -56,3 +56,8 @@ def test_the_shipped_contact_run_neither_slips_nor_drops():
             assert phases[phase]["drops"]["count"] == 0, (robot, phase)
             assert phases[phase]["slip"]["max"] < 1.5e-3, (robot, phase)
         assert phases["circle"]["friction_use"]["max"] < 0.5
+    # The stand, lowered by stand_clearance during the circle, is never touched there.
+    log = result.logs["robot1"]
+    circle = (log["t"] >= 26.0) & (log["t"] < 64.0)
+    stand_top = 0.535 - 0.05 - 0.010
+    assert (log["object_pose"][circle, 6] - 0.05 > stand_top + 2e-3).all()
