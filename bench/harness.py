@@ -50,10 +50,11 @@ def _plant_alone(scenario, t_end: float, extras=None) -> tuple[float, float]:
 
     from drake_coop.plant.arms import arm_model
     from drake_coop.experiment.references import reference_samples
+    from drake_coop.experiment.plan import time_grid
     from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 
     b = DiagramBuilder()
-    coop = build_plant(b, scenario)
+    coop = build_plant(b, scenario, time_step=time_grid(scenario)[1])
     q0 = [reference_samples(scenario, i, 0.0)[1][0, :h.arm.kinematics.n]
           for i, h in enumerate(coop.arms)]
     for i, h in enumerate(coop.arms):
@@ -62,10 +63,7 @@ def _plant_alone(scenario, t_end: float, extras=None) -> tuple[float, float]:
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
     finish = None
     if extras is not None:
-        from drake_coop.scenario.timing import aligned_periods
-
-        finish = extras(b, coop, *aligned_periods(scenario.control_period,
-                                                  scenario.plant.time_step))
+        finish = extras(b, coop, *time_grid(scenario))
     diagram = b.Build()
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
@@ -121,7 +119,7 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
 
     plan = plan_run(scenario, t_end)
     b = DiagramBuilder()
-    coop = build_plant(b, scenario)
+    coop = build_plant(b, scenario, time_step=plan.dt)
     loggers = []
     for h in coop.arms:
         log = result.logs[h.arm.name]
@@ -262,9 +260,9 @@ def _sensing_attribution(scenario, t_end: float, repeats: int,
     cost per control tick (median of its pairs with the plant alone run just before it) and as
     a share of the plant alone's cost per tick."""
     from drake_coop.experiment.plan import num_ticks_until
-    from drake_coop.scenario.timing import aligned_periods
+    from drake_coop.experiment.plan import time_grid
 
-    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    h, _ = time_grid(scenario)
     ticks = num_ticks_until(t_end, h)
     extra: dict[str, list[float]] = defaultdict(list)
     plant: list[float] = []
@@ -356,7 +354,7 @@ def _count_callbacks(scenario, t_end: float) -> dict:
 
     from drake_coop.experiment.plan import num_ticks_until
     from drake_coop.experiment.simulate import simulate
-    from drake_coop.scenario.timing import aligned_periods
+    from drake_coop.experiment.plan import time_grid
 
     counts: dict[str, int] = defaultdict(int)
     inside: list = []        # frames that are inside a builtin call
@@ -383,7 +381,7 @@ def _count_callbacks(scenario, t_end: float) -> dict:
         sys.setprofile(None)
     if not result.ok:
         raise RuntimeError(f"benchmark run failed: {result.meta['message']}")
-    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    h, _ = time_grid(scenario)
     ticks = num_ticks_until(t_end, h)
     return {"per_tick": sum(counts.values()) / ticks,
             "by_function": {k: v / ticks for k, v in sorted(counts.items(),
@@ -476,10 +474,10 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
     """
     from drake_coop.experiment.plan import num_ticks_until
     from drake_coop.scenario.loading import default_scenario, load_scenario
-    from drake_coop.scenario.timing import aligned_periods
+    from drake_coop.experiment.plan import time_grid
 
     scenario = default_scenario()
-    h, _ = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    h, _ = time_grid(scenario)
     ticks = num_ticks_until(t_end, h)
     line = "-" * 78
 
@@ -615,7 +613,7 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         by_label: dict[str, float] = defaultdict(float)
         for (label, _), seconds in totals.items():
             by_label[label] += seconds
-        s_h, _ = aligned_periods(s.control_period, s.plant.time_step)
+        s_h, _ = time_grid(s)
         extra_ticks = num_ticks_until(T, s_h)
         profile = {label: 1e6 * v / extra_ticks for label, v in by_label.items()}
         profile["plant, framework and C++ systems (the rest)"] = \

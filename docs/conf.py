@@ -62,16 +62,20 @@ html_static_path: list[str] = []
 
 
 
-def _copy_tutorials(app) -> None:
-    """Copy ``tutorials/*.ipynb`` under ``docs/_generated/tutorials`` (sources must be under
-    docs/; the repository keeps one copy, the one the tests run)."""
-    target = DOCS / "_generated" / "tutorials"
+def _copy_into_docs(folder: str, pattern: str) -> None:
+    """Copy ``<checkout>/<folder>/<pattern>`` under ``docs/_generated/<folder>`` (sources must
+    be under docs/; the repository keeps one copy: the tutorials the tests run, the diagrams
+    ``drake-coop diagram`` writes)."""
+    target = DOCS / "_generated" / folder
     target.mkdir(parents=True, exist_ok=True)
-    for nb in sorted((ROOT / "tutorials").glob("*.ipynb")):
-        dest = target / nb.name
-        if not dest.exists() or dest.read_bytes() != nb.read_bytes():
-            shutil.copyfile(nb, dest)
+    for source in sorted((ROOT / folder).glob(pattern)):
+        dest = target / source.name
+        if not dest.exists() or dest.read_bytes() != source.read_bytes():
+            shutil.copyfile(source, dest)
 
 
 def setup(app):
-    app.connect("builder-inited", _copy_tutorials, priority=100)
+    app.connect("builder-inited", lambda app: _copy_into_docs("tutorials", "*.ipynb"),
+                priority=100)
+    app.connect("builder-inited", lambda app: _copy_into_docs("diagrams", "*.svg"),
+                priority=100)

@@ -1,4 +1,5 @@
-"""Command line: ``drake-coop run | scenarios | plot | diagram | study | stability | identify`` (also
+"""Command line: ``drake-coop run | scenarios | plot | diagram | study | stability | identify |
+serve | sim-driver`` (also
 ``python -m drake_coop``).
 
 ``drake-coop run [SCENARIO] --out DIR [--meshcat]``
@@ -31,6 +32,10 @@
     Identify each robot's dynamic parameters on the simulated true arm from encoder readings
     and commanded torques; write ``robotN_identified.urdf``, ``identify.json``,
     ``identify_fit.png`` and ``identified.yaml`` (see :mod:`drake_coop.identification.report`).
+``drake-coop serve SCENARIO --lcm-url URL --out DIR`` / ``drake-coop sim-driver SCENARIO --lcm-url URL``
+    The control blocks against the wall clock over each arm's LCM driver, with a watchdog and
+    the pacing figures; the scenario's simulated arms behind the same messages (see
+    :mod:`drake_coop.robot.cli`).
 """
 
 from __future__ import annotations
@@ -43,6 +48,7 @@ import time
 import warnings
 from pathlib import Path
 
+from drake_coop.console import error as _error
 from drake_coop.scenario.resources import (
     find_scenario,
     scenario_summary,
@@ -131,13 +137,6 @@ class ProgressBar:
             self._open = False
 
 
-def _error(message: str) -> int:
-    from drake_coop.scenario.bounds import one_line
-
-    print(f"drake-coop: error: {one_line(message)}", file=sys.stderr)
-    return 2
-
-
 def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: bool
                           ) -> list[Path]:
     """The paper's block diagram (``block_diagram``), and for debugging the top-level
@@ -170,7 +169,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from drake_coop.results.viz import add_force_arrows, frame_workspace
         from drake_coop.scenario.loading import load_scenario
         from drake_coop.scenario.schema import ScenarioError
-        from drake_coop.scenario.timing import check_run_size, run_size
+        from drake_coop.experiment.plan import check_run_size, run_size
 
         if args.t_end is not None and not (0 < args.t_end < float("inf")):
             return _error(f"--t-end must be a finite number > 0, got {args.t_end}")
@@ -385,6 +384,10 @@ def cmd_identify(args: argparse.Namespace) -> int:
                               (lambda m: print(m, flush=True)))
     except (ScenarioError, IdentifyInputError) as exc:
         return _error(str(exc))
+    except OSError as exc:                 # a full disk while writing: nothing was replaced
+        _error(f"--out {args.out}: writing the outputs failed ({exc.strerror or exc}); "
+               "nothing was replaced")
+        return 1
     if not args.quiet:
         for name, r in report["robots"].items():
             v = r["validation"]
@@ -452,6 +455,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_study_parser(sub)
     from drake_coop.stability.cli import add_stability_parser
     add_stability_parser(sub)
+    from drake_coop.robot.cli import add_robot_parsers
+    add_robot_parsers(sub)
     return parser
 
 

@@ -48,3 +48,13 @@ def test_tutorial_05_runs_the_control_on_a_users_own_plant():
     assert "forced update matches (15)-(16)" in text
     assert "refused: K_R: 3 diagonal entries" in text and "refused: period:" in text
     assert "wrote my_two_arm_diagram.dot arm1_control.dot" in text
+    # one block alone: the velocity observer under Drake's PD (against the plant's true q̇),
+    # each force source with its own parameters only
+    alone = text.split("velocity observer alone under a PD: RMS |q̇̂ − q̇| ")[1].splitlines()[0]
+    rms_error = float(alone.split(" rad/s")[0])
+    rms_speed = float(alone.split("RMS joint speed of ")[1].split(" rad/s")[0])
+    late = float(alone.split("at the step); ")[1].split(" rad/s")[0])
+    assert rms_error < 0.3 * rms_speed and late < 1e-2, alone
+    assert "SensedForce: λ̂ = 9.50 N, ΔF̃ after one tick = -0.0045 N·s" in text
+    assert "NoForceEstimate: λ̂ = 10.00 N" in text
+    assert "MomentumObserver inputs: ['q', 'qdot_hat', 'tau', 'reference']" in text

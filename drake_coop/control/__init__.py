@@ -48,6 +48,7 @@ _EXPORTS = {
     "load_distribution": "object",
     "mass_shares": "object",
     "squeeze_for_grasp": "object",
+    "Watchdog": "watchdog",
 }
 
 __all__ = [
@@ -76,6 +77,7 @@ __all__ = [
     "SensedForce",
     "VELOCITY_SOURCES",
     "VelocityObserver",
+    "Watchdog",
     "build_control_block",
 ]
 

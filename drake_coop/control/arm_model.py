@@ -36,6 +36,7 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import MultibodyForces
 from pydrake.multibody.tree import JacobianWrtVariable
 
+from drake_coop.control.params import as_array
 
 
 class ArmModel:
@@ -240,6 +241,14 @@ class ArmModel:
             self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
             self.plant.world_frame(), self.plant.world_frame())
 
+    def J_omega(self, q: np.ndarray) -> np.ndarray:
+        """Rotational Jacobian ``J_ω`` of the end-effector frame (3×n), world frame: its
+        angular velocity is ``J_ω q̇``."""
+        self._set_q(q)
+        return self.plant.CalcJacobianSpatialVelocity(
+            self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
+            self.plant.world_frame(), self.plant.world_frame())[:3]
+
     def phi(self, q: np.ndarray) -> np.ndarray:
         """Constraint (2), ``φ = N (x − c)`` (m), an m-vector."""
         return self._N @ (self.ee_position(q) - self._c)
@@ -324,7 +333,7 @@ def normalized_normals(normals) -> np.ndarray:
     ValueError
         Naming ``normals``: wrong shape, a zero or non-finite row, or dependent rows.
     """
-    N = np.atleast_2d(np.asarray(normals, dtype=float))
+    N = np.atleast_2d(as_array(normals, "normals"))
     if N.ndim != 2 or N.shape[1] != 3 or not 1 <= N.shape[0] <= 3:
         raise ValueError(f"normals: 1 to 3 rows of 3 numbers are required (got shape "
                          f"{np.shape(normals)})")
@@ -342,7 +351,7 @@ def normalized_normals(normals) -> np.ndarray:
 
 def contact_vector(contact_point) -> np.ndarray:
     """``contact_point`` as a finite 3-vector (``ValueError`` naming it otherwise)."""
-    c = np.asarray(contact_point, dtype=float)
+    c = as_array(contact_point, "contact_point")
     if c.shape != (3,) or not np.all(np.isfinite(c)):
         raise ValueError(f"contact_point: 3 finite numbers are required (got "
                          f"{np.shape(contact_point)})")

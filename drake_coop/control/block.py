@@ -41,7 +41,6 @@ from pydrake.systems.primitives import Demultiplexer
 from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
-from drake_coop.control.params import check_momentum_gain, check_period
 from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import (
@@ -50,7 +49,24 @@ from drake_coop.control.sources import (
     NoForceEstimate,
     SensedForce,
 )
-from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains
+from drake_coop.control.params import (
+    FORCE_SOURCES,
+    VELOCITY_SOURCES,
+    Gains,
+    check_choice,
+    check_optional_positive,
+    check_period,
+)
+
+
+def _check_sources(velocity_source, force_source, difference_cutoff_hz) -> None:
+    """The sources' names, and a cutoff only for ``velocity_source = difference``."""
+    check_choice(velocity_source, "velocity_source", VELOCITY_SOURCES)
+    check_choice(force_source, "force_source", FORCE_SOURCES)
+    check_optional_positive(difference_cutoff_hz, "difference_cutoff_hz")
+    if difference_cutoff_hz is not None and velocity_source != "difference":
+        raise ValueError("difference_cutoff_hz: only for velocity_source='difference' (got "
+                         f"velocity_source={velocity_source!r})")
 
 
 def build_control_block(name: str, law: FingerLaw, period: float,
@@ -90,12 +106,7 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         the commanded ``tau``) also ``tau_ext_hat`` and ``O_F_ext_hat``.
     """
     check_period(period)
-    if velocity_source not in VELOCITY_SOURCES:
-        raise ValueError(f"velocity_source: one of {', '.join(VELOCITY_SOURCES)} "
-                         f"(got {velocity_source!r})")
-    if force_source not in FORCE_SOURCES:
-        raise ValueError(f"force_source: one of {', '.join(FORCE_SOURCES)} "
-                         f"(got {force_source!r})")
+    _check_sources(velocity_source, force_source, difference_cutoff_hz)
     b = DiagramBuilder()
     if velocity_source == "measured":
         vel = b.AddNamedSystem(f"{name}_measured_velocity", MeasuredVelocity(law.n))
@@ -110,7 +121,7 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
     elif force_source == "momentum":
         force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
-            law.model, law.layout, period, check_momentum_gain(law.momentum_gain, period)))
+            law.model, law.layout, period, law.momentum_gain))
     else:
         force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
@@ -363,12 +374,13 @@ def AddCooperativeController(
             plant.GetModelInstanceName(model_instance)):
         raise ValueError("model_instance: a model instance of plant is required")
     check_period(period, plant.time_step() if plant.time_step() > 0 else None)
-    if velocity_source not in VELOCITY_SOURCES:
-        raise ValueError(f"velocity_source: one of {', '.join(VELOCITY_SOURCES)} "
-                         f"(got {velocity_source!r})")
-    if force_source not in FORCE_SOURCES:
-        raise ValueError(f"force_source: one of {', '.join(FORCE_SOURCES)} "
-                         f"(got {force_source!r})")
+    _check_sources(velocity_source, force_source, difference_cutoff_hz)
+    for arg, port in (("q", q), ("lambda_sensor", lambda_sensor)):
+        if port is not None and not isinstance(port, OutputPort):
+            raise TypeError(f"{arg}: an OutputPort is required (got {type(port).__name__})")
+    if lambda_sensor is not None and force_source != "sensor":
+        raise ValueError("lambda_sensor: only for force_source='sensor' (got "
+                         f"force_source={force_source!r})")
     arm_name = plant.GetModelInstanceName(model_instance)
     name = arm_name if name is None else name
     if not isinstance(name, str) or not name:
@@ -391,14 +403,24 @@ def AddCooperativeController(
         if ee_frame is None or normals is None or contact_point is None:
             raise ValueError("ee_frame, normals, contact_point: all three are required "
                              "(the end effector and the constraint (2))")
-        frame_name = ee_frame.name() if isinstance(ee_frame, Frame) else str(ee_frame)
+        if not isinstance(ee_frame, (str, Frame)):
+            raise TypeError(f"ee_frame: a frame name or a Frame is required "
+                            f"(got {type(ee_frame).__name__})")
+        frame_name = ee_frame.name() if isinstance(ee_frame, Frame) else ee_frame
         if not plant.HasFrameNamed(frame_name, model_instance):
             raise ValueError(f"ee_frame: the arm {plant.GetModelInstanceName(model_instance)!r}"
                              f" has no frame named {frame_name!r}")
         if isinstance(controller_model, MultibodyPlant):
             arm_plant = controller_model
         elif isinstance(controller_model, (str, Path)):
-            arm_plant = MakeArmControllerPlant(controller_model, plant, model_instance)
+            text = str(controller_model)
+            if "://" not in text and not Path(text).is_file():
+                raise ValueError(f"controller_model: no model file {text!r}")
+            try:
+                arm_plant = MakeArmControllerPlant(controller_model, plant, model_instance)
+            except RuntimeError as exc:            # Drake's parser: one line, naming the file
+                raise ValueError(f"controller_model: {text!r} cannot be parsed "
+                                 f"({' '.join(str(exc).split())[:200]})") from None
         else:
             raise ValueError("controller_model: a model file, a single-arm MultibodyPlant or "
                              f"an ArmModel is required (got {type(controller_model).__name__})")
@@ -414,9 +436,36 @@ def AddCooperativeController(
                          "connect_actuation=False")
     if q is not None and q.size() != n:
         raise ValueError(f"q: an output port of size {n} is required (got {q.size()})")
+    if lambda_sensor is not None and lambda_sensor.size() != model.m:
+        raise ValueError(f"lambda_sensor: an output port of size m = {model.m} is required "
+                         f"(got {lambda_sensor.size()})")
     law = FingerLaw(model, gains, contact_stiffness)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
                                                   force_source, difference_cutoff_hz)
+    try:
+        selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
+                                    velocity_source, force_source, lambda_sensor,
+                                    connect_actuation)
+    except (RuntimeError, SystemExit) as exc:   # Drake's wiring errors, never a SystemExit
+        raise ValueError(f"model_instance: wiring the controller of the arm {arm_name!r} "
+                         f"failed ({' '.join(str(exc).split())[:200]})") from None
+    return ControllerHandles(
+        system=block, law=law, velocity_source=vel, force_source=force, controller=ctrl,
+        reference_input=block.GetInputPort("reference"), q_input=block.GetInputPort("q"),
+        tau_output=block.GetOutputPort("tau"), q_hat_output=block.GetOutputPort("q_hat"),
+        qdot_hat_output=block.GetOutputPort("qdot_hat"),
+        qdot_o_output=block.GetOutputPort("qdot_o"),
+        lambda_hat_output=block.GetOutputPort("lambda_hat"),
+        Delta_F_tilde_output=block.GetOutputPort("Delta_F_tilde"),
+        plant=plant, model_instance=model_instance, lambda_sensor_input=lambda_in,
+        q_selector=selector)
+
+
+def _wire(builder, plant, model_instance, block, name, q, velocity_source, force_source,
+          lambda_sensor, connect_actuation):
+    """Add ``block`` to ``builder`` and connect it to ``plant``; returns the ``q`` selector
+    (or None) and the ``lambda_sensor`` input (or None)."""
+    n = plant.num_positions(model_instance)
     builder.AddSystem(block)
     state = plant.get_state_output_port(model_instance)
     selector = None
@@ -436,13 +485,4 @@ def AddCooperativeController(
     if connect_actuation:
         builder.Connect(block.GetOutputPort("tau"),
                         plant.get_actuation_input_port(model_instance))
-    return ControllerHandles(
-        system=block, law=law, velocity_source=vel, force_source=force, controller=ctrl,
-        reference_input=block.GetInputPort("reference"), q_input=block.GetInputPort("q"),
-        tau_output=block.GetOutputPort("tau"), q_hat_output=block.GetOutputPort("q_hat"),
-        qdot_hat_output=block.GetOutputPort("qdot_hat"),
-        qdot_o_output=block.GetOutputPort("qdot_o"),
-        lambda_hat_output=block.GetOutputPort("lambda_hat"),
-        Delta_F_tilde_output=block.GetOutputPort("Delta_F_tilde"),
-        plant=plant, model_instance=model_instance, lambda_sensor_input=lambda_in,
-        q_selector=selector)
+    return selector, lambda_in

@@ -62,6 +62,14 @@ class ReferenceLayout:
     n: int
     m: int = 1
 
+    @staticmethod
+    def check(layout, name: str = "layout") -> "ReferenceLayout":
+        """``layout`` if it is a :class:`ReferenceLayout` (``TypeError`` naming ``name``)."""
+        if not isinstance(layout, ReferenceLayout):
+            raise TypeError(f"{name}: a drake_coop.control.ReferenceLayout is required "
+                            f"(got {type(layout).__name__})")
+        return layout
+
     @property
     def size(self) -> int:
         """``3 n + m + 1``."""

@@ -49,6 +49,7 @@ from pydrake.systems.framework import (
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.params import check_momentum_gain, check_period
 
 
 class MomentumObserver(ForceSource):
@@ -106,9 +107,9 @@ class MomentumObserver(ForceSource):
     def __init__(self, model: ArmModel, layout: ReferenceLayout, period: float, gain: float):
         super().__init__()
         self._model = model
-        self._layout = layout
-        self._h = float(period)
-        self._gain = float(gain)
+        self._layout = layout = ReferenceLayout.check(layout)
+        self._h = period = check_period(period)
+        self._gain = check_momentum_gain(gain, period)
         n, m = layout.n, layout.m
         self._n, self._m = n, m
         self._q = self.DeclareVectorInputPort("q", n)

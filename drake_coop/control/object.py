@@ -144,6 +144,19 @@ def _skew(r: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
 
 
+def contact_jacobian(model: ArmModel, q: np.ndarray, contact_offset: np.ndarray | None
+                     ) -> np.ndarray:
+    """``J_c = J_x − [r]_× J_ω`` (3×n): the translational Jacobian of the point ``E + r`` moving
+    with the end effector, ``r`` = ``contact_offset`` (world frame); ``J_x`` when None. A
+    force ``F`` applied at ``E + r`` takes the joint torque ``J_cᵀ F`` (its moment ``r × F``
+    about ``E`` included): for a spherical pad of radius ``ρ``, ``r = ρ n`` with ``n`` the
+    inward normal, the point where the object touches it."""
+    J = model.J_x(q)
+    if contact_offset is None:
+        return J
+    return J - _skew(contact_offset) @ model.J_omega(q)
+
+
 def grasp_matrix(points: np.ndarray, reference_point=(0.0, 0.0, 0.0)) -> np.ndarray:
     """The grasp matrix ``G`` (6 × 3k) of point contacts: ``w = G [f_1; …; f_k]``.
 
@@ -371,6 +384,10 @@ class LoadFeedforward(LeafSystem):
         ``h`` (s).
     gravity : float
         ``g`` (m/s²).
+    contact_offset : array_like, shape (3,), optional
+        ``r`` from the end-effector point E to where the load acts (world frame; for a
+        spherical pad the radius along the inward normal): ``τ_ff = J_cᵀ f_i``
+        (:func:`contact_jacobian`). Default: the load acts at E (``J_x``).
 
     Input ports
     -----------
@@ -391,10 +408,12 @@ class LoadFeedforward(LeafSystem):
         ``f_i`` (N), the force the arm applies to the object for its motion.
     """
 
-    def __init__(self, model: ArmModel, period: float, gravity: float = GRAVITY):
+    def __init__(self, model: ArmModel, period: float, gravity: float = GRAVITY,
+                 contact_offset=None):
         super().__init__()
         check_period(period)
         self._model = model
+        self._r = None if contact_offset is None else _vector(contact_offset, "contact_offset")
         n = model.n
         self._layout = ReferenceLayout(n, model.m)
         self._g = np.array([0.0, 0.0, -float(gravity)])
@@ -438,7 +457,7 @@ class LoadFeedforward(LeafSystem):
             return np.zeros(self._model.n), np.zeros(3)
         q = self._q.Eval(context)
         f = float(self._mass.Eval(context)[0]) * (self._a_d.Eval(context) - self._g)
-        return self._model.J_x(q).T @ f, f
+        return contact_jacobian(self._model, q, self._r).T @ f, f
 
     def _update(self, context: Context, state: State) -> None:
         tau, f = self.load(context)
@@ -499,18 +518,25 @@ class MassEstimator(LeafSystem):
     model : ArmModel
         The controller's model of the arm (identified or nominal).
     period : float
-        ``h`` (s).
+        The update period (s): the control period ``h`` or a whole multiple of it (the
+        estimate is slow; :mod:`drake_coop.experiment.object_blocks` updates it every 5 ticks).
     prior : float
         ``θ̂(0)``, the prior share (kg), >= 0.
     prior_std : float
         Its standard deviation (kg), > 0: ``P(0) = prior_std²``.
     forgetting : float
-        ``ρ`` in (0, 1]; default 0.995 (a 1.8 s horizon at 9 ms: the stand carries the
-        object during the first moments of the grasp, whose samples are then forgotten).
+        ``ρ`` in (0, 1] per update; default 0.995 (a horizon of 200 updates, 1.8 s at 9 ms:
+        the stand carries the object during the first moments of the grasp, whose samples are
+        then forgotten).
     noise_std : float
         ``√R`` (N), the spread of ``F̂_z``; default 1 N.
     gravity : float
         ``g`` (m/s²).
+    contact_offset : array_like, shape (3,), optional
+        ``r`` from E to where the object's force acts (world frame): ``F̂`` is then solved
+        with ``J_c`` (:func:`contact_jacobian`) instead of ``J_x``. Without it, on a spherical
+        pad the moment ``r × F`` of the carried weight about the pad's centre reads as extra
+        vertical force (+3.5 % and +4.7 % for the two shipped arms at the circle's start).
 
     Input ports
     -----------
@@ -537,7 +563,7 @@ class MassEstimator(LeafSystem):
 
     def __init__(self, model: ArmModel, period: float, prior: float, prior_std: float,
                  forgetting: float = 0.995, noise_std: float = 1.0,
-                 gravity: float = GRAVITY):
+                 gravity: float = GRAVITY, contact_offset=None):
         super().__init__()
         check_period(period)
         if not (np.isfinite(prior) and prior >= 0):
@@ -549,6 +575,7 @@ class MassEstimator(LeafSystem):
         if not (np.isfinite(noise_std) and noise_std > 0):
             raise ValueError(f"noise_std: a number > 0 is required (N), got {noise_std!r}")
         self._model = model
+        self._r = None if contact_offset is None else _vector(contact_offset, "contact_offset")
         n = model.n
         self._layout = ReferenceLayout(n, model.m)
         self._rho = float(forgetting)
@@ -601,9 +628,15 @@ class MassEstimator(LeafSystem):
 
     def pad_force(self, q, qdot_o, qddot_r_hat, tau) -> np.ndarray:
         """``F̂ = J_x^{+T} (H q̈̂_r + C(q, q̇_o) q̇_o + D q̇_o + g − τ)``: the object's force
-        on the pad, from the arm's model (N)."""
+        on the pad, from the arm's model (N) (``J_c`` with a ``contact_offset``)."""
         rhs = self._model.inverse_dynamics_terms(q, qdot_o, qddot_r_hat) - tau
-        return np.linalg.lstsq(self._model.J_x(q).T, rhs, rcond=None)[0]
+        J = contact_jacobian(self._model, q, self._r)
+        if J.shape[1] == 3:
+            try:
+                return np.linalg.solve(J.T, rhs)
+            except np.linalg.LinAlgError:     # a singular posture: the least-squares force
+                pass
+        return np.linalg.lstsq(J.T, rhs, rcond=None)[0]
 
     def _update(self, context: Context, xd: DiscreteValues) -> None:
         if not self._layout.held(self._reference.Eval(context)):

@@ -28,7 +28,7 @@ from drake_coop.control.finger import (
     observer_qdot_hat,
     observer_qdot_o,
 )
-from drake_coop.control.params import check_period, check_positive
+from drake_coop.control.params import check_count, check_period, check_positive
 
 
 class VelocityObserver(VelocitySource):
@@ -107,8 +107,7 @@ class VelocityObserver(VelocitySource):
 
     def __init__(self, n: int, Lambda: float, k_d: float, period: float):
         super().__init__()
-        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise TypeError(f"n: a number of joints >= 1 is required (got {n!r})")
+        n = check_count(n, "n")
         Lambda = check_positive(Lambda, "Lambda")
         k_d = check_positive(k_d, "k_d")
         self._h = check_period(period)

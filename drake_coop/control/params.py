@@ -65,15 +65,25 @@ class Gains:
     beta: float = 10.0
     momentum_gain: float = 50.0
 
+    def __post_init__(self) -> None:
+        """Types only (a string or a dict for a gain is a ``TypeError`` naming it); the
+        ranges depend on the arm and the period: :func:`check_gains`,
+        :func:`check_momentum_gain`."""
+        for name in ("Lambda", "k_d", "k_F", "xi", "zeta", "beta", "momentum_gain"):
+            as_number(getattr(self, name), name)
+        as_array(self.K_R, "K_R")
+        if self.xi_matrix is not None:
+            as_array(self.xi_matrix, "xi_matrix")
 
-def _number(value, name: str) -> float:
+
+def as_number(value, name: str) -> float:
     """``value`` as a float; ``TypeError`` naming ``name`` for a string, a bool or a container."""
     if isinstance(value, bool) or not isinstance(value, (Real, np.floating, np.integer)):
         raise TypeError(f"{name}: a number is required (got {type(value).__name__} {value!r})")
     return float(value)
 
 
-def _vector(value, name: str) -> np.ndarray:
+def as_array(value, name: str) -> np.ndarray:
     """``value`` as a float array; ``TypeError`` naming ``name`` for strings or mappings."""
     if isinstance(value, (str, bytes, dict)):
         raise TypeError(f"{name}: a list of numbers is required (got {type(value).__name__} "
@@ -87,10 +97,34 @@ def _vector(value, name: str) -> np.ndarray:
 
 def check_positive(value, name: str) -> float:
     """``value`` as a float, finite and > 0 (``TypeError``/``ValueError`` naming ``name``)."""
-    x = _number(value, name)
+    x = as_number(value, name)
     if not math.isfinite(x) or x <= 0.0:
         raise ValueError(f"{name}: must be finite and > 0 (got {x!r})")
     return x
+
+
+def check_optional_positive(value, name: str) -> float | None:
+    """``None``, or ``value`` checked by :func:`check_positive` (a cutoff frequency that may
+    be left out)."""
+    return None if value is None else check_positive(value, name)
+
+
+def check_count(value, name: str) -> int:
+    """``value`` as a positive integer (a number of joints); ``TypeError``/``ValueError``
+    naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}: a positive integer is required (got {type(value).__name__} "
+                        f"{value!r})")
+    if value <= 0:
+        raise ValueError(f"{name}: a positive integer is required (got {value!r})")
+    return int(value)
+
+
+def check_choice(value, name: str, allowed: tuple[str, ...]) -> str:
+    """``value`` if it is one of ``allowed`` (``ValueError`` naming ``name`` otherwise)."""
+    if not isinstance(value, str) or value not in allowed:
+        raise ValueError(f"{name}: one of {', '.join(allowed)} (got {value!r})")
+    return value
 
 
 def check_gains(gains: Gains, n: int, m: int) -> None:
@@ -112,27 +146,27 @@ def check_gains(gains: Gains, n: int, m: int) -> None:
     if not isinstance(gains, Gains):
         raise TypeError(f"gains: a drake_coop.control.Gains is required "
                         f"(got {type(gains).__name__})")
-    K_R = _vector(gains.K_R, "K_R")
+    K_R = as_array(gains.K_R, "K_R")
     if K_R.shape != (n,):
         raise ValueError(f"K_R: {n} diagonal entries are required, one per joint "
                          f"(got shape {K_R.shape})")
     if not np.all(np.isfinite(K_R)) or np.any(K_R <= 0.0):
         raise ValueError(f"K_R: every entry must be finite and > 0 (got {K_R.tolist()})")
     for name in ("Lambda", "k_d"):
-        value = _number(getattr(gains, name), name)
+        value = as_number(getattr(gains, name), name)
         if not np.isfinite(value) or value <= 0.0:
             raise ValueError(f"{name}: must be finite and > 0 (got {value})")
     for name in ("k_F", "zeta", "beta"):
-        value = _number(getattr(gains, name), name)
+        value = as_number(getattr(gains, name), name)
         if not np.isfinite(value) or value < 0.0:
             raise ValueError(f"{name}: must be finite and >= 0 (got {value})")
-    _number(gains.momentum_gain, "momentum_gain")
+    as_number(gains.momentum_gain, "momentum_gain")
     if gains.xi_matrix is None:
-        xi = _number(gains.xi, "xi")
+        xi = as_number(gains.xi, "xi")
         if not np.isfinite(xi) or xi < 0.0:
             raise ValueError(f"xi: must be finite and >= 0 (got {xi})")
         return
-    xi = _vector(gains.xi_matrix, "xi_matrix")
+    xi = as_array(gains.xi_matrix, "xi_matrix")
     if xi.shape != (m, m):
         raise ValueError(f"xi_matrix: an {m}x{m} matrix is required, one row per constraint "
                          f"(got shape {xi.shape})")
@@ -174,7 +208,7 @@ def check_period(period: float, time_step: float | None = None) -> float:
     ValueError
         Naming ``period`` and what is allowed.
     """
-    h = _number(period, "period")
+    h = as_number(period, "period")
     lo, hi = PERIOD_RANGE
     if not math.isfinite(h) or not lo <= h <= hi:
         raise ValueError(f"period: the sampling time h must be between {lo:g} and {hi:g} s "

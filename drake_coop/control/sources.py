@@ -36,7 +36,7 @@ from pydrake.systems.framework import (
 
 from drake_coop.control.interfaces import ForceSource, VelocitySource
 from drake_coop.control.finger import ReferenceLayout
-from drake_coop.control.params import check_period
+from drake_coop.control.params import check_count, check_optional_positive, check_period
 from drake_coop.control.timing import lowpass_alpha
 
 
@@ -76,8 +76,7 @@ class MeasuredVelocity(VelocitySource):
 
     def __init__(self, n: int):
         super().__init__()
-        _check_n(n)
-        self._n = n
+        self._n = n = check_count(n, "n")
         self._state = self.DeclareVectorInputPort("state", 2 * n)
         self._q = self.DeclareVectorInputPort("q", n)
         self._q_hat_out = self.DeclareVectorOutputPort("q_hat", n, self._calc_q)
@@ -150,12 +149,9 @@ class DifferenceVelocity(VelocitySource):
 
     def __init__(self, n: int, period: float, cutoff_hz: float | None = None):
         super().__init__()
-        _check_n(n)
-        check_period(period)
-        if cutoff_hz is not None and not (np.isfinite(cutoff_hz) and cutoff_hz > 0.0):
-            raise ValueError(f"cutoff_hz: must be finite and > 0 Hz, or None (got {cutoff_hz})")
-        self._n = n
-        self._h = period
+        self._n = n = check_count(n, "n")
+        self._h = period = check_period(period)
+        cutoff_hz = check_optional_positive(cutoff_hz, "cutoff_hz")
         self._alpha = lowpass_alpha(cutoff_hz, period)
         self._q = self.DeclareVectorInputPort("q", n)
         self._state = self.DeclareDiscreteState(2 * n)
@@ -245,9 +241,8 @@ class SensedForce(ForceSource):
 
     def __init__(self, period: float, layout: ReferenceLayout):
         super().__init__()
-        check_period(period)
-        self._h = period
-        self._layout = layout
+        self._h = period = check_period(period)
+        self._layout = layout = ReferenceLayout.check(layout)
         m = layout.m
         self._zero = np.zeros(m)
         self._lambda = self.DeclareVectorInputPort("lambda_sensor", m)
@@ -321,7 +316,7 @@ class NoForceEstimate(ForceSource):
 
     def __init__(self, layout: ReferenceLayout):
         super().__init__()
-        self._layout = layout
+        self._layout = layout = ReferenceLayout.check(layout)
         self._zero = np.zeros(layout.m)
         self._reference = self.DeclareVectorInputPort("reference", layout.size)
         self._lambda_hat_out = self.DeclareVectorOutputPort("lambda_hat", layout.m,
@@ -337,7 +332,3 @@ class NoForceEstimate(ForceSource):
     def _calc_Delta_F_tilde(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(self._zero)
 
-
-def _check_n(n: int) -> None:
-    if not isinstance(n, (int, np.integer)) or n <= 0:
-        raise ValueError(f"n: the number of joints must be a positive integer (got {n!r})")

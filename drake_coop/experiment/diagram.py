@@ -79,7 +79,7 @@ from drake_coop.plant.cooperative import (
 from drake_coop.plant.ground_truth import GroundTruthLog, add_ground_truth
 from drake_coop.plant.wrist import ForceSensor, add_force_sensors
 from drake_coop.scenario.schema import Scenario
-from drake_coop.scenario.timing import aligned_periods
+from drake_coop.experiment.plan import time_grid
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.sensing.force_sensor import FTModel, FTSensor, add_ft_sensor
@@ -163,6 +163,16 @@ class Experiment:
     robots: list[RobotSystems]
     ground_truth: GroundTruthLog | None = None
 
+    @property
+    def h(self) -> float:
+        """The control period on the run's time grid (:func:`~drake_coop.experiment.plan.time_grid`)."""
+        return time_grid(self.scenario)[0]
+
+    @property
+    def dt(self) -> float:
+        """The plant step on the run's time grid."""
+        return time_grid(self.scenario)[1]
+
 
 VelocitySource = VelocityObserver | MeasuredVelocity | DifferenceVelocity
 ForceSource = ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
@@ -240,7 +250,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         ``live_ground_truth=False`` in a mode other than ``planes`` or ``rigid``, or with a
         robot's ``force_source: sensor``.
     """
-    h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    h, dt = time_grid(scenario)
     needs_live = uses_live_ground_truth(scenario)
     if live_ground_truth is None:
         live_ground_truth = needs_live
@@ -248,7 +258,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         raise ValueError("live_ground_truth=False needs planes or rigid mode and no robot "
                          "with force_source: sensor")
     b = builder or DiagramBuilder()
-    coop = build_plant(b, scenario)
+    coop = build_plant(b, scenario, time_step=dt)
     plant = coop.plant
     sensors = add_force_sensors(b, coop, h) if live_ground_truth else [None] * len(coop.arms)
     robots = []
@@ -274,7 +284,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             velocity_source=robot.velocity_source, force_source=robot.force_source,
             difference_cutoff_hz=robot.difference_cutoff_hz,
             q=q_port,
-            lambda_sensor=lambda_sensor, connect_actuation=False,
+            lambda_sensor=lambda_sensor if robot.force_source == "sensor" else None,
+            connect_actuation=False,
             contact_stiffness=contact_stiffness(scenario, i),
             name=name)
         law, control = block.law, block.system

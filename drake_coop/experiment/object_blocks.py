@@ -6,7 +6,7 @@ nothing: the paper's diagram)::
 
     robotN_acceleration_d (TrajectorySource: a_d of the shared path) ──┐
     robotN_mass_share (ConstantVectorSource, known) or                 │
-    robotN_mass_estimator (MassEstimator, estimated) ── mass_share ────┤
+    robotN_mass_estimator (MassEstimator, every 5 ticks) ── mass_share ┤
     q, reference ─────────────────────────────────────────────────────┴▶ robotN_load_feedforward
     robotN_control.tau + robotN_load_feedforward.tau_ff ─▶ robotN_tau_sum (Adder) ─▶ actuators
 
@@ -39,6 +39,10 @@ from drake_coop.control.object import (
 )
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.task_path import cartesian_reference
+
+
+#: The mass estimator updates every this many control ticks.
+ESTIMATOR_TICKS = 5
 
 
 @dataclass
@@ -110,6 +114,31 @@ def pad_modulus(robot) -> float | None:
     return None if value is None else float(value.group(1))
 
 
+def pad_radius(robot) -> float | None:
+    """The radius (m) of the end-effector link's spherical collision geometry in the robot's
+    model file, None if it has none."""
+    from drake_coop.scenario.resources import model_urdf_path
+    text = model_urdf_path(robot).read_text()
+    link = re.search(r'<link\s+name="%s"(.*?)</link>' % re.escape(robot.ee_frame), text, re.S)
+    collision = link and re.search(r"<collision.*?</collision>", link.group(1), re.S)
+    sphere = collision and re.search(r'<sphere\s+radius="([^"]+)"', collision.group(0))
+    return float(sphere.group(1)) if sphere else None
+
+
+def contact_offset(scenario: Scenario, index: int) -> np.ndarray | None:
+    """Where the object's force acts on robot ``index``'s pad, from its centre E: in
+    ``contact`` mode the pad's surface along the inward normal (``ρ n``, ``ρ`` its sphere's
+    radius); None (at E) in ``rigid`` mode, whose ball constraint holds E itself."""
+    if scenario.plant.object_mode != "contact":
+        return None
+    robot = scenario.robots[index]
+    rho = pad_radius(robot)
+    if rho is None:
+        return None
+    n = -np.asarray(robot.normals[0], dtype=float)
+    return rho * n / np.linalg.norm(n)
+
+
 def acceleration_samples(scenario: Scenario, index: int, t: np.ndarray) -> np.ndarray:
     """The object's desired acceleration along robot ``index``'s path (N, 3): the pad's
     ``ẍ_d`` (the path translates the object)."""
@@ -147,7 +176,9 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
     acc = b.AddNamedSystem(f"{name}_acceleration_d", TrajectorySource(
         PiecewisePolynomial.FirstOrderHold(t_samples, a.T)))
     share0 = float(mass_shares(scenario_object(scenario, controller_mass(scenario)))[index])
-    ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(model, period))
+    r = contact_offset(scenario, index)
+    ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(model, period,
+                                                                       contact_offset=r))
     tau_sum = b.AddNamedSystem(f"{name}_tau_sum", Adder(2, model.n))
     b.Connect(q, ff.get_q_input_port())
     b.Connect(reference, ff.get_reference_input_port())
@@ -156,9 +187,12 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
     b.Connect(ff.get_tau_ff_output_port(), tau_sum.get_input_port(1))
     estimator = None
     if om.mode == "estimated":
+        # Every ESTIMATOR_TICKS ticks, with the forgetting per tick of the scenario (ρ^N per
+        # update): the same horizon in seconds at a fifth of the cost.
         estimator = b.AddNamedSystem(f"{name}_mass_estimator", MassEstimator(
-            model, period, prior=share0, prior_std=om.prior_std_factor * share0,
-            forgetting=om.forgetting))
+            model, ESTIMATOR_TICKS * period, prior=share0,
+            prior_std=om.prior_std_factor * share0,
+            forgetting=om.forgetting ** ESTIMATOR_TICKS, contact_offset=r))
         b.Connect(q, estimator.get_q_input_port())
         b.Connect(control.GetOutputPort("qdot_o"), estimator.get_qdot_o_input_port())
         b.Connect(control.GetOutputPort("qddot_r_hat"),

@@ -1,10 +1,13 @@
 """One resolved plan of a run: its time grid, tick indices, grasp height and arms.
 
-Computed once from a scenario (:func:`plan_run`) and read by everyone that needs these numbers
-(the references, the diagram, the runner), instead of each of them recomputing them:
+Computed by :func:`plan_run` once per simulated run (the runner passes it to the references;
+the stability map's operating point and the benchmark make their own plan of the same
+scenario):
 
 * ``h``, ``dt`` — control period and plant step, aligned so that every tick is a plant step
-  (:func:`~drake_coop.scenario.aligned_periods`);
+  (:func:`time_grid`: the one place a scenario's periods are aligned, by
+  :func:`~drake_coop.control.timing.aligned_periods`; the plant builder, the diagram, the
+  runner, identification and the benchmark read it);
 * ``k_grasp``, ``k_release`` — the first held and the first released control tick
   (``⌈t_grasp/h⌉``, ``⌈t_release/h⌉``): the only instants where the plant changes;
 * ``k_end`` — the last tick of the run (``min(t_end, task.t_end)``);
@@ -18,9 +21,57 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from drake_coop.control.timing import aligned_periods
 from drake_coop.plant.arms import Arm
-from drake_coop.scenario.schema import Scenario, Task
-from drake_coop.scenario.timing import aligned_periods
+from drake_coop.scenario.schema import Scenario, ScenarioError, Task
+
+#: Largest run (control ticks of ``h``, and plant steps) accepted: the references and the
+#: logs cost about 5 kB per tick (1 GB at the limit), a plant step about 50 µs.
+MAX_TICKS = 200_000
+MAX_PLANT_STEPS = 20_000_000
+
+
+def time_grid(scenario: Scenario) -> tuple[float, float]:
+    """``(h, dt)``: the scenario's control period and plant step on one exact grid
+    (``h = N dt``, :func:`~drake_coop.control.timing.aligned_periods`)."""
+    return aligned_periods(scenario.control_period, scenario.plant.time_step)
+
+
+def _run_end(scenario: Scenario, t_end: float | None) -> float:
+    return scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
+
+
+def run_size(scenario: Scenario, t_end: float | None = None) -> tuple[int, int]:
+    """Control ticks and plant steps of a run to ``min(t_end, task.t_end)``."""
+    h, dt = time_grid(scenario)
+    T = _run_end(scenario, t_end)
+    return int(T / h) + 1, int(T / dt)
+
+
+def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
+    """Refuse a run shorter than one control period, or whose work (ticks, plant steps)
+    exceeds :data:`MAX_TICKS` or :data:`MAX_PLANT_STEPS`, before anything is built.
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``task.t_end`` (or ``t_end``) and the period, with the limit.
+    """
+    h, _ = time_grid(scenario)
+    T = _run_end(scenario, t_end)
+    if not T >= h:
+        name = "task.t_end" if t_end is None or t_end >= scenario.task.t_end else "t_end"
+        raise ScenarioError(f"{name}: the run ({T:g} s) is shorter than one control period "
+                            f"(h = {h:g} s); it must last at least h")
+    ticks, steps = run_size(scenario, t_end)
+    if ticks > MAX_TICKS:
+        raise ScenarioError(
+            f"task.t_end / control_period gives {ticks} control ticks, at most {MAX_TICKS} "
+            f"(memory of the references and logs); shorten task.t_end or use --t-end")
+    if steps > MAX_PLANT_STEPS:
+        raise ScenarioError(
+            f"task.t_end / plant.time_step gives {steps} plant steps, at most "
+            f"{MAX_PLANT_STEPS}; shorten task.t_end, use --t-end or a larger plant.time_step")
 
 
 def grasp_ticks(task: Task, h: float) -> tuple[int, int]:
@@ -61,9 +112,9 @@ class RunPlan:
 
 def plan_run(scenario: Scenario, t_end: float | None = None) -> RunPlan:
     """The plan of a run of ``scenario`` to ``min(t_end, task.t_end)``."""
-    h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    h, dt = time_grid(scenario)
     task = scenario.task
-    T = task.t_end if t_end is None else min(t_end, task.t_end)
+    T = _run_end(scenario, t_end)
     k_grasp, k_release = grasp_ticks(task, h)
     return RunPlan(scenario=scenario, h=h, dt=dt, t_end=T, k_end=num_ticks_until(T, h),
                    k_grasp=k_grasp, k_release=k_release,

@@ -33,7 +33,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator, SimulatorStatus
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
-from drake_coop.experiment.plan import RunPlan, plan_run
+from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
 from drake_coop.experiment.references import (
     cartesian_reference,
     joint_reference,
@@ -43,7 +43,7 @@ from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.plant.grasp import pad_contact_components
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
-from drake_coop.scenario.timing import check_run_size, tick_of
+from drake_coop.control.timing import tick_of
 from drake_coop.sensing.encoders import Encoders
 
 #: Logged signals latched at a tick by its own updates (the torque, the force of the step
@@ -167,11 +167,11 @@ def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
         return
     ctrl = exp.robots[0].controller
     t = context.get_time()
-    k = tick_of(t, exp.scenario.control_period)
+    k = tick_of(t, exp.h)
     if k is None or ctrl.latched_tick(ctrl.GetMyContextFromRoot(context)) == k:
         return
     try:
-        simulator.AdvanceTo(t + 0.5 * exp.scenario.plant.time_step)
+        simulator.AdvanceTo(t + 0.5 * exp.dt)
     except RuntimeError:      # the blown-up state of a diverged run: keep what was latched
         pass
 
@@ -201,7 +201,7 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
         published = times.size
         ctrl_context = rs.controller.GetMyContextFromRoot(context)
         complete = published > 0 and rs.controller.latched_tick(ctrl_context) == \
-            tick_of(times[published - 1], exp.scenario.control_period)
+            tick_of(times[published - 1], exp.h)
         n = published if complete else max(published - 1, 0)
         t = times[:n]
         data = {}
@@ -314,8 +314,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     Raises
     ------
     ScenarioError
-        If the run's work exceeds :data:`~drake_coop.scenario.MAX_TICKS` or
-        :data:`~drake_coop.scenario.MAX_PLANT_STEPS` (checked before anything is built).
+        If the run's work exceeds :data:`~drake_coop.experiment.plan.MAX_TICKS` or
+        :data:`~drake_coop.experiment.plan.MAX_PLANT_STEPS` (checked before anything is built).
     """
     plan = plan_run(scenario, t_end)
     T = plan.t_end

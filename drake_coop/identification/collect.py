@@ -30,7 +30,8 @@ from drake_coop.control.arm_model import ArmModel
 from drake_coop.identification.excitation import FourierExcitation
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Scenario
-from drake_coop.scenario.timing import aligned_periods, tick_of
+from drake_coop.control.timing import tick_of
+from drake_coop.experiment.plan import time_grid
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.plant.model_error import add_payload
@@ -164,7 +165,7 @@ def simulate_excitation(scenario: Scenario, robot_index: int, excitation: Fourie
     """
     robot = scenario.robots[robot_index]
     arm = Arm(robot, scenario.task)
-    h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
+    h, dt = time_grid(scenario)
     b = DiagramBuilder()
     plant, _ = AddMultibodyPlant(MultibodyPlantConfig(
         time_step=dt, discrete_contact_approximation="sap"), b)

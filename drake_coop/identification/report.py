@@ -23,9 +23,6 @@ The folder is written whole: staged in a hidden sibling and renamed into place.
 from __future__ import annotations
 
 import json
-import os
-import secrets
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,6 +43,7 @@ from drake_coop.identification.regressor import (
     true_parameters,
 )
 from drake_coop.identification.urdf_writer import identified_urdf_text
+from drake_coop.results.io import OutputError, check_output_folder, staged_folder
 from drake_coop.scenario.schema import Scenario
 
 #: Allowed excitation lengths (s).
@@ -250,9 +248,10 @@ def _check_out(out: Path) -> None:
             if not (e.is_file() and (e.name in ours or e.name.endswith("_identified.urdf"))):
                 raise IdentifyInputError(f"--out {out} holds {e.name!r}, which identify did "
                                          f"not write; use an empty or new folder")
-    parent = out.resolve().parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK):
-        raise IdentifyInputError(f"--out {out}: the parent folder is missing or not writable")
+    try:
+        check_output_folder(out)
+    except OutputError as exc:
+        raise IdentifyInputError(str(exc)) from None
 
 
 def parse_robots(text: str | None, count: int) -> list[int]:
@@ -283,6 +282,8 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
     lo, hi = DURATION_RANGE
     if not lo <= duration <= hi:
         raise IdentifyInputError(f"--duration must be in [{lo:g}, {hi:g}] s, got {duration:g}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32 - 1:
+        raise IdentifyInputError(f"--seed must be an integer from 0 to {2**32 - 2}, got {seed!r}")
     out = Path(out)
     _check_out(out)
     idents = {}
@@ -291,9 +292,7 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
         idents[i] = identify_robot(scenario, i, duration, seed)
     report = {"scenario_robots": [r.name for r in scenario.robots],
               "robots": {ident.name: summary(ident, duration) for ident in idents.values()}}
-    staging = out.resolve().parent / f".{out.name}.identify-{os.getpid()}-{secrets.token_hex(4)}.tmp"
-    staging.mkdir()
-    try:
+    with staged_folder(out) as staging:
         for ident in idents.values():
             (staging / f"{ident.name}_identified.urdf").write_text(ident.urdf_text)
         (staging / "identify.json").write_text(json.dumps(report, indent=1))
@@ -301,14 +300,4 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
         (staging / "identified.yaml").write_text(
             "# Written by drake-coop identify: the input scenario with the identified "
             "controller models.\n" + dump_scenario(identified_scenario(scenario, idents)))
-        if out.exists():
-            old = out.resolve().parent / f".{out.name}.identify-old-{secrets.token_hex(4)}"
-            out.rename(old)
-            staging.rename(out)
-            shutil.rmtree(old)
-        else:
-            staging.rename(out)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
     return report

@@ -55,7 +55,6 @@ from pydrake.systems.framework import Context, DiagramBuilder
 
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Scenario
-from drake_coop.scenario.timing import aligned_periods
 
 if TYPE_CHECKING:
     from drake_coop.plant.grasp import ContactObject
@@ -250,7 +249,8 @@ def _outboard_bodies(plant: MultibodyPlant, weld: Joint) -> list[RigidBody]:
     return sorted(found, key=lambda b: int(b.index()))
 
 
-def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
+def build_plant(builder: DiagramBuilder, scenario: Scenario,
+                time_step: float | None = None) -> CoopPlant:
     """Add the cooperative plant (with its SceneGraph) to ``builder``.
 
     Parameters
@@ -258,6 +258,10 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
     builder : DiagramBuilder
     scenario : Scenario
         Uses ``scenario.plant`` (time step, object mode, object mass, friction) and the robots.
+    time_step : float, optional
+        The plant step on the run's time grid (``RunPlan.dt``,
+        :func:`drake_coop.experiment.plan.time_grid`: a multiple of it is exactly the control
+        period); default ``scenario.plant.time_step`` as written.
 
     Returns
     -------
@@ -265,7 +269,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario) -> CoopPlant:
         Finalized plant with handles to arms, constraints and object.
     """
     settings = scenario.plant
-    _, time_step = aligned_periods(scenario.control_period, settings.time_step)
+    time_step = settings.time_step if time_step is None else time_step
     config = MultibodyPlantConfig(
         time_step=time_step,
         discrete_contact_approximation="sap",

@@ -33,6 +33,11 @@ array              shape           meaning
 ``lambda_sensor``  (N,) or (N, m)  the F/T sensor model's squeeze λ_s (N)
 ``tau_cmd``        (N, n)          torques commanded by the controller (13), before
                                    saturation (N·m)
+``tau_ff``         (N, n)          the load feedforward ``J_xᵀ f_i`` added to (13)
+                                   (``object_model`` known or estimated; ``.npz`` only) (N·m)
+``f_load``         (N, 3)          the arm's load ``f_i = m_i (a_d − g)`` it feeds forward (N)
+``mass_share``     (N,)            the arm's share ``m_i`` of the object's mass, the estimate
+                                   with ``estimated`` (kg)
 =================  ==============  ============================================================
 
 Files in the run directory:

@@ -25,6 +25,8 @@ import secrets
 import shutil
 from pathlib import Path
 
+from drake_coop.results.io import Locked, lock_folder, replace_folder
+
 __all__ = ["OutputFolderError", "RunFolder", "previous_run"]
 
 #: Files a run writes (names or suffixes); an existing folder holding anything else is kept.
@@ -97,12 +99,23 @@ class RunFolder:
     def __init__(self, out: str | Path):
         self.out = Path(out)
         self.staging: Path | None = None
+        self._lock_fd: int | None = None
+        self._created = False
+
+    def _release(self) -> None:
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)
+            self._lock_fd = None
 
     def _pattern(self) -> re.Pattern:
         return re.compile(rf"\.{re.escape(self.out.name)}\.drake-coop-(\d+)-[0-9a-f]+\.(tmp|old)")
 
     def prepare(self, ticks: int, robots: int = 2, replace: bool = False) -> Path:
         """Check the target and create the staging folder; return it.
+
+        The target is locked first (a new one is created empty; the lock,
+        :func:`drake_coop.results.io.lock_folder`, is released by :meth:`commit` or
+        :meth:`discard`), then checked: two runs into one new ``--out`` cannot both claim it.
 
         Parameters
         ----------
@@ -128,6 +141,17 @@ class RunFolder:
                 raise OutputFolderError(f"--out {out} is a symbolic link; give the folder itself")
             if out.exists() and not out.is_dir():
                 raise OutputFolderError(f"--out {out} exists and is not a folder")
+            out.parent.mkdir(parents=True, exist_ok=True)
+            if not out.exists():            # a new --out: created empty, to be locked
+                out.mkdir()
+                self._created = True
+            try:
+                self._lock_fd = lock_folder(out)
+            except Locked:
+                self._created = False
+                raise OutputFolderError(
+                    f"--out {out} is being written by another drake-coop run; wait for it to "
+                    "end or choose another folder") from None
             if out.is_dir():
                 usable, foreign = _is_run_folder(out)
                 if not usable:
@@ -139,7 +163,6 @@ class RunFolder:
                     raise OutputFolderError(
                         f"--out {out} holds a previous run ({held}); add --force to replace "
                         "it, or choose another folder")
-            out.parent.mkdir(parents=True, exist_ok=True)
             self._remove_stale()
             staging = out.parent / f".{out.name}.drake-coop-{os.getpid()}-" \
                                    f"{secrets.token_hex(4)}.tmp"
@@ -149,6 +172,9 @@ class RunFolder:
             (staging / ".write-test").unlink()
             need = BYTES_FIXED + BYTES_PER_ROBOT_TICK * robots * ticks
             free = shutil.disk_usage(staging).free
+        except OutputFolderError:
+            self.discard()
+            raise
         except OSError as exc:
             self.discard()
             raise OutputFolderError(f"--out {out}: cannot write there "
@@ -174,19 +200,10 @@ class RunFolder:
         absent (the previous run is in ``.<name>.drake-coop-…old``, removed right after).
         """
         assert self.staging is not None, "prepare() first"
-        old = None
-        if self.out.is_dir():
-            old = self.staging.with_suffix(".old")
-            os.rename(self.out, old)
-        try:
-            os.rename(self.staging, self.out)
-        except OSError:
-            if old is not None:
-                os.rename(old, self.out)
-            raise
+        replace_folder(self.staging, self.out)
         self.staging = None
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        self._created = False
+        self._release()
         return self.out
 
     def discard(self) -> None:
@@ -194,3 +211,10 @@ class RunFolder:
         if self.staging is not None:
             shutil.rmtree(self.staging, ignore_errors=True)
             self.staging = None
+        if self._created:                   # the empty --out this run created
+            try:
+                self.out.rmdir()
+            except OSError:
+                pass
+            self._created = False
+        self._release()

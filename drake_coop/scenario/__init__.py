@@ -33,19 +33,13 @@ from drake_coop.scenario.schema import (
     ScenarioError,
     Task,
 )
-from drake_coop.scenario.timing import (
-    MAX_PLANT_STEPS,
-    MAX_TICKS,
-    aligned_periods,
-    check_run_size,
-    run_size,
-)
+from drake_coop.control.timing import aligned_periods
 from drake_coop.scenario.validation import BOUNDS, LENGTHS, validate
 
 __all__ = [
     "ARM_MODELS", "FORCE_SOURCES", "OBJECT_MODES", "VELOCITY_SOURCES", "Actuators", "Encoders",
     "ForceSensorModel", "Gains", "Guards", "ModelError", "ObjectModelSettings", "PlantSettings", "Robot", "Scenario",
-    "ScenarioError", "Task", "default_scenario", "paper_robots", "MAX_PLANT_STEPS", "MAX_TICKS",
-    "aligned_periods", "check_run_size", "run_size", "BOUNDS", "LENGTHS", "validate",
+    "ScenarioError", "Task", "default_scenario", "paper_robots",
+    "aligned_periods", "BOUNDS", "LENGTHS", "validate",
     "dump_scenario", "load_scenario",
 ]

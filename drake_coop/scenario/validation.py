@@ -9,6 +9,8 @@ kinematics late, so that this package imports nothing outside it at import time)
 from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
+    DRIVER_KINDS,
+    SAFE_COMMANDS,
     FORCE_SOURCES,
     JITTER_DISTRIBUTIONS,
     OBJECT_MODEL_MODES,
@@ -22,7 +24,7 @@ from drake_coop.scenario.schema import (
 
 _POS = dict(lo_open=True)
 #: Allowed range of every number of a scenario, by dotted field (``[]``: any index). A new
-#: ``float`` or ``list[float]`` field gets its entry here (``tests/test_scenario_bounds.py``
+#: ``float`` or ``list[float]`` field gets its entry here (``tests/scenario/test_validation.py``
 #: checks that every numeric field has one); :func:`validate` then checks it, and the message
 #: states the bound.
 BOUNDS: dict[str, Bound] = {
@@ -67,6 +69,11 @@ BOUNDS: dict[str, Bound] = {
     "robots[].timing.computation_delay": Bound(0.0, 0.1, "s"),
     "robots[].timing.jitter_scale": Bound(0.0, 0.1, "s"),
     "robots[].timing.seed": Bound(0, 2**63 - 1),
+    "robots[].driver.num_joints": Bound(1, 64, "joints"),
+    "robots[].driver.rate_hz": Bound(1.0, 1e5, "Hz"),
+    "robots[].driver.torque_limits[]": Bound(0.0, 1e4, "N·m", **_POS),
+    "robots[].driver.max_status_age": Bound(0.0, 10.0, "s", **_POS),
+    "robots[].driver.command_timeout": Bound(0.0, 10.0, "s", **_POS),
     **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
         "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
@@ -148,6 +155,10 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
     _choice(p.object_mode, OBJECT_MODES, "plant.object_mode")
     _choice(scenario.object_model.mode, OBJECT_MODEL_MODES, "object_model.mode")
     _choice(scenario.object_model.squeeze, SQUEEZE_SOURCES, "object_model.squeeze")
+    if scenario.object_model.mode != "none" and p.object_mode not in ("rigid", "contact"):
+        raise ScenarioError(f"object_model.mode: {scenario.object_model.mode} needs a held "
+                            f"object (plant.object_mode rigid or contact), got "
+                            f"{show(p.object_mode)}")
     if scenario.object_model.squeeze == "friction" and scenario.object_model.mode == "none":
         raise ScenarioError("object_model.squeeze: friction needs object_model.mode known or "
                             "estimated (the controllers must know the object's load)")
@@ -171,6 +182,7 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
     if len(set(names)) != len(names):
         raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
     _validate_two_sided(scenario)
+    _validate_drivers(scenario)
 
     t = scenario.task
     times = ["t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end"]
@@ -197,6 +209,7 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
 
     for i, (robot, n) in enumerate(zip(scenario.robots, check_models(scenario))):
         check_dimensions(robot, n, f"robots[{i}]")
+        _validate_driver_joints(robot, n, f"robots[{i}]")
     check_axes(scenario)
     if cache is None:
         check_reachable(scenario)
@@ -210,6 +223,53 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
             cache[key] = str(exc)
     if cache[key] is not None:
         raise ScenarioError(cache[key])
+
+
+def driver_channels(robot: Robot) -> tuple[str, str]:
+    """``(status, command)`` channels of a robot's driver (the defaults for an empty name)."""
+    d = robot.driver
+    status = d.status_channel if d is not None and d.status_channel else f"PANDA_STATUS_{robot.name}"
+    command = (d.command_channel if d is not None and d.command_channel
+               else f"PANDA_COMMAND_{robot.name}")
+    return status, command
+
+
+def _validate_drivers(scenario: Scenario) -> None:
+    """Each robot's ``driver``: its kind, safe command, rate against ``control_period`` and
+    channels (non-empty names, all distinct in the scenario)."""
+    seen: dict[str, str] = {}
+    for i, r in enumerate(scenario.robots):
+        where = f"robots[{i}].driver"
+        d = r.driver
+        if d is not None:
+            _choice(d.kind, DRIVER_KINDS, f"{where}.kind")
+            _choice(d.safe_command, SAFE_COMMANDS, f"{where}.safe_command")
+            if not _is_multiple(scenario.control_period, 1.0 / d.rate_hz):
+                raise ScenarioError(f"{where}.rate_hz ({d.rate_hz}) must make control_period "
+                                    f"({scenario.control_period}) a whole number of cycles")
+            for key in ("status_channel", "command_channel"):
+                value = getattr(d, key)
+                if not isinstance(value, str) or len(value) > 100 or not value.isprintable():
+                    raise ScenarioError(f"{where}.{key} must be a channel name of at most "
+                                        f"100 printable characters, got {show(value)}")
+        for key, channel in zip(("status_channel", "command_channel"), driver_channels(r)):
+            if channel in seen:
+                raise ScenarioError(f"{where}.{key} {show(channel)} is already used by "
+                                    f"{seen[channel]}: every driver channel must be distinct")
+            seen[channel] = f"{where}.{key}"
+
+
+def _validate_driver_joints(robot: Robot, n: int, where: str) -> None:
+    """The driver's joint count and torque limits against the arm's ``n``."""
+    d = robot.driver
+    if d is None:
+        return
+    if d.num_joints is not None and d.num_joints != n:
+        raise ScenarioError(f"{where}.driver.num_joints is {d.num_joints} but the arm "
+                            f"{show(robot.model)} has {n} joints")
+    if d.torque_limits is not None and len(d.torque_limits) != n:
+        raise ScenarioError(f"{where}.driver.torque_limits must list {n} limits (one per "
+                            f"joint), got {len(d.torque_limits)}")
 
 
 def reach_inputs(scenario: Scenario) -> str:

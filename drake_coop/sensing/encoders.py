@@ -26,7 +26,7 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
 from drake_coop.scenario.schema import Encoders as EncoderSettings
-from drake_coop.scenario.timing import tick_of
+from drake_coop.control.timing import tick_of
 from drake_coop.sensing.sampling import ENCODER_STREAM, white_noise
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, LeafSystem
 
 from drake_coop.scenario.schema import Timing
-from drake_coop.scenario.timing import tick_of
+from drake_coop.control.timing import tick_of
 
 __all__ = ["JITTER_STREAM", "ActuationDelay", "lateness", "switch_step"]
 
@@ -77,7 +77,7 @@ class ActuationDelay(LeafSystem):
         Joints.
     period, time_step : float
         Control period ``h`` and plant step ``Δt`` (``h = N Δt`` exactly:
-        :func:`~drake_coop.scenario.timing.aligned_periods`).
+        :func:`~drake_coop.control.timing.aligned_periods`).
     timing : drake_coop.scenario.Timing
         Delay, jitter and seed.
     robot_index : int

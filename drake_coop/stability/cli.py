@@ -3,8 +3,11 @@
 Computes ρ(Φ) of the one-period map at each grid point and operating point
 (:mod:`drake_coop.stability.grid`) and writes ``DIR/stability.csv`` and the maps
 (:mod:`drake_coop.stability.output`); ``--overlay RESULTS.csv`` marks a study's simulated
-outcomes on them. Exit codes: 0 done (unstable points are results), 2 bad input (one line naming
-the field), 130 Ctrl-C, 143 SIGTERM.
+outcomes on them. ``--out`` is checked before the grid runs and written whole at the end (staged
+in a hidden sibling, :func:`drake_coop.results.io.staged_folder`). Exit codes: 0 done (unstable
+points are results), 1 a point's ρ depends on the finite-difference step (the reason is printed;
+the rows are written with status ``step_dependent``) or writing the outputs failed (the previous
+outputs are kept), 2 bad input (one line naming the field), 130 Ctrl-C, 143 SIGTERM.
 """
 
 from __future__ import annotations
@@ -54,16 +57,17 @@ def add_stability_parser(sub) -> None:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS")
     p.add_argument("--epsilon", type=float, default=1e-5,
-                   help="central-difference step (default 1e-5)")
+                   help="central-difference step, 1e-6 to 1e-3 (default 1e-5; ρ is computed "
+                        "again with a second step and must agree)")
     p.add_argument("--quiet", action="store_true")
     p.set_defaults(func=cmd_stability)
 
 
 def _check_out(out: Path) -> None:
+    from drake_coop.results.io import check_output_folder
     from drake_coop.stability.output import OUTPUT_NAMES
 
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out: {out} exists and is not a folder")
+    check_output_folder(out)
     if out.is_dir():
         foreign = [p.name for p in out.iterdir()     # ours, or our interrupted temp files
                    if not any(p.name.lstrip(".").startswith(n) for n in OUTPUT_NAMES)]
@@ -73,23 +77,31 @@ def _check_out(out: Path) -> None:
 
 
 def cmd_stability(args) -> int:
-    from drake_coop.cli import _error
+    from drake_coop.console import error as _error
+    from drake_coop.results.io import staged_folder
     from drake_coop.scenario.resources import find_scenario
     from drake_coop.scenario.schema import ScenarioError
-    from drake_coop.stability.grid import grid_cases, run_grid
+    from drake_coop.stability.grid import STEP_DEPENDENT, grid_cases, run_grid
+    from drake_coop.stability.period_map import EPSILON_RANGE
     from drake_coop.stability.output import outcome_key, plot_maps, read_outcomes, write_csv
     from drake_coop.studies.spec import StudyError
 
     try:
-        if not (0.0 < args.epsilon < 1e-2):
-            raise InputError(f"--epsilon must be in (0, 0.01), got {args.epsilon}")
+        lo, hi = EPSILON_RANGE
+        if not lo <= args.epsilon <= hi:
+            raise InputError(f"--epsilon must be in [{lo:g}, {hi:g}] (where the map's ρ does "
+                             f"not depend on the step), got {args.epsilon}")
         if args.workers < 1:
             raise InputError(f"--workers must be >= 1, got {args.workers}")
         out = Path(args.out)
         _check_out(out)
         path = find_scenario(args.scenario)
+        text = path.read_text(encoding="utf-8")
+        if not text.strip():
+            raise InputError(f"scenario {path}: the file is empty (give a scenario, or the "
+                             "shipped 'paper')")
         grid = parse_grid(args.grid)
-        cases = grid_cases(path.read_text(encoding="utf-8"), grid)
+        cases = grid_cases(text, grid)
         swept = list(grid)
         outcomes = read_outcomes(args.overlay, swept) if args.overlay else None
         if outcomes is not None:
@@ -116,9 +128,19 @@ def cmd_stability(args) -> int:
              engine="ray" if args.ray is not None else "local",
              address=args.ray or None, epsilon=args.epsilon)
     rows = [r for i in sorted(rows_by_case) for r in rows_by_case[i]]
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv(out / "stability.csv", swept, rows)
-    figures = plot_maps(out, swept, rows, outcomes)
+    try:
+        with staged_folder(out) as staging:
+            write_csv(staging / "stability.csv", swept, rows)
+            figures = plot_maps(staging, swept, rows, outcomes)
+    except OSError as exc:               # a full disk while writing: nothing was replaced
+        _error(f"--out {out}: writing the outputs failed ({exc.strerror or exc}); nothing "
+               "was replaced")
+        return 1
     if not args.quiet:
         print(f"wrote {out / 'stability.csv'} and {len(figures)} figure(s)", file=sys.stderr)
+    dependent = [r for r in rows if r["status"] == STEP_DEPENDENT]
+    if dependent:
+        _error(f"{len(dependent)} point(s) have no step-independent ρ (status "
+               f"{STEP_DEPENDENT} in stability.csv); first: {dependent[0]['message']}")
+        return 1
     return 0

@@ -26,6 +26,9 @@ COLUMNS = ["point", "rho", "status", "residual", "slowest_abs", "slowest_time_co
            "slowest_hz", "slowest_states", "fastest_abs", "dynamic_states", "epsilon",
            "wall_time_s", "message"]
 
+#: The status of a point whose ρ depends on the finite-difference step (not a result).
+STEP_DEPENDENT = "step_dependent"
+
 #: Largest ``|F(x*) − x*|`` accepted as an equilibrium.
 EQUILIBRIUM_TOL = 1e-6
 
@@ -48,7 +51,8 @@ def grid_cases(base_yaml: str | None, grid: dict[str, list]) -> list[Case]:
     drake_coop.studies.spec.StudyError
         A bad path or value, naming it (``grid.control_period = -1: …``).
     """
-    return expand(Study(name="stability", base_yaml=base_yaml, grid=dict(grid)))
+    return expand(Study(name="stability", base_yaml=base_yaml, grid=dict(grid)),
+                  max_cases_option=None)
 
 
 def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-5) -> list[dict]:
@@ -69,8 +73,14 @@ def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-5) -> 
                          "message": f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"})
             continue
         slow, fast = report.slowest, report.fastest
+        status, message = status_of(report.rho, report.residual), ""
+        if not report.step_agrees:
+            status = STEP_DEPENDENT
+            message = (f"rho = {report.rho:.6g} with epsilon = {epsilon:g} but "
+                       f"{report.rho_check:.6g} with {report.epsilon_check:g}: the "
+                       "finite-difference step is outside where the map is resolved")
         rows.append({
-            "point": point, "rho": report.rho, "status": status_of(report.rho, report.residual),
+            "point": point, "rho": report.rho, "status": status,
             "residual": report.residual,
             "slowest_abs": slow.magnitude if slow else math.nan,
             "slowest_time_constant_s": slow.time_constant if slow else math.nan,
@@ -78,7 +88,7 @@ def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-5) -> 
             "slowest_states": " ".join(slow.dominant) if slow else "",
             "fastest_abs": fast.magnitude if fast else math.nan,
             "dynamic_states": len(report.dynamic), "epsilon": epsilon,
-            "wall_time_s": time.perf_counter() - start, "message": ""})
+            "wall_time_s": time.perf_counter() - start, "message": message})
     return rows
 
 

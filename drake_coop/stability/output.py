@@ -13,23 +13,17 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
+from drake_coop.results.io import atomic_write_bytes
 from drake_coop.stability.grid import COLUMNS
 
 __all__ = ["OUTPUT_NAMES", "outcome_key", "plot_maps", "read_outcomes", "write_csv"]
 
 #: What ``drake-coop stability`` writes into its folder (prefixes).
 OUTPUT_NAMES = ("stability.csv", "stability_")
-
-
-def _atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
 
 
 def _cell(value) -> str:
@@ -45,7 +39,7 @@ def write_csv(path: Path, swept: list[str], rows: list[dict]) -> None:
     w.writerow(swept + COLUMNS)
     for r in rows:
         w.writerow([_cell(r.get(k, "")) for k in swept + COLUMNS])
-    _atomic(Path(path), buf.getvalue().encode())
+    atomic_write_bytes(Path(path), buf.getvalue().encode())
 
 
 def _num(v):
@@ -159,6 +153,6 @@ def plot_maps(out: Path, swept: list[str], rows: list[dict],
         fig.savefig(buf, format="png", dpi=90)
         plt.close(fig)
         path = out / f"stability_{slug}.png"
-        _atomic(path, buf.getvalue())
+        atomic_write_bytes(path, buf.getvalue())
         written.append(path)
     return written

@@ -24,6 +24,7 @@ import sys
 import time
 from pathlib import Path
 
+from drake_coop.console import error
 from drake_coop.studies.expand import MAX_CASES, Case, expand
 from drake_coop.studies.spec import StudyError, load_study
 from drake_coop.studies.store import FINISHED, ResultStore, check_metric_names
@@ -71,8 +72,7 @@ def _clock(seconds: float) -> str:
 
 
 def _error(message: str) -> int:
-    print(f"drake-coop study: error: {message}", file=sys.stderr)
-    return 2
+    return error(message, "drake-coop study")
 
 
 #: Set by the SIGTERM handler: Ray's ``ray.wait`` turns any exception raised in a signal

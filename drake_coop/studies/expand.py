@@ -48,7 +48,7 @@ The number of cases (grid points × samples) is computed from the study before a
 expanded and refused above ``max_cases`` (:data:`MAX_CASES` unless raised on purpose). Every
 case is validated as ``drake-coop run`` validates its scenario (the field checks of
 :func:`~drake_coop.scenario.validation.validate` and the run size of
-:func:`~drake_coop.scenario.timing.check_run_size` at the study's ``t_end``). Numbers and lists
+:func:`~drake_coop.experiment.plan.check_run_size` at the study's ``t_end``). Numbers and lists
 of numbers are set on a copy of the validated base :class:`~drake_coop.scenario.Scenario`
 (converted as the YAML loader converts them), other values (variants, texts, ``null``) go
 through the scenario's YAML loading; the reachability check, which reads only the task and the
@@ -388,7 +388,7 @@ class _Builder:
     def build(self, assignments: list[Assignment], where: str
               ) -> tuple[Scenario, str | None]:
         """The validated scenario (and its YAML when it went through the YAML loading)."""
-        from drake_coop.scenario.timing import check_run_size
+        from drake_coop.experiment.plan import check_run_size
         from drake_coop.scenario.validation import validate
 
         scenario = copy.deepcopy(self.base)
@@ -466,7 +466,8 @@ def _label(params: dict) -> str:
     return text if len(text) <= 200 else text[:200] + "…"
 
 
-def expand(study: Study, *, max_cases: int = MAX_CASES) -> list[Case]:
+def expand(study: Study, *, max_cases: int = MAX_CASES,
+           max_cases_option: str | None = "--max-cases") -> list[Case]:
     """All cases of ``study``, each scenario validated, in order (grid outer, samples inner).
 
     Parameters
@@ -474,6 +475,9 @@ def expand(study: Study, *, max_cases: int = MAX_CASES) -> list[Case]:
     study : Study
     max_cases : int
         Refuse a study of more cases (computed before expanding it).
+    max_cases_option : str or None
+        The command-line option that raises the bound, named in the message (None: a command
+        without one, such as ``stability``).
 
     Raises
     ------
@@ -485,8 +489,9 @@ def expand(study: Study, *, max_cases: int = MAX_CASES) -> list[Case]:
     n_cases, points, samples_n = study_size(study)
     if n_cases > max_cases:
         raise StudyError(f"the study has {n_cases} cases ({points} grid points × {samples_n} "
-                         f"samples), more than {max_cases}; shrink the grid or monte_carlo.n, "
-                         "or raise the bound on purpose with --max-cases")
+                         f"samples), more than {max_cases}; shrink the grid or monte_carlo.n"
+                         + (f", or raise the bound on purpose with {max_cases_option}"
+                            if max_cases_option else ""))
     builder = _Builder(study)
     paths = list(study.grid) + ([p.path for p in study.monte_carlo.perturb]
                                 if study.monte_carlo is not None else [])

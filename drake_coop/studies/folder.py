@@ -20,10 +20,11 @@ Every problem is a :class:`StudyFolderError` with a one-line message that starts
 
 from __future__ import annotations
 
-import fcntl
 import json
 import os
 from pathlib import Path
+
+from drake_coop.results.io import Locked, atomic_write_text, lock_file
 
 __all__ = ["LOCK", "MARKER", "StudyFolder", "StudyFolderError"]
 
@@ -110,8 +111,6 @@ class StudyFolder:
             self._lock()
             self._check(name)          # again under the lock: another process may have won
             if self.owner() is None or not (self.out / MARKER).is_file():
-                from drake_coop.results.io import atomic_write_text
-
                 atomic_write_text(self.out / MARKER, json.dumps({"name": name}) + "\n")
             (self.out / "cases").mkdir(exist_ok=True)
         except StudyFolderError:
@@ -142,26 +141,11 @@ class StudyFolder:
         return self
 
     def _lock(self) -> None:
-        flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0)
-        fd = os.open(self.out / LOCK, flags, 0o644)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            try:
-                holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
-            except OSError:
-                holder = ""
-            os.close(fd)
-            raise StudyFolderError(
-                f"--out {self.out} is in use by another study process"
-                f"{f' (pid {holder})' if holder.isdigit() else ''}; wait for it to end or "
-                "stop it") from None
-        except OSError:
-            os.close(fd)
-            raise
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        self._fd = fd
+            self._fd = lock_file(self.out / LOCK)
+        except Locked as exc:
+            raise StudyFolderError(f"--out {self.out} is in use by another study process"
+                                   f"{exc.by()}; wait for it to end or stop it") from None
 
     def release(self) -> None:
         """Release the lock (the kernel also does when the process ends)."""

@@ -267,9 +267,12 @@ def load_study(path: str | Path | None = None, *, data: str | None = None,
                   description=str(description))
     study.base_yaml = _base_yaml(raw.get("base"), Path(folder))
     if raw.get("t_end") is not None:
+        from drake_coop.control.params import PERIOD_RANGE
+
         study.t_end = _number(raw["t_end"], "t_end")
-        if study.t_end <= 0:
-            raise StudyError(f"t_end: must be > 0, got {study.t_end}")
+        if study.t_end < PERIOD_RANGE[0]:     # shorter than any control period: no run
+            raise StudyError(f"t_end: must be at least {PERIOD_RANGE[0]:g} s (one control "
+                             f"period at the least), got {study.t_end:g}")
     grid = raw.get("grid") or {}
     if not isinstance(grid, dict):
         raise StudyError(f"grid: must map scenario paths to lists of values, got {grid!r}")

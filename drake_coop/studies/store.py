@@ -30,6 +30,7 @@ the held object's errors in ``contact`` mode (``friction_use``, ``object_positio
 from __future__ import annotations
 
 import csv
+import errno
 import io
 import json
 import math
@@ -122,12 +123,21 @@ class ResultStore:
 
         A file that cannot be read, is not UTF-8 JSON, or misses a field of a record is
         skipped (its case runs again); :attr:`skipped` lists them as one-line warnings.
+
+        Raises
+        ------
+        IsADirectoryError
+            A case's file is a folder: its result could not be saved there, so the study is
+            refused before running it (not recomputed and then lost).
         """
         records: dict[str, dict] = {}
         self.skipped: list[str] = []
         if not self.cases_dir.is_dir():
             return records
         for path in sorted(self.cases_dir.glob("*.json")):
+            if path.is_dir() and not path.is_symlink():
+                raise IsADirectoryError(errno.EISDIR, f"cases/{path.name} is a folder where "
+                                        "a case's result file goes; remove it")
             problem = None
             try:
                 if path.is_symlink() or not path.is_file():

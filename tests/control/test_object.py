@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
 from pydrake.multibody.tree import SpatialInertia, UnitInertia
@@ -299,3 +298,24 @@ def test_mass_estimator_checks_its_arguments(model):
                          (dict(prior=0.1, prior_std=0.1, forgetting=1.5), "forgetting")):
         with pytest.raises(ValueError, match=name):
             MassEstimator(model, H, **kwargs)
+
+
+def test_contact_jacobian_is_the_jacobian_of_the_offset_point(model):
+    """J_c of E + r (r fixed in the pad body, given in the world at q) against central
+    differences of that body-fixed point's position, from the plant's own pad pose."""
+    plant, ctx = model.plant, model.plant.CreateDefaultContext()
+    r = np.array([0.015, 0.0, 0.0])
+    plant.SetPositions(ctx, Q0)
+    X = model.ee_frame.CalcPoseInWorld(ctx)
+    r_E = X.rotation().inverse() @ r                     # the point, in the pad's frame
+    eps = 1e-6
+    cols = []
+    for e in np.eye(3):
+        pts = []
+        for sgn in (1, -1):
+            plant.SetPositions(ctx, Q0 + sgn * eps * e)
+            pts.append(model.ee_frame.CalcPoseInWorld(ctx) @ r_E)
+        cols.append((pts[0] - pts[1]) / (2 * eps))
+    from drake_coop.control.object import contact_jacobian
+    assert np.allclose(contact_jacobian(model, Q0, r), np.array(cols).T, atol=1e-8)
+    assert np.array_equal(contact_jacobian(model, Q0, None), model.J_x(Q0))

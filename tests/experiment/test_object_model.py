@@ -3,8 +3,6 @@ blocks it adds to the experiment's diagram, the references it changes, a short r
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -118,3 +116,10 @@ def test_a_short_rigid_run_estimates_the_mass_and_logs_the_new_signals():
     assert total[np.searchsorted(t, 5.9)] == pytest.approx(0.5, rel=0.05)
     # Nothing fed forward before the grasp.
     assert np.all(logs["robot1"]["tau_ff"][t < 0.99] == 0.0)
+
+
+def test_an_object_model_needs_a_held_object(tmp_path, capsys):
+    path = tmp_path / "planes.yaml"
+    path.write_text("object_model: {mode: known}\n")       # the paper's planes: no object
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    assert "object_model.mode" in capsys.readouterr().err

@@ -1,0 +1,418 @@
+"""The experiment split at the robot's cable: the controller side and a simulated driver,
+joined only by the driver's LCM messages.
+
+Controller side (:func:`add_controller_side`), per arm::
+
+    status channel ─▶ LcmSubscriberSystem ─▶ PandaStatusReceiver ─ position_measured ─▶ Watchdog
+                     (lcmt_panda_status)      (velocity, torque: not connected)
+    Watchdog ─ q_checked ─▶ AddCooperativeController(q, connect_actuation=False) ─ tau ─▶ Watchdog
+    reference ─▶ AddCooperativeController
+    Watchdog ─ tau_safe ─▶ PandaCommandSender (torque mode) ─▶ LcmPublisherSystem ─▶ command channel
+
+The control blocks read the driver's measured position only, never its velocity or torque
+(the paper's premise: no tachometer, no force sensor). The command is published once per
+tick, :data:`COMMAND_OFFSET` after ``t_k`` (after the tick's updates); a second, Python-typed
+subscriber on the status channel gives the watchdog each status's time stamp.
+
+Simulated driver (:func:`add_driver_side`), per arm, on the scenario's cooperative plant::
+
+    command channel ─▶ LcmSubscriberSystem ─▶ PandaCommandReceiver ─ torque ─▶ CommandHold ─▶ plant
+    plant ─ [q, v] ─▶ PandaStatusSender ─▶ LcmPublisherSystem (every driver cycle) ─▶ status channel
+
+:class:`CommandHold` applies the newest command as a real driver does: held until the next
+one, clipped to the driver's torque limits, zero torque when it is older than
+``command_timeout`` or before the first one, never a non-finite value.
+
+Timing in one Diagram on one ``DrakeLcm("memq://")`` (the messages are pumped by
+``LcmInterfaceSystem`` when the Simulator asks for its next event): the status published at
+``t`` reaches the controller after that instant's updates, so the tick at ``t_k`` reads the
+status of the driver cycle before (``q(t_k − 1 ms)`` at 1 kHz), and the command of ``t_k``
+is applied from the driver's next cycle, ``t_k + 1 ms``: the cable costs one driver cycle each
+way.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.lcm import DrakeLcm
+from pydrake.manipulation import (
+    PandaCommandReceiver,
+    PandaCommandSender,
+    PandaControlMode,
+    PandaStatusReceiver,
+    PandaStatusSender,
+)
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiagramBuilder,
+    LeafSystem,
+    State,
+)
+from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
+from pydrake.systems.primitives import Demultiplexer, TrajectorySource
+
+from drake import lcmt_panda_command, lcmt_panda_status
+from drake_coop.control.block import AddCooperativeController, ControllerHandles
+from drake_coop.control.watchdog import Watchdog
+from drake_coop.experiment.plan import RunPlan, time_grid
+from drake_coop.experiment.references import reference_trajectory
+from drake_coop.plant.cooperative import CoopPlant, build_plant
+from drake_coop.plant.model_error import controller_arm_model
+from drake_coop.scenario.schema import Driver, Scenario, ScenarioError
+from drake_coop.scenario.validation import driver_channels
+
+#: The command of tick ``k`` is published at ``t_k + COMMAND_OFFSET`` (simulated time): after
+#: the tick's updates, off the driver's 1 ms grid.
+COMMAND_OFFSET = 1e-4
+
+
+def shared_message_type(lcm_type):
+    """``lcm_type`` whose decoded messages are shared, not deep-copied, when Drake copies the
+    subscriber's state (pydrake deep-copies Python values; a status at 1 kHz costs a deep copy
+    of its eight arrays several times per message, most of the split run's time).
+
+    Safe because a decoded message is never modified: its arrays are tuples and nothing here
+    writes its fields."""
+
+    class Shared(lcm_type):
+        __slots__ = []
+
+        @staticmethod
+        def decode(data):
+            msg = lcm_type.decode(data)
+            msg.__class__ = Shared
+            return msg
+
+        def __copy__(self):
+            return self
+
+        def __deepcopy__(self, memo):
+            return self
+
+    Shared.__name__ = Shared.__qualname__ = f"Shared_{lcm_type.__name__}"
+    return Shared
+
+
+#: The Python-typed messages the stamps are read from (shared, see :func:`shared_message_type`).
+SharedPandaStatus = shared_message_type(lcmt_panda_status)
+SharedPandaCommand = shared_message_type(lcmt_panda_command)
+
+
+@dataclass(frozen=True)
+class DriverSpec:
+    """One arm's driver, resolved from ``robots[i].driver`` (defaults filled in)."""
+
+    robot: str
+    kind: str
+    status_channel: str
+    command_channel: str
+    n: int
+    period: float
+    torque_limits: np.ndarray | None
+    max_status_age: float
+    command_timeout: float
+    safe_command: str
+
+
+def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
+    """Each robot's :class:`DriverSpec` (``joints``: each arm's ``n``).
+
+    Raises
+    ------
+    ScenarioError
+        A velocity or force source that needs what a driver does not give (``measured``
+        velocities, an F/T ``sensor``), naming the field.
+    """
+    specs = []
+    for i, (robot, n) in enumerate(zip(scenario.robots, joints)):
+        if robot.velocity_source == "measured":
+            raise ScenarioError(f"robots[{i}].velocity_source: 'measured' reads the arm's "
+                                "velocity, which the driver's status is not used for; use "
+                                "observer or difference")
+        if robot.force_source == "sensor":
+            raise ScenarioError(f"robots[{i}].force_source: 'sensor' needs an F/T sensor the "
+                                "driver does not carry; use observer, momentum or none")
+        d = robot.driver if robot.driver is not None else Driver()
+        if d.num_joints is not None and d.num_joints != n:     # also checked by validate()
+            raise ScenarioError(f"robots[{i}].driver.num_joints is {d.num_joints} but the arm "
+                                f"has {n} joints")
+        limits = d.torque_limits if d.torque_limits is not None else \
+            robot.actuators.torque_limits
+        status, command = driver_channels(robot)
+        specs.append(DriverSpec(
+            robot=robot.name, kind=d.kind, status_channel=status, command_channel=command,
+            n=n, period=1.0 / d.rate_hz,
+            torque_limits=None if limits is None else np.asarray(limits, dtype=float),
+            max_status_age=d.max_status_age, command_timeout=d.command_timeout,
+            safe_command=d.safe_command))
+    return specs
+
+
+class MessageStamp(LeafSystem):
+    """The time stamp of an LCM message (its ``utime``, in seconds) as a vector.
+
+    .. pydrake_system::
+
+        name: MessageStamp
+        input_ports:
+        - message
+        output_ports:
+        - stamp
+
+    ``stamp = utime · 1e-6`` (0 before the first message: the empty message's).
+    """
+
+    def __init__(self, lcm_type):
+        super().__init__()
+        self._in = self.DeclareAbstractInputPort("message", AbstractValue.Make(lcm_type()))
+        self.DeclareVectorOutputPort("stamp", 1, self._calc)
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
+        output.SetAtIndex(0, self._in.Eval(context).utime * 1e-6)
+
+
+class CommandHold(LeafSystem):
+    """What a torque-mode driver applies: the newest command, held, limited, timed out.
+
+    .. pydrake_system::
+
+        name: CommandHold
+        input_ports:
+        - tau_commanded
+        - command
+        output_ports:
+        - tau_applied
+
+    At every driver cycle ``t`` (a periodic unrestricted update, so the plant's step at ``t``
+    applies it), with ``t_c`` the cycle at which the newest command (its ``utime``) was first
+    seen::
+
+        tau_applied = clip(τ_cmd, −τ_max, τ_max)   if a command arrived and t − t_c <= T_out
+                      0                            otherwise (and where τ_cmd is not finite)
+
+    Parameters
+    ----------
+    n : int
+        Joints.
+    period : float
+        The driver's cycle (s).
+    timeout : float
+        ``T_out`` (s).
+    torque_limits : array_like, optional
+        ``τ_max`` (N·m); default none.
+    """
+
+    def __init__(self, n: int, period: float, timeout: float, torque_limits=None):
+        super().__init__()
+        self._n = n
+        self._timeout = float(timeout)
+        self._tau_max = (np.full(n, np.inf) if torque_limits is None
+                         else np.asarray(torque_limits, dtype=float))
+        self._tau = self.DeclareVectorInputPort("tau_commanded", n)
+        self._msg = self.DeclareAbstractInputPort("command",
+                                                  AbstractValue.Make(lcmt_panda_command()))
+        self._applied = self.DeclareDiscreteState(n)
+        self._seen = self.DeclareDiscreteState(np.array([0.0, -math.inf]))   # utime, t_c
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
+        self.DeclareStateOutputPort("tau_applied", self._applied)
+
+    def _update(self, context: Context, state: State) -> None:
+        t = context.get_time()
+        utime = float(self._msg.Eval(context).utime)
+        last, t_c = context.get_discrete_state(self._seen).get_value()
+        if utime != last and utime != 0.0:
+            last, t_c = utime, t
+        state.get_mutable_discrete_state(self._seen).SetFromVector([last, t_c])
+        tau = np.zeros(self._n)
+        if t - t_c <= self._timeout * (1 + 1e-9):
+            tau = np.asarray(self._tau.Eval(context), dtype=float)
+            if tau.size != self._n:          # an empty or malformed command: nothing applied
+                tau = np.zeros(self._n)
+            tau = np.clip(np.where(np.isfinite(tau), tau, 0.0), -self._tau_max, self._tau_max)
+        state.get_mutable_discrete_state(self._applied).SetFromVector(tau)
+
+
+@dataclass
+class ArmController:
+    """One arm's controller-side systems."""
+
+    spec: DriverSpec
+    block: ControllerHandles
+    watchdog: Watchdog
+    status_subscriber: LcmSubscriberSystem
+    stamp_subscriber: LcmSubscriberSystem
+    status_receiver: PandaStatusReceiver
+    command_sender: PandaCommandSender
+    command_publisher: LcmPublisherSystem
+    hold_torque: object = None
+
+
+@dataclass
+class ArmDriver:
+    """One arm's simulated-driver systems."""
+
+    spec: DriverSpec
+    command_subscriber: LcmSubscriberSystem
+    command_receiver: PandaCommandReceiver
+    hold: CommandHold
+    status_sender: PandaStatusSender
+    status_publisher: LcmPublisherSystem
+
+
+@dataclass
+class ControllerSide:
+    """The controller side's systems in a builder (``model_plant``: the plant the control
+    blocks take their models and checks from; it is not part of the Diagram)."""
+
+    arms: list[ArmController]
+    model_plant: CoopPlant
+    keep: list = field(default_factory=list, repr=False)
+
+
+@dataclass
+class DriverSide:
+    """The simulated driver's plant and per-arm systems in a builder."""
+
+    coop: CoopPlant
+    arms: list[ArmDriver]
+
+
+def add_lcm_interface(builder: DiagramBuilder, lcm: DrakeLcm) -> LcmInterfaceSystem:
+    """The one ``LcmInterfaceSystem`` that pumps ``lcm``'s messages inside the Simulator's
+    steps; add it first.
+
+    Without it, messages reach the subscriber systems when the caller pumps
+    (``lcm.HandleSubscriptions``) between ``AdvanceTo`` calls, as ``drake-coop serve`` does.
+    Plain Python handlers (``lcm.Subscribe``) must not be pumped inside ``AdvanceTo``: drake
+    1.58 releases the GIL there and such a handler crashes the process (drake 1.51 does not).
+    """
+    return builder.AddNamedSystem("lcm_interface", LcmInterfaceSystem(lcm))
+
+
+def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
+                        plan: RunPlan, specs: list[DriverSpec] | None = None) -> ControllerSide:
+    """Add each arm's control block, watchdog and LCM status/command systems to ``builder``.
+
+    The control blocks are the public
+    :func:`~drake_coop.control.block.AddCooperativeController` with ``q`` from the driver's
+    ``position_measured`` and ``connect_actuation=False``; their models come from a plant
+    built from the scenario in a builder of its own (never simulated).
+    """
+    model_builder = DiagramBuilder()
+    coop = build_plant(model_builder, scenario, plan.dt)
+    joints = [coop.plant.num_positions(a.instance) for a in coop.arms]
+    specs = specs if specs is not None else driver_specs(scenario, joints)
+    guards = scenario.guards
+    margin = math.radians(guards.joint_limit_margin_deg)
+    arms = []
+    for i, (handles, robot, spec) in enumerate(zip(coop.arms, scenario.robots, specs)):
+        name, n = robot.name, spec.n
+        status_sub = builder.AddNamedSystem(f"{name}_status_subscriber", LcmSubscriberSystem.Make(
+            spec.status_channel, lcmt_panda_status, lcm, use_cpp_serializer=True))
+        stamp_sub = builder.AddNamedSystem(f"{name}_status_stamp_subscriber",
+                                           LcmSubscriberSystem.Make(spec.status_channel,
+                                                                    SharedPandaStatus, lcm))
+        receiver = builder.AddNamedSystem(f"{name}_status_receiver", PandaStatusReceiver(n))
+        builder.Connect(status_sub.get_output_port(), receiver.get_input_port(0))
+        stamp = builder.AddNamedSystem(f"{name}_status_stamp", MessageStamp(SharedPandaStatus))
+        builder.Connect(stamp_sub.get_output_port(), stamp.get_input_port(0))
+        model = controller_arm_model(handles.arm, robot.model_error)
+        arm = handles.arm
+        watchdog = builder.AddNamedSystem(f"{name}_watchdog", Watchdog(
+            n, arm.m, plan.h, max_status_age=spec.max_status_age,
+            q_min=arm.q_min - margin, q_max=arm.q_max + margin, max_force=guards.max_force,
+            torque_limits=spec.torque_limits, safe_command=spec.safe_command,
+            hold_torque=model.g))
+        builder.Connect(receiver.get_position_measured_output_port(),
+                        watchdog.get_q_input_port())
+        q = watchdog.get_q_checked_output_port()
+        block = AddCooperativeController(
+            builder, coop.plant, handles.instance, gains=robot.gains, period=plan.h,
+            controller_model=model, velocity_source=robot.velocity_source,
+            force_source=robot.force_source, difference_cutoff_hz=robot.difference_cutoff_hz,
+            q=q, connect_actuation=False, name=name)
+        ref = builder.AddNamedSystem(f"{name}_reference", TrajectorySource(
+            reference_trajectory(scenario, i, plan.t_end, plan)))
+        builder.Connect(ref.get_output_port(), block.reference_input)
+        builder.Connect(stamp.get_output_port(0), watchdog.get_status_stamp_input_port())
+        builder.Connect(block.tau_output, watchdog.get_tau_input_port())
+        builder.Connect(block.lambda_hat_output, watchdog.get_lambda_hat_input_port())
+        sender = builder.AddNamedSystem(f"{name}_command_sender",
+                                        PandaCommandSender(n, PandaControlMode.kTorque))
+        builder.Connect(watchdog.get_tau_safe_output_port(), sender.get_torque_input_port())
+        publisher = builder.AddNamedSystem(f"{name}_command_publisher", LcmPublisherSystem.Make(
+            spec.command_channel, lcmt_panda_command, lcm, publish_period=plan.h,
+            publish_offset=COMMAND_OFFSET, use_cpp_serializer=True))
+        builder.Connect(sender.get_output_port(), publisher.get_input_port())
+        arms.append(ArmController(spec=spec, block=block, watchdog=watchdog,
+                                  status_subscriber=status_sub, stamp_subscriber=stamp_sub,
+                                  status_receiver=receiver, command_sender=sender,
+                                  command_publisher=publisher, hold_torque=model.g))
+    return ControllerSide(arms=arms, model_plant=coop, keep=[model_builder])
+
+
+def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
+                    specs: list[DriverSpec] | None = None) -> DriverSide:
+    """Add the scenario's cooperative plant (on the run's time grid) and each arm's simulated
+    driver to ``builder``."""
+    coop = build_plant(builder, scenario, time_grid(scenario)[1])
+    plant = coop.plant
+    joints = [plant.num_positions(a.instance) for a in coop.arms]
+    specs = specs if specs is not None else driver_specs(scenario, joints)
+    arms = []
+    for handles, robot, spec in zip(coop.arms, scenario.robots, specs):
+        name, n = robot.name, spec.n
+        state = builder.AddNamedSystem(f"{name}_driver_state", Demultiplexer([n, n]))
+        builder.Connect(plant.get_state_output_port(handles.instance), state.get_input_port(0))
+        cmd_sub = builder.AddNamedSystem(f"{name}_command_subscriber", LcmSubscriberSystem.Make(
+            spec.command_channel, lcmt_panda_command, lcm, use_cpp_serializer=True))
+        cmd_stamp = builder.AddNamedSystem(f"{name}_command_stamp_subscriber",
+                                           LcmSubscriberSystem.Make(spec.command_channel,
+                                                                    SharedPandaCommand, lcm))
+        receiver = builder.AddNamedSystem(f"{name}_command_receiver",
+                                          PandaCommandReceiver(n, PandaControlMode.kTorque))
+        builder.Connect(cmd_sub.get_output_port(), receiver.get_message_input_port())
+        builder.Connect(state.get_output_port(0), receiver.get_position_measured_input_port())
+        hold = builder.AddNamedSystem(f"{name}_command_hold", CommandHold(
+            n, spec.period, spec.command_timeout, spec.torque_limits))
+        builder.Connect(receiver.get_commanded_torque_output_port(), hold.get_input_port(0))
+        builder.Connect(cmd_stamp.get_output_port(), hold.get_input_port(1))
+        builder.Connect(hold.get_output_port(0), plant.get_actuation_input_port(handles.instance))
+        sender = builder.AddNamedSystem(f"{name}_status_sender", PandaStatusSender(n))
+        builder.Connect(state.get_output_port(0), sender.get_position_measured_input_port())
+        builder.Connect(state.get_output_port(0), sender.get_position_commanded_input_port())
+        builder.Connect(state.get_output_port(1), sender.get_velocity_measured_input_port())
+        builder.Connect(receiver.get_commanded_torque_output_port(),
+                        sender.get_torque_commanded_input_port())
+        builder.Connect(hold.get_output_port(0), sender.get_torque_measured_input_port())
+        publisher = builder.AddNamedSystem(f"{name}_status_publisher", LcmPublisherSystem.Make(
+            spec.status_channel, lcmt_panda_status, lcm, publish_period=spec.period,
+            use_cpp_serializer=True))
+        builder.Connect(sender.get_output_port(), publisher.get_input_port())
+        arms.append(ArmDriver(spec=spec, command_subscriber=cmd_sub, command_receiver=receiver,
+                              hold=hold,
+                              status_sender=sender, status_publisher=publisher))
+    return DriverSide(coop=coop, arms=arms)
+
+
+def safe_command_message(spec: DriverSpec, tau: np.ndarray, utime: int) -> lcmt_panda_command:
+    """A torque-mode ``lcmt_panda_command`` carrying ``tau`` (non-finite entries sent as 0)."""
+    msg = lcmt_panda_command()
+    msg.utime = int(utime)
+    msg.control_mode_expected = lcmt_panda_status.CONTROL_MODE_TORQUE
+    tau = np.asarray(tau, dtype=float).reshape(spec.n)
+    tau = np.where(np.isfinite(tau), tau, 0.0)
+    if spec.torque_limits is not None:
+        tau = np.clip(tau, -spec.torque_limits, spec.torque_limits)
+    msg.num_joint_position = 0
+    msg.joint_position = []
+    msg.num_joint_velocity = 0
+    msg.joint_velocity = []
+    msg.num_joint_torque = spec.n
+    msg.joint_torque = [float(v) for v in tau]
+    return msg

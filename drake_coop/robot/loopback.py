@@ -1,0 +1,150 @@
+"""The paper's experiment split at the cable, in one process: the controller side and the
+simulated driver in one Diagram, joined only through LCM publishers and subscribers on one
+``DrakeLcm`` (``memq://``: in-process), advanced by one unpaced Simulator.
+
+:func:`run_loopback` reproduces a simulated run over the driver's messages; the ground truth
+of the squeeze (``lambda_meas``) comes from the plant's held data, as in
+:func:`~drake_coop.experiment.simulate.simulate` (:mod:`drake_coop.plant.ground_truth`), so
+:func:`squeeze_error` compares the two runs with one formula.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.lcm import DrakeLcm
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import Context, DiagramBuilder
+
+from drake_coop.control.finger import ReferenceLayout
+from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
+from drake_coop.experiment.references import reference_trajectory
+from drake_coop.experiment.simulate import guard_chunks, phases, rest_posture
+from drake_coop.plant.cooperative import initialize_plant_context
+from drake_coop.plant.ground_truth import add_ground_truth
+from drake_coop.results.metrics import phase_masks
+from drake_coop.robot.drivers import (
+    ControllerSide,
+    DriverSide,
+    add_controller_side,
+    add_driver_side,
+    add_lcm_interface,
+)
+from drake_coop.scenario.schema import Scenario, ScenarioError
+from drake_coop.sensing.force_sensor import FTModel
+
+
+@dataclass
+class LoopbackResult:
+    """Per robot ``t``, ``lambda_meas`` (the plant's squeeze), ``lambda_d``; the status
+    (``ok`` or ``stopped``, with the watchdog's one-line reason) and the wall time."""
+
+    logs: dict[str, dict[str, np.ndarray]]
+    status: str
+    message: str
+    wall_time: float
+
+
+def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
+                     driver: DriverSide | None, controller: ControllerSide | None,
+                     q0: list[np.ndarray] | None = None) -> list[np.ndarray]:
+    """The run's start: the driver's arms at rest at ``q_d(0)`` (sliders at the grasp
+    height), the controller's observers at ``q̂ = q0`` and its watchdogs untripped with
+    ``q0`` as their last good reading (default ``q0``: ``q_d(0)``, the arms' rest)."""
+    rest, z_grasp = rest_posture(scenario, list(plan.arms))
+    if driver is not None:
+        initialize_plant_context(driver.coop,
+                                 driver.coop.plant.GetMyMutableContextFromRoot(context),
+                                 rest, z_grasp)
+    q0 = rest if q0 is None else q0
+    if controller is not None:
+        for arm, q in zip(controller.arms, q0):
+            source = arm.block.velocity_source
+            if hasattr(source, "set_initial_state"):
+                source.set_initial_state(source.GetMyMutableContextFromRoot(context),
+                                         np.asarray(q, dtype=float))
+            arm.watchdog.set_initial_state(arm.watchdog.GetMyMutableContextFromRoot(context), q)
+    return q0
+
+
+def tripped(controller: ControllerSide, context: Context) -> str | None:
+    """``"<robot>: <reason>"`` of the first tripped watchdog, else None."""
+    for arm in controller.arms:
+        wd = arm.watchdog
+        wd_context = wd.GetMyContextFromRoot(context)
+        if wd.is_tripped(wd_context):
+            return f"{arm.spec.robot}: {wd.reason(wd_context)}"
+    return None
+
+
+def run_loopback(scenario: Scenario, t_end: float | None = None, *,
+                 lcm_url: str = "memq://") -> LoopbackResult:
+    """Run the experiment with the controller and the simulated driver joined by LCM only.
+
+    Raises
+    ------
+    ScenarioError
+        A scenario the drivers cannot serve, or a run too large (as :func:`simulate`).
+    """
+    if scenario.plant.object_mode not in ("planes", "rigid"):
+        raise ScenarioError("plant.object_mode: the loopback run's ground truth needs planes "
+                            f"or rigid, got {scenario.plant.object_mode!r}")
+    plan = plan_run(scenario, t_end)
+    check_run_size(scenario, plan.t_end)
+    lcm = DrakeLcm(lcm_url)
+    builder = DiagramBuilder()
+    add_lcm_interface(builder, lcm)
+    driver = add_driver_side(builder, scenario, lcm)
+    controller = add_controller_side(builder, scenario, lcm, plan)
+    truth = add_ground_truth(
+        builder, driver.coop, plan.h,
+        [FTModel.from_settings(r.force_sensor, plan.h, i, arm.arm.m)
+         for i, (r, arm) in enumerate(zip(scenario.robots, driver.coop.arms))],
+        [arm.hold.get_output_port(0) for arm in driver.arms], tick_forces=False)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    initialize_sides(scenario, plan, context, driver, controller)
+    simulator.Initialize()
+    plant_context = driver.coop.plant.GetMyMutableContextFromRoot(context)
+    status, message = "ok", f"completed {plan.t_end:g} s"
+    start = time.perf_counter()
+    for k_stop in guard_chunks(plan, scenario.guards.check_period):
+        simulator.AdvanceTo(k_stop * plan.h)
+        reason = tripped(controller, context)
+        if reason is not None:
+            status, message = "stopped", f"watchdog at t = {context.get_time():.3f} s: {reason}"
+            break
+        if k_stop in plan.switches:
+            driver.coop.set_held(plant_context, plan.switches[k_stop])
+    wall = time.perf_counter() - start
+    published = truth.logger.FindLog(context).sample_times().size
+    n = max(published - 1, 0)
+    forces = truth.evaluate(context, n, False)
+    logs = {}
+    for i, robot in enumerate(scenario.robots):
+        t = np.arange(n) * plan.h
+        m = driver.coop.arms[i].arm.m
+        layout = ReferenceLayout(controller.arms[i].spec.n, m)
+        traj = reference_trajectory(scenario, i, plan.t_end, plan)
+        lam_d = np.array([layout.column(traj.value(tk).reshape(1, -1), "lambda_d")[0]
+                          for tk in t]).reshape(n, m)
+        lam = np.asarray(forces[i]["lambda_meas"]).reshape(n, m)
+        logs[robot.name] = {"t": t, "lambda_meas": lam[:, 0] if m == 1 else lam,
+                            "lambda_d": lam_d[:, 0] if m == 1 else lam_d}
+    return LoopbackResult(logs=logs, status=status, message=message, wall_time=wall)
+
+
+def squeeze_error(logs: dict[str, dict[str, np.ndarray]], scenario: Scenario,
+                  phase: str = "circle") -> dict[str, float]:
+    """RMS of ``λ − λ_d`` over a phase, per robot (the norm per sample for ``m >= 2``)."""
+    out = {}
+    for name, log in logs.items():
+        e = np.asarray(log["lambda_meas"], dtype=float) - np.asarray(log["lambda_d"], dtype=float)
+        if e.ndim == 2:
+            e = np.linalg.norm(e, axis=1)
+        mask = phase_masks(log["t"], phases(scenario))[phase]
+        out[name] = float(np.sqrt(np.mean(e[mask] ** 2))) if mask.any() else float("nan")
+    return out

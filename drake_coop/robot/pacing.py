@@ -1,0 +1,246 @@
+"""Real-time pacing of the controller side: the wall-clock loop, its per-tick figures, and
+their comparison with the loop's delay margin.
+
+:class:`WallClockLoop` runs a Simulator tick by tick against the wall clock: it waits for
+``t0 + k h`` while pumping LCM (so each status is received when it arrives, and its arrival
+time is known), then advances the Diagram through the tick's updates and the command's
+publication (``t_k + COMMAND_OFFSET``). Per tick it records:
+
+* ``compute`` — wall time of the tick's work (the status latched, the control blocks, the
+  watchdog, the command encoded and published);
+* ``lateness`` — when the command left, against ``t0 + t_k``;
+* ``status_age`` — age of the newest status the tick used (the oldest over the arms), from
+  its arrival in this process;
+* ``missed`` — the command left after ``t_{k+1}`` (the next tick's deadline).
+
+The loop's delay at a tick (what the stability map calls a computation delay ``d``: from the
+measurement to the torque acting) is ``status_age + lateness + one driver cycle`` (the
+driver applies a command at its next cycle). :func:`pacing_summary` compares its 99th
+percentile with the delay margin of :func:`delay_margin`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+#: Columns of ``pacing.csv``.
+PACING_COLUMNS = ("k", "t", "compute_s", "lateness_s", "status_age_s", "missed")
+
+
+@dataclass
+class PacingRecord:
+    """Per-tick figures of a paced run (see the module's docstring)."""
+
+    period: float
+    driver_period: float
+    k: list[int] = field(default_factory=list)
+    compute: list[float] = field(default_factory=list)
+    lateness: list[float] = field(default_factory=list)
+    status_age: list[float] = field(default_factory=list)
+
+    def add(self, k: int, compute: float, lateness: float, status_age: float) -> None:
+        self.k.append(k)
+        self.compute.append(compute)
+        self.lateness.append(lateness)
+        self.status_age.append(status_age)
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        k = np.asarray(self.k, dtype=int)
+        lateness = np.asarray(self.lateness, dtype=float)
+        return {"k": k, "t": k * self.period, "compute_s": np.asarray(self.compute, dtype=float),
+                "lateness_s": lateness,
+                "status_age_s": np.asarray(self.status_age, dtype=float),
+                "missed": (lateness > self.period).astype(int)}
+
+
+class StatusArrivals:
+    """Wall time at which the newest message of each channel arrived in this process
+    (a plain ``DrakeLcm`` subscription beside the Diagram's subscribers; pump it outside
+    ``AdvanceTo`` only, see :func:`~drake_coop.robot.drivers.add_lcm_interface`)."""
+
+    def __init__(self, lcm, channels: list[str]):
+        self.last = {c: math.nan for c in channels}
+        self.count = {c: 0 for c in channels}
+        self.message = {c: None for c in channels}
+        for c in channels:
+            lcm.Subscribe(c, self._handler(c))
+
+    def _handler(self, channel: str):
+        def handle(data: bytes) -> None:
+            self.last[channel] = time.perf_counter()
+            self.count[channel] += 1
+            self.message[channel] = data
+        return handle
+
+    def all_arrived(self) -> bool:
+        return all(n > 0 for n in self.count.values())
+
+    def age(self, now: float) -> float:
+        """The oldest newest-status age over the channels (s)."""
+        return max(now - t for t in self.last.values())
+
+
+def pump_until(lcm, deadline: float) -> None:
+    """Handle LCM messages as they arrive until the wall clock reaches ``deadline``
+    (``time.perf_counter`` seconds); the last fraction of a millisecond is slept."""
+    while True:
+        remaining = deadline - time.perf_counter()
+        if remaining <= 0:
+            return
+        if remaining > 1e-3:
+            lcm.HandleSubscriptions(int(remaining * 1e3))
+        else:
+            time.sleep(remaining)
+            lcm.HandleSubscriptions(0)
+
+
+def run_paced(simulator, lcm, arrivals: StatusArrivals, h: float, k_end: int, offset: float,
+              record: PacingRecord, after_tick=None, lead: float = 0.05) -> float:
+    """Advance ``simulator`` tick by tick against the wall clock.
+
+    For ``k = 0 … k_end``: pump LCM until ``t0 + k h``, then ``AdvanceTo(k h + offset)``; the
+    tick's figures go to ``record``. ``after_tick(k)`` returning a string stops the loop (the
+    watchdog's reason); it is returned. ``t0`` is ``lead`` seconds after the call.
+    """
+    t0 = time.perf_counter() + lead
+    for k in range(k_end + 1):
+        pump_until(lcm, t0 + k * h)
+        start = time.perf_counter()
+        age = arrivals.age(start)
+        simulator.AdvanceTo(k * h + offset)
+        end = time.perf_counter()
+        record.add(k, end - start, end - (t0 + k * h), age)
+        if after_tick is not None:
+            reason = after_tick(k)
+            if reason:
+                return reason
+    return ""
+
+
+def percentile(x: np.ndarray, q: float) -> float:
+    x = np.asarray(x, dtype=float)
+    return float(np.percentile(x, q)) if x.size else math.nan
+
+
+def pacing_summary(record: PacingRecord, margin: float | None) -> dict:
+    """The paced run's figures against the delay margin ``margin`` (s; None: unknown).
+
+    ``met`` is True when no deadline was missed and the 99th percentile of the loop's delay
+    (``status_age + lateness + driver cycle``) is within the margin.
+    """
+    a = record.arrays()
+    delay = a["status_age_s"] + a["lateness_s"] + record.driver_period
+    summary = {
+        "ticks": int(a["k"].size), "period_s": record.period,
+        "driver_period_s": record.driver_period,
+        "compute_p50_s": percentile(a["compute_s"], 50),
+        "compute_p99_s": percentile(a["compute_s"], 99),
+        "compute_max_s": float(a["compute_s"].max()) if a["k"].size else math.nan,
+        "lateness_p50_s": percentile(a["lateness_s"], 50),
+        "lateness_p99_s": percentile(a["lateness_s"], 99),
+        "lateness_max_s": float(a["lateness_s"].max()) if a["k"].size else math.nan,
+        "status_age_p99_s": percentile(a["status_age_s"], 99),
+        "loop_delay_p99_s": percentile(delay, 99),
+        "missed_deadlines": int(a["missed"].sum()),
+        "delay_margin_s": margin,
+    }
+    summary["met_margin"] = (None if margin is None or not a["k"].size else bool(
+        summary["missed_deadlines"] == 0 and summary["loop_delay_p99_s"] <= margin + 1e-12))
+    return summary
+
+
+def summary_line(summary: dict) -> str:
+    """One line for the terminal."""
+    ms = 1e3
+    margin = summary["delay_margin_s"]
+    verdict = ("margin unknown" if summary["met_margin"] is None else
+               ("met the" if summary["met_margin"] else "did NOT meet the")
+               + f" {margin * ms:.0f} ms delay margin")
+    return (f"{summary['ticks']} ticks: computation p99 {summary['compute_p99_s'] * ms:.2f} ms, "
+            f"lateness p99 {summary['lateness_p99_s'] * ms:.2f} ms, status age p99 "
+            f"{summary['status_age_p99_s'] * ms:.2f} ms, loop delay p99 "
+            f"{summary['loop_delay_p99_s'] * ms:.2f} ms, {summary['missed_deadlines']} missed "
+            f"deadlines: {verdict}")
+
+
+def delay_margin(scenario, *, epsilon: float = 1e-5) -> float:
+    """The largest computation delay ``d`` (whole plant steps, up to ``h``) for which the
+    stability map (:mod:`drake_coop.stability`, free operating point) gives ``ρ < 1`` at every
+    delay from 0 to ``d``; 0 if only the undelayed loop is stable, NaN if not even that."""
+    import copy
+
+    from drake_coop.scenario.loading import dump_scenario
+    from drake_coop.experiment.plan import time_grid
+    from drake_coop.stability.grid import point_rows
+
+    h, dt = time_grid(scenario)
+    margin = math.nan
+    for steps in range(int(round(h / dt)) + 1):
+        s = copy.deepcopy(scenario)
+        for robot in s.robots:
+            robot.timing.computation_delay = steps * dt
+        row = point_rows(dump_scenario(s), ["free"], epsilon)[0]
+        if not (row["rho"] < 1.0):
+            break
+        margin = steps * dt
+    return margin
+
+
+def write_pacing_csv(path: Path, record: PacingRecord) -> None:
+    """``pacing.csv``: one row per tick (:data:`PACING_COLUMNS`), written whole."""
+    from drake_coop.results.io import atomic_write_text
+
+    a = record.arrays()
+    lines = [",".join(PACING_COLUMNS)]
+    for i in range(a["k"].size):
+        lines.append(f"{a['k'][i]},{a['t'][i]:.6f},{a['compute_s'][i]:.9f},"
+                     f"{a['lateness_s'][i]:.9f},{a['status_age_s'][i]:.9f},{a['missed'][i]}")
+    atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def plot_pacing(path: Path, record: PacingRecord, summary: dict) -> None:
+    """``pacing.png``: histograms of computation time and lateness, their time series and the
+    status age, with the delay margin drawn."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from drake_coop.results.io import atomic_path
+
+    a = record.arrays()
+    ms = 1e3
+    margin = summary["delay_margin_s"]
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7))
+    for ax, key, label in ((axes[0, 0], "compute_s", "computation time per tick"),
+                           (axes[0, 1], "lateness_s", "lateness of the command vs t_k")):
+        ax.hist(a[key] * ms, bins=60, color="C0")
+        ax.set_yscale("log")
+        ax.set_xlabel(f"{label} (ms)")
+        ax.set_ylabel("ticks")
+        ax.axvline(percentile(a[key], 99) * ms, color="C1", ls="--", label="99th percentile")
+        if margin is not None and math.isfinite(margin):
+            ax.axvline(margin * ms, color="C3", label=f"delay margin {margin * ms:.0f} ms")
+        ax.legend(fontsize=8)
+    ax = axes[1, 0]
+    ax.plot(a["t"], a["compute_s"] * ms, lw=0.5, label="computation")
+    ax.plot(a["t"], a["lateness_s"] * ms, lw=0.5, label="lateness")
+    if margin is not None and math.isfinite(margin):
+        ax.axhline(margin * ms, color="C3", label="delay margin")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("ms")
+    ax.legend(fontsize=8)
+    ax = axes[1, 1]
+    ax.plot(a["t"], a["status_age_s"] * ms, lw=0.5, color="C2")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("age of the status used (ms)")
+    fig.suptitle(summary_line(summary), fontsize=8)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=90)
+    plt.close(fig)

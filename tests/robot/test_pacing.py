@@ -1,0 +1,108 @@
+"""Pacing figures: the summary against the delay margin, the files, the wall-clock loop."""
+
+import time
+
+import numpy as np
+import pytest
+from pydrake.lcm import DrakeLcm
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.primitives import ZeroOrderHold
+
+from drake_coop.robot import pacing
+from drake_coop.robot.pacing import (
+    PacingRecord,
+    StatusArrivals,
+    pacing_summary,
+    plot_pacing,
+    pump_until,
+    run_paced,
+    write_pacing_csv,
+)
+
+
+def record(lateness_ms, age_ms=0.5, compute_ms=0.4):
+    r = PacingRecord(period=0.009, driver_period=0.001)
+    for k, late in enumerate(lateness_ms):
+        r.add(k, compute_ms * 1e-3, late * 1e-3, age_ms * 1e-3)
+    return r
+
+
+def test_the_margin_is_met_when_age_lateness_and_a_driver_cycle_fit_in_it():
+    s = pacing_summary(record([0.3] * 100), margin=0.002)
+    assert s["loop_delay_p99_s"] == pytest.approx(0.5e-3 + 0.3e-3 + 1e-3)
+    assert s["met_margin"] is True and s["missed_deadlines"] == 0
+    assert pacing_summary(record([0.3] * 100), margin=0.0015)["met_margin"] is False
+    assert pacing_summary(record([0.3] * 100), margin=None)["met_margin"] is None
+
+
+def test_a_missed_deadline_fails_the_margin_and_percentiles_are_of_the_ticks():
+    late = [0.2] * 98 + [5.0, 12.0]                   # one tick past h = 9 ms
+    s = pacing_summary(record(late), margin=0.1)
+    assert s["missed_deadlines"] == 1 and s["met_margin"] is False
+    assert s["lateness_max_s"] == pytest.approx(0.012)
+    # 99th percentile of 100 values, linear interpolation: between the 99th and 100th sorted
+    assert s["lateness_p99_s"] == pytest.approx((5.0 + 0.01 * (12.0 - 5.0)) * 1e-3)
+
+
+def test_csv_and_figure_are_written_whole(tmp_path):
+    r = record([0.3, 0.4, 10.0])
+    s = pacing_summary(r, 0.002)
+    write_pacing_csv(tmp_path / "pacing.csv", r)
+    plot_pacing(tmp_path / "pacing.png", r, s)
+    rows = np.loadtxt(tmp_path / "pacing.csv", delimiter=",", skiprows=1)
+    np.testing.assert_allclose(rows[:, 3], [0.3e-3, 0.4e-3, 10e-3])
+    np.testing.assert_array_equal(rows[:, 5], [0, 0, 1])
+    assert (tmp_path / "pacing.png").stat().st_size > 1000
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pacing.csv", "pacing.png"]
+
+
+def test_delay_margin_is_the_last_stable_delay_of_the_map(monkeypatch):
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.stability import grid
+
+    rho = {0.0: 0.9, 0.001: 0.94, 0.002: 0.985, 0.003: 1.02, 0.004: 0.99}
+    seen = []
+
+    def fake_rows(yaml_text, points, epsilon):
+        d = round(load_scenario(data=yaml_text).robots[0].timing.computation_delay, 6)
+        seen.append(d)
+        return [{"rho": rho[d]}]
+
+    monkeypatch.setattr(grid, "point_rows", fake_rows)
+    assert pacing.delay_margin(load_scenario()) == pytest.approx(0.002)
+    assert seen == [0.0, 0.001, 0.002, 0.003]         # stops at the first unstable delay
+
+
+def test_pump_until_delivers_messages_and_returns_at_the_deadline():
+    lcm = DrakeLcm("memq://")
+    arrivals = StatusArrivals(lcm, ["S"])
+    lcm.Publish("S", b"x")
+    start = time.perf_counter()
+    pump_until(lcm, start + 0.02)
+    assert time.perf_counter() >= start + 0.02
+    assert arrivals.count["S"] == 1 and arrivals.last["S"] >= start
+    assert arrivals.age(arrivals.last["S"] + 0.004) == pytest.approx(0.004)
+
+
+def test_run_paced_ticks_against_the_wall_clock():
+    system = ZeroOrderHold(0.009, 1)                    # any Diagram with ticks
+    sim = Simulator(system)
+    system.get_input_port().FixValue(sim.get_mutable_context(), [1.0])
+    sim.Initialize()
+    lcm = DrakeLcm("memq://")
+    arrivals = StatusArrivals(lcm, ["S"])
+    lcm.Publish("S", b"x")
+    r = PacingRecord(period=0.009, driver_period=0.001)
+    start = time.perf_counter()
+    assert run_paced(sim, lcm, arrivals, 0.009, 10, 1e-4, r, lead=0.0) == ""
+    assert time.perf_counter() - start >= 10 * 0.009
+    a = r.arrays()
+    assert list(a["k"]) == list(range(11))
+    assert np.all(a["compute_s"] >= 0) and np.all(a["lateness_s"] >= a["compute_s"] - 1e-9)
+    assert sim.get_context().get_time() == pytest.approx(10 * 0.009 + 1e-4)
+    sim = Simulator(system)
+    system.get_input_port().FixValue(sim.get_mutable_context(), [1.0])
+    sim.Initialize()
+    stop = run_paced(sim, lcm, arrivals, 0.009, 12, 1e-4, PacingRecord(0.009, 0.001),
+                     after_tick=lambda k: "tripped" if k == 11 else "", lead=0.0)
+    assert stop == "tripped"

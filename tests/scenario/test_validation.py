@@ -1,0 +1,286 @@
+"""Hostile scenario files (issue 11): each case is refused with one line naming the field.
+
+One test per finding of the issue's "Why": broken model files, unreadable or non-UTF-8
+files, degenerate periods and horizons, unhelpful messages, malformed input that used to be
+accepted. Messages must be one line of at most 300 characters, and no case may build anything.
+"""
+
+import math
+import re
+import time
+import tracemalloc
+
+import pytest
+
+from drake_coop.experiment.plan import MAX_TICKS, check_run_size
+from drake_coop.experiment.references import reference_samples
+from drake_coop.scenario import (
+    BOUNDS,
+    LENGTHS,
+    Scenario,
+    ScenarioError,
+    load_scenario,
+)
+from drake_coop.scenario.bounds import MAX_MESSAGE, Bound, numeric_fields
+from drake_coop.scenario.safe_yaml import MAX_BYTES
+
+ROBOT2 = "{name: robot2, model: crs_a255, base_xyz: [1.16, 0, 0], base_yaw_deg: 180, " \
+         "contact_xy: [0.8192, 0], normals: [[1, 0, 0]], home: [0.9, 0, 0.6]}"
+
+
+def _refused(text: str | None = None, path=None) -> str:
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path, data=text) if path is not None else load_scenario(data=text)
+    message = str(info.value)
+    assert "\n" not in message and len(message) <= MAX_MESSAGE, message
+    return message
+
+
+def _with_controller_model(path) -> str:
+    return f"robots: [{{controller_model: '{path}'}}, {ROBOT2}]"
+
+
+# ---------------------------------------------------------------- model files
+
+
+URDF_NO_BASE = """<robot name="x"><link name="pad"/><link name="l1"/>
+<joint name="j" type="revolute"><parent link="l1"/><child link="pad"/>
+<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"""
+
+
+@pytest.mark.parametrize("content, problem", [
+    (None, "not found"),
+    (b"", "is not valid XML"),
+    (b"hello, not xml", "is not valid XML"),
+    (bytes(range(256)) * 4, "is not valid XML"),
+    ("dir", "is not a regular file"),
+    (URDF_NO_BASE.encode(), "has no link named 'base_link'"),
+    (b"<sdf version='1.7'><model name='m'/></sdf>", "not <robot>"),
+    (b'<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaa">]><robot name="r"/>',
+     "must not declare a DTD"),
+])
+def test_broken_controller_model_is_named_before_anything_is_built(tmp_path, content, problem):
+    path = tmp_path / "model.urdf"
+    if content == "dir":
+        path.mkdir()
+    elif content is not None:
+        path.write_bytes(content)
+    message = _refused(_with_controller_model(path))
+    assert message.startswith("robots[0].controller_model: ") and str(path) in message
+    assert problem in message, message
+
+
+def test_controller_model_must_be_a_urdf_file():
+    assert ".urdf file" in _refused(_with_controller_model("/etc/passwd"))
+
+
+def test_controller_model_with_the_wrong_number_of_joints(tmp_path):
+    from drake_coop.plant.arms import urdf_dir
+
+    text = (urdf_dir() / "crs_a465_3dof.urdf").read_text()
+    path = tmp_path / "two_joints.urdf"
+    path.write_text(text.replace('name="joint3" type="revolute"', 'name="joint3" type="fixed"'))
+    assert ("robots[0].controller_model has 2 joints, the simulated arm 3"
+            in _refused(_with_controller_model(path)))
+
+
+def test_a_perturbed_but_valid_controller_model_is_accepted(tmp_path):
+    from drake_coop.plant.arms import urdf_dir
+
+    text = (urdf_dir() / "crs_a465_3dof.urdf").read_text()
+    path = tmp_path / "heavier.urdf"
+    heavier = re.sub(r'<mass value="([0-9.eE+-]+)"',
+                     lambda m: f'<mass value="{1.1 * float(m.group(1))}"', text, count=1)
+    assert heavier != text
+    path.write_text(heavier)
+    s = load_scenario(data=_with_controller_model(path))
+    assert s.robots[0].controller_model == str(path)
+
+
+# ---------------------------------------------------------------- the file itself
+
+
+def test_non_utf8_file_is_named(tmp_path):
+    path = tmp_path / "latin1.yaml"
+    text = "plant: {object_mode: 'planes'}  # é\n"
+    path.write_bytes(text.encode("latin-1"))
+    message = _refused(path=path)
+    assert f"is not UTF-8 text (byte {text.index('é')}" in message and str(path) in message
+
+
+def test_unreadable_file_is_named():
+    # /proc/self/mem is a regular file whose read fails (EIO), even for root.
+    assert "cannot be read" in _refused(path="/proc/self/mem")
+
+
+def test_directory_and_oversized_files(tmp_path):
+    assert "is not a regular file" in _refused(path=tmp_path)
+    big = tmp_path / "big.yaml"
+    big.write_bytes(b"#" * (MAX_BYTES + 1))
+    assert f"larger than {MAX_BYTES} bytes" in _refused(path=big)
+
+
+def test_alias_bomb_fails_fast_with_small_memory():
+    lines = ['a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
+    for i in range(1, 9):
+        prev, name = chr(96 + i), chr(97 + i)
+        lines.append(f"{name}: &{name} [" + ",".join([f"*{prev}"] * 9) + "]")
+    bomb = "\n".join(lines) + "\n"
+    assert len(bomb) < 600
+    tracemalloc.start()
+    message = _refused(bomb)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert "expands (through its aliases) to more than" in message
+    assert peak < 20e6          # the expansion would be ~400 million strings
+
+
+def test_anchors_and_merge_keys_stay_usable():
+    s = load_scenario(data="_gains: &g {Lambda: 30.0, k_d: 40.0}\n"
+                           f"robots: [{{gains: {{<<: *g, beta: 5.0}}}}, {ROBOT2}]\n")
+    assert (s.robots[0].gains.Lambda, s.robots[0].gains.beta) == (30.0, 5.0)
+
+
+def test_duplicate_keys_are_refused_naming_the_key():
+    message = _refused("control_period: 0.009\nplant: {time_step: 0.001}\ncontrol_period: 0.003")
+    assert "duplicate key 'control_period' at line 3" in message
+
+
+def test_empty_file_and_null_sections_are_named():
+    assert "the scenario is empty" in _refused("")
+    for section in ("plant", "task", "guards"):
+        assert _refused(f"{section}: null").startswith(f"{section} must be a mapping of fields")
+    assert _refused("robots: null").startswith("robots must be a list, got null")
+
+
+def test_empty_robot_list_is_refused():
+    assert "robots must list 2 to 8 robots (the paper's l >= 2 fingers), got 0" in _refused(
+        "robots: []")
+    assert "got 1" in _refused("robots: [{}]")
+
+
+def test_a_400_digit_integer_is_named():
+    message = _refused("task: {t_end: " + "9" * 400 + "}")
+    assert message == "task.t_end must be a finite number, got an integer of 400 digits"
+
+
+def test_echoed_values_are_cut_short():
+    message = _refused("plant: {object_mode: '" + "x" * 5000 + "'}")
+    assert message.startswith("plant.object_mode must be one of") and len(message) < 200
+    message = _refused("robots: [{name: " + "[1, " * 50 + "]" * 50 + "}]")
+    assert message.startswith("robots[0].name must be a string") and len(message) < 200
+
+
+# ---------------------------------------------------------------- ranges
+
+
+@pytest.mark.parametrize("text, field", [
+    ("plant: {time_step: 1.0e-300}", "plant.time_step"),
+    ("control_period: 1.0e-7\nplant: {time_step: 1.0e-7}", "control_period"),
+    ("task: {t_end: 1.0e+300}", "task.t_end"),
+    ("plant: {friction: 1.0e+300}", "plant.friction"),
+    ("robots: [{base_yaw_deg: 1.0e+300}, " + ROBOT2 + "]", "robots[0].base_yaw_deg"),
+    ("robots: [{gains: {Lambda: 1.0e+300}}, " + ROBOT2 + "]", "robots[0].gains.Lambda"),
+    ("robots: [" + ROBOT2.replace("}", ", gains: {K_R: [1, 1.0e+300, 1]}}") + ", {}]",
+     "robots[0].gains.K_R[1]"),
+    ("task: {force_mean: 1.0e+300}", "task.force_mean"),
+    ("task: {force_omega: 1e300}", "task.force_omega"),       # YAML 1.1 string, as Drake reads
+    ("guards: {max_force: 1.0e+300}", "guards.max_force"),
+    ("guards: {check_period: .inf}", "guards.check_period"),
+    ("guards: {joint_limit_margin_deg: -1}", "guards.joint_limit_margin_deg"),
+])
+def test_out_of_range_numbers_are_refused_with_the_bound(text, field):
+    message = _refused(text)
+    pattern = field.replace("[0]", "[]").replace("[1]", "[]")
+    assert message.startswith(f"{field} must be a finite number in {BOUNDS[pattern]}"), message
+
+
+def test_every_numeric_field_has_a_bound_and_every_list_a_length():
+    fields = numeric_fields(Scenario)
+    assert set(fields) == set(BOUNDS), set(fields) ^ set(BOUNDS)
+    lists = {f[:-2] for f in fields if f.endswith("[]")}
+    assert set(LENGTHS) <= lists | {f[:-2] for f in lists if f.endswith("[]")}
+
+
+@pytest.mark.parametrize("bound, inside, outside", [
+    (Bound(0.0, 1.0, lo_open=True), [1e-300, 0.5, 1.0], [0.0, -1.0, 1.0000001]),
+    (Bound(-2.0, 2.0), [-2.0, 0.0, 2.0], [-2.0000001, 2.5]),
+    (Bound(0.0, 1.0, hi_open=True), [0.0, 0.999], [1.0]),
+])
+def test_bounds_are_closed_or_open_at_each_end(bound, inside, outside):
+    assert all(v in bound for v in inside) and not any(v in bound for v in outside)
+    assert str(bound)[0] == ("(" if bound.lo_open else "[")
+    assert str(bound)[-1] == (")" if bound.hi_open else "]")
+
+
+def test_paper_values_are_inside_their_bounds():
+    s = load_scenario(data="{}")
+    for pattern, bound in BOUNDS.items():
+        if pattern.startswith("robots") or pattern.endswith("[]"):
+            continue
+        section, name = pattern.split(".") if "." in pattern else (None, pattern)
+        value = getattr(getattr(s, section), name) if section else getattr(s, name)
+        if value is None:        # an optional field left unset: derived (object_model.mass, mu)
+            continue
+        assert value in bound and math.isfinite(value)
+
+
+# ---------------------------------------------------------------- size of a run
+
+
+def test_long_task_is_valid_but_a_full_run_of_it_is_refused():
+    s = load_scenario(data="task: {t_end: 10000}")
+    with pytest.raises(ScenarioError, match=rf"control ticks, at most {MAX_TICKS}"):
+        check_run_size(s)
+    check_run_size(s, 0.05)          # a short run of it is fine
+
+
+def test_references_are_built_only_to_the_end_of_the_run():
+    s = load_scenario(data="task: {t_end: 10000}")
+    started = time.perf_counter()
+    t, r = reference_samples(s, 0, t_end=0.05)
+    assert time.perf_counter() - started < 5.0 and t.size == 7   # ticks 0 .. 6 of h = 9 ms
+    t_full, r_full = reference_samples(load_scenario(), 0)
+    assert (r == r_full[:7]).all() and (t == t_full[:7]).all()
+
+
+@pytest.mark.parametrize("text, start", [
+    ('control_period: !!python/object/apply:os.system ["echo hi"]', "the tag "),
+    ("plant: !Variant {a: 1}", "plant.a is not a known field of plant"),
+    ("control_period: 0.009\x00", "invalid YAML: unacceptable character"),
+    ("[" * 100_000, "invalid YAML"),
+    ("a: 1\n---\nb: 2", "invalid YAML: expected a single document"),
+    ("? [1, 2]\n: 3", "invalid YAML"),
+    ("x: &a [*a]", "invalid YAML: an alias refers to its own anchor"),
+    ("- 1\n- 2", "scenario must be a mapping of fields"),
+])
+def test_garbage_documents_are_one_line_errors(text, start):
+    assert _refused(text).startswith(start)
+
+
+def test_the_range_machinery_covers_ints_optionals_and_nested_lists():
+    from dataclasses import dataclass, field
+
+    from drake_coop.scenario.bounds import check_numbers
+
+    @dataclass
+    class Sensor:
+        bits: int = 12
+        noise: float | None = None
+
+    @dataclass
+    class Rig:
+        sensors: list[Sensor] = field(default_factory=lambda: [Sensor(), Sensor()])
+
+    bounds = {"sensors[].bits": Bound(1, 32, "bit"), "sensors[].noise": Bound(0.0, 1.0, "rad")}
+    rig = Rig()
+    check_numbers(rig, bounds, {})                     # unset optional: not checked
+    rig.sensors[1].noise = 2.0
+    with pytest.raises(ValueError, match=r"^sensors\[1\]\.noise must be a finite number in "
+                                         r"\[0, 1\] rad, got 2\.0$"):
+        check_numbers(rig, bounds, {})
+    rig.sensors[1].noise, rig.sensors[0].bits = 0.5, 12.5
+    with pytest.raises(ValueError, match=r"^sensors\[0\]\.bits must be an integer in "
+                                         r"\[1, 32\] bit, got 12\.5$"):
+        check_numbers(rig, bounds, {})
+    assert numeric_fields(Rig) == ["sensors[].bits", "sensors[].noise"]

@@ -1,0 +1,213 @@
+"""The package's layers and the architecture page (docs/guide/architecture.md) against the code.
+
+The import graph is read with ``ast`` from every module of ``drake_coop/`` (imports inside
+functions included): it must have no circle and no arrow from a lower layer to a higher one;
+the library ``drake_coop.control`` must load nothing of the package outside itself; the page's
+module table must list every module and its layer list must be :data:`LAYERS`.
+"""
+
+import ast
+import re
+import subprocess
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "drake_coop"
+PAGE = ROOT / "docs" / "guide" / "architecture.md"
+
+#: The package's layers, bottom first: a module may import its own layer's modules and lower
+#: layers', never a higher layer's. A group is a subpackage (``control``) or a top-level module
+#: (``cli``, ``console``); ``__init__``/``__main__`` of the package are the top.
+LAYERS = [
+    ("control", "kinematics"),
+    ("scenario",),
+    ("console", "sensing"),
+    ("plant",),
+    ("experiment",),
+    ("identification", "results"),
+    ("studies",),
+    ("stability",),
+    ("robot",),
+    ("cli", "__main__"),
+]
+LAYER_OF = {group: i for i, groups in enumerate(LAYERS) for group in groups}
+
+
+def package_modules() -> dict[str, Path]:
+    """``dotted name -> file`` of every module of the package."""
+    modules = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = path.relative_to(ROOT).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return modules
+
+
+def _imported(name: str, path: Path, node, modules) -> list[str]:
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    if isinstance(node, ast.Import):
+        found = [alias.name for alias in node.names]
+    else:
+        base = node.module or ""
+        if node.level:
+            anchor = package
+            for _ in range(node.level - 1):
+                anchor = anchor.rpartition(".")[0]
+            base = f"{anchor}.{base}" if base else anchor
+        found = [f"{base}.{a.name}" if f"{base}.{a.name}" in modules else base
+                 for a in node.names]
+    result = []
+    for target in found:
+        if target.split(".")[0] != "drake_coop":
+            continue
+        while target not in modules:          # a name inside a module: the module
+            target = target.rpartition(".")[0]
+        result.append(target)
+    return result
+
+
+def import_graph() -> dict[str, set[str]]:
+    """``module -> modules of the package it imports`` (anywhere in its file)."""
+    modules = package_modules()
+    graph = defaultdict(set)
+    for name, path in modules.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                graph[name].update(t for t in _imported(name, path, node, modules) if t != name)
+    return graph
+
+
+def group_of(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def test_every_group_has_a_layer():
+    groups = {group_of(m) for m in package_modules()} - {"__init__"}
+    assert groups == set(LAYER_OF), "declare each subpackage/top-level module in LAYERS"
+
+
+def test_no_arrow_runs_back_up():
+    upward = [f"{a} -> {b}" for a, targets in import_graph().items() for b in targets
+              if group_of(b) != "__init__" and group_of(a) != "__init__"
+              and LAYER_OF[group_of(b)] > LAYER_OF[group_of(a)]]
+    assert upward == []
+
+
+def test_the_import_graph_has_no_circle():
+    graph = import_graph()
+    state: dict[str, int] = {}
+    circles = []
+
+    def visit(node, stack):
+        state[node] = 1
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                circles.append(stack[stack.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt, stack + [nxt])
+        state[node] = 2
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node, [node])
+    assert circles == []
+
+
+def test_the_graph_reader_sees_a_circle_and_an_upward_arrow(tmp_path, monkeypatch):
+    """The two tests above can fail: a made-up package with a circle and an upward arrow."""
+    pkg = tmp_path / "drake_coop"
+    (pkg / "control").mkdir(parents=True)
+    (pkg / "scenario").mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "control" / "__init__.py").write_text("")
+    (pkg / "scenario" / "__init__.py").write_text("")
+    (pkg / "control" / "a.py").write_text("from drake_coop.scenario.b import x\n")
+    (pkg / "scenario" / "b.py").write_text("def f():\n    from ..control import a\n")
+    monkeypatch.setattr(sys.modules[__name__], "ROOT", tmp_path)
+    monkeypatch.setattr(sys.modules[__name__], "PACKAGE", pkg)
+    graph = import_graph()
+    assert graph["drake_coop.control.a"] == {"drake_coop.scenario.b"}
+    assert graph["drake_coop.scenario.b"] == {"drake_coop.control.a"}
+    with pytest.raises(AssertionError):
+        test_no_arrow_runs_back_up()
+    with pytest.raises(AssertionError):
+        test_the_import_graph_has_no_circle()
+
+
+def test_the_library_loads_nothing_of_the_application():
+    """Importing ``drake_coop.control`` and every one of its modules (its public names load
+    on first use) loads no ``drake_coop`` module outside it, and nothing third-party but
+    Drake and NumPy."""
+    control = sorted(m for m in package_modules() if m.startswith("drake_coop.control"))
+    code = ("import sys, importlib\n"
+            "before = set(sys.modules)\n"
+            f"for m in {control!r}: importlib.import_module(m)\n"
+            "import drake_coop.control as c\n"
+            "[getattr(c, n) for n in c.__all__]\n"
+            "print('\\n'.join(sorted(m for m in sys.modules if m.startswith('drake_coop'))))\n"
+            "print('third-party', *sorted({m.split('.')[0] for m in set(sys.modules) - before}\n"
+            "                             - set(sys.stdlib_module_names)))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=ROOT).stdout
+    loaded, third_party = out.split("third-party")
+    loaded = loaded.split()
+    assert "drake_coop.control.block" in loaded
+    outside = [m for m in loaded if m != "drake_coop" and not m.startswith("drake_coop.control")]
+    assert outside == []
+    assert set(third_party.split()) <= {"drake", "drake_coop", "numpy", "pydrake"}
+
+
+# --- the architecture page ------------------------------------------------------------------
+
+def _page() -> str:
+    return PAGE.read_text(encoding="utf-8")
+
+
+def test_the_page_lists_every_module():
+    """Each module of the package is named in the page's module table (as ``folder/module.py``
+    or, for a package's ``__init__``, as its folder), and the table names no module that does
+    not exist."""
+    table = [line for line in _page().splitlines() if line.startswith("| ")]
+    named = set(re.findall(r"`([a-z_/]+(?:\.py)?)`", "\n".join(table)))
+    files = {str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py")}
+    expected = {f for f in files if not f.endswith("__init__.py")}
+    missing = sorted(f for f in expected if f not in named)
+    assert missing == [], f"architecture.md's module table lacks {missing}"
+    listed = {n for n in named if n.endswith(".py")}
+    assert sorted(listed - files) == [], "architecture.md names modules that do not exist"
+
+
+def test_the_page_states_the_layers_of_the_test():
+    """The page's ``Layers`` list (one line per layer, bottom first) is :data:`LAYERS`."""
+    section = _page().split("## Layers", 1)[1].split("\n## ", 1)[0]
+    lines = [line for line in section.splitlines() if re.match(r"\d+\. ", line)]
+    stated = [tuple(re.findall(r"`([a-z_]+)`", line.split(":")[0])) for line in lines]
+    assert stated == [tuple(layer) for layer in LAYERS]
+
+
+def test_the_page_makes_no_false_claims():
+    """Claims the page made that the code contradicted: the guards are no Simulator monitor
+    (the runner checks them between ``AdvanceTo`` chunks), ``RunPlan`` is not computed once for
+    everyone (the stability map and the benchmark make their own)."""
+    page = _page()
+    assert "monitor" not in page
+    assert "computed once and read by everyone" not in page
+    assert "between the chunks" in page and "between" in page
+    simulate = (PACKAGE / "experiment" / "simulate.py").read_text(encoding="utf-8")
+    assert "set_monitor(" not in simulate.replace("``simulator.set_monitor``", "")
+
+
+def test_each_generated_diagram_has_one_copy():
+    """The diagrams ``drake-coop diagram`` writes are kept once, in ``diagrams/``; the docs
+    show them through a copy made at build time (``docs/conf.py``), never a committed one."""
+    committed = [p for p in (ROOT / "docs").rglob("*.svg")
+                 if (ROOT / "diagrams" / p.name).exists()]
+    assert committed == []
+    shown = set()
+    for md in (ROOT / "docs").rglob("*.md"):
+        shown |= set(re.findall(r"_generated/diagrams/([\w.]+\.svg)", md.read_text()))
+    assert shown and all((ROOT / "diagrams" / name).is_file() for name in shown)
