@@ -1,5 +1,5 @@
-"""Command line: ``drake-coop run | scenarios | plot | diagram | study | stability | identify |
-serve | sim-driver`` (also
+"""Command line: ``drake-coop run | scenarios | plot | diagram | study | stability | gains |
+identify | serve | sim-driver`` (also
 ``python -m drake_coop``).
 
 ``drake-coop run [SCENARIO] --out DIR [--meshcat]``
@@ -28,6 +28,9 @@ serve | sim-driver`` (also
     Parameter studies and Monte Carlo (see :mod:`drake_coop.studies.cli`).
 ``drake-coop stability SCENARIO --out DIR [--grid PATH=v1,v2,...] [--point free|held|both]``
     Spectral radius of the loop's one-period map over a grid (see :mod:`drake_coop.stability`).
+``drake-coop gains SCENARIO --out DIR [--force]``
+    Each robot's gains derived from its controller model and checked with the stability map
+    (see :mod:`drake_coop.stability.gains_cli`).
 ``drake-coop identify SCENARIO --out DIR [--robots 1,2] [--duration 10]``
     Identify each robot's dynamic parameters on the simulated true arm from encoder readings
     and commanded torques; write ``robotN_identified.urdf``, ``identify.json``,
@@ -391,8 +394,11 @@ def cmd_identify(args: argparse.Namespace) -> int:
     if not args.quiet:
         for name, r in report["robots"].items():
             v = r["validation"]
+            share = v['torque_error_rms_identified'] / max(v['torque_rms'], 1e-300)
             print(f"{name}: model torque error {v['torque_error_rms_identified']:.3g} N·m RMS "
-                  f"(nominal model {v['torque_error_rms_nominal']:.3g}), residual "
+                  f"({100 * share:.2g} % of the torque RMS on fresh data; nominal model "
+                  f"{v['torque_error_rms_nominal']:.3g}), base parameters "
+                  f"{r['identifiable_combinations']}, residual "
                   f"{max(r['residual_torque_rms']):.3g} N·m, condition number "
                   f"{r['regressor_condition_number']:.3g}")
         print(f"wrote {args.out}")
@@ -455,6 +461,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_study_parser(sub)
     from drake_coop.stability.cli import add_stability_parser
     add_stability_parser(sub)
+    from drake_coop.stability.gains_cli import add_gains_parser
+    add_gains_parser(sub)
     from drake_coop.robot.cli import add_robot_parsers
     add_robot_parsers(sub)
     return parser

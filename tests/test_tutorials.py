@@ -58,3 +58,19 @@ def test_tutorial_05_runs_the_control_on_a_users_own_plant():
     assert "SensedForce: λ̂ = 9.50 N, ΔF̃ after one tick = -0.0045 N·s" in text
     assert "NoForceEstimate: λ̂ = 10.00 N" in text
     assert "MomentumObserver inputs: ['q', 'qdot_hat', 'tau', 'reference']" in text
+
+
+def _have_robots() -> bool:
+    from drake_coop.control.arm_model import description_packages
+
+    return "example-robot-data" in description_packages()
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not _have_robots(),
+                    reason='example-robot-data is not installed (pip install -e ".[robots]")')
+def test_tutorial_06_runs_two_pandas_from_example_robot_data():
+    text = _run("06_your_lab_arms.ipynb")
+    assert "7 joints, 7 actuators; pad: True  F/T sensor weld: True" in text
+    assert "scenario valid" in text and "free: rho = 0.88" in text and "(stable)" in text
+    assert "completed 14 s" in text and text.count(" circle: |x - x_d|") == 2

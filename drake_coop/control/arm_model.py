@@ -17,7 +17,24 @@ Quantities (robot ``i``, ``n`` joints, ``m`` constraints):
 
 Kinematics: a closed form when one is given (the paper's arms: the application passes
 :class:`~drake_coop.kinematics.crs.CrsKinematics` when the controller's URDF has the simulated
-arm's geometry); otherwise Drake's, with ``J̇_φ`` by forward-mode AutoDiff. Both are exact; they differ by roundings.
+arm's geometry); otherwise Drake's. Drake's kinematics of a tick are **one evaluation**
+(:meth:`ArmModel.ee_kinematics`: the pad's position and its geometric Jacobian ``[J_ω; J_x]``
+from one ``CalcJacobianSpatialVelocity``), kept while ``q`` is unchanged and shared by ``φ``,
+``J_φ`` and ``J̇_φ``, so the force observer and the controller of a tick evaluate it once.
+
+``J̇_φ`` along a direction ``d`` on a serial chain of revolute and prismatic joints is the
+closed-form derivative of the geometric Jacobian's columns (no AutoDiff): with ``a_k`` the
+angular column of joint ``k`` (its world axis, 0 for a prismatic joint), ``J_k`` its
+translational column, ``ω_k = Σ_{j<k} a_j d_j`` the angular velocity of the body that carries
+joint ``k`` and ``s_k = Σ_{j≥k} J_j d_j`` the pad's velocity relative to that body,
+
+.. math:: \\dot J_k = \\omega_k \\times J_k + a_k \\times s_k
+
+(``J_k = a_k × (x − p_k)``: ``ȧ_k = ω_k × a_k``, ``d/dt (x − p_k) = ω_k × (x − p_k) + s_k``,
+and the Jacobi identity). Exact, to the roundings of a few cross products; checked against
+forward-mode AutoDiff (:meth:`ArmModel.J_phi_and_derivative_autodiff`, kept as the reference
+and as the fallback for a model that is not such a chain) and finite differences.
+Both paths are exact; they differ by roundings.
 Dynamics: ``H a + C v + D v + g`` is one inverse-dynamics call
 (``CalcForceElementsContribution`` — gravity and joint damping — then
 ``CalcInverseDynamics``).
@@ -57,6 +74,13 @@ class ArmModel:
         linearly independent.
     contact_point : array_like, shape (3,)
         ``c`` of ``φ(q) = N (x(q) − c)``, in the world frame.
+    coulomb : array_like, shape (n,), optional
+        Coulomb friction torques ``F_c`` of the joints (N·m, ``≥ 0``; e.g. the identified
+        ones of ``drake-coop identify``), compensated in the model:
+        :meth:`inverse_dynamics_terms` then adds ``F_c ⊙ tanh(v / v_c)`` (the identification's
+        own smoothing of ``sign v``). None (the paper's model, the default): no such term.
+    coulomb_velocity : float
+        ``v_c`` (rad/s) of that smoothing, > 0 (default 0.02, the identification's).
     closed_form : object, optional
         Closed-form kinematics of a three-joint arm of the paper's kind (``fk(q)``,
         ``jacobian(q)``, ``jacobian_dot(q, v)``, ``geometry`` with ``h1, L2, L3``, ``R_base``,
@@ -70,7 +94,7 @@ class ArmModel:
     """
 
     def __init__(self, plant: MultibodyPlant, ee_frame: str, normals, contact_point,
-                 closed_form=None):
+                 closed_form=None, coulomb=None, coulomb_velocity: float = 0.02):
         if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
             raise ValueError("plant: a finalized single-arm MultibodyPlant is required "
                              "(see make_arm_controller_plant)")
@@ -82,6 +106,18 @@ class ArmModel:
             raise ValueError(f"ee_frame: the controller's plant has no frame named "
                              f"{ee_frame!r}")
         self._setup(plant, ee_frame, normalized_normals(normals), contact_vector(contact_point))
+        self.coulomb = None
+        if coulomb is not None:
+            F_c = np.asarray(coulomb, dtype=float)
+            if F_c.shape != (self.n,) or not np.all(np.isfinite(F_c)) or np.any(F_c < 0):
+                raise ValueError(f"coulomb: {self.n} finite torques >= 0 are required (got "
+                                 f"{np.shape(coulomb)})")
+            if not (isinstance(coulomb_velocity, (int, float)) and coulomb_velocity > 0
+                    and math.isfinite(coulomb_velocity)):
+                raise ValueError(f"coulomb_velocity: a finite number > 0 is required (got "
+                                 f"{coulomb_velocity!r})")
+            self.coulomb = F_c
+        self.coulomb_velocity = float(coulomb_velocity)
         self.kinematics = closed_form
         self.closed_form = closed_form is not None
         self._row_key = b""
@@ -120,6 +156,9 @@ class ArmModel:
         self._zero_v = np.zeros(self.n)
         self._q_key = self._v_key = b""   # what the context holds (see _set_q)
         self._forces = MultibodyForces(plant)
+        self._kin_key = b""
+        self._kin = None
+        self.serial_chain = _serial_chain(plant, self.ee_frame)
 
     @property
     def N(self) -> np.ndarray:
@@ -131,11 +170,13 @@ class ArmModel:
         """The contact point ``c`` of (2) in the world frame."""
         return self._c
 
-    # ------------------------------------------------ closed form, one constraint, plain floats
+    # ------------------------------------------------ one constraint, plain floats
     def constraint_row(self, q: np.ndarray) -> tuple[float, list[float]]:
-        """``φ(q)`` and ``J_φ(q)`` (as a list) of a one-constraint arm in closed form.
+        """``φ(q)`` and ``J_φ(q)`` (as a list) of the first constraint row.
 
-        Plain floats (a 3-vector per NumPy call costs more than the arithmetic), the same
+        With Drake's kinematics: from the tick's one evaluation (:meth:`ee_kinematics`).
+        In closed form: plain floats (a 3-vector per NumPy call costs more than the
+        arithmetic), the same
         formulas as :class:`~drake_coop.kinematics.crs.CrsKinematics` with the normal ``n``
         rotated into the base frame: ``φ = (R_bᵀ n)·x_local(q) + n·(p_b − c)``,
         ``J_φ = (R_bᵀ n)ᵀ J_local(q)``. Cached for the last ``q``: the force observer and the
@@ -143,6 +184,11 @@ class ArmModel:
         """
         key = q.tobytes()
         if key == self._row_key:
+            return self._row
+        if not self.closed_form:                 # Drake's kinematics: the tick's one evaluation
+            x, _, Jx = self.ee_kinematics(q)
+            n0 = self._N[0]
+            self._row_key, self._row = key, (float(n0 @ (x - self._c)), (n0 @ Jx).tolist())
             return self._row
         nx, ny, nz, off = self._row_constants
         h1, L2, L3 = self._lengths
@@ -160,7 +206,13 @@ class ArmModel:
         return phi, j
 
     def constraint_row_dot(self, q: np.ndarray, v: np.ndarray) -> list[float]:
-        """``J̇_φ`` along ``v`` of a one-constraint arm in closed form (plain floats)."""
+        """``J̇_φ`` along ``v`` of a one-constraint arm in closed form (plain floats); with
+        Drake's kinematics the first normal times :meth:`J_x_dot` (a serial chain), else
+        AutoDiff."""
+        if not self.closed_form:
+            if self.serial_chain:
+                return (self._N[0] @ self.J_x_dot(q, v)).tolist()
+            return self.J_phi_and_derivative_autodiff(q, v)[1][0].tolist()
         self.constraint_row(q)
         s1, c1, s2, r, a, b, e = self._row_terms
         nx, ny, nz, _ = self._row_constants
@@ -214,32 +266,56 @@ class ArmModel:
         self._set_q(q)
         return -self.plant.CalcGravityGeneralizedForces(self.context)
 
+    def friction_torque(self, v: np.ndarray) -> np.ndarray:
+        """``F_c ⊙ tanh(v / v_c)``, the compensated Coulomb friction (zeros without it)."""
+        if self.coulomb is None:
+            return np.zeros(self.n)
+        return self.coulomb * np.tanh(np.asarray(v, dtype=float) / self.coulomb_velocity)
+
     def inverse_dynamics_terms(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-        """``H(q) a + C(q, v) v + D v + g(q)``: the model part of (13) and (21)."""
+        """``H(q) a + C(q, v) v + D v + g(q)``: the model part of (13) and (21); plus
+        :meth:`friction_torque` when the model has Coulomb friction (``coulomb``)."""
         self._set(q, v)
         # Drake's inverse dynamics is M a + C v − τ_app; the force elements give
         # τ_app = τ_g − D v (gravity, and the joints' damping).
         self.plant.CalcForceElementsContribution(self.context, self._forces)
-        return self.plant.CalcInverseDynamics(self.context, np.asarray(a, dtype=float),
-                                              self._forces)
+        tau = self.plant.CalcInverseDynamics(self.context, np.asarray(a, dtype=float),
+                                             self._forces)
+        if self.coulomb is not None:
+            tau = tau + self.friction_torque(v)
+        return tau
 
     # ----------------------------------------------------------------------- kinematics
+    def ee_kinematics(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The pad's position ``x`` (3,), angular ``J_ω`` (3×n) and translational ``J_x``
+        (3×n) Jacobians, world frame, from one Drake evaluation; kept for the last ``q`` (the
+        blocks of a tick share it). Read-only arrays: the caller must not modify them."""
+        q = np.asarray(q, dtype=float)
+        key = q.tobytes()
+        if key != self._kin_key:
+            self._set_q(q)
+            J = self.plant.CalcJacobianSpatialVelocity(
+                self.context, JacobianWrtVariable.kV, self.ee_frame, self._zero_ad,
+                self.plant.world_frame(), self.plant.world_frame())
+            x = self.ee_frame.CalcPoseInWorld(self.context).translation()
+            Jw, Jx = J[:3], J[3:]
+            for a in (x, Jw, Jx):
+                a.flags.writeable = False
+            self._kin_key, self._kin = key, (x, Jw, Jx)
+        return self._kin
+
     def ee_position(self, q: np.ndarray) -> np.ndarray:
         """End-effector point (pad centre) in the palm frame."""
         if self.closed_form:
             return self.kinematics.fk(q)
-        self._set_q(q)
-        return self.ee_frame.CalcPoseInWorld(self.context).translation()
+        return self.ee_kinematics(q)[0]
 
     def J_x(self, q: np.ndarray) -> np.ndarray:
         """Translational Jacobian ``J_x = ∂x/∂q`` of the end-effector point (3×n), world frame
         (``J_φ = N J_x``); closed form when the arm has it."""
         if self.closed_form:
             return self.kinematics.jacobian(q)
-        self._set_q(q)
-        return self.plant.CalcJacobianTranslationalVelocity(
-            self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
-            self.plant.world_frame(), self.plant.world_frame())
+        return self.ee_kinematics(q)[2]
 
     def J_omega(self, q: np.ndarray) -> np.ndarray:
         """Rotational Jacobian ``J_ω`` of the end-effector frame (3×n), world frame: its
@@ -263,22 +339,41 @@ class ArmModel:
             if key != self._J_phi_key:
                 self._J_phi_key, self._J_phi = key, self._N @ self.kinematics.jacobian(q)
             return self._J_phi
-        self._set_q(q)
-        Jv = self.plant.CalcJacobianTranslationalVelocity(
-            self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
-            self.plant.world_frame(), self.plant.world_frame())
-        return self._N @ Jv
+        return self._N @ self.ee_kinematics(q)[2]
+
+    def J_x_dot(self, q: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        """``J̇_x`` along ``direction`` (3×n) from the cached geometric Jacobian, in closed
+        form (module docstring: ``J̇_k = ω_k × J_k + a_k × s_k``); a serial chain only
+        (:attr:`serial_chain`)."""
+        _, Jw, Jx = self.ee_kinematics(q)
+        d = np.asarray(direction, dtype=float)
+        wd = Jw * d                                     # a_j d_j
+        vd = Jx * d                                     # J_j d_j
+        w = np.cumsum(wd, axis=1) - wd                  # ω_k = Σ_{j<k} a_j d_j
+        sk = np.cumsum(vd[:, ::-1], axis=1)[:, ::-1]    # s_k = Σ_{j≥k} J_j d_j
+        return _cross_columns(w, Jx) + _cross_columns(Jw, sk)
 
     def J_phi_and_derivative(self, q: np.ndarray, direction: np.ndarray
                              ) -> tuple[np.ndarray, np.ndarray]:
         """``J_φ(q)`` and its exact directional derivative ``Σ_k ∂J_φ/∂q_k · direction_k``.
 
-        Closed form (:meth:`Arm.jacobian_dot`) when it applies, else forward-mode AutoDiff
-        with one derivative component seeded with ``direction``.
+        Closed form of the paper's arms (:meth:`Arm.jacobian_dot`) when it applies; else, on a
+        serial chain, the closed-form derivative of the cached geometric Jacobian
+        (:meth:`J_x_dot`); else forward-mode AutoDiff
+        (:meth:`J_phi_and_derivative_autodiff`).
         """
         if self.closed_form:
             return (self.J_phi(q),
                     self._N @ self.kinematics.jacobian_dot(q, np.asarray(direction, dtype=float)))
+        if not self.serial_chain:
+            return self.J_phi_and_derivative_autodiff(q, direction)
+        return self._N @ self.ee_kinematics(q)[2], self._N @ self.J_x_dot(q, direction)
+
+    def J_phi_and_derivative_autodiff(self, q: np.ndarray, direction: np.ndarray
+                                      ) -> tuple[np.ndarray, np.ndarray]:
+        """``J_φ(q)`` and its directional derivative by forward-mode AutoDiff of Drake's
+        translational Jacobian, one derivative component seeded with ``direction`` (any
+        tree; the reference the closed form is checked against)."""
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))
         Jv = self.plant_ad.CalcJacobianTranslationalVelocity(
@@ -292,6 +387,36 @@ class ArmModel:
         return self._N @ value, self._N @ deriv
 
 
+#: Description packages found in the Python environment: the package name the URDFs use,
+#: and the data folder under ``site-packages`` (``example-robot-data``'s wheel holds no Python
+#: module; its ``package.xml`` names it ``example_robot_descriptions``, its URDFs say
+#: ``package://example-robot-data/...``).
+DESCRIPTION_PACKAGES = {"example-robot-data": "cmeel.prefix/share/example-robot-data"}
+
+
+def description_packages() -> dict[str, Path]:
+    """The installed description packages by the name their URDFs use (folders holding a
+    ``package.xml`` under an entry of ``sys.path``); empty when none is installed."""
+    import sys
+
+    found = {}
+    for name, sub in DESCRIPTION_PACKAGES.items():
+        for entry in sys.path:
+            folder = Path(entry or ".") / sub
+            if (folder / "package.xml").is_file():
+                found[name] = folder.resolve()
+                break
+    return found
+
+
+def add_description_packages(package_map) -> None:
+    """Add :func:`description_packages` to a :class:`~pydrake.multibody.parsing.PackageMap`
+    (those it does not know yet), so a parser reads ``package://example-robot-data/...``."""
+    for name, folder in description_packages().items():
+        if not package_map.Contains(name):
+            package_map.Add(name, str(folder))
+
+
 def make_arm_controller_plant(model_file: str | Path, base_frame: str,
                               X_WB: RigidTransform | None = None) -> MultibodyPlant:
     """The controller's own single-arm plant, as Drake's ``InverseDynamicsController`` wants.
@@ -299,7 +424,8 @@ def make_arm_controller_plant(model_file: str | Path, base_frame: str,
     Parameters
     ----------
     model_file : str or Path
-        The arm's URDF or SDFormat file (``package://`` URLs resolved by Drake's parser).
+        The arm's URDF or SDFormat file (``package://`` URLs resolved by Drake's parser, which
+        also knows the installed description packages, :func:`add_description_packages`).
     base_frame : str
         The frame welded to the world.
     X_WB : RigidTransform, optional
@@ -312,6 +438,7 @@ def make_arm_controller_plant(model_file: str | Path, base_frame: str,
     """
     plant = MultibodyPlant(0.0)
     parser = Parser(plant)
+    add_description_packages(parser.package_map())
     text = str(model_file)
     if "://" in text:
         parser.AddModelsFromUrl(text)
@@ -356,3 +483,32 @@ def contact_vector(contact_point) -> np.ndarray:
         raise ValueError(f"contact_point: 3 finite numbers are required (got "
                          f"{np.shape(contact_point)})")
     return c
+
+
+def _cross_columns(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Column-wise cross products of two 3×n arrays (``np.cross`` without its overhead)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                     a[0] * b[1] - a[1] * b[0]])
+
+
+def _serial_chain(plant: MultibodyPlant, frame) -> bool:
+    """Whether the joints moving ``frame`` form a chain of revolute and prismatic joints of
+    one velocity each, numbered from the base outwards (what :meth:`ArmModel.J_x_dot`
+    assumes); joints off the chain have zero Jacobian columns and do not matter."""
+    parent_joint = {}
+    for j in plant.GetJointIndices():
+        joint = plant.get_joint(j)
+        parent_joint[joint.child_body().index()] = joint
+    body = frame.body()
+    starts = []
+    while body.index() in parent_joint:
+        joint = parent_joint[body.index()]
+        if joint.num_velocities() == 1:
+            if joint.type_name() not in ("revolute", "prismatic"):
+                return False
+            starts.append(joint.velocity_start())
+        elif joint.num_velocities() != 0:
+            return False
+        body = joint.parent_body()
+    starts.reverse()
+    return all(a < b for a, b in zip(starts, starts[1:]))

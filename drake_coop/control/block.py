@@ -71,7 +71,8 @@ def _check_sources(velocity_source, force_source, difference_cutoff_hz) -> None:
 
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
-                        difference_cutoff_hz: float | None = None
+                        difference_cutoff_hz: float | None = None,
+                        momentum_torque_limits=None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -91,6 +92,10 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         One of :data:`~drake_coop.scenario.VELOCITY_SOURCES`, :data:`~drake_coop.scenario.FORCE_SOURCES`.
     difference_cutoff_hz : float, optional
         Low-pass cutoff of ``velocity_source = difference``.
+    momentum_torque_limits : array_like, optional
+        ``force_source = momentum`` only: the actuators' torque limits, so the observer
+        integrates the torque actually applied (after saturation) instead of the commanded
+        one (opt-in; :class:`~drake_coop.control.momentum.MomentumObserver`).
 
     The momentum observer's gain ``K_O`` of ``force_source = momentum`` is the law's
     (``Gains.momentum_gain``).
@@ -121,7 +126,8 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
     elif force_source == "momentum":
         force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
-            law.model, law.layout, period, law.momentum_gain))
+            law.model, law.layout, period, law.momentum_gain,
+            torque_limits=momentum_torque_limits))
     else:
         force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
@@ -277,7 +283,7 @@ def AddCooperativeController(
         q: OutputPort | None = None,
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
         name: str | None = None, allow_sampled_output_ports: bool = False,
-        contact_stiffness=None
+        pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -347,6 +353,16 @@ def AddCooperativeController(
     allow_sampled_output_ports : bool
         Accept a plant with sampled output ports (a one-step-late ``q``; not the paper's
         timing).
+    pinv_damping : float
+        ``μ`` of the damped pseudo-inverse near singular postures (0, the paper's exact
+        ``J⁺``, by default; :class:`~drake_coop.control.finger.FingerLaw`).
+    momentum_torque_limits : array_like, optional
+        ``force_source = "momentum"``: the actuators' torque limits, so the momentum observer
+        integrates the applied (saturated) torque (see :func:`build_control_block`).
+
+    The identified Coulomb friction is compensated by passing an
+    :class:`~drake_coop.control.arm_model.ArmModel` built with ``coulomb=`` as
+    ``controller_model``.
 
     Returns
     -------
@@ -439,9 +455,10 @@ def AddCooperativeController(
     if lambda_sensor is not None and lambda_sensor.size() != model.m:
         raise ValueError(f"lambda_sensor: an output port of size m = {model.m} is required "
                          f"(got {lambda_sensor.size()})")
-    law = FingerLaw(model, gains, contact_stiffness)
+    law = FingerLaw(model, gains, contact_stiffness, pinv_damping=pinv_damping)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
-                                                  force_source, difference_cutoff_hz)
+                                                  force_source, difference_cutoff_hz,
+                                                  momentum_torque_limits)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
                                     velocity_source, force_source, lambda_sensor,

@@ -140,6 +140,12 @@ class FingerLaw:
     gains : Gains
         ``Λ = k I``, ``K_R``, ``k_d``, ``k_F``, ``ξ`` (m×m, or ``ξ I``), ``ζ``, ``β``,
         checked by :func:`check_gains` against the model's ``n`` and ``m``.
+    pinv_damping : float, optional
+        ``μ`` of the damped pseudo-inverse ``J⁺ = J_φᵀ (J_φ J_φᵀ + μ² I)⁻¹`` used in (4),
+        (11), (22) and its derivative (7) (:func:`~drake_coop.control.orthogonal.projections`):
+        0 (the paper's exact ``J⁺``, the default) or > 0 for arms that pass near a singular
+        posture of ``J_φ`` (opt-in; ``J⁺`` stays below ``1/(2μ)``, at the price of exact
+        orthogonality).
     contact_stiffness : ContactStiffness, optional
         A compliant contact's stiffness model (:class:`~drake_coop.control.object.ContactStiffness`):
         the constrained position's reference becomes ``p_d = −δ(λ_d)``, the compression the
@@ -153,10 +159,12 @@ class FingerLaw:
     Raises
     ------
     ValueError
-        A gain of the wrong shape or sign, naming it (``K_R``, ``xi_matrix``, ...).
+        A gain of the wrong shape or sign, naming it (``K_R``, ``xi_matrix``, ...), or a
+        negative or non-finite ``pinv_damping``.
     """
 
-    def __init__(self, model: ArmModel, gains: Gains, contact_stiffness=None):
+    def __init__(self, model: ArmModel, gains: Gains, contact_stiffness=None,
+                 pinv_damping: float = 0.0):
         check_gains(gains, model.n, model.m)
         if contact_stiffness is not None and not callable(
                 getattr(contact_stiffness, "compression", None)):
@@ -164,6 +172,13 @@ class FingerLaw:
                             f"None is required, got {type(contact_stiffness).__name__}")
         #: The compliant contact's model (None: rigid, ``p_d = 0``).
         self.contact_stiffness = contact_stiffness
+        if (isinstance(pinv_damping, bool) or not isinstance(pinv_damping, (int, float))
+                or not np.isfinite(pinv_damping) or pinv_damping < 0.0):
+            raise ValueError(f"pinv_damping: a finite number >= 0 is required (got "
+                             f"{pinv_damping!r})")
+        #: ``μ`` of the damped pseudo-inverse (0: the paper's ``J⁺``).
+        self.pinv_damping = float(pinv_damping)
+        self._mu2 = self.pinv_damping ** 2
         self.model = model
         self.n = model.n
         self.m = model.m
@@ -181,10 +196,14 @@ class FingerLaw:
         #: ``K_O`` of the momentum observer (``force_source = "momentum"``), 1/s.
         self.momentum_gain = float(gains.momentum_gain)
         self._zero_m = np.zeros(self.m)
-        #: The paper's case on plain floats (see :meth:`_held_m1`): one constraint, scalar ξ,
-        #: closed-form kinematics. Anything else takes the general path (any n, m, ξ matrix).
+        self._constraint_key = b""
+        self._constraint: Constraint | None = None
+        #: One constraint and a scalar ξ, on plain floats (see :meth:`_held_m1`): the paper's
+        #: case (closed-form kinematics) and any arm with Drake's (its row ``J_φ`` and
+        #: ``J̇_φ q̇_o`` from the tick's one kinematics evaluation). Anything else takes the
+        #: general path (any n, m, ξ matrix).
         self.fast = (self.m == 1 and np.ndim(self.xi) == 0
-                     and getattr(model, "closed_form", False))
+                     and hasattr(model, "constraint_row"))
         self._K_R_diag = np.diag(self.K_R).tolist()
         # K_R is diagonal: K_R x as an elementwise product (the same doubles as K_R @ x).
         self._K_R_vector = np.diag(self.K_R).copy()
@@ -206,15 +225,22 @@ class FingerLaw:
                    ) -> Constraint:
         """Projections of Property 1 at ``q`` (free-motion form when not held).
 
-        ``J_phi`` may be passed when already computed at ``q``.
+        ``J_phi`` may be passed when already computed at ``q``. Held, the result is kept for
+        the last ``q``: the force observer and the controller of a tick share it (the caller
+        must not modify its arrays).
         """
         if not held:
             J_pinv, Q = orthogonal.free_motion_projections(self.n, self.m)
             return Constraint(np.zeros((self.m, self.n)), J_pinv, Q, self._zero_m)
+        key = np.asarray(q, dtype=float).tobytes()
+        if key == self._constraint_key:      # the force observer's, at the same sample
+            return self._constraint
         if J_phi is None:
             J_phi = self.model.J_phi(q)
-        J_pinv, Q = orthogonal.projections(J_phi)
-        return Constraint(J_phi, J_pinv, Q, self.model.phi(q))
+        J_pinv, Q = orthogonal.projections(J_phi, self.pinv_damping)
+        c = Constraint(J_phi, J_pinv, Q, self.model.phi(q))
+        self._constraint_key, self._constraint = key, c
+        return c
 
     def _offset(self, c: Constraint, ref: Reference) -> Constraint:
         """``Δp = φ(q) − p_d`` with ``p_d = −δ(λ_d)`` on a compliant contact (else ``c``)."""
@@ -243,7 +269,8 @@ class FingerLaw:
                  ) -> tuple[list[float], float, float, list[float], list[float]]:
         """The held form of (4) for one constraint, on plain floats.
 
-        With the row ``j = J_φ`` (1×n) and ``ν = j jᵀ``: ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``,
+        With the row ``j = J_φ`` (1×n) and ``ν = j jᵀ`` (``+ μ²`` when damped):
+        ``J⁺ = jᵀ/ν``, ``Q x = x − J⁺ (j x)``,
         ``q̇_r = Q (q̇_d − Λ(q̂ − q_d)) + J⁺ (−β φ + ξ ΔF̃)``. Returns ``j``, ``ν``, the force
         part ``−β φ + ξ ΔF̃``, the motion part ``q̇_d − Λ(q̂ − q_d)`` and ``q̇_r``.
         """
@@ -253,6 +280,8 @@ class FingerLaw:
             phi = phi + float(self.contact_stiffness.compression(ref.lambda_d)[0])
             xi = self.xi_at(ref)
         nu = j[0] * j[0] + j[1] * j[1] + j[2] * j[2] if len(j) == 3 else sum(x * x for x in j)
+        if self._mu2:                    # the damped J⁺ = jᵀ/(ν + μ²); its ν̇ is unchanged
+            nu = nu + self._mu2
         f = -self.beta * phi + xi * DF
         L = self.Lambda
         motion = [vd - L * (qh - qd) for vd, qh, qd in
@@ -351,8 +380,8 @@ class FingerLaw:
         dict
             ``tau``, ``qdot_r`` (4), ``qddot_r_hat`` (11), ``Delta_lambda_tilde`` (m).
 
-        The paper's case (one constraint, scalar ξ, closed-form kinematics: :attr:`fast`)
-        runs on plain floats (:meth:`_control_m1`); the same equations, other roundings.
+        One constraint and a scalar ξ (:attr:`fast`: the paper's case, and any arm at
+        ``m = 1``) runs on plain floats (:meth:`_control_m1`); the same equations, other roundings.
         Free motion, for any arm, takes :meth:`_control_free` (the same equations with
         ``Q = I``, ``J⁺ = 0``, ``J_φ = 0``, without forming those matrices).
         """
@@ -361,7 +390,8 @@ class FingerLaw:
         if self.fast:
             return self._control_m1(q, q_hat, qdot_hat, qdot_o, lambda_hat, Delta_F_tilde, ref)
         J_phi, J_phi_dot = self.model.J_phi_and_derivative(q, qdot_o)
-        J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot)
+        J_pinv_dot, Q_dot = orthogonal.projection_derivatives(J_phi, J_phi_dot,
+                                                              self.pinv_damping)
         c = self._offset(self.constraint(q, True, J_phi), ref)
         Delta_lambda_tilde = lambda_hat - ref.lambda_d
         qdot_r = self.reference_velocity(c, q_hat, ref, Delta_F_tilde)

@@ -65,6 +65,11 @@ class MomentumObserver(ForceSource):
         Sampling time ``h`` (s).
     gain : float
         ``K_O`` (1/s), ``0 < h K_O ≤ 1``.
+    torque_limits : array_like, shape (n,), optional
+        The actuators' torque limits (N·m, > 0). Given, the observer integrates the torque
+        actually applied, ``clip(τ, −τ_max, τ_max)`` (what Drake's ``Saturation`` in front of
+        the plant passes), instead of the commanded ``τ``: a saturated command is then not
+        read as external torque. None (the default): the commanded torque.
 
     .. pydrake_system::
 
@@ -87,7 +92,8 @@ class MomentumObserver(ForceSource):
     qdot_hat : n-vector
         The velocity estimate of tick ``k``.
     tau : n-vector
-        The commanded torque ``τ(k)`` (read by the update only: no algebraic loop).
+        The commanded torque ``τ(k)`` (read by the update only: no algebraic loop); clipped
+        at ``torque_limits`` when given.
     reference : (3n + m + 1)-vector
         ``[q_d, q̇_d, q̈_d, λ_d, held]``.
 
@@ -104,12 +110,21 @@ class MomentumObserver(ForceSource):
         ``ΔF̃(k)`` (state only).
     """
 
-    def __init__(self, model: ArmModel, layout: ReferenceLayout, period: float, gain: float):
+    def __init__(self, model: ArmModel, layout: ReferenceLayout, period: float, gain: float,
+                 torque_limits=None):
         super().__init__()
         self._model = model
         self._layout = layout = ReferenceLayout.check(layout)
         self._h = period = check_period(period)
         self._gain = check_momentum_gain(gain, period)
+        self._limits = None
+        if torque_limits is not None:
+            limits = np.asarray(torque_limits, dtype=float)
+            if (limits.shape != (layout.n,) or not np.all(np.isfinite(limits))
+                    or np.any(limits <= 0)):
+                raise ValueError(f"torque_limits: {layout.n} finite torques > 0 are required "
+                                 f"(got {np.shape(torque_limits)})")
+            self._limits = limits
         n, m = layout.n, layout.m
         self._n, self._m = n, m
         self._q = self.DeclareVectorInputPort("q", n)
@@ -163,6 +178,12 @@ class MomentumObserver(ForceSource):
         context.SetDiscreteState(self._sigma, self._model.H(q0) @ v0)
         context.SetDiscreteState(self._DF, np.zeros(self._m))
 
+    def applied_torque(self, tau: np.ndarray) -> np.ndarray:
+        """The torque the observer integrates: ``τ`` clipped at ``torque_limits`` if given."""
+        if self._limits is None:
+            return tau
+        return np.clip(tau, -self._limits, self._limits)
+
     # ------------------------------------------------------------------ the model's terms
     def momentum(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``p = Ĥ(q) v``."""
@@ -178,7 +199,10 @@ class MomentumObserver(ForceSource):
         Hdot = (grad.reshape(self._n, self._n) if grad.size == self._n ** 2
                 else np.zeros((self._n, self._n)))
         CTv = Hdot @ v - model.Cv(q, v)
-        return model.g(q) + model.D @ v - CTv
+        beta = model.g(q) + model.D @ v - CTv
+        if getattr(model, "coulomb", None) is not None:     # the model's Coulomb friction
+            beta = beta + model.friction_torque(v)
+        return beta
 
     def _translational_jacobian(self, q: np.ndarray) -> np.ndarray:
         model = self._model
@@ -216,7 +240,7 @@ class MomentumObserver(ForceSource):
         q = self._q.Eval(context)
         v = self._v.Eval(context)
         sigma = context.get_discrete_state(self._sigma).value()
-        tau = self._tau.Eval(context)
+        tau = self.applied_torque(self._tau.Eval(context))
         discrete_state.set_value(self._sigma,
                                  sigma + self._h * (tau - self.beta(q, v) + r))
         DF = context.get_discrete_state(self._DF).value()

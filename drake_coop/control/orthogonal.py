@@ -50,15 +50,24 @@ def _inverse(A: np.ndarray) -> np.ndarray:
     return np.linalg.inv(A)
 
 
-def projections(J_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def projections(J_phi: np.ndarray, damping: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """``J⁺`` and ``Q`` of Property 1.
 
-    .. math:: J^+ = J_\\varphi^T (J_\\varphi J_\\varphi^T)^{-1}, \\qquad Q = I - J^+ J_\\varphi
+    .. math:: J^+ = J_\\varphi^T (J_\\varphi J_\\varphi^T + \\mu^2 I)^{-1}, \\qquad Q = I - J^+ J_\\varphi
+
+    ``μ = 0`` (the paper's, the default) is the exact right pseudo-inverse. ``μ > 0`` is the
+    damped least-squares inverse (opt-in, for postures near a singularity of ``J_φ``): with
+    ``J_φ = U Σ Vᵀ`` it is ``V Σ (Σ² + μ²)⁻¹ Uᵀ``, bounded by ``1/(2μ)`` however small the
+    singular values; far from the singularity (``σ ≫ μ``) it differs from ``J⁺`` by a factor
+    ``σ²/(σ² + μ²)`` per direction, and ``Q`` is then no exact projector (``Q J⁺ ≠ 0``): the
+    force and motion parts of the law are no longer exactly orthogonal.
 
     Parameters
     ----------
     J_phi : ndarray, shape (m, n)
-        Full-rank constraint Jacobian.
+        Constraint Jacobian (full rank when ``damping`` is 0).
+    damping : float
+        ``μ`` (same unit as ``J_φ``'s entries, m/rad for a position constraint), ``≥ 0``.
 
     Returns
     -------
@@ -67,6 +76,8 @@ def projections(J_phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     J_phi = np.atleast_2d(J_phi)
     A = J_phi @ J_phi.T
+    if damping:
+        A = A + damping * damping * _identity(A.shape[0])
     J_pinv = _solve(A, J_phi).T
     Q = _identity(J_phi.shape[1]) - J_pinv @ J_phi
     return J_pinv, Q
@@ -78,11 +89,12 @@ def free_motion_projections(n: int, m: int = 1) -> tuple[np.ndarray, np.ndarray]
 
 
 def projection_derivatives(
-    J_phi: np.ndarray, J_phi_dot: np.ndarray
+    J_phi: np.ndarray, J_phi_dot: np.ndarray, damping: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Directional derivatives ``Ĵ⁺̇`` and ``Q̂̇`` of (7) from ``J_φ`` and its derivative.
 
-    With ``A = J_φ J_φᵀ`` and ``Ȧ = J̇_φ J_φᵀ + J_φ J̇_φᵀ``:
+    With ``A = J_φ J_φᵀ + μ² I`` (``μ`` the constant ``damping`` of :func:`projections`, 0 by
+    default) and ``Ȧ = J̇_φ J_φᵀ + J_φ J̇_φᵀ``:
 
     .. math::
         \\dot J^+ = \\dot J_\\varphi^T A^{-1} - J_\\varphi^T A^{-1} \\dot A A^{-1},
@@ -102,6 +114,8 @@ def projection_derivatives(
     J_phi = np.atleast_2d(J_phi)
     J_phi_dot = np.atleast_2d(J_phi_dot)
     A = J_phi @ J_phi.T
+    if damping:
+        A = A + damping * damping * _identity(A.shape[0])
     A_inv = _inverse(A)
     A_dot = J_phi_dot @ J_phi.T + J_phi @ J_phi_dot.T
     J_pinv = J_phi.T @ A_inv

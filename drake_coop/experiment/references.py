@@ -5,7 +5,9 @@ The Cartesian paths (28) and the force profile (29) are the scenario's
 inverse kinematics (closed form for the paper's arms, Drake's otherwise,
 :attr:`drake_coop.plant.arms.Arm.kinematics`):
 ``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)`` (``J`` the task Jacobian:
-position, and orientation held fixed for 6-joint arms). Each constraint row's desired force is
+position, and orientation held fixed for 6-joint arms). A redundant arm (more joints than task
+coordinates, a 7-joint Panda) gets a differential inverse kinematics with a null-space posture
+objective, integrated in time (:func:`redundant_joint_reference`). Each constraint row's desired force is
 its weight (``robots[i].force_weights``) times (29).
 
 The object is held (constraint active, controller in its constrained form) on the control
@@ -34,14 +36,52 @@ from drake_coop.scenario.task_path import (
 
 #: The task's paths are the scenario's; they are re-exported for the callers of this module.
 __all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", "quintic",
-           "segments", "waypoints", "joint_reference", "reference_samples",
-           "reference_trajectory", "compressed_path"]
+           "segments", "waypoints", "joint_reference", "redundant_joint_reference", "start_posture",
+           "reference_samples", "reference_trajectory", "compressed_path"]
 
 
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the arm's IK."""
+    """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the arm's IK (an arm
+    with as many joints as task coordinates)."""
     return arm.kinematics.joint_reference(x, xd, xdd)
+
+
+def start_posture(arm: Arm, task) -> np.ndarray:
+    """``q_d(0)``: the reference's posture at ``t = 0`` (the run's rest posture), for either
+    kind of arm (the same doubles as the first sample of :func:`reference_samples`)."""
+    x, xd, xdd = cartesian_reference(task, arm.robot, [0.0])
+    kin = arm.kinematics
+    if getattr(kin, "redundant", False):
+        return kin.start_posture(x[0], kin.nominal_posture(arm.robot.q_nominal))
+    return np.asarray(joint_reference(arm, x, xd, xdd)[0]).reshape(-1)
+
+
+def redundant_joint_reference(arm: Arm, task, t: np.ndarray
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``q_d``, ``q̇_d``, ``q̈_d`` of a redundant arm (``n > task_dim``) at the times ``t``:
+    the differential inverse kinematics with a null-space posture objective
+    (:meth:`~drake_coop.kinematics.drake_arm.DrakeArmKinematics.redundant_reference`, the
+    robot's ``q_nominal`` and ``nullspace_gain``).
+
+    Raises
+    ------
+    ValueError
+        A joint leaves its limits along the reference (``validate`` refuses such a scenario
+        first, on a coarser grid).
+    """
+    robot = arm.robot
+    kin = arm.kinematics
+    q, qd, qdd = kin.redundant_reference(
+        t, lambda tt: cartesian_reference(task, robot, tt), robot.q_nominal,
+        robot.nullspace_gain)
+    outside = (q < kin.q_min) | (q > kin.q_max)
+    if outside.any():
+        k, j = np.argwhere(outside)[0]
+        raise ValueError(f"{robot.name}: joint {kin.joint_names[j]} at {q[k, j]:.4f} rad "
+                         f"outside its limits at t = {t[k]:.3f} s along the redundant "
+                         "reference (choose q_nominal or nullspace_gain)")
+    return q, qd, qdd
 
 
 def reference_samples(scenario: Scenario, index: int, t_end: float | None = None,
@@ -70,8 +110,10 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
         k_last = max(1, min(k_last, num_ticks_until(t_end, h) + 1))
     k = np.arange(k_last + 1)
     t = k * h
-    x, xd, xdd = cartesian_reference(task, robot, t)
     arm = plan.arms[index]
+    redundant = getattr(arm.kinematics, "redundant", False)
+    if not redundant:
+        x, xd, xdd = cartesian_reference(task, robot, t)
     held = ((k >= plan.k_grasp) & (k < plan.k_release)).astype(float)
     profile = force_reference(task, t)
     if scenario.object_model.mode != "none" and scenario.object_model.squeeze == "friction":
@@ -80,13 +122,16 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     lam = profile[:, None] * np.asarray(robot.force_weights, dtype=float)
     from drake_coop.experiment.object_blocks import contact_stiffness
     stiffness = contact_stiffness(scenario, index)
-    if stiffness is not None:
+    if stiffness is not None and not redundant:
         # A compliant contact: the pad is held where the contact carries λ_d, pressed in by
         # δ(λ_d) along the inward normal, in the joint references too (else the tangent
         # part of (4) sees the compression as a position error: the pad sags).
         x, xd, xdd = compressed_path(stiffness, x, xd, xdd, lam[:, 0] * held, h,
                                      -np.asarray(robot.normals[0], dtype=float))
-    q, qd, qdd = joint_reference(arm, x, xd, xdd)
+    if redundant:     # the null-space reference follows the task itself (no compressed path)
+        q, qd, qdd = redundant_joint_reference(arm, task, t)
+    else:
+        q, qd, qdd = joint_reference(arm, x, xd, xdd)
     return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
 
 

@@ -36,8 +36,8 @@ from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
 from drake_coop.experiment.references import (
     cartesian_reference,
-    joint_reference,
     reference_trajectory,
+    start_posture,
 )
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.plant.grasp import pad_contact_components
@@ -84,8 +84,7 @@ def initialize(exp: Experiment, context) -> None:
 def rest_posture(scenario: Scenario, arms: list) -> tuple[list[np.ndarray], float]:
     """The run's start: each arm's ``q_d(0)`` (one posture per robot) and the height of the
     object's sliders at the grasp (``circle_top_z − lift_height``)."""
-    q0 = [np.asarray(joint_reference(arm, *cartesian_reference(scenario.task, robot, [0.0]))[0])
-          .reshape(-1) for arm, robot in zip(arms, scenario.robots)]
+    q0 = [start_posture(arm, scenario.task) for arm in arms]
     return q0, scenario.task.circle_top_z - scenario.task.lift_height
 
 

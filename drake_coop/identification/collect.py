@@ -144,10 +144,17 @@ class ExcitationData:
 
 def tracking_gains(model: ArmModel, q0: np.ndarray, bandwidth: float = 20.0
                    ) -> tuple[np.ndarray, np.ndarray]:
-    """PD gains from the nominal inertia's diagonal at ``q0``: ``K_p = H_jj ω²``,
-    ``K_v = 2 H_jj ω`` (critically damped, ``ω = bandwidth`` rad/s, well below ``π/h``)."""
-    d = np.diag(model.H(q0))
-    return d * bandwidth ** 2, 2.0 * d * bandwidth
+    """PD gains from the nominal model's effective joint inertias at ``q0``:
+    ``K_p = J_j ω²``, ``K_v = 2 J_j ω`` (critically damped, ``ω = bandwidth`` rad/s, well below
+    ``π/h``), ``J_j = 1/(H⁻¹)_jj`` the inertia joint ``j`` sees with the others free.
+
+    ``J_j`` rather than ``H_jj``: on an arm whose inertia matrix is strongly coupled (the
+    Panda's light wrist under its heavy shoulder) the diagonal overstates what a joint moves,
+    and gains from ``H_jj`` made the sampled PD loop oscillate (commanded torques of 10³ N·m,
+    a torque prediction error of 170 % on the Panda); on a weakly coupled arm the two are
+    close (``J_j ≤ H_jj``)."""
+    J = 1.0 / np.diag(np.linalg.inv(model.H(q0)))
+    return J * bandwidth ** 2, 2.0 * J * bandwidth
 
 
 def simulate_excitation(scenario: Scenario, robot_index: int, excitation: FourierExcitation,

@@ -160,14 +160,13 @@ def estimate_parameters(regressor: Regressor, data: PreparedData, theta0: np.nda
     theta0 : ndarray
         The nominal parameters (the prior's centre), e.g. of the controller's model.
     """
-    from drake_coop.identification.regressor import condition_number
+    from drake_coop.identification.regressor import column_scale, condition_number
 
     s = regressor.structure
     Y = regressor.matrix(data.q, data.v, data.a)
     y = data.tau.reshape(-1)
     cond, rank = condition_number(Y)
-    scale = np.linalg.norm(Y, axis=0)
-    scale[scale == 0.0] = 1.0
+    scale = column_scale(Y)          # round-off columns: inf, so θ_ls is 0 there
     theta_ls = np.linalg.lstsq(Y / scale, y, rcond=1e-8)[0] / scale
     dof = max(1, Y.shape[0] - rank)
     sigma2 = max(float(np.sum((y - Y @ theta_ls) ** 2)) / dof, 1e-12)

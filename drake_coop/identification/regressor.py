@@ -275,34 +275,66 @@ class Regressor:
         return Y.reshape(N * n, s.num_parameters)
 
 
-def identifiable_basis(Y: np.ndarray, rtol: float = 1e-8) -> tuple[np.ndarray, np.ndarray]:
-    """Orthonormal bases of the identifiable and unidentifiable parameter directions of ``Y``.
+#: A column of ``Y`` whose norm is below this fraction of the largest column's is round-off
+#: (a parameter the torques do not see, computed as the difference of two equal torques:
+#: 5.5e-15 N·m against columns of 11–10⁴ on the CRS arms): it is set to zero, not scaled up
+#: to a unit column that the SVD would count as a direction.
+COLUMN_RTOL = 1e-10
+#: Singular values of the column-scaled ``Y`` below this fraction of the largest are zero.
+RANK_RTOL = 1e-8
 
-    Columns are scaled to unit norm first (so that units do not decide the rank).
+
+def column_scale(Y: np.ndarray, column_rtol: float = COLUMN_RTOL) -> np.ndarray:
+    """The column norms of ``Y`` used to scale it, with round-off columns marked ``inf``.
+
+    ``Y / column_scale(Y)`` has unit columns, and zero columns where ``Y``'s column is zero or
+    below ``column_rtol`` times the largest column norm (see :data:`COLUMN_RTOL`); dividing a
+    parameter vector by the scale gives 0 for those parameters.
+    """
+    scale = np.linalg.norm(Y, axis=0)
+    largest = float(scale.max()) if scale.size else 0.0
+    scale = scale.copy()
+    scale[scale <= column_rtol * largest] = np.inf
+    return scale
+
+
+def base_rank(singular_values: np.ndarray, rtol: float = RANK_RTOL) -> int:
+    """The numerical rank: singular values above ``rtol`` times the largest (relative)."""
+    sv = np.asarray(singular_values, dtype=float)
+    if sv.size == 0 or sv[0] <= 0.0:
+        return 0
+    return int(np.sum(sv > rtol * sv[0]))
+
+
+def identifiable_basis(Y: np.ndarray, rtol: float = RANK_RTOL) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal bases of the identifiable parameter directions of ``Y``.
+
+    Columns are scaled to unit norm first (so that units do not decide the rank); round-off
+    columns are zeroed (:func:`column_scale`), and the rank is relative (:func:`base_rank`).
 
     Returns
     -------
     (scale, V_id)
-        ``scale`` the column norms (p,), ``V_id`` (p×r) the right singular vectors of the
-        scaled ``Y`` with singular values above ``rtol`` times the largest: the directions of
-        ``θ / scale`` that the torques determine.
+        ``scale`` the column norms (p,), 1 for zero and zeroed columns, ``V_id`` (p×r) the
+        right singular vectors of the scaled ``Y`` with singular values above ``rtol`` times
+        the largest: the directions of ``θ / scale`` that the torques determine (zero rows
+        at the zeroed columns).
     """
-    scale = np.linalg.norm(Y, axis=0)
-    scale[scale == 0.0] = 1.0
+    scale = column_scale(Y)
     _, sv, Vt = np.linalg.svd(Y / scale, full_matrices=False)
-    r = int(np.sum(sv > rtol * sv[0]))
-    return scale, Vt[:r].T
+    r = base_rank(sv, rtol)
+    return np.where(np.isinf(scale), 1.0, scale), Vt[:r].T
 
 
-def condition_number(Y: np.ndarray, rtol: float = 1e-8) -> tuple[float, int]:
+def condition_number(Y: np.ndarray, rtol: float = RANK_RTOL) -> tuple[float, int]:
     """Condition number of the column-scaled ``Y`` on its identifiable subspace, and its rank.
 
-    ``σ_1 / σ_r`` with ``r`` the number of singular values above ``rtol σ_1``: the
-    sensitivity of the identifiable combinations to torque errors (the criterion the
-    excitation is chosen by).
+    ``σ_1 / σ_r`` with ``r`` the number of singular values above ``rtol σ_1`` (round-off
+    columns zeroed first: :func:`column_scale`): the sensitivity of the identifiable
+    combinations to torque errors (the criterion the excitation is chosen by).
     """
-    scale = np.linalg.norm(Y, axis=0)
-    scale[scale == 0.0] = 1.0
-    sv = np.linalg.svd(Y / scale, compute_uv=False)
-    r = int(np.sum(sv > rtol * sv[0]))
+    sv = np.linalg.svd(Y / column_scale(Y), compute_uv=False)
+    r = base_rank(sv, rtol)
+    if r == 0:
+        return float("inf"), 0
     return float(sv[0] / sv[r - 1]), r

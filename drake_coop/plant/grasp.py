@@ -61,6 +61,7 @@ from pydrake.geometry import (
     ProximityProperties,
     RoleAssign,
     SceneGraph,
+    Sphere,
 )
 from pydrake.math import RigidTransform
 from pydrake.multibody.math import SpatialVelocity
@@ -76,7 +77,6 @@ from pydrake.multibody.tree import (
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort, LeafSystem, ValueProducer
 
-from drake_coop.plant.arms import GEOMETRY
 from drake_coop.scenario.schema import Scenario
 
 #: y (depth) and z (height) size of the box (m).
@@ -271,6 +271,20 @@ def _pad_geometries(plant: MultibodyPlant, scenario: Scenario) -> list[GeometryI
     return ids
 
 
+def pad_radius(scene_graph: SceneGraph, pad: GeometryId) -> float:
+    """The radius of a pad's sphere (the shipped arms' 15 mm, or a ``tool``'s ``pad_radius``).
+
+    Raises
+    ------
+    ValueError
+        The pad's collision geometry is not a sphere.
+    """
+    shape = scene_graph.model_inspector().GetShape(pad)
+    if not isinstance(shape, Sphere):
+        raise ValueError(f"contact mode: a pad must be a sphere, got {type(shape).__name__}")
+    return float(shape.radius())
+
+
 def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
                        scenario: Scenario) -> ContactObject:
     """Add the box (model instance ``object``), its stand and the floor to a plant.
@@ -293,7 +307,8 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
     ContactObject
     """
     r1, r2 = scenario.robots
-    r_pad = GEOMETRY[r1.model].r_pad
+    pads = _pad_geometries(plant, scenario)
+    r_pad = pad_radius(scene_graph, pads[0])
     lo, hi = sorted([r1.contact_xy[0], r2.contact_xy[0]])
     width = (hi - lo) - 2 * r_pad
     if width <= 0:

@@ -32,14 +32,15 @@ from drake_coop.scenario.schema import (
     Scenario,
     ScenarioError,
     Task,
+    Tool,
 )
 from drake_coop.control.timing import aligned_periods
 from drake_coop.scenario.validation import BOUNDS, LENGTHS, validate
 
 __all__ = [
     "ARM_MODELS", "FORCE_SOURCES", "OBJECT_MODES", "VELOCITY_SOURCES", "Actuators", "Encoders",
-    "ForceSensorModel", "Gains", "Guards", "ModelError", "ObjectModelSettings", "PlantSettings", "Robot", "Scenario",
-    "ScenarioError", "Task", "default_scenario", "paper_robots",
+    "ForceSensorModel", "Gains", "Guards", "ModelError", "ObjectModelSettings", "PlantSettings",
+    "Robot", "Scenario", "ScenarioError", "Task", "Tool", "default_scenario", "paper_robots",
     "aligned_periods", "BOUNDS", "LENGTHS", "validate",
     "dump_scenario", "load_scenario",
 ]

@@ -3,8 +3,8 @@
 Checked by :func:`drake_coop.scenario.validation.validate` once the model files have given
 each arm's joint count ``n_i`` (:mod:`drake_coop.scenario.model_check`): lists sized by ``n_i``
 or ``m_i``, the normals (``1 <= m_i <= min(n_i, 3)``, independent), ``ξ_i`` symmetric positive
-definite, a non-redundant arm (Assumption 1: 3 joints for a position reference, 6 for a
-position and orientation), the circle's axes and the object's motion within every robot's
+definite, enough joints for the task (3 for a position reference, 6 for a position and
+orientation; more make a redundant arm, whose reference has a null-space objective), the circle's axes and the object's motion within every robot's
 constraint planes. Each problem raises :class:`~drake_coop.scenario.ScenarioError` naming the
 field.
 """
@@ -91,11 +91,16 @@ def check_dimensions(robot: Robot, n: int, where: str) -> None:
             raise ScenarioError(f"{where}.gains.xi_matrix must be symmetric positive definite, "
                                 f"got {show(xi)}")
     task_dim = 3 if robot.ee_rpy_deg is None else 6
-    if n not in (3, 6):
-        raise ScenarioError(f"{where}.model has {n} joints: Assumption 1 needs an arm that is "
-                            "not redundant, 3 joints (position) or 6 (position and orientation)")
-    if n != task_dim:
-        raise ScenarioError(
-            f"{where}.ee_rpy_deg must be " + ("given for a 6-joint arm (its reference is "
-                                              "position and orientation)" if n == 6 else
-                                              "null for a 3-joint arm (position-only reference)"))
+    if n < 3:
+        raise ScenarioError(f"{where}.model has {n} joints: an arm needs at least 3 (a "
+                            "position reference)")
+    if n >= 6 and task_dim == 3:
+        raise ScenarioError(f"{where}.ee_rpy_deg must be given for a {n}-joint arm (its "
+                            "reference is position and orientation)")
+    if n < task_dim:
+        raise ScenarioError(f"{where}.ee_rpy_deg must be null for a {n}-joint arm "
+                            "(position-only reference: fewer joints than a position and "
+                            "orientation)")
+    if robot.q_nominal is not None and len(robot.q_nominal) != n:
+        raise ScenarioError(f"{where}.q_nominal must have {n} entries (one per joint), got "
+                            f"{len(robot.q_nominal)}")

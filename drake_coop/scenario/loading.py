@@ -107,7 +107,15 @@ def _check_structure(data, schema, path: str) -> None:
             _check_structure(value, hints[key], f"{path + '.' if path else ''}{key}")
         return
     origin = typing.get_origin(schema)
-    if origin is list:
+    if origin is dict:
+        if not isinstance(data, dict):
+            raise ScenarioError(f"{where} must be a mapping, got {show(data)}")
+        key_type, value_type = typing.get_args(schema)
+        for key, value in data.items():
+            if not isinstance(key, str):
+                raise ScenarioError(f"{where} keys must be names, got {show(key)}")
+            _check_structure(value, value_type, f"{path}[{one_line(key, 40)}]")
+    elif origin is list:
         if not isinstance(data, list):
             raise ScenarioError(f"{where} must be a list, got {show(data)}")
         (item,) = typing.get_args(schema)

@@ -50,10 +50,11 @@ def check_models(scenario: Scenario) -> list[int]:
     joints = []
     for i, robot in enumerate(scenario.robots):
         n = check_model_file(model_urdf_path(robot, f"robots[{i}].model"),
-                             f"robots[{i}].model", robot)
+                             f"robots[{i}].model", robot, shown=_url(robot.model))
         if robot.controller_model:
             field = f"robots[{i}].controller_model"
-            n_c = check_model_file(controller_urdf_path(robot, field), field, robot)
+            n_c = check_model_file(controller_urdf_path(robot, field), field, robot,
+                                   shown=_url(robot.controller_model))
             if n_c != n:
                 raise ScenarioError(f"robots[{i}].controller_model has {n_c} joints, the "
                                     f"simulated arm {n}")
@@ -61,8 +62,17 @@ def check_models(scenario: Scenario) -> list[int]:
     return joints
 
 
-def check_model_file(path: str | Path, field: str, robot: Robot | None = None) -> int:
+def _url(value: str) -> str | None:
+    """A ``package://`` URL as the messages name it (its file may be a prepared copy)."""
+    return value if value.startswith("package://") else None
+
+
+def check_model_file(path: str | Path, field: str, robot: Robot | None = None,
+                     shown: str | None = None) -> int:
     """Check one URDF file for an arm (see the module's docstring).
+
+    ``shown`` names the file in messages (default: its path), e.g. the ``package://`` URL a
+    prepared copy comes from.
 
     Returns
     -------
@@ -77,7 +87,7 @@ def check_model_file(path: str | Path, field: str, robot: Robot | None = None) -
     """
     robot = robot or Robot()
     path = Path(path)
-    shown = one_line(path, 120)
+    shown = one_line(shown or path, 120)
     try:
         st = os.stat(path)
     except OSError as exc:

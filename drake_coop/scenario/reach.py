@@ -24,7 +24,8 @@ def has_closed_form(robot: Robot) -> bool:
     from drake_coop.kinematics.crs import GEOMETRY
 
     return (robot.model in GEOMETRY and robot.base_frame == "base_link"
-            and robot.ee_frame == "pad" and robot.ee_rpy_deg is None)
+            and robot.ee_frame == "pad" and robot.ee_rpy_deg is None
+            and not robot.locked_joints and robot.tool is None)
 
 
 def robot_kinematics(robot: Robot):
@@ -52,7 +53,7 @@ def robot_kinematics(robot: Robot):
 
 
 def _fields_to_check(i: int) -> str:
-    return (f"check robots[{i}].model, home, base_xyz, base_yaw_deg, contact_xy and "
+    return (f"check robots[{i}].model, home, base_xyz, base_yaw_deg, contact_xy, q_nominal and "
             "task.circle_top_z, circle_radius, lift_height, pregrasp_distance")
 
 
@@ -61,13 +62,20 @@ def check_reachable(scenario: Scenario) -> None:
 
     Every Cartesian target (sampled every 0.05 s) must be reachable with the joints within
     their limits, away from singular postures (Assumption 1), see the kinematics'
-    ``check_path``.
+    ``check_path``; a redundant arm's reference (integrated on that grid) must stay within
+    the limits, ``check_redundant_path``.
     """
     task = scenario.task
     t = np.arange(0.0, task.t_end + 1e-9, 0.05)
     for i, robot in enumerate(scenario.robots):
-        x, _, _ = cartesian_reference(task, robot, t)
-        problem = robot_kinematics(robot).check_path(x, t)
+        kin = robot_kinematics(robot)
+        if getattr(kin, "redundant", False):
+            problem = kin.check_redundant_path(
+                t, lambda tt, r=robot: cartesian_reference(task, r, tt), robot.q_nominal,
+                robot.nullspace_gain)
+        else:
+            x, _, _ = cartesian_reference(task, robot, t)
+            problem = kin.check_path(x, t)
         if problem:
             problem = problem.removeprefix(f"{robot.name}: ")
             raise ScenarioError(f"robots[{i}] ({robot.name}): {problem}; {_fields_to_check(i)}")

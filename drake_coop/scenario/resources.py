@@ -88,9 +88,17 @@ def resolve_package_url(url: str, field: str = "model") -> Path:
     """
     from pydrake.multibody.parsing import PackageMap
 
+    from drake_coop.control.arm_model import DESCRIPTION_PACKAGES, add_description_packages
+
     package = url[len(PACKAGE_SCHEME):].split("/", 1)[0]
     packages = PackageMap()
     packages.PopulateFromRosPackagePath()
+    add_description_packages(packages)
+    if package in DESCRIPTION_PACKAGES and not packages.Contains(package):
+        from drake_coop.scenario.description import ROBOTS_EXTRA
+
+        raise ScenarioError(f"{field}: {url}: the package {package!r} is not installed; "
+                            f"install the robots extra: {ROBOTS_EXTRA}")
     if not package or not packages.Contains(package):
         known = ", ".join(sorted(packages.GetPackageNames()))
         raise ScenarioError(f"{field}: {url}: unknown package {package!r} (Drake knows {known}; "
@@ -113,12 +121,28 @@ def resolve_package_url(url: str, field: str = "model") -> Path:
     return path
 
 
-def _model_path(value: str, field: str) -> Path:
-    """A ``.urdf`` path (absolute or relative to :func:`urdf_dir`) or a ``package://`` URL."""
+def _model_path(value: str, field: str, robot: Robot | None = None) -> Path:
+    """A ``.urdf`` path (absolute or relative to :func:`urdf_dir`) or a ``package://`` URL;
+    with the robot's ``locked_joints`` or ``tool``, or from a package, the URDF prepared from it
+    (:func:`drake_coop.scenario.description.prepared_urdf`)."""
     if value.startswith(PACKAGE_SCHEME):
-        return resolve_package_url(value, field)
-    p = Path(value).expanduser()
-    return p if p.is_absolute() else urdf_dir() / p
+        source = resolve_package_url(value, field)
+    else:
+        p = Path(value).expanduser()
+        source = p if p.is_absolute() else urdf_dir() / p
+    if robot is None:
+        return source
+    from drake_coop.scenario.description import needs_preparation, prepared_urdf
+
+    if not needs_preparation(robot, value):
+        return source
+    from drake_coop.control.arm_model import DESCRIPTION_PACKAGES
+
+    package = value[len(PACKAGE_SCHEME):].split("/", 1)[0] if value.startswith(
+        PACKAGE_SCHEME) else ""
+    return prepared_urdf(robot, source, field,
+                         resolve=lambda url: resolve_package_url(url, field),
+                         from_package=package in DESCRIPTION_PACKAGES)
 
 
 def model_urdf_path(robot: Robot, field: str = "model") -> Path:
@@ -127,8 +151,8 @@ def model_urdf_path(robot: Robot, field: str = "model") -> Path:
 
     ``field`` names the scenario field in error messages."""
     if robot.model in SHIPPED_ARMS:
-        return urdf_dir() / SHIPPED_ARMS[robot.model]
-    return _model_path(robot.model, field)
+        return _model_path(SHIPPED_ARMS[robot.model], field, robot)
+    return _model_path(robot.model, field, robot)
 
 
 def controller_urdf_path(robot: Robot, field: str = "controller_model") -> Path:
@@ -136,7 +160,7 @@ def controller_urdf_path(robot: Robot, field: str = "controller_model") -> Path:
     ``package://`` URL as for :func:`model_urdf_path`."""
     if not robot.controller_model:
         return model_urdf_path(robot)
-    return _model_path(robot.controller_model, field)
+    return _model_path(robot.controller_model, field, robot)
 
 
 def scenarios_dir() -> Path:

@@ -224,6 +224,44 @@ class Driver:
 
 
 @dataclass
+class Tool:
+    """The tool mounted on an arm from a description package: a wrist F/T sensor and a
+    spherical pad (:mod:`drake_coop.scenario.description`).
+
+    The arm's URDF gets two links and two fixed joints: ``force_sensor`` welded to ``flange``
+    by ``flange_sensor_weld`` at ``sensor_xyz`` / ``sensor_rpy_deg`` (the F/T sensor frame, in
+    the flange frame), and ``pad`` (a sphere of ``pad_radius``, compliant-hydroelastic like the
+    shipped arms' pads) welded to the sensor by ``sensor_pad_weld`` at ``pad_xyz`` (in the sensor
+    frame). The pad's centre is the end-effector point (``ee_frame: pad``); the ground-truth
+    wrist sensor weighs the sensor and the pad (``sensor_joint: flange_sensor_weld``).
+
+    Attributes
+    ----------
+    flange : str
+        The link the sensor is mounted on (a Panda's ``panda_hand``, a UR5's ``tool0``).
+    sensor_xyz : list[float]
+        Origin of the sensor frame in the flange frame (m).
+    sensor_rpy_deg : list[float]
+        Orientation of the sensor frame in the flange frame (roll, pitch, yaw, degrees).
+    pad_xyz : list[float]
+        Centre of the pad in the sensor frame (m).
+    pad_radius : float
+        Radius of the spherical pad (m).
+    sensor_mass, pad_mass : float
+        Masses of the sensor (a solid cylinder of radius 0.035 m, 0.03 m long) and of the pad
+        (a solid sphere) (kg).
+    """
+
+    flange: str = ""
+    sensor_xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    sensor_rpy_deg: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    pad_xyz: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.045])
+    pad_radius: float = 0.015
+    sensor_mass: float = 0.2
+    pad_mass: float = 0.02
+
+
+@dataclass
 class Robot:
     """One arm ("finger") of the cooperative system.
 
@@ -232,8 +270,10 @@ class Robot:
     name : str
         Model-instance and subsystem prefix (``robot1``, ``robot2``).
     model : str
-        A shipped arm (``crs_a465``, ``crs_a255``: 3 joints; ``coop6``: 6 joints) or the path
-        of a ``.urdf`` file (absolute, beside the scenario file, or in ``urdf/``).
+        A shipped arm (``crs_a465``, ``crs_a255``: 3 joints; ``coop6``: 6 joints), the path
+        of a ``.urdf`` file (absolute, beside the scenario file, or in ``urdf/``), or a
+        ``package://`` URL, e.g. ``package://example-robot-data/robots/panda_description/urdf/
+        panda.urdf`` (the ``robots`` extra; see :mod:`drake_coop.scenario.description`).
     controller_model : str
         URDF file (relative to ``urdf/`` or absolute) of the controller's own model of the arm;
         empty means the same URDF as the simulated arm (exact model knowledge).
@@ -290,6 +330,19 @@ class Robot:
         The controller's model error, payload and joint friction of the simulated arm.
     timing : Timing
         Computation delay and sampling jitter of the robot's controller.
+    locked_joints : dict[str, float]
+        Joints of the model held fixed at the given position (rad or m), e.g. a Panda's two
+        finger joints: each becomes a fixed joint of the arm's URDF
+        (:mod:`drake_coop.scenario.description`). Empty: none.
+    tool : Tool or None
+        The F/T sensor and pad mounted on ``tool.flange`` (an arm from a description package
+        has neither); null: the model has its own ``sensor_joint`` and ``ee_frame``.
+    q_nominal : list[float] or None
+        Redundant arms (more joints than task coordinates): the posture ``q_nom`` the reference's
+        null-space objective pulls towards (:meth:`~drake_coop.kinematics.drake_arm.
+        DrakeArmKinematics.redundant_reference`); null: the middle of the joint limits.
+    nullspace_gain : float
+        Redundant arms: the gain ``K_n`` (1/s) of that objective.
     driver : Driver or None
         The arm's LCM driver (``drake-coop serve`` / ``sim-driver`` only); null: a Panda
         driver with :class:`Driver`'s defaults.
@@ -318,6 +371,10 @@ class Robot:
     actuators: Actuators = field(default_factory=Actuators)
     model_error: ModelError = field(default_factory=ModelError)
     timing: Timing = field(default_factory=Timing)
+    locked_joints: dict[str, float] = field(default_factory=dict)
+    tool: Optional[Tool] = None
+    q_nominal: Optional[list[float]] = None
+    nullspace_gain: float = 1.0
     driver: Optional[Driver] = None
 
 

@@ -69,6 +69,14 @@ BOUNDS: dict[str, Bound] = {
     "robots[].timing.computation_delay": Bound(0.0, 0.1, "s"),
     "robots[].timing.jitter_scale": Bound(0.0, 0.1, "s"),
     "robots[].timing.seed": Bound(0, 2**63 - 1),
+    "robots[].tool.sensor_xyz[]": Bound(-1.0, 1.0, "m"),
+    "robots[].tool.sensor_rpy_deg[]": Bound(-360.0, 360.0, "deg"),
+    "robots[].tool.pad_xyz[]": Bound(-1.0, 1.0, "m"),
+    "robots[].tool.pad_radius": Bound(0.001, 0.1, "m"),
+    "robots[].tool.sensor_mass": Bound(0.0, 10.0, "kg", **_POS),
+    "robots[].tool.pad_mass": Bound(0.0, 10.0, "kg", **_POS),
+    "robots[].q_nominal[]": Bound(-10.0, 10.0, "rad"),
+    "robots[].nullspace_gain": Bound(0.0, 100.0, "1/s", **_POS),
     "robots[].driver.num_joints": Bound(1, 64, "joints"),
     "robots[].driver.rate_hz": Bound(1.0, 1e5, "Hz"),
     "robots[].driver.torque_limits[]": Bound(0.0, 1e4, "N·m", **_POS),
@@ -103,6 +111,8 @@ BOUNDS: dict[str, Bound] = {
 LENGTHS: dict[str, int] = {"robots[].base_xyz": 3, "robots[].home": 3,
                            "robots[].contact_xy": 2, "robots[].normals[]": 3,
                            "robots[].ee_rpy_deg": 3, "task.circle_axes": 2,
+                           "robots[].tool.sensor_xyz": 3, "robots[].tool.sensor_rpy_deg": 3,
+                           "robots[].tool.pad_xyz": 3,
                            "task.circle_axes[]": 3}
 #: At most this many robots in one scenario (as many as a run folder holds, results.logs).
 MAX_ROBOTS = 8
@@ -178,6 +188,7 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
             if not (isinstance(value, str) and 0 < len(value) <= 100):
                 raise ScenarioError(f"{where}.{key} must be a name of 1 to 100 characters, "
                                     f"got {show(value)}")
+        _validate_description(r, where)
         _validate_sensing(r, where, scenario.control_period)
     if len(set(names)) != len(names):
         raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
@@ -280,7 +291,8 @@ def reach_inputs(scenario: Scenario) -> str:
 
     return repr((dataclasses.asdict(scenario.task), [
         (r.name, r.model, r.controller_model, r.base_frame, r.ee_frame, r.base_xyz,
-         r.base_yaw_deg, r.contact_xy, r.normals, r.ee_rpy_deg, r.q_seed, r.home)
+         r.base_yaw_deg, r.contact_xy, r.normals, r.ee_rpy_deg, r.q_seed, r.home,
+         sorted(r.locked_joints.items()), r.tool, r.q_nominal, r.nullspace_gain)
         for r in scenario.robots]))
 
 
@@ -297,9 +309,25 @@ def _validate_two_sided(scenario: Scenario) -> None:
         raise ScenarioError(f"plant.object_mode {mode} holds one object between exactly 2 "
                             "robots with normals [-1, 0, 0] and [1, 0, 0]; use planes for "
                             "other grasps")
-    if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") for r in robots):
+    if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") and r.tool is None
+                                 for r in robots):
         raise ScenarioError("plant.object_mode contact needs the shipped arms crs_a465 / "
-                            "crs_a255 (their pads)")
+                            "crs_a255 or arms with a tool (their spherical pads)")
+
+
+def _validate_description(robot: Robot, where: str) -> None:
+    """The fields of an arm from a description package (:mod:`drake_coop.scenario.description`):
+    locked joints' positions finite, a tool's flange named; the model file checks the names."""
+    import math
+
+    for name, value in robot.locked_joints.items():
+        if not (isinstance(value, (int, float)) and math.isfinite(value)):
+            raise ScenarioError(f"{where}.locked_joints[{name}] must be a finite position, "
+                                f"got {show(value)}")
+    if robot.tool is not None and not (isinstance(robot.tool.flange, str)
+                                       and 0 < len(robot.tool.flange) <= 100):
+        raise ScenarioError(f"{where}.tool.flange must name the link the tool is mounted on "
+                            f"(1 to 100 characters), got {show(robot.tool.flange)}")
 
 
 # --------------------------------------------------------------------------- sensing

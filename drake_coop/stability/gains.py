@@ -1,0 +1,219 @@
+"""Gains for an arm: derived from its controller model at the task's postures with the
+sampled-loop rules, then checked with the one-period map (``drake-coop gains``).
+
+The rules (``h`` the control period; numbers from :doc:`/stability` and the gains page):
+
+``K_R`` (per joint)
+    The sampled velocity loop of joint ``j`` alone is stable while ``h K_R,j / J_j < 2``
+    (single-joint estimate; the full map is less strict: the paper's ``K_R = 150`` is stable).
+    ``J_j = min_q 1/(H(q)⁻¹)_jj`` is the smallest inertia joint ``j`` sees, the other joints
+    free, over the task's postures ``q`` (home, the free path and the held path every
+    :data:`POSTURE_STEP` s). ``K_R,j = κ J_j / h`` with ``κ = KAPPA`` (half the bound; the
+    paper's gains have ``h K_R / J_j`` = 0.69–1.71).
+``Λ``, ``k_d``
+    The paper's shape ``k_d / Λ = 40/35``, ``Λ ≤ 35`` 1/s and ``Λ ≤ κ / (3 h)`` (the position
+    loop three times slower than the velocity loop ``K_R / J = κ / h``), and the observer's
+    forward-Euler limit with margin: ``h p_f ≤ σ = SIGMA`` (half of ``2/p_f > h``), ``p_f`` the
+    fast pole of (15)–(16) (:func:`~drake_coop.stability.one_joint.observer_period_limit`).
+``ξ``
+    The force integral's gain through the motion, ``g = ξ J⁺ᵀ K_R J⁺`` (1/s at the grasp
+    posture; for ``m > 1`` the mean eigenvalue of the ``m × m`` matrix), set to
+    :data:`FORCE_LOOP_GAIN` (the paper's arms: 0.026 and 0.013), so ``ξ`` follows the arm's
+    ``K_R`` and geometry.
+``k_F``, ``ζ``, ``β``
+    The paper's 0.05, 0.001 (dimensionless) and our 10 1/s.
+``momentum_gain``
+    ``K_O = min(50, 0.5/h)``: ``h K_O ≤ 1/2``, half the momentum observer's Euler limit.
+
+The check: ρ of the one-period map (:func:`~drake_coop.stability.period_map.analyse`) at the
+``free`` and ``held`` operating points is below 1 at the derived gains **and** with every
+``K_R`` multiplied by :data:`GAIN_MARGIN` (a stated gain margin). When it fails, ``κ`` is
+scaled by :data:`BACKOFF` and the derivation repeated (at most :data:`MAX_ATTEMPTS` times).
+A scenario in ``contact`` mode is checked on its ``planes`` copy (the map does not take a
+floating box).
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from drake_coop.scenario.schema import Gains, Scenario
+
+__all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_and_check", "derive_gains",
+           "derive_robot_gains", "gains_for_scenario", "map_copy", "task_postures"]
+
+#: Target ``h K_R,j / J_j`` (half the single-joint bound 2).
+KAPPA = 1.0
+#: Target ``h p_f`` of the velocity observer (half its forward-Euler bound 2).
+SIGMA = 1.0
+#: The paper's ``Λ`` and ``k_d`` (robot 1), the shape and cap of the derived ones (1/s).
+LAMBDA_PAPER, K_D_PAPER = 35.0, 40.0
+#: The force integral's loop gain ``ξ J⁺ᵀ K_R J⁺`` (1/s).
+FORCE_LOOP_GAIN = 0.02
+#: Seconds between two postures of the task at which ``H`` is evaluated.
+POSTURE_STEP = 0.5
+#: ``K_R`` factor at which ρ must still be below 1 (the stated margin).
+GAIN_MARGIN = 1.25
+#: Factor on ``κ`` after a failed check, and the number of attempts.
+BACKOFF = 0.7
+MAX_ATTEMPTS = 4
+
+
+@dataclass
+class DerivedGains:
+    """One robot's derived gains and what they were derived from."""
+
+    name: str
+    gains: Gains
+    inertia: list[float]          # J_j, kg·m² (or kg for a prismatic joint)
+    kappa: float
+    observer_h_pf: float
+    postures: int
+
+
+@dataclass
+class GainsReport:
+    """The derived gains of every robot and the map's check."""
+
+    robots: list[DerivedGains]
+    rho: dict[str, float] = field(default_factory=dict)     # "free", "held", "free_margin", …
+    attempts: int = 1
+    stable: bool = False
+    checked_on: str = "planes"
+    messages: list[str] = field(default_factory=list)
+
+
+def task_postures(scenario: Scenario, index: int, plan=None, step: float = POSTURE_STEP
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The joint reference ``q_d`` of robot ``index`` every ``step`` seconds of the task
+    (home, free path, held path), and the first held posture (the grasp)."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.experiment.references import reference_samples
+
+    plan = plan or plan_run(scenario)
+    _, samples = reference_samples(scenario, index, plan=plan)
+    arm = plan.arms[index]
+    n = (samples.shape[1] - arm.m - 1) // 3
+    stride = max(1, int(round(step / plan.h)))
+    held = samples[:, -1] > 0.5
+    grasp = samples[int(np.argmax(held))][:n] if held.any() else samples[0][:n]
+    return samples[::stride, :n].copy(), grasp.copy()
+
+
+def _observer_gains(h: float, kappa: float) -> tuple[float, float, float]:
+    """``Λ``, ``k_d`` and ``h p_f`` by the rules of the module docstring."""
+    from drake_coop.stability.one_joint import observer_period_limit
+
+    Lambda = min(LAMBDA_PAPER, kappa / (3.0 * h))
+    k_d = K_D_PAPER / LAMBDA_PAPER * Lambda
+    h_pf = 2.0 * h / observer_period_limit(Lambda, k_d)
+    if h_pf > SIGMA:
+        Lambda, k_d = Lambda * SIGMA / h_pf, k_d * SIGMA / h_pf
+        h_pf = 2.0 * h / observer_period_limit(Lambda, k_d)
+    return Lambda, k_d, h_pf
+
+
+def derive_robot_gains(model, postures: np.ndarray, grasp: np.ndarray, h: float,
+                       kappa: float = KAPPA, name: str = "robot") -> DerivedGains:
+    """One robot's gains from its controller model (an
+    :class:`~drake_coop.control.arm_model.ArmModel`) at ``postures`` (rows of ``q``), the
+    grasp posture and the control period ``h`` (module docstring)."""
+    inv_diag = np.array([np.diag(np.linalg.inv(model.H(q))) for q in postures])
+    inertia = 1.0 / inv_diag.max(axis=0)           # min over postures of 1/(H⁻¹)_jj
+    K_R = kappa * inertia / h
+    Lambda, k_d, h_pf = _observer_gains(h, kappa)
+    J = model.J_phi(grasp)
+    J_pinv = np.linalg.pinv(J)
+    G = J_pinv.T @ np.diag(K_R) @ J_pinv
+    g = float(np.mean(np.linalg.eigvalsh(0.5 * (G + G.T))))
+    xi = FORCE_LOOP_GAIN / g
+    gains = Gains(Lambda=float(Lambda), K_R=[float(k) for k in K_R], k_d=float(k_d),
+                  k_F=0.05, xi=float(xi), zeta=1e-3, beta=10.0,
+                  momentum_gain=float(min(50.0, 0.5 / h)))
+    return DerivedGains(name, gains, inertia.tolist(), kappa, h_pf, len(postures))
+
+
+def gains_for_scenario(scenario: Scenario, derived: list[DerivedGains], K_R_factor: float = 1.0
+                       ) -> Scenario:
+    """A copy of ``scenario`` with each robot's gains replaced by the derived ones (``K_R``
+    times ``K_R_factor``); a ``xi_matrix`` is dropped (the derived ``ξ`` is scalar)."""
+    s = copy.deepcopy(scenario)
+    for robot, d in zip(s.robots, derived):
+        g = copy.deepcopy(d.gains)
+        g.K_R = [k * K_R_factor for k in g.K_R]
+        robot.gains = g
+    return s
+
+
+def derive_gains(scenario: Scenario, kappa: float = KAPPA,
+                 progress: Callable[[str], None] = lambda m: None) -> list[DerivedGains]:
+    """Every robot's gains (:func:`derive_robot_gains`) at its task's postures."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.plant.arms import arm_model
+
+    plan = plan_run(scenario)
+    out = []
+    for i, robot in enumerate(scenario.robots):
+        postures, grasp = task_postures(scenario, i, plan)
+        d = derive_robot_gains(arm_model(plan.arms[i]), postures, grasp, plan.h, kappa,
+                               robot.name)
+        progress(f"{robot.name}: n={len(d.gains.K_R)}, {d.postures} postures, "
+                 f"J_j min {min(d.inertia):.3g}, K_R {np.round(d.gains.K_R, 1).tolist()}, "
+                 f"Lambda {d.gains.Lambda:.3g}, k_d {d.gains.k_d:.3g}, xi {d.gains.xi:.3g}")
+        out.append(d)
+    return out
+
+
+def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
+                    progress: Callable[[str], None] = lambda m: None) -> dict[str, float]:
+    """ρ of the one-period map of ``scenario`` at the free and held operating points."""
+    from drake_coop.stability.operating import operating_point
+    from drake_coop.stability.period_map import analyse
+
+    rho = {}
+    for point in ("free", "held"):
+        start = time.perf_counter()
+        report = analyse(operating_point(scenario, point).map, epsilon=epsilon)
+        rho[point] = float(report.rho) if report.residual <= 1e-6 else math.inf
+        progress(f"  {point}: rho = {rho[point]:.6g} ({time.perf_counter() - start:.1f} s)")
+    return rho
+
+
+def map_copy(scenario: Scenario) -> tuple[Scenario, str]:
+    """The scenario the map is computed on: itself, or its ``planes`` copy in contact mode."""
+    if scenario.plant.object_mode != "contact":
+        return scenario, scenario.plant.object_mode
+    s = copy.deepcopy(scenario)
+    s.plant.object_mode = "planes"
+    return s, "planes"
+
+
+def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 1e-5,
+                     progress: Callable[[str], None] = lambda m: None) -> GainsReport:
+    """Derive, check at the gains and at ``GAIN_MARGIN × K_R``; back off ``κ`` on failure."""
+    target, mode = map_copy(scenario)
+    report = GainsReport(robots=[], checked_on=mode)
+    for attempt in range(1, MAX_ATTEMPTS + 1):
+        progress(f"attempt {attempt}: kappa = h K_R / J = {kappa:.3g}")
+        derived = derive_gains(target, kappa, progress)
+        progress("stability map at the derived gains")
+        rho = check_gains_map(gains_for_scenario(target, derived), epsilon, progress)
+        if max(rho.values()) < 1.0:
+            progress(f"stability map with K_R x {GAIN_MARGIN}")
+            margin = check_gains_map(gains_for_scenario(target, derived, GAIN_MARGIN),
+                                     epsilon, progress)
+            rho.update({f"{k}_margin": v for k, v in margin.items()})
+        report.robots, report.rho, report.attempts = derived, rho, attempt
+        if max(rho.values()) < 1.0 and len(rho) == 4:
+            report.stable = True
+            return report
+        found = ", ".join(f"{k} {v:.4g}" for k, v in rho.items())
+        report.messages.append(f"kappa {kappa:.3g}: rho {found}")
+        kappa *= BACKOFF
+    return report
