@@ -352,7 +352,6 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
         _props(mu, compliant_modulus=STAND_MODULUS))
     plant.RegisterVisualGeometry(plant.world_body(), X_WF, floor, "floor_visual", _FLOOR_COLOR)
 
-    pads = _pad_geometries(plant, scenario)
     _set_pad_material(scene_graph, plant, pads, mu, scenario.plant.pad_modulus)
     statics = GeometrySet([stand_geometry, floor_geometry])
     manager = scene_graph.collision_filter_manager()
