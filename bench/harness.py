@@ -185,6 +185,35 @@ def _ground_truth(with_models: bool):
     return extras
 
 
+def _contact_reaction_ground_truth(b, coop, h, dt):
+    """``extras`` for :func:`_plant_alone` in ``contact`` mode: the ground truth as it was
+    before ``pad_forces`` (Newton's law on the reaction forces and body lists,
+    :class:`~drake_coop.plant.wrist.WristKinematics`, latched at every tick, and the F/T
+    models reading the live force at ``t_k − 3Δt/2``), for the before/after comparison."""
+    from drake_coop.plant.wrist import ForceSensor, WristKinematics
+    from drake_coop.sensing.force_sensor import FTSensor
+
+    plant = coop.plant
+    wrist = b.AddSystem(WristKinematics(plant, coop.arms))
+    for name in ("reaction_forces", "body_poses", "body_spatial_velocities",
+                 "body_spatial_accelerations"):
+        b.Connect(plant.GetOutputPort(name), wrist.GetInputPort(name))
+    for i, handles in enumerate(coop.arms):
+        sensor = b.AddSystem(ForceSensor(plant, handles, h))
+        b.Connect(wrist.GetOutputPort(f"{handles.arm.name}_wrist"), sensor.GetInputPort("wrist"))
+        ft = b.AddSystem(FTSensor(h, dt, None, i, handles.arm.m))
+        b.Connect(sensor.GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
+
+
+#: :func:`_sensing_attribution`'s additions for a ``contact`` scenario.
+_CONTACT_ATTRIBUTION = {
+    "contact ground truth now: pad_forces (contact results at every plant step) + F/T models":
+        None,      # set below: _ground_truth(True)
+    "contact ground truth before: reaction forces + body lists at t_k and t_k - 3dt/2":
+        _contact_reaction_ground_truth,
+}
+
+
 def _offline_ground_truth(b, coop, h, dt):
     """``extras`` for :func:`_plant_alone`: the offline ground truth's C++ holds and log
     (:func:`~drake_coop.plant.ground_truth.add_ground_truth`, ideal F/T models) and, after
@@ -221,7 +250,11 @@ _ATTRIBUTION = {
 }
 
 
-def _sensing_attribution(scenario, t_end: float, repeats: int) -> dict:
+_CONTACT_ATTRIBUTION[next(iter(_CONTACT_ATTRIBUTION))] = _ground_truth(True)
+
+
+def _sensing_attribution(scenario, t_end: float, repeats: int,
+                         additions: dict | None = None) -> dict:
     """CPU seconds of the plant alone and of the plant with each addition of
     :data:`_ATTRIBUTION`, alternated ``repeats`` times in this process; each addition's extra
     cost per control tick (median of its pairs with the plant alone run just before it) and as
@@ -234,7 +267,7 @@ def _sensing_attribution(scenario, t_end: float, repeats: int) -> dict:
     extra: dict[str, list[float]] = defaultdict(list)
     plant: list[float] = []
     for _ in range(max(1, repeats)):
-        for label, extras in _ATTRIBUTION.items():
+        for label, extras in (_ATTRIBUTION if additions is None else additions).items():
             alone = _plant_alone(scenario, t_end)[1]
             with_it = _plant_alone(scenario, t_end, extras)[1]
             plant.append(alone)
@@ -261,6 +294,8 @@ _TIMED = {
                                     ("_calc_signals",)),
     "wrist dynamics (all arms)": ("drake_coop.plant.wrist", "WristDynamics",
                                   ("_calc_signals", "_calc_last_step", "_update_step")),
+    "pad forces (contact ground truth, all arms)": ("drake_coop.plant.grasp", "PadForces",
+                                                    ("_update", "_live")),
 }
 
 
@@ -665,6 +700,17 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
               f"CPU per tick in all; wrist kinematics = the reaction forces and body lists):")
         for label, us in sorted(profile.items(), key=lambda kv: -kv[1]):
             print(f"    {us:8.1f} us  {label}")
+        if s.plant.object_mode == "contact" and t_attribution > 0:
+            contact = _sensing_attribution(s, t_attribution, attribution_repeats,
+                                           _CONTACT_ATTRIBUTION)
+            extra["ground_truth_attribution"] = contact
+            print(f"  its ground truth: extra CPU per control tick over its plant alone "
+                  f"({contact['plant_alone_us_per_tick']:.0f} us: arms held by constant "
+                  f"torques, the box on its stand), {attribution_repeats} alternated pairs of "
+                  f"{t_attribution:g} s, median [min, max] (target <= 15 %):")
+            for label, r in contact["extra_us_per_tick"].items():
+                print(f"    {r['median']:7.1f} us [{r['min']:7.1f}, {r['max']:7.1f}] "
+                      f"= {100 * r['share']:5.1f} %  {label}")
 
     numbers = {
         "machine": f"{platform.processor() or platform.machine()}, Python "

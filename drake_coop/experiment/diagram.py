@@ -11,7 +11,8 @@
       │                     (robotN_latency between them with a computation delay or jitter)
       ├─ live ground truth (force_source: sensor on a robot; contact and none modes):
       │  state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor
-      │  (contact, none: reaction forces, body poses ─▶ wrist_kinematics)
+      │  (contact: contact results ─▶ pad_forces; none: reaction forces, body poses ─▶
+      │  wrist_kinematics)
       │                                   └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
       └─ otherwise, offline: [state, actuation, acceleration] ─▶ ground_truth_hold_tick
          (t_k), [state, actuation] ─▶ ground_truth_hold_before_tick (t_k − 3Δt/2) (C++
@@ -91,6 +92,8 @@ from drake_coop.plant.model_error import controller_arm_model
 #: :data:`GROUND_TRUTH_KEYS` are left out (computed after the run).
 LOG_KEYS = ("q", "q_hat", "reference", "lambda_hat", "Delta_F_tilde", "tau", "tau_cmd",
             "F_meas", "lambda_meas", "lambda_sensor", "qdot_hat", "state")
+#: In ``contact`` mode each robot's log also holds ``object_state``, the box's plant state
+#: ``[quaternion w x y z, position, ω, v]`` (13).
 #: The logged signals the offline ground truth computes after the run
 #: (:meth:`~drake_coop.plant.ground_truth.GroundTruthLog.evaluate`).
 GROUND_TRUTH_KEYS = ("F_meas", "lambda_meas", "lambda_sensor")
@@ -339,6 +342,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 sources.update(zip(OBJECT_LOG_KEYS, (
                     objects.feedforward.get_tau_ff_output_port(),
                     objects.feedforward.get_f_load_output_port(), objects.mass_share)))
+            if coop.grasp is not None:          # contact mode: the box's state too
+                sources["object_state"] = plant.get_state_output_port(
+                    coop.grasp.box.model_instance())
             if not live_ground_truth:
                 sources = {k: port for k, port in sources.items()
                            if k not in GROUND_TRUTH_KEYS}

@@ -89,14 +89,16 @@ def contact_stiffness(scenario: Scenario, index: int) -> ContactStiffness | None
     """The compliant-contact model of robot ``index``'s pad (``object_model.contact_stiffness``;
     by default, with an object model in ``contact`` mode, ``a = π E`` of Drake's hydroelastic
     sphere pressed on a rigid face, ``λ = π E δ²`` to first order in ``δ/r``, from the pad's
-    hydroelastic modulus ``E`` in the arm's model file); None for a rigid contact."""
+    hydroelastic modulus ``E``: ``plant.pad_modulus``, else the arm's model file's); None for
+    a rigid contact."""
     om = scenario.object_model
     if om.contact_stiffness is not None:
         return (ContactStiffness(om.contact_stiffness, om.contact_exponent)
                 if om.contact_stiffness > 0 else None)
     if not object_enabled(scenario) or scenario.plant.object_mode != "contact":
         return None
-    E = pad_modulus(scenario.robots[index])
+    E = (scenario.plant.pad_modulus if scenario.plant.pad_modulus is not None
+         else pad_modulus(scenario.robots[index]))
     return None if E is None else ContactStiffness(np.pi * E, 2.0)
 
 

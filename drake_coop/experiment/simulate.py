@@ -5,7 +5,10 @@ where the plant changes: the grasp constraints are switched on exactly at the fi
 control tick ``k_grasp h`` and off at ``k_release h`` (between two ``AdvanceTo`` calls, before
 that tick's updates), so the plant and the controllers change form at the same instant. The
 divergence guards run between ``AdvanceTo`` chunks of ``guards.check_period`` (rounded to whole
-control ticks), after the step that reaches each chunk's end: a non-finite state, a joint past
+control ticks), after the step that reaches each chunk's end (in ``contact`` mode with
+``plant.stand_clearance`` > 0, the stand is lowered at the first chunk's end in the circle
+phase and put back at the first after it:
+:meth:`~drake_coop.plant.grasp.ContactObject.set_stand_lowered`): a non-finite state, a joint past
 its limit or a force beyond ``guards.max_force`` ends the run with ``status = "diverged"`` and
 whatever was logged so far; so does an exception inside Drake. No Python call happens at the
 plant's steps for the guards (a Simulator monitor would be one per plant step).
@@ -37,6 +40,7 @@ from drake_coop.experiment.references import (
     start_posture,
 )
 from drake_coop.plant.cooperative import initialize_plant_context
+from drake_coop.plant.grasp import pad_contact_components
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
 from drake_coop.control.timing import tick_of
@@ -248,7 +252,25 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
             "mass_share": data["mass_share"][:, 0].copy() if "mass_share" in data else None,
         }
         logs[rs.name].update({k: v for k, v in optional.items() if v is not None})
+        if "object_state" in data:              # contact mode: the box and this pad
+            pose = data["object_state"][:, :7].copy()
+            f_n, f_t, p_B = pad_contact_components(data["F_meas"], logs[rs.name]["x"], pose)
+            logs[rs.name].update({"object_pose": pose, "pad_normal_force": f_n,
+                                  "pad_tangential_force": f_t, "pad_in_object": p_B,
+                                  "pad_rotation": _pad_rotations(exp, i, data["q"])})
     return logs
+
+
+def _pad_rotations(exp: Experiment, i: int, q: np.ndarray) -> np.ndarray:
+    """``R_WE`` ``(K, 3, 3)`` of arm ``i``'s end-effector body (the pad) at the logged ``q``."""
+    plant = exp.coop.plant
+    handles = exp.coop.arms[i]
+    context = plant.CreateDefaultContext()
+    out = np.empty((q.shape[0], 3, 3))
+    for k, qk in enumerate(q):
+        plant.SetPositions(context, handles.instance, qk)
+        out[k] = plant.EvalBodyPoseInWorld(context, handles.ee_body).rotation().matrix()
+    return out
 
 
 def simulate(scenario: Scenario, *, t_end: float | None = None,
@@ -310,6 +332,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         on_start(exp, simulator)
     status, message = "ok", ""
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
+    grasp = exp.coop.grasp
+    stand = grasp if grasp is not None and grasp.stand_drop > 0 else None
     start = time.perf_counter()
     try:
         # Stop where the plant changes (grasp, release), at the end, and every guard period,
@@ -332,6 +356,10 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
                 break
             if k_stop in plan.switches:
                 exp.coop.set_held(plant_context, plan.switches[k_stop])
+            if stand is not None:     # lowered while the box goes around the circle
+                t_now = context.get_time()
+                stand.set_stand_lowered(plant_context, scenario.task.t_circle_start <= t_now
+                                        < scenario.task.t_circle_end)
             if progress is not None and k_stop != plan.k_end:
                 progress(context.get_time(), T, time.perf_counter() - start)
         if status == "ok" and progress is not None:
@@ -351,6 +379,10 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         "control_period": plan.h,
         "plant_time_step": scenario.plant.time_step,
         "object_mode": scenario.plant.object_mode,
+        "friction": scenario.plant.friction,
+        "object_mass": scenario.plant.object_mass,
+        **({"object_size": [float(v) for v in exp.coop.grasp.size]}
+           if exp.coop.grasp is not None else {}),
         "t_end": t_stop,
         "wall_time_s": wall,
         "realtime_factor": t_stop / wall if wall > 0 else None,

@@ -12,13 +12,21 @@ Box
 Stand
     A body (``stand``) welded to the world, a box under the object: half the object's width in x
     (so it never reaches the pads, which touch the object 5 cm above its bottom face), the
-    object's depth in y, from the floor (z = 0) to the object's bottom face.
+    object's depth in y, from the floor (z = 0) to the object's bottom face, on a locked
+    vertical slide (model instance ``stand``). The circle (28) passes through the grasp pose
+    at its lowest point (43–46 s), so a box carried along it comes back onto its stand there.
+    With ``scenario.plant.stand_clearance`` = d > 0 the run lowers the stand by d while the
+    box is carried around the circle (:meth:`ContactObject.set_stand_lowered`, from the
+    circle's start, when the box is 10 cm up, to its end) and puts it back for the put-down:
+    the carried box then passes d above it. At d = 0 it brushes it.
 Floor
     A slab under everything (world geometry), so that a dropped box lands somewhere.
 
 Contact (the plant uses ``contact_model="hydroelastic_with_fallback"`` and SAP)
     * Pads: compliant-hydroelastic spheres (``pad_collision`` in the arm URDFs: r = 15 mm,
-      E = 5 MPa, μ = 1), their centre is E_i.
+      E = 5 MPa, or ``scenario.plant.pad_modulus``), their centre is E_i; their friction is
+      set to the box's (``scenario.plant.friction``), so that the pair's coefficient is that
+      number (Drake combines two materials' as ``2 μ_1 μ_2 / (μ_1 + μ_2)``).
     * Box: **rigid**-hydroelastic, friction ``scenario.plant.friction``. A compliant sphere
       against a rigid box is a supported hydroelastic pair: the contact is a pressure patch
       (≈ 6–7 mm radius at a 32 N squeeze), whose distributed tangential tractions give the
@@ -51,6 +59,7 @@ from pydrake.geometry import (
     GeometryId,
     GeometrySet,
     ProximityProperties,
+    RoleAssign,
     SceneGraph,
     Sphere,
 )
@@ -58,12 +67,15 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.math import SpatialVelocity
 from pydrake.multibody.plant import ContactResults, CoulombFriction, MultibodyPlant
 from pydrake.multibody.tree import (
+    FixedOffsetFrame,
     ModelInstanceIndex,
+    PrismaticJoint,
     RigidBody,
     SpatialInertia,
     UnitInertia,
 )
-from pydrake.systems.framework import Context
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, InputPort, LeafSystem, ValueProducer
 
 from drake_coop.scenario.schema import Scenario
 
@@ -114,6 +126,15 @@ class ContactObject:
     X_WBox0: RigidTransform
     box_geometry: GeometryId | None = None
     pad_geometries: list[GeometryId] = field(default_factory=list)
+    stand_slide: PrismaticJoint | None = None
+    stand_drop: float = 0.0
+
+    def set_stand_lowered(self, context: Context, lowered: bool) -> None:
+        """Put the stand :attr:`stand_drop` below its place (``lowered``) or back; its slide
+        stays locked (between two ``AdvanceTo`` calls, as the grasp is switched)."""
+        if self.stand_slide is not None:
+            self.stand_slide.set_translation(context, -self.stand_drop if lowered else 0.0)
+            self.stand_slide.set_translation_rate(context, 0.0)
 
     def initialize(self, plant: MultibodyPlant, context: Context) -> None:
         """Put the box at rest on the stand, :data:`SETTLE_GAP` above it.
@@ -129,6 +150,9 @@ class ContactObject:
                            self.X_WBox0.translation() + np.array([0.0, 0.0, SETTLE_GAP]))
         plant.SetFreeBodyPose(context, self.box, X)
         plant.SetFreeBodySpatialVelocity(context, self.box, SpatialVelocity.Zero())
+        if self.stand_slide is not None:
+            self.set_stand_lowered(context, False)
+            self.stand_slide.Lock(context)
 
     def pad_force(self, results: ContactResults, pad: GeometryId) -> np.ndarray:
         """Total contact force of the box on one pad, world frame (N).
@@ -161,6 +185,47 @@ class ContactObject:
             total += f if pp.id_B == pad else -f
         return total
 
+    def pad_forces(self, results: ContactResults) -> list[np.ndarray]:
+        """:meth:`pad_force` of every pad (in :attr:`pad_geometries`' order), in one pass
+        over the contacts."""
+        index = {pad: i for i, pad in enumerate(self.pad_geometries)}
+        box = self.box_geometry
+        totals = [[0.0, 0.0, 0.0] for _ in self.pad_geometries]
+        for k in range(results.num_hydroelastic_contacts()):
+            info = results.hydroelastic_contact_info(k)
+            surface = info.contact_surface()
+            M, N = surface.id_M(), surface.id_N()
+            if M == box:
+                i, sign = index.get(N), -1.0
+            elif N == box:
+                i, sign = index.get(M), 1.0
+            else:
+                continue
+            if i is None:
+                continue
+            f = info.F_Ac_W().translational()      # on the body of geometry M
+            t = totals[i]
+            t[0] += sign * f[0]
+            t[1] += sign * f[1]
+            t[2] += sign * f[2]
+        for k in range(results.num_point_pair_contacts()):
+            info = results.point_pair_contact_info(k)
+            pp = info.point_pair()
+            if pp.id_A == box:
+                i, sign = index.get(pp.id_B), 1.0
+            elif pp.id_B == box:
+                i, sign = index.get(pp.id_A), -1.0
+            else:
+                continue
+            if i is None:
+                continue
+            f = info.contact_force()               # on body B (geometry id_B)
+            t = totals[i]
+            t[0] += sign * f[0]
+            t[1] += sign * f[1]
+            t[2] += sign * f[2]
+        return [np.array(t) for t in totals]
+
 
 def _props(mu: float, compliant_modulus: float | None = None) -> ProximityProperties:
     """Contact material (friction μ) with rigid or compliant hydroelastic properties."""
@@ -174,6 +239,20 @@ def _props(mu: float, compliant_modulus: float | None = None) -> ProximityProper
                                            hydroelastic_modulus=compliant_modulus,
                                            properties=props)
     return props
+
+
+def _set_pad_material(scene_graph: SceneGraph, plant: MultibodyPlant,
+                      pads: list[GeometryId], mu: float, modulus: float | None) -> None:
+    """The pads' friction set to the box's ``μ`` (so that the pair's combined coefficient,
+    ``2 μ_pad μ_box / (μ_pad + μ_box)`` in Drake, is ``μ`` itself) and, when given, their
+    hydroelastic modulus; every other property stays the arm model's."""
+    inspector = scene_graph.model_inspector()
+    for pad in pads:
+        props = ProximityProperties(inspector.GetProximityProperties(pad))
+        props.UpdateProperty("material", "coulomb_friction", CoulombFriction(mu, mu))
+        if modulus is not None:
+            props.UpdateProperty("hydroelastic", "hydroelastic_modulus", float(modulus))
+        scene_graph.AssignRole(plant.get_source_id(), pad, props, RoleAssign.kReplace)
 
 
 def _pad_geometries(plant: MultibodyPlant, scenario: Scenario) -> list[GeometryId]:
@@ -220,7 +299,8 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
     scene_graph : SceneGraph
     scenario : Scenario
         Uses the robots' contact x (``contact_xy[0]``) and pad radius, ``task.circle_top_z``,
-        ``task.lift_height``, ``plant.object_mass`` and ``plant.friction``.
+        ``task.lift_height``, ``plant.object_mass``, ``plant.friction``,
+        ``plant.stand_clearance`` and ``plant.pad_modulus``.
 
     Returns
     -------
@@ -247,13 +327,18 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
                                                    "box_collision", _props(mu))
     plant.RegisterVisualGeometry(box, RigidTransform(), Box(*size), "box_visual", _BOX_COLOR)
 
-    stand_top = z_grasp - BOX_HEIGHT / 2
+    stand_top = center[2] - BOX_HEIGHT / 2
     stand_shape = Box(STAND_WIDTH_FRACTION * width, BOX_DEPTH, stand_top)
-    stand = plant.AddRigidBody("stand", instance,
+    # The stand in a model instance of its own, on a locked vertical slide (the box's state
+    # stays the "object" instance's alone); lowered by stand_clearance during the circle.
+    stand = plant.AddRigidBody("stand", plant.AddModelInstance("stand"),
                                SpatialInertia(1.0, np.zeros(3), UnitInertia.SolidBox(
                                    STAND_WIDTH_FRACTION * width, BOX_DEPTH, stand_top)))
-    plant.WeldFrames(plant.world_frame(), stand.body_frame(),
-                     RigidTransform(np.array([center[0], 0.0, stand_top / 2])))
+    anchor = plant.AddFrame(FixedOffsetFrame(
+        "stand_anchor", plant.world_frame(),
+        RigidTransform(np.array([center[0], 0.0, stand_top / 2]))))
+    stand_slide = plant.AddJoint(PrismaticJoint("stand_slide", anchor, stand.body_frame(),
+                                                [0.0, 0.0, 1.0]))
     stand_geometry = plant.RegisterCollisionGeometry(
         stand, RigidTransform(), stand_shape, "stand_collision",
         _props(STAND_FRICTION, compliant_modulus=STAND_MODULUS))
@@ -267,7 +352,7 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
         _props(mu, compliant_modulus=STAND_MODULUS))
     plant.RegisterVisualGeometry(plant.world_body(), X_WF, floor, "floor_visual", _FLOOR_COLOR)
 
-    pads = _pad_geometries(plant, scenario)
+    _set_pad_material(scene_graph, plant, pads, mu, scenario.plant.pad_modulus)
     statics = GeometrySet([stand_geometry, floor_geometry])
     manager = scene_graph.collision_filter_manager()
     manager.Apply(CollisionFilterDeclaration()
@@ -275,4 +360,157 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
                   .ExcludeBetween(GeometrySet(pads), statics)
                   .ExcludeWithin(GeometrySet(pads)))
     return ContactObject(box=box, stand=stand, size=size, X_WBox0=RigidTransform(center),
-                         box_geometry=box_geometry, pad_geometries=pads)
+                         box_geometry=box_geometry, pad_geometries=pads,
+                         stand_slide=stand_slide,
+                         stand_drop=float(scenario.plant.stand_clearance))
+
+
+class PadForces(LeafSystem):
+    """Every pad's contact force from the plant's contact results: the ``contact`` mode's
+    ground-truth wrist force.
+
+    .. pydrake_system::
+
+        name: PadForces
+        input_ports:
+        - contact_results
+        - contact_results_last_step
+        output_ports:
+        - <robot>_wrist
+        - <robot>_F_step
+        - <robot>_lambda_step
+        - <robot>_lambda_last_step
+
+    In ``contact`` mode the box is the only thing a pad touches (the pads' collisions with the
+    stand, the floor and each other are filtered, and the arms have no other collision
+    geometry), so the force of the object on the end effector, what Newton's law on the
+    sensor's bodies gives from the weld's reaction force (:class:`~drake_coop.plant.wrist.
+    WristKinematics`), is the pad's contact force itself (:meth:`ContactObject.pad_forces`):
+    the plant's contact results of the step, without the reaction forces, body poses,
+    velocities and accelerations.
+
+    One discrete update per tick (period ``h``, offset 0) reads the contact results from the
+    same context as the plant's update, so the step's solve is shared, and latches the force
+    of the step taken from the tick. ``contact_results_last_step`` is meant for a C++
+    ``ZeroOrderHold`` of the plant's contact results at every plant step (period ``Δt``,
+    offset 0: the plant's own event times, so its solves are shared too): read between two
+    plant updates it holds the last step taken; ``<robot>_lambda_last_step`` is computed from it
+    only when read (the F/T sensor model's reading, once per tick).
+
+    Parameters
+    ----------
+    grasp : ContactObject
+        The box and the pads' geometries.
+    names : list of str
+        The robots' names, in pad order.
+    normals : list of ndarray
+        Each robot's outward normals ``N_i`` (rows): ``λ_i = N_i F_i``.
+    period : float
+        The control period ``h``.
+
+    Output ports
+    ------------
+    <robot>_wrist : 3-vector
+        ``F``, the box's force on the pad (palm frame, N), live: the step from the context's
+        state (a read away from a plant update solves that step).
+    <robot>_F_step, <robot>_lambda_step : 3- and m-vectors
+        ``F`` and ``N_i F`` of the step taken from the last tick, latched at that tick.
+    <robot>_lambda_last_step : m-vector
+        ``N_i F`` of the contact results held at the last plant step (read at
+        ``t_k − Δt/2``: the step ``[t_k − Δt, t_k)``, the F/T sensor model's reading of tick
+        ``k``).
+    """
+
+    def __init__(self, grasp: ContactObject, names: list[str], normals: list[np.ndarray],
+                 period: float):
+        super().__init__()
+        self._grasp = grasp
+        self._normals = [np.atleast_2d(np.asarray(N, dtype=float)) for N in normals]
+        model = AbstractValue.Make(ContactResults())
+        self._results = self.DeclareAbstractInputPort("contact_results", model)
+        self._held = self.DeclareAbstractInputPort("contact_results_last_step", model)
+        self._last = self.DeclareCacheEntry(
+            "pad forces of the last plant step",
+            ValueProducer(allocate=AbstractValue.Make([np.zeros(3)]).Clone,
+                          calc=lambda context, value: value.set_value(
+                              self._grasp.pad_forces(self._held.Eval(context)))),
+            {self._held.ticket()})
+        self._tick = [self.DeclareDiscreteState(3) for _ in names]
+        self._squeeze: list = []
+        for i, name in enumerate(names):
+            self.DeclareVectorOutputPort(
+                f"{name}_wrist", 3,
+                lambda context, output, i=i: output.SetFromVector(
+                    self._grasp.pad_forces(self._results.Eval(context))[i]),
+                prerequisites_of_calc={self._results.ticket()})
+            self.DeclareStateOutputPort(f"{name}_F_step", self._tick[i])
+            m = self._normals[i].shape[0]
+            self._squeeze.append(self.DeclareDiscreteState(m))
+            self.DeclareStateOutputPort(f"{name}_lambda_step", self._squeeze[i])
+            self.DeclareVectorOutputPort(
+                f"{name}_lambda_last_step", m,
+                lambda context, output, i=i: output.SetFromVector(
+                    self._normals[i] @ self._last.Eval(context)[i]),
+                prerequisites_of_calc={self._last.ticket()})
+        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+
+    def get_contact_results_input_port(self) -> InputPort:
+        """The plant's ``contact_results``."""
+        return self._results
+
+    def get_contact_results_last_step_input_port(self) -> InputPort:
+        """The plant's ``contact_results`` held at every plant step."""
+        return self._held
+
+    def _update(self, context: Context, discrete_state) -> None:
+        forces = self._grasp.pad_forces(self._results.Eval(context))
+        for index, squeeze, N, F in zip(self._tick, self._squeeze, self._normals, forces):
+            discrete_state.set_value(index, F)
+            discrete_state.set_value(squeeze, N @ F)
+
+
+def quaternion_rotations(quaternions: np.ndarray) -> np.ndarray:
+    """Rotation matrices ``(K, 3, 3)`` of unit quaternions ``(K, 4)`` ``[w, x, y, z]`` (the
+    order of a free body's positions in the plant's state), normalized first."""
+    q = np.asarray(quaternions, dtype=float).reshape(-1, 4)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
+    ], axis=1)
+
+
+def pad_contact_components(F: np.ndarray, p_pad: np.ndarray, pose: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Normal and tangential parts of a pad's contact force, per sample.
+
+    The pad touches one of the box's x faces (the one on its side of the box's centre); its
+    outward normal is ``n = ± R_WB e_x``. With ``F`` the box's force on the pad,
+    ``f_n = n · F`` (positive when the box pushes the pad away: a compressive contact) and
+    ``f_t = ‖F − f_n n‖``.
+
+    Parameters
+    ----------
+    F : ndarray, shape (K, 3)
+        The box's force on the pad (palm frame, N).
+    p_pad : ndarray, shape (K, 3)
+        The pad's centre (the end-effector point, m).
+    pose : ndarray, shape (K, 7)
+        The box's ``[w, x, y, z]`` quaternion and position (the plant's free-body positions).
+
+    Returns
+    -------
+    f_n, f_t : ndarray, shape (K,)
+    p_B : ndarray, shape (K, 3)
+        The pad's centre in the box's frame (where on the box it sits).
+    """
+    R = quaternion_rotations(pose[:, :4])
+    p_B = np.einsum("kji,kj->ki", R, np.asarray(p_pad, dtype=float) - pose[:, 4:7])
+    side = np.where(p_B[:, 0] >= 0.0, 1.0, -1.0)
+    n = R[:, :, 0] * side[:, None]
+    F = np.asarray(F, dtype=float)
+    f_n = np.einsum("ki,ki->k", n, F)
+    f_t = np.linalg.norm(F - f_n[:, None] * n, axis=1)
+    return f_n, f_t, p_B

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.multibody.plant import MultibodyPlant
+from pydrake.multibody.plant import ContactResults, MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
 from pydrake.systems.framework import (
     Context,
@@ -487,11 +487,33 @@ def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | 
     plant's ``[state, net_actuation]`` of the step before each tick, and each sensor's
     :attr:`ForceSensor.lambda_last_step` is the ``<robot>_lambda_last_step`` port of
     :class:`WristDynamics` (the F/T sensor models read it at ``t_k − Δt/2``); otherwise it is
-    ``None`` (the models read the live ``lambda_meas`` at ``t_k − 3Δt/2``)."""
+    ``None`` (the models read the live ``lambda_meas`` at ``t_k − 3Δt/2``).
+
+    In ``contact`` mode with a ``period``, ``pad_forces``
+    (:class:`~drake_coop.plant.grasp.PadForces`) replaces ``wrist_kinematics``: the pads'
+    contact forces from the plant's contact results, latched at every plant step from the
+    plant's own context at every tick (no second solve, no reaction forces), and a C++
+    ``ZeroOrderHold`` (``pad_forces_hold``) of the contact results at every plant step; each
+    sensor's :attr:`ForceSensor.lambda_last_step` is its ``<robot>_lambda_last_step``."""
     plant = coop.plant
-    direct = coop.mode in ("planes", "rigid")
+    pads = coop.mode == "contact" and period is not None
+    direct = coop.mode in ("planes", "rigid") or pads
     last_step = {}
-    if direct:
+    if pads:
+        from drake_coop.plant.grasp import PadForces
+
+        wrist = builder.AddNamedSystem("pad_forces", PadForces(
+            coop.grasp, [h.arm.name for h in coop.arms], [h.arm.N for h in coop.arms],
+            period))
+        results = plant.get_contact_results_output_port()
+        builder.Connect(results, wrist.get_contact_results_input_port())
+        held = builder.AddNamedSystem("pad_forces_hold", ZeroOrderHold(
+            plant.time_step(), AbstractValue.Make(ContactResults())))
+        builder.Connect(results, held.get_input_port())
+        builder.Connect(held.get_output_port(), wrist.get_contact_results_last_step_input_port())
+        last_step = {h.arm.name: wrist.GetOutputPort(f"{h.arm.name}_lambda_last_step")
+                     for h in coop.arms}
+    elif direct:
         wrist = builder.AddNamedSystem(
             "wrist_dynamics", WristDynamics(plant, coop.arms, plant.time_step(), period))
         names = ("state", "generalized_acceleration", "net_actuation")

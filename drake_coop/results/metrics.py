@@ -25,6 +25,11 @@ A phase ``[name, a, b]`` holds the samples with ``a <= t < b`` (the last phase a
 infinite, as at the end of a diverged run). Each error's RMS and max use its finite samples
 only; an error with none is left out, and so is a phase with no samples (a run stopped before
 it).
+
+In ``contact`` mode each robot's phases also hold the object's metrics
+(:mod:`drake_coop.results.object_metrics`): ``friction_use``, ``object_position_error``,
+``object_angle_error``, ``slip`` (``rms``/``max``/``unit``) and the counts ``slips`` and
+``drops`` (``{"count": k, "unit": "events"}``).
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_coop.results.io import atomic_write_text
+from drake_coop.results.object_metrics import object_metrics
 
 __all__ = ["compute_metrics", "error_signals", "phase_masks", "write_metrics"]
 
@@ -151,6 +157,11 @@ def compute_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict) -> dict:
             entry["n_nonfinite"] = int((mask & ~finite.all(axis=1)).sum())
             per_phase[phase] = entry
         result[robot] = per_phase
+    for robot, phases in object_metrics(logs, meta, phase_masks(
+            next(iter(logs.values()))["t"], meta["phases"])).items():
+        for phase, entry in phases.items():
+            if phase in result[robot]:
+                result[robot][phase].update(entry)
     return result
 
 

@@ -299,8 +299,8 @@ def _logged_source(builder: DiagramBuilder, robot: str, key: str) -> OutputPort:
     from drake_coop.experiment.diagram import GROUND_TRUTH_KEYS, LOG_KEYS
 
     mux = builder.GetSubsystemByName(f"{robot}_log_signals")
-    keys = list(LOG_KEYS)
-    if mux.num_input_ports() != len(keys):          # the offline ground truth
+    keys = list(LOG_KEYS)        # first in the Multiplexer (the object's signals follow)
+    if _named(builder, "ground_truth_log") is not None:     # the offline ground truth
         keys = [k for k in keys if k not in GROUND_TRUTH_KEYS]
     index = keys.index(key)
     for (system, port), (source, out_index) in builder.connection_map().items():

@@ -392,12 +392,23 @@ class PlantSettings:
         Mass of the carried object in ``rigid`` and ``contact`` modes (kg).
     friction : float
         Coulomb friction coefficient between pads and box (``contact``).
+    stand_clearance : float
+        How far the stand is lowered while the box is carried around the circle (``contact``,
+        m; from the circle's start, when the box is ``lift_height`` up, to its end, back for
+        the put-down). The circle (28) passes through the grasp pose at its lowest point, so
+        at 0 (the default, the original run) the carried box brushes its stand there
+        (43–46 s); ``scenarios/contact.yaml`` uses 10 mm (``scenarios/contact_brush.yaml``: 0).
+    pad_modulus : float or None
+        Hydroelastic modulus of both pads (``contact``, Pa); None (the default) keeps the arm
+        models' own (5 MPa in the shipped URDFs).
     """
 
     time_step: float = 0.001
     object_mode: str = "planes"
     object_mass: float = 0.5
     friction: float = 1.0
+    stand_clearance: float = 0.0
+    pad_modulus: Optional[float] = None
 
 
 @dataclass

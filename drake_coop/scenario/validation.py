@@ -32,6 +32,8 @@ BOUNDS: dict[str, Bound] = {
     "plant.time_step": Bound(1e-5, 0.1, "s"),
     "plant.object_mass": Bound(0.0, 20.0, "kg", **_POS),
     "plant.friction": Bound(0.0, 5.0, "", **_POS),
+    "plant.stand_clearance": Bound(0.0, 0.05, "m"),
+    "plant.pad_modulus": Bound(1e5, 1e9, "Pa"),
     "robots[].base_xyz[]": Bound(-5.0, 5.0, "m"),
     "robots[].base_yaw_deg": Bound(-360.0, 360.0, "deg"),
     "robots[].contact_xy[]": Bound(-5.0, 5.0, "m"),

@@ -21,7 +21,10 @@ Summary columns (of the study's ``phase``): ``<robot>.<error>.<rms|max>`` for th
 :mod:`drake_coop.results.metrics`, plus ``position_error`` (RMS of ``|x − x_d|``, i.e.
 ``sqrt(rms_x² + rms_y² + rms_z²)``; max = the largest single-axis max) and ``observation_error``
 (the same over the joints' ``z1 … zn``), ``velocity_error`` when the run logs it (the sensing alternatives),
-and ``worst.<error>.<stat>``, the largest over the robots.
+the held object's errors in ``contact`` mode (``friction_use``, ``object_position_error``,
+``object_angle_error``, ``slip``, ``mass_estimate_error``) and its counts and times
+(``slips.count``, ``drops.count``, ``mass_convergence_time.time``), and
+``worst.<error>.<stat>``, the largest over the robots.
 """
 
 from __future__ import annotations
@@ -48,7 +51,12 @@ MAX_CASE_BYTES = 4_000_000
 #: Observation errors ``q − q̂`` of joints 1 … 12 (an arm has at most 12 joints).
 JOINT_ERRORS = tuple(f"z{k}" for k in range(1, 13))
 ERRORS = ("x_tilde", "y_tilde", "z_tilde", "position_error", "force_error", "estimate_error",
-          "aux_force_error", *JOINT_ERRORS, "observation_error", "velocity_error")
+          "aux_force_error", *JOINT_ERRORS, "observation_error", "velocity_error",
+          "friction_use", "object_position_error", "object_angle_error", "slip",
+          "mass_estimate_error")
+#: The held object's counts and times (``contact`` mode,
+#: :mod:`drake_coop.results.object_metrics`): ``<robot>.<name>.<stat>``.
+EVENTS = {"slips": "count", "drops": "count", "mass_convergence_time": "time"}
 _GROUPS = {"position_error": ("x_tilde", "y_tilde", "z_tilde"),
            "observation_error": JOINT_ERRORS}
 STATS = ("rms", "max")
@@ -67,6 +75,9 @@ def _robot_summary(phase_metrics: dict) -> dict[str, float]:
         elif error in phase_metrics:
             out[f"{error}.rms"] = phase_metrics[error]["rms"]
             out[f"{error}.max"] = phase_metrics[error]["max"]
+    for name, stat in EVENTS.items():
+        if name in phase_metrics and phase_metrics[name][stat] is not None:
+            out[f"{name}.{stat}"] = float(phase_metrics[name][stat])
     return out
 
 
@@ -86,7 +97,8 @@ def summary_columns(metrics: dict, phase: str) -> dict[str, float]:
 
 def metric_names(robots: list[str]) -> list[str]:
     """Every summary column name for the given robot names."""
-    return [f"{r}.{e}.{s}" for r in [*robots, "worst"] for e in ERRORS for s in STATS]
+    return [f"{r}.{e}.{s}" for r in [*robots, "worst"] for e in ERRORS for s in STATS] + [
+        f"{r}.{e}.{s}" for r in [*robots, "worst"] for e, s in EVENTS.items()]
 
 
 def check_metric_names(names: list[str], robots: list[str]) -> str | None:

@@ -1,0 +1,231 @@
+"""The held object's metrics (``contact`` mode): friction-cone use per pad, the object's pose
+error along the desired path, slips and drops, from the plant's truth.
+
+A ``contact`` run logs, per robot (:func:`~drake_coop.experiment.simulate.collect_logs`):
+``object_pose`` (the box's quaternion ``[w, x, y, z]`` and position, the plant's state),
+``F_meas`` (the pad's contact force from the plant's contact results,
+:class:`~drake_coop.plant.grasp.PadForces`), its normal and tangential parts on the box's face
+``pad_normal_force``, ``pad_tangential_force`` (:func:`~drake_coop.plant.grasp.
+pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame) and
+``pad_rotation`` (the pad body's orientation). From them, per robot and phase:
+
+``friction_use`` (no unit)
+    ``f_t / (μ f_n)`` of the pad's total contact force, on the samples where the pad presses
+    (``f_n`` ≥ :data:`CONTACT_FORCE`): 1 is the edge of the friction cone; the cone margin is
+    ``1 − friction_use`` (``max`` gives the smallest margin). The total force of a patch
+    inside the cone is necessary, not sufficient, for sticking (the torsional friction that
+    holds the box about the pad axis uses the same budget), so the margin is an upper bound.
+``object_position_error`` (m), ``object_angle_error`` (rad)
+    The box's centre against the desired path: the midpoint of the robots' desired
+    end-effector points (28) plus the box's offset from it at the grasp tick (where the box
+    rests on its stand); its rotation against its orientation at the grasp. Held phases only
+    (``lift``, ``circle``, ``put_down``).
+``slip`` (m)
+    The pad's sliding on the box's face since the grasp, net of rolling: at each step the
+    pad's material point at the contact (``−d n`` from the pad's centre, ``d`` the centre's
+    distance to the face) moves with the pad's body and the box's point under it with the
+    box; their tangential difference (box frame) is summed. Rolling (the pad is a sphere on
+    a link whose orientation changes) moves neither relative to the other.
+``slips`` (a count, ``{"count": k}``)
+    Slides of :data:`SLIP_DISTANCE` each: every time the summed slip has moved that far from
+    where the last count left it, one more (a continuous slide of 5 mm counts 2).
+``mass_estimate_error`` (kg), ``mass_convergence_time`` (``{"time": s}``)
+    With an object model (``mass_share`` logs, ``object_model`` known or estimated): the sum
+    of the arms' mass shares less the true mass (held phases), and the time from the grasp
+    after which it stays within :data:`MASS_TOLERANCE` of it until the release (null: never;
+    the same in every phase).
+``drops`` (a count)
+    Episodes where the box is lost: after both pads have pressed with
+    :data:`CONTACT_FORCE` (the grasp established) and before the release, its position
+    error exceeds :data:`DROP_DISTANCE` or a pad stops pressing. Object-level (the same for
+    every robot).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_coop.plant.grasp import quaternion_rotations
+
+__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "SLIP_DISTANCE", "object_metrics",
+           "object_signals"]
+
+#: A pad presses on the box when its normal force is at least this (N).
+CONTACT_FORCE = 0.5
+#: One counted slip: the pad slides this far on the box's face (m).
+SLIP_DISTANCE = 2e-3
+#: The box is dropped when its centre is this far from the desired path (m).
+DROP_DISTANCE = 0.02
+#: The mass estimate has converged when the arms' shares sum to within this fraction of the
+#: true mass (and stay there until the release).
+MASS_TOLERANCE = 0.05
+#: The phases where the box is held.
+HELD_PHASES = ("lift", "circle", "put_down")
+
+
+def _rotation_angle(R: np.ndarray) -> np.ndarray:
+    """Angle of each rotation ``(K, 3, 3)`` (rad)."""
+    c = 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
+    return np.arccos(np.clip(c, -1.0, 1.0))
+
+
+def _held_window(t: np.ndarray, phases: list) -> tuple[float, float]:
+    """``[t_grasp, t_release)`` from the phases."""
+    span = {str(name): (a, b) for name, a, b in phases}
+    return float(span["lift"][0]), float(span["put_down"][1])
+
+
+def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
+                   ) -> dict[str, dict[str, np.ndarray]] | None:
+    """Per robot, the per-sample object signals (``friction_use``, ``object_position_error``,
+    ``object_angle_error``, ``slip``) and the sample indices where a slip or a drop is
+    counted (``slip_events``, ``drop_events``); None without an ``object_pose`` log.
+
+    Parameters
+    ----------
+    logs : dict
+        ``logs[robot][array]`` of a ``contact`` run.
+    meta : dict
+        Run metadata: ``phases``, ``friction`` (``μ``) and ``object_size`` (the box's x, y,
+        z size, m).
+    """
+    robots = [r for r, log in logs.items() if "object_pose" in log]
+    if not robots or len(robots) != len(logs):
+        return None
+    mu = float(meta["friction"])
+    first = logs[robots[0]]
+    t = np.asarray(first["t"], dtype=float)
+    K = t.size
+    pose = np.asarray(first["object_pose"], dtype=float)
+    t_grasp, t_release = _held_window(t, meta["phases"])
+    held = (t >= t_grasp) & (t < t_release)
+    out: dict[str, dict[str, np.ndarray]] = {}
+    if K == 0:
+        return {r: {} for r in robots}
+    # Pose error: the box against the robots' desired midpoint + the offset at the grasp tick.
+    mid_d = np.mean([np.asarray(logs[r]["x_d"], dtype=float) for r in robots], axis=0)
+    k0 = int(np.searchsorted(t, t_grasp - 1e-9))
+    position_error = np.full(K, np.nan)
+    angle_error = np.full(K, np.nan)
+    R_B = quaternion_rotations(pose[:, :4])
+    if k0 < K:
+        offset = pose[k0, 4:7] - mid_d[k0]
+        position_error = np.linalg.norm(pose[:, 4:7] - mid_d - offset, axis=1)
+        angle_error = _rotation_angle(np.einsum("ji,kjl->kil", R_B[k0], R_B))
+        position_error[~held] = np.nan
+        angle_error[~held] = np.nan
+    normals = {r: np.asarray(logs[r]["pad_normal_force"], dtype=float) for r in robots}
+    pressing = np.all([normals[r] >= CONTACT_FORCE for r in robots], axis=0)
+    established = held & (np.cumsum(held & pressing) > 0)
+    lost = established & (~pressing | (position_error > DROP_DISTANCE))
+    drop_events = np.flatnonzero(lost & ~np.concatenate([[False], lost[:-1]]))
+    for r in robots:
+        log = logs[r]
+        f_n = normals[r]
+        f_t = np.asarray(log["pad_tangential_force"], dtype=float)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            use = np.where(f_n >= CONTACT_FORCE, f_t / (mu * f_n), np.nan)
+        slip, slip_events = _slip(log, R_B, pose, established,
+                                  0.5 * float(meta["object_size"][0]))
+        out[r] = {"friction_use": use, "object_position_error": position_error,
+                  "object_angle_error": angle_error, "slip": slip,
+                  "slip_events": slip_events, "drop_events": drop_events}
+    if all("mass_share" in logs[r] for r in robots) and "object_mass" in meta:
+        m = float(meta["object_mass"])
+        estimate = np.sum([np.asarray(logs[r]["mass_share"], dtype=float) for r in robots],
+                          axis=0)
+        error = np.where(held, estimate - m, np.nan)
+        ok = np.abs(estimate - m) <= MASS_TOLERANCE * m
+        # The first held sample after which the estimate stays within the tolerance.
+        bad = np.flatnonzero(held & ~ok)
+        after = t >= t_grasp
+        converged: float | None = None
+        if after.any() and bad.size == 0:
+            converged = 0.0
+        elif after.any() and bad[-1] + 1 < K and held[bad[-1] + 1]:
+            converged = float(t[bad[-1] + 1] - t_grasp)
+        for r in robots:
+            out[r]["mass_error"] = error
+            out[r]["mass_convergence_time"] = converged
+    return out
+
+
+def _slip(log: dict[str, np.ndarray], R_B: np.ndarray, pose: np.ndarray,
+          established: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pad's summed sliding on the box's face (m, NaN outside the established grasp) and
+    the samples where a :data:`SLIP_DISTANCE` slide is counted (see the module)."""
+    K = R_B.shape[0]
+    slip = np.full(K, np.nan)
+    if "pad_rotation" not in log or not established.any():
+        return slip, np.zeros(0, dtype=int)
+    E = np.asarray(log["x"], dtype=float)
+    R_P = np.asarray(log["pad_rotation"], dtype=float).reshape(K, 3, 3)
+    p_B = np.asarray(log["pad_in_object"], dtype=float)
+    p = pose[:, 4:7]
+    ks = np.flatnonzero(established)
+    total, ref = np.zeros(2), np.zeros(2)
+    events = []
+    slip[ks[0]] = 0.0
+    for a, b in zip(ks[:-1], ks[1:]):
+        if b == a + 1:
+            side = 1.0 if p_B[a, 0] >= 0.0 else -1.0
+            n = side * R_B[a][:, 0]                       # the face's outward normal
+            c = -(abs(p_B[a, 0]) - half_width) * n        # pad centre → contact point
+            pad_point = E[b] + R_P[b] @ (R_P[a].T @ c)    # the pad's material point, moved
+            box_point = p[b] + R_B[b] @ (R_B[a].T @ (E[a] + c - p[a]))   # the box's point
+            total = total + (R_B[b].T @ (pad_point - box_point))[1:]     # along the face
+            while np.linalg.norm(total - ref) >= SLIP_DISTANCE:
+                ref = ref + SLIP_DISTANCE * (total - ref) / np.linalg.norm(total - ref)
+                events.append(b)
+        slip[b] = np.linalg.norm(total)
+    return slip, np.asarray(events, dtype=int)
+
+
+def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
+                   masks: dict[str, np.ndarray]) -> dict[str, dict[str, dict]]:
+    """``metrics[robot][phase]`` entries of the object (see the module); {} without an
+    ``object_pose`` log.
+
+    Parameters
+    ----------
+    logs : dict
+        ``logs[robot][array]``.
+    meta : dict
+        ``phases``, ``friction``, ``object_size``.
+    masks : dict
+        ``phase -> mask`` of the samples (:func:`~drake_coop.results.metrics.phase_masks`).
+    """
+    signals = object_signals(logs, meta)
+    if signals is None:
+        return {}
+    units = {"friction_use": "", "object_position_error": "m", "object_angle_error": "rad",
+             "slip": "m"}
+    out: dict[str, dict[str, dict]] = {}
+    for robot, sig in signals.items():
+        per_phase = {}
+        for phase, mask in masks.items():
+            entry: dict = {}
+            for name, unit in units.items():
+                if name not in sig:
+                    continue
+                x = sig[name][mask]
+                x = x[np.isfinite(x)]
+                if x.size:
+                    entry[name] = {"rms": float(np.sqrt(np.mean(x ** 2))),
+                                   "max": float(np.max(np.abs(x))), "unit": unit}
+            if "mass_error" in sig:
+                x = sig["mass_error"][mask]
+                x = x[np.isfinite(x)]
+                if x.size:
+                    entry["mass_estimate_error"] = {"rms": float(np.sqrt(np.mean(x ** 2))),
+                                                    "max": float(np.max(np.abs(x))),
+                                                    "unit": "kg"}
+                entry["mass_convergence_time"] = {"time": sig["mass_convergence_time"],
+                                                  "unit": "s"}
+            index = np.flatnonzero(mask)
+            for name in ("slips", "drops"):
+                events = sig.get(f"{name[:-1]}_events", np.zeros(0, dtype=int))
+                entry[name] = {"count": int(np.isin(events, index).sum()), "unit": "events"}
+            per_phase[phase] = entry
+        out[robot] = per_phase
+    return out
