@@ -58,7 +58,7 @@ from pydrake.systems.framework import (
 
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.finger import ReferenceLayout
-from drake_coop.control.params import check_period
+from drake_coop.control.params import check_period, check_positive
 
 #: Standard gravity (m/s²); gravity is ``g = (0, 0, −GRAVITY)`` in the world frame.
 GRAVITY = 9.81
@@ -388,13 +388,25 @@ class LoadFeedforward(LeafSystem):
         ``r`` from the end-effector point E to where the load acts (world frame; for a
         spherical pad the radius along the inward normal): ``τ_ff = J_cᵀ f_i``
         (:func:`contact_jacobian`). Default: the load acts at E (``J_x``).
+    friction : float, optional
+        ``μ`` of a grasp held by friction: a pad can pass the object no more tangential force
+        than its friction cone at the commanded squeeze holds, so the part of ``f_i`` across
+        the constraint normals ``N`` is limited to ``μ ‖λ_d‖``,
+
+        .. math::
+            f_t = (I - N^+ N) f_i, \\qquad f_i \\leftarrow f_i - f_t
+            + \\min\\!\\big(1, \\mu\\,\\|\\lambda_d\\| / \\|f_t\\|\\big)\\, f_t .
+
+        While the squeeze ramps up at the grasp the feedforward follows it (the rest of the
+        weight stays on whatever supports the object) instead of sliding the pad up the
+        object's face. Default: no limit (a rigid grasp).
 
     Input ports
     -----------
     q : n-vector
         Measured joint positions.
     reference : (3n + m + 1)-vector
-        The arm's reference (only its ``held`` row is read).
+        The arm's reference (its ``held`` row; ``λ_d`` with ``friction``).
     acceleration_d : 3-vector
         The object's desired acceleration ``a_d`` (world frame, m/s²).
     mass_share : 1-vector
@@ -409,11 +421,15 @@ class LoadFeedforward(LeafSystem):
     """
 
     def __init__(self, model: ArmModel, period: float, gravity: float = GRAVITY,
-                 contact_offset=None):
+                 contact_offset=None, friction: float | None = None):
         super().__init__()
         check_period(period)
         self._model = model
         self._r = None if contact_offset is None else _vector(contact_offset, "contact_offset")
+        self._mu = None if friction is None else check_positive(friction, "friction")
+        N = np.asarray(model.N, dtype=float)
+        #: Projector onto the directions across the constraint normals (``I − N⁺N``).
+        self._across = np.eye(3) - np.linalg.pinv(N) @ N
         n = model.n
         self._layout = ReferenceLayout(n, model.m)
         self._g = np.array([0.0, 0.0, -float(gravity)])
@@ -457,7 +473,23 @@ class LoadFeedforward(LeafSystem):
             return np.zeros(self._model.n), np.zeros(3)
         q = self._q.Eval(context)
         f = float(self._mass.Eval(context)[0]) * (self._a_d.Eval(context) - self._g)
+        if self._mu is not None:
+            f = self.friction_limited(f, self._layout.unpack(self._reference.Eval(context)
+                                                           ).lambda_d)
         return contact_jacobian(self._model, q, self._r).T @ f, f
+
+    def friction_limited(self, f: np.ndarray, lambda_d: np.ndarray) -> np.ndarray:
+        """``f`` with its part across the constraint normals limited to ``μ ‖λ_d‖`` (the
+        ``friction`` parameter; ``f`` unchanged without it)."""
+        f = np.asarray(f, dtype=float)
+        if self._mu is None:
+            return f
+        f_t = self._across @ f
+        size = float(np.linalg.norm(f_t))
+        limit = self._mu * float(np.linalg.norm(np.clip(lambda_d, 0.0, None)))
+        if size <= limit:
+            return f
+        return f - f_t + (limit / size) * f_t
 
     def _update(self, context: Context, state: State) -> None:
         tau, f = self.load(context)

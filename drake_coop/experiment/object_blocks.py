@@ -177,8 +177,13 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
         PiecewisePolynomial.FirstOrderHold(t_samples, a.T)))
     share0 = float(mass_shares(scenario_object(scenario, controller_mass(scenario)))[index])
     r = contact_offset(scenario, index)
-    ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(model, period,
-                                                                       contact_offset=r))
+    # A grasp held by friction (contact mode) passes the object at most μ λ_d across the
+    # normal: the feedforward follows the squeeze in (LoadFeedforward's friction limit).
+    friction = None
+    if scenario.plant.object_mode == "contact":
+        friction = om.mu if om.mu is not None else scenario.plant.friction
+    ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(
+        model, period, contact_offset=r, friction=friction))
     tau_sum = b.AddNamedSystem(f"{name}_tau_sum", Adder(2, model.n))
     b.Connect(q, ff.get_q_input_port())
     b.Connect(reference, ff.get_reference_input_port())

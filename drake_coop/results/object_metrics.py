@@ -32,13 +32,15 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
 ``mass_estimate_error`` (kg), ``mass_convergence_time`` (``{"time": s}``)
     With an object model (``mass_share`` logs, ``object_model`` known or estimated): the sum
     of the arms' mass shares less the true mass (held phases), and the time from the grasp
-    after which it stays within :data:`MASS_TOLERANCE` of it until the release (null: never;
-    the same in every phase).
+    after which it stays within :data:`MASS_TOLERANCE` of it while the box is carried, to the
+    circle's end (null: never; the same in every phase). In the put-down the stand takes the
+    weight back and the estimate follows it down, as it should.
 ``drops`` (a count)
     Episodes where the box is lost: after both pads have pressed with
-    :data:`CONTACT_FORCE` (the grasp established) and before the release, its position
-    error exceeds :data:`DROP_DISTANCE` or a pad stops pressing. Object-level (the same for
-    every robot).
+    :data:`CONTACT_FORCE` for :data:`SETTLE_TIME` without a break (the grasp established:
+    the pads' first touches may bounce while the squeeze ramps up from zero, the box still
+    on its stand) and before the release, its position error exceeds :data:`DROP_DISTANCE`
+    or a pad stops pressing. Object-level (the same for every robot).
 """
 
 from __future__ import annotations
@@ -47,13 +49,16 @@ import numpy as np
 
 from drake_coop.plant.grasp import quaternion_rotations
 
-__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "SLIP_DISTANCE", "object_metrics",
+__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "SETTLE_TIME",
+           "SLIP_DISTANCE", "object_metrics",
            "object_signals"]
 
 #: A pad presses on the box when its normal force is at least this (N).
 CONTACT_FORCE = 0.5
 #: One counted slip: the pad slides this far on the box's face (m).
 SLIP_DISTANCE = 2e-3
+#: The grasp is established once both pads have pressed this long without a break (s).
+SETTLE_TIME = 0.1
 #: The box is dropped when its centre is this far from the desired path (m).
 DROP_DISTANCE = 0.02
 #: The mass estimate has converged when the arms' shares sum to within this fraction of the
@@ -73,6 +78,28 @@ def _held_window(t: np.ndarray, phases: list) -> tuple[float, float]:
     """``[t_grasp, t_release)`` from the phases."""
     span = {str(name): (a, b) for name, a, b in phases}
     return float(span["lift"][0]), float(span["put_down"][1])
+
+
+def _settled(t: np.ndarray, pressing: np.ndarray) -> np.ndarray:
+    """True from the first sample at which ``pressing`` has held for :data:`SETTLE_TIME`
+    without a break, on."""
+    out = np.zeros(t.size, dtype=bool)
+    start = None
+    for k in range(t.size):
+        if not pressing[k]:
+            start = None
+            continue
+        start = t[k] if start is None else start
+        if t[k] - start >= SETTLE_TIME - 1e-12:
+            out[k:] = True
+            break
+    return out
+
+
+def _carried_end(phases: list) -> float:
+    """The end of the carrying (the circle's end; the put-down's start if there is no circle)."""
+    span = {str(name): (a, b) for name, a, b in phases}
+    return float(span["circle"][1] if "circle" in span else span["put_down"][0])
 
 
 def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
@@ -116,7 +143,7 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
         angle_error[~held] = np.nan
     normals = {r: np.asarray(logs[r]["pad_normal_force"], dtype=float) for r in robots}
     pressing = np.all([normals[r] >= CONTACT_FORCE for r in robots], axis=0)
-    established = held & (np.cumsum(held & pressing) > 0)
+    established = held & _settled(t, held & pressing)
     lost = established & (~pressing | (position_error > DROP_DISTANCE))
     drop_events = np.flatnonzero(lost & ~np.concatenate([[False], lost[:-1]]))
     for r in robots:
@@ -136,13 +163,16 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
                           axis=0)
         error = np.where(held, estimate - m, np.nan)
         ok = np.abs(estimate - m) <= MASS_TOLERANCE * m
-        # The first held sample after which the estimate stays within the tolerance.
-        bad = np.flatnonzero(held & ~ok)
+        # The first carried sample after which the estimate stays within the tolerance. The
+        # carried window ends with the circle: in the put-down the stand takes the box's
+        # weight back from the arms, and their estimate rightly follows it down.
+        carried = held & (t < _carried_end(meta["phases"]))
+        bad = np.flatnonzero(carried & ~ok)
         after = t >= t_grasp
         converged: float | None = None
         if after.any() and bad.size == 0:
             converged = 0.0
-        elif after.any() and bad[-1] + 1 < K and held[bad[-1] + 1]:
+        elif after.any() and bad[-1] + 1 < K and carried[bad[-1] + 1]:
             converged = float(t[bad[-1] + 1] - t_grasp)
         for r in robots:
             out[r]["mass_error"] = error

@@ -60,9 +60,9 @@ def model():
                                [[-1.0, 0.0, 0.0]], [0.5, 0.0, 0.4])
 
 
-def _held_reference(n=3, m=1, held=True):
+def _held_reference(n=3, m=1, held=True, lambda_d=0.0):
     return ReferenceLayout(n, m).pack(np.zeros((1, n)), np.zeros((1, n)), np.zeros((1, n)),
-                                      np.zeros((1, m)), np.array([float(held)]))[0]
+                                      np.full((1, m), lambda_d), np.array([float(held)]))[0]
 
 
 # ------------------------------------------------------------------ grasp and load split
@@ -158,6 +158,42 @@ def test_feedforward_is_zero_in_free_motion_and_follows_the_acceleration(model):
     fd = [f @ (model.ee_position(Q0 + eps * e) - model.ee_position(Q0 - eps * e)) / (2 * eps)
           for e in np.eye(3)]
     assert np.allclose(tau, fd, rtol=1e-6)
+
+
+def test_feedforward_with_friction_passes_no_more_than_the_cone_at_the_commanded_squeeze(model):
+    """With ``friction = μ`` the force across the constraint normal is at most ``μ λ_d``
+    (checked against the normal ``n`` of the model, independently of the block's projector):
+    below the limit the force is the unlimited one; above it its normal part is kept and its
+    tangential part has length μ λ_d, in the same direction."""
+    mu, m_i, a = 0.5, 1.0, np.array([0.3, -0.2, 0.4])
+    free = LoadFeedforward(model, H)
+    ff = LoadFeedforward(model, H, friction=mu)
+    n = np.asarray(model.N, dtype=float)[0]
+    n = n / np.linalg.norm(n)
+    f_free = m_i * (a - np.array([0.0, 0.0, -GRAVITY]))
+    f_t_free = f_free - (f_free @ n) * n
+    for lambda_d in (0.0, 2.0, 0.9 * np.linalg.norm(f_t_free) / mu, 100.0):
+        outs = []
+        for block in (free, ff):
+            ctx = block.CreateDefaultContext()
+            block.get_q_input_port().FixValue(ctx, Q0)
+            block.get_reference_input_port().FixValue(ctx, _held_reference(lambda_d=lambda_d))
+            block.get_acceleration_d_input_port().FixValue(ctx, a)
+            block.get_mass_share_input_port().FixValue(ctx, [m_i])
+            outs.append(block.load(ctx))
+        (tau0, f0), (tau, f) = outs
+        f_t = f - (f @ n) * n
+        assert np.isclose(f @ n, f0 @ n)                                  # normal part kept
+        assert np.linalg.norm(f_t) <= mu * lambda_d + 1e-12               # inside the cone
+        if np.linalg.norm(f_t_free) <= mu * lambda_d:
+            assert np.allclose(f, f0) and np.allclose(tau, tau0)
+        else:
+            assert np.isclose(np.linalg.norm(f_t), mu * lambda_d)
+            if lambda_d > 0:
+                assert np.allclose(f_t / np.linalg.norm(f_t), f_t_free / np.linalg.norm(f_t_free))
+        assert np.allclose(tau, model.J_x(Q0).T @ f)
+    with pytest.raises(ValueError, match="friction"):
+        LoadFeedforward(model, H, friction=-0.1)
 
 
 # ------------------------------------------------------------------ squeeze selection

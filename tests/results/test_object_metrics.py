@@ -34,7 +34,8 @@ def _quaternion_z(a: float) -> np.ndarray:
     return np.array([np.cos(a / 2), 0.0, 0.0, np.sin(a / 2)])
 
 
-def _run(slide: float = 0.0, fall: float = 0.0, release_pad: bool = False):
+def _run(slide: float = 0.0, fall: float = 0.0, release_pad: bool = False,
+         bounce: tuple[float, float] | None = None):
     """Two pads on the box's ±x faces, rolling (the pads' bodies turn about the box's y axis
     while the material points at the contacts stay put); pad 1 slides ``slide`` along the
     face's z during 5-6 s; the box falls ``fall`` (with both pads) from 7 s; with
@@ -58,6 +59,8 @@ def _run(slide: float = 0.0, fall: float = 0.0, release_pad: bool = False):
         f_n = np.where((t >= 1.0) & (t < 9.0), 20.0, 0.0)
         if release_pad and side > 0:
             f_n = np.where(t >= 7.0, 0.0, f_n)
+        if bounce is not None and side > 0:                # pad 2 leaves the box a moment
+            f_n = np.where((t >= bounce[0]) & (t < bounce[1]), 0.0, f_n)
         f_t = 0.4 * f_n
         F = np.outer(f_n, n) + np.outer(f_t, z_axis)
         pose = np.column_stack([np.tile(_quaternion_z(GAMMA), (K, 1)), p])
@@ -129,3 +132,34 @@ def test_a_fall_and_a_lost_pad_are_drops():
     t, logs, meta = _run(release_pad=True)
     (k,) = object_signals(logs, meta)["robot1"]["drop_events"]
     assert t[k] == pytest.approx(7.0, abs=1e-9)
+
+
+def test_mass_convergence_is_the_time_from_which_the_carried_estimate_stays_within_5_percent():
+    """A constructed estimate: a prior 50 % high decaying as exp(−t/τ) from the grasp (1 s),
+    then, in the put-down (8-9 s), the stand taking the box's weight back. The closed form:
+    0.5 exp(−(t − 1)/τ) <= 0.05 from t = 1 + τ ln 10; the put-down does not undo it."""
+    t, logs, meta = _run()
+    m, tau = 0.5, 0.7
+    share = m * (1.0 + 0.5 * np.exp(-np.clip(t - 1.0, 0.0, None) / tau)) / 2.0
+    share = np.where(t >= 8.0, 0.2 * share, share)         # the stand carries the box
+    for log in logs.values():
+        log["mass_share"] = share
+    meta = dict(meta, object_mass=m)
+    out = object_signals(logs, meta)
+    expected = tau * np.log(10.0)
+    dt = t[1] - t[0]
+    assert out["robot1"]["mass_convergence_time"] == pytest.approx(expected, abs=dt + 1e-9)
+    # Never within 5 %: null.
+    for log in logs.values():
+        log["mass_share"] = np.full_like(t, 0.6 * m / 2.0)
+    assert object_signals(logs, meta)["robot1"]["mass_convergence_time"] is None
+
+
+def test_a_bounce_at_the_first_touch_is_not_a_drop_but_a_later_one_is():
+    """Pad 2 leaves the box for 30 ms: 20 ms after the first touch (the grasp not yet settled,
+    SETTLE_TIME = 0.1 s) no drop is counted; at 5 s (the box carried) one is."""
+    t, logs, meta = _run(bounce=(1.02, 1.05))
+    assert object_signals(logs, meta)["robot1"]["drop_events"].size == 0
+    t, logs, meta = _run(bounce=(5.0, 5.03))
+    (k,) = object_signals(logs, meta)["robot1"]["drop_events"]
+    assert t[k] == pytest.approx(5.0, abs=1e-9)
