@@ -47,8 +47,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_coop.plant.grasp import quaternion_rotations
-
 __all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "SETTLE_TIME",
            "SLIP_DISTANCE", "object_metrics",
            "object_signals"]
@@ -134,6 +132,10 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
     k0 = int(np.searchsorted(t, t_grasp - 1e-9))
     position_error = np.full(K, np.nan)
     angle_error = np.full(K, np.nan)
+    # Imported here: drake_coop.plant.grasp loads pydrake, which the command line's parser
+    # (it reaches this module through the results) must not (tests/cli/test_cli.py).
+    from drake_coop.plant.grasp import quaternion_rotations
+
     R_B = quaternion_rotations(pose[:, :4])
     if k0 < K:
         offset = pose[k0, 4:7] - mid_d[k0]

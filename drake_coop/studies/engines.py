@@ -24,6 +24,7 @@ soon as it arrives, in completion order.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import multiprocessing
 import multiprocessing.connection
@@ -115,6 +116,34 @@ def die_with_parent(parent: int) -> None:
 _STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
 
+@contextlib.contextmanager
+def _stop_signals_deferred():
+    """Ctrl-C and SIGTERM wait until the block is done, then arrive as usual.
+
+    Arriving inside ``Process.start()``, between the spawn and the write of the child's data,
+    they left an unregistered child that printed an EOFError traceback. Blocking them in this
+    thread is not enough: a signal is delivered to any thread that does not block it (NumPy's
+    BLAS threads among them) and Python then runs its handler in this thread all the same. So
+    the handlers are swapped for one that notes the signal, as well as blocked here (the
+    child inherits the mask and unblocks it, :func:`_child`); the noted signal is raised again
+    once the old handlers and mask are back.
+    """
+    noted: list[int] = []
+    handlers = {}
+    if threading.current_thread() is threading.main_thread():   # only it may set handlers
+        handlers = {signum: signal.signal(signum, lambda signum, frame: noted.append(signum))
+                    for signum in _STOP_SIGNALS}
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    try:
+        yield
+    finally:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)   # a pending one arrives here
+        if noted:
+            signal.raise_signal(noted[0])
+
+
 def _child(conn, work: Callable, args: tuple, parent: int | None = None) -> None:
     """Worker process: ``work(*args)``, send its result, exit (Ctrl-C is the parent's business).
 
@@ -160,15 +189,9 @@ def run_in_processes(cases: list[Case], work: Callable, args_of: Callable[[Case]
                 process = context.Process(target=_child, name=f"case-{case.hash}",
                                           args=(sender, work, args_of(case), os.getpid()),
                                           daemon=True)
-                # Ctrl-C/SIGTERM wait until the child is started and registered: arriving
-                # inside start(), between the spawn and the write of the child's data, they
-                # left an unregistered child that printed an EOFError traceback.
-                blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
-                try:
+                with _stop_signals_deferred():
                     process.start()
                     running[receiver] = (process, case)
-                finally:
-                    signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
                 sender.close()
             for receiver in multiprocessing.connection.wait(list(running)):
                 process, case = running.pop(receiver)
