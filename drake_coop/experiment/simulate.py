@@ -40,7 +40,7 @@ from drake_coop.experiment.references import (
     start_posture,
 )
 from drake_coop.plant.cooperative import initialize_plant_context
-from drake_coop.plant.grasp import pad_contact_components
+from drake_coop.kinematics.rotations import pad_contact_components
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
 from drake_coop.control.timing import tick_of
@@ -215,7 +215,8 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
         if exp.ground_truth is not None:
             if (n, complete) not in offline:
                 offline[(n, complete)] = exp.ground_truth.evaluate(context, n, complete)
-            data.update(offline[(n, complete)][i])
+            for key, value in offline[(n, complete)][i].items():
+                data.setdefault(key, value)     # (a live F/T model's reading is logged)
         arm = exp.coop.arms[i].arm
         arm_dofs = rs.law.n
         layout = rs.law.layout
