@@ -432,6 +432,7 @@ class LoadFeedforward(LeafSystem):
         self._across = np.eye(3) - np.linalg.pinv(N) @ N
         n = model.n
         self._layout = ReferenceLayout(n, model.m)
+        self._lambda_d = self._layout.slices()["lambda_d"]
         self._g = np.array([0.0, 0.0, -float(gravity)])
         self._q = self.DeclareVectorInputPort("q", n)
         self._reference = self.DeclareVectorInputPort("reference", self._layout.size)
@@ -469,13 +470,13 @@ class LoadFeedforward(LeafSystem):
 
     def load(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
         """``(τ_ff, f_i)`` at the current inputs (what a tick latches)."""
-        if not self._layout.held(self._reference.Eval(context)):
+        reference = self._reference.Eval(context)
+        if not self._layout.held(reference):
             return np.zeros(self._model.n), np.zeros(3)
         q = self._q.Eval(context)
         f = float(self._mass.Eval(context)[0]) * (self._a_d.Eval(context) - self._g)
         if self._mu is not None:
-            f = self.friction_limited(f, self._layout.unpack(self._reference.Eval(context)
-                                                           ).lambda_d)
+            f = self.friction_limited(f, reference[self._lambda_d])
         return contact_jacobian(self._model, q, self._r).T @ f, f
 
     def friction_limited(self, f: np.ndarray, lambda_d: np.ndarray) -> np.ndarray:

@@ -188,6 +188,14 @@ class ContactObject:
     def pad_forces(self, results: ContactResults) -> list[np.ndarray]:
         """:meth:`pad_force` of every pad (in :attr:`pad_geometries`' order), in one pass
         over the contacts."""
+        return [np.array(t) for t in self._pad_totals(results)]
+
+    def pad_forces_vector(self, results: ContactResults) -> np.ndarray:
+        """:meth:`pad_forces` as one vector ``[F_1, …, F_l]``."""
+        return np.array([x for t in self._pad_totals(results) for x in t])
+
+    def _pad_totals(self, results: ContactResults) -> list[list[float]]:
+        """Every pad's force as a list of three floats (the sums of :meth:`pad_forces`)."""
         index = {pad: i for i, pad in enumerate(self.pad_geometries)}
         box = self.box_geometry
         totals = [[0.0, 0.0, 0.0] for _ in self.pad_geometries]
@@ -224,7 +232,7 @@ class ContactObject:
             t[0] += sign * f[0]
             t[1] += sign * f[1]
             t[2] += sign * f[2]
-        return [np.array(t) for t in totals]
+        return totals
 
 
 def _props(mu: float, compliant_modulus: float | None = None) -> ProximityProperties:
@@ -415,9 +423,7 @@ class PadForces(LeafSystem):
         self._results = self.DeclareAbstractInputPort(
             "contact_results", AbstractValue.Make(ContactResults()))
         self._forces = self.DeclareVectorOutputPort(
-            "forces", 3 * len(grasp.pad_geometries),
-            lambda context, output: output.SetFromVector(
-                np.concatenate(self._grasp.pad_forces(self._results.Eval(context)))),
+            "forces", 3 * len(grasp.pad_geometries), self._calc_forces,
             prerequisites_of_calc={self._results.ticket()})
 
     def get_contact_results_input_port(self) -> InputPort:
@@ -427,3 +433,6 @@ class PadForces(LeafSystem):
     def get_forces_output_port(self) -> OutputPort:
         """``[F_1, …, F_l]`` of the step from the context's state."""
         return self._forces
+
+    def _calc_forces(self, context: Context, output) -> None:
+        output.SetFromVector(self._grasp.pad_forces_vector(self._results.Eval(context)))
