@@ -400,10 +400,21 @@ class PadForces(LeafSystem):
     shared): :func:`~drake_coop.plant.ground_truth.add_pad_force_log`. A read between two
     plant updates solves a step of its own.
 
+    With a control ``period`` of ``N = h/Δt ≥ 3`` plant steps, only the steps the ground truth
+    uses are computed: those that start a tick, ``[t_k, t_k + Δt)`` (the step taken from the
+    tick), and those that end one, ``[t_k − Δt, t_k)`` (the F/T sensor model's reading); at
+    the ``N − 2`` steps between them ``forces`` is NaN without reading the contact results
+    (each read costs a Python call into the plant's results: ~20 µs per contact in a run).
+    The step is the context's time in plant steps, ``j = round(t/Δt)``: exact at the plant's
+    own step times.
+
     Parameters
     ----------
     grasp : ContactObject
         The box and the pads' geometries (the pads in robot order).
+    period, time_step : float, optional
+        The control period ``h`` and the plant's step ``Δt`` (both or neither): compute only
+        the steps next to a tick (above). Default: every read.
 
     Input ports
     -----------
@@ -414,17 +425,22 @@ class PadForces(LeafSystem):
     ------------
     forces : 3l-vector
         ``[F_1, …, F_l]``: the box's force on each pad (palm frame, N) of the step from the
-        context's state.
+        context's state (NaN at the steps skipped with a ``period``).
     """
 
-    def __init__(self, grasp: ContactObject):
+    def __init__(self, grasp: ContactObject, period: float | None = None,
+                 time_step: float | None = None):
         super().__init__()
         self._grasp = grasp
+        size = 3 * len(grasp.pad_geometries)
+        self._skipped = np.full(size, np.nan)
+        self._dt = None if time_step is None else float(time_step)
+        self._steps = None if period is None else int(round(period / time_step))
         self._results = self.DeclareAbstractInputPort(
             "contact_results", AbstractValue.Make(ContactResults()))
         self._forces = self.DeclareVectorOutputPort(
-            "forces", 3 * len(grasp.pad_geometries), self._calc_forces,
-            prerequisites_of_calc={self._results.ticket()})
+            "forces", size, self._calc_forces,
+            prerequisites_of_calc={self._results.ticket(), self.time_ticket()})
 
     def get_contact_results_input_port(self) -> InputPort:
         """The plant's ``contact_results``."""
@@ -435,4 +451,9 @@ class PadForces(LeafSystem):
         return self._forces
 
     def _calc_forces(self, context: Context, output) -> None:
+        if self._steps is not None and self._steps > 2:
+            j = round(context.get_time() / self._dt) % self._steps
+            if 0 < j < self._steps - 1:          # a step between ticks: not used
+                output.SetFromVector(self._skipped)
+                return
         output.SetFromVector(self._grasp.pad_forces_vector(self._results.Eval(context)))

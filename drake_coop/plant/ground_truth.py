@@ -350,7 +350,8 @@ class PadForceLog:
     at a tick: the step taken, its solve shared), so between ``t_j`` and ``t_{j+1}`` it holds
     the force of the step ``[t_j, t_j + Δt)``; a ``VectorLogSink`` (``pad_forces_log``)
     publishes it at every plant step, before that step's updates: the sample at ``t_j`` is
-    the step ``[t_j − Δt, t_j)``. One Python call per plant step (the output's calculation),
+    the step ``[t_j − Δt, t_j)``. One Python call per plant step (the output's calculation,
+    which reads the contact results only at the two steps next to a tick, NaN at the others),
     no Python event, nothing read between two plant updates.
 
     After the run (:meth:`evaluate`), tick ``k`` (``t_k = k N Δt``, ``N = h/Δt``) takes
@@ -463,7 +464,7 @@ def add_pad_force_log(builder: DiagramBuilder, coop: CoopPlant, period: float,
         raise ValueError(f"the pads' ground truth needs contact mode, not {coop.mode!r}")
     plant = coop.plant
     dt = plant.time_step()
-    pads = builder.AddNamedSystem("pad_forces", PadForces(coop.grasp))
+    pads = builder.AddNamedSystem("pad_forces", PadForces(coop.grasp, period, dt))
     builder.Connect(plant.get_contact_results_output_port(),
                     pads.get_contact_results_input_port())
     forces = pads.get_forces_output_port()
