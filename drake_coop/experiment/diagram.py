@@ -9,11 +9,14 @@
       │            (Encoders, or a C++   └───────────────────────────────────────────────────┘
       │             Demultiplexer when ideal)    tau ─▶ robotN_actuators (Saturation) ─▶ plant
       │                     (robotN_latency between them with a computation delay or jitter)
-      ├─ live ground truth (force_source: sensor on a robot; contact and none modes):
-      │  state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor
-      │  (contact: contact results ─▶ pad_forces; none: reaction forces, body poses ─▶
-      │  wrist_kinematics)
+      ├─ live ground truth (force_source: sensor on a robot in planes or rigid mode; none
+      │  mode): state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor
+      │  (none: reaction forces, body poses ─▶ wrist_kinematics)
       │                                   └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
+      ├─ contact mode, offline: contact results ─▶ pad_forces ─▶ pad_forces_hold (C++, every
+      │  plant step) ─▶ pad_forces_log; F_meas, lambda_meas and lambda_sensor sorted into
+      │  ticks after the run (force_source: sensor: hold ─▶ robotN_lambda_last_step ─▶
+      │  robotN_ft_sensor)
       └─ otherwise, offline: [state, actuation, acceleration] ─▶ ground_truth_hold_tick
          (t_k), [state, actuation] ─▶ ground_truth_hold_before_tick (t_k − 3Δt/2) (C++
          ZeroOrderHolds) ─▶ ground_truth_log; F_meas, lambda_meas and lambda_sensor computed

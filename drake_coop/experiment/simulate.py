@@ -17,8 +17,9 @@ The ground truth: with the offline path (:attr:`Experiment.ground_truth`, the de
 controller reads the F/T sensor in ``planes`` and ``rigid`` modes), ``F_meas``,
 ``lambda_meas`` and ``lambda_sensor`` are computed by :func:`collect_logs` from plant data
 held at every tick, and the guards read the force of the plant step before the checked tick
-from the held data (no plant solve); with the live path they are logged latches and the
-guards read the live force port.
+from the held data (no plant solve); in ``contact`` mode likewise from the pads' forces held at
+every plant step (:class:`~drake_coop.plant.ground_truth.PadForceLog`); with the live path
+they are logged latches and the guards read the live force port.
 """
 
 from __future__ import annotations

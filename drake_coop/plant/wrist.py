@@ -10,9 +10,12 @@ Where it runs: in the ``planes`` and ``rigid`` modes the force follows from each
 equations of motion for one plant step (:class:`ArmForces`). When nothing in the control
 loop reads it (no robot with ``force_source: sensor``), the experiment computes it *after* the
 run from plant data held by C++ blocks (:mod:`drake_coop.plant.ground_truth`): no system of
-this module is then in the diagram. The systems below are the live path: a controller that
-reads the F/T sensor, the ``contact`` and ``none`` modes, or
-``build_experiment(..., live_ground_truth=True)``.
+this module is then in the diagram. In ``contact`` mode the force is the pad's contact
+force, held and logged at every plant step and sorted into ticks after the run
+(:class:`~drake_coop.plant.ground_truth.PadForceLog`). The systems below are the live path: a
+controller that reads the F/T sensor in the ``planes`` and ``rigid`` modes, the ``none``
+mode, or ``build_experiment(..., live_ground_truth=True)`` (in ``contact`` mode: Newton's law
+on the reaction forces).
 
 Two kinds of systems, so that the cost per tick grows linearly with the number of arms:
 
@@ -23,7 +26,8 @@ Two kinds of systems, so that the cost per tick grows linearly with the number o
   and its components along the object's outward normals.
 
 Logged force of a tick (``F_step``, ``lambda_step``): with a control period, the ground truth
-(:class:`WristDynamics` once for all arms, or each :class:`ForceSensor` in ``contact`` mode)
+(:class:`WristDynamics` once for all arms, or each :class:`ForceSensor` on the reaction
+forces)
 latches at every tick ``t_k`` the force of the plant step actually taken from ``t_k``: its discrete
 update runs after the controller's unrestricted update (so under ``τ(k)``) and after a grasp
 switch made between two ``AdvanceTo`` calls (so a grasp or release tick logs the step of the
