@@ -87,10 +87,10 @@ def scenario_object(scenario: Scenario, mass: float) -> ObjectModel:
 
 def contact_stiffness(scenario: Scenario, index: int) -> ContactStiffness | None:
     """The compliant-contact model of robot ``index``'s pad (``object_model.contact_stiffness``;
-    by default, with an object model in ``contact`` mode, ``a = π E`` of Drake's hydroelastic
-    sphere pressed on a rigid face, ``λ = π E δ²`` to first order in ``δ/r``, from the pad's
-    hydroelastic modulus ``E``: ``plant.pad_modulus``, else the arm's model file's); None for
-    a rigid contact."""
+    by default, with an object model in ``contact`` mode, Drake's hydroelastic sphere of
+    radius ``r`` pressed on a rigid face, ``λ = π E (δ² − 2δ³/(3r))`` exactly (ContactStiffness's
+    ``radius``; ``π E δ²`` to first order in ``δ/r``), from the pad's hydroelastic modulus
+    ``E``: ``plant.pad_modulus``, else the arm's model file's); None for a rigid contact."""
     om = scenario.object_model
     if om.contact_stiffness is not None:
         return (ContactStiffness(om.contact_stiffness, om.contact_exponent)
@@ -99,7 +99,9 @@ def contact_stiffness(scenario: Scenario, index: int) -> ContactStiffness | None
         return None
     E = (scenario.plant.pad_modulus if scenario.plant.pad_modulus is not None
          else pad_modulus(scenario.robots[index]))
-    return None if E is None else ContactStiffness(np.pi * E, 2.0)
+    # The sphere's exact law (ContactStiffness's radius), a = π E.
+    return None if E is None else ContactStiffness(np.pi * E, 2.0,
+                                                   radius=pad_radius(scenario.robots[index]))
 
 
 def pad_modulus(robot) -> float | None:
