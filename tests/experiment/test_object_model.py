@@ -24,6 +24,8 @@ CONTACT = "plant: {object_mode: contact, object_mass: 0.5, friction: 1.0, time_s
     ("{mode: estimated, prior_mass_factor: 0}", "object_model.prior_mass_factor"),
     ("{mode: known, margin: 0.5}", "object_model.margin"),
     ("{mode: known, colour: red}", "object_model.colour"),
+    ("{mode: known, control_point: middle}", "object_model.control_point"),
+    ("{control_point: contact}", "object_model.control_point"),
 ])
 def test_bad_object_model_fields_exit_2_naming_the_field(tmp_path, capsys, section, field):
     path = tmp_path / "bad.yaml"
