@@ -23,6 +23,8 @@ OBJECT_MODES = ("planes", "rigid", "contact", "none")
 OBJECT_MODEL_MODES = ("none", "known", "estimated")
 #: Where the desired squeeze comes from (``object_model.squeeze``).
 SQUEEZE_SOURCES = ("profile", "friction")
+#: The point each arm controls with an object model (``object_model.control_point``).
+CONTROL_POINTS = ("auto", "centre", "contact")
 #: The shipped arm models (``urdf/<file>``); a robot's ``model`` may also be a ``.urdf`` path.
 SHIPPED_ARMS = {"crs_a465": "crs_a465_3dof.urdf", "crs_a255": "crs_a255_3dof.urdf",
                 "coop6": "coop6_6dof.urdf"}
@@ -517,6 +519,14 @@ class ObjectModelSettings:
         pads; rigid otherwise); 0: none.
     contact_exponent : float
         ``p`` of that law (2 for a hydroelastic sphere, 1 for a linear spring).
+    control_point : str
+        The point of the pad each arm controls: ``centre`` (the pad's centre E, the paper's
+        end-effector point), ``contact`` (the pad's *material* contact point: fixed in the pad
+        body at its radius from the centre along the inward normal at the grasp, so the box,
+        stuck to it by friction, follows its path even when the pad turns; needs an object
+        model, ``contact`` mode and the paper's arms' closed-form kinematics) or ``auto``
+        (the default: ``contact`` where it applies, ``centre`` otherwise; the paper's control,
+        ``mode: none``, is always ``centre``).
     """
 
     mode: str = "none"
@@ -530,6 +540,7 @@ class ObjectModelSettings:
     squeeze_min: float = 2.0
     contact_stiffness: Optional[float] = None
     contact_exponent: float = 2.0
+    control_point: str = "auto"
 
 
 @dataclass
