@@ -66,6 +66,7 @@ from pydrake.systems.primitives import (
 )
 
 from drake_coop.plant.cooperative import CoopPlant
+from drake_coop.plant.grasp import PadForces
 from drake_coop.plant.wrist import ArmForces, _holds_last_step
 from drake_coop.sensing.force_sensor import FTModel
 
@@ -458,8 +459,6 @@ def add_pad_force_log(builder: DiagramBuilder, coop: CoopPlant, period: float,
     log : bool
         Add the logger (without it only the hold, for the guards and live F/T models).
     """
-    from drake_coop.plant.grasp import PadForces
-
     if coop.mode != "contact":
         raise ValueError(f"the pads' ground truth needs contact mode, not {coop.mode!r}")
     plant = coop.plant
