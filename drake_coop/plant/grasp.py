@@ -128,6 +128,10 @@ class ContactObject:
     pad_geometries: list[GeometryId] = field(default_factory=list)
     stand_slide: PrismaticJoint | None = None
     stand_drop: float = 0.0
+    _pad_index: dict = field(init=False, repr=False, compare=False, default_factory=dict)
+
+    def __post_init__(self):
+        self._pad_index = {pad: i for i, pad in enumerate(self.pad_geometries)}
 
     def set_stand_lowered(self, context: Context, lowered: bool) -> None:
         """Put the stand :attr:`stand_drop` below its place (``lowered``) or back; its slide
@@ -196,7 +200,7 @@ class ContactObject:
 
     def _pad_totals(self, results: ContactResults) -> list[list[float]]:
         """Every pad's force as a list of three floats (the sums of :meth:`pad_forces`)."""
-        index = {pad: i for i, pad in enumerate(self.pad_geometries)}
+        index = self._pad_index
         box = self.box_geometry
         totals = [[0.0, 0.0, 0.0] for _ in self.pad_geometries]
         for k in range(results.num_hydroelastic_contacts()):
