@@ -367,7 +367,8 @@ class ContactStiffness:
             return (lam / self.a) ** (1.0 / self.exponent)
         r = self.radius
         if lam.size == 1:       # one contact (the controller's, every tick): on floats
-            return np.full(lam.shape, self._sphere_root(float(lam.reshape(-1)[0])))
+            return np.full(lam.shape, self._sphere_root(float(lam.reshape(-1)[0]),
+                                                        lam.ndim > 0))
         target = np.minimum(lam / self.a, r * r / 3.0)
         d = np.sqrt(target)
         for _ in range(30):
@@ -379,17 +380,17 @@ class ContactStiffness:
                 break
         return d
 
-    def _sphere_root(self, lam: float) -> float:
+    def _sphere_root(self, lam: float, array: bool) -> float:
         """:meth:`compression` of one force ``λ ≥ 0`` with ``radius``: the same Newton steps
-        on Python floats (bit for bit the one-element array iteration's: the cube by NumPy's
-        power, whose vectorized loop rounds differently from ``math``'s), at a fifth of its
-        cost."""
+        on Python floats, bit for bit those of a one-element array (``array``: the cube by
+        NumPy's vectorized power, which rounds differently from the C library's) or of a
+        scalar (the C library's ``pow``, as NumPy's scalars), at a fifth of the cost."""
         r = self.radius
         target = min(lam / self.a, r * r / 3.0)
         d = math.sqrt(target)
         for _ in range(30):
             slope = 2.0 * d - 2.0 * d * d / r
-            cube = float((np.array([d]) ** 3)[0])    # NumPy's power, as the array path
+            cube = float((np.array([d]) ** 3)[0]) if array else d ** 3
             step = (d * d - 2.0 * cube / (3.0 * r) - target) / slope if slope > 0 else 0.0
             d = min(max(d - step, 0.0), r)
             if abs(step) <= 1e-15 * r:
