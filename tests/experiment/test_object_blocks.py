@@ -72,3 +72,14 @@ def test_the_couple_source_feeds_both_blocks(couple, present):
     assert ("robot2_f_couple" in names) == present
     ff = exp.diagram.GetSubsystemByName("robot1_load_feedforward")
     assert (ff.num_input_ports() == 5) == present
+
+
+@pytest.mark.parametrize("value", ["maybe", "3"])
+def test_a_bad_couple_exits_2_naming_it(tmp_path, capsys, value):
+    from drake_coop.cli import main
+
+    path = tmp_path / "bad.yaml"
+    path.write_text(CONTACT + f"object_model: {{mode: known, couple: {value}}}\n")
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "couple" in err and "Traceback" not in err
