@@ -290,10 +290,12 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
     share0 = float(mass_shares(scenario_object(scenario, controller_mass(scenario)))[index])
     r = contact_offset(scenario, index)
     # A grasp held by friction (contact mode) passes the object at most μ λ_d across the
-    # normal: the feedforward follows the squeeze in (LoadFeedforward's friction limit).
+    # normal: the feedforward follows the squeeze in (LoadFeedforward's friction limit), with
+    # the grasp's margin (μ λ_d / margin): the squeeze lags λ_d while it ramps up at the
+    # grasp, and a feedforward at the cone's edge of λ_d slid the pads up the box by 0.35 mm.
     friction = None
     if scenario.plant.object_mode == "contact":
-        friction = om.mu if om.mu is not None else scenario.plant.friction
+        friction = (om.mu if om.mu is not None else scenario.plant.friction) / om.margin
     ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(
         model, period, contact_offset=r, friction=friction, couple=couple is not None))
     f_couple = None

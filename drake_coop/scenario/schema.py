@@ -509,7 +509,8 @@ class ObjectModelSettings:
     mu : float, optional
         The friction coefficient the controllers assume (default ``plant.friction``).
     margin : float
-        ``friction``: the squeeze's safety factor (>= 1).
+        ``friction``: the squeeze's safety factor (>= 1); in ``contact`` mode also the
+        feedforward's: it passes the object at most ``μ λ_d / margin`` across the normal.
     squeeze_min : float
         ``friction``: the least squeeze (N) whatever the load.
     contact_stiffness : float, optional

@@ -72,6 +72,10 @@ def test_the_couple_source_feeds_both_blocks(couple, present):
     assert ("robot2_f_couple" in names) == present
     ff = exp.diagram.GetSubsystemByName("robot1_load_feedforward")
     assert (ff.num_input_ports() == 5) == present
+    # The friction limit keeps the grasp's margin: at most μ λ_d / margin = 1.0 · 3 / 1.5 N
+    # across the normal (x here).
+    assert ff.friction_limited(np.array([0.0, 0.0, 10.0]), np.array([3.0])) \
+        == pytest.approx([0.0, 0.0, 2.0])
 
 
 @pytest.mark.parametrize("value", ["maybe", "3"])
