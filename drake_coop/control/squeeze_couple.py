@@ -29,7 +29,10 @@ load ``m_i (g + a_z)`` and ``∓ λ Δz / w``,
 (the higher pad carries less). The forces are the ones *the arms apply to the object*, as
 :class:`~drake_coop.control.object.LoadFeedforward`'s ``f_i``: add ``f_{c,i}`` to arm ``i``'s
 load (its ``f_couple`` input). A centre-of-mass offset along the grasp line changes the
-weight's split (:func:`~drake_coop.control.object.mass_shares`), not the couple's.
+weight's split (:func:`~drake_coop.control.object.mass_shares`), not the couple's. The pair
+``f_c`` has no moment about the grasp line itself; a moment about it (the weight, when the
+pads' centres are beside the centre of mass) is held by the contact patches' torsional
+friction, not by point forces, and is not part of this.
 
 What each arm needs: both pads' centres along the desired motion — from the two arms'
 references, fixed before the run like the path (forward kinematics of ``q_d``) — the desired

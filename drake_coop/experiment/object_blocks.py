@@ -260,7 +260,8 @@ def couple_samples(scenario: Scenario, index: int, arms, trajectories, t: np.nda
     centres, lam, held, rho, delta = [], [], [], [], []
     for j, (arm, traj) in enumerate(zip(arms, trajectories)):
         r = np.asarray(traj.vector_values(t)).T
-        n = (r.shape[1] - len(scenario.robots[j].normals) - 1) // 3    # [q_d, q̇_d, q̈_d, λ_d, held]
+        # Rows [q_d, q̇_d, q̈_d, λ_d, held] (ReferenceLayout).
+        n = (r.shape[1] - len(scenario.robots[j].normals) - 1) // 3
         centres.append(arm.kinematics.fk(r[:, :n]))
         lam.append(r[:, 3 * n] * r[:, -1])
         held.append(r[:, -1])
