@@ -174,6 +174,9 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
         raise ScenarioError("object_model.squeeze: friction needs object_model.mode known or "
                             "estimated (the controllers must know the object's load)")
     _choice(scenario.object_model.control_point, CONTROL_POINTS, "object_model.control_point")
+    if scenario.object_model.couple not in (None, True, False):
+        raise ScenarioError(f"object_model.couple: true, false or null is required, got "
+                            f"{show(scenario.object_model.couple)}")
     if scenario.object_model.control_point == "contact":
         from drake_coop.scenario.reach import has_closed_form
 
