@@ -107,6 +107,12 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
     torque is reproduced bit for bit), so its cost is what the plant alone costs on the
     run's trajectory: SAP needs more iterations per step there than under the constant
     torques of :func:`_plant_alone`.
+
+    It stops where :func:`~drake_coop.experiment.simulate.simulate` stops (every guard
+    period, the grasp, release and end) and changes the plant there as the run does: the
+    grasp switches and, in ``contact`` mode with ``plant.stand_clearance`` > 0, the stand
+    lowered during the circle. In ``contact`` mode the deviation also covers the box's logged
+    pose (``object_pose``: quaternion and position, at every tick).
     """
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
@@ -114,7 +120,7 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
     from pydrake.trajectories import PiecewisePolynomial
 
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.simulate import rest_posture
+    from drake_coop.experiment.simulate import guard_chunks, rest_posture
     from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 
     plan = plan_run(scenario, t_end)
@@ -130,17 +136,27 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
         loggers.append(LogVectorOutput(coop.plant.get_state_output_port(h.instance), b,
                                        publish_period=plan.h))
+    box_log = None
+    if coop.grasp is not None:     # contact mode: the box's state (quaternion, position, ...)
+        box_log = LogVectorOutput(coop.plant.get_state_output_port(
+            coop.plant.GetModelInstanceByName("object")), b, publish_period=plan.h)
     diagram = b.Build()
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
     pc = coop.plant.GetMyMutableContextFromRoot(ctx)
     initialize_plant_context(coop, pc, *rest_posture(scenario, [h.arm for h in coop.arms]))
     sim.Initialize()
+    grasp = coop.grasp
+    stand = grasp if grasp is not None and grasp.stand_drop > 0 else None
+    task = scenario.task
     wall, cpu = time.perf_counter(), time.process_time()
-    for k_stop in plan.stops:
+    for k_stop in guard_chunks(plan, scenario.guards.check_period):
         sim.AdvanceTo(k_stop * plan.h)
         if k_stop in plan.switches:
             coop.set_held(pc, plan.switches[k_stop])
+        if stand is not None:     # as simulate(): lowered while the box goes around the circle
+            t_now = ctx.get_time()
+            stand.set_stand_lowered(pc, task.t_circle_start <= t_now < task.t_circle_end)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     deviation = 0.0
     for h, logger in zip(coop.arms, loggers):
@@ -148,6 +164,11 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
         q = logger.FindLog(ctx).data()[:h.arm.kinematics.n].T
         k = min(len(q), len(q_run))
         deviation = max(deviation, float(np.max(np.abs(q[:k] - q_run[:k]))))
+        if box_log is not None:
+            pose_run = result.logs[h.arm.name]["object_pose"]
+            pose = box_log.FindLog(ctx).data()[:7].T
+            k = min(len(pose), len(pose_run))
+            deviation = max(deviation, float(np.max(np.abs(pose[:k] - pose_run[:k]))))
     return wall, cpu, deviation
 
 
