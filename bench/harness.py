@@ -654,7 +654,8 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         (:func:`_count_callbacks`; 0 skips it).
     object_repeats : int
         With a ``contact`` extra scenario: alternated repeats of the object-aware blocks'
-        cost (:func:`_object_blocks_cost`, ``t_extra`` seconds each; 0 skips it).
+        cost (:func:`_object_blocks_cost`, ``t_extra`` seconds each, every run followed by
+        its plant replay; 0 skips it).
     """
     from drake_coop.experiment.plan import num_ticks_until
     from drake_coop.scenario.loading import default_scenario, load_scenario
