@@ -22,6 +22,10 @@ and beside the paper's (which stay unchanged):
   model, ``q``, the commanded ``τ`` and the observer's signals (no F/T sensor);
 * :func:`squeeze_for_grasp`, :func:`max_squeeze`: the least squeeze that keeps every contact in
   its friction cone, times a margin, within the torque limits;
+* :class:`ObjectStateEstimator` (LeafSystem, shared by the arms): the total mass and centre
+  of mass from every arm's share, and the squeeze chosen online from them, rate limited, into
+  every arm's ``λ_d``; :class:`CompressedReference` (LeafSystem): ``q_d`` pressed in by the
+  online ``λ_d``'s compression;
 * :class:`ContactStiffness`: ``λ = a δᵖ``, the compression ``δ(λ)`` that
   :class:`~drake_coop.control.finger.FingerLaw` takes as the constrained position's reference
   on a compliant contact.
@@ -29,7 +33,11 @@ and beside the paper's (which stay unchanged):
 What each arm's blocks know, and communication: the object model (or its prior) and the shared
 desired path ``a_d(t)`` — both given before the run, as the paper's desired force (29) is —
 and the arm's own model and signals. The arms exchange nothing during the run (the paper's
-decentralization is kept): each estimates its own share ``m_i``.
+decentralization is kept): each estimates its own share ``m_i``. The one exception is
+opt-in and named: :class:`ObjectStateEstimator`, a single block that reads every arm's share
+and gives every arm the squeeze chosen online from the estimated total load (with
+:class:`CompressedReference`, each arm's own, pressing its joint reference in by that
+squeeze's compression on a compliant contact).
 
 Why (22) then estimates the squeeze net of the load: with the arm's dynamics
 ``H q̈ + C q̇ + D q̇ + g = τ_13 + τ_ff + J_φᵀ λ + J_xᵀ f_t`` (``f_t`` the object's load on the
