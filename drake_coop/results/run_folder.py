@@ -6,7 +6,8 @@ run's files; the parent must be writable and have room for the outputs) and crea
 sibling ``.<name>.drake-coop-<pid>-<token>.tmp``; the run writes everything there, and
 :meth:`RunFolder.commit` renames it onto ``--out`` (the previous run's folder, if any, is
 renamed aside first and removed after). A folder holding a previous run whose ``run.json``
-says it completed or diverged (a result) is replaced only when asked (``replace=True``, the
+says it completed, diverged or was stopped by a robot's watchdog (a result: the record of
+what happened) is replaced only when asked (``replace=True``, the
 command line's ``--force``): a long run is not lost to a short one by a repeated command.
 An interrupted run, or a folder with no readable ``run.json``, is replaced as before. So the
 folder holds one complete run, or one
@@ -41,13 +42,16 @@ BYTES_PER_ROBOT_TICK = 1_500
 BYTES_FIXED = 50_000_000
 
 
+#: The ``run.json`` statuses of a run that is a result, kept unless replacing is asked for.
+RESULT_STATUSES = ("ok", "diverged", "stopped")
 #: The largest ``run.json`` read to tell whether a previous run completed.
 MAX_RUN_JSON_BYTES = 16_000_000
 
 
 def previous_run(path: Path) -> str | None:
-    """The message of the run held in ``path`` if it is a result (completed or diverged),
-    else None (no run, an interrupted one, or an unreadable ``run.json``)."""
+    """The message of the run held in ``path`` if it is a result (completed, diverged, or
+    stopped by a robot's watchdog: ``drake-coop serve``), else None (no run, an interrupted
+    one, or an unreadable ``run.json``)."""
     meta_path = path / "run.json"
     try:
         if meta_path.is_symlink() or meta_path.stat().st_size > MAX_RUN_JSON_BYTES:
@@ -55,7 +59,7 @@ def previous_run(path: Path) -> str | None:
         meta = json.loads(meta_path.read_text(encoding="utf-8"))
     except (OSError, ValueError, RecursionError):
         return None
-    if not isinstance(meta, dict) or meta.get("status") not in ("ok", "diverged"):
+    if not isinstance(meta, dict) or meta.get("status") not in RESULT_STATUSES:
         return None
     return str(meta.get("message", meta["status"]))[:80]
 

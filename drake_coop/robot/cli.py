@@ -60,8 +60,10 @@ def _error(message: str) -> int:
     return error(message)
 
 
-def _load(args):
-    """The scenario and its driver specs, or an exit code (2) after one line."""
+def _load(args, wait_option: str, wait: float):
+    """The scenario, its driver specs and the LCM connection, or an exit code (2) after one
+    line: the preamble ``serve`` and ``sim-driver`` share (``wait_option`` names the command's
+    own waiting time, ``wait`` its value, checked with the rest before anything starts)."""
     from drake_coop.robot.drivers import driver_specs
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.model_check import check_models
@@ -77,7 +79,13 @@ def _load(args):
         specs = driver_specs(scenario, check_models(scenario))
     except ScenarioError as exc:
         return _error(str(exc))
-    return scenario, specs
+    if not (0 < wait < math.inf):
+        return _error(f"{wait_option} must be a finite number > 0, got {wait}")
+    try:
+        lcm = _make_lcm(args.lcm_url)
+    except ValueError as exc:
+        return _error(str(exc))
+    return scenario, specs, lcm
 
 
 def _make_lcm(url):
@@ -94,18 +102,12 @@ def _make_lcm(url):
 
 def cmd_serve(args) -> int:
     """``drake-coop serve``: see the module's docstring."""
-    loaded = _load(args)
-    if isinstance(loaded, int):
-        return loaded
-    scenario, specs = loaded
     if args.delay_margin is not None and not (0 <= args.delay_margin < 1):
         return _error(f"--delay-margin must be a number in [0, 1) s, got {args.delay_margin}")
-    if not (0 < args.status_wait < math.inf):
-        return _error(f"--status-wait must be a finite number > 0, got {args.status_wait}")
-    try:
-        lcm = _make_lcm(args.lcm_url)
-    except ValueError as exc:
-        return _error(str(exc))
+    loaded = _load(args, "--status-wait", args.status_wait)
+    if isinstance(loaded, int):
+        return loaded
+    scenario, specs, lcm = loaded
     from drake_coop.experiment.plan import plan_run
     from drake_coop.results.run_folder import OutputFolderError, RunFolder
 
@@ -249,16 +251,10 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
 
 def cmd_sim_driver(args) -> int:
     """``drake-coop sim-driver``: see the module's docstring."""
-    loaded = _load(args)
+    loaded = _load(args, "--command-wait", args.command_wait)
     if isinstance(loaded, int):
         return loaded
-    scenario, specs = loaded
-    if not (0 < args.command_wait < math.inf):
-        return _error(f"--command-wait must be a finite number > 0, got {args.command_wait}")
-    try:
-        lcm = _make_lcm(args.lcm_url)
-    except ValueError as exc:
-        return _error(str(exc))
+    scenario, specs, lcm = loaded
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
 

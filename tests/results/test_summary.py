@@ -139,8 +139,8 @@ def test_force_replaces_a_previous_run(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("status, needs_force", [("ok", True), ("diverged", True),
-                                                 ("interrupted", False)])
-def test_only_a_completed_or_diverged_run_is_kept_without_force(tmp_path, status, needs_force):
+                                                 ("stopped", True), ("interrupted", False)])
+def test_only_a_completed_diverged_or_watchdog_stopped_run_is_kept_without_force(tmp_path, status, needs_force):
     out = tmp_path / "o"
     logs, meta = synthetic_run(t_end=0.09)
     save_logs(out, logs, dict(meta, status=status))

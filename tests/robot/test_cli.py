@@ -158,3 +158,25 @@ def test_a_driver_reporting_another_joint_count_exits_2_naming_the_driver(tmp_pa
     lcm.HandleSubscriptions(0)
     assert all(list(m[-1].joint_torque) == [0.0] * 3 for m in commands.values())
     assert not out.exists()
+
+
+@pytest.mark.parametrize("command, option, value, named", [
+    ("serve", "--status-wait", "0", "--status-wait"),
+    ("serve", "--status-wait", "inf", "--status-wait"),
+    ("sim-driver", "--command-wait", "-1", "--command-wait"),
+    ("serve", "--lcm-url", "localhost", "--lcm-url"),
+    ("sim-driver", "--lcm-url", "localhost", "--lcm-url"),
+    ("serve", "--delay-margin", "1.5", "--delay-margin"),
+])
+def test_bad_option_exits_2_in_one_line_before_anything_starts(tmp_path, capsys, command,
+                                                               option, value, named):
+    out = tmp_path / "run"
+    args = [command, "paper", option, value, "--quiet"]
+    if command == "serve":
+        args += ["--out", str(out)]
+    if option != "--lcm-url":
+        args += ["--lcm-url", "memq://"]
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and named in err[0], err
+    assert not out.exists()
