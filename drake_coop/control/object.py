@@ -865,6 +865,7 @@ class ObjectStateEstimator(LeafSystem):
             self._weights.append(w)
         self._h = float(period)
         self._g = float(gravity)
+        self._pinv_key, self._pinv = None, None
         self._mass_in = [self.DeclareVectorInputPort(f"mass_share_{i}", 1) for i in range(k)]
         self._ref_in = [self.DeclareVectorInputPort(f"reference_{i}", lay.size)
                         for i, lay in enumerate(self._layouts)]
@@ -941,14 +942,22 @@ class ObjectStateEstimator(LeafSystem):
         m, c = self.combine(shares)
         if m <= 1e-9:
             return self._lambda_min, self._lambda_min
-        obj = ObjectModel(m, c, np.zeros((3, 3)), self._object.grasp_points,
-                          self._object.grasp_normals)
-        loads = load_distribution(obj, acceleration, gravity=self._g)
-        normals = self._object.grasp_normals
-        lam = squeeze_for_grasp(loads, normals, self._mu, self._margin, self._lambda_max,
-                                self._lambda_min)[0]
-        hold = squeeze_for_grasp(loads, normals, self._mu, 1.0, self._lambda_max,
-                                 self._lambda_min)[0]
+        # load_distribution of the point-mass object (m̂, ĉ): G⁺ [m̂ (a − g); 0] about ĉ
+        # (G⁺ kept while ĉ stays: the shares change every few ticks).
+        key = tuple(c)
+        if key != self._pinv_key:
+            self._pinv = np.linalg.pinv(grasp_matrix(self._object.grasp_points, c))
+            self._pinv_key = key
+        force = m * (np.asarray(acceleration, dtype=float) - np.array([0.0, 0.0, -self._g]))
+        loads = (self._pinv[:, :3] @ force).reshape(-1, 3)
+        # squeeze_for_grasp with the margin 1 (written out: this runs at every tick).
+        n = self._object.grasp_normals
+        fn = np.sum(loads * n, axis=1)
+        ft = np.linalg.norm(loads - fn[:, None] * n, axis=1)
+        bare = float(np.max(ft / self._mu - fn))
+        cap = np.inf if self._lambda_max is None else self._lambda_max
+        lam = min(max(self._lambda_min, self._margin * bare), cap)
+        hold = min(max(self._lambda_min, bare), cap)
         return lam, hold
 
     def step(self, previous: float, shares, acceleration, held: bool) -> float:
@@ -962,7 +971,7 @@ class ObjectStateEstimator(LeafSystem):
     def envelope(self, t: float) -> float:
         """``s(t)``: the grasp's linear ramps."""
         t0, t1 = self._window
-        return float(np.clip(min(t - t0, t1 - t) / self._ramp, 0.0, 1.0))
+        return min(1.0, max(0.0, min(t - t0, t1 - t) / self._ramp))
 
     def reference(self, context: Context, i: int) -> np.ndarray:
         """Arm ``i``'s reference with ``λ_d,i = s(t) λ_k w_i``."""
