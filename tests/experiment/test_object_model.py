@@ -78,6 +78,8 @@ def test_the_blocks_appear_in_the_diagram_only_with_an_object_model():
     names = _blocks(s)
     assert "object_state_estimator" in names          # one block between the arms
     assert not any("compressed" in n for n in names)  # rigid: nothing to press in
+    s.object_model.mode = "known"                     # the constant shares feed it too
+    assert {"object_state_estimator", "robot1_mass_share"} <= _blocks(s)
 
 
 def test_the_shared_block_is_one_block_between_the_arms_and_feeds_their_references():
