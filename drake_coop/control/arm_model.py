@@ -15,6 +15,14 @@ Quantities (robot ``i``, ``n`` joints, ``m`` constraints):
 * ``φ(q) = N (x(q) − c)`` and ``J_φ = ∂φ/∂q = N J_x`` (m×n), ``J̇_φ`` along a direction
   (``N`` the outward normals, ``c`` the contact point).
 
+The controlled point ``x(q)`` is the origin of ``ee_frame`` or, with ``point_offset`` ``o``,
+the point fixed in that frame's body at ``o`` from its origin (expressed in ``ee_frame``):
+``x = p_WE + R_WE o``, Drake's ``p_BoBp_B`` of its Jacobian functions. On a pad held by
+friction this is the pad's *material* contact point: at a contact that does not slip it
+moves with the object even when the pad rolls (to first order in the rolling angle), which
+the pad's centre does not (it moves ``r Δα`` against the object when the pad turns by
+``Δα``).
+
 Kinematics: a closed form when one is given (the paper's arms: the application passes
 :class:`~drake_coop.kinematics.crs.CrsKinematics` when the controller's URDF has the simulated
 arm's geometry); otherwise Drake's. Drake's kinematics of a tick are **one evaluation**
@@ -84,17 +92,23 @@ class ArmModel:
     closed_form : object, optional
         Closed-form kinematics of a three-joint arm of the paper's kind (``fk(q)``,
         ``jacobian(q)``, ``jacobian_dot(q, v)``, ``geometry`` with ``h1, L2, L3``, ``R_base``,
-        ``p_base``: :class:`~drake_coop.kinematics.crs.CrsKinematics`), used for ``φ``, ``J_φ`` and
-        ``J̇_φ`` instead of Drake's; it must describe the same arm as ``plant``.
+        ``p_base``, ``with_offset(o)``: :class:`~drake_coop.kinematics.crs.CrsKinematics`),
+        used for ``φ``, ``J_φ`` and ``J̇_φ`` instead of Drake's; it must describe the same arm
+        as ``plant`` (its ``point_offset`` is set to this model's).
+    point_offset : array_like, shape (3,), optional
+        The controlled point's offset from ``ee_frame``'s origin, fixed in its body and
+        expressed in ``ee_frame`` (m): ``x(q) = p_WE + R_WE o`` (module docstring). Default:
+        the origin itself (the paper's E).
 
     Raises
     ------
     ValueError
-        Naming ``plant``, ``ee_frame``, ``normals`` or ``contact_point``.
+        Naming ``plant``, ``ee_frame``, ``normals``, ``contact_point`` or ``point_offset``.
     """
 
     def __init__(self, plant: MultibodyPlant, ee_frame: str, normals, contact_point,
-                 closed_form=None, coulomb=None, coulomb_velocity: float = 0.02):
+                 closed_form=None, coulomb=None, coulomb_velocity: float = 0.02,
+                 point_offset=None):
         if not isinstance(plant, MultibodyPlant) or not plant.is_finalized():
             raise ValueError("plant: a finalized single-arm MultibodyPlant is required "
                              "(see make_arm_controller_plant)")
@@ -105,6 +119,15 @@ class ArmModel:
         if not isinstance(ee_frame, str) or not plant.HasFrameNamed(ee_frame):
             raise ValueError(f"ee_frame: the controller's plant has no frame named "
                              f"{ee_frame!r}")
+        offset = np.zeros(3)
+        if point_offset is not None:
+            offset = np.asarray(point_offset, dtype=float)
+            if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+                raise ValueError(f"point_offset: 3 finite numbers are required (m, in "
+                                 f"ee_frame), got {np.shape(point_offset)}")
+        #: The controlled point's offset from ``ee_frame``'s origin (its frame, m).
+        self.point_offset = offset
+        self._offset = offset.copy()
         self._setup(plant, ee_frame, normalized_normals(normals), contact_vector(contact_point))
         self.coulomb = None
         if coulomb is not None:
@@ -118,13 +141,18 @@ class ArmModel:
                                  f"{coulomb_velocity!r})")
             self.coulomb = F_c
         self.coulomb_velocity = float(coulomb_velocity)
+        if closed_form is not None and not np.array_equal(
+                getattr(closed_form, "offset", np.zeros(3)), offset):
+            closed_form = closed_form.with_offset(offset)
         self.kinematics = closed_form
         self.closed_form = closed_form is not None
         self._row_key = b""
         self._J_phi_key = b""
         if self.closed_form:
             geometry = closed_form.geometry
-            self._lengths = (geometry.h1, geometry.L2, geometry.L3)
+            # (h1, L2, A = L3 + o_z, o_x, o_y): the centre's formulas with the forearm to P.
+            self._lengths = (geometry.h1, geometry.L2, geometry.L3 + float(offset[2]),
+                             float(offset[0]), float(offset[1]))
             n = self._N[0]
             nl = closed_form.R_base.T @ n            # the first normal in the base frame
             self._row_constants = (float(nl[0]), float(nl[1]), float(nl[2]),
@@ -191,16 +219,24 @@ class ArmModel:
             self._row_key, self._row = key, (float(n0 @ (x - self._c)), (n0 @ Jx).tolist())
             return self._row
         nx, ny, nz, off = self._row_constants
-        h1, L2, L3 = self._lengths
+        h1, L2, L3, ox, oy = self._lengths
         q1, q2, q3 = q.tolist()
         s1, c1 = math.sin(q1), math.cos(q1)
         s2, c2 = math.sin(q2), math.cos(q2)
         s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
-        b, e = L3 * c23, L3 * s23
-        r, a = L2 * s2 + e, L2 * c2 + b
-        phi = nx * r * c1 + ny * r * s1 + nz * (h1 + L2 * c2 + b) + off
-        j = [-nx * r * s1 + ny * r * c1, nx * a * c1 + ny * a * s1 - nz * r,
-             nx * b * c1 + ny * b * s1 - nz * e]
+        if ox or oy:                      # a point off the forearm's axis (point_offset)
+            b, e = L3 * c23 - ox * s23, L3 * s23 + ox * c23
+            r, a = L2 * s2 + e, L2 * c2 + b
+            phi = (nx * (r * c1 - oy * s1) + ny * (r * s1 + oy * c1)
+                   + nz * (h1 + L2 * c2 + b) + off)
+            j = [-nx * (r * s1 + oy * c1) + ny * (r * c1 - oy * s1),
+                 nx * a * c1 + ny * a * s1 - nz * r, nx * b * c1 + ny * b * s1 - nz * e]
+        else:
+            b, e = L3 * c23, L3 * s23
+            r, a = L2 * s2 + e, L2 * c2 + b
+            phi = nx * r * c1 + ny * r * s1 + nz * (h1 + L2 * c2 + b) + off
+            j = [-nx * r * s1 + ny * r * c1, nx * a * c1 + ny * a * s1 - nz * r,
+                 nx * b * c1 + ny * b * s1 - nz * e]
         self._row_key, self._row = key, (phi, j)
         self._row_terms = (s1, c1, s2, r, a, b, e)
         return phi, j
@@ -217,12 +253,18 @@ class ArmModel:
         s1, c1, s2, r, a, b, e = self._row_terms
         nx, ny, nz, _ = self._row_constants
         L2 = self._lengths[1]
+        oy = self._lengths[4]
         v1, v2, v3 = v.tolist()
         w = v2 + v3
         rd = a * v2 + b * v3
         ad = -L2 * s2 * v2 - e * w
         bd = -e * w
         ed = b * w
+        if oy:
+            return [nx * (-rd * s1 - r * c1 * v1 + oy * s1 * v1)
+                    + ny * (rd * c1 - r * s1 * v1 - oy * c1 * v1),
+                    nx * (ad * c1 - a * s1 * v1) + ny * (ad * s1 + a * c1 * v1) - nz * rd,
+                    nx * (bd * c1 - b * s1 * v1) + ny * (bd * s1 + b * c1 * v1) - nz * ed]
         return [nx * (-rd * s1 - r * c1 * v1) + ny * (rd * c1 - r * s1 * v1),
                 nx * (ad * c1 - a * s1 * v1) + ny * (ad * s1 + a * c1 * v1) - nz * rd,
                 nx * (bd * c1 - b * s1 * v1) + ny * (bd * s1 + b * c1 * v1) - nz * ed]
@@ -287,17 +329,18 @@ class ArmModel:
 
     # ----------------------------------------------------------------------- kinematics
     def ee_kinematics(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The pad's position ``x`` (3,), angular ``J_ω`` (3×n) and translational ``J_x``
-        (3×n) Jacobians, world frame, from one Drake evaluation; kept for the last ``q`` (the
-        blocks of a tick share it). Read-only arrays: the caller must not modify them."""
+        """The controlled point's position ``x`` (3,), the angular ``J_ω`` (3×n) and the
+        point's translational ``J_x`` (3×n) Jacobians, world frame, from one Drake evaluation
+        (``p_BoBp_B`` = ``point_offset``); kept for the last ``q`` (the blocks of a tick share
+        it). Read-only arrays: the caller must not modify them."""
         q = np.asarray(q, dtype=float)
         key = q.tobytes()
         if key != self._kin_key:
             self._set_q(q)
             J = self.plant.CalcJacobianSpatialVelocity(
-                self.context, JacobianWrtVariable.kV, self.ee_frame, self._zero_ad,
+                self.context, JacobianWrtVariable.kV, self.ee_frame, self._offset,
                 self.plant.world_frame(), self.plant.world_frame())
-            x = self.ee_frame.CalcPoseInWorld(self.context).translation()
+            x = self.ee_frame.CalcPoseInWorld(self.context).multiply(self._offset)
             Jw, Jx = J[:3], J[3:]
             for a in (x, Jw, Jx):
                 a.flags.writeable = False
@@ -305,13 +348,14 @@ class ArmModel:
         return self._kin
 
     def ee_position(self, q: np.ndarray) -> np.ndarray:
-        """End-effector point (pad centre) in the palm frame."""
+        """The controlled point (the pad's centre E, or the ``point_offset`` point) in the
+        palm frame."""
         if self.closed_form:
             return self.kinematics.fk(q)
         return self.ee_kinematics(q)[0]
 
     def J_x(self, q: np.ndarray) -> np.ndarray:
-        """Translational Jacobian ``J_x = ∂x/∂q`` of the end-effector point (3×n), world frame
+        """Translational Jacobian ``J_x = ∂x/∂q`` of the controlled point (3×n), world frame
         (``J_φ = N J_x``); closed form when the arm has it."""
         if self.closed_form:
             return self.kinematics.jacobian(q)
@@ -377,7 +421,7 @@ class ArmModel:
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))
         Jv = self.plant_ad.CalcJacobianTranslationalVelocity(
-            self.context_ad, JacobianWrtVariable.kV, self.ee_frame_ad, self._zero_ad,
+            self.context_ad, JacobianWrtVariable.kV, self.ee_frame_ad, self._offset,
             self._world_ad, self._world_ad)
         # Vectorised extraction (C++), the same doubles as reading each entry in Python.
         value = ExtractValue(Jv).reshape(3, self.n)

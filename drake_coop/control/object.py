@@ -314,6 +314,16 @@ class ContactStiffness:
     integral_time : float
         ``T_i`` (s), > 0: the time in which the force integral of (4) removes this model's
         own error (:meth:`integral_gain`); default 0.5 s.
+    radius : float, optional
+        A hydroelastic sphere of this radius ``r`` (m) pressed on a rigid face (``exponent``
+        2): Drake's linear pressure field ``p = E (1 − ρ/r)`` (``ρ`` the distance from the
+        sphere's centre) integrated over the contact disc gives, exactly,
+
+        .. math:: \\lambda = a\\,\\Big(\\delta^2 - \\frac{2\\,\\delta^3}{3 r}\\Big),
+                  \\qquad a = \\pi E
+
+        (``δ ≤ r``): the ``δ³/r`` term makes the pad softer than ``a δ²`` by
+        ``2δ/(3r)`` (7 % at 1.6 mm on a 15 mm pad). Default: ``λ = a δᵖ``.
 
     The remedy of the ``−β Δp`` lag on a compliant contact: the controller's reference for the
     constrained position becomes ``p_d = −δ(λ_d)`` (:class:`~drake_coop.control.finger.FingerLaw`'s
@@ -324,8 +334,13 @@ class ContactStiffness:
     a: float
     exponent: float = 1.0
     integral_time: float = 0.5
+    radius: float | None = None
 
     def __post_init__(self):
+        if self.radius is not None and not (np.isfinite(self.radius) and self.radius > 0
+                                            and self.exponent == 2.0):
+            raise ValueError(f"radius: a sphere's radius > 0 (m) with exponent 2 is required, "
+                             f"got {self.radius!r} with exponent {self.exponent!r}")
         if not (np.isfinite(self.a) and self.a > 0):
             raise ValueError(f"a: a stiffness > 0 is required, got {self.a!r}")
         if not (np.isfinite(self.exponent) and 1.0 <= self.exponent <= 3.0):
@@ -338,6 +353,9 @@ class ContactStiffness:
         """``c = dδ/dλ = δ/(p λ)`` (m/N) at ``max(λ, 1 N)`` (a Hertz-like contact is
         infinitely compliant at zero force)."""
         lam = max(float(lam), 1.0)
+        if self.radius is not None:         # 1 / (dλ/dδ)
+            d = float(self.compression(lam))
+            return 1.0 / (self.a * (2.0 * d - 2.0 * d * d / self.radius))
         return float(self.compression(lam)) / (self.exponent * lam)
 
     def integral_gain(self, lam: float) -> float:
@@ -348,13 +366,32 @@ class ContactStiffness:
         return self.compliance(lam) / self.integral_time
 
     def compression(self, lam) -> np.ndarray:
-        """``δ(λ) = (max(λ, 0)/a)^{1/p}`` (m), elementwise."""
+        """``δ(λ) = (max(λ, 0)/a)^{1/p}`` (m), elementwise; with ``radius`` the root of
+        the sphere's law in ``[0, r]`` (Newton's method from ``√(λ/a)``, to rounding; a
+        force beyond the whole hemisphere's ``a r²/3`` gives ``r``)."""
         lam = np.maximum(np.asarray(lam, dtype=float), 0.0)
-        return (lam / self.a) ** (1.0 / self.exponent)
+        if self.radius is None:
+            return (lam / self.a) ** (1.0 / self.exponent)
+        r = self.radius
+        target = np.minimum(lam / self.a, r * r / 3.0)
+        d = np.sqrt(target)
+        for _ in range(30):
+            slope = 2.0 * d - 2.0 * d * d / r
+            step = np.where(slope > 0, (d * d - 2.0 * d ** 3 / (3.0 * r) - target)
+                            / np.where(slope > 0, slope, 1.0), 0.0)
+            d = np.clip(d - step, 0.0, r)
+            if np.all(np.abs(step) <= 1e-15 * r):
+                break
+        return d
 
     def force(self, delta) -> np.ndarray:
-        """``λ(δ) = a max(δ, 0)ᵖ`` (N), elementwise."""
-        return self.a * np.maximum(np.asarray(delta, dtype=float), 0.0) ** self.exponent
+        """``λ(δ) = a max(δ, 0)ᵖ`` (N), elementwise; with ``radius``,
+        ``a (δ² − 2δ³/(3r))`` for ``δ`` in ``[0, r]``."""
+        d = np.maximum(np.asarray(delta, dtype=float), 0.0)
+        if self.radius is None:
+            return self.a * d ** self.exponent
+        d = np.minimum(d, self.radius)
+        return self.a * (d * d - 2.0 * d ** 3 / (3.0 * self.radius))
 
 
 class LoadFeedforward(LeafSystem):

@@ -100,10 +100,10 @@ def scenario_object(scenario: Scenario, mass: float) -> ObjectModel:
 
 def contact_stiffness(scenario: Scenario, index: int) -> ContactStiffness | None:
     """The compliant-contact model of robot ``index``'s pad (``object_model.contact_stiffness``;
-    by default, with an object model in ``contact`` mode, ``a = π E`` of Drake's hydroelastic
-    sphere pressed on a rigid face, ``λ = π E δ²`` to first order in ``δ/r``, from the pad's
-    hydroelastic modulus ``E``: ``plant.pad_modulus``, else the arm's model file's); None for
-    a rigid contact."""
+    by default, with an object model in ``contact`` mode, Drake's hydroelastic sphere of
+    radius ``r`` pressed on a rigid face, ``λ = π E (δ² − 2δ³/(3r))`` exactly (ContactStiffness's
+    ``radius``; ``π E δ²`` to first order in ``δ/r``), from the pad's hydroelastic modulus
+    ``E``: ``plant.pad_modulus``, else the arm's model file's); None for a rigid contact."""
     om = scenario.object_model
     if om.contact_stiffness is not None:
         return (ContactStiffness(om.contact_stiffness, om.contact_exponent)
@@ -112,7 +112,9 @@ def contact_stiffness(scenario: Scenario, index: int) -> ContactStiffness | None
         return None
     E = (scenario.plant.pad_modulus if scenario.plant.pad_modulus is not None
          else pad_modulus(scenario.robots[index]))
-    return None if E is None else ContactStiffness(np.pi * E, 2.0)
+    # The sphere's exact law (ContactStiffness's radius), a = π E.
+    return None if E is None else ContactStiffness(np.pi * E, 2.0,
+                                                   radius=pad_radius(scenario.robots[index]))
 
 
 def pad_modulus(robot) -> float | None:
@@ -138,10 +140,70 @@ def pad_radius(robot) -> float | None:
     return float(sphere.group(1)) if sphere else None
 
 
+def controls_contact_point(scenario: Scenario) -> bool:
+    """Whether the arms control their pads' material contact point
+    (``object_model.control_point``: ``contact``, or ``auto`` with an object model in
+    ``contact`` mode on the paper's arms) instead of the pads' centres."""
+    from drake_coop.scenario.reach import has_closed_form
+
+    om = scenario.object_model
+    if om.control_point != "auto":
+        return om.control_point == "contact"
+    return (om.mode != "none" and scenario.plant.object_mode == "contact"
+            and all(has_closed_form(r) for r in scenario.robots)
+            and all(pad_radius(r) is not None for r in scenario.robots))
+
+
+@dataclass(frozen=True)
+class ControlPoint:
+    """Robot ``i``'s pad's material contact point, which its references follow across the
+    normal (:func:`~drake_coop.experiment.references.contact_point_reference`).
+
+    Attributes
+    ----------
+    offset : ndarray, shape (3,)
+        The point in the pad's frame, from its centre (the kinematics' ``offset``):
+        ``ρ R_WP(q_g)ᵀ n``, ``ρ`` the pad's radius, ``n`` the unit inward normal, ``q_g``
+        the posture with the pad's centre at the contact point of the grasp (the point on
+        the undeformed surface that touches the box there).
+    shift : ndarray, shape (3,)
+        ``ρ n`` (world): the point's desired path is the centre's plus this constant vector
+        (along the normal, so across it the two paths are the same).
+    normal : ndarray, shape (3,)
+        The unit outward normal ``N_1`` of the constraint (the squeeze's direction).
+    """
+
+    offset: np.ndarray
+    shift: np.ndarray
+    normal: np.ndarray
+
+
+def control_point(scenario: Scenario, index: int, arm) -> ControlPoint | None:
+    """Robot ``index``'s :class:`ControlPoint` (``arm``: its
+    :class:`~drake_coop.plant.arms.Arm`), None when it controls its pad's centre
+    (:func:`controls_contact_point`).
+
+    The two pads' shifts are opposite (equal radii, opposite normals): the midpoint of the
+    points' desired paths is the midpoint of the centres', the object's desired path.
+    """
+    if not controls_contact_point(scenario):
+        return None
+    robot = scenario.robots[index]
+    rho = pad_radius(robot)
+    n = -np.asarray(robot.normals[0], dtype=float)
+    shift = rho * n / np.linalg.norm(n)
+    kin = arm.kinematics
+    q_g = kin.ik(arm.c)
+    return ControlPoint(offset=kin.pad_rotation(q_g).T @ shift, shift=shift,
+                        normal=-n / np.linalg.norm(n))
+
+
 def contact_offset(scenario: Scenario, index: int) -> np.ndarray | None:
     """Where the object's force acts on robot ``index``'s pad, from its centre E: in
     ``contact`` mode the pad's surface along the inward normal (``ρ n``, ``ρ`` its sphere's
-    radius); None (at E) in ``rigid`` mode, whose ball constraint holds E itself."""
+    radius: where the pad touches the box's face whatever the pad's orientation, also when
+    the references follow the pad's material contact point, :func:`control_point`); None
+    (at E) in ``rigid`` mode, whose ball constraint holds E itself."""
     if scenario.plant.object_mode != "contact":
         return None
     robot = scenario.robots[index]

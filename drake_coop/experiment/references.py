@@ -37,7 +37,8 @@ from drake_coop.scenario.task_path import (
 #: The task's paths are the scenario's; they are re-exported for the callers of this module.
 __all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", "quintic",
            "segments", "waypoints", "joint_reference", "redundant_joint_reference", "start_posture",
-           "reference_samples", "reference_trajectory", "compressed_path"]
+           "reference_samples", "reference_trajectory", "compressed_path",
+           "contact_point_reference", "followed_point", "rolling_correction"]
 
 
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
@@ -47,13 +48,17 @@ def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
     return arm.kinematics.joint_reference(x, xd, xdd)
 
 
-def start_posture(arm: Arm, task) -> np.ndarray:
+def start_posture(arm: Arm, task, point=None) -> np.ndarray:
     """``q_d(0)``: the reference's posture at ``t = 0`` (the run's rest posture), for either
-    kind of arm (the same doubles as the first sample of :func:`reference_samples`)."""
+    kind of arm (the same doubles as the first sample of :func:`reference_samples`);
+    ``point`` (:class:`~drake_coop.experiment.object_blocks.ControlPoint`) when the arm
+    controls its pad's material contact point."""
     x, xd, xdd = cartesian_reference(task, arm.robot, [0.0])
     kin = arm.kinematics
     if getattr(kin, "redundant", False):
         return kin.start_posture(x[0], kin.nominal_posture(arm.robot.q_nominal))
+    if point is not None:
+        return np.asarray(contact_point_reference(kin, point, x, xd, xdd)[0]).reshape(-1)
     return np.asarray(joint_reference(arm, x, xd, xdd)[0]).reshape(-1)
 
 
@@ -120,7 +125,8 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
         from drake_coop.experiment.object_blocks import friction_squeeze
         profile = friction_squeeze(scenario, t)
     lam = profile[:, None] * np.asarray(robot.force_weights, dtype=float)
-    from drake_coop.experiment.object_blocks import contact_stiffness
+    from drake_coop.experiment.object_blocks import contact_stiffness, control_point
+    point = None if redundant else control_point(scenario, index, arm)
     stiffness = contact_stiffness(scenario, index)
     if stiffness is not None and not redundant and not scenario.object_model.shared:
         # (object_model.shared: λ_d is chosen during the run, and so is the compression:
@@ -132,9 +138,125 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
                                      -np.asarray(robot.normals[0], dtype=float))
     if redundant:     # the null-space reference follows the task itself (no compressed path)
         q, qd, qdd = redundant_joint_reference(arm, task, t)
+    elif point is not None:      # the pad's material contact point across the normal
+        q, qd, qdd = contact_point_reference(arm.kinematics, point, x, xd, xdd)
+        if stiffness is not None:
+            # The pad pressed in by δ rolls on the face about its material point at ρ − δ
+            # from the centre, not ρ: the path across the normal corrected by ∫ δ ω × n.
+            c = rolling_correction(arm.kinematics, point, q, qd,
+                                   stiffness.compression(lam[:, 0] * held), h)
+            q, qd, qdd = contact_point_reference(arm.kinematics, point, x + c[0], xd + c[1],
+                                                 xdd + c[2])
     else:
         q, qd, qdd = joint_reference(arm, x, xd, xdd)
     return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
+
+
+def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,
+                            xdd: np.ndarray, tolerance: float = 1e-13
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``q_d``, ``q̇_d``, ``q̈_d`` that put the pad's material contact point ``P`` on the
+    path ``x`` across the normal and the pad's centre ``E`` on it along the normal.
+
+    The point followed is ``y(q) = T P(q) + n nᵀ E(q)``, ``T = I − n nᵀ`` (``n`` the unit
+    normal, ``point.normal``; ``P = E + R(q) o``, ``o`` = ``point.offset``): across the normal
+    the box, stuck to the pad by friction, follows the material point even when the pad
+    rolls on its face (the centre moves ``ρ Δα`` against the box when the pad turns by
+    ``Δα``); along the normal the pad's compression, and the line of its normal force, are
+    the centre's (a sphere's normal force passes through its centre), so the constraint (2)
+    and its force stay the centre's, ``φ = N (E − c)``. ``P``'s desired path is the
+    centre's plus ``ρ n`` (``point.shift``, along the normal): across the normal the two
+    are the same, so ``y``'s desired path is ``x`` itself (the centre's, compressed).
+
+    ``q`` by Newton's method from ``P``'s closed-form inverse kinematics at ``x + ρ n``
+    (exact when the pad has not turned since the grasp), to ``tolerance`` (m); then
+    ``q̇_d = J_y⁻¹ ẋ_d``, ``q̈_d = J_y⁻¹ (ẍ_d − J̇_y q̇_d)`` with
+    ``J_y = T J_P + n nᵀ J_E`` (and ``J̇_y`` likewise).
+
+    Parameters
+    ----------
+    kinematics : CrsKinematics
+        The arm's kinematics of its pad's centre (``with_offset`` gives ``P``'s).
+    point : ControlPoint
+        :func:`~drake_coop.experiment.object_blocks.control_point`.
+    x, xd, xdd : ndarray, shape (K, 3)
+        The centre's desired path (compressed, :func:`compressed_path`).
+
+    Raises
+    ------
+    ValueError
+        Newton's method does not reach ``tolerance`` (a posture out of reach).
+    """
+    n = np.asarray(point.normal, dtype=float)
+    Pn = np.outer(n, n)
+    T = np.eye(3) - Pn
+    kin_p = kinematics.with_offset(point.offset)
+    x = np.atleast_2d(x)
+    q = kin_p.ik(x + point.shift)
+
+    def jacobian(q):
+        return T @ kin_p.jacobian(q) + Pn @ kinematics.jacobian(q)
+
+    for _ in range(20):          # each sample on its own (the same doubles alone or in a batch)
+        residual = kin_p.fk(q) @ T + kinematics.fk(q) @ Pn - x
+        active = np.abs(residual).max(axis=1) > tolerance
+        if not active.any():
+            break
+        q[active] -= np.linalg.solve(jacobian(q[active]), residual[active][..., None])[..., 0]
+    else:
+        raise ValueError(f"{kinematics.name}: the contact point's reference did not converge "
+                         f"({np.abs(residual).max():.3g} m)")
+    J = jacobian(q)
+    qd = np.linalg.solve(J, np.atleast_2d(xd)[..., None])[..., 0]
+    Jd = T @ kin_p.jacobian_dot(q, qd) + Pn @ kinematics.jacobian_dot(q, qd)
+    qdd = np.linalg.solve(J, (np.atleast_2d(xdd) - (Jd @ qd[..., None])[..., 0])[..., None])[..., 0]
+    return q, qd, qdd
+
+
+def rolling_correction(kinematics, point, q: np.ndarray, qd: np.ndarray, delta: np.ndarray,
+                       h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The correction ``c(t)`` of the path across the normal for a pad pressed in by ``δ``.
+
+    A pad pressed ``δ`` into the box carries it by its material point *on the box's face*,
+    ``ρ − δ`` from its centre along the inward normal ``n``, not by the point at ``ρ`` (the
+    undeformed surface, :func:`contact_point_reference`'s ``P``): the face's no-slip velocity
+    is ``T (Ė + (ρ − δ) ω × n) = T (Ṗ − δ ω × n)`` (to first order in the pad's turn since
+    the grasp; ``T = I − n nᵀ``, ``ω`` the pad's angular velocity), so the box moves with
+    ``T P − c``,
+
+    .. math:: c(t) = T \\int_0^t \\delta(s)\\, \\omega(s) \\times n \\, ds
+
+    and the path of ``T P`` is ``x + c`` (``ċ``, ``c̈`` with it). ``ω`` along the reference
+    ``q``, ``q̇`` (:func:`contact_point_reference` without the correction; the correction
+    changes ``ω`` by a second-order amount), ``δ`` the compression ``δ(λ_d)`` of each tick.
+
+    Returns
+    -------
+    c, c_dot, c_ddot : ndarray, shape (K, 3)
+    """
+    n = -np.asarray(point.normal, dtype=float)           # inward
+    T = np.eye(3) - np.outer(n, n)
+    w = kinematics.angular_velocity(q, qd)
+    rate = (np.asarray(delta, dtype=float)[:, None] * np.cross(w, n)) @ T
+    c = np.zeros_like(rate)
+    if len(rate) > 1:
+        c[1:] = np.cumsum(0.5 * (rate[1:] + rate[:-1]) * h, axis=0)
+        acc = np.gradient(rate, h, axis=0)
+    else:
+        acc = np.zeros_like(rate)
+    return c, rate, acc
+
+
+def followed_point(kinematics, point, q: np.ndarray) -> np.ndarray:
+    """The point :func:`contact_point_reference` puts on the path, at the postures ``q``
+    (..., 3): the pad's material contact point across the normal, its centre along it; the
+    pad's centre itself when ``point`` is None."""
+    if point is None:
+        return kinematics.fk(q)
+    n = np.asarray(point.normal, dtype=float)
+    Pn = np.outer(n, n)
+    return kinematics.with_offset(point.offset).fk(q) @ (np.eye(3) - Pn) \
+        + kinematics.fk(q) @ Pn
 
 
 def compressed_path(stiffness, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,

@@ -84,7 +84,10 @@ def initialize(exp: Experiment, context) -> None:
 def rest_posture(scenario: Scenario, arms: list) -> tuple[list[np.ndarray], float]:
     """The run's start: each arm's ``q_d(0)`` (one posture per robot) and the height of the
     object's sliders at the grasp (``circle_top_z − lift_height``)."""
-    q0 = [start_posture(arm, scenario.task) for arm in arms]
+    from drake_coop.experiment.object_blocks import control_point
+
+    q0 = [start_posture(arm, scenario.task, control_point(scenario, i, arm))
+          for i, arm in enumerate(arms)]
     return q0, scenario.task.circle_top_z - scenario.task.lift_height
 
 

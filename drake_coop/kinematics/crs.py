@@ -12,6 +12,22 @@ kinematics (NumPy, vectorised; tests check them against the MultibodyPlant built
 files), behind the same interface as :class:`~drake_coop.kinematics.drake_arm.DrakeArmKinematics`
 (``n``, ``q_min``, ``q_max``, ``fk``, ``joint_reference``, ``check_path``). Like that module,
 it imports nothing of the scenario, so the scenario's checks can use both.
+
+The controlled point may be any point fixed in the pad body instead of its centre E
+(``offset`` ``o``, in the pad frame, which is link 3's frame: ``R = R_z(q1) R_y(q2 + q3)``
+in the base frame, the wrist locked straight). With ``o = (o_x, o_y, o_z)`` the point is
+``P = E + R o``; in the base frame, with ``θ = q2 + q3``, ``A = L3 + o_z``,
+
+.. math::
+    e = A \\sin\\theta + o_x \\cos\\theta, \\quad b = A \\cos\\theta - o_x \\sin\\theta,
+    \\quad r = L_2 \\sin q_2 + e,
+
+    P_{local} = (r \\cos q_1 - o_y \\sin q_1,\\ r \\sin q_1 + o_y \\cos q_1,\\
+                 h_1 + L_2 \\cos q_2 + b)
+
+(``∂e/∂θ = b``, ``∂b/∂θ = −e``, as with ``o = 0``), and the inverse kinematics is the
+centre's with the forearm ``L' = √(A² + o_x²)`` turned by ``γ = atan2(o_x, A)`` and the waist
+turned by ``atan2(o_y, r)``.
 """
 
 from __future__ import annotations
@@ -100,10 +116,24 @@ class CrsKinematics:
         Joint limits (rad), from the URDF (:func:`urdf_joint_limits`).
     name : str
         The robot's name, for messages.
+    offset : array_like, shape (3,), optional
+        The controlled point's offset from the pad's centre E, fixed in the pad body (its
+        frame, m): the kinematics are those of ``P = E + R_pad(q) o`` (module docstring).
+        Default: E itself.
     """
 
     def __init__(self, geometry: ArmGeometry, p_base: np.ndarray, yaw: float,
-                 q_min: np.ndarray, q_max: np.ndarray, name: str = "robot"):
+                 q_min: np.ndarray, q_max: np.ndarray, name: str = "robot", offset=None):
+        o = np.zeros(3) if offset is None else np.asarray(offset, dtype=float)
+        if o.shape != (3,) or not np.all(np.isfinite(o)):
+            raise ValueError(f"offset: 3 finite numbers are required (m, pad frame), got "
+                             f"{np.shape(offset)}")
+        self.offset = o
+        self._ox, self._oy = float(o[0]), float(o[1])
+        self._A = geometry.L3 + float(o[2])          # the forearm to P, along it
+        #: The forearm from the elbow to P: its length ``L'`` and angle ``γ`` off the forearm.
+        self._L3p = math.hypot(self._A, self._ox)
+        self._gamma = math.atan2(self._ox, self._A)
         self.geometry = geometry
         self.p_base = np.asarray(p_base, dtype=float)
         self.yaw = float(yaw)
@@ -113,35 +143,69 @@ class CrsKinematics:
         self.name = name
         self.n = 3
 
+    def with_offset(self, offset) -> "CrsKinematics":
+        """The same arm controlling the pad-body point ``offset`` (pad frame, m)."""
+        return CrsKinematics(self.geometry, self.p_base, self.yaw, self.q_min, self.q_max,
+                             self.name, offset)
+
+    def angular_velocity(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """The pad's angular velocity in the palm frame, ``R_base (q̇1 e_z + (q̇2 + q̇3)
+        R_z(q1) e_y)``, for q, v of shape (..., 3)."""
+        q = np.asarray(q, dtype=float)
+        v = np.asarray(v, dtype=float)
+        w23 = v[..., 1] + v[..., 2]
+        local = np.stack([-np.sin(q[..., 0]) * w23, np.cos(q[..., 0]) * w23, v[..., 0]],
+                         axis=-1)
+        return local @ self.R_base.T
+
+    def pad_rotation(self, q: np.ndarray) -> np.ndarray:
+        """The pad frame's orientation in the palm frame, ``R_base R_z(q1) R_y(q2 + q3)``
+        (one sample, 3×3)."""
+        q1, q2, q3 = np.asarray(q, dtype=float).tolist()
+        c1, s1 = math.cos(q1), math.sin(q1)
+        ct, st = math.cos(q2 + q3), math.sin(q2 + q3)
+        return self.R_base @ np.array([[c1 * ct, -s1, c1 * st], [s1 * ct, c1, s1 * st],
+                                       [-st, 0.0, ct]])
+
     # ------------------------------------------------------------------ forward kinematics
     def fk(self, q: np.ndarray) -> np.ndarray:
         """End-effector point E in the palm frame, for q of shape (..., n)."""
         g = self.geometry
+        A, ox, oy = self._A, self._ox, self._oy
         q = np.asarray(q, dtype=float)
         if q.ndim == 1:            # one sample: plain floats (NumPy's per-call cost dominates)
             q1, q2, q3 = q.tolist()
-            r = g.L2 * math.sin(q2) + g.L3 * math.sin(q2 + q3)
-            z = g.h1 + g.L2 * math.cos(q2) + g.L3 * math.cos(q2 + q3)
-            return self.R_base @ np.array([r * math.cos(q1), r * math.sin(q1), z]) + self.p_base
+            s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
+            r = g.L2 * math.sin(q2) + A * s23 + ox * c23
+            z = g.h1 + g.L2 * math.cos(q2) + A * c23 - ox * s23
+            s1, c1 = math.sin(q1), math.cos(q1)
+            return self.R_base @ np.array([r * c1 - oy * s1, r * s1 + oy * c1, z]) \
+                + self.p_base
         q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
-        r = g.L2 * np.sin(q2) + g.L3 * np.sin(q2 + q3)
-        z = g.h1 + g.L2 * np.cos(q2) + g.L3 * np.cos(q2 + q3)
-        local = np.stack([r * np.cos(q1), r * np.sin(q1), z], axis=-1)
+        s23, c23 = np.sin(q2 + q3), np.cos(q2 + q3)
+        r = g.L2 * np.sin(q2) + A * s23 + ox * c23
+        z = g.h1 + g.L2 * np.cos(q2) + A * c23 - ox * s23
+        s1, c1 = np.sin(q1), np.cos(q1)
+        local = np.stack([r * c1 - oy * s1, r * s1 + oy * c1, z], axis=-1)
         return local @ self.R_base.T + self.p_base
 
     def _terms(self, q: np.ndarray):
-        """sin q1, cos q1 and the planar terms r = L2 s2 + L3 s23, a = ∂r/∂q2, b = ∂r/∂q3,
-        e = L3 s23 shared by the Jacobian and its derivative."""
+        """sin q1, cos q1 and the planar terms r = L2 s2 + e, a = ∂r/∂q2, b = ∂r/∂q3,
+        e = A s23 + o_x c23 shared by the Jacobian and its derivative (``A = L3``, ``o = 0``
+        for the centre)."""
         g = self.geometry
+        A, ox = self._A, self._ox
         q = np.asarray(q, dtype=float)
         if q.ndim == 1:            # one sample: plain floats
             q1, q2, q3 = q.tolist()
-            b, e = g.L3 * math.cos(q2 + q3), g.L3 * math.sin(q2 + q3)
+            s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
+            b, e = A * c23 - ox * s23, A * s23 + ox * c23
             return (math.sin(q1), math.cos(q1), g.L2 * math.sin(q2) + e,
                     g.L2 * math.cos(q2) + b, b, e)
         q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
-        b = g.L3 * np.cos(q2 + q3)
-        e = g.L3 * np.sin(q2 + q3)
+        s23, c23 = np.sin(q2 + q3), np.cos(q2 + q3)
+        b = A * c23 - ox * s23
+        e = A * s23 + ox * c23
         r = g.L2 * np.sin(q2) + e
         a = g.L2 * np.cos(q2) + b
         return np.sin(q1), np.cos(q1), r, a, b, e
@@ -149,13 +213,15 @@ class CrsKinematics:
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """Translational Jacobian ∂E/∂q in the palm frame, shape (..., 3, 3)."""
         s1, c1, r, a, b, e = self._terms(q)
+        oy = self._oy
         if np.ndim(q) == 1:
-            return self.R_base @ np.array([[-r * s1, a * c1, b * c1], [r * c1, a * s1, b * s1],
+            return self.R_base @ np.array([[-r * s1 - oy * c1, a * c1, b * c1],
+                                           [r * c1 - oy * s1, a * s1, b * s1],
                                            [0.0, -r, -e]])
         zero = np.zeros_like(s1)
         J = np.stack([
-            np.stack([-r * s1, a * c1, b * c1], axis=-1),
-            np.stack([r * c1, a * s1, b * s1], axis=-1),
+            np.stack([-r * s1 - oy * c1, a * c1, b * c1], axis=-1),
+            np.stack([r * c1 - oy * s1, a * s1, b * s1], axis=-1),
             np.stack([zero, -r, -e], axis=-1),
         ], axis=-2)
         return self.R_base @ J
@@ -163,6 +229,7 @@ class CrsKinematics:
     def jacobian_dot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Time derivative of :meth:`jacobian` along joint velocity v, shape (..., 3, 3)."""
         s1, c1, r, a, b, e = self._terms(q)
+        oy = self._oy
         v = np.asarray(v, dtype=float)
         if np.ndim(q) == 1 and v.ndim == 1:
             v1, v2, v3 = v.tolist()
@@ -171,8 +238,10 @@ class CrsKinematics:
             bd = -e * (v2 + v3)
             ed = b * (v2 + v3)
             return self.R_base @ np.array([
-                [-rd * s1 - r * c1 * v1, ad * c1 - a * s1 * v1, bd * c1 - b * s1 * v1],
-                [rd * c1 - r * s1 * v1, ad * s1 + a * c1 * v1, bd * s1 + b * c1 * v1],
+                [-rd * s1 - r * c1 * v1 + oy * s1 * v1, ad * c1 - a * s1 * v1,
+                 bd * c1 - b * s1 * v1],
+                [rd * c1 - r * s1 * v1 - oy * c1 * v1, ad * s1 + a * c1 * v1,
+                 bd * s1 + b * c1 * v1],
                 [0.0, -rd, -ed]])
         v1, v2, v3 = v[..., 0], v[..., 1], v[..., 2]
         q2 = np.asarray(q, dtype=float)[..., 1]
@@ -182,10 +251,10 @@ class CrsKinematics:
         ed = b * (v2 + v3)
         zero = np.zeros_like(s1)
         Jd = np.stack([
-            np.stack([-rd * s1 - r * c1 * v1, ad * c1 - a * s1 * v1, bd * c1 - b * s1 * v1],
-                     axis=-1),
-            np.stack([rd * c1 - r * s1 * v1, ad * s1 + a * c1 * v1, bd * s1 + b * c1 * v1],
-                     axis=-1),
+            np.stack([-rd * s1 - r * c1 * v1 + oy * s1 * v1, ad * c1 - a * s1 * v1,
+                      bd * c1 - b * s1 * v1], axis=-1),
+            np.stack([rd * c1 - r * s1 * v1 - oy * c1 * v1, ad * s1 + a * c1 * v1,
+                      bd * s1 + b * c1 * v1], axis=-1),
             np.stack([zero, -rd, -ed], axis=-1),
         ], axis=-2)
         return self.R_base @ Jd
@@ -199,8 +268,9 @@ class CrsKinematics:
         """Shoulder-to-point distance over the arm's full reach ``L2 + L3``."""
         g = self.geometry
         lp = self.local_point(p)
-        d = np.hypot(np.hypot(lp[..., 0], lp[..., 1]), lp[..., 2] - g.h1)
-        return d / (g.L2 + g.L3)
+        r = np.sqrt(np.maximum(lp[..., 0] ** 2 + lp[..., 1] ** 2 - self._oy ** 2, 0.0))
+        d = np.hypot(r, lp[..., 2] - g.h1)
+        return d / (g.L2 + self._L3p)
 
     def ik(self, p: np.ndarray) -> np.ndarray:
         """Closed-form inverse kinematics, the branch of the paper's postures.
@@ -219,17 +289,24 @@ class CrsKinematics:
             Joint positions.
         """
         g = self.geometry
+        L3 = self._L3p
         lp = self.local_point(p)
         x, y, z = lp[..., 0], lp[..., 1], lp[..., 2]
-        q1 = np.arctan2(y, x)
-        r = np.hypot(x, y)
+        rho2 = x * x + y * y
+        if np.any(rho2 < self._oy ** 2):
+            raise ValueError(f"{self.name}: point out of reach of the arm")
+        if self._oy:
+            r = np.sqrt(rho2 - self._oy ** 2)
+            q1 = np.arctan2(y, x) - np.arctan2(self._oy, r)
+        else:
+            r, q1 = np.hypot(x, y), np.arctan2(y, x)
         dz = z - g.h1
-        c3 = (r * r + dz * dz - g.L2 ** 2 - g.L3 ** 2) / (2 * g.L2 * g.L3)
+        c3 = (r * r + dz * dz - g.L2 ** 2 - L3 ** 2) / (2 * g.L2 * L3)
         if np.any(np.abs(c3) > 1.0):
             raise ValueError(f"{self.name}: point out of reach of the arm")
         q3 = np.arccos(c3)
-        q2 = np.arctan2(r, dz) - np.arctan2(g.L3 * np.sin(q3), g.L2 + g.L3 * np.cos(q3))
-        return np.stack([q1, q2, q3], axis=-1)
+        q2 = np.arctan2(r, dz) - np.arctan2(L3 * np.sin(q3), g.L2 + L3 * np.cos(q3))
+        return np.stack([q1, q2, q3 - self._gamma], axis=-1)
 
     def joint_reference(self, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -249,7 +326,7 @@ class CrsKinematics:
         g = self.geometry
         t = np.arange(len(x), dtype=float) if t is None else t
         ratio = self.reach_ratio(x)
-        inner = abs(g.L3 - g.L2) / (g.L2 + g.L3)
+        inner = abs(self._L3p - g.L2) / (g.L2 + self._L3p)
         worst = int(np.argmax(ratio))
         if ratio[worst] > margin or ratio.min() < inner + 0.05:
             bad = worst if ratio[worst] > margin else int(np.argmin(ratio))

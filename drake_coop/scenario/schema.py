@@ -23,6 +23,8 @@ OBJECT_MODES = ("planes", "rigid", "contact", "none")
 OBJECT_MODEL_MODES = ("none", "known", "estimated")
 #: Where the desired squeeze comes from (``object_model.squeeze``).
 SQUEEZE_SOURCES = ("profile", "friction")
+#: The point each arm controls with an object model (``object_model.control_point``).
+CONTROL_POINTS = ("auto", "centre", "contact")
 #: The shipped arm models (``urdf/<file>``); a robot's ``model`` may also be a ``.urdf`` path.
 SHIPPED_ARMS = {"crs_a465": "crs_a465_3dof.urdf", "crs_a255": "crs_a255_3dof.urdf",
                 "coop6": "coop6_6dof.urdf"}
@@ -526,6 +528,14 @@ class ObjectModelSettings:
         ``squeeze: friction``).
     squeeze_rate : float
         ``shared``: the fastest fall of the online squeeze (N/s; it rises at up to 20 N/s).
+    control_point : str
+        The point of the pad each arm controls: ``centre`` (the pad's centre E, the paper's
+        end-effector point), ``contact`` (the pad's *material* contact point: fixed in the pad
+        body at its radius from the centre along the inward normal at the grasp, so the box,
+        stuck to it by friction, follows its path even when the pad turns; needs an object
+        model, ``contact`` mode and the paper's arms' closed-form kinematics) or ``auto``
+        (the default: ``contact`` where it applies, ``centre`` otherwise; the paper's control,
+        ``mode: none``, is always ``centre``).
     """
 
     mode: str = "none"
@@ -541,6 +551,7 @@ class ObjectModelSettings:
     contact_exponent: float = 2.0
     shared: bool = False
     squeeze_rate: float = 1.0
+    control_point: str = "auto"
 
 
 @dataclass

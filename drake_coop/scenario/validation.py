@@ -14,6 +14,7 @@ from drake_coop.scenario.schema import (
     FORCE_SOURCES,
     JITTER_DISTRIBUTIONS,
     OBJECT_MODEL_MODES,
+    CONTROL_POINTS,
     OBJECT_MODES,
     SQUEEZE_SOURCES,
     VELOCITY_SOURCES,
@@ -180,6 +181,18 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
         raise ScenarioError("object_model.shared: true needs object_model.squeeze: friction "
                             "(and mode known or estimated): the shared block chooses the "
                             "squeeze online from the estimated load")
+    _choice(scenario.object_model.control_point, CONTROL_POINTS, "object_model.control_point")
+    if scenario.object_model.control_point == "contact":
+        from drake_coop.scenario.reach import has_closed_form
+
+        if scenario.object_model.mode == "none" or p.object_mode != "contact":
+            raise ScenarioError("object_model.control_point: contact needs object_model.mode "
+                                "known or estimated and plant.object_mode contact (a pad held "
+                                "by friction)")
+        if not all(has_closed_form(r) for r in scenario.robots):
+            raise ScenarioError("object_model.control_point: contact needs the paper's arms "
+                                "(crs_a465, crs_a255 with their default frames); use centre "
+                                "or auto")
 
     names = [r.name for r in scenario.robots]
     for i, r in enumerate(scenario.robots):

@@ -134,3 +134,92 @@ def test_coulomb_compensation_is_the_smoothed_sign_added_to_the_inverse_dynamics
     with pytest.raises(ValueError, match="coulomb_velocity"):
         ArmModel(seven.plant, "pad", [1.0, 0.0, 0.0], [0.5, 0.0, 0.5], coulomb=F_c,
                  coulomb_velocity=0.0)
+
+
+# ------------------------------------------------------------ a controlled point off the frame
+
+
+OFFSET = np.array([0.004, -0.007, 0.011])
+
+
+def _offset_models(seven):
+    """The same arms controlling the pad-body point OFFSET: Drake's kinematics (a 7-joint and
+    the paper's arm) and the closed form of the paper's arm."""
+    paper = load_scenario()
+    arm = Arm(paper.robots[0], paper.task)
+    centre = arm_model(arm)
+    drake = ArmModel(seven.plant, "pad", seven.N, seven.c, point_offset=OFFSET)
+    paper_drake = ArmModel(centre.plant, arm.ee_frame, arm.N, arm.c, point_offset=OFFSET)
+    paper_closed = ArmModel(centre.plant, arm.ee_frame, arm.N, arm.c,
+                            closed_form=arm.kinematics, point_offset=OFFSET)
+    return drake, paper_drake, paper_closed
+
+
+def test_the_offset_point_is_drakes_fixed_offset_frame(seven):
+    """Against an independent construction: a FixedOffsetFrame at the offset added to the
+    arm's plant before Finalize, whose origin and Jacobian Drake computes."""
+    from pydrake.math import RigidTransform
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+    from pydrake.multibody.tree import FixedOffsetFrame, JacobianWrtVariable
+
+    paper = load_scenario()
+    arm = Arm(paper.robots[0], paper.task)
+    plant = MultibodyPlant(0.0)
+    Parser(plant).AddModels(str(arm.urdf_path))
+    from pydrake.math import RotationMatrix
+    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(arm.base_frame),
+                     RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base))
+    frame = plant.AddFrame(FixedOffsetFrame("P", plant.GetFrameByName("pad"),
+                                            RigidTransform(OFFSET)))
+    plant.Finalize()
+    context = plant.CreateDefaultContext()
+    _, paper_drake, paper_closed = _offset_models(seven)
+    rng = np.random.default_rng(8)
+    for _ in range(5):
+        q = np.array([rng.uniform(-1, 1), rng.uniform(0.1, 1.2), rng.uniform(0.3, 1.8)])
+        plant.SetPositions(context, q)
+        p = frame.CalcPoseInWorld(context).translation()
+        J = plant.CalcJacobianTranslationalVelocity(context, JacobianWrtVariable.kV, frame,
+                                                    np.zeros(3), plant.world_frame(),
+                                                    plant.world_frame())
+        for model in (paper_drake, paper_closed):
+            np.testing.assert_allclose(model.ee_position(q), p, rtol=0, atol=1e-14)
+            np.testing.assert_allclose(model.J_x(q), J, rtol=0, atol=1e-14)
+            np.testing.assert_allclose(model.phi(q), arm.N @ (p - arm.c), rtol=0, atol=1e-14)
+            phi, row = model.constraint_row(q)
+            np.testing.assert_allclose([phi], model.phi(q), rtol=0, atol=1e-14)
+            np.testing.assert_allclose(row, arm.N[0] @ J, rtol=0, atol=1e-14)
+
+
+def test_the_offset_points_jacobian_and_its_derivative_are_finite_differences(seven):
+    rng = np.random.default_rng(4)
+    for model in _offset_models(seven):
+        for _ in range(4):
+            q = rng.uniform(0.2, 1.2, model.n)
+            d = rng.normal(size=model.n)
+            e = 1e-6
+            fd_x = np.column_stack([(model.ee_position(q + e * u) - model.ee_position(q - e * u))
+                                    / (2 * e) for u in np.eye(model.n)])
+            np.testing.assert_allclose(model.J_x(q), fd_x, rtol=0, atol=1e-9)
+            J, Jd = model.J_phi_and_derivative(q, d)
+            fd = (model.J_phi(q + e * d) - model.J_phi(q - e * d)) / (2 * e)
+            np.testing.assert_allclose(Jd, fd, rtol=0, atol=1e-8 * max(1, np.abs(fd).max()))
+            np.testing.assert_allclose(Jd, model.J_phi_and_derivative_autodiff(q, d)[1],
+                                       rtol=0, atol=1e-12)
+            if model.m == 1:
+                np.testing.assert_allclose(model.constraint_row_dot(q, d), Jd[0], rtol=0,
+                                           atol=1e-12)
+
+
+def test_a_zero_offset_is_the_frames_origin_and_a_bad_one_is_refused(seven):
+    paper = load_scenario()
+    arm = Arm(paper.robots[1], paper.task)
+    centre = arm_model(arm)
+    zero = ArmModel(centre.plant, arm.ee_frame, arm.N, arm.c, closed_form=arm.kinematics,
+                    point_offset=np.zeros(3))
+    q = np.array([0.1, 0.5, 1.0])
+    assert (zero.ee_position(q) == centre.ee_position(q)).all()
+    assert zero.constraint_row(q) == centre.constraint_row(q)
+    with pytest.raises(ValueError, match="point_offset"):
+        ArmModel(seven.plant, "pad", seven.N, seven.c, point_offset=[0.0, np.nan, 0.0])

@@ -262,6 +262,26 @@ def test_contact_stiffness_inverse_and_checks():
     assert k.compliance(0.0) == k.compliance(1.0)
 
 
+def test_the_spheres_law_is_drakes_linear_pressure_field_integrated():
+    """``radius``: against a quadrature of ``p = E (1 − ρ/r)`` over the contact disc of a
+    sphere pressed ``δ`` into a rigid face (what Drake's hydroelastic sphere carries)."""
+    E, r = 5e6, 0.015
+    k = ContactStiffness(np.pi * E, 2.0, radius=r)
+    for delta in (2e-4, 1e-3, 1.8e-3, 5e-3):
+        s = np.linspace(0.0, np.sqrt(r * r - (r - delta) ** 2), 20001)
+        p = E * (1.0 - np.sqrt((r - delta) ** 2 + s * s) / r)
+        quad = np.sum(0.5 * (p[1:] * s[1:] + p[:-1] * s[:-1]) * np.diff(s)) * 2 * np.pi
+        assert k.force(delta) == pytest.approx(quad, rel=1e-6)
+    lam = np.array([0.0, 0.3, 14.0, 32.0, 50.0])
+    np.testing.assert_allclose(k.force(k.compression(lam)), lam, rtol=1e-12, atol=1e-12)
+    assert np.all(k.compression(lam[1:]) > ContactStiffness(np.pi * E, 2.0).compression(lam[1:]))
+    eps = 1e-4
+    fd = (k.compression(40.0 + eps) - k.compression(40.0 - eps)) / (2 * eps)
+    assert k.compliance(40.0) == pytest.approx(fd, rel=1e-6)
+    with pytest.raises(ValueError, match="radius"):
+        ContactStiffness(1e5, 1.0, radius=0.01)
+
+
 def test_law_with_a_compliant_contact_is_the_law_with_the_contact_point_pressed_in():
     """p_d = −δ(λ_d): the same as the paper's law whose contact point c is moved by δ along
     the outward normal's opposite (φ = N (x − c) grows by δ) — an independent model — with

@@ -29,6 +29,8 @@ CONTACT = "plant: {object_mode: contact, object_mass: 0.5, friction: 1.0, time_s
     ("{shared: true}", "object_model.shared"),
     ("{mode: estimated, squeeze: friction, shared: true, squeeze_rate: 0}",
      "object_model.squeeze_rate"),
+    ("{mode: known, control_point: middle}", "object_model.control_point"),
+    ("{control_point: contact}", "object_model.control_point"),
 ])
 def test_bad_object_model_fields_exit_2_naming_the_field(tmp_path, capsys, section, field):
     path = tmp_path / "bad.yaml"
@@ -110,13 +112,14 @@ def test_the_shared_block_is_one_block_between_the_arms_and_feeds_their_referenc
 
 def test_a_compliant_contact_presses_the_joint_references_in():
     """With an object model in contact mode, q_d puts the pad δ(λ_d) inside the undeformed
-    face along the inward normal, δ = √(λ_d/(π E)) with the pads' E = 5 MPa
-    (urdf/README.md); the force profile is unchanged."""
+    face along the inward normal, δ the root of the sphere's law λ = π E (δ² − 2δ³/(3r))
+    with the pads' E = 5 MPa, r = 15 mm (urdf/README.md); the force profile is unchanged
+    (the pads' centres followed: control_point centre)."""
     from drake_coop.experiment.plan import plan_run
     from drake_coop.experiment.references import reference_samples
     from drake_coop.control.finger import ReferenceLayout
     base = load_scenario(data=CONTACT)
-    known = load_scenario(data=CONTACT + "object_model: {mode: known}\n")
+    known = load_scenario(data=CONTACT + "object_model: {mode: known, control_point: centre}\n")
     for i in range(2):
         t, r0 = reference_samples(base, i, t_end=30.0)
         _, r1 = reference_samples(known, i, t_end=30.0)
@@ -128,7 +131,9 @@ def test_a_compliant_contact_presses_the_joint_references_in():
         x0 = arm.fk(layout.column(r0, "q_d")[k:k + 1])[0]
         x1 = arm.fk(layout.column(r1, "q_d")[k:k + 1])[0]
         inward = -np.asarray(base.robots[i].normals[0], dtype=float)
-        delta = np.sqrt(lam[k] / (np.pi * 5e6))
+        r = 0.015
+        roots = np.roots([-2.0 / (3.0 * r), 1.0, 0.0, -lam[k] / (np.pi * 5e6)])
+        delta = min(z.real for z in roots if abs(z.imag) < 1e-12 and 0 < z.real < r)
         assert np.allclose(x1 - x0, delta * inward, atol=1e-9)
 
 

@@ -284,3 +284,24 @@ def test_the_range_machinery_covers_ints_optionals_and_nested_lists():
                                          r"\[1, 32\] bit, got 12\.5$"):
         check_numbers(rig, bounds, {})
     assert numeric_fields(Rig) == ["sensors[].bits", "sensors[].noise"]
+
+
+# ---------------------------------------------------------------- object_model.control_point
+
+
+@pytest.mark.parametrize("text, start", [
+    ("plant: {object_mode: contact}\nobject_model: {mode: known, control_point: surface}",
+     "object_model.control_point must be one of auto, centre, contact"),
+    ("object_model: {control_point: contact}",           # the paper's control: no object model
+     "object_model.control_point: contact needs object_model.mode known or estimated"),
+    ("plant: {object_mode: rigid}\nobject_model: {mode: known, control_point: contact}",
+     "object_model.control_point: contact needs"),
+])
+def test_a_bad_control_point_is_refused_naming_it(text, start):
+    assert _refused(text).startswith(start)
+
+
+def test_the_contact_point_needs_the_papers_arms():
+    text = ("plant: {object_mode: contact}\nobject_model: {mode: known, control_point: contact}\n"
+            "robots: [{model: coop6, contact_xy: [0.6, 0]}, " + ROBOT2 + "]")
+    assert "paper's arms" in _refused(text)
