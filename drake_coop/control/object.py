@@ -1049,7 +1049,11 @@ class CompressedReference(LeafSystem):
         q_d \\leftarrow q_d + J_x(q_d)^+\\, n\\, \\delta(\\lambda_{d,1})\\ \\text{while held},
 
     with ``J_x⁺`` the least-squares inverse (the inverse for a 3-joint arm) and ``λ_d,1`` the
-    first constraint row. ``q̇_d`` and ``q̈_d`` are left as they are (the online squeeze
+    first constraint row. When the reference follows the pad's material contact point ``P``
+    across the normal and its centre ``E`` along it (``point_offset``, the experiment's
+    ``control_point``), the Jacobian is that followed point's,
+    ``J_y = (I − n nᵀ) J_P + n nᵀ J_E``: the pad is pressed in along the normal with ``P``
+    kept on its path across it. ``q̇_d`` and ``q̈_d`` are left as they are (the online squeeze
     changes slowly: ``δ̇ = c(λ) λ̇`` is below 1 mm/s on the shipped pads). The paper's
     blocks are unchanged; this block sits between the reference and them.
 
@@ -1069,6 +1073,10 @@ class CompressedReference(LeafSystem):
         The contact's law ``λ = a δᵖ``.
     inward : array_like, shape (3,)
         The contact's inward normal (world frame; normalized).
+    point_offset : array_like, shape (3,), optional
+        ``P``'s offset from the end effector's origin, fixed in its body and expressed in
+        its frame (:class:`~drake_coop.control.arm_model.ArmModel`'s ``point_offset``);
+        default: the reference follows ``E`` itself.
 
     Input ports
     -----------
@@ -1081,7 +1089,8 @@ class CompressedReference(LeafSystem):
         The same with ``q_d`` pressed in.
     """
 
-    def __init__(self, model: ArmModel, stiffness: ContactStiffness, inward):
+    def __init__(self, model: ArmModel, stiffness: ContactStiffness, inward,
+                 point_offset=None):
         super().__init__()
         if not callable(getattr(stiffness, "compression", None)):
             raise TypeError("stiffness: a ContactStiffness is required, got "
@@ -1092,6 +1101,11 @@ class CompressedReference(LeafSystem):
             raise ValueError("inward: a nonzero normal is required")
         self._n = n / size
         self._model = model
+        #: The followed point's model (None: the centre's) and the projector across n.
+        self._point = None if point_offset is None else ArmModel(
+            model.plant, model.ee_frame.name(), model.N, model.c,
+            point_offset=_vector(point_offset, "point_offset"))
+        self._across = np.eye(3) - np.outer(self._n, self._n)
         self._stiffness = stiffness
         self._layout = ReferenceLayout(model.n, model.m)
         self._in = self.DeclareVectorInputPort("reference", self._layout.size)
@@ -1119,5 +1133,7 @@ class CompressedReference(LeafSystem):
         if delta == 0.0:
             return r
         J = self._model.J_x(q_d)
+        if self._point is not None:
+            J = self._across @ self._point.J_x(q_d) + (np.eye(3) - self._across) @ J
         r[s["q_d"]] = q_d + np.linalg.lstsq(J, self._n * delta, rcond=None)[0]
         return r

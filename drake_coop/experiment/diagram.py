@@ -72,6 +72,7 @@ from drake_coop.experiment.object_blocks import (
     add_object_state_estimator,
     connect_object_state_estimator,
     contact_stiffness,
+    control_point,
     object_enabled,
     shared_enabled,
 )
@@ -314,8 +315,10 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             if stiffness is not None and not getattr(handles.arm.kinematics, "redundant",
                                                      False):
                 # The compliant contact's compression of the online λ_d, in q_d.
+                point = control_point(scenario, i, handles.arm)
                 press = b.AddNamedSystem(f"{name}_compressed_reference", CompressedReference(
-                    model, stiffness, -np.asarray(robot.normals[0], dtype=float)))
+                    model, stiffness, -np.asarray(robot.normals[0], dtype=float),
+                    point_offset=None if point is None else point.offset))
                 b.Connect(reference, press.get_reference_input_port())
                 reference = press.get_compressed_reference_output_port()
         b.Connect(reference, block.reference_input)

@@ -514,6 +514,24 @@ def test_compressed_reference_puts_the_pad_delta_inside_along_the_normal(model):
         delta = float(np.sqrt(lam / 1.57e7)) * held
         moved = model.ee_position(out[:3]) - model.ee_position(Q0)
         assert np.allclose(moved, [delta, 0.0, 0.0], atol=50 * delta ** 2 + 1e-12)
+    # Following the pad's material point P (2 cm off the centre in the pad's frame) across
+    # the normal and the centre E along it: y = T P + n nᵀ E moves by δ n.
+    offset = np.array([0.004, 0.0, 0.02])
+    point = ArmModel(model.plant, model.ee_frame.name(), model.N, model.c,
+                     point_offset=offset)
+    block = CompressedReference(model, stiff, [1.0, 0.0, 0.0], point_offset=offset)
+    context = block.CreateDefaultContext()
+    r = layout.pack(Q0[None], np.zeros((1, 3)), np.zeros((1, 3)), [[30.0]], np.array([1.0]))[0]
+    block.get_reference_input_port().FixValue(context, r)
+    q1 = block.get_compressed_reference_output_port().Eval(context)[:3]
+    T = np.diag([0.0, 1.0, 1.0])
+    y = lambda q: T @ point.ee_position(q) + (np.eye(3) - T) @ model.ee_position(q)
+    delta = float(np.sqrt(30.0 / 1.57e7))
+    error = y(q1) - y(Q0) - [delta, 0.0, 0.0]
+    # Against the centre's block, whose pressing moves P across the normal (first order).
+    q_centre = CompressedReference(model, stiff, [1.0, 0.0, 0.0]).compressed(r)[:3]
+    across = np.linalg.norm((y(q_centre) - y(Q0))[1:])
+    assert across > 1e-5 and np.linalg.norm(error) < min(0.25 * across, 2 * delta ** 2)
     with pytest.raises(ValueError, match="inward"):
         CompressedReference(model, stiff, [0.0, 0.0, 0.0])
     with pytest.raises(TypeError, match="stiffness"):
