@@ -7,7 +7,8 @@ diagram (see ``docs/api_usage.md``); the systems it holds — :class:`VelocityOb
 :class:`NoForceEstimate`, :class:`MomentumObserver`) — the law at one sample (:class:`FingerLaw`), the controller's arm model
 (:class:`ArmModel`), the object-aware blocks (:class:`ObjectModel`, :class:`LoadFeedforward`,
 :class:`MassEstimator`, the shared :class:`ObjectStateEstimator`, :class:`ContactStiffness`, :func:`squeeze_for_grasp`,
-:func:`load_distribution`, :func:`mass_shares`), the reference layout (:class:`ReferenceLayout`, :class:`Reference`) and the
+:func:`load_distribution`, :func:`mass_shares`, the squeeze's couple in the load split:
+:func:`squeeze_couple`, :func:`face_distance`), the reference layout (:class:`ReferenceLayout`, :class:`Reference`) and the
 gains (:class:`Gains`).
 
 Modules: the parameters (params), the time grid (timing), the model (arm_model), Property 1
@@ -50,6 +51,8 @@ _EXPORTS = {
     "load_distribution": "object",
     "mass_shares": "object",
     "squeeze_for_grasp": "object",
+    "squeeze_couple": "squeeze_couple",
+    "face_distance": "squeeze_couple",
     "Watchdog": "watchdog",
 }
 
@@ -65,6 +68,8 @@ __all__ = [
     "load_distribution",
     "mass_shares",
     "squeeze_for_grasp",
+    "squeeze_couple",
+    "face_distance",
     "Controller",
     "ControllerHandles",
     "DifferenceVelocity",

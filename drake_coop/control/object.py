@@ -414,6 +414,7 @@ class LoadFeedforward(LeafSystem):
         - reference
         - acceleration_d
         - mass_share
+        - f_couple (optional)
         output_ports:
         - tau_ff
         - f_load
@@ -445,6 +446,11 @@ class LoadFeedforward(LeafSystem):
         While the squeeze ramps up at the grasp the feedforward follows it (the rest of the
         weight stays on whatever supports the object) instead of sliding the pad up the
         object's face. Default: no limit (a rigid grasp).
+    couple : bool
+        Declare the input ``f_couple``: a force added to ``f_i`` (before the friction limit),
+        the arm's part of the squeeze's couple when the two pads' normal forces act along
+        offset lines (:func:`~drake_coop.control.squeeze_couple.squeeze_couple`). Default
+        False: no such port.
 
     Input ports
     -----------
@@ -456,6 +462,8 @@ class LoadFeedforward(LeafSystem):
         The object's desired acceleration ``a_d`` (world frame, m/s²).
     mass_share : 1-vector
         ``m_i`` (kg).
+    f_couple : 3-vector, with ``couple``
+        ``f_c,i`` (N), added to ``f_i``.
 
     Output ports
     ------------
@@ -466,7 +474,7 @@ class LoadFeedforward(LeafSystem):
     """
 
     def __init__(self, model: ArmModel, period: float, gravity: float = GRAVITY,
-                 contact_offset=None, friction: float | None = None):
+                 contact_offset=None, friction: float | None = None, couple: bool = False):
         super().__init__()
         check_period(period)
         self._model = model
@@ -482,6 +490,7 @@ class LoadFeedforward(LeafSystem):
         self._reference = self.DeclareVectorInputPort("reference", self._layout.size)
         self._a_d = self.DeclareVectorInputPort("acceleration_d", 3)
         self._mass = self.DeclareVectorInputPort("mass_share", 1)
+        self._couple = self.DeclareVectorInputPort("f_couple", 3) if couple else None
         self._tau_state = self.DeclareDiscreteState(np.zeros(n))
         self._f_state = self.DeclareDiscreteState(np.zeros(3))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
@@ -504,6 +513,12 @@ class LoadFeedforward(LeafSystem):
         """The arm's share ``m_i`` of the object's mass."""
         return self._mass
 
+    def get_f_couple_input_port(self) -> InputPort:
+        """``f_c,i``, the arm's part of the squeeze's couple (with ``couple`` only)."""
+        if self._couple is None:
+            raise ValueError("couple: the f_couple port exists only with couple=True")
+        return self._couple
+
     def get_tau_ff_output_port(self) -> OutputPort:
         """``τ_ff = J_xᵀ f_i``."""
         return self._tau_out
@@ -518,6 +533,8 @@ class LoadFeedforward(LeafSystem):
             return np.zeros(self._model.n), np.zeros(3)
         q = self._q.Eval(context)
         f = float(self._mass.Eval(context)[0]) * (self._a_d.Eval(context) - self._g)
+        if self._couple is not None:
+            f = f + self._couple.Eval(context)
         if self._mu is not None:
             f = self.friction_limited(f, self._layout.unpack(self._reference.Eval(context)
                                                            ).lambda_d)
@@ -586,6 +603,7 @@ class MassEstimator(LeafSystem):
         - tau
         - acceleration_d
         - reference
+        - f_couple (optional)
         output_ports:
         - mass_share
         - force_estimate
@@ -614,6 +632,10 @@ class MassEstimator(LeafSystem):
         with ``J_c`` (:func:`contact_jacobian`) instead of ``J_x``. Without it, on a spherical
         pad the moment ``r × F`` of the carried weight about the pad's centre reads as extra
         vertical force (+3.5 % and +4.7 % for the two shipped arms at the circle's start).
+    couple : bool
+        Declare the input ``f_couple`` (:class:`LoadFeedforward`'s): the arm's part of the
+        squeeze's couple, which is no part of the mass, is taken out of the measurement,
+        ``y = −F̂_z − f_c,z``. Default False: no such port.
 
     Input ports
     -----------
@@ -629,6 +651,8 @@ class MassEstimator(LeafSystem):
         The object's desired acceleration.
     reference : (3n + m + 1)-vector
         The arm's reference (its ``held`` row).
+    f_couple : 3-vector, with ``couple``
+        ``f_c,i`` (N).
 
     Output ports
     ------------
@@ -640,7 +664,7 @@ class MassEstimator(LeafSystem):
 
     def __init__(self, model: ArmModel, period: float, prior: float, prior_std: float,
                  forgetting: float = 0.995, noise_std: float = 1.0,
-                 gravity: float = GRAVITY, contact_offset=None):
+                 gravity: float = GRAVITY, contact_offset=None, couple: bool = False):
         super().__init__()
         check_period(period)
         if not (np.isfinite(prior) and prior >= 0):
@@ -664,6 +688,7 @@ class MassEstimator(LeafSystem):
         self._tau = self.DeclareVectorInputPort("tau", n)
         self._a_d = self.DeclareVectorInputPort("acceleration_d", 3)
         self._reference = self.DeclareVectorInputPort("reference", self._layout.size)
+        self._couple = self.DeclareVectorInputPort("f_couple", 3) if couple else None
         self._theta = self.DeclareDiscreteState([float(prior)])
         self._P = self.DeclareDiscreteState([float(prior_std) ** 2])
         self._F = self.DeclareDiscreteState(np.zeros(3))
@@ -695,6 +720,12 @@ class MassEstimator(LeafSystem):
         """The arm's reference (its ``held`` row)."""
         return self._reference
 
+    def get_f_couple_input_port(self) -> InputPort:
+        """``f_c,i`` (with ``couple`` only)."""
+        if self._couple is None:
+            raise ValueError("couple: the f_couple port exists only with couple=True")
+        return self._couple
+
     def get_mass_share_output_port(self) -> OutputPort:
         """``m̂_i`` (kg)."""
         return self._mass_out
@@ -723,8 +754,11 @@ class MassEstimator(LeafSystem):
         phi = self._g + float(self._a_d.Eval(context)[2])
         theta = float(context.get_discrete_state(self._theta).value()[0])
         P = float(context.get_discrete_state(self._P).value()[0])
+        y = -F[2]
+        if self._couple is not None:
+            y -= float(self._couple.Eval(context)[2])
         K = P * phi / (self._rho * self._R + phi * phi * P)
-        theta += K * (-F[2] - phi * theta)
+        theta += K * (y - phi * theta)
         P = (P - K * phi * P) / self._rho
         xd.set_value(self._theta, [theta])
         xd.set_value(self._P, [P])

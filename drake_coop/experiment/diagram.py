@@ -73,8 +73,10 @@ from drake_coop.experiment.object_blocks import (
     connect_object_state_estimator,
     contact_stiffness,
     control_point,
+    couple_samples,
     object_enabled,
     shared_enabled,
+    uses_couple,
 )
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import (
@@ -277,6 +279,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     shared = (add_object_state_estimator(b, scenario, [ReferenceLayout(m.n, m.m)
                                                        for m in models], h)
               if shared_enabled(scenario) else None)
+    trajectories = (list(references) if references is not None
+                    else [reference_trajectory(scenario, i) for i in range(len(coop.arms))])
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         robot = scenario.robots[i]
@@ -304,8 +308,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             name=name)
         law, control = block.law, block.system
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller
-        trajectory = (reference_trajectory(scenario, i) if references is None
-                      else references[i])
+        trajectory = trajectories[i]
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
         reference = ref.get_output_port()
         if shared is not None:
@@ -327,9 +330,12 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         objects = None
         tau_port = control.GetOutputPort("tau")
         if object_enabled(scenario):
+            t_ref = np.asarray(trajectory.get_segment_times())
+            # The squeeze's couple from both arms' references (fixed before the run).
+            couple = (couple_samples(scenario, i, [a.arm for a in coop.arms], trajectories,
+                                     t_ref) if uses_couple(scenario) else None)
             objects = add_object_blocks(b, scenario, i, name, model, h, q_port,
-                                        reference, control,
-                                        np.asarray(trajectory.get_segment_times()))
+                                        reference, control, t_ref, couple)
             tau_port = objects.tau
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,

@@ -49,6 +49,7 @@ from drake_coop.control.object import (
     mass_shares,
     squeeze_for_grasp,
 )
+from drake_coop.control.squeeze_couple import face_distance, squeeze_couple
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.task_path import cartesian_reference
 
@@ -241,11 +242,61 @@ def friction_squeeze(scenario: Scenario, t: np.ndarray, ramp: float = 1.0) -> np
     return lam * scale
 
 
+def uses_couple(scenario: Scenario) -> bool:
+    """Whether the feedforward carries the squeeze's couple (``object_model.couple``: true,
+    or null when the arms follow their pads' material contact points, whose centres then
+    leave the same height, :func:`controls_contact_point`); two robots only."""
+    om = scenario.object_model
+    if om.mode == "none" or len(scenario.robots) != 2 or om.couple is False:
+        return False
+    return om.couple is True or controls_contact_point(scenario)
+
+
+def couple_samples(scenario: Scenario, index: int, arms, trajectories, t: np.ndarray
+                   ) -> np.ndarray:
+    """Robot ``index``'s part ``f_c,i`` of the squeeze's couple at the times ``t`` (K, 3):
+    :func:`~drake_coop.control.squeeze_couple.squeeze_couple` on the two pads' centres
+    along their references (forward kinematics of both ``q_d``, fixed before the run), the
+    arm's own ``λ_d`` and the lever between the faces the pads touch
+    (:func:`~drake_coop.control.squeeze_couple.face_distance`: the pads' radii and their
+    compressions ``δ(λ_d)``; the centres' distance in ``rigid`` mode); zero while not held.
+
+    Parameters
+    ----------
+    arms : sequence of Arm
+        Both robots' arms (their kinematics give the centres).
+    trajectories : sequence of PiecewisePolynomial
+        Both robots' reference trajectories (:func:`~drake_coop.experiment.references.
+        reference_trajectory`).
+    """
+    t = np.asarray(t, dtype=float)
+    centres, lam, held, rho, delta = [], [], [], [], []
+    for j, (arm, traj) in enumerate(zip(arms, trajectories)):
+        r = np.asarray(traj.vector_values(t)).T
+        # Rows [q_d, q̇_d, q̈_d, λ_d, held] (ReferenceLayout).
+        n = (r.shape[1] - len(scenario.robots[j].normals) - 1) // 3
+        centres.append(arm.kinematics.fk(r[:, :n]))
+        lam.append(r[:, 3 * n] * r[:, -1])
+        held.append(r[:, -1])
+        offset = contact_offset(scenario, j)
+        rho.append(0.0 if offset is None else float(np.linalg.norm(offset)))
+        stiffness = contact_stiffness(scenario, j)
+        delta.append(np.zeros_like(t) if stiffness is None or offset is None
+                     else stiffness.compression(lam[-1]))
+    E = np.stack(centres, axis=1)
+    normal = -np.asarray(scenario.robots[0].normals[0], dtype=float)
+    w = face_distance(E, normal, rho, np.stack(delta, axis=1))
+    f = squeeze_couple(E, normal, lam[index], w)[:, index, :]
+    return f * held[index][:, None]
+
+
 def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: str,
                       model: ArmModel, period: float, q: OutputPort, reference: OutputPort,
-                      control, t_samples: np.ndarray) -> ObjectBlocks:
+                      control, t_samples: np.ndarray, couple: np.ndarray | None = None
+                      ) -> ObjectBlocks:
     """Add robot ``index``'s feedforward (and, when ``estimated``, its mass estimator); return
-    the summed torque port to connect to the actuators."""
+    the summed torque port to connect to the actuators. ``couple``: the arm's part of the
+    squeeze's couple at ``t_samples`` (:func:`couple_samples`), fed to both."""
     om = scenario.object_model
     a = acceleration_samples(scenario, index, t_samples)
     acc = b.AddNamedSystem(f"{name}_acceleration_d", TrajectorySource(
@@ -253,12 +304,20 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
     share0 = float(mass_shares(scenario_object(scenario, controller_mass(scenario)))[index])
     r = contact_offset(scenario, index)
     # A grasp held by friction (contact mode) passes the object at most μ λ_d across the
-    # normal: the feedforward follows the squeeze in (LoadFeedforward's friction limit).
+    # normal: the feedforward follows the squeeze in (LoadFeedforward's friction limit), with
+    # the grasp's margin (μ λ_d / margin): the squeeze lags λ_d while it ramps up at the
+    # grasp, and a feedforward at the cone's edge of λ_d slid the pads up the box by 0.35 mm.
     friction = None
     if scenario.plant.object_mode == "contact":
-        friction = om.mu if om.mu is not None else scenario.plant.friction
+        friction = (om.mu if om.mu is not None else scenario.plant.friction) / om.margin
     ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(
-        model, period, contact_offset=r, friction=friction))
+        model, period, contact_offset=r, friction=friction, couple=couple is not None))
+    f_couple = None
+    if couple is not None:
+        f_couple = b.AddNamedSystem(f"{name}_f_couple", TrajectorySource(
+            PiecewisePolynomial.FirstOrderHold(t_samples, np.asarray(couple).T))
+        ).get_output_port()
+        b.Connect(f_couple, ff.get_f_couple_input_port())
     tau_sum = b.AddNamedSystem(f"{name}_tau_sum", Adder(2, model.n))
     b.Connect(q, ff.get_q_input_port())
     b.Connect(reference, ff.get_reference_input_port())
@@ -272,7 +331,10 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
         estimator = b.AddNamedSystem(f"{name}_mass_estimator", MassEstimator(
             model, ESTIMATOR_TICKS * period, prior=share0,
             prior_std=om.prior_std_factor * share0,
-            forgetting=om.forgetting ** ESTIMATOR_TICKS, contact_offset=r))
+            forgetting=om.forgetting ** ESTIMATOR_TICKS, contact_offset=r,
+            couple=f_couple is not None))
+        if f_couple is not None:
+            b.Connect(f_couple, estimator.get_f_couple_input_port())
         b.Connect(q, estimator.get_q_input_port())
         b.Connect(control.GetOutputPort("qdot_o"), estimator.get_qdot_o_input_port())
         b.Connect(control.GetOutputPort("qddot_r_hat"),

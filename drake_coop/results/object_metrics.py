@@ -39,15 +39,20 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
     Episodes where the box is lost: after both pads have pressed with
     :data:`CONTACT_FORCE` for :data:`SETTLE_TIME` without a break (the grasp established:
     the pads' first touches may bounce while the squeeze ramps up from zero, the box still
-    on its stand) and before the release, its position error exceeds :data:`DROP_DISTANCE`
-    or a pad stops pressing. Object-level (the same for every robot).
+    on its stand) and before the release, its position error exceeds :data:`DROP_DISTANCE`,
+    or a pad stops pressing while the box is off its stand: more than :data:`REST_HEIGHT` away
+    from its height at the grasp tick (where the stand carried it). A pad letting go of a box
+    set down on its stand in the put-down's last moments is not a drop; one letting go at
+    the circle's lowest point, over a lowered stand, is counted as soon as the box falls.
+    Object-level (the same for every robot).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "SETTLE_TIME",
+__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
+           "SETTLE_TIME",
            "SLIP_DISTANCE", "object_metrics",
            "object_signals"]
 
@@ -59,6 +64,8 @@ SLIP_DISTANCE = 2e-3
 SETTLE_TIME = 0.1
 #: The box is dropped when its centre is this far from the desired path (m).
 DROP_DISTANCE = 0.02
+#: The box rests on its stand when its centre is within this of its height at the grasp (m).
+REST_HEIGHT = 1e-3
 #: The mass estimate has converged when the arms' shares sum to within this fraction of the
 #: true mass (and stay there until the release).
 MASS_TOLERANCE = 0.05
@@ -146,7 +153,10 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
     normals = {r: np.asarray(logs[r]["pad_normal_force"], dtype=float) for r in robots}
     pressing = np.all([normals[r] >= CONTACT_FORCE for r in robots], axis=0)
     established = held & _settled(t, held & pressing)
-    lost = established & (~pressing | (position_error > DROP_DISTANCE))
+    resting = np.zeros(K, dtype=bool)
+    if k0 < K:
+        resting = np.abs(pose[:, 6] - pose[k0, 6]) <= REST_HEIGHT
+    lost = established & ((~pressing & ~resting) | (position_error > DROP_DISTANCE))
     drop_events = np.flatnonzero(lost & ~np.concatenate([[False], lost[:-1]]))
     for r in robots:
         log = logs[r]

@@ -509,7 +509,8 @@ class ObjectModelSettings:
     mu : float, optional
         The friction coefficient the controllers assume (default ``plant.friction``).
     margin : float
-        ``friction``: the squeeze's safety factor (>= 1).
+        ``friction``: the squeeze's safety factor (>= 1); in ``contact`` mode also the
+        feedforward's: it passes the object at most ``μ λ_d / margin`` across the normal.
     squeeze_min : float
         ``friction``: the least squeeze (N) whatever the load.
     contact_stiffness : float, optional
@@ -536,6 +537,12 @@ class ObjectModelSettings:
         model, ``contact`` mode and the paper's arms' closed-form kinematics) or ``auto``
         (the default: ``contact`` where it applies, ``centre`` otherwise; the paper's control,
         ``mode: none``, is always ``centre``).
+    couple : bool, optional
+        Whether each arm's feedforward carries its part of the squeeze's couple (the pads'
+        normal forces act through their centres; offset across the normal, they make a couple
+        the pads' tangential forces must carry, :mod:`drake_coop.control.squeeze_couple`):
+        true, false, or null (the default: true when the arms follow their pads' contact
+        points, whose centres then end at different heights); two robots only.
     """
 
     mode: str = "none"
@@ -552,6 +559,7 @@ class ObjectModelSettings:
     shared: bool = False
     squeeze_rate: float = 1.0
     control_point: str = "auto"
+    couple: Optional[bool] = None
 
 
 @dataclass

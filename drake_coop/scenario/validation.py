@@ -182,6 +182,9 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
                             "(and mode known or estimated): the shared block chooses the "
                             "squeeze online from the estimated load")
     _choice(scenario.object_model.control_point, CONTROL_POINTS, "object_model.control_point")
+    if scenario.object_model.couple not in (None, True, False):
+        raise ScenarioError(f"object_model.couple: true, false or null is required, got "
+                            f"{show(scenario.object_model.couple)}")
     if scenario.object_model.control_point == "contact":
         from drake_coop.scenario.reach import has_closed_form
 

@@ -35,15 +35,18 @@ def _quaternion_z(a: float) -> np.ndarray:
 
 
 def _run(slide: float = 0.0, fall: float = 0.0, release_pad: bool = False,
-         bounce: tuple[float, float] | None = None):
+         bounce: tuple[float, float] | None = None, set_down: bool = False):
     """Two pads on the box's ±x faces, rolling (the pads' bodies turn about the box's y axis
     while the material points at the contacts stay put); pad 1 slides ``slide`` along the
     face's z during 5-6 s; the box falls ``fall`` (with both pads) from 7 s; with
-    ``release_pad``, pad 2 stops pressing at 7 s."""
+    ``release_pad``, pad 2 stops pressing at 7 s. With ``set_down``, the box (and the path) is
+    back at its height of the grasp (on its stand) from 8.5 s."""
     t = np.arange(0.0, 10.0 + 1e-9, 0.01)
     K = t.size
     R_B = _rz(GAMMA)
     p = np.column_stack([0.7 + 0.0 * t, 0.05 * np.sin(t), 0.5 + 0.01 * t])
+    if set_down:
+        p[t >= 8.5, 2] = 0.5 + 0.01 * 1.0
     p[:, 2] -= fall * np.clip(t - 7.0, 0.0, 1.0)
     alpha = 0.2 * np.sin(0.7 * t)                          # the pads' rolling angle
     s = slide * np.clip(t - 5.0, 0.0, 1.0)                 # pad 1's slide along the face
@@ -163,3 +166,16 @@ def test_a_bounce_at_the_first_touch_is_not_a_drop_but_a_later_one_is():
     t, logs, meta = _run(bounce=(5.0, 5.03))
     (k,) = object_signals(logs, meta)["robot1"]["drop_events"]
     assert t[k] == pytest.approx(5.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("set_down, drops", [(True, 0), (False, 1)])
+def test_a_pad_letting_go_of_a_box_set_down_on_its_stand_is_not_a_drop(set_down, drops):
+    """Pad 2 stops pressing at 8.9 s, 0.1 s before the release: a drop while the box is
+    carried (1.0 cm above its height at the grasp), none once it rests again at that
+    height (the stand carries it: the put-down's last moments)."""
+    t, logs, meta = _run(bounce=(8.9, 9.0), set_down=set_down)
+    events = object_signals(logs, meta)["robot1"]["drop_events"]
+    assert events.size == drops
+    assert compute_metrics(logs, meta)["robot1"]["put_down"]["drops"]["count"] == drops
+    if drops:
+        assert t[events[0]] == pytest.approx(8.9, abs=1e-9)
