@@ -33,8 +33,12 @@ if __name__ == "__main__":
     parser.add_argument("--t-callbacks", type=float, default=16.2,
                         help="simulated seconds of the run whose Python callbacks are counted "
                              "(0 skips it)")
+    parser.add_argument("--object-repeats", type=int, default=0,
+                        help="with a contact --scenario: alternated repeats of the run with "
+                             "object_model none / known / estimated (0 skips them)")
     args = parser.parse_args()
     run_benchmark(args.t_end, args.repeats, args.out, t_scaling=args.t_scaling,
                   extra_scenario=args.scenario, t_extra=args.t_scenario,
                   t_attribution=args.t_attribution,
-                  attribution_repeats=args.attribution_repeats, t_callbacks=args.t_callbacks)
+                  attribution_repeats=args.attribution_repeats, t_callbacks=args.t_callbacks,
+                  object_repeats=args.object_repeats)

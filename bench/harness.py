@@ -205,11 +205,30 @@ def _contact_reaction_ground_truth(b, coop, h, dt):
         b.Connect(sensor.GetOutputPort("lambda_meas"), ft.GetInputPort("lambda_true"))
 
 
+def _contact_pad_force_log(b, coop, h, dt):
+    """``extras`` for :func:`_plant_alone` in ``contact`` mode: the experiment's ground truth
+    (:func:`~drake_coop.plant.ground_truth.add_pad_force_log`: the pads' forces read by a C++
+    hold at every plant step and logged) and, after the run, its evaluation of every tick
+    (``F_meas``, ``lambda_meas``, ideal F/T models' ``lambda_sensor``)."""
+    from drake_coop.plant.ground_truth import add_pad_force_log
+    from drake_coop.sensing.force_sensor import FTModel
+
+    truth = add_pad_force_log(b, coop, h, [FTModel.from_settings(None, h, i, a.arm.m)
+                                           for i, a in enumerate(coop.arms)])
+    steps = int(round(h / dt))
+
+    def finish(context):
+        published = truth.logger.FindLog(context).num_samples()
+        truth.evaluate(context, max((published - 2) // steps, 0), False)
+    return finish
+
+
 #: :func:`_sensing_attribution`'s additions for a ``contact`` scenario.
 _CONTACT_ATTRIBUTION = {
-    "contact ground truth now: pad_forces (contact results at every plant step) + F/T models":
-        None,      # set below: _ground_truth(True)
-    "contact ground truth before: reaction forces + body lists at t_k and t_k - 3dt/2":
+    "contact ground truth now: pad forces held and logged at every plant step (C++), "
+    "evaluated after the run":
+        _contact_pad_force_log,
+    "contact ground truth before issue 25: reaction forces + body lists at t_k and t_k - 3dt/2":
         _contact_reaction_ground_truth,
 }
 
@@ -250,8 +269,6 @@ _ATTRIBUTION = {
 }
 
 
-_CONTACT_ATTRIBUTION[next(iter(_CONTACT_ATTRIBUTION))] = _ground_truth(True)
-
 
 def _sensing_attribution(scenario, t_end: float, repeats: int,
                          additions: dict | None = None) -> dict:
@@ -278,6 +295,44 @@ def _sensing_attribution(scenario, t_end: float, repeats: int,
     return {"plant_alone_us_per_tick": plant_us, "extra_us_per_tick": rows}
 
 
+# ------------------------------------------------------------------- object-aware blocks
+def _object_blocks_cost(scenario, t_end: float, repeats: int) -> dict:
+    """What the object-aware blocks (``object_model``: ``LoadFeedforward`` and, when
+    ``estimated``, ``MassEstimator``) add to a run: CPU seconds of the scenario with
+    ``object_model.mode`` ``none``, ``known`` and ``estimated``, alternated ``repeats`` times
+    in this process, each mode's ratio to the ``none`` run just before it; and, from one
+    instrumented ``estimated`` run, the blocks' own Python time per tick (the rest of a
+    ratio is the plant and the framework: the feedforward changes the torques, so the
+    plant's steps differ too)."""
+    import copy
+
+    from drake_coop.experiment.plan import num_ticks_until, time_grid
+
+    variants = {}
+    for mode in ("none", "known", "estimated"):
+        variants[mode] = copy.deepcopy(scenario)
+        variants[mode].object_model.mode = mode
+    cpu: dict[str, list[float]] = defaultdict(list)
+    ratios: dict[str, list[float]] = defaultdict(list)
+    for _ in range(max(1, repeats)):
+        base = _experiment(variants["none"], t_end)[1]
+        cpu["none"].append(base)
+        for mode in ("known", "estimated"):
+            c = _experiment(variants[mode], t_end)[1]
+            cpu[mode].append(c)
+            ratios[mode].append(c / base)
+    totals: dict = defaultdict(float)
+    with _timed_callbacks(totals):
+        _experiment(variants["estimated"], t_end)
+    ticks = num_ticks_until(t_end, time_grid(scenario)[0])
+    blocks = {label: 1e6 * sum(v for (lab, _), v in totals.items() if lab == label) / ticks
+              for label in ("load feedforward (object_model)",
+                            "mass estimator (object_model: estimated)")}
+    return {"cpu_s": {k: _spread(v) for k, v in cpu.items()},
+            "ratio_to_none": {k: _spread(v) for k, v in ratios.items()},
+            "python_us_per_tick": blocks, "simulated_s": t_end, "repeats": repeats}
+
+
 # ----------------------------------------------------------------------- per-system timing
 _TIMED = {
     "velocity observer (15)-(16)": ("drake_coop.control.observers", "VelocityObserver",
@@ -295,7 +350,11 @@ _TIMED = {
     "wrist dynamics (all arms)": ("drake_coop.plant.wrist", "WristDynamics",
                                   ("_calc_signals", "_calc_last_step", "_update_step")),
     "pad forces (contact ground truth, all arms)": ("drake_coop.plant.grasp", "PadForces",
-                                                    ("_update", "_live")),
+                                                    ("_calc_forces",)),
+    "load feedforward (object_model)": ("drake_coop.control.object", "LoadFeedforward",
+                                        ("_update",)),
+    "mass estimator (object_model: estimated)": ("drake_coop.control.object", "MassEstimator",
+                                                 ("_update",)),
 }
 
 
@@ -517,7 +576,8 @@ def _spread(values: list[float]) -> dict[str, float]:
 def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
                   t_scaling: float = 20.0, extra_scenario: str | None = None,
                   t_extra: float | None = None, t_attribution: float = 10.0,
-                  attribution_repeats: int = 5, t_callbacks: float = 16.2) -> dict:
+                  attribution_repeats: int = 5, t_callbacks: float = 16.2,
+                  object_repeats: int = 0) -> dict:
     """Run the benchmark, print its tables and return the numbers.
 
     Parameters
@@ -540,6 +600,9 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
     t_callbacks : float
         Simulated seconds of the run whose Python callbacks are counted
         (:func:`_count_callbacks`; 0 skips it).
+    object_repeats : int
+        With a ``contact`` extra scenario: alternated repeats of the object-aware blocks'
+        cost (:func:`_object_blocks_cost`, ``t_extra`` seconds each; 0 skips it).
     """
     from drake_coop.experiment.plan import num_ticks_until
     from drake_coop.scenario.loading import default_scenario, load_scenario
@@ -711,6 +774,17 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
             for label, r in contact["extra_us_per_tick"].items():
                 print(f"    {r['median']:7.1f} us [{r['min']:7.1f}, {r['max']:7.1f}] "
                       f"= {100 * r['share']:5.1f} %  {label}")
+        if s.plant.object_mode == "contact" and object_repeats > 0:
+            blocks = _object_blocks_cost(s, T, object_repeats)
+            extra["object_blocks"] = blocks
+            print(f"  the object-aware blocks: CPU of the run with object_model known / "
+                  f"estimated over the same run with none, {object_repeats} alternated "
+                  f"triples of {T:g} s, median [min, max] (target <= 1.10):")
+            for mode, r in blocks["ratio_to_none"].items():
+                print(f"    {mode:9s} {r['median']:.3f} [{r['min']:.3f}, {r['max']:.3f}]")
+            print("    their own Python per tick (instrumented estimated run): "
+                  + ", ".join(f"{k} {v:.1f} us"
+                              for k, v in blocks["python_us_per_tick"].items()))
 
     numbers = {
         "machine": f"{platform.processor() or platform.machine()}, Python "

@@ -52,6 +52,7 @@ This module imports only NumPy and Drake.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -373,6 +374,9 @@ class ContactStiffness:
         if self.radius is None:
             return (lam / self.a) ** (1.0 / self.exponent)
         r = self.radius
+        if lam.size == 1:       # one contact (the controller's, every tick): on floats
+            return np.full(lam.shape, self._sphere_root(float(lam.reshape(-1)[0]),
+                                                        lam.ndim > 0))
         target = np.minimum(lam / self.a, r * r / 3.0)
         d = np.sqrt(target)
         for _ in range(30):
@@ -381,6 +385,23 @@ class ContactStiffness:
                             / np.where(slope > 0, slope, 1.0), 0.0)
             d = np.clip(d - step, 0.0, r)
             if np.all(np.abs(step) <= 1e-15 * r):
+                break
+        return d
+
+    def _sphere_root(self, lam: float, array: bool) -> float:
+        """:meth:`compression` of one force ``λ ≥ 0`` with ``radius``: the same Newton steps
+        on Python floats, bit for bit those of a one-element array (``array``: the cube by
+        NumPy's vectorized power, which rounds differently from the C library's) or of a
+        scalar (the C library's ``pow``, as NumPy's scalars), at a fifth of the cost."""
+        r = self.radius
+        target = min(lam / self.a, r * r / 3.0)
+        d = math.sqrt(target)
+        for _ in range(30):
+            slope = 2.0 * d - 2.0 * d * d / r
+            cube = float((np.array([d]) ** 3)[0]) if array else d ** 3
+            step = (d * d - 2.0 * cube / (3.0 * r) - target) / slope if slope > 0 else 0.0
+            d = min(max(d - step, 0.0), r)
+            if abs(step) <= 1e-15 * r:
                 break
         return d
 
@@ -485,6 +506,7 @@ class LoadFeedforward(LeafSystem):
         self._across = np.eye(3) - np.linalg.pinv(N) @ N
         n = model.n
         self._layout = ReferenceLayout(n, model.m)
+        self._lambda_d = self._layout.slices()["lambda_d"]
         self._g = np.array([0.0, 0.0, -float(gravity)])
         self._q = self.DeclareVectorInputPort("q", n)
         self._reference = self.DeclareVectorInputPort("reference", self._layout.size)
@@ -529,15 +551,15 @@ class LoadFeedforward(LeafSystem):
 
     def load(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
         """``(τ_ff, f_i)`` at the current inputs (what a tick latches)."""
-        if not self._layout.held(self._reference.Eval(context)):
+        reference = self._reference.Eval(context)
+        if not self._layout.held(reference):
             return np.zeros(self._model.n), np.zeros(3)
         q = self._q.Eval(context)
         f = float(self._mass.Eval(context)[0]) * (self._a_d.Eval(context) - self._g)
         if self._couple is not None:
             f = f + self._couple.Eval(context)
         if self._mu is not None:
-            f = self.friction_limited(f, self._layout.unpack(self._reference.Eval(context)
-                                                           ).lambda_d)
+            f = self.friction_limited(f, reference[self._lambda_d])
         return contact_jacobian(self._model, q, self._r).T @ f, f
 
     def friction_limited(self, f: np.ndarray, lambda_d: np.ndarray) -> np.ndarray:

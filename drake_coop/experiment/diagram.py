@@ -9,11 +9,14 @@
       │            (Encoders, or a C++   └───────────────────────────────────────────────────┘
       │             Demultiplexer when ideal)    tau ─▶ robotN_actuators (Saturation) ─▶ plant
       │                     (robotN_latency between them with a computation delay or jitter)
-      ├─ live ground truth (force_source: sensor on a robot; contact and none modes):
-      │  state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor
-      │  (contact: contact results ─▶ pad_forces; none: reaction forces, body poses ─▶
-      │  wrist_kinematics)
+      ├─ live ground truth (force_source: sensor on a robot in planes or rigid mode; none
+      │  mode): state, acceleration, actuation ─▶ wrist_dynamics ─▶ robotN_force_sensor
+      │  (none: reaction forces, body poses ─▶ wrist_kinematics)
       │                                   └─ λ ─▶ robotN_ft_sensor (sensor model, logged)
+      ├─ contact mode, offline: contact results ─▶ pad_forces ─▶ pad_forces_hold (C++, every
+      │  plant step) ─▶ pad_forces_log; F_meas, lambda_meas and lambda_sensor sorted into
+      │  ticks after the run (force_source: sensor: hold ─▶ robotN_lambda_last_step ─▶
+      │  robotN_ft_sensor)
       └─ otherwise, offline: [state, actuation, acceleration] ─▶ ground_truth_hold_tick
          (t_k), [state, actuation] ─▶ ground_truth_hold_before_tick (t_k − 3Δt/2) (C++
          ZeroOrderHolds) ─▶ ground_truth_log; F_meas, lambda_meas and lambda_sensor computed
@@ -83,7 +86,12 @@ from drake_coop.plant.cooperative import (
     CoopPlant,
     build_plant,
 )
-from drake_coop.plant.ground_truth import GroundTruthLog, add_ground_truth
+from drake_coop.plant.ground_truth import (
+    GroundTruthLog,
+    PadForceLog,
+    add_ground_truth,
+    add_pad_force_log,
+)
 from drake_coop.plant.wrist import ForceSensor, add_force_sensors
 from drake_coop.scenario.schema import Scenario
 from drake_coop.experiment.plan import time_grid
@@ -161,14 +169,15 @@ class RobotSystems:
 class Experiment:
     """A built experiment: the diagram, the plant handles and each robot's systems.
 
-    ``ground_truth`` is the offline ground truth's holds and log (None on the live path or
-    without logging)."""
+    ``ground_truth`` is the offline ground truth's holds and log (in ``contact`` mode the
+    pads' forces, :class:`~drake_coop.plant.ground_truth.PadForceLog`; None on the live path
+    or without logging)."""
 
     scenario: Scenario
     diagram: Diagram
     coop: CoopPlant
     robots: list[RobotSystems]
-    ground_truth: GroundTruthLog | None = None
+    ground_truth: GroundTruthLog | PadForceLog | None = None
     #: The shared object-state block (``object_model.shared``), None without it.
     object_state_estimator: ObjectStateEstimator | None = None
 
@@ -212,13 +221,16 @@ def add_encoders(builder: DiagramBuilder, name: str, n: int, period: float, sett
 
 
 def uses_live_ground_truth(scenario: Scenario) -> bool:
-    """Whether the ground truth must run inside the loop: in the modes other than ``planes``
-    and ``rigid`` (``contact``, ``none``: Newton's law on the reaction forces,
-    :class:`~drake_coop.plant.wrist.WristKinematics`), or when a robot's controller reads the
-    F/T sensor (``force_source: sensor``). Otherwise it is computed after the run from held
-    plant data (:mod:`drake_coop.plant.ground_truth`)."""
-    return (scenario.plant.object_mode not in ("planes", "rigid")
-            or any(r.force_source == "sensor" for r in scenario.robots))
+    """Whether the ground truth must run inside the loop: in ``none`` mode (Newton's law on
+    the reaction forces, :class:`~drake_coop.plant.wrist.WristKinematics`), or in the
+    ``planes`` and ``rigid`` modes when a robot's controller reads the F/T sensor
+    (``force_source: sensor``). Otherwise it is computed after the run from held plant data
+    (:mod:`drake_coop.plant.ground_truth`; in ``contact`` mode the pads' contact forces of
+    every plant step, :class:`~drake_coop.plant.ground_truth.PadForceLog`, which also feeds a
+    controller that reads its sensor)."""
+    mode = scenario.plant.object_mode
+    return mode == "none" or (mode != "contact"
+                              and any(r.force_source == "sensor" for r in scenario.robots))
 
 
 def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = None,
@@ -248,49 +260,65 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         (``lambda_sensor``) are computed. True: inside the loop, by
         :func:`~drake_coop.plant.wrist.add_force_sensors` and
         :func:`~drake_coop.sensing.force_sensor.add_ft_sensor` (Python systems latching at every
-        tick). False: after the run, from C++ holds of the plant's data logged at every tick
-        (:func:`~drake_coop.plant.ground_truth.add_ground_truth`; without ``log`` nothing at
-        all), allowed only when :func:`uses_live_ground_truth` is False. None (default): that
-        function decides. Both give the same logs (to rounding, ~1e-12 N).
+        tick; in ``contact`` mode Newton's law on the reaction forces). False: after the run,
+        from C++ holds of the plant's data logged at every tick
+        (:func:`~drake_coop.plant.ground_truth.add_ground_truth`; in ``contact`` mode the pads'
+        contact forces of every plant step, :func:`~drake_coop.plant.ground_truth.
+        add_pad_force_log`; without ``log`` nothing at all, except what a controller reading
+        its F/T sensor needs), allowed only when :func:`uses_live_ground_truth` is False. None
+        (default): that function decides. Both give the same logs (to rounding, ~1e-12 N;
+        ``contact``: to Newton's law's agreement with the contact results, ~1e-3).
 
     Raises
     ------
     ValueError
-        ``live_ground_truth=False`` in a mode other than ``planes`` or ``rigid``, or with a
-        robot's ``force_source: sensor``.
+        ``live_ground_truth=False`` in ``none`` mode, or with a robot's
+        ``force_source: sensor`` in the ``planes`` and ``rigid`` modes.
     """
     h, dt = time_grid(scenario)
     needs_live = uses_live_ground_truth(scenario)
     if live_ground_truth is None:
         live_ground_truth = needs_live
     elif not live_ground_truth and needs_live:
-        raise ValueError("live_ground_truth=False needs planes or rigid mode and no robot "
-                         "with force_source: sensor")
+        raise ValueError("live_ground_truth=False needs planes, rigid or contact mode and, "
+                         "outside contact mode, no robot with force_source: sensor")
     b = builder or DiagramBuilder()
     coop = build_plant(b, scenario, time_step=dt)
     plant = coop.plant
     sensors = add_force_sensors(b, coop, h) if live_ground_truth else [None] * len(coop.arms)
+    models = [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
+              for i, (r, arm) in enumerate(zip(scenario.robots, coop.arms))]
+    # contact mode off the loop: the pads' forces of every plant step, held and logged (C++);
+    # also the F/T sensor's input of a controller that reads it.
+    pads = None
+    if (not live_ground_truth and coop.mode == "contact"
+            and (log or any(r.force_source == "sensor" for r in scenario.robots))):
+        pads = add_pad_force_log(b, coop, h, models, log=log)
     robots = []
     actuation = []           # each arm's actuation input (for the offline ground truth)
-    models = [controller_arm_model(handles.arm, robot.model_error)
-              for handles, robot in zip(coop.arms, scenario.robots)]
+    arm_models = [controller_arm_model(handles.arm, robot.model_error)
+                  for handles, robot in zip(coop.arms, scenario.robots)]
     # object_model.shared: the one block between the arms (the planned references pass
     # through it, their λ_d replaced by the squeeze chosen online from the shared estimate).
     shared = (add_object_state_estimator(b, scenario, [ReferenceLayout(m.n, m.m)
-                                                       for m in models], h)
+                                                       for m in arm_models], h)
               if shared_enabled(scenario) else None)
     trajectories = (list(references) if references is not None
                     else [reference_trajectory(scenario, i) for i in range(len(coop.arms))])
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         robot = scenario.robots[i]
-        model = models[i]
+        model = arm_models[i]
         n = model.n
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
         encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
         ft = lambda_sensor = None
-        if live_ground_truth:
+        if pads is not None and robot.force_source == "sensor":
+            last_step = pads.add_lambda_last_step(b, i, name)
+            ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
+                                              last_step, last_step)
+        elif live_ground_truth:
             ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
                                               sensors[i].GetOutputPort("lambda_meas"),
                                               sensors[i].lambda_last_step)
@@ -367,7 +395,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
                 "tau_cmd": control.GetOutputPort("tau"),
                 "F_meas": sensors[i].F_step if live_ground_truth else None,
                 "lambda_meas": sensors[i].lambda_step if live_ground_truth else None,
-                "lambda_sensor": lambda_sensor,      # None on the offline path
+                "lambda_sensor": lambda_sensor,      # None: computed after the run
                 "qdot_hat": control.GetOutputPort("qdot_hat"),
                 "state": state,
             }
@@ -379,9 +407,8 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             if coop.grasp is not None:          # contact mode: the box's state too
                 sources["object_state"] = plant.get_state_output_port(
                     coop.grasp.box.model_instance())
-            if not live_ground_truth:
-                sources = {k: port for k, port in sources.items()
-                           if k not in GROUND_TRUTH_KEYS}
+            # The signals computed after the run have no port.
+            sources = {k: port for k, port in sources.items() if port is not None}
             sizes = [port.size() for port in sources.values()]
             mux = b.AddNamedSystem(f"{name}_log_signals", Multiplexer(sizes))
             for j, port in enumerate(sources.values()):
@@ -395,12 +422,11 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     if shared is not None:
         connect_object_state_estimator(b, shared, [r.object_blocks for r in robots],
                                        robots[0].object_blocks.acceleration_d)
-    ground_truth = None
-    if not live_ground_truth and log:
+    ground_truth = pads if log else None
+    if not live_ground_truth and log and coop.mode != "contact":
         ground_truth = add_ground_truth(
-            b, coop, h, [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
-                         for i, (r, arm) in enumerate(zip(scenario.robots, coop.arms))],
-            actuation, tick_forces=before_build is not None)    # for visualizers' readers
+            b, coop, h, models, actuation,
+            tick_forces=before_build is not None)    # for visualizers' readers
     if before_build is not None:
         before_build(b, coop)
     diagram = b.Build()

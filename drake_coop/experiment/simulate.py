@@ -17,8 +17,9 @@ The ground truth: with the offline path (:attr:`Experiment.ground_truth`, the de
 controller reads the F/T sensor in ``planes`` and ``rigid`` modes), ``F_meas``,
 ``lambda_meas`` and ``lambda_sensor`` are computed by :func:`collect_logs` from plant data
 held at every tick, and the guards read the force of the plant step before the checked tick
-from the held data (no plant solve); with the live path they are logged latches and the
-guards read the live force port.
+from the held data (no plant solve); in ``contact`` mode likewise from the pads' forces held at
+every plant step (:class:`~drake_coop.plant.ground_truth.PadForceLog`); with the live path
+they are logged latches and the guards read the live force port.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ from drake_coop.experiment.references import (
     start_posture,
 )
 from drake_coop.plant.cooperative import initialize_plant_context
-from drake_coop.plant.grasp import pad_contact_components
+from drake_coop.kinematics.rotations import pad_contact_components
 from drake_coop.scenario.loading import dump_scenario
 from drake_coop.scenario.schema import Scenario
 from drake_coop.control.timing import tick_of
@@ -218,7 +219,8 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
         if exp.ground_truth is not None:
             if (n, complete) not in offline:
                 offline[(n, complete)] = exp.ground_truth.evaluate(context, n, complete)
-            data.update(offline[(n, complete)][i])
+            for key, value in offline[(n, complete)][i].items():
+                data.setdefault(key, value)     # (a live F/T model's reading is logged)
         arm = exp.coop.arms[i].arm
         arm_dofs = rs.law.n
         layout = rs.law.layout

@@ -75,7 +75,7 @@ from pydrake.multibody.tree import (
     UnitInertia,
 )
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import Context, InputPort, LeafSystem, ValueProducer
+from pydrake.systems.framework import Context, InputPort, LeafSystem, OutputPort
 
 from drake_coop.scenario.schema import Scenario
 
@@ -128,6 +128,10 @@ class ContactObject:
     pad_geometries: list[GeometryId] = field(default_factory=list)
     stand_slide: PrismaticJoint | None = None
     stand_drop: float = 0.0
+    _pad_index: dict = field(init=False, repr=False, compare=False, default_factory=dict)
+
+    def __post_init__(self):
+        self._pad_index = {pad: i for i, pad in enumerate(self.pad_geometries)}
 
     def set_stand_lowered(self, context: Context, lowered: bool) -> None:
         """Put the stand :attr:`stand_drop` below its place (``lowered``) or back; its slide
@@ -188,7 +192,15 @@ class ContactObject:
     def pad_forces(self, results: ContactResults) -> list[np.ndarray]:
         """:meth:`pad_force` of every pad (in :attr:`pad_geometries`' order), in one pass
         over the contacts."""
-        index = {pad: i for i, pad in enumerate(self.pad_geometries)}
+        return [np.array(t) for t in self._pad_totals(results)]
+
+    def pad_forces_vector(self, results: ContactResults) -> np.ndarray:
+        """:meth:`pad_forces` as one vector ``[F_1, …, F_l]``."""
+        return np.array([x for t in self._pad_totals(results) for x in t])
+
+    def _pad_totals(self, results: ContactResults) -> list[list[float]]:
+        """Every pad's force as a list of three floats (the sums of :meth:`pad_forces`)."""
+        index = self._pad_index
         box = self.box_geometry
         totals = [[0.0, 0.0, 0.0] for _ in self.pad_geometries]
         for k in range(results.num_hydroelastic_contacts()):
@@ -224,7 +236,7 @@ class ContactObject:
             t[0] += sign * f[0]
             t[1] += sign * f[1]
             t[2] += sign * f[2]
-        return [np.array(t) for t in totals]
+        return totals
 
 
 def _props(mu: float, compliant_modulus: float | None = None) -> ProximityProperties:
@@ -374,12 +386,8 @@ class PadForces(LeafSystem):
         name: PadForces
         input_ports:
         - contact_results
-        - contact_results_last_step
         output_ports:
-        - <robot>_wrist
-        - <robot>_F_step
-        - <robot>_lambda_step
-        - <robot>_lambda_last_step
+        - forces
 
     In ``contact`` mode the box is the only thing a pad touches (the pads' collisions with the
     stand, the floor and each other are filtered, and the arms have no other collision
@@ -389,128 +397,67 @@ class PadForces(LeafSystem):
     the plant's contact results of the step, without the reaction forces, body poses,
     velocities and accelerations.
 
-    One discrete update per tick (period ``h``, offset 0) reads the contact results from the
-    same context as the plant's update, so the step's solve is shared, and latches the force
-    of the step taken from the tick. ``contact_results_last_step`` is meant for a C++
-    ``ZeroOrderHold`` of the plant's contact results at every plant step (period ``Δt``,
-    offset 0: the plant's own event times, so its solves are shared too): read between two
-    plant updates it holds the last step taken; ``<robot>_lambda_last_step`` is computed from it
-    only when read (the F/T sensor model's reading, once per tick).
+    No event of its own: ``forces`` is computed when read. Read by a C++ ``ZeroOrderHold`` at
+    the plant's own step times (period ``Δt``, offset 0: the discrete phase of every plant
+    update, after the controllers' latch of their torque) it is the force of the step the
+    plant takes there, from the same context as the plant's update (the step's solve is
+    shared): :func:`~drake_coop.plant.ground_truth.add_pad_force_log`. A read between two
+    plant updates solves a step of its own.
+
+    With a control ``period`` of ``N = h/Δt ≥ 3`` plant steps, only the steps the ground truth
+    uses are computed: those that start a tick, ``[t_k, t_k + Δt)`` (the step taken from the
+    tick), and those that end one, ``[t_k − Δt, t_k)`` (the F/T sensor model's reading); at
+    the ``N − 2`` steps between them ``forces`` is NaN without reading the contact results
+    (each read costs a Python call into the plant's results: ~20 µs per contact in a run).
+    The step is the context's time in plant steps, ``j = round(t/Δt)``: exact at the plant's
+    own step times.
 
     Parameters
     ----------
     grasp : ContactObject
-        The box and the pads' geometries.
-    names : list of str
-        The robots' names, in pad order.
-    normals : list of ndarray
-        Each robot's outward normals ``N_i`` (rows): ``λ_i = N_i F_i``.
-    period : float
-        The control period ``h``.
+        The box and the pads' geometries (the pads in robot order).
+    period, time_step : float, optional
+        The control period ``h`` and the plant's step ``Δt`` (both or neither): compute only
+        the steps next to a tick (above). Default: every read.
+
+    Input ports
+    -----------
+    contact_results
+        The plant's ``contact_results``.
 
     Output ports
     ------------
-    <robot>_wrist : 3-vector
-        ``F``, the box's force on the pad (palm frame, N), live: the step from the context's
-        state (a read away from a plant update solves that step).
-    <robot>_F_step, <robot>_lambda_step : 3- and m-vectors
-        ``F`` and ``N_i F`` of the step taken from the last tick, latched at that tick.
-    <robot>_lambda_last_step : m-vector
-        ``N_i F`` of the contact results held at the last plant step (read at
-        ``t_k − Δt/2``: the step ``[t_k − Δt, t_k)``, the F/T sensor model's reading of tick
-        ``k``).
+    forces : 3l-vector
+        ``[F_1, …, F_l]``: the box's force on each pad (palm frame, N) of the step from the
+        context's state (NaN at the steps skipped with a ``period``).
     """
 
-    def __init__(self, grasp: ContactObject, names: list[str], normals: list[np.ndarray],
-                 period: float):
+    def __init__(self, grasp: ContactObject, period: float | None = None,
+                 time_step: float | None = None):
         super().__init__()
         self._grasp = grasp
-        self._normals = [np.atleast_2d(np.asarray(N, dtype=float)) for N in normals]
-        model = AbstractValue.Make(ContactResults())
-        self._results = self.DeclareAbstractInputPort("contact_results", model)
-        self._held = self.DeclareAbstractInputPort("contact_results_last_step", model)
-        self._last = self.DeclareCacheEntry(
-            "pad forces of the last plant step",
-            ValueProducer(allocate=AbstractValue.Make([np.zeros(3)]).Clone,
-                          calc=lambda context, value: value.set_value(
-                              self._grasp.pad_forces(self._held.Eval(context)))),
-            {self._held.ticket()})
-        self._tick = [self.DeclareDiscreteState(3) for _ in names]
-        self._squeeze: list = []
-        for i, name in enumerate(names):
-            self.DeclareVectorOutputPort(
-                f"{name}_wrist", 3,
-                lambda context, output, i=i: output.SetFromVector(
-                    self._grasp.pad_forces(self._results.Eval(context))[i]),
-                prerequisites_of_calc={self._results.ticket()})
-            self.DeclareStateOutputPort(f"{name}_F_step", self._tick[i])
-            m = self._normals[i].shape[0]
-            self._squeeze.append(self.DeclareDiscreteState(m))
-            self.DeclareStateOutputPort(f"{name}_lambda_step", self._squeeze[i])
-            self.DeclareVectorOutputPort(
-                f"{name}_lambda_last_step", m,
-                lambda context, output, i=i: output.SetFromVector(
-                    self._normals[i] @ self._last.Eval(context)[i]),
-                prerequisites_of_calc={self._last.ticket()})
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        size = 3 * len(grasp.pad_geometries)
+        self._skipped = np.full(size, np.nan)
+        self._dt = None if time_step is None else float(time_step)
+        self._steps = None if period is None else int(round(period / time_step))
+        self._results = self.DeclareAbstractInputPort(
+            "contact_results", AbstractValue.Make(ContactResults()))
+        self._forces = self.DeclareVectorOutputPort(
+            "forces", size, self._calc_forces,
+            prerequisites_of_calc={self._results.ticket(), self.time_ticket()})
 
     def get_contact_results_input_port(self) -> InputPort:
         """The plant's ``contact_results``."""
         return self._results
 
-    def get_contact_results_last_step_input_port(self) -> InputPort:
-        """The plant's ``contact_results`` held at every plant step."""
-        return self._held
+    def get_forces_output_port(self) -> OutputPort:
+        """``[F_1, …, F_l]`` of the step from the context's state."""
+        return self._forces
 
-    def _update(self, context: Context, discrete_state) -> None:
-        forces = self._grasp.pad_forces(self._results.Eval(context))
-        for index, squeeze, N, F in zip(self._tick, self._squeeze, self._normals, forces):
-            discrete_state.set_value(index, F)
-            discrete_state.set_value(squeeze, N @ F)
-
-
-def quaternion_rotations(quaternions: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``(K, 3, 3)`` of unit quaternions ``(K, 4)`` ``[w, x, y, z]`` (the
-    order of a free body's positions in the plant's state), normalized first."""
-    q = np.asarray(quaternions, dtype=float).reshape(-1, 4)
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=1),
-    ], axis=1)
-
-
-def pad_contact_components(F: np.ndarray, p_pad: np.ndarray, pose: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Normal and tangential parts of a pad's contact force, per sample.
-
-    The pad touches one of the box's x faces (the one on its side of the box's centre); its
-    outward normal is ``n = ± R_WB e_x``. With ``F`` the box's force on the pad,
-    ``f_n = n · F`` (positive when the box pushes the pad away: a compressive contact) and
-    ``f_t = ‖F − f_n n‖``.
-
-    Parameters
-    ----------
-    F : ndarray, shape (K, 3)
-        The box's force on the pad (palm frame, N).
-    p_pad : ndarray, shape (K, 3)
-        The pad's centre (the end-effector point, m).
-    pose : ndarray, shape (K, 7)
-        The box's ``[w, x, y, z]`` quaternion and position (the plant's free-body positions).
-
-    Returns
-    -------
-    f_n, f_t : ndarray, shape (K,)
-    p_B : ndarray, shape (K, 3)
-        The pad's centre in the box's frame (where on the box it sits).
-    """
-    R = quaternion_rotations(pose[:, :4])
-    p_B = np.einsum("kji,kj->ki", R, np.asarray(p_pad, dtype=float) - pose[:, 4:7])
-    side = np.where(p_B[:, 0] >= 0.0, 1.0, -1.0)
-    n = R[:, :, 0] * side[:, None]
-    F = np.asarray(F, dtype=float)
-    f_n = np.einsum("ki,ki->k", n, F)
-    f_t = np.linalg.norm(F - f_n[:, None] * n, axis=1)
-    return f_n, f_t, p_B
+    def _calc_forces(self, context: Context, output) -> None:
+        if self._steps is not None and self._steps > 2:
+            j = round(context.get_time() / self._dt) % self._steps
+            if 0 < j < self._steps - 1:          # a step between ticks: not used
+                output.SetFromVector(self._skipped)
+                return
+        output.SetFromVector(self._grasp.pad_forces_vector(self._results.Eval(context)))

@@ -59,12 +59,14 @@ from pydrake.systems.framework import (
 )
 from pydrake.systems.primitives import (
     LogVectorOutput,
+    MatrixGain,
     Multiplexer,
     VectorLogSink,
     ZeroOrderHold,
 )
 
 from drake_coop.plant.cooperative import CoopPlant
+from drake_coop.plant.grasp import PadForces
 from drake_coop.plant.wrist import ArmForces, _holds_last_step
 from drake_coop.sensing.force_sensor import FTModel
 
@@ -335,3 +337,142 @@ def add_ground_truth(builder: DiagramBuilder, coop: CoopPlant, period: float,
                           before_tick=None if before is None else before.get_output_port(),
                           state=plant.get_state_output_port(), period=float(period),
                           actuation_order=order)
+
+
+@dataclass
+class PadForceLog:
+    """The ``contact`` mode's ground truth off the control loop: the pads' contact forces of
+    every plant step, held and logged by C++ blocks, sorted into ticks after the run.
+
+    :class:`~drake_coop.plant.grasp.PadForces` (``pad_forces``) computes ``[F_1, …, F_l]``
+    from the plant's contact results when read; a C++ ``ZeroOrderHold``
+    (``pad_forces_hold``, period ``Δt``, offset 0) reads it in the discrete phase of every
+    plant update, from the context of the plant's own update (after the controllers' latch
+    at a tick: the step taken, its solve shared), so between ``t_j`` and ``t_{j+1}`` it holds
+    the force of the step ``[t_j, t_j + Δt)``; a ``VectorLogSink`` (``pad_forces_log``)
+    publishes it at every plant step, before that step's updates: the sample at ``t_j`` is
+    the step ``[t_j − Δt, t_j)``. One Python call per plant step (the output's calculation,
+    which reads the contact results only at the two steps next to a tick, NaN at the others),
+    no Python event, nothing read between two plant updates.
+
+    After the run (:meth:`evaluate`), tick ``k`` (``t_k = k N Δt``, ``N = h/Δt``) takes
+    ``F_meas`` from the sample at ``t_k + Δt`` (the step taken from the tick) and the F/T
+    sensor model's reading from ``λ`` of the sample at ``t_k`` (the step before the tick,
+    :meth:`~drake_coop.sensing.force_sensor.FTModel.readings`), the same rules as the live
+    path. A controller that reads its F/T sensor during the run reads ``λ`` of the hold at
+    ``t_k − Δt/2`` (:meth:`add_lambda_last_step`).
+
+    Attributes
+    ----------
+    logger : VectorLogSink or None
+        ``pad_forces_log`` (None without logging).
+    hold : OutputPort
+        ``pad_forces_hold``'s output: ``[F_1, …, F_l]`` of the last plant step.
+    normals : list of ndarray
+        Each robot's outward normals ``N_i`` (rows): ``λ_i = N_i F_i``.
+    models : list of FTModel
+        Each robot's F/T sensor model.
+    period, time_step : float
+        ``h`` and ``Δt`` (s).
+    """
+
+    logger: VectorLogSink | None
+    hold: OutputPort
+    normals: list[np.ndarray]
+    models: list[FTModel]
+    period: float
+    time_step: float
+
+    def _held(self, context: Context) -> np.ndarray:
+        return self.hold.Eval(self.hold.get_system().GetMyContextFromRoot(context))
+
+    def force_before_tick(self, context: Context) -> list[np.ndarray]:
+        """Every pad's ``F`` of the plant step ``[t_k − Δt, t_k)`` at a tick ``t_k`` before its
+        updates (the hold's value: no plant solve)."""
+        F = self._held(context)
+        return [F[3 * i:3 * i + 3].copy() for i in range(len(self.normals))]
+
+    def add_lambda_last_step(self, builder: DiagramBuilder, index: int, name: str
+                             ) -> OutputPort:
+        """``N_i F_i`` of robot ``index``'s pad from the hold (a C++ ``MatrixGain``,
+        ``<name>_lambda_last_step``): read at ``t_k − Δt/2`` it is ``λ`` of the step
+        ``[t_k − Δt, t_k)``, the live F/T sensor model's input."""
+        N = np.atleast_2d(self.normals[index])
+        D = np.zeros((N.shape[0], 3 * len(self.normals)))
+        D[:, 3 * index:3 * index + 3] = N
+        gain = builder.AddNamedSystem(f"{name}_lambda_last_step", MatrixGain(D))
+        builder.Connect(self.hold, gain.get_input_port())
+        return gain.get_output_port()
+
+    def evaluate(self, context: Context, n: int, complete: bool) -> list[dict[str, np.ndarray]]:
+        """Per robot ``F_meas`` ``(n, 3)``, ``lambda_meas`` and ``lambda_sensor`` ``(n, m)`` of
+        the ticks ``0 … n − 1``.
+
+        ``F_meas`` of tick ``k`` is the step ``[t_k, t_k + Δt)``, published at ``t_k + Δt``;
+        with ``complete`` the last tick's comes from the hold's current value when it has
+        sampled that tick (the context's time is past ``t_k``), else that row is NaN (so is
+        any row whose sample is missing). ``lambda_sensor`` of tick ``k ≥ 1`` is the model's
+        reading of ``λ`` of the step ``[t_k − Δt, t_k)``, published at ``t_k``.
+        """
+        width = 3 * len(self.normals)
+        steps = int(round(self.period / self.time_step))
+        log = self.logger.FindLog(context)
+        times, data = log.sample_times(), log.data()
+        j = np.rint(times / self.time_step).astype(int)          # the plant step's index
+        ticks = np.arange(n) * steps
+        size = max(int(j.max()) + 1 if j.size else 0, int(ticks[-1]) + 2 if n else 0)
+        by_step = np.full((size, width), np.nan)
+        by_step[j] = data.T
+        if complete and n > 0:
+            last = int(ticks[-1]) + 1          # the step from the last tick: not published
+            if np.isnan(by_step[last]).all() and context.get_time() > ticks[-1] * self.time_step:
+                by_step[last] = self._held(context)
+        after = by_step[ticks + 1]
+        before = np.zeros((n, width))
+        before[1:] = by_step[ticks[1:]]
+        out = []
+        for i, (N, model) in enumerate(zip(self.normals, self.models)):
+            N = np.atleast_2d(N)
+            F = after[:, 3 * i:3 * i + 3]
+            prior = before[:, 3 * i:3 * i + 3] @ N.T
+            out.append({"F_meas": F, "lambda_meas": F @ N.T,
+                        "lambda_sensor": model.readings(prior)})
+        return out
+
+
+def add_pad_force_log(builder: DiagramBuilder, coop: CoopPlant, period: float,
+                      models: list[FTModel], log: bool = True) -> PadForceLog:
+    """The ``contact`` mode's ground truth of :class:`PadForceLog`, wired to the plant:
+    ``pad_forces`` (:class:`~drake_coop.plant.grasp.PadForces`), ``pad_forces_hold`` (C++,
+    every plant step) and, with ``log``, ``pad_forces_log`` (publishing at every plant step).
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The experiment's builder (the plant is in it).
+    coop : CoopPlant
+        The plant, in ``contact`` mode.
+    period : float
+        The control period ``h``, a multiple of the plant's step.
+    models : list of FTModel
+        Each robot's F/T sensor model (for ``lambda_sensor``).
+    log : bool
+        Add the logger (without it only the hold, for the guards and live F/T models).
+    """
+    if coop.mode != "contact":
+        raise ValueError(f"the pads' ground truth needs contact mode, not {coop.mode!r}")
+    plant = coop.plant
+    dt = plant.time_step()
+    pads = builder.AddNamedSystem("pad_forces", PadForces(coop.grasp, period, dt))
+    builder.Connect(plant.get_contact_results_output_port(),
+                    pads.get_contact_results_input_port())
+    forces = pads.get_forces_output_port()
+    hold = builder.AddNamedSystem("pad_forces_hold", ZeroOrderHold(dt, forces.size(), 0.0))
+    builder.Connect(forces, hold.get_input_port())
+    logger = None
+    if log:
+        logger = LogVectorOutput(hold.get_output_port(), builder, publish_period=dt)
+        logger.set_name("pad_forces_log")
+    return PadForceLog(logger=logger, hold=hold.get_output_port(),
+                       normals=[np.asarray(h.arm.N, dtype=float) for h in coop.arms],
+                       models=list(models), period=float(period), time_step=float(dt))

@@ -10,9 +10,12 @@ Where it runs: in the ``planes`` and ``rigid`` modes the force follows from each
 equations of motion for one plant step (:class:`ArmForces`). When nothing in the control
 loop reads it (no robot with ``force_source: sensor``), the experiment computes it *after* the
 run from plant data held by C++ blocks (:mod:`drake_coop.plant.ground_truth`): no system of
-this module is then in the diagram. The systems below are the live path: a controller that
-reads the F/T sensor, the ``contact`` and ``none`` modes, or
-``build_experiment(..., live_ground_truth=True)``.
+this module is then in the diagram. In ``contact`` mode the force is the pad's contact
+force, held and logged at every plant step and sorted into ticks after the run
+(:class:`~drake_coop.plant.ground_truth.PadForceLog`). The systems below are the live path: a
+controller that reads the F/T sensor in the ``planes`` and ``rigid`` modes, the ``none``
+mode, or ``build_experiment(..., live_ground_truth=True)`` (in ``contact`` mode: Newton's law
+on the reaction forces).
 
 Two kinds of systems, so that the cost per tick grows linearly with the number of arms:
 
@@ -23,7 +26,8 @@ Two kinds of systems, so that the cost per tick grows linearly with the number o
   and its components along the object's outward normals.
 
 Logged force of a tick (``F_step``, ``lambda_step``): with a control period, the ground truth
-(:class:`WristDynamics` once for all arms, or each :class:`ForceSensor` in ``contact`` mode)
+(:class:`WristDynamics` once for all arms, or each :class:`ForceSensor` on the reaction
+forces)
 latches at every tick ``t_k`` the force of the plant step actually taken from ``t_k``: its discrete
 update runs after the controller's unrestricted update (so under ``τ(k)``) and after a grasp
 switch made between two ``AdvanceTo`` calls (so a grasp or release tick logs the step of the
@@ -38,7 +42,7 @@ from __future__ import annotations
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.multibody.plant import ContactResults, MultibodyPlant
+from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
 from pydrake.systems.framework import (
     Context,
@@ -489,31 +493,12 @@ def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | 
     :class:`WristDynamics` (the F/T sensor models read it at ``t_k − Δt/2``); otherwise it is
     ``None`` (the models read the live ``lambda_meas`` at ``t_k − 3Δt/2``).
 
-    In ``contact`` mode with a ``period``, ``pad_forces``
-    (:class:`~drake_coop.plant.grasp.PadForces`) replaces ``wrist_kinematics``: the pads'
-    contact forces from the plant's contact results, latched at every plant step from the
-    plant's own context at every tick (no second solve, no reaction forces), and a C++
-    ``ZeroOrderHold`` (``pad_forces_hold``) of the contact results at every plant step; each
-    sensor's :attr:`ForceSensor.lambda_last_step` is its ``<robot>_lambda_last_step``."""
+    (In ``contact`` mode an experiment takes its ground truth from the pads' contact
+    forces instead, off the loop: :func:`~drake_coop.plant.ground_truth.add_pad_force_log`.)"""
     plant = coop.plant
-    pads = coop.mode == "contact" and period is not None
-    direct = coop.mode in ("planes", "rigid") or pads
+    direct = coop.mode in ("planes", "rigid")
     last_step = {}
-    if pads:
-        from drake_coop.plant.grasp import PadForces
-
-        wrist = builder.AddNamedSystem("pad_forces", PadForces(
-            coop.grasp, [h.arm.name for h in coop.arms], [h.arm.N for h in coop.arms],
-            period))
-        results = plant.get_contact_results_output_port()
-        builder.Connect(results, wrist.get_contact_results_input_port())
-        held = builder.AddNamedSystem("pad_forces_hold", ZeroOrderHold(
-            plant.time_step(), AbstractValue.Make(ContactResults())))
-        builder.Connect(results, held.get_input_port())
-        builder.Connect(held.get_output_port(), wrist.get_contact_results_last_step_input_port())
-        last_step = {h.arm.name: wrist.GetOutputPort(f"{h.arm.name}_lambda_last_step")
-                     for h in coop.arms}
-    elif direct:
+    if direct:
         wrist = builder.AddNamedSystem(
             "wrist_dynamics", WristDynamics(plant, coop.arms, plant.time_step(), period))
         names = ("state", "generalized_acceleration", "net_actuation")

@@ -4,8 +4,10 @@ error along the desired path, slips and drops, from the plant's truth.
 A ``contact`` run logs, per robot (:func:`~drake_coop.experiment.simulate.collect_logs`):
 ``object_pose`` (the box's quaternion ``[w, x, y, z]`` and position, the plant's state),
 ``F_meas`` (the pad's contact force from the plant's contact results,
-:class:`~drake_coop.plant.grasp.PadForces`), its normal and tangential parts on the box's face
-``pad_normal_force``, ``pad_tangential_force`` (:func:`~drake_coop.plant.grasp.
+:class:`~drake_coop.plant.grasp.PadForces`, held and logged at every plant step:
+:class:`~drake_coop.plant.ground_truth.PadForceLog`), its normal and tangential parts on the
+box's face
+``pad_normal_force``, ``pad_tangential_force`` (:func:`~drake_coop.kinematics.rotations.
 pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame) and
 ``pad_rotation`` (the pad body's orientation). From them, per robot and phase:
 
@@ -50,6 +52,8 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
 from __future__ import annotations
 
 import numpy as np
+
+from drake_coop.kinematics.rotations import quaternion_rotations
 
 __all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
            "SETTLE_TIME",
@@ -139,10 +143,6 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
     k0 = int(np.searchsorted(t, t_grasp - 1e-9))
     position_error = np.full(K, np.nan)
     angle_error = np.full(K, np.nan)
-    # Imported here: drake_coop.plant.grasp loads pydrake, which the command line's parser
-    # (it reaches this module through the results) must not (tests/cli/test_cli.py).
-    from drake_coop.plant.grasp import quaternion_rotations
-
     R_B = quaternion_rotations(pose[:, :4])
     if k0 < K:
         offset = pose[k0, 4:7] - mid_d[k0]

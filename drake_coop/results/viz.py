@@ -34,6 +34,7 @@ import numpy as np
 from pydrake.geometry import Box, Cylinder, MeshcatCone, Rgba
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import Demultiplexer
 
 from drake_coop.control.finger import ReferenceLayout
 from drake_coop.plant.arms import Arm
@@ -300,8 +301,11 @@ def _logged_source(builder: DiagramBuilder, robot: str, key: str) -> OutputPort:
 
     mux = builder.GetSubsystemByName(f"{robot}_log_signals")
     keys = list(LOG_KEYS)        # first in the Multiplexer (the object's signals follow)
-    if _named(builder, "ground_truth_log") is not None:     # the offline ground truth
-        keys = [k for k in keys if k not in GROUND_TRUTH_KEYS]
+    if (_named(builder, "ground_truth_log") is not None        # the offline ground truth
+            or _named(builder, "pad_forces_log") is not None):
+        live_ft = _named(builder, f"{robot}_ft_sensor") is not None
+        keys = [k for k in keys
+                if k not in GROUND_TRUTH_KEYS or (k == "lambda_sensor" and live_ft)]
     index = keys.index(key)
     for (system, port), (source, out_index) in builder.connection_map().items():
         if system is mux and int(port) == index:
@@ -317,7 +321,9 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
     ``lambda_hat`` of each robot must exist, i.e. ``log=True``). ``F_meas`` is the logged
     live ground truth's or, when the ground truth is computed after the run, the
     ``wrist_forces_at_tick`` system's ``<robot>_F_step`` (the same force of the step from the
-    last tick, evaluated only when the arrows are drawn).
+    last tick, evaluated only when the arrows are drawn); in ``contact`` mode the pad's force
+    of the last plant step, from the ground truth's ``pad_forces_hold`` (split per pad by
+    ``pad_forces_split``).
 
     Parameters
     ----------
@@ -335,7 +341,14 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
     arrows = builder.AddNamedSystem("force_arrows", ForceArrows(
         meshcat, arms, n_joints=[coop.plant.num_positions(h.instance) for h in coop.arms],
         scale=scale, show_held_box=coop.mode == "planes", publish_period=publish_period))
-    for h in coop.arms:
+    # contact mode: the pads' forces of the last plant step, from the ground truth's hold
+    held = _named(builder, "pad_forces_hold")
+    pads = None
+    if held is not None:
+        pads = builder.AddNamedSystem("pad_forces_split",
+                                      Demultiplexer(held.get_output_port().size(), 3))
+        builder.Connect(held.get_output_port(), pads.get_input_port())
+    for i, h in enumerate(coop.arms):
         name = h.arm.name
         builder.Connect(coop.plant.get_state_output_port(h.instance),
                         arrows.GetInputPort(f"{name}_state"))
@@ -343,9 +356,13 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
             builder.Connect(_logged_source(builder, name, key),
                             arrows.GetInputPort(f"{name}_{key}"))
         offline = _named(builder, "wrist_forces_at_tick")
-        builder.Connect(offline.GetOutputPort(f"{name}_F_step") if offline is not None
-                        else _logged_source(builder, name, "F_meas"),
-                        arrows.GetInputPort(f"{name}_F_meas"))
+        if pads is not None:
+            force = pads.get_output_port(i)
+        elif offline is not None:
+            force = offline.GetOutputPort(f"{name}_F_step")
+        else:
+            force = _logged_source(builder, name, "F_meas")
+        builder.Connect(force, arrows.GetInputPort(f"{name}_F_meas"))
     return arrows
 
 

@@ -44,7 +44,9 @@ Offline: when no controller reads the sensor (no robot with ``force_source: sens
 plant data of the step before every tick with C++ holds and
 :class:`~drake_coop.plant.ground_truth.GroundTruthLog` applies :meth:`FTModel.readings` to
 ``λ`` of those steps after the run, the same recursion, noise and tick numbering as the live
-:class:`FTSensor` (which steps the same :class:`FTModel`).
+:class:`FTSensor` (which steps the same :class:`FTModel`). In ``contact`` mode likewise
+(:class:`~drake_coop.plant.ground_truth.PadForceLog`: the pads' forces of every plant step);
+there a robot that reads its sensor gets a live model fed by ``λ`` of the held step.
 """
 
 from __future__ import annotations

@@ -282,6 +282,20 @@ def test_the_spheres_law_is_drakes_linear_pressure_field_integrated():
         ContactStiffness(1e5, 1.0, radius=0.01)
 
 
+def test_the_spheres_law_of_one_force_inverts_the_law_as_the_array_path_does():
+    """One force (the controller's ``λ_d`` every tick) takes the float path of
+    :meth:`ContactStiffness.compression`: the law's inverse (``force``) to 1e-12, and the
+    array path's value for the same forces (two at a time) to 1e-14 relative."""
+    k = ContactStiffness(np.pi * 5e6, 2.0, radius=0.015)
+    lam = np.array([0.0, 1e-9, 0.3, 14.0, 32.0, 50.0, 400.0])
+    single = np.array([k.compression(np.array([x]))[0] for x in lam])
+    assert k.compression(np.array([32.0])).shape == (1,)
+    np.testing.assert_allclose(k.force(single), lam, rtol=1e-12, atol=1e-12)
+    pairs = np.array([k.compression(np.array([x, x]))[0] for x in lam])
+    np.testing.assert_allclose(single, pairs, rtol=1e-14, atol=0.0)
+    assert k.compression(np.array([1e9]))[0] == 0.015       # beyond the hemisphere: r
+
+
 def test_law_with_a_compliant_contact_is_the_law_with_the_contact_point_pressed_in():
     """p_d = −δ(λ_d): the same as the paper's law whose contact point c is moved by δ along
     the outward normal's opposite (φ = N (x − c) grows by δ) — an independent model — with

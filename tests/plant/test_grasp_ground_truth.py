@@ -1,6 +1,8 @@
-"""The ``contact`` mode's ground truth (drake_coop.plant.grasp.PadForces) against Newton's law
-on the wrist sensor's bodies from the plant's reaction forces, and the pads' normal and
-tangential forces against the contact surfaces in the plant's contact results; the stand's
+"""The ``contact`` mode's ground truth (drake_coop.plant.grasp.PadForces, held and logged at
+every plant step by drake_coop.plant.ground_truth.add_pad_force_log) against the plant's contact
+results read at every step and Newton's law on the wrist sensor's bodies from the plant's
+reaction forces; the F/T sensor model after the run against the live model; the pads' normal
+and tangential forces against the contact surfaces in the plant's contact results; the stand's
 clearance and the pads' material."""
 
 from __future__ import annotations
@@ -8,20 +10,24 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
-from pydrake.common.value import AbstractValue
-from pydrake.multibody.plant import ContactResults
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ZeroOrderHold
+from pydrake.systems.primitives import LogVectorOutput
 
+from drake_coop.kinematics.rotations import pad_contact_components
 from drake_coop.plant.arms import arm_model
 from drake_coop.plant.cooperative import build_plant, initialize_plant_context
-from drake_coop.plant.grasp import PadForces, pad_contact_components
+from drake_coop.plant.ground_truth import add_pad_force_log
 from drake_coop.plant.wrist import add_force_sensors
 from drake_coop.experiment.references import waypoints
 from drake_coop.scenario import default_scenario
+from drake_coop.scenario.schema import ForceSensorModel
+from drake_coop.sensing.force_sensor import FTModel, add_ft_sensor
 from tests.plant.test_grasp import TASK, TIME_STEP, GraspController, x_reference
 
-H = 3 * TIME_STEP          # a control period of three plant steps
+STEPS = 3                  # plant steps per control period
+H = STEPS * TIME_STEP
+#: Robot 1's F/T sensor model: low-pass, bias and seeded noise (robot 2's is ideal).
+FT_SETTINGS = ForceSensorModel(noise_std=0.2, bias=0.5, cutoff_hz=20.0, seed=3)
 
 
 def _contact_scenario(clearance: float = 0.0):
@@ -36,18 +42,20 @@ def _contact_scenario(clearance: float = 0.0):
 @pytest.fixture(scope="module")
 def squeezed():
     """Both arms squeeze the box on its stand (32 N) and lift it: Newton's-law sensors
-    (:func:`add_force_sensors` without a period) beside :class:`PadForces`."""
+    (:func:`add_force_sensors` without a period) beside the pads' ground truth; robot 1's
+    non-ideal F/T sensor model read live at ``t_k − Δt/2`` from the hold, its reading
+    logged."""
     scenario = _contact_scenario()
     builder = DiagramBuilder()
     coop = build_plant(builder, scenario)
     newton = add_force_sensors(builder, coop)
-    pads = builder.AddSystem(PadForces(coop.grasp, [h.arm.name for h in coop.arms],
-                                       [h.arm.N for h in coop.arms], H))
-    results = coop.plant.get_contact_results_output_port()
-    builder.Connect(results, pads.get_contact_results_input_port())
-    held = builder.AddSystem(ZeroOrderHold(TIME_STEP, AbstractValue.Make(ContactResults())))
-    builder.Connect(results, held.get_input_port())
-    builder.Connect(held.get_output_port(), pads.get_contact_results_last_step_input_port())
+    models = [FTModel.from_settings(FT_SETTINGS, H, 0, 1), FTModel.from_settings(None, H, 1, 1)]
+    truth = add_pad_force_log(builder, coop, H, models)
+    name = coop.arms[0].arm.name
+    last_step = truth.add_lambda_last_step(builder, 0, name)
+    _, reading = add_ft_sensor(builder, name, H, TIME_STEP, FT_SETTINGS, 0, 1, last_step,
+                               last_step)
+    reading_log = LogVectorOutput(reading, builder, publish_period=H)
     for i, h in enumerate(coop.arms):
         ctrl = builder.AddSystem(GraspController(arm_model(h.arm), x_reference(
             TASK, scenario.robots[i]), 0.5 * 0.5 * 9.81))
@@ -60,44 +68,73 @@ def squeezed():
           for i, h in enumerate(coop.arms)]
     initialize_plant_context(coop, pc, q0, TASK.circle_top_z - TASK.lift_height)
     simulator.Initialize()
-    return coop, newton, pads, simulator
+    return coop, newton, truth, simulator, reading_log
 
 
 def _port(system, name, context):
     return system.GetOutputPort(name).Eval(system.GetMyContextFromRoot(context)).copy()
 
 
-def test_pad_forces_match_newtons_law_and_latch_the_ticks(squeezed):
-    coop, newton, pads, simulator = squeezed
+def _contact_forces(coop, context) -> list[np.ndarray]:
+    """The box's force on each pad from the plant's contact results, now."""
+    plant = coop.plant
+    results = plant.get_contact_results_output_port().Eval(plant.GetMyContextFromRoot(context))
+    return [coop.grasp.pad_force(results, pad) for pad in coop.grasp.pad_geometries]
+
+
+def test_pad_forces_of_every_tick_match_the_contact_results_and_newtons_law(squeezed):
+    """Tick ``k``'s ``F_meas`` is the step taken from ``t_k`` and its F/T reading the step
+    before ``t_k``: the plant's contact results read at every plant step before its updates
+    (the step the plant then takes: its own solve, so exactly) and, to 1e-3, Newton's law on
+    the reaction forces; the guards' reading at a tick (before its updates) is the step
+    before it."""
+    coop, newton, truth, simulator, _ = squeezed
     context = simulator.get_mutable_context()
-    names = [h.arm.name for h in coop.arms]
-    k = int(round(2.4 / H))                  # a tick while lifting, the squeeze established
-    simulator.AdvanceTo(k * H)
-    live = [_port(pads, f"{n}_wrist", context) for n in names]
-    for i, n in enumerate(names):
-        F_newton = _port(newton[i], "F_meas", context)
-        assert np.linalg.norm(live[i]) > 20.0
-        np.testing.assert_allclose(live[i], F_newton, atol=1e-3 * np.linalg.norm(F_newton))
-    # The tick's update latches the step from t_k (the one just read live) ...
-    simulator.AdvanceTo(k * H + 0.5 * TIME_STEP)
-    for i, n in enumerate(names):
-        tol = 1e-9 * np.linalg.norm(live[i])     # the same step, solved again
-        np.testing.assert_allclose(_port(pads, f"{n}_F_step", context), live[i], atol=tol)
-        N = coop.arms[i].arm.N
-        np.testing.assert_allclose(_port(pads, f"{n}_lambda_step", context), N @ live[i],
-                                   atol=tol)
-    # ... and holds it between ticks.
-    simulator.AdvanceTo(k * H + 1.5 * TIME_STEP)
-    for i, n in enumerate(names):
-        tol = 1e-9 * np.linalg.norm(live[i])
-        np.testing.assert_allclose(_port(pads, f"{n}_F_step", context), live[i], atol=tol)
-    # Not checked: <robot>_lambda_last_step (the contact results held by a C++ ZeroOrderHold at
-    # every plant step) differs from a live read of the same step by up to 2 % on the steps
-    # after a tick; the cause was not found.
+    k0, k1 = int(round(2.4 / H)), int(round(2.4 / H)) + 12   # lifting, the squeeze established
+    steps = {}
+    for j in range(k0 * STEPS - 1, k1 * STEPS + 2):
+        simulator.AdvanceTo(j * TIME_STEP)
+        steps[j] = _contact_forces(coop, context)
+        if j % STEPS == 0:
+            for i, F in enumerate(truth.force_before_tick(context)):
+                np.testing.assert_array_equal(F, steps[j - 1][i])
+        if j == k0 * STEPS:
+            for i, sensor in enumerate(newton):
+                F = steps[j][i]
+                assert np.linalg.norm(F) > 20.0
+                np.testing.assert_allclose(_port(sensor, "F_meas", context), F,
+                                           atol=1e-3 * np.linalg.norm(F))
+    rows = truth.evaluate(context, k1 + 1, False)
+    for i, h in enumerate(coop.arms):
+        N = np.atleast_2d(h.arm.N)
+        F_meas = rows[i]["F_meas"]
+        for k in range(k0, k1 + 1):
+            np.testing.assert_array_equal(F_meas[k], steps[k * STEPS][i])
+            np.testing.assert_array_equal(rows[i]["lambda_meas"][k], N @ steps[k * STEPS][i])
+        if i == 1:           # the ideal model: λ of the step before the tick itself
+            for k in range(k0, k1 + 1):
+                np.testing.assert_allclose(rows[i]["lambda_sensor"][k],
+                                           N @ steps[k * STEPS - 1][i], rtol=0, atol=1e-12)
+        # the step from the tick and the step before it differ: the test tells them apart
+        assert np.linalg.norm(steps[k0 * STEPS][i] - steps[k0 * STEPS - 1][i]) > 1e-6
+
+
+def test_f_t_model_after_the_run_equals_the_live_model(squeezed):
+    """The F/T model evaluated after the run (:meth:`PadForceLog.evaluate`, what a
+    ``contact`` run logs) gives the live model's readings at every tick (the live model reads
+    ``λ`` of the hold at ``t_k − Δt/2``)."""
+    coop, _, truth, simulator, reading_log = squeezed
+    context = simulator.get_mutable_context()
+    simulator.AdvanceTo(int(np.ceil(context.get_time() / H)) * H + 20 * H)
+    reading = reading_log.FindLog(context).data()[0]            # published at t_k: tick k
+    K = reading.size - 1
+    offline = truth.evaluate(context, K, False)[0]["lambda_sensor"][:, 0]
+    assert K > 250 and np.ptp(reading[:K]) > 20.0
+    np.testing.assert_allclose(offline, reading[:K], rtol=0, atol=1e-9)
 
 
 def test_normal_and_tangential_forces_match_the_contact_surfaces(squeezed):
-    coop, _, pads, simulator = squeezed
+    coop, _, _, simulator, _ = squeezed
     context = simulator.get_mutable_context()
     simulator.AdvanceTo(simulator.get_context().get_time() + 0.3)
     plant = coop.plant

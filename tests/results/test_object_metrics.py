@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drake_coop.plant.grasp import pad_contact_components, quaternion_rotations
+from drake_coop.kinematics.rotations import pad_contact_components, quaternion_rotations
 from drake_coop.results.metrics import compute_metrics
 from drake_coop.results.object_metrics import (
     DROP_DISTANCE,
