@@ -6,7 +6,7 @@ diagram (see ``docs/api_usage.md``); the systems it holds — :class:`VelocityOb
 (:class:`MeasuredVelocity`, :class:`DifferenceVelocity`, :class:`SensedForce`,
 :class:`NoForceEstimate`, :class:`MomentumObserver`) — the law at one sample (:class:`FingerLaw`), the controller's arm model
 (:class:`ArmModel`), the object-aware blocks (:class:`ObjectModel`, :class:`LoadFeedforward`,
-:class:`MassEstimator`, :class:`ContactStiffness`, :func:`squeeze_for_grasp`,
+:class:`MassEstimator`, the shared :class:`ObjectStateEstimator`, :class:`ContactStiffness`, :func:`squeeze_for_grasp`,
 :func:`load_distribution`, :func:`mass_shares`, the squeeze's couple in the load split:
 :func:`squeeze_couple`, :func:`face_distance`), the reference layout (:class:`ReferenceLayout`, :class:`Reference`) and the
 gains (:class:`Gains`).
@@ -46,6 +46,8 @@ _EXPORTS = {
     "LoadFeedforward": "object",
     "MassEstimator": "object",
     "ObjectModel": "object",
+    "ObjectStateEstimator": "object",
+    "CompressedReference": "object",
     "load_distribution": "object",
     "mass_shares": "object",
     "squeeze_for_grasp": "object",
@@ -61,6 +63,8 @@ __all__ = [
     "LoadFeedforward",
     "MassEstimator",
     "ObjectModel",
+    "ObjectStateEstimator",
+    "CompressedReference",
     "load_distribution",
     "mass_shares",
     "squeeze_for_grasp",

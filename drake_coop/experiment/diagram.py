@@ -59,8 +59,9 @@ from pydrake.systems.primitives import (
 
 from drake_coop.control.block import AddCooperativeController
 from drake_coop.control.controller import Controller
-from drake_coop.control.finger import FingerLaw
+from drake_coop.control.finger import FingerLaw, ReferenceLayout
 from drake_coop.control.momentum import MomentumObserver
+from drake_coop.control.object import CompressedReference, ObjectStateEstimator
 from drake_coop.control.observers import ForceObserver, VelocityObserver
 from drake_coop.control.sources import (
     DifferenceVelocity,
@@ -71,9 +72,13 @@ from drake_coop.control.sources import (
 from drake_coop.experiment.object_blocks import (
     ObjectBlocks,
     add_object_blocks,
+    add_object_state_estimator,
+    connect_object_state_estimator,
     contact_stiffness,
+    control_point,
     couple_samples,
     object_enabled,
+    shared_enabled,
     uses_couple,
 )
 from drake_coop.experiment.references import reference_trajectory
@@ -173,6 +178,8 @@ class Experiment:
     coop: CoopPlant
     robots: list[RobotSystems]
     ground_truth: GroundTruthLog | PadForceLog | None = None
+    #: The shared object-state block (``object_model.shared``), None without it.
+    object_state_estimator: ObjectStateEstimator | None = None
 
     @property
     def h(self) -> float:
@@ -289,12 +296,19 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         pads = add_pad_force_log(b, coop, h, models, log=log)
     robots = []
     actuation = []           # each arm's actuation input (for the offline ground truth)
+    arm_models = [controller_arm_model(handles.arm, robot.model_error)
+                  for handles, robot in zip(coop.arms, scenario.robots)]
+    # object_model.shared: the one block between the arms (the planned references pass
+    # through it, their λ_d replaced by the squeeze chosen online from the shared estimate).
+    shared = (add_object_state_estimator(b, scenario, [ReferenceLayout(m.n, m.m)
+                                                       for m in arm_models], h)
+              if shared_enabled(scenario) else None)
     trajectories = (list(references) if references is not None
                     else [reference_trajectory(scenario, i) for i in range(len(coop.arms))])
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         robot = scenario.robots[i]
-        model = controller_arm_model(handles.arm, robot.model_error)
+        model = arm_models[i]
         n = model.n
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
@@ -324,7 +338,21 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller
         trajectory = trajectories[i]
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
-        b.Connect(ref.get_output_port(), block.reference_input)
+        reference = ref.get_output_port()
+        if shared is not None:
+            b.Connect(reference, shared.get_reference_input_port(i))
+            reference = shared.get_reference_output_port(i)
+            stiffness = contact_stiffness(scenario, i)
+            if stiffness is not None and not getattr(handles.arm.kinematics, "redundant",
+                                                     False):
+                # The compliant contact's compression of the online λ_d, in q_d.
+                point = control_point(scenario, i, handles.arm)
+                press = b.AddNamedSystem(f"{name}_compressed_reference", CompressedReference(
+                    model, stiffness, -np.asarray(robot.normals[0], dtype=float),
+                    point_offset=None if point is None else point.offset))
+                b.Connect(reference, press.get_reference_input_port())
+                reference = press.get_compressed_reference_output_port()
+        b.Connect(reference, block.reference_input)
         # The object-aware blocks (object_model: known / estimated): the load feedforward
         # added to the controller's torque; none in the paper's diagram.
         objects = None
@@ -335,7 +363,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             couple = (couple_samples(scenario, i, [a.arm for a in coop.arms], trajectories,
                                      t_ref) if uses_couple(scenario) else None)
             objects = add_object_blocks(b, scenario, i, name, model, h, q_port,
-                                        ref.get_output_port(), control, t_ref, couple)
+                                        reference, control, t_ref, couple)
             tau_port = objects.tau
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
@@ -360,7 +388,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             sources = {
                 "q": q_port,
                 "q_hat": control.GetOutputPort("q_hat"),
-                "reference": ref.get_output_port(),
+                "reference": reference,
                 "lambda_hat": control.GetOutputPort("lambda_hat"),
                 "Delta_F_tilde": control.GetOutputPort("Delta_F_tilde"),
                 "tau": actuators.get_output_port(),
@@ -391,6 +419,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             rs.log = RobotLog(logger, {k: slice(int(starts[j]), int(starts[j + 1]))
                                        for j, k in enumerate(sources)}, dict(sources))
         robots.append(rs)
+    if shared is not None:
+        connect_object_state_estimator(b, shared, [r.object_blocks for r in robots],
+                                       robots[0].object_blocks.acceleration_d)
     ground_truth = pads if log else None
     if not live_ground_truth and log and coop.mode != "contact":
         ground_truth = add_ground_truth(
@@ -401,4 +432,4 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     diagram = b.Build()
     diagram.set_name("drake_coop_experiment")
     return Experiment(scenario=scenario, diagram=diagram, coop=coop, robots=robots,
-                      ground_truth=ground_truth)
+                      ground_truth=ground_truth, object_state_estimator=shared)

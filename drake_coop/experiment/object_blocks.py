@@ -10,7 +10,17 @@ nothing: the paper's diagram)::
     q, reference ─────────────────────────────────────────────────────┴▶ robotN_load_feedforward
     robotN_control.tau + robotN_load_feedforward.tau_ff ─▶ robotN_tau_sum (Adder) ─▶ actuators
 
-The estimator reads the arm's own ``q``, the control block's ``qdot_o`` and ``qddot_r_hat``
+With ``object_model.shared: true`` one more block, between the arms::
+
+    robotN_reference ─▶ object_state_estimator (ObjectStateEstimator) ─▶ reference_out_N ─▶
+        robotN_control, robotN_load_feedforward, robotN_mass_estimator (and the log)
+    every robotN mass_share, robot1_acceleration_d ─▶ object_state_estimator
+
+It sums the arms' shares into the object's mass and centre of mass and chooses the squeeze
+online from that load (rate limited, the same ramps at the grasp and the release), replacing
+each planned ``λ_d``: the arms then communicate through it.
+
+Without it, the estimator reads the arm's own ``q``, the control block's ``qdot_o`` and ``qddot_r_hat``
 and the summed torque: nothing of the other arm (decentralized). The object model the blocks
 get is built from the scenario: the grasp points are the robots' contact points, the inward
 normals their constraint normals reversed, the centre of mass their midpoint (the shipped
@@ -28,11 +38,13 @@ from pydrake.systems.primitives import Adder, ConstantVectorSource, TrajectorySo
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.finger import ReferenceLayout
 from drake_coop.control.object import (
     ContactStiffness,
     LoadFeedforward,
     MassEstimator,
     ObjectModel,
+    ObjectStateEstimator,
     load_distribution,
     mass_shares,
     squeeze_for_grasp,
@@ -55,6 +67,7 @@ class ObjectBlocks:
     tau: OutputPort
     mass_share: OutputPort
     estimator: MassEstimator | None = None
+    acceleration_d: OutputPort | None = None
 
 
 def object_enabled(scenario: Scenario) -> bool:
@@ -335,4 +348,36 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
                                 ConstantVectorSource([share0])).get_output_port()
     b.Connect(mass, ff.get_mass_share_input_port())
     return ObjectBlocks(feedforward=ff, tau_sum=tau_sum, tau=tau_sum.get_output_port(),
-                        mass_share=mass, estimator=estimator)
+                        mass_share=mass, estimator=estimator,
+                        acceleration_d=acc.get_output_port())
+
+
+def shared_enabled(scenario: Scenario) -> bool:
+    """Whether the run has the shared object-state block (``object_model.shared``)."""
+    return object_enabled(scenario) and bool(scenario.object_model.shared)
+
+
+def add_object_state_estimator(b: DiagramBuilder, scenario: Scenario,
+                               layouts: list[ReferenceLayout], period: float
+                               ) -> ObjectStateEstimator:
+    """The shared ``object_state_estimator``: the scenario's grasp (:func:`scenario_object`),
+    ``mu``, ``margin``, ``squeeze_min``, the grasp window and ramp of
+    :func:`friction_squeeze`, ``squeeze_rate`` and each robot's force weights. Its inputs
+    (mass shares, ``a_d``) are connected by :func:`connect_object_state_estimator`, the
+    references by the caller."""
+    om, task = scenario.object_model, scenario.task
+    obj = scenario_object(scenario, controller_mass(scenario))
+    mu = om.mu if om.mu is not None else scenario.plant.friction
+    return b.AddNamedSystem("object_state_estimator", ObjectStateEstimator(
+        obj.grasp_points, obj.grasp_normals, layouts, period, mu, om.margin,
+        grasp_window=(task.t_grasp, task.t_release), ramp=1.0, rate=om.squeeze_rate,
+        lambda_min=om.squeeze_min,
+        force_weights=[r.force_weights for r in scenario.robots]))
+
+
+def connect_object_state_estimator(b: DiagramBuilder, estimator: ObjectStateEstimator,
+                                   blocks: list[ObjectBlocks], acceleration: OutputPort) -> None:
+    """Every arm's mass share and the object's desired acceleration into the shared block."""
+    for i, blk in enumerate(blocks):
+        b.Connect(blk.mass_share, estimator.get_mass_share_input_port(i))
+    b.Connect(acceleration, estimator.get_acceleration_d_input_port())

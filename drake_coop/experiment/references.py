@@ -128,7 +128,9 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     from drake_coop.experiment.object_blocks import contact_stiffness, control_point
     point = None if redundant else control_point(scenario, index, arm)
     stiffness = contact_stiffness(scenario, index)
-    if stiffness is not None and not redundant:
+    if stiffness is not None and not redundant and not scenario.object_model.shared:
+        # (object_model.shared: λ_d is chosen during the run, and so is the compression:
+        # CompressedReference presses the joint references in online.)
         # A compliant contact: the pad is held where the contact carries λ_d, pressed in by
         # δ(λ_d) along the inward normal, in the joint references too (else the tangent
         # part of (4) sees the compression as a position error: the pad sags).

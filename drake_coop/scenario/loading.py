@@ -136,6 +136,9 @@ def _check_structure(data, schema, path: str) -> None:
         if isinstance(data, bool) or not (isinstance(data, int) or (
                 isinstance(data, float) and data.is_integer())):
             raise ScenarioError(f"{where} must be an integer, got {show(data)}")
+    elif schema is bool:
+        if not isinstance(data, bool):
+            raise ScenarioError(f"{where} must be true or false, got {show(data)}")
     elif schema is str:
         if not isinstance(data, str):
             raise ScenarioError(f"{where} must be a string, got {show(data)}")

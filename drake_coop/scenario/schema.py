@@ -520,6 +520,15 @@ class ObjectModelSettings:
         pads; rigid otherwise); 0: none.
     contact_exponent : float
         ``p`` of that law (2 for a hydroelastic sphere, 1 for a linear spring).
+    shared : bool
+        ``false`` (the default: decentralized, the arms exchange nothing; the squeeze is
+        fixed before the run from the mass the controllers start from) or ``true``: one
+        shared block, ``object_state_estimator``
+        (:class:`~drake_coop.control.object.ObjectStateEstimator`), reads every arm's mass
+        share and chooses the squeeze online from the estimated total load (needs
+        ``squeeze: friction``).
+    squeeze_rate : float
+        ``shared``: the fastest fall of the online squeeze (N/s; it rises at up to 20 N/s).
     control_point : str
         The point of the pad each arm controls: ``centre`` (the pad's centre E, the paper's
         end-effector point), ``contact`` (the pad's *material* contact point: fixed in the pad
@@ -547,6 +556,8 @@ class ObjectModelSettings:
     squeeze_min: float = 2.0
     contact_stiffness: Optional[float] = None
     contact_exponent: float = 2.0
+    shared: bool = False
+    squeeze_rate: float = 1.0
     control_point: str = "auto"
     couple: Optional[bool] = None
 

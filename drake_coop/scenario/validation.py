@@ -102,6 +102,7 @@ BOUNDS: dict[str, Bound] = {
     "object_model.squeeze_min": Bound(0.0, 1e3, "N"),
     "object_model.contact_stiffness": Bound(0.0, 1e12, "N/m^p"),
     "object_model.contact_exponent": Bound(1.0, 3.0, ""),
+    "object_model.squeeze_rate": Bound(0.0, 1e4, "N/s", **_POS),
     "guards.max_force": Bound(0.0, 1e5, "N", **_POS),
     "guards.joint_limit_margin_deg": Bound(0.0, 180.0, "deg"),
     "guards.check_period": Bound(0.0, 100.0, "s", **_POS),
@@ -173,6 +174,13 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
     if scenario.object_model.squeeze == "friction" and scenario.object_model.mode == "none":
         raise ScenarioError("object_model.squeeze: friction needs object_model.mode known or "
                             "estimated (the controllers must know the object's load)")
+    if not isinstance(scenario.object_model.shared, bool):
+        raise ScenarioError(f"object_model.shared must be true or false, got "
+                            f"{show(scenario.object_model.shared)}")
+    if scenario.object_model.shared and scenario.object_model.squeeze != "friction":
+        raise ScenarioError("object_model.shared: true needs object_model.squeeze: friction "
+                            "(and mode known or estimated): the shared block chooses the "
+                            "squeeze online from the estimated load")
     _choice(scenario.object_model.control_point, CONTROL_POINTS, "object_model.control_point")
     if scenario.object_model.couple not in (None, True, False):
         raise ScenarioError(f"object_model.couple: true, false or null is required, got "

@@ -189,11 +189,39 @@ def _base_yaml(base, folder: Path) -> str | None:
         if not path.exists():
             raise StudyError(f"base: scenario file not found: {path}")
         try:
-            return read_text_file(path, "scenario file")
+            text = read_text_file(path, "scenario file")
         except YamlInputError as exc:
             raise StudyError(f"base: {exc}") from None
+        return _models_beside(text, path.resolve().parent)
     raise StudyError(f"base: must be a scenario file path or an inline scenario, got "
                      f"{_short(base)}")
+
+
+def _models_beside(text: str, folder: Path) -> str:
+    """A base file's text with each robot's relative ``model`` / ``controller_model`` URDF
+    that lies beside the file made absolute, as ``drake-coop run`` finds it
+    (:func:`~drake_coop.scenario.resources.resolve_models`; e.g. the ``identified.yaml`` that
+    ``drake-coop identify`` writes beside its URDFs); the text unchanged when none does."""
+    from pydrake.common.yaml import yaml_dump
+
+    from drake_coop.scenario.loading import _load_untyped
+    from drake_coop.scenario.schema import ScenarioError
+
+    try:
+        data = _load_untyped(text)
+    except ScenarioError:
+        return text                      # the scenario's own checks report it
+    robots = data.get("robots") if isinstance(data, dict) else None
+    changed = False
+    for robot in robots if isinstance(robots, list) else []:
+        for key in ("model", "controller_model"):
+            value = robot.get(key) if isinstance(robot, dict) else None
+            if (isinstance(value, str) and value.lower().endswith(".urdf")
+                    and "://" not in value and not Path(value).expanduser().is_absolute()
+                    and (folder / value).is_file()):
+                robot[key] = str((folder / value).resolve())
+                changed = True
+    return yaml_dump(data) if changed else text
 
 
 def _short(value, n: int = 80) -> str:

@@ -19,10 +19,12 @@ from drake_coop.control import ArmModel, FingerLaw, Gains, MakeArmControllerPlan
 from drake_coop.control.finger import ReferenceLayout
 from drake_coop.control.object import (
     GRAVITY,
+    CompressedReference,
     ContactStiffness,
     LoadFeedforward,
     MassEstimator,
     ObjectModel,
+    ObjectStateEstimator,
     grasp_matrix,
     internal_part,
     load_distribution,
@@ -389,3 +391,162 @@ def test_contact_jacobian_is_the_jacobian_of_the_offset_point(model):
     from drake_coop.control.object import contact_jacobian
     assert np.allclose(contact_jacobian(model, Q0, r), np.array(cols).T, atol=1e-8)
     assert np.array_equal(contact_jacobian(model, Q0, None), model.J_x(Q0))
+
+
+# ------------------------------------------------------------------ the shared object-state block
+POINTS = np.array([[-0.15, 0.0, 0.0], [0.15, 0.0, 0.0]])
+INWARD = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+
+
+def _shared(**kwargs):
+    args = dict(grasp_points=POINTS, grasp_normals=INWARD,
+                layouts=[ReferenceLayout(3, 1), ReferenceLayout(3, 1)], period=H, mu=0.5,
+                margin=1.5, grasp_window=(0.0, 100.0), ramp=1.0, rate=1.0, rise_rate=20.0)
+    return ObjectStateEstimator(**(args | kwargs))
+
+
+def _fix(block, context, shares, held=True, a=(0.0, 0.0, 0.0), lambda_d=7.0):
+    ref = ReferenceLayout(3, 1).pack(np.full((1, 3), 0.2), np.full((1, 3), 0.3),
+                                     np.full((1, 3), 0.4), [[lambda_d]],
+                                     np.array([float(held)]))[0]
+    for i, m in enumerate(shares):
+        block.get_mass_share_input_port(i).FixValue(context, [m])
+        block.get_reference_input_port(i).FixValue(context, ref)
+    block.get_acceleration_d_input_port().FixValue(context, np.asarray(a, dtype=float))
+    return ref
+
+
+def test_shared_block_gives_back_the_mass_and_the_centre_of_mass_of_the_lever_rule():
+    """An object of mass m with its centre of mass at c on the grasp line: the lever rule
+    (written out here) gives the shares; the block sums them to m and puts the centre of
+    mass back at c; the minimum-norm split of that estimated object is the shares again
+    (the shared feedforward would add nothing)."""
+    block = _shared()
+    context = block.CreateDefaultContext()
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        m, x = rng.uniform(0.1, 2.0), rng.uniform(-0.1, 0.1)
+        d = POINTS[1, 0] - POINTS[0, 0]
+        shares = [m * (POINTS[1, 0] - x) / d, m * (x - POINTS[0, 0]) / d]
+        _fix(block, context, shares)
+        assert block.get_total_mass_output_port().Eval(context)[0] == pytest.approx(m)
+        assert np.allclose(block.get_com_output_port().Eval(context), [x, 0, 0], atol=1e-12)
+        back = mass_shares(ObjectModel(m, [x, 0, 0], np.zeros((3, 3)), POINTS, INWARD))
+        assert np.allclose(back, shares, atol=1e-12)
+
+
+def test_shared_squeeze_holds_the_true_load_inside_every_cone_with_the_margin():
+    """Shares of a 1.2 kg box whose centre of mass is 4 cm off the middle, a static hold and
+    an acceleration: the squeeze the block settles on, held long enough, against the cone
+    inequality at the true load (each pad's share m_i (a − g), normals ±x) written out:
+    λ = margin · max_i(|t_i|/μ − n_i·f_i)."""
+    block = _shared(rate=50.0, rise_rate=50.0)
+    m, x = 1.2, 0.04
+    shares = np.array([m * (0.15 - x) / 0.3, m * (x + 0.15) / 0.3])
+    for a in ([0.0, 0.0, 0.0], [0.3, -0.2, 0.5]):
+        context = block.CreateDefaultContext()
+        ref = _fix(block, context, shares, a=a)
+        simulator = Simulator(block, context)
+        simulator.AdvanceTo(2.0)
+        lam = float(block.get_squeeze_output_port().Eval(context)[0])
+        a = np.asarray(a)
+        # Along the normals the minimum-norm split shares the x force equally.
+        f = np.array([[m * a[0] / 2, mi * a[1], mi * (a[2] + GRAVITY)] for mi in shares])
+        fn = np.sum(f * INWARD, axis=1)
+        t = np.linalg.norm(f - fn[:, None] * INWARD, axis=1)
+        assert lam == pytest.approx(1.5 * np.max(t / 0.5 - fn), rel=1e-9)
+        assert np.all(t <= 0.5 * (lam + fn))                      # inside every cone
+        # The references pass through with λ_d = s(t) λ (s = 1 here), the rest unchanged.
+        out = block.get_reference_output_port(1).Eval(context)
+        assert out[9] == pytest.approx(lam) and np.array_equal(np.delete(out, 9),
+                                                               np.delete(ref, 9))
+
+
+def test_shared_squeeze_falls_at_its_rate_never_below_the_hold_and_ramps_at_the_grasp():
+    block = _shared(rate=1.0, rise_rate=20.0, grasp_window=(1.0, 30.0), lambda_min=0.0)
+    context = block.CreateDefaultContext()
+    hold = lambda m: m / 2 * GRAVITY / 0.5                        # one pad's m g/2 over μ
+    _fix(block, context, [0.75, 0.75], held=True)                 # a +50 % prior of 1 kg
+    simulator = Simulator(block, context)
+    simulator.Initialize()
+    assert block.get_squeeze_output_port().Eval(context)[0] == pytest.approx(1.5 * hold(1.5))
+    # Before the grasp window the reference carries no squeeze; half way up the ramp, half.
+    simulator.AdvanceTo(0.5)
+    assert block.get_reference_output_port(0).Eval(context)[9] == 0.0
+    # The estimate falls to the truth: the squeeze falls by 1 N/s (one tick: r h), down to
+    # margin × the hold of the truth, not below.
+    _fix(block, context, [0.5, 0.5])
+    lam0 = float(block.get_squeeze_output_port().Eval(context)[0])
+    simulator.AdvanceTo(0.5 + 100 * H + 1e-9)
+    lam1 = float(block.get_squeeze_output_port().Eval(context)[0])
+    assert lam0 - lam1 == pytest.approx(100 * H * 1.0, rel=1e-6)
+    simulator.AdvanceTo(20.0)
+    assert block.get_squeeze_output_port().Eval(context)[0] == pytest.approx(1.5 * hold(1.0))
+    # The estimate jumps up: the squeeze rises at 20 N/s but is never below the hold of the
+    # estimated load (margin 1) at any tick.
+    _fix(block, context, [2.0, 2.0])
+    lam = []
+    for k in range(1, 130):
+        simulator.AdvanceTo(20.0 + k * H + 1e-9)
+        lam.append(float(block.get_squeeze_output_port().Eval(context)[0]))
+    assert lam[0] == pytest.approx(hold(4.0))                     # the floor, at once
+    assert np.allclose(np.diff(lam[:5]), 20.0 * H)                # then the rise rate
+    assert lam[-1] == pytest.approx(1.5 * hold(4.0))
+    # The envelope: λ_d = s(t) λ with s the 1 s ramps inside the window.
+    assert block.envelope(1.25) == 0.25 and block.envelope(29.5) == 0.5
+    assert block.envelope(0.9) == 0.0 and block.envelope(15.0) == 1.0
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(grasp_points=POINTS[:1], grasp_normals=INWARD[:1]), "grasp_points"),
+    (dict(layouts=[ReferenceLayout(3, 1)]), "layouts"),
+    (dict(mu=0.0), "mu"),
+    (dict(margin=0.9), "margin"),
+    (dict(grasp_window=(5.0, 5.0)), "grasp_window"),
+    (dict(rate=0.0), "rate"),
+    (dict(rise_rate=-1.0), "rise_rate"),
+    (dict(force_weights=[[1.0, 2.0], [1.0]]), "force_weights"),
+])
+def test_shared_block_rejects_bad_arguments_naming_them(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        _shared(**kwargs)
+
+
+def test_compressed_reference_puts_the_pad_delta_inside_along_the_normal(model):
+    """The pressed-in q_d's forward kinematics (the plant's) against x(q_d) + δ(λ_d) n, to
+    second order in δ; not held: unchanged."""
+    stiff = ContactStiffness(1.57e7, 2.0)
+    block = CompressedReference(model, stiff, [1.0, 0.0, 0.0])
+    context = block.CreateDefaultContext()
+    layout = ReferenceLayout(3, 1)
+    for lam, held in ((30.0, 1.0), (5.0, 1.0), (30.0, 0.0)):
+        r = layout.pack(Q0[None], np.full((1, 3), 0.1), np.full((1, 3), 0.2), [[lam]],
+                        np.array([held]))[0]
+        block.get_reference_input_port().FixValue(context, r)
+        out = block.get_compressed_reference_output_port().Eval(context)
+        assert np.array_equal(out[3:], r[3:])
+        delta = float(np.sqrt(lam / 1.57e7)) * held
+        moved = model.ee_position(out[:3]) - model.ee_position(Q0)
+        assert np.allclose(moved, [delta, 0.0, 0.0], atol=50 * delta ** 2 + 1e-12)
+    # Following the pad's material point P (2 cm off the centre in the pad's frame) across
+    # the normal and the centre E along it: y = T P + n nᵀ E moves by δ n.
+    offset = np.array([0.004, 0.0, 0.02])
+    point = ArmModel(model.plant, model.ee_frame.name(), model.N, model.c,
+                     point_offset=offset)
+    block = CompressedReference(model, stiff, [1.0, 0.0, 0.0], point_offset=offset)
+    context = block.CreateDefaultContext()
+    r = layout.pack(Q0[None], np.zeros((1, 3)), np.zeros((1, 3)), [[30.0]], np.array([1.0]))[0]
+    block.get_reference_input_port().FixValue(context, r)
+    q1 = block.get_compressed_reference_output_port().Eval(context)[:3]
+    T = np.diag([0.0, 1.0, 1.0])
+    y = lambda q: T @ point.ee_position(q) + (np.eye(3) - T) @ model.ee_position(q)
+    delta = float(np.sqrt(30.0 / 1.57e7))
+    error = y(q1) - y(Q0) - [delta, 0.0, 0.0]
+    # Against the centre's block, whose pressing moves P across the normal (first order).
+    q_centre = CompressedReference(model, stiff, [1.0, 0.0, 0.0]).compressed(r)[:3]
+    across = np.linalg.norm((y(q_centre) - y(Q0))[1:])
+    assert across > 1e-5 and np.linalg.norm(error) < min(0.25 * across, 2 * delta ** 2)
+    with pytest.raises(ValueError, match="inward"):
+        CompressedReference(model, stiff, [0.0, 0.0, 0.0])
+    with pytest.raises(TypeError, match="stiffness"):
+        CompressedReference(model, 3.0, [1.0, 0.0, 0.0])

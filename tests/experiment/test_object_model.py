@@ -24,6 +24,11 @@ CONTACT = "plant: {object_mode: contact, object_mass: 0.5, friction: 1.0, time_s
     ("{mode: estimated, prior_mass_factor: 0}", "object_model.prior_mass_factor"),
     ("{mode: known, margin: 0.5}", "object_model.margin"),
     ("{mode: known, colour: red}", "object_model.colour"),
+    ("{mode: estimated, squeeze: friction, shared: 1}", "object_model.shared"),
+    ("{mode: estimated, shared: true}", "object_model.shared"),
+    ("{shared: true}", "object_model.shared"),
+    ("{mode: estimated, squeeze: friction, shared: true, squeeze_rate: 0}",
+     "object_model.squeeze_rate"),
     ("{mode: known, control_point: middle}", "object_model.control_point"),
     ("{control_point: contact}", "object_model.control_point"),
 ])
@@ -68,7 +73,41 @@ def test_the_blocks_appear_in_the_diagram_only_with_an_object_model():
             "robot2_load_feedforward"} <= names
     assert "robot1_mass_estimator" not in names
     s.object_model.mode = "estimated"
-    assert {"robot1_mass_estimator", "robot2_mass_estimator"} <= _blocks(s)
+    names = _blocks(s)
+    assert {"robot1_mass_estimator", "robot2_mass_estimator"} <= names
+    assert not any("object_state" in n or "compressed" in n for n in names)
+    s.object_model.squeeze, s.object_model.shared = "friction", True
+    names = _blocks(s)
+    assert "object_state_estimator" in names          # one block between the arms
+    assert not any("compressed" in n for n in names)  # rigid: nothing to press in
+    s.object_model.mode = "known"                     # the constant shares feed it too
+    assert {"object_state_estimator", "robot1_mass_share"} <= _blocks(s)
+
+
+def test_the_shared_block_is_one_block_between_the_arms_and_feeds_their_references():
+    """contact + estimated + shared: one object_state_estimator reads both mass estimators
+    and a_d, and each arm's control block, feedforward and log read its reference through
+    it (and the compliant contact's online compression)."""
+    from drake_coop.experiment.diagram import build_experiment
+    s = load_scenario(data=CONTACT + "object_model: {mode: estimated, squeeze: friction, "
+                      "shared: true}\n")
+    exp = build_experiment(s)
+    d = exp.diagram
+    shared = exp.object_state_estimator
+    assert shared is d.GetSubsystemByName("object_state_estimator")
+    est = [d.GetSubsystemByName(f"robot{i}_mass_estimator") for i in (1, 2)]
+    conn = {(dst.get_name(), dst.get_input_port(int(i)).get_name()):
+            (src.get_name(), src.get_output_port(int(o)).get_name())
+            for (dst, i), (src, o) in d.connection_map().items()}
+    for i, e in enumerate(est):
+        assert conn[("object_state_estimator", f"mass_share_{i}")] == (e.get_name(),
+                                                                       "mass_share")
+        assert conn[(f"robot{i + 1}_compressed_reference", "reference")] == (
+            "object_state_estimator", f"reference_out_{i}")
+        assert conn[(f"robot{i + 1}_control", "reference")] == (
+            f"robot{i + 1}_compressed_reference", "compressed_reference")
+    assert conn[("object_state_estimator", "acceleration_d")] == ("robot1_acceleration_d",
+                                                                   "y0")
 
 
 def test_a_compliant_contact_presses_the_joint_references_in():
@@ -137,3 +176,42 @@ def test_an_object_model_needs_a_held_object(tmp_path, capsys):
     path.write_text("object_model: {mode: known}\n")       # the paper's planes: no object
     assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
     assert "object_model.mode" in capsys.readouterr().err
+
+
+def test_a_short_shared_contact_run_against_the_plant():
+    """contact, estimated, shared, the phases compressed (grasp at 1 s, circle 3-5 s): the
+    shared total mass against the plant's box body, the online squeeze against the cone
+    inequality at the true load (m g / 2 per pad, μ of the plant), and the plant's contact
+    results: no drop, no slip, the pads inside their cones."""
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.results.metrics import compute_metrics
+    s = load_scenario(data=CONTACT.replace("0.5,", "0.8,").replace("1.0,", "0.7,") +
+                      "object_model: {mode: estimated, squeeze: friction, shared: true}\n")
+    for key, value in dict(t_pregrasp=0.5, t_grasp=1.0, t_circle_start=3.0,
+                           t_circle_end=5.0, t_release=6.0, t_end=7.0).items():
+        setattr(s.task, key, value)
+    validate(s)
+    result = simulate(s, t_end=5.0)
+    assert result.ok
+    from drake_coop.experiment.diagram import build_experiment
+    coop = build_experiment(s, log=False).coop
+    plant = coop.plant
+    box = coop.grasp.box
+    m_true = box.default_mass() if hasattr(box, "default_mass") else box.get_default_mass()
+    assert m_true == pytest.approx(0.8)
+    logs = result.logs
+    t = logs["robot1"]["t"]
+    k = np.searchsorted(t, 4.9)
+    total = logs["robot1"]["mass_share"][k] + logs["robot2"]["mass_share"][k]
+    assert total == pytest.approx(m_true, rel=0.05)
+    lam_d = logs["robot1"]["lambda_d"][k]
+    assert np.array_equal(lam_d, logs["robot2"]["lambda_d"][k])        # one shared squeeze
+    hold = m_true * 9.81 / 2 / 0.7                  # the least squeeze at the true load
+    assert hold < lam_d < 1.6 * hold               # inside the cone, near the margin 1.5
+    metrics = compute_metrics(result.logs, result.meta)
+    for robot in metrics:
+        for phase in ("lift", "circle"):
+            assert metrics[robot][phase]["drops"]["count"] == 0
+            assert metrics[robot][phase]["slips"]["count"] == 0
+        assert metrics[robot]["circle"]["friction_use"]["max"] < 1.0
+    del plant

@@ -186,6 +186,30 @@ def test_base_is_relative_to_the_study_file_or_inline(tmp_path):
     assert (s.control_period, s.plant.time_step) == (0.003, 0.001)
 
 
+def test_a_base_file_finds_its_robots_urdfs_beside_it(tmp_path):
+    """As drake-coop run does: identify's identified.yaml names its URDFs beside it; the
+    study's cases load the file found there (not urdf/'s), whatever the working folder."""
+    from drake_coop.scenario.resources import urdf_dir
+    folder = tmp_path / "ident"
+    folder.mkdir()
+    text = (urdf_dir() / "crs_a465_3dof.urdf").read_text()
+    (folder / "mine.urdf").write_text(text)
+    (folder / "base.yaml").write_text("robots:\n- {name: robot1, model: crs_a465, "
+                                      "controller_model: mine.urdf}\n"
+                                      "- {name: robot2, model: crs_a255, base_xyz: [1.16, 0, 0], "
+                                      "base_yaw_deg: 180, contact_xy: [0.8192, 0], "
+                                      "normals: [[1, 0, 0]], home: [0.9, 0, 0.6]}\n")
+    (tmp_path / "s.yaml").write_text("base: ident/base.yaml\n"
+                                     "grid: {robots.0.gains.k_d: [20]}\n")
+    (s,) = _scenarios(expand(load_study(tmp_path / "s.yaml")))
+    assert s.robots[0].controller_model == str((folder / "mine.urdf").resolve())
+    assert s.robots[1].controller_model == ""
+    # A base naming no file beside it keeps its text (and its cases' hashes).
+    (tmp_path / "plain.yaml").write_text("control_period: 0.006  # h\n")
+    (tmp_path / "p.yaml").write_text("base: plain.yaml\ngrid: {plant.time_step: [0.003]}\n")
+    assert load_study(tmp_path / "p.yaml").base_yaml == "control_period: 0.006  # h\n"
+
+
 def test_mapping_values_are_variants_that_update_only_the_fields_they_name():
     cases = expand(_study("""
 grid:
