@@ -35,7 +35,8 @@ if __name__ == "__main__":
                              "(0 skips it)")
     parser.add_argument("--object-repeats", type=int, default=0,
                         help="with a contact --scenario: alternated repeats of the run with "
-                             "object_model none / known / estimated (0 skips them)")
+                             "object_model none / known / estimated, each followed by the plant "
+                             "alone replaying its torques (0 skips them)")
     args = parser.parse_args()
     run_benchmark(args.t_end, args.repeats, args.out, t_scaling=args.t_scaling,
                   extra_scenario=args.scenario, t_extra=args.t_scenario,

@@ -107,6 +107,12 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
     torque is reproduced bit for bit), so its cost is what the plant alone costs on the
     run's trajectory: SAP needs more iterations per step there than under the constant
     torques of :func:`_plant_alone`.
+
+    It stops where :func:`~drake_coop.experiment.simulate.simulate` stops (every guard
+    period, the grasp, release and end) and changes the plant there as the run does: the
+    grasp switches and, in ``contact`` mode with ``plant.stand_clearance`` > 0, the stand
+    lowered during the circle. In ``contact`` mode the deviation also covers the box's logged
+    pose (``object_pose``: quaternion and position, at every tick).
     """
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
@@ -114,7 +120,7 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
     from pydrake.trajectories import PiecewisePolynomial
 
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.simulate import rest_posture
+    from drake_coop.experiment.simulate import guard_chunks, rest_posture
     from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 
     plan = plan_run(scenario, t_end)
@@ -130,17 +136,27 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
         loggers.append(LogVectorOutput(coop.plant.get_state_output_port(h.instance), b,
                                        publish_period=plan.h))
+    box_log = None
+    if coop.grasp is not None:     # contact mode: the box's state (quaternion, position, ...)
+        box_log = LogVectorOutput(coop.plant.get_state_output_port(
+            coop.plant.GetModelInstanceByName("object")), b, publish_period=plan.h)
     diagram = b.Build()
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
     pc = coop.plant.GetMyMutableContextFromRoot(ctx)
     initialize_plant_context(coop, pc, *rest_posture(scenario, [h.arm for h in coop.arms]))
     sim.Initialize()
+    grasp = coop.grasp
+    stand = grasp if grasp is not None and grasp.stand_drop > 0 else None
+    task = scenario.task
     wall, cpu = time.perf_counter(), time.process_time()
-    for k_stop in plan.stops:
+    for k_stop in guard_chunks(plan, scenario.guards.check_period):
         sim.AdvanceTo(k_stop * plan.h)
         if k_stop in plan.switches:
             coop.set_held(pc, plan.switches[k_stop])
+        if stand is not None:     # as simulate(): lowered while the box goes around the circle
+            t_now = ctx.get_time()
+            stand.set_stand_lowered(pc, task.t_circle_start <= t_now < task.t_circle_end)
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
     deviation = 0.0
     for h, logger in zip(coop.arms, loggers):
@@ -148,6 +164,11 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
         q = logger.FindLog(ctx).data()[:h.arm.kinematics.n].T
         k = min(len(q), len(q_run))
         deviation = max(deviation, float(np.max(np.abs(q[:k] - q_run[:k]))))
+        if box_log is not None:
+            pose_run = result.logs[h.arm.name]["object_pose"]
+            pose = box_log.FindLog(ctx).data()[:7].T
+            k = min(len(pose), len(pose_run))
+            deviation = max(deviation, float(np.max(np.abs(pose[:k] - pose_run[:k]))))
     return wall, cpu, deviation
 
 
@@ -298,29 +319,52 @@ def _sensing_attribution(scenario, t_end: float, repeats: int,
 # ------------------------------------------------------------------- object-aware blocks
 def _object_blocks_cost(scenario, t_end: float, repeats: int) -> dict:
     """What the object-aware blocks (``object_model``: ``LoadFeedforward`` and, when
-    ``estimated``, ``MassEstimator``) add to a run: CPU seconds of the scenario with
-    ``object_model.mode`` ``none``, ``known`` and ``estimated``, alternated ``repeats`` times
-    in this process, each mode's ratio to the ``none`` run just before it; and, from one
-    instrumented ``estimated`` run, the blocks' own Python time per tick (the rest of a
-    ratio is the plant and the framework: the feedforward changes the torques, so the
-    plant's steps differ too)."""
+    ``estimated``, ``MassEstimator``) add to a run, apart from the plant's own changed work.
+
+    CPU seconds of the scenario with ``object_model.mode`` ``none``, ``known`` and
+    ``estimated``, alternated ``repeats`` times in this process, each run followed by the
+    plant alone replaying that run's applied torques (:func:`_plant_replay`, its deviation
+    from the run's joint angles and box pose reported). The runs differ physically (other
+    torques, other contact states), so the plain ratio ``run_X / run_none`` mixes the blocks'
+    cost with the plant's. Per repeat:
+
+    * ``ratio_to_none`` = ``run_X / run_none`` (the plain ratio);
+    * ``blocks_own`` = ``(run_X / replay_X) / (run_none / replay_none) − 1``: what the blocks
+      add to the loop's cost over its own plant;
+    * ``plant_difference`` = ``replay_X / replay_none − 1``: the plant's own extra work on
+      the object-aware run's trajectory.
+
+    And, from one instrumented ``estimated`` run, the blocks' own Python time per tick. The
+    load average (1 min) is recorded at the start and the end."""
     import copy
+    import os
 
     from drake_coop.experiment.plan import num_ticks_until, time_grid
 
+    load_start = os.getloadavg()[0]
+    modes = ("none", "known", "estimated")
     variants = {}
-    for mode in ("none", "known", "estimated"):
+    for mode in modes:
         variants[mode] = copy.deepcopy(scenario)
         variants[mode].object_model.mode = mode
     cpu: dict[str, list[float]] = defaultdict(list)
-    ratios: dict[str, list[float]] = defaultdict(list)
+    replay: dict[str, list[float]] = defaultdict(list)
+    deviation = 0.0
     for _ in range(max(1, repeats)):
-        base = _experiment(variants["none"], t_end)[1]
-        cpu["none"].append(base)
-        for mode in ("known", "estimated"):
-            c = _experiment(variants[mode], t_end)[1]
-            cpu[mode].append(c)
-            ratios[mode].append(c / base)
+        for mode in modes:
+            kept: list = []
+            cpu[mode].append(_experiment(variants[mode], t_end, kept)[1])
+            r = _plant_replay(variants[mode], t_end, kept[0])
+            kept.clear()
+            replay[mode].append(r[1])
+            deviation = max(deviation, r[2])
+    ratios, own, plant = defaultdict(list), defaultdict(list), defaultdict(list)
+    for k in range(len(cpu["none"])):
+        base, base_replay = cpu["none"][k], replay["none"][k]
+        for mode in modes[1:]:
+            ratios[mode].append(cpu[mode][k] / base)
+            own[mode].append((cpu[mode][k] / replay[mode][k]) / (base / base_replay) - 1.0)
+            plant[mode].append(replay[mode][k] / base_replay - 1.0)
     totals: dict = defaultdict(float)
     with _timed_callbacks(totals):
         _experiment(variants["estimated"], t_end)
@@ -329,8 +373,16 @@ def _object_blocks_cost(scenario, t_end: float, repeats: int) -> dict:
               for label in ("load feedforward (object_model)",
                             "mass estimator (object_model: estimated)")}
     return {"cpu_s": {k: _spread(v) for k, v in cpu.items()},
+            "replay_cpu_s": {k: _spread(v) for k, v in replay.items()},
+            "run_over_replay": {k: _spread([c / r for c, r in zip(cpu[k], replay[k])])
+                                for k in modes},
             "ratio_to_none": {k: _spread(v) for k, v in ratios.items()},
-            "python_us_per_tick": blocks, "simulated_s": t_end, "repeats": repeats}
+            "blocks_own": {k: _spread(v) for k, v in own.items()},
+            "plant_difference": {k: _spread(v) for k, v in plant.items()},
+            "replay_max_deviation": deviation,
+            "per_repeat": {"cpu_s": dict(cpu), "replay_cpu_s": dict(replay)},
+            "python_us_per_tick": blocks, "simulated_s": t_end, "repeats": repeats,
+            "load_average_1min": [load_start, os.getloadavg()[0]]}
 
 
 # ----------------------------------------------------------------------- per-system timing
@@ -602,7 +654,8 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         (:func:`_count_callbacks`; 0 skips it).
     object_repeats : int
         With a ``contact`` extra scenario: alternated repeats of the object-aware blocks'
-        cost (:func:`_object_blocks_cost`, ``t_extra`` seconds each; 0 skips it).
+        cost (:func:`_object_blocks_cost`, ``t_extra`` seconds each, every run followed by
+        its plant replay; 0 skips it).
     """
     from drake_coop.experiment.plan import num_ticks_until
     from drake_coop.scenario.loading import default_scenario, load_scenario
@@ -777,11 +830,26 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         if s.plant.object_mode == "contact" and object_repeats > 0:
             blocks = _object_blocks_cost(s, T, object_repeats)
             extra["object_blocks"] = blocks
-            print(f"  the object-aware blocks: CPU of the run with object_model known / "
-                  f"estimated over the same run with none, {object_repeats} alternated "
-                  f"triples of {T:g} s, median [min, max] (target <= 1.10):")
-            for mode, r in blocks["ratio_to_none"].items():
-                print(f"    {mode:9s} {r['median']:.3f} [{r['min']:.3f}, {r['max']:.3f}]")
+            load = blocks["load_average_1min"]
+            print(f"  the object-aware blocks: object_model none / known / estimated, "
+                  f"{object_repeats} alternated triples of {T:g} s, each run followed by its "
+                  f"plant alone replaying its torques (joint angles and box pose within "
+                  f"{blocks['replay_max_deviation']:.1e} of the run's), CPU, median [min, max],"
+                  f" load {load[0]:.1f} -> {load[1]:.1f}:")
+
+            def fmt(r, scale=1.0, digits=3):
+                return (f"{scale * r['median']:.{digits}f} [{scale * r['min']:.{digits}f}, "
+                        f"{scale * r['max']:.{digits}f}]")
+            for mode, r in blocks["run_over_replay"].items():
+                print(f"    {mode:9s} run / its replay {fmt(r)}  (run "
+                      f"{blocks['cpu_s'][mode]['median']:.2f} s, replay "
+                      f"{blocks['replay_cpu_s'][mode]['median']:.2f} s)")
+            for mode in blocks["ratio_to_none"]:
+                print(f"    {mode:9s} run / run none {fmt(blocks['ratio_to_none'][mode])}; "
+                      f"blocks' own cost (run/replay over none's) "
+                      f"{fmt(blocks['blocks_own'][mode], 100, 1)} % (target <= 10 %); "
+                      f"plant's own difference (replay / replay none) "
+                      f"{fmt(blocks['plant_difference'][mode], 100, 1)} %")
             print("    their own Python per tick (instrumented estimated run): "
                   + ", ".join(f"{k} {v:.1f} us"
                               for k, v in blocks["python_us_per_tick"].items()))

@@ -72,3 +72,31 @@ def test_plant_replay_reproduces_the_runs_joint_angles_exactly_through_grasp_and
     assert _plant_replay(scenario, 1.6, kept[0])[2] == 0.0
     kept[0].logs[scenario.robots[0].name]["tau"][5:] *= 1.01     # from tick 5 on, 1 % more
     assert _plant_replay(scenario, 1.6, kept[0])[2] > 1e-6
+
+
+def test_plant_replay_reproduces_a_contact_runs_joint_angles_and_box_pose(monkeypatch):
+    """``contact`` mode (the box held by friction at the pads, ``object_model: estimated``):
+    the replay of the run's torques lands on the run's joint angles and the box's logged pose
+    at every tick through the grasp and the circle, the stand lowered by ``stand_clearance``
+    while the box goes around it as the run lowers it. The circle's lowest point (the grasp
+    height) lies in the run, so a replay that left the stand in place would have the box
+    brush it and move elsewhere (checked)."""
+    from bench.harness import _experiment, _plant_replay
+    from drake_coop.plant.grasp import ContactObject
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.schema import Task
+    from pathlib import Path
+
+    scenario = load_scenario(Path(__file__).resolve().parents[2] / "scenarios" / "contact.yaml")
+    assert scenario.plant.stand_clearance > 0
+    scenario.object_model.mode = "estimated"
+    scenario.task = Task(t_pregrasp=0.3, t_grasp=0.6, t_circle_start=1.0, t_circle_end=3.0,
+                         t_release=3.4, t_end=3.6)
+    t_end = 2.2       # past the circle's lowest point (~1.9 s)
+    kept: list = []
+    _experiment(scenario, t_end, kept)
+    assert _plant_replay(scenario, t_end, kept[0])[2] == 0.0
+    lower = ContactObject.set_stand_lowered
+    monkeypatch.setattr(ContactObject, "set_stand_lowered",
+                        lambda self, context, lowered: lower(self, context, False))
+    assert _plant_replay(scenario, t_end, kept[0])[2] > 1e-6
