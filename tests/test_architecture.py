@@ -214,3 +214,20 @@ def test_each_generated_diagram_has_one_copy():
     for md in (ROOT / "docs").rglob("*.md"):
         shown |= set(re.findall(r"_generated/diagrams/([\w.]+\.svg)", md.read_text()))
     assert shown and all((ROOT / "diagrams" / name).is_file() for name in shown)
+
+
+def test_no_public_name_of_the_control_layer_is_shadowed_by_a_submodule():
+    """``from drake_coop.control import X`` gives the documented object whatever was imported
+    before: a submodule named like one of the package's exports (a function ``f`` in
+    ``control/f.py``) would replace it once the submodule is imported."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    import drake_coop.control as control
+
+    for info in pkgutil.iter_modules(control.__path__):
+        importlib.import_module(f"drake_coop.control.{info.name}")
+    shadowed = [name for name in control.__all__
+                if inspect.ismodule(getattr(control, name))]
+    assert shadowed == []

@@ -51,8 +51,8 @@ _EXPORTS = {
     "load_distribution": "object",
     "mass_shares": "object",
     "squeeze_for_grasp": "object",
-    "squeeze_couple": "squeeze_couple",
-    "face_distance": "squeeze_couple",
+    "squeeze_couple": "couple",
+    "face_distance": "couple",
     "Watchdog": "watchdog",
 }
 

@@ -470,7 +470,7 @@ class LoadFeedforward(LeafSystem):
     couple : bool
         Declare the input ``f_couple``: a force added to ``f_i`` (before the friction limit),
         the arm's part of the squeeze's couple when the two pads' normal forces act along
-        offset lines (:func:`~drake_coop.control.squeeze_couple.squeeze_couple`). Default
+        offset lines (:func:`~drake_coop.control.couple.squeeze_couple`). Default
         False: no such port.
 
     Input ports

@@ -49,7 +49,7 @@ from drake_coop.control.object import (
     mass_shares,
     squeeze_for_grasp,
 )
-from drake_coop.control.squeeze_couple import face_distance, squeeze_couple
+from drake_coop.control.couple import face_distance, squeeze_couple
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.task_path import cartesian_reference
 
@@ -255,10 +255,10 @@ def uses_couple(scenario: Scenario) -> bool:
 def couple_samples(scenario: Scenario, index: int, arms, trajectories, t: np.ndarray
                    ) -> np.ndarray:
     """Robot ``index``'s part ``f_c,i`` of the squeeze's couple at the times ``t`` (K, 3):
-    :func:`~drake_coop.control.squeeze_couple.squeeze_couple` on the two pads' centres
+    :func:`~drake_coop.control.couple.squeeze_couple` on the two pads' centres
     along their references (forward kinematics of both ``q_d``, fixed before the run), the
     arm's own ``λ_d`` and the lever between the faces the pads touch
-    (:func:`~drake_coop.control.squeeze_couple.face_distance`: the pads' radii and their
+    (:func:`~drake_coop.control.couple.face_distance`: the pads' radii and their
     compressions ``δ(λ_d)``; the centres' distance in ``rigid`` mode); zero while not held.
 
     Parameters

@@ -540,7 +540,7 @@ class ObjectModelSettings:
     couple : bool, optional
         Whether each arm's feedforward carries its part of the squeeze's couple (the pads'
         normal forces act through their centres; offset across the normal, they make a couple
-        the pads' tangential forces must carry, :mod:`drake_coop.control.squeeze_couple`):
+        the pads' tangential forces must carry, :mod:`drake_coop.control.couple`):
         true, false, or null (the default: true when the arms follow their pads' contact
         points, whose centres then end at different heights); two robots only.
     """

@@ -1,4 +1,4 @@
-"""The squeeze's couple in the load split (drake_coop.control.squeeze_couple) against
+"""The squeeze's couple in the load split (drake_coop.control.couple) against
 independent computations: a moment balance by hand, Drake's forward dynamics of a free box
 under the pads' forces, the virtual work of one arm's share, and the mass estimator fed a
 static hold that carries the couple."""
@@ -16,7 +16,7 @@ from pydrake.common.value import AbstractValue
 from drake_coop.control import ArmModel, MakeArmControllerPlant
 from drake_coop.control.finger import ReferenceLayout
 from drake_coop.control.object import GRAVITY, LoadFeedforward, MassEstimator
-from drake_coop.control.squeeze_couple import face_distance, squeeze_couple
+from drake_coop.control.couple import face_distance, squeeze_couple
 from drake_coop.scenario.resources import urdf_dir
 from tests.control.test_object import _arm
 
