@@ -28,7 +28,8 @@ if TYPE_CHECKING:
 
 __all__ = ["data_dir", "urdf_dir", "PACKAGE_SCHEME", "resolve_package_url", "model_urdf_path", "controller_urdf_path", "scenarios_dir",
            "shipped_scenarios", "scenario_summary",
-           "find_scenario", "default_scenario_path", "resolve_models"]
+           "find_scenario", "default_scenario_path", "resolve_models", "model_beside",
+           "MODEL_FIELDS"]
 
 #: A file each data folder must hold (tells a real folder from a stray one).
 _MARKERS = {"urdf": "crs_a465_3dof.urdf", "scenarios": "paper.yaml"}
@@ -227,11 +228,24 @@ def resolve_models(scenario: Scenario, base_dir: Path | None = None) -> None:
     if base_dir is None:
         return
     for robot in scenario.robots:
-        for name in ("model", "controller_model"):
-            value = getattr(robot, name)
-            if (value and value.lower().endswith(".urdf")
-                    and not value.startswith(PACKAGE_SCHEME)
-                    and not Path(value).expanduser().is_absolute()):
-                beside = base_dir / Path(value).expanduser()
-                if beside.is_file():
-                    setattr(robot, name, str(beside.resolve()))
+        for name in MODEL_FIELDS:
+            beside = model_beside(getattr(robot, name), base_dir)
+            if beside is not None:
+                setattr(robot, name, beside)
+
+
+#: A robot's fields naming a URDF (:func:`resolve_models`, :func:`model_beside`).
+MODEL_FIELDS = ("model", "controller_model")
+
+
+def model_beside(value, base_dir: Path) -> str | None:
+    """The absolute path of a robot's relative ``model`` / ``controller_model`` URDF when it
+    lies in ``base_dir`` (the scenario file's folder), else None (not a relative ``.urdf``
+    path, a ``package://`` URL, or no such file there): the rule of :func:`resolve_models`,
+    also for a scenario's untyped data (a study's base file)."""
+    if not (isinstance(value, str) and value and value.lower().endswith(".urdf")
+            and not value.startswith(PACKAGE_SCHEME)
+            and not Path(value).expanduser().is_absolute()):
+        return None
+    beside = Path(base_dir) / Path(value).expanduser()
+    return str(beside.resolve()) if beside.is_file() else None

@@ -205,6 +205,7 @@ def _models_beside(text: str, folder: Path) -> str:
     from pydrake.common.yaml import yaml_dump
 
     from drake_coop.scenario.loading import _load_untyped
+    from drake_coop.scenario.resources import MODEL_FIELDS, model_beside
     from drake_coop.scenario.schema import ScenarioError
 
     try:
@@ -214,12 +215,10 @@ def _models_beside(text: str, folder: Path) -> str:
     robots = data.get("robots") if isinstance(data, dict) else None
     changed = False
     for robot in robots if isinstance(robots, list) else []:
-        for key in ("model", "controller_model"):
-            value = robot.get(key) if isinstance(robot, dict) else None
-            if (isinstance(value, str) and value.lower().endswith(".urdf")
-                    and "://" not in value and not Path(value).expanduser().is_absolute()
-                    and (folder / value).is_file()):
-                robot[key] = str((folder / value).resolve())
+        for key in MODEL_FIELDS:
+            beside = model_beside(robot.get(key), folder) if isinstance(robot, dict) else None
+            if beside is not None:
+                robot[key] = beside
                 changed = True
     return yaml_dump(data) if changed else text
 
