@@ -198,7 +198,7 @@ def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,
         return T @ kin_p.jacobian(q) + Pn @ kinematics.jacobian(q)
 
     for _ in range(20):          # each sample on its own (the same doubles alone or in a batch)
-        residual = kin_p.fk(q) @ T + kinematics.fk(q) @ Pn - x
+        residual = _followed(kinematics, kin_p, Pn, q) - x
         active = np.abs(residual).max(axis=1) > tolerance
         if not active.any():
             break
@@ -254,9 +254,13 @@ def followed_point(kinematics, point, q: np.ndarray) -> np.ndarray:
     if point is None:
         return kinematics.fk(q)
     n = np.asarray(point.normal, dtype=float)
-    Pn = np.outer(n, n)
-    return kinematics.with_offset(point.offset).fk(q) @ (np.eye(3) - Pn) \
-        + kinematics.fk(q) @ Pn
+    return _followed(kinematics, kinematics.with_offset(point.offset), np.outer(n, n), q)
+
+
+def _followed(kinematics, kin_p, Pn: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``y(q) = T P(q) + n nᵀ E(q)`` (``Pn = n nᵀ``, ``T = I − Pn``; ``kin_p`` the kinematics
+    of ``P``, ``kinematics`` those of ``E``)."""
+    return kin_p.fk(q) @ (np.eye(3) - Pn) + kinematics.fk(q) @ Pn
 
 
 def compressed_path(stiffness, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
