@@ -31,7 +31,13 @@ def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: 
 
 
 def cmd_diagram(args: argparse.Namespace) -> int:
-    """Draw the experiment's block diagram (no loggers or visualizer) and one control block."""
+    """Draw the experiment's block diagram (no loggers or visualizer) and one control block.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (:func:`build_parser`).
+    """
     from drake_coop.experiment.diagram import build_experiment
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.schema import ScenarioError

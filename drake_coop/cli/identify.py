@@ -9,7 +9,13 @@ from drake_coop.scenario.resources import find_scenario
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
-    """Identify the scenario's robots and write DIR (exit 2 on bad input, one line)."""
+    """Identify the scenario's robots and write DIR (exit 2 on bad input, one line).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (:func:`build_parser`).
+    """
     import math
 
     from drake_coop.identification.report import (

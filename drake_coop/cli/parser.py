@@ -88,6 +88,11 @@ def main(argv: list[str] | None = None) -> int:
     Installs the SIGINT/SIGTERM handlers of :data:`SIGNALS` (restored on return) so that a
     signal at any moment ends the command with 130 (SIGINT) or 143 (SIGTERM), one message and
     no traceback.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after the program's name (default: ``sys.argv[1:]``).
     """
     SIGNALS = _signals.SIGNALS = Signals()
     previous = {}

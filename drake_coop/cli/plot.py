@@ -10,7 +10,13 @@ from drake_coop.console import error as _error
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    """Redraw figures and metrics from a run directory."""
+    """Redraw figures and metrics from a run directory.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (:func:`build_parser`).
+    """
     from drake_coop.results import replot
 
     try:

@@ -15,7 +15,16 @@ from drake_coop.scenario.resources import find_scenario
 
 
 class ProgressBar:
-    """A one-line progress bar on stderr: simulated time and realtime factor."""
+    """A one-line progress bar on stderr: simulated time and realtime factor.
+
+    Parameters
+    ----------
+    stream : file-like, optional
+        Where the bar is written (default: ``sys.stderr``); a terminal gets a bar
+        redrawn in place, anything else one line every 10 %.
+    width : int
+        The bar's length in characters (on a terminal).
+    """
 
     def __init__(self, stream=None, width: int = 30):
         self.stream = stream or sys.stderr
@@ -53,6 +62,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     Everything before the simulation (imports, scenario, model files, run size, ``--out``)
     runs with signals deferred; the outputs are written into a staging folder that is renamed
     onto ``--out`` at the end, also with signals deferred (see :func:`_write_outputs`).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (:func:`build_parser`).
     """
     with _signals.SIGNALS.deferred():
         from drake_coop.experiment.simulate import simulate

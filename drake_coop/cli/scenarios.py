@@ -10,7 +10,13 @@ from drake_coop.scenario.resources import scenario_summary, shipped_scenarios
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
-    """List the shipped scenarios, or print one."""
+    """List the shipped scenarios, or print one.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (:func:`build_parser`).
+    """
     shipped = shipped_scenarios()
     if args.name is None:
         width = max(map(len, shipped))

@@ -36,7 +36,17 @@ REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
 
 @dataclass
 class Reference:
-    """One sample of a robot's reference signal (see :class:`ReferenceLayout`)."""
+    """One sample of a robot's reference signal (see :class:`ReferenceLayout`).
+
+    Attributes
+    ----------
+    q_d, qdot_d, qddot_d : ndarray, shape (n,)
+        The desired joint positions, velocities and accelerations.
+    lambda_d : ndarray, shape (m,)
+        The desired constraint forces.
+    held : bool
+        Whether the object is held (the constraint active).
+    """
 
     q_d: np.ndarray
     qdot_d: np.ndarray

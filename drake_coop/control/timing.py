@@ -25,6 +25,14 @@ def aligned_periods(control_period: float, time_step: float) -> tuple[float, flo
     makes ``h = N dt`` exact, and then ``k h`` and ``(N k) dt`` are the same real number rounded
     once: every control tick falls exactly on a plant step.
 
+    Parameters
+    ----------
+    control_period : float
+        The control period ``h`` (s), > 0.
+    time_step : float
+        The plant's step ``dt`` (s), > 0, with ``h / dt`` a whole number ``N`` (to
+        rounding).
+
     Returns
     -------
     (h, dt) : tuple[float, float]

@@ -20,7 +20,17 @@ def contact_jacobian(model: ArmModel, q: np.ndarray, contact_offset: np.ndarray 
     with the end effector, ``r`` = ``contact_offset`` (world frame); ``J_x`` when None. A
     force ``F`` applied at ``E + r`` takes the joint torque ``J_cᵀ F`` (its moment ``r × F``
     about ``E`` included): for a spherical pad of radius ``ρ``, ``r = ρ n`` with ``n`` the
-    inward normal, the point where the object touches it."""
+    inward normal, the point where the object touches it.
+
+    Parameters
+    ----------
+    model : ArmModel
+        The arm's model (``J_x``, ``J_ω``).
+    q : ndarray, shape (n,)
+        Joint positions.
+    contact_offset : array_like, shape (3,), optional
+        ``r`` (m, world frame); None: ``J_x``.
+    """
     J = model.J_x(q)
     if contact_offset is None:
         return J
@@ -36,6 +46,14 @@ def grasp_matrix(points: np.ndarray, reference_point=(0.0, 0.0, 0.0)) -> np.ndar
 
     maps the contact forces ``f_i`` (applied to the object at ``p_i``) to their resultant
     force and moment about ``reference_point``.
+
+    Parameters
+    ----------
+    points : array_like, shape (k, 3)
+        The contact points ``p_i`` (m).
+    reference_point : array_like, shape (3,)
+        ``p_ref``, the point the moments are taken about (m; default the
+        origin).
     """
     points = np.asarray(points, dtype=float)
     ref = _vector(reference_point, "reference_point")
@@ -47,7 +65,21 @@ def object_wrench(model: ObjectModel, acceleration, angular_velocity=(0.0, 0.0, 
                   angular_acceleration=(0.0, 0.0, 0.0), gravity: float = GRAVITY
                   ) -> np.ndarray:
     """The wrench the contacts must apply to the object, about its centre of mass:
-    ``w = [m (a − g); I α + ω × I ω]`` with ``g = (0, 0, −gravity)`` (Newton–Euler)."""
+    ``w = [m (a − g); I α + ω × I ω]`` with ``g = (0, 0, −gravity)`` (Newton–Euler).
+
+    Parameters
+    ----------
+    model : ObjectModel
+        The held object.
+    acceleration : array_like, shape (3,)
+        The centre of mass's acceleration ``a`` (m/s², world frame).
+    angular_velocity : array_like, shape (3,)
+        ``ω`` (rad/s); default zero.
+    angular_acceleration : array_like, shape (3,)
+        ``α`` (rad/s²); default zero.
+    gravity : float
+        ``g`` (m/s²).
+    """
     a = _vector(acceleration, "acceleration")
     w = _vector(angular_velocity, "angular_velocity")
     alpha = _vector(angular_acceleration, "angular_acceleration")
@@ -66,6 +98,19 @@ def load_distribution(model: ObjectModel, acceleration, angular_velocity=(0.0, 0
     ``f_L`` has no internal part (it is orthogonal to the null space of ``G``); any squeeze
     ``f_I`` with ``G f_I = 0`` (for two opposing pads, equal and opposite forces along the
     grasp line) can be added without changing the object's motion (:func:`internal_part`).
+
+    Parameters
+    ----------
+    model : ObjectModel
+        The held object.
+    acceleration : array_like, shape (3,)
+        The centre of mass's acceleration ``a`` (m/s², world frame).
+    angular_velocity : array_like, shape (3,)
+        ``ω`` (rad/s); default zero.
+    angular_acceleration : array_like, shape (3,)
+        ``α`` (rad/s²); default zero.
+    gravity : float
+        ``g`` (m/s²).
     """
     G = grasp_matrix(model.grasp_points, model.com)
     w = object_wrench(model, acceleration, angular_velocity, angular_acceleration, gravity)
@@ -75,7 +120,15 @@ def load_distribution(model: ObjectModel, acceleration, angular_velocity=(0.0, 0
 
 def internal_part(model: ObjectModel, forces) -> np.ndarray:
     """The internal (squeeze) part of contact forces (k × 3): their projection on the null
-    space of ``G``, ``(I − G⁺ G) f`` (what moves no object)."""
+    space of ``G``, ``(I − G⁺ G) f`` (what moves no object).
+
+    Parameters
+    ----------
+    model : ObjectModel
+        The held object.
+    forces : array_like, shape (k, 3)
+        Contact forces ``f`` (N), one row per contact.
+    """
     G = grasp_matrix(model.grasp_points, model.com)
     f = np.asarray(forces, dtype=float).reshape(-1)
     return ((np.eye(f.size) - np.linalg.pinv(G) @ G) @ f).reshape(model.contacts, 3)
@@ -89,6 +142,11 @@ def mass_shares(model: ObjectModel) -> np.ndarray:
     ``m_1 = m · |p_2 − c| / |p_2 − p_1|``. Arm ``i``'s load along the desired motion is then
     ``f_i = m_i (a − g)`` (exact for the components across the grasp line; along it, any two
     splits differ by an internal force, which the squeeze control sets).
+
+    Parameters
+    ----------
+    model : ObjectModel
+        The held object (its mass, centre of mass and grasp points).
     """
     f = load_distribution(model, np.zeros(3))
     return f[:, 2] / GRAVITY

@@ -24,6 +24,21 @@ def squeeze_for_grasp(loads, normals, mu: float, margin: float = 1.5,
     ``n_i·f_i = 0``). With ``lambda_max`` (the torque limits', :func:`max_squeeze`) the result
     is clipped to it and ``feasible`` is False when it had to be.
 
+    Parameters
+    ----------
+    loads : array_like, shape (k, 3)
+        Each contact's load ``f_i`` (N) (:func:`load_distribution`).
+    normals : array_like, shape (k, 3)
+        Each contact's inward normal ``n_i`` (normalized here).
+    mu : float
+        The friction coefficient ``μ``, > 0.
+    margin : float
+        The factor on the least squeeze, >= 1.
+    lambda_max : float, optional
+        The largest squeeze allowed (N) (:func:`max_squeeze`); default none.
+    lambda_min : float
+        The least squeeze returned (N), >= 0.
+
     Returns
     -------
     lam : float
@@ -58,7 +73,17 @@ def squeeze_for_grasp(loads, normals, mu: float, margin: float = 1.5,
 def max_squeeze(J_phi, tau_limits, tau_other) -> float:
     """The largest squeeze ``λ`` whose torque ``−J_φᵀ λ`` (13) stays, with the other torques
     ``tau_other`` (gravity, load), within ``|τ_j| ≤ tau_limits_j`` at one posture
-    (one constraint): ``min_j`` over the joints of the room left in the pushing direction."""
+    (one constraint): ``min_j`` over the joints of the room left in the pushing direction.
+
+    Parameters
+    ----------
+    J_phi : array_like, shape (n,)
+        The constraint's Jacobian row ``J_φ``.
+    tau_limits : array_like, shape (n,)
+        ``τ_max`` per joint (N·m).
+    tau_other : array_like, shape (n,)
+        The other torques at the posture (gravity, load) (N·m).
+    """
     j = np.asarray(J_phi, dtype=float).reshape(-1)
     lim = np.asarray(tau_limits, dtype=float).reshape(-1)
     other = np.asarray(tau_other, dtype=float).reshape(-1)

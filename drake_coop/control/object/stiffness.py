@@ -12,6 +12,11 @@ import numpy as np
 class ContactStiffness:
     """A compliant contact's force–compression law ``λ = a δᵖ`` along its normal.
 
+    The remedy of the ``−β Δp`` lag on a compliant contact: the controller's reference for the
+    constrained position becomes ``p_d = −δ(λ_d)`` (:class:`~drake_coop.control.finger.FingerLaw`'s
+    ``contact_stiffness``), so the pad is held where the contact carries ``λ_d``; without it,
+    ``−β φ`` pulls the pad back out of its own compression and the squeeze lags.
+
     Parameters
     ----------
     a : float
@@ -32,11 +37,6 @@ class ContactStiffness:
 
         (``δ ≤ r``): the ``δ³/r`` term makes the pad softer than ``a δ²`` by
         ``2δ/(3r)`` (7 % at 1.6 mm on a 15 mm pad). Default: ``λ = a δᵖ``.
-
-    The remedy of the ``−β Δp`` lag on a compliant contact: the controller's reference for the
-    constrained position becomes ``p_d = −δ(λ_d)`` (:class:`~drake_coop.control.finger.FingerLaw`'s
-    ``contact_stiffness``), so the pad is held where the contact carries ``λ_d``; without it,
-    ``−β φ`` pulls the pad back out of its own compression and the squeeze lags.
     """
 
     a: float
