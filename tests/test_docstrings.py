@@ -2,8 +2,9 @@
 ``docstrings_test`` is the model).
 
 The public API is what ``from drake_coop.<subpackage> import ...`` gives: each subpackage's
-``__all__`` (a package inside one, ``control/object/``, included), and the command line's
-(``drake_coop.cli``, ``drake_coop.console``). For a function, its signature; for a class, its
+``__all__`` (a package inside one, ``control/object/``, included), the command line's
+(``drake_coop.cli``, ``drake_coop.console``), and every module's public classes and functions
+in the library, ``drake_coop.control`` (the layer a user's own diagram imports). For a function, its signature; for a class, its
 constructor's (documented in the class docstring, numpydoc's convention, or the
 ``__init__``'s; a dataclass's or named tuple's fields in ``Parameters`` or ``Attributes``; a
 class whose constructor is inherited from outside the package, an exception's, has nothing to
@@ -27,8 +28,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "drake_coop"
-#: Packages documented on the commands page rather than on a page of their own.
+#: Top-level modules of the command line.
 TOP_LEVEL = ("cli", "console")
+#: The library (``drake_coop.control``): every module's public names are its API.
+LIBRARY = PKG / "control"
 
 #: A numpydoc section header: a title line followed by a line of dashes.
 _HEADER = re.compile(r"^\s*([A-Z][A-Za-z ]*)\n\s*-{3,}\s*$", re.M)
@@ -62,7 +65,13 @@ def public_api() -> list[tuple[str, str]]:
     folders = [p.parent for p in PKG.glob("*/__init__.py") if p.parent.name != "data"]
     folders += [p.parent for f in list(folders) for p in f.glob("*/__init__.py")]
     for folder in sorted(folders):
-        out += [(_dotted(folder), name) for name in _dunder_all(folder / "__init__.py") or []]
+        exported = _dunder_all(folder / "__init__.py") or []
+        out += [(_dotted(folder), name) for name in exported]
+        if folder == LIBRARY or LIBRARY in folder.parents:     # the library: every module
+            for module in sorted(folder.glob("*.py")):
+                if not module.name.startswith("_"):
+                    out += [(_dotted(module), name) for name in _module_public(module)
+                            if name not in exported]
     for module in TOP_LEVEL:
         if (PKG / f"{module}.py").exists():
             out += [(f"drake_coop.{module}", name)
@@ -138,7 +147,8 @@ def test_the_public_api_is_found():
     names = {name for _, name in api}
     # One of each kind the reader walks: a subpackage's export, a nested package's, the
     # command line's.
-    assert {"AddCooperativeController", "Scenario", "grasp_matrix", "main", "error"} <= names
+    assert {"AddCooperativeController", "Scenario", "grasp_matrix", "main", "error",
+            "check_period"} <= names
     assert len(api) > 100
 
 
