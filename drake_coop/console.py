@@ -15,6 +15,14 @@ __all__ = ["error"]
 
 
 def error(message: object, prog: str = "drake-coop") -> int:
-    """Print ``<prog>: error: <message>`` (on one line) to stderr; return the exit code 2."""
+    """Print ``<prog>: error: <message>`` (on one line) to stderr; return the exit code 2.
+
+    Parameters
+    ----------
+    message : object
+        What went wrong (its ``str``, folded onto one line).
+    prog : str
+        The command's name that starts the line.
+    """
     print(f"{prog}: error: {one_line(message)}", file=sys.stderr)
     return 2

@@ -219,15 +219,19 @@ def test_each_generated_diagram_has_one_copy():
 def test_no_public_name_of_the_control_layer_is_shadowed_by_a_submodule():
     """``from drake_coop.control import X`` gives the documented object whatever was imported
     before: a submodule named like one of the package's exports (a function ``f`` in
-    ``control/f.py``) would replace it once the submodule is imported."""
+    ``control/f.py``) would replace it once the submodule is imported. The same for the
+    packages that re-export their modules' names: ``control.object`` and ``cli`` (whose
+    ``main`` is the console script's entry point)."""
     import importlib
     import inspect
     import pkgutil
 
-    import drake_coop.control as control
-
-    for info in pkgutil.iter_modules(control.__path__):
-        importlib.import_module(f"drake_coop.control.{info.name}")
-    shadowed = [name for name in control.__all__
-                if inspect.ismodule(getattr(control, name))]
+    shadowed = []
+    for name in ("drake_coop.control", "drake_coop.control.object", "drake_coop.cli"):
+        package = importlib.import_module(name)
+        for info in pkgutil.iter_modules(package.__path__):
+            if info.name != "__main__":
+                importlib.import_module(f"{name}.{info.name}")
+        shadowed += [f"{name}.{export}" for export in package.__all__
+                     if inspect.ismodule(getattr(package, export))]
     assert shadowed == []

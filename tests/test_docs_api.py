@@ -5,7 +5,10 @@ Public names, read from the sources with :mod:`ast` (no import, no Sphinx):
 * each subpackage's ``__all__`` (the names ``from drake_coop.<sub> import ...`` gives), looked
   for in ``docs/api/<sub>.md``;
 * each module's public classes and functions (module level, no leading underscore; only those
-  in the module's ``__all__`` when it has one), looked for under the module's own heading.
+  in the module's ``__all__`` when it has one), looked for under the module's own heading;
+* a package inside a subpackage (``control/object/``) or at the top (``cli/``) is read as one
+  module: its ``__init__``'s ``__all__`` (the names it re-exports from its modules), and each
+  of its modules' public names it does not re-export, under the module's heading.
 
 A name added to the package without its line in the API reference fails here.
 """
@@ -43,7 +46,22 @@ def public_names(path: Path) -> list[str]:
 
 def subpackages() -> list[str]:
     return sorted(p.parent.name for p in PKG.glob("*/__init__.py")
-                  if p.parent.name != "data")
+                  if p.parent.name != "data" and p.parent.name not in TOP_LEVEL)
+
+
+def module_names(path: Path, dotted: str) -> list[tuple[str, str]]:
+    """``(section, name)`` of the public classes and functions of a module file, or of a
+    package folder read as one module (under its own heading the names its ``__all__``
+    re-exports, under each module's heading the others)."""
+    if path.is_dir():
+        exported = _dunder_all(ast.parse((path / "__init__.py").read_text())) or []
+        out = []
+        for module in sorted(path.glob("*.py")):
+            if not module.name.startswith("_"):
+                out += [(dotted if name in exported else f"{dotted}.{module.stem}", name)
+                        for name in public_names(module)]
+        return out
+    return [(dotted, name) for name in public_names(path)]
 
 
 def module_sections(text: str) -> dict[str, str]:
@@ -63,13 +81,16 @@ def expected() -> list[tuple[str, str, str]]:
     for sub in subpackages():
         exported = _dunder_all(ast.parse((PKG / sub / "__init__.py").read_text())) or []
         out += [(sub, "", name) for name in exported]
-        for module in sorted((PKG / sub).glob("*.py")):
-            if module.name != "__init__.py":
-                out += [(sub, f"drake_coop.{sub}.{module.stem}", name)
-                        for name in public_names(module) if name not in exported]
+        modules = [m for m in sorted((PKG / sub).glob("*.py")) if m.name != "__init__.py"]
+        modules += sorted(p.parent for p in (PKG / sub).glob("*/__init__.py"))
+        for module in modules:
+            out += [(sub, section, name)
+                    for section, name in module_names(module, f"drake_coop.{sub}.{module.stem}")
+                    if name not in exported]
     for module in TOP_LEVEL:
-        out += [("commands", f"drake_coop.{module}", name)
-                for name in public_names(PKG / f"{module}.py")]
+        path = PKG / module if (PKG / module).is_dir() else PKG / f"{module}.py"
+        out += [("commands", section, name)
+                for section, name in module_names(path, f"drake_coop.{module}")]
     return out
 
 

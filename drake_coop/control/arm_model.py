@@ -455,7 +455,13 @@ def description_packages() -> dict[str, Path]:
 
 def add_description_packages(package_map) -> None:
     """Add :func:`description_packages` to a :class:`~pydrake.multibody.parsing.PackageMap`
-    (those it does not know yet), so a parser reads ``package://example-robot-data/...``."""
+    (those it does not know yet), so a parser reads ``package://example-robot-data/...``.
+
+    Parameters
+    ----------
+    package_map : PackageMap
+        The parser's package map.
+    """
     for name, folder in description_packages().items():
         if not package_map.Contains(name):
             package_map.Add(name, str(folder))
@@ -499,6 +505,11 @@ def make_arm_controller_plant(model_file: str | Path, base_frame: str,
 def normalized_normals(normals) -> np.ndarray:
     """``normals`` as unit rows ``(m, 3)``, ``m = 1..3``, checked to be independent.
 
+    Parameters
+    ----------
+    normals : array_like, shape (m, 3) or (3,)
+        The constraint normals.
+
     Raises
     ------
     ValueError
@@ -521,7 +532,13 @@ def normalized_normals(normals) -> np.ndarray:
 
 
 def contact_vector(contact_point) -> np.ndarray:
-    """``contact_point`` as a finite 3-vector (``ValueError`` naming it otherwise)."""
+    """``contact_point`` as a finite 3-vector (``ValueError`` naming it otherwise).
+
+    Parameters
+    ----------
+    contact_point : array_like, shape (3,)
+        The contact point ``c`` (m).
+    """
     c = as_array(contact_point, "contact_point")
     if c.shape != (3,) or not np.all(np.isfinite(c)):
         raise ValueError(f"contact_point: 3 finite numbers are required (got "

@@ -80,6 +80,9 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     :mod:`drake_coop.control.sources`, with the same port names, so only the blocks change.
     Most users want :func:`AddCooperativeController`, which also wires the block into a plant.
 
+    The momentum observer's gain ``K_O`` of ``force_source = momentum`` is the law's
+    (``Gains.momentum_gain``).
+
     Parameters
     ----------
     name : str
@@ -96,9 +99,6 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         ``force_source = momentum`` only: the actuators' torque limits, so the observer
         integrates the torque actually applied (after saturation) instead of the commanded
         one (opt-in; :class:`~drake_coop.control.momentum.MomentumObserver`).
-
-    The momentum observer's gain ``K_O`` of ``force_source = momentum`` is the law's
-    (``Gains.momentum_gain``).
 
     Returns
     -------
@@ -287,6 +287,10 @@ def AddCooperativeController(
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
+    The identified Coulomb friction is compensated by passing an
+    :class:`~drake_coop.control.arm_model.ArmModel` built with ``coulomb=`` as
+    ``controller_model``.
+
     Parameters
     ----------
     builder : DiagramBuilder
@@ -359,10 +363,6 @@ def AddCooperativeController(
     momentum_torque_limits : array_like, optional
         ``force_source = "momentum"``: the actuators' torque limits, so the momentum observer
         integrates the applied (saturated) torque (see :func:`build_control_block`).
-
-    The identified Coulomb friction is compensated by passing an
-    :class:`~drake_coop.control.arm_model.ArmModel` built with ``coulomb=`` as
-    ``controller_model``.
 
     Returns
     -------

@@ -36,7 +36,17 @@ REFERENCE_ROWS = ("q_d", "qdot_d", "qddot_d", "lambda_d", "held")
 
 @dataclass
 class Reference:
-    """One sample of a robot's reference signal (see :class:`ReferenceLayout`)."""
+    """One sample of a robot's reference signal (see :class:`ReferenceLayout`).
+
+    Attributes
+    ----------
+    q_d, qdot_d, qddot_d : ndarray, shape (n,)
+        The desired joint positions, velocities and accelerations.
+    lambda_d : ndarray, shape (m,)
+        The desired constraint forces.
+    held : bool
+        Whether the object is held (the constraint active).
+    """
 
     q_d: np.ndarray
     qdot_d: np.ndarray
@@ -104,25 +114,67 @@ class ReferenceLayout:
 
 def observer_qdot_hat(q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray,
                       Lambda_plus_k_d: float) -> np.ndarray:
-    """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15), ``z = q − q̂`` (the velocity estimate)."""
+    """``d/dt q̂ = q̇̂_o + (Λ + k_d) z`` of (15), ``z = q − q̂`` (the velocity estimate).
+
+    Parameters
+    ----------
+    q, q_hat : ndarray, shape (n,)
+        The measured positions and the observer's ``q̂`` (``z = q − q̂``).
+    qdot_hat_o : ndarray, shape (n,)
+        The observer's ``q̇̂_o``.
+    Lambda_plus_k_d : float
+        ``Λ + k_d`` (1/s).
+    """
     return qdot_hat_o + Lambda_plus_k_d * (q - q_hat)
 
 
 def observer_qdot_o(q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray, k_d: float
                     ) -> np.ndarray:
-    """``q̇_o = d/dt q̂ − Λ z = q̇̂_o + k_d z`` of (8)."""
+    """``q̇_o = d/dt q̂ − Λ z = q̇̂_o + k_d z`` of (8).
+
+    Parameters
+    ----------
+    q, q_hat : ndarray, shape (n,)
+        The measured positions and the observer's ``q̂`` (``z = q − q̂``).
+    qdot_hat_o : ndarray, shape (n,)
+        The observer's ``q̇̂_o``.
+    k_d : float
+        ``k_d`` (1/s).
+    """
     return qdot_hat_o + k_d * (q - q_hat)
 
 
 def observer_acceleration(q: np.ndarray, q_hat: np.ndarray, qddot_r_hat: np.ndarray,
                           k_d_Lambda: float) -> np.ndarray:
-    """``d/dt q̇̂_o = q̈̂_r + k_d Λ z`` of (16)."""
+    """``d/dt q̇̂_o = q̈̂_r + k_d Λ z`` of (16).
+
+    Parameters
+    ----------
+    q, q_hat : ndarray, shape (n,)
+        The measured positions and the observer's ``q̂`` (``z = q − q̂``).
+    qddot_r_hat : ndarray, shape (n,)
+        ``q̈̂_r`` (11).
+    k_d_Lambda : float
+        ``k_d Λ`` (1/s²).
+    """
     return qddot_r_hat + k_d_Lambda * (q - q_hat)
 
 
 @dataclass
 class Constraint:
-    """``J_φ``, ``J⁺``, ``Q`` and ``Δp = φ(q)`` at one posture (zeros/identity when free)."""
+    """``J_φ``, ``J⁺``, ``Q`` and ``Δp = φ(q)`` at one posture (zeros/identity when free).
+
+    Attributes
+    ----------
+    J_phi : ndarray, shape (m, n)
+        ``J_φ``.
+    J_pinv : ndarray, shape (n, m)
+        ``J⁺``.
+    Q : ndarray, shape (n, n)
+        ``Q``.
+    Delta_p : ndarray, shape (m,)
+        ``Δp = φ(q)``.
+    """
 
     J_phi: np.ndarray
     J_pinv: np.ndarray

@@ -55,6 +55,20 @@ from drake_coop.control.params import check_momentum_gain, check_period
 class MomentumObserver(ForceSource):
     """Generalized-momentum observer of one robot (module docstring).
 
+    .. pydrake_system::
+
+        name: MomentumObserver
+        input_ports:
+        - q
+        - qdot_hat
+        - tau
+        - reference
+        output_ports:
+        - tau_ext_hat
+        - O_F_ext_hat
+        - lambda_hat
+        - Delta_F_tilde
+
     Parameters
     ----------
     model : ArmModel
@@ -70,20 +84,6 @@ class MomentumObserver(ForceSource):
         actually applied, ``clip(τ, −τ_max, τ_max)`` (what Drake's ``Saturation`` in front of
         the plant passes), instead of the commanded ``τ``: a saturated command is then not
         read as external torque. None (the default): the commanded torque.
-
-    .. pydrake_system::
-
-        name: MomentumObserver
-        input_ports:
-        - q
-        - qdot_hat
-        - tau
-        - reference
-        output_ports:
-        - tau_ext_hat
-        - O_F_ext_hat
-        - lambda_hat
-        - Delta_F_tilde
 
     Input ports
     -----------

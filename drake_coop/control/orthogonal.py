@@ -84,7 +84,15 @@ def projections(J_phi: np.ndarray, damping: float = 0.0) -> tuple[np.ndarray, np
 
 
 def free_motion_projections(n: int, m: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """``J⁺ = 0`` (n×m) and ``Q = I`` (n×n): the controller with its force part set to zero."""
+    """``J⁺ = 0`` (n×m) and ``Q = I`` (n×n): the controller with its force part set to zero.
+
+    Parameters
+    ----------
+    n : int
+        Joints.
+    m : int
+        Constraints.
+    """
     return np.zeros((n, m)), _identity(n)
 
 
@@ -103,8 +111,11 @@ def projection_derivatives(
     Parameters
     ----------
     J_phi : ndarray, shape (m, n)
+        The constraint Jacobian ``J_φ``.
     J_phi_dot : ndarray, shape (m, n)
         Derivative of ``J_φ(q)`` along the direction of interest (``q̇_o`` in (7)).
+    damping : float
+        ``μ`` of :func:`projections`, ``≥ 0``.
 
     Returns
     -------
@@ -129,6 +140,13 @@ def xi_times(xi: float | np.ndarray, x: np.ndarray | float) -> np.ndarray:
 
     A scalar multiplies element-wise (the same doubles as the paper's scalar ``ξ``); a matrix
     multiplies as a matrix.
+
+    Parameters
+    ----------
+    xi : float or ndarray, shape (m, m)
+        ``ξ``.
+    x : ndarray, shape (m,), or float
+        The vector it multiplies.
     """
     if np.ndim(xi) == 0:
         return xi * np.asarray(x)
@@ -160,6 +178,25 @@ def reference_velocity(
     ``Delta_p = φ(q) − p_d`` with ``p_d = 0``; ``Delta_F_tilde`` is the integral (6) of
     ``Δλ̃ = λ̂ − λ_d``. ``Lambda`` is the scalar of ``Λ = k I``; ``xi`` is ``ξ`` (m×m) or a
     scalar standing for ``ξ I`` (see :func:`xi_times`).
+
+    Parameters
+    ----------
+    Q, J_pinv : ndarray
+        ``Q`` (n×n) and ``J⁺`` (n×m) of Property 1 (:func:`projections`).
+    q_hat, q_d, qdot_d : ndarray, shape (n,)
+        ``q̂``, ``q_d`` and ``q̇_d``.
+    Lambda : float
+        ``k`` of ``Λ = k I`` (1/s).
+    Delta_p : ndarray, shape (m,)
+        ``Δp = φ(q) − p_d``.
+    beta : float
+        ``β`` (1/s).
+    xi : float or ndarray, shape (m, m)
+        ``ξ`` (:func:`xi_times`).
+    Delta_F_tilde : ndarray, shape (m,)
+        ``ΔF̃``, the integral (6).
+    pdot_d : ndarray, shape (m,), or float
+        ``ṗ_d`` (0 in the paper).
     """
     motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
     force = pdot_d - beta * np.asarray(Delta_p) + xi_times(xi, Delta_F_tilde)
@@ -198,6 +235,29 @@ def reference_acceleration(
     The paper sets ``ṗ = ṗ_d = p̈_d = 0`` (``ṗ`` is not measured); they are arguments so that a
     test can check (11) against the exact derivative of (4). ``qdot_hat`` is the observer's
     derivative estimate ``d/dt q̂`` of (15).
+
+    Parameters
+    ----------
+    Q, J_pinv : ndarray
+        ``Q`` (n×n) and ``J⁺`` (n×m) of Property 1 (:func:`projections`).
+    Q_dot, J_pinv_dot : ndarray
+        Their derivatives (:func:`projection_derivatives`).
+    q_hat, qdot_hat : ndarray, shape (n,)
+        ``q̂`` and ``d/dt q̂`` (15).
+    q_d, qdot_d, qddot_d : ndarray, shape (n,)
+        The joint reference and its derivatives.
+    Lambda : float
+        ``k`` of ``Λ = k I`` (1/s).
+    Delta_p : ndarray, shape (m,)
+        ``Δp = φ(q) − p_d``.
+    beta : float
+        ``β`` (1/s).
+    xi : float or ndarray, shape (m, m)
+        ``ξ`` (:func:`xi_times`).
+    Delta_F_tilde, Delta_lambda_tilde : ndarray, shape (m,)
+        ``ΔF̃`` (6) and ``Δλ̃ = λ̂ − λ_d``.
+    pdot, pdot_d, pddot_d : ndarray, shape (m,), or float
+        ``ṗ``, ``ṗ_d`` and ``p̈_d`` (0 in the paper).
     """
     motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
     motion_dot = np.asarray(qddot_d) - Lambda * (np.asarray(qdot_hat) - np.asarray(qdot_d))

@@ -77,14 +77,30 @@ class Gains:
 
 
 def as_number(value, name: str) -> float:
-    """``value`` as a float; ``TypeError`` naming ``name`` for a string, a bool or a container."""
+    """``value`` as a float; ``TypeError`` naming ``name`` for a string, a bool or a container.
+
+    Parameters
+    ----------
+    value : object
+        The argument's value.
+    name : str
+        The argument's name, for the message.
+    """
     if isinstance(value, bool) or not isinstance(value, (Real, np.floating, np.integer)):
         raise TypeError(f"{name}: a number is required (got {type(value).__name__} {value!r})")
     return float(value)
 
 
 def as_array(value, name: str) -> np.ndarray:
-    """``value`` as a float array; ``TypeError`` naming ``name`` for strings or mappings."""
+    """``value`` as a float array; ``TypeError`` naming ``name`` for strings or mappings.
+
+    Parameters
+    ----------
+    value : object
+        The argument's value.
+    name : str
+        The argument's name, for the message.
+    """
     if isinstance(value, (str, bytes, dict)):
         raise TypeError(f"{name}: a list of numbers is required (got {type(value).__name__} "
                         f"{value!r})")
@@ -96,7 +112,15 @@ def as_array(value, name: str) -> np.ndarray:
 
 
 def check_positive(value, name: str) -> float:
-    """``value`` as a float, finite and > 0 (``TypeError``/``ValueError`` naming ``name``)."""
+    """``value`` as a float, finite and > 0 (``TypeError``/``ValueError`` naming ``name``).
+
+    Parameters
+    ----------
+    value : object
+        The argument's value.
+    name : str
+        The argument's name, for the message.
+    """
     x = as_number(value, name)
     if not math.isfinite(x) or x <= 0.0:
         raise ValueError(f"{name}: must be finite and > 0 (got {x!r})")
@@ -105,13 +129,29 @@ def check_positive(value, name: str) -> float:
 
 def check_optional_positive(value, name: str) -> float | None:
     """``None``, or ``value`` checked by :func:`check_positive` (a cutoff frequency that may
-    be left out)."""
+    be left out).
+
+    Parameters
+    ----------
+    value : object
+        The argument's value.
+    name : str
+        The argument's name, for the message.
+    """
     return None if value is None else check_positive(value, name)
 
 
 def check_count(value, name: str) -> int:
     """``value`` as a positive integer (a number of joints); ``TypeError``/``ValueError``
-    naming ``name``."""
+    naming ``name``.
+
+    Parameters
+    ----------
+    value : object
+        The argument's value.
+    name : str
+        The argument's name, for the message.
+    """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name}: a positive integer is required (got {type(value).__name__} "
                         f"{value!r})")
@@ -121,7 +161,17 @@ def check_count(value, name: str) -> int:
 
 
 def check_choice(value, name: str, allowed: tuple[str, ...]) -> str:
-    """``value`` if it is one of ``allowed`` (``ValueError`` naming ``name`` otherwise)."""
+    """``value`` if it is one of ``allowed`` (``ValueError`` naming ``name`` otherwise).
+
+    Parameters
+    ----------
+    value : object
+        The argument's value.
+    name : str
+        The argument's name, for the message.
+    allowed : tuple of str
+        The allowed values.
+    """
     if not isinstance(value, str) or value not in allowed:
         raise ValueError(f"{name}: one of {', '.join(allowed)} (got {value!r})")
     return value
@@ -135,6 +185,15 @@ def check_gains(gains: Gains, n: int, m: int) -> None:
     finite and non-negative; a ``ξ`` matrix ``m × m``, symmetric positive definite;
     ``momentum_gain`` a number (its range depends on ``h``: :func:`check_momentum_gain`, where
     the momentum observer is built).
+
+    Parameters
+    ----------
+    gains : Gains
+        The gains to check.
+    n : int
+        The arm's joints (``K_R``'s length).
+    m : int
+        Its constraints (``ξ``'s size).
 
     Raises
     ------
@@ -179,6 +238,13 @@ def check_momentum_gain(momentum_gain: float, period: float) -> float:
     """The momentum observer's gain ``K_O`` (1/s) checked: finite, ``0 < h K_O <= 1`` (its
     error shrinks by ``1 − h K_O`` per tick; beyond 1 it alternates and grows past 2).
 
+    Parameters
+    ----------
+    momentum_gain : float
+        ``K_O`` (1/s).
+    period : float
+        The sampling time ``h`` (s).
+
     Raises
     ------
     TypeError, ValueError
@@ -195,6 +261,13 @@ def check_period(period: float, time_step: float | None = None) -> float:
     """The sampling time ``h`` (s) checked: a number in :data:`PERIOD_RANGE` and, when the
     plant's step ``time_step`` is given, a whole multiple of it (to 1e-9 relative), so every
     tick falls on a plant step.
+
+    Parameters
+    ----------
+    period : float
+        The sampling time ``h`` (s).
+    time_step : float, optional
+        The plant's step (s); given, ``h`` must be a whole multiple of it.
 
     Returns
     -------

@@ -25,6 +25,14 @@ def aligned_periods(control_period: float, time_step: float) -> tuple[float, flo
     makes ``h = N dt`` exact, and then ``k h`` and ``(N k) dt`` are the same real number rounded
     once: every control tick falls exactly on a plant step.
 
+    Parameters
+    ----------
+    control_period : float
+        The control period ``h`` (s), > 0.
+    time_step : float
+        The plant's step ``dt`` (s), > 0, with ``h / dt`` a whole number ``N`` (to
+        rounding).
+
     Returns
     -------
     (h, dt) : tuple[float, float]
@@ -41,7 +49,15 @@ def aligned_periods(control_period: float, time_step: float) -> tuple[float, flo
 
 
 def tick_of(t: float, h: float) -> int | None:
-    """The tick index ``k`` if ``t`` is a sampling instant ``k h`` (to 1e-9 relative), else None."""
+    """The tick index ``k`` if ``t`` is a sampling instant ``k h`` (to 1e-9 relative), else None.
+
+    Parameters
+    ----------
+    t : float
+        A time (s).
+    h : float
+        The sampling time (s).
+    """
     k = round(t / h)
     return k if abs(t - k * h) <= 1e-9 * max(1.0, t) else None
 
@@ -52,6 +68,13 @@ def lowpass_alpha(cutoff_hz: float | None, h: float) -> float:
     ``α = 1 − exp(−2π f_c h)``: the exact (step-invariant) discretization of
     ``T ẏ = u − y``, ``T = 1/(2π f_c)``, for an input held over each sample. ``α = 1`` (no
     filter) when ``cutoff_hz`` is None.
+
+    Parameters
+    ----------
+    cutoff_hz : float or None
+        The cutoff ``f_c`` (Hz); None: no filter.
+    h : float
+        The sampling time (s).
     """
     if cutoff_hz is None:
         return 1.0

@@ -149,7 +149,13 @@ def _yaml_message(exc: Exception) -> str:
 
 
 def dump_scenario(scenario: Scenario) -> str:
-    """The scenario as YAML text (round-trips through :func:`load_scenario`)."""
+    """The scenario as YAML text (round-trips through :func:`load_scenario`).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario to write.
+    """
     from pydrake.common.yaml import yaml_dump_typed
 
     return yaml_dump_typed(scenario)

@@ -35,6 +35,11 @@ class ScenarioError(ValueError):
     """A scenario field is missing, of the wrong type, or out of its allowed range.
 
     The message is always one line of at most 300 characters.
+
+    Parameters
+    ----------
+    message : str
+        Naming the field and what is allowed (folded onto one line).
     """
 
     def __init__(self, message: str):

@@ -111,7 +111,39 @@ class Mode:
 
 @dataclass
 class MapReport:
-    """Φ at an operating point and what went into it."""
+    """Φ at an operating point and what went into it.
+
+    Attributes
+    ----------
+    rho : float
+        ``ρ(Φ)``, the spectral radius (``inf`` when ``Φ`` is not finite).
+    Phi : ndarray
+        ``Φ`` on the dynamic entries.
+    labels : list of str
+        Every state entry's label.
+    dynamic : list of int
+        The entries ``Φ`` is taken over (neither counters, locked nor overwritten).
+    counters : list of int
+        Entries that count ticks (left out).
+    locked : list of int
+        Locked joints' entries (left out).
+    overwritten : list of int
+        Entries a period overwrites whatever their value (zero columns, left out).
+    residual : float
+        ``max |F(x) − x|`` over the dynamic entries at the point ``Φ`` is taken at.
+    epsilon : float
+        The central differences' step.
+    evaluations : int
+        Evaluations of the map so far.
+    eigenvalues : ndarray
+        The eigenvalues of ``Φ``.
+    slowest, fastest : Mode, optional
+        The modes of largest and smallest ``|μ|``.
+    rho_check : float
+        ``ρ`` again with the check step (NaN when not checked).
+    epsilon_check : float
+        That step (NaN when not checked).
+    """
 
     rho: float
     Phi: np.ndarray
@@ -252,6 +284,9 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float =
         fastest constraint mode, see :func:`step_sensitivity`).
     newton : bool
         Solve ``F(x) = x`` first (else Φ is taken at ``x_guess``).
+    tol : float
+        Newton's stopping residual, ``max |F(x) − x|`` over the dynamic entries
+        (:func:`find_equilibrium`).
     check : bool
         Compute ρ again with a second step (:func:`check_step`) and report both
         (``rho_check``; :attr:`MapReport.step_agrees`): a ρ that depends on the step is not

@@ -90,6 +90,17 @@ MAX_CASES = 10_000
 class Case:
     """One run of a study.
 
+    Parameters
+    ----------
+    index, params, hash
+        As the attributes below.
+    scenario_yaml : str, optional
+        The canonical, validated scenario; None: written from ``scenario`` when first needed.
+    values : dict, optional
+        As below; default: ``params``.
+    scenario : Scenario, optional
+        The resolved scenario, when ``scenario_yaml`` is not given.
+
     Attributes
     ----------
     index : int

@@ -257,6 +257,16 @@ def load_study(path: str | Path | None = None, *, data: str | None = None,
                folder: str | Path = ".") -> Study:
     """Parse a study file (or YAML text with relative paths taken from ``folder``).
 
+    Parameters
+    ----------
+    path : str or Path, optional
+        The study file (its folder resolves the relative paths).
+    data : str, optional
+        The study's YAML text instead of a file.
+    folder : str or Path
+        Where the relative paths of ``data`` are taken from (default: the working
+        folder).
+
     Raises
     ------
     StudyError
