@@ -15,11 +15,15 @@ from typing import Optional
 
 import numpy as np
 
-#: The velocity sources a robot's control block can use: the paper's observer (15)-(16), the
-#: true velocities (a tachometer) or a backward difference of the encoders.
-VELOCITY_SOURCES = ("observer", "measured", "difference")
-#: The force sources: the paper's observer (22), an F/T sensor, none, the momentum observer.
-FORCE_SOURCES = ("observer", "sensor", "none", "momentum")
+from drake_coop.control.registry import names as _source_names
+
+#: The velocity sources a robot's control block can use (:data:`~drake_coop.control.registry.
+#: SOURCES`): the paper's observer (15)-(16), the true velocities (a tachometer) or a backward
+#: difference of the encoders.
+VELOCITY_SOURCES = _source_names("velocity")
+#: The force sources (:data:`~drake_coop.control.registry.SOURCES`): the paper's observer
+#: (22), an F/T sensor, none, the momentum observer.
+FORCE_SOURCES = _source_names("force")
 
 #: The control periods a block accepts (s): below 10 µs no arm's driver samples, above 1 s
 #: the law's forward-Euler integrals mean nothing.
