@@ -48,6 +48,7 @@ BLOCK_LABELS: dict[str, tuple[str, str, int]] = {
     "CoulombFriction": ("joint friction", "unknown to (13)", 2),
     "Adder": ("+", "", 2),
     "Encoders": ("encoders", "q only", 2),
+    "Demultiplexer": ("encoders", "q only, exact", 2),
     "FTSensor": ("F/T sensor model", "λ_s", 2),
     "ForceSensor": ("wrist force", "ground truth", 2),
     "WristKinematics": ("wrist kinematics", "", 3),
@@ -61,7 +62,7 @@ BLOCK_LABELS: dict[str, tuple[str, str, int]] = {
 _ORDER = ("TrajectorySource", "Controller",
           *(s.class_name for s in SOURCES if s.kind == "velocity"),
           *(s.class_name for s in SOURCES if s.kind == "force"),
-          "Saturation", "CoulombFriction", "Adder", "Encoders", "FTSensor", "ForceSensor")
+          "Saturation", "CoulombFriction", "Adder", "Encoders", "Demultiplexer", "FTSensor", "ForceSensor")
 #: Signals by output port name, as the paper writes them (HTML-like graphviz text).
 SIGNAL_LABELS: dict[str, str] = {
     "q": "q", "tau": "τ",
