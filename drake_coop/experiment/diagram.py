@@ -60,16 +60,12 @@ from pydrake.systems.primitives import (
 from drake_coop.control.block import AddCooperativeController
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw, ReferenceLayout
-from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.object import CompressedReference, ObjectStateEstimator
-from drake_coop.control.observers import ForceObserver, VelocityObserver
-from drake_coop.control.sources import (
-    DifferenceVelocity,
-    MeasuredVelocity,
-    NoForceEstimate,
-    SensedForce,
-)
+from drake_coop.control.interfaces import ForceSource, VelocitySource
+from drake_coop.control.params import checked_period
+from drake_coop.control.registry import source
 from drake_coop.experiment.object_blocks import (
+    ESTIMATOR_TICKS,
     ObjectBlocks,
     add_object_blocks,
     add_object_state_estimator,
@@ -147,8 +143,8 @@ class RobotSystems:
     name: str
     law: FingerLaw
     control: Diagram
-    velocity_observer: VelocityObserver | MeasuredVelocity | DifferenceVelocity
-    force_observer: ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
+    velocity_observer: VelocitySource
+    force_observer: ForceSource
     controller: Controller
     force_sensor: ForceSensor | None
     encoders: Encoders | Demultiplexer | None = None
@@ -188,8 +184,10 @@ class Experiment:
         return self.plan.dt if self.plan is not None else time_grid(self.scenario)[1]
 
 
-VelocitySource = VelocityObserver | MeasuredVelocity | DifferenceVelocity
-ForceSource = ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
+def reads_sensor(robot) -> bool:
+    """Whether the robot's force source reads its F/T sensor (``lambda_sensor``: its registry
+    entry, :data:`drake_coop.control.registry.SOURCES`; ``force_source: sensor``)."""
+    return "lambda_sensor" in source("force", robot.force_source).inputs
 
 
 def is_ideal(settings) -> bool:
@@ -226,7 +224,7 @@ def uses_live_ground_truth(scenario: Scenario) -> bool:
     controller that reads its sensor)."""
     mode = scenario.plant.object_mode
     return mode == "none" or (mode != "contact"
-                              and any(r.force_source == "sensor" for r in scenario.robots))
+                              and any(reads_sensor(r) for r in scenario.robots))
 
 
 def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None = None,
@@ -277,7 +275,10 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
     if not isinstance(plan, RunPlan):
         plan = plan_run(plan)
     scenario = plan.scenario
-    h, dt = plan.h, plan.dt
+    # The period checked once (against the plant's step) for every block of the diagram.
+    h, dt = checked_period(plan.h, plan.dt), plan.dt
+    estimator_h = (checked_period(ESTIMATOR_TICKS * h)
+                   if scenario.object_model.mode == "estimated" else None)
     needs_live = uses_live_ground_truth(scenario)
     if live_ground_truth is None:
         live_ground_truth = needs_live
@@ -294,7 +295,7 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
     # also the F/T sensor's input of a controller that reads it.
     pads = None
     if (not live_ground_truth and coop.mode == "contact"
-            and (log or any(r.force_source == "sensor" for r in scenario.robots))):
+            and (log or any(reads_sensor(r) for r in scenario.robots))):
         pads = add_pad_force_log(b, coop, h, models, log=log)
     robots = []
     actuation = []           # each arm's actuation input (for the offline ground truth)
@@ -317,7 +318,7 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
         encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
         ft = lambda_sensor = None
-        if pads is not None and robot.force_source == "sensor":
+        if pads is not None and reads_sensor(robot):
             last_step = pads.add_lambda_last_step(b, i, name)
             ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
                                               last_step, last_step)
@@ -333,7 +334,7 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
             velocity_source=robot.velocity_source, force_source=robot.force_source,
             difference_cutoff_hz=robot.difference_cutoff_hz,
             q=q_port,
-            lambda_sensor=lambda_sensor if robot.force_source == "sensor" else None,
+            lambda_sensor=lambda_sensor if reads_sensor(robot) else None,
             connect_actuation=False,
             contact_stiffness=resolved.stiffness,
             name=name)
@@ -366,7 +367,7 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
             couple = (couple_samples(plan, i, trajectories, t_ref) if plan.uses_couple
                       else None)
             objects = add_object_blocks(b, resolved, h, q_port, reference, control, t_ref,
-                                        couple)
+                                        couple, estimator_period=estimator_h)
             tau_port = objects.tau
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,

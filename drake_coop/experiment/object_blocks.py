@@ -105,12 +105,14 @@ def couple_samples(plan: RunPlan, index: int, trajectories, t: np.ndarray) -> np
 
 def add_object_blocks(b: DiagramBuilder, robot: RobotPlan, period: float, q: OutputPort,
                       reference: OutputPort, control, t_samples: np.ndarray,
-                      couple: np.ndarray | None = None) -> ObjectBlocks:
+                      couple: np.ndarray | None = None,
+                      estimator_period: float | None = None) -> ObjectBlocks:
     """Add the robot's feedforward (and, when ``estimated``, its mass estimator); return
     the summed torque port to connect to the actuators. ``robot``: its section of the run's
     plan (controller's model, mass share, contact offset, the object's friction);
     ``couple``: the arm's part of the squeeze's couple at ``t_samples``
-    (:func:`couple_samples`), fed to both."""
+    (:func:`couple_samples`), fed to both; ``estimator_period``: the mass estimator's period
+    (default ``ESTIMATOR_TICKS`` periods; the diagram passes it checked once for all arms)."""
     om = robot.object_settings
     name, model = robot.name, robot.controller_model
     a = acceleration_samples(robot, t_samples)
@@ -143,8 +145,10 @@ def add_object_blocks(b: DiagramBuilder, robot: RobotPlan, period: float, q: Out
     if om.mode == "estimated":
         # Every ESTIMATOR_TICKS ticks, with the forgetting per tick of the scenario (ρ^N per
         # update): the same horizon in seconds at a fifth of the cost.
+        if estimator_period is None:
+            estimator_period = ESTIMATOR_TICKS * period
         estimator = b.AddNamedSystem(f"{name}_mass_estimator", MassEstimator(
-            model, ESTIMATOR_TICKS * period, prior=share0,
+            model, estimator_period, prior=share0,
             prior_std=om.prior_std_factor * share0,
             forgetting=om.forgetting ** ESTIMATOR_TICKS, contact_offset=r,
             couple=f_couple is not None))
