@@ -13,7 +13,9 @@ gains (:class:`Gains`).
 
 Modules: the parameters (params), the time grid (timing), the model (arm_model), Property 1
 (orthogonal), the law at one sample (finger), its Drake systems (observers, controller, sources,
-momentum) and the wiring (block).
+momentum), the sources' registry (registry: each velocity and force source declared once,
+:data:`SOURCES`; the block, the accepted names and these exports read it) and the wiring
+(block).
 
 The library imports only Drake, NumPy and itself. Its names load on first use (PEP 562), so
 that ``import drake_coop.control.params`` (the scenario's parameter types) does not load pydrake.
