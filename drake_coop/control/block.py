@@ -443,8 +443,7 @@ def AddCooperativeController(
                                                   momentum_torque_limits)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
-                                    lambda_sensor,
-                                    connect_actuation)
+                                    lambda_sensor, connect_actuation)
     except (RuntimeError, SystemExit) as exc:   # Drake's wiring errors, never a SystemExit
         raise ValueError(f"model_instance: wiring the controller of the arm {arm_name!r} "
                          f"failed ({' '.join(str(exc).split())[:200]})") from None
