@@ -13,7 +13,9 @@ gains (:class:`Gains`).
 
 Modules: the parameters (params), the time grid (timing), the model (arm_model), Property 1
 (orthogonal), the law at one sample (finger), its Drake systems (observers, controller, sources,
-momentum) and the wiring (block).
+momentum), the sources' registry (registry: each velocity and force source declared once,
+:data:`SOURCES`; the block, the accepted names and these exports read it) and the wiring
+(block).
 
 The library imports only Drake, NumPy and itself. Its names load on first use (PEP 562), so
 that ``import drake_coop.control.params`` (the scenario's parameter types) does not load pydrake.
@@ -21,7 +23,10 @@ that ``import drake_coop.control.params`` (the scenario's parameter types) does 
 
 import importlib
 
-#: Each public name and the module that defines it.
+from drake_coop.control.registry import SOURCES as _SOURCES
+
+#: Each public name and the module that defines it (the velocity and force sources' systems
+#: from their registry, :data:`drake_coop.control.registry.SOURCES`).
 _EXPORTS = {
     "AddCooperativeController": "block",
     "ControllerHandles": "block",
@@ -32,13 +37,6 @@ _EXPORTS = {
     "FingerLaw": "finger",
     "Reference": "finger",
     "ReferenceLayout": "finger",
-    "MomentumObserver": "momentum",
-    "ForceObserver": "observers",
-    "VelocityObserver": "observers",
-    "DifferenceVelocity": "sources",
-    "MeasuredVelocity": "sources",
-    "NoForceEstimate": "sources",
-    "SensedForce": "sources",
     "FORCE_SOURCES": "params",
     "VELOCITY_SOURCES": "params",
     "Gains": "params",
@@ -54,6 +52,8 @@ _EXPORTS = {
     "squeeze_couple": "couple",
     "face_distance": "couple",
     "Watchdog": "watchdog",
+    "SOURCES": "registry",
+    **{source.class_name: source.module for source in _SOURCES},
 }
 
 __all__ = [
@@ -72,22 +72,17 @@ __all__ = [
     "face_distance",
     "Controller",
     "ControllerHandles",
-    "DifferenceVelocity",
     "FORCE_SOURCES",
     "FingerLaw",
-    "ForceObserver",
     "Gains",
     "MakeArmControllerPlant",
-    "MeasuredVelocity",
-    "MomentumObserver",
-    "NoForceEstimate",
     "Reference",
     "ReferenceLayout",
-    "SensedForce",
     "VELOCITY_SOURCES",
-    "VelocityObserver",
     "Watchdog",
     "build_control_block",
+    "SOURCES",
+    *(source.class_name for source in _SOURCES),
 ]
 
 

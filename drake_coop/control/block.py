@@ -41,14 +41,8 @@ from pydrake.systems.primitives import Demultiplexer
 from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw
-from drake_coop.control.momentum import MomentumObserver
-from drake_coop.control.observers import ForceObserver, VelocityObserver
-from drake_coop.control.sources import (
-    DifferenceVelocity,
-    MeasuredVelocity,
-    NoForceEstimate,
-    SensedForce,
-)
+from drake_coop.control.registry import EXTERNAL_INPUTS, SOURCES, source
+from drake_coop.control.sources import MeasuredVelocity
 from drake_coop.control.params import (
     FORCE_SOURCES,
     VELOCITY_SOURCES,
@@ -112,49 +106,35 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     """
     check_period(period)
     _check_sources(velocity_source, force_source, difference_cutoff_hz)
+    options = {"difference_cutoff_hz": difference_cutoff_hz,
+               "momentum_torque_limits": momentum_torque_limits}
+    specs = (source("velocity", velocity_source), source("force", force_source))
     b = DiagramBuilder()
-    if velocity_source == "measured":
-        vel = b.AddNamedSystem(f"{name}_measured_velocity", MeasuredVelocity(law.n))
-    elif velocity_source == "difference":
-        vel = b.AddNamedSystem(f"{name}_difference_velocity",
-                               DifferenceVelocity(law.n, period, difference_cutoff_hz))
-    else:
-        vel = b.AddNamedSystem(f"{name}_velocity_observer", VelocityObserver(law.n, law.Lambda, law.k_d, period))
-    if force_source == "sensor":
-        force = b.AddNamedSystem(f"{name}_sensed_force", SensedForce(period, law.layout))
-    elif force_source == "none":
-        force = b.AddNamedSystem(f"{name}_no_force_estimate", NoForceEstimate(law.layout))
-    elif force_source == "momentum":
-        force = b.AddNamedSystem(f"{name}_momentum_observer", MomentumObserver(
-            law.model, law.layout, period, law.momentum_gain,
-            torque_limits=momentum_torque_limits))
-    else:
-        force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
+    vel, force = (b.AddNamedSystem(f"{name}_{spec.suffix}", spec.make(law, period, options))
+                  for spec in specs)
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
     for port in ("q_hat", "qdot_hat", "qdot_o"):
         b.Connect(vel.GetOutputPort(port), ctrl.GetInputPort(port))
     b.Connect(force.GetOutputPort("lambda_hat"), ctrl.get_lambda_hat_input_port())
     b.Connect(force.GetOutputPort("Delta_F_tilde"), ctrl.get_Delta_F_tilde_input_port())
+    # Each source's inputs, as its registry entry declares them: a signal of the block, or
+    # an input from outside (exported under its name). The block's inputs in the order
+    # q, the velocity source's own, reference, the force source's own.
+    signals = {"q_hat": vel, "qdot_hat": vel, "qdot_o": vel, "qddot_r_hat": ctrl,
+               "tau": ctrl}
     b.ExportInput(ctrl.get_q_input_port(), "q")
-    if velocity_source == "measured":
-        b.ExportInput(vel.get_state_input_port(), "state")
-    if velocity_source == "observer":
-        b.Connect(ctrl.get_qddot_r_hat_output_port(), vel.get_qddot_r_hat_input_port())
-    b.ConnectInput("q", vel.get_q_input_port())
-    b.ExportInput(ctrl.get_reference_input_port(), "reference")
-    b.ConnectInput("reference", force.get_reference_input_port())
-    if force_source == "observer":
-        b.ConnectInput("q", force.get_q_input_port())
-        b.Connect(vel.get_q_hat_output_port(), force.get_q_hat_input_port())
-        b.Connect(vel.get_qdot_o_output_port(), force.get_qdot_o_input_port())
-    elif force_source == "sensor":
-        b.ExportInput(force.get_lambda_sensor_input_port(), "lambda_sensor")
-    elif force_source == "momentum":
-        b.ConnectInput("q", force.GetInputPort("q"))
-        b.Connect(vel.GetOutputPort("qdot_hat"), force.GetInputPort("qdot_hat"))
-        b.Connect(ctrl.get_tau_output_port(), force.GetInputPort("tau"))
-        b.ExportOutput(force.GetOutputPort("tau_ext_hat"), "tau_ext_hat")
-        b.ExportOutput(force.GetOutputPort("O_F_ext_hat"), "O_F_ext_hat")
+    for spec, system in zip(specs, (vel, force)):
+        if spec.kind == "force":
+            b.ExportInput(ctrl.get_reference_input_port(), "reference")
+        for port in spec.inputs:
+            if port in EXTERNAL_INPUTS:
+                b.ExportInput(system.GetInputPort(port), port)
+            elif port in ("q", "reference"):
+                b.ConnectInput(port, system.GetInputPort(port))
+            else:
+                b.Connect(signals[port].GetOutputPort(port), system.GetInputPort(port))
+        for port in spec.outputs:
+            b.ExportOutput(system.GetOutputPort(port), port)
     b.ExportOutput(ctrl.get_tau_output_port(), "tau")
     for port in ("q_hat", "qdot_hat", "qdot_o"):
         b.ExportOutput(vel.GetOutputPort(port), port)
@@ -394,8 +374,10 @@ def AddCooperativeController(
     for arg, port in (("q", q), ("lambda_sensor", lambda_sensor)):
         if port is not None and not isinstance(port, OutputPort):
             raise TypeError(f"{arg}: an OutputPort is required (got {type(port).__name__})")
-    if lambda_sensor is not None and force_source != "sensor":
-        raise ValueError("lambda_sensor: only for force_source='sensor' (got "
+    if lambda_sensor is not None and "lambda_sensor" not in source("force", force_source).inputs:
+        readers = " or ".join(f"force_source={s.name!r}" for s in SOURCES
+                              if s.kind == "force" and "lambda_sensor" in s.inputs)
+        raise ValueError(f"lambda_sensor: only for {readers} (got "
                          f"force_source={force_source!r})")
     arm_name = plant.GetModelInstanceName(model_instance)
     name = arm_name if name is None else name
@@ -461,8 +443,7 @@ def AddCooperativeController(
                                                   momentum_torque_limits)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
-                                    velocity_source, force_source, lambda_sensor,
-                                    connect_actuation)
+                                    lambda_sensor, connect_actuation)
     except (RuntimeError, SystemExit) as exc:   # Drake's wiring errors, never a SystemExit
         raise ValueError(f"model_instance: wiring the controller of the arm {arm_name!r} "
                          f"failed ({' '.join(str(exc).split())[:200]})") from None
@@ -478,8 +459,7 @@ def AddCooperativeController(
         q_selector=selector)
 
 
-def _wire(builder, plant, model_instance, block, name, q, velocity_source, force_source,
-          lambda_sensor, connect_actuation):
+def _wire(builder, plant, model_instance, block, name, q, lambda_sensor, connect_actuation):
     """Add ``block`` to ``builder`` and connect it to ``plant``; returns the ``q`` selector
     (or None) and the ``lambda_sensor`` input (or None)."""
     n = plant.num_positions(model_instance)
@@ -492,10 +472,10 @@ def _wire(builder, plant, model_instance, block, name, q, velocity_source, force
         builder.Connect(state, selector.get_input_port(0))
         q = selector.get_output_port(0)
     builder.Connect(q, block.GetInputPort("q"))
-    if velocity_source == "measured":
+    if block.HasInputPort("state"):          # a source reading the plant's velocities
         builder.Connect(state, block.GetInputPort("state"))
     lambda_in = None
-    if force_source == "sensor":
+    if block.HasInputPort("lambda_sensor"):  # a source reading an F/T sensor
         lambda_in = block.GetInputPort("lambda_sensor")
         if lambda_sensor is not None:
             builder.Connect(lambda_sensor, lambda_in)

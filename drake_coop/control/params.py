@@ -15,11 +15,15 @@ from typing import Optional
 
 import numpy as np
 
-#: The velocity sources a robot's control block can use: the paper's observer (15)-(16), the
-#: true velocities (a tachometer) or a backward difference of the encoders.
-VELOCITY_SOURCES = ("observer", "measured", "difference")
-#: The force sources: the paper's observer (22), an F/T sensor, none, the momentum observer.
-FORCE_SOURCES = ("observer", "sensor", "none", "momentum")
+from drake_coop.control.registry import names as _source_names
+
+#: The velocity sources a robot's control block can use (:data:`~drake_coop.control.registry.
+#: SOURCES`): the paper's observer (15)-(16), the true velocities (a tachometer) or a backward
+#: difference of the encoders.
+VELOCITY_SOURCES = _source_names("velocity")
+#: The force sources (:data:`~drake_coop.control.registry.SOURCES`): the paper's observer
+#: (22), an F/T sensor, none, the momentum observer.
+FORCE_SOURCES = _source_names("force")
 
 #: The control periods a block accepts (s): below 10 µs no arm's driver samples, above 1 s
 #: the law's forward-Euler integrals mean nothing.
@@ -257,6 +261,27 @@ def check_momentum_gain(momentum_gain: float, period: float) -> float:
     return K_O
 
 
+class CheckedPeriod(float):
+    """A sampling time ``h`` (s) that :func:`checked_period` has checked, against the plant's
+    step ``time_step`` when it was given: the blocks built with it take it as it is
+    (:func:`check_period` checks a period once, however many blocks it reaches). Otherwise a
+    ``float`` (its arithmetic gives plain floats)."""
+
+    __slots__ = ("time_step",)
+
+    def covers(self, time_step: float | None) -> bool:
+        """Whether this period was checked against ``time_step`` (or none is asked)."""
+        return time_step is None or time_step <= 0.0 or time_step == self.time_step
+
+
+def checked_period(period: float, time_step: float | None = None) -> CheckedPeriod:
+    """``period`` checked by :func:`check_period` and marked so: the value to hand to every
+    block of a diagram that ticks at it."""
+    h = CheckedPeriod(check_period(period, time_step))
+    h.time_step = time_step
+    return h
+
+
 def check_period(period: float, time_step: float | None = None) -> float:
     """The sampling time ``h`` (s) checked: a number in :data:`PERIOD_RANGE` and, when the
     plant's step ``time_step`` is given, a whole multiple of it (to 1e-9 relative), so every
@@ -281,6 +306,13 @@ def check_period(period: float, time_step: float | None = None) -> float:
     ValueError
         Naming ``period`` and what is allowed.
     """
+    if isinstance(period, CheckedPeriod) and period.covers(time_step):
+        return period
+    return _validated_period(period, time_step)
+
+
+def _validated_period(period: float, time_step: float | None = None) -> float:
+    """:func:`check_period`'s checks themselves."""
     h = as_number(period, "period")
     lo, hi = PERIOD_RANGE
     if not math.isfinite(h) or not lo <= h <= hi:

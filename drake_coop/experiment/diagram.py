@@ -60,26 +60,17 @@ from pydrake.systems.primitives import (
 from drake_coop.control.block import AddCooperativeController
 from drake_coop.control.controller import Controller
 from drake_coop.control.finger import FingerLaw, ReferenceLayout
-from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.object import CompressedReference, ObjectStateEstimator
-from drake_coop.control.observers import ForceObserver, VelocityObserver
-from drake_coop.control.sources import (
-    DifferenceVelocity,
-    MeasuredVelocity,
-    NoForceEstimate,
-    SensedForce,
-)
+from drake_coop.control.interfaces import ForceSource, VelocitySource
+from drake_coop.control.params import checked_period
+from drake_coop.control.registry import source
 from drake_coop.experiment.object_blocks import (
+    ESTIMATOR_TICKS,
     ObjectBlocks,
     add_object_blocks,
     add_object_state_estimator,
     connect_object_state_estimator,
-    contact_stiffness,
-    control_point,
     couple_samples,
-    object_enabled,
-    shared_enabled,
-    uses_couple,
 )
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import (
@@ -94,12 +85,11 @@ from drake_coop.plant.ground_truth import (
 )
 from drake_coop.plant.wrist import ForceSensor, add_force_sensors
 from drake_coop.scenario.schema import Scenario
-from drake_coop.experiment.plan import time_grid
+from drake_coop.experiment.plan import RunPlan, plan_run, time_grid
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.sensing.force_sensor import FTModel, FTSensor, add_ft_sensor
 from drake_coop.sensing.latency import ActuationDelay
-from drake_coop.plant.model_error import controller_arm_model
 
 
 #: The signals each robot logs, in the order of its ``<robot>_log_signals`` Multiplexer's
@@ -153,8 +143,8 @@ class RobotSystems:
     name: str
     law: FingerLaw
     control: Diagram
-    velocity_observer: VelocityObserver | MeasuredVelocity | DifferenceVelocity
-    force_observer: ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
+    velocity_observer: VelocitySource
+    force_observer: ForceSource
     controller: Controller
     force_sensor: ForceSensor | None
     encoders: Encoders | Demultiplexer | None = None
@@ -180,20 +170,24 @@ class Experiment:
     ground_truth: GroundTruthLog | PadForceLog | None = None
     #: The shared object-state block (``object_model.shared``), None without it.
     object_state_estimator: ObjectStateEstimator | None = None
+    #: The run's plan the diagram was built from.
+    plan: RunPlan | None = None
 
     @property
     def h(self) -> float:
         """The control period on the run's time grid (:func:`~drake_coop.experiment.plan.time_grid`)."""
-        return time_grid(self.scenario)[0]
+        return self.plan.h if self.plan is not None else time_grid(self.scenario)[0]
 
     @property
     def dt(self) -> float:
         """The plant step on the run's time grid."""
-        return time_grid(self.scenario)[1]
+        return self.plan.dt if self.plan is not None else time_grid(self.scenario)[1]
 
 
-VelocitySource = VelocityObserver | MeasuredVelocity | DifferenceVelocity
-ForceSource = ForceObserver | SensedForce | NoForceEstimate | MomentumObserver
+def reads_sensor(robot) -> bool:
+    """Whether the robot's force source reads its F/T sensor (``lambda_sensor``: its registry
+    entry, :data:`drake_coop.control.registry.SOURCES`; ``force_source: sensor``)."""
+    return "lambda_sensor" in source("force", robot.force_source).inputs
 
 
 def is_ideal(settings) -> bool:
@@ -230,18 +224,21 @@ def uses_live_ground_truth(scenario: Scenario) -> bool:
     controller that reads its sensor)."""
     mode = scenario.plant.object_mode
     return mode == "none" or (mode != "contact"
-                              and any(r.force_source == "sensor" for r in scenario.robots))
+                              and any(reads_sensor(r) for r in scenario.robots))
 
 
-def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = None,
+def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None = None,
                      log: bool = True, before_build=None, references=None,
                      live_ground_truth: bool | None = None) -> Experiment:
-    """Build the experiment's Diagram from a scenario.
+    """Build the experiment's Diagram from a run's plan.
 
     Parameters
     ----------
-    scenario : Scenario
-        A validated scenario.
+    plan : RunPlan or Scenario
+        The run's plan (:func:`~drake_coop.experiment.plan.plan_run`): each robot's arm,
+        controller's model, stiffness, control point and object model are read from it, never
+        re-derived; a validated scenario is planned here (:func:`~drake_coop.experiment.plan.
+        plan_run` of the whole task).
     builder : DiagramBuilder, optional
         Builder to use (e.g. to add a visualizer first).
     log : bool
@@ -275,7 +272,13 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         ``live_ground_truth=False`` in ``none`` mode, or with a robot's
         ``force_source: sensor`` in the ``planes`` and ``rigid`` modes.
     """
-    h, dt = time_grid(scenario)
+    if not isinstance(plan, RunPlan):
+        plan = plan_run(plan)
+    scenario = plan.scenario
+    # The period checked once (against the plant's step) for every block of the diagram.
+    h, dt = checked_period(plan.h, plan.dt), plan.dt
+    estimator_h = (checked_period(ESTIMATOR_TICKS * h)
+                   if scenario.object_model.mode == "estimated" else None)
     needs_live = uses_live_ground_truth(scenario)
     if live_ground_truth is None:
         live_ground_truth = needs_live
@@ -283,7 +286,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         raise ValueError("live_ground_truth=False needs planes, rigid or contact mode and, "
                          "outside contact mode, no robot with force_source: sensor")
     b = builder or DiagramBuilder()
-    coop = build_plant(b, scenario, time_step=dt)
+    coop = build_plant(b, scenario, time_step=dt, arms=plan.arms)
     plant = coop.plant
     sensors = add_force_sensors(b, coop, h) if live_ground_truth else [None] * len(coop.arms)
     models = [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
@@ -292,29 +295,30 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     # also the F/T sensor's input of a controller that reads it.
     pads = None
     if (not live_ground_truth and coop.mode == "contact"
-            and (log or any(r.force_source == "sensor" for r in scenario.robots))):
+            and (log or any(reads_sensor(r) for r in scenario.robots))):
         pads = add_pad_force_log(b, coop, h, models, log=log)
     robots = []
     actuation = []           # each arm's actuation input (for the offline ground truth)
-    arm_models = [controller_arm_model(handles.arm, robot.model_error)
-                  for handles, robot in zip(coop.arms, scenario.robots)]
+    arm_models = [r.controller_model for r in plan.robots]
     # object_model.shared: the one block between the arms (the planned references pass
     # through it, their λ_d replaced by the squeeze chosen online from the shared estimate).
-    shared = (add_object_state_estimator(b, scenario, [ReferenceLayout(m.n, m.m)
-                                                       for m in arm_models], h)
-              if shared_enabled(scenario) else None)
+    shared = (add_object_state_estimator(b, plan, [ReferenceLayout(m.n, m.m)
+                                                   for m in arm_models], h)
+              if plan.shared else None)
     trajectories = (list(references) if references is not None
-                    else [reference_trajectory(scenario, i) for i in range(len(coop.arms))])
+                    else [reference_trajectory(scenario, i, plan=plan)
+                          for i in range(len(coop.arms))])
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         robot = scenario.robots[i]
+        resolved = plan.robots[i]
         model = arm_models[i]
         n = model.n
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
         encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
         ft = lambda_sensor = None
-        if pads is not None and robot.force_source == "sensor":
+        if pads is not None and reads_sensor(robot):
             last_step = pads.add_lambda_last_step(b, i, name)
             ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
                                               last_step, last_step)
@@ -330,9 +334,9 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             velocity_source=robot.velocity_source, force_source=robot.force_source,
             difference_cutoff_hz=robot.difference_cutoff_hz,
             q=q_port,
-            lambda_sensor=lambda_sensor if robot.force_source == "sensor" else None,
+            lambda_sensor=lambda_sensor if reads_sensor(robot) else None,
             connect_actuation=False,
-            contact_stiffness=contact_stiffness(scenario, i),
+            contact_stiffness=resolved.stiffness,
             name=name)
         law, control = block.law, block.system
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller
@@ -342,11 +346,11 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         if shared is not None:
             b.Connect(reference, shared.get_reference_input_port(i))
             reference = shared.get_reference_output_port(i)
-            stiffness = contact_stiffness(scenario, i)
+            stiffness = resolved.stiffness
             if stiffness is not None and not getattr(handles.arm.kinematics, "redundant",
                                                      False):
                 # The compliant contact's compression of the online λ_d, in q_d.
-                point = control_point(scenario, i, handles.arm)
+                point = resolved.control_point
                 press = b.AddNamedSystem(f"{name}_compressed_reference", CompressedReference(
                     model, stiffness, -np.asarray(robot.normals[0], dtype=float),
                     point_offset=None if point is None else point.offset))
@@ -357,13 +361,13 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
         # added to the controller's torque; none in the paper's diagram.
         objects = None
         tau_port = control.GetOutputPort("tau")
-        if object_enabled(scenario):
+        if plan.object is not None:
             t_ref = np.asarray(trajectory.get_segment_times())
             # The squeeze's couple from both arms' references (fixed before the run).
-            couple = (couple_samples(scenario, i, [a.arm for a in coop.arms], trajectories,
-                                     t_ref) if uses_couple(scenario) else None)
-            objects = add_object_blocks(b, scenario, i, name, model, h, q_port,
-                                        reference, control, t_ref, couple)
+            couple = (couple_samples(plan, i, trajectories, t_ref) if plan.uses_couple
+                      else None)
+            objects = add_object_blocks(b, resolved, h, q_port, reference, control, t_ref,
+                                        couple, estimator_period=estimator_h)
             tau_port = objects.tau
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
@@ -432,4 +436,4 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
     diagram = b.Build()
     diagram.set_name("drake_coop_experiment")
     return Experiment(scenario=scenario, diagram=diagram, coop=coop, robots=robots,
-                      ground_truth=ground_truth, object_state_estimator=shared)
+                      ground_truth=ground_truth, object_state_estimator=shared, plan=plan)

@@ -22,14 +22,14 @@ each planned ``λ_d``: the arms then communicate through it.
 
 Without it, the estimator reads the arm's own ``q``, the control block's ``qdot_o`` and ``qddot_r_hat``
 and the summed torque: nothing of the other arm (decentralized). The object model the blocks
-get is built from the scenario: the grasp points are the robots' contact points, the inward
-normals their constraint normals reversed, the centre of mass their midpoint (the shipped
-boxes are uniform).
+get, each arm's mass share, contact offset and stiffness are the run's plan's
+(:class:`~drake_coop.experiment.plan.ObjectPlan`, :class:`~drake_coop.experiment.plan.RobotPlan`):
+the grasp points are the robots' contact points, the inward normals their constraint normals
+reversed, the centre of mass their midpoint (the shipped boxes are uniform).
 """
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,20 +37,10 @@ from pydrake.systems.framework import DiagramBuilder, OutputPort
 from pydrake.systems.primitives import Adder, ConstantVectorSource, TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_coop.control.arm_model import ArmModel
-from drake_coop.control.finger import ReferenceLayout
-from drake_coop.control.object import (
-    ContactStiffness,
-    LoadFeedforward,
-    MassEstimator,
-    ObjectModel,
-    ObjectStateEstimator,
-    load_distribution,
-    mass_shares,
-    squeeze_for_grasp,
-)
 from drake_coop.control.couple import face_distance, squeeze_couple
-from drake_coop.scenario.schema import Scenario
+from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.object import LoadFeedforward, MassEstimator, ObjectStateEstimator
+from drake_coop.experiment.plan import RobotPlan, RunPlan
 from drake_coop.scenario.task_path import cartesian_reference
 
 
@@ -70,190 +60,13 @@ class ObjectBlocks:
     acceleration_d: OutputPort | None = None
 
 
-def object_enabled(scenario: Scenario) -> bool:
-    """Whether the controllers get an object model (``object_model.mode`` not ``none``)."""
-    return scenario.object_model.mode != "none"
+def acceleration_samples(robot: RobotPlan, t: np.ndarray) -> np.ndarray:
+    """The object's desired acceleration along the robot's path (N, 3): the pad's ``ẍ_d``
+    (the path translates the object)."""
+    return cartesian_reference(robot.task, robot.robot, t)[2]
 
 
-def true_mass(scenario: Scenario) -> float:
-    """The simulated object's mass (kg)."""
-    return float(scenario.plant.object_mass)
-
-
-def controller_mass(scenario: Scenario) -> float:
-    """The mass the controllers start from: the truth (or ``object_model.mass``) when
-    ``known``, ``prior_mass_factor`` times the truth when ``estimated``."""
-    om = scenario.object_model
-    if om.mode == "estimated":
-        return om.prior_mass_factor * true_mass(scenario)
-    return float(om.mass) if om.mass is not None else true_mass(scenario)
-
-
-def scenario_object(scenario: Scenario, mass: float) -> ObjectModel:
-    """The object model the controllers get: grasp points at the robots' contact points
-    (``contact_xy``, at a common height), inward normals ``−N_i`` (first row), centre of mass
-    at the points' midpoint."""
-    points = np.array([[r.contact_xy[0], r.contact_xy[1], 0.0] for r in scenario.robots])
-    normals = -np.array([np.asarray(r.normals[0], dtype=float) for r in scenario.robots])
-    return ObjectModel(mass=mass, com=points.mean(axis=0), grasp_points=points,
-                       grasp_normals=normals)
-
-
-def contact_stiffness(scenario: Scenario, index: int) -> ContactStiffness | None:
-    """The compliant-contact model of robot ``index``'s pad (``object_model.contact_stiffness``;
-    by default, with an object model in ``contact`` mode, Drake's hydroelastic sphere of
-    radius ``r`` pressed on a rigid face, ``λ = π E (δ² − 2δ³/(3r))`` exactly (ContactStiffness's
-    ``radius``; ``π E δ²`` to first order in ``δ/r``), from the pad's hydroelastic modulus
-    ``E``: ``plant.pad_modulus``, else the arm's model file's); None for a rigid contact."""
-    om = scenario.object_model
-    if om.contact_stiffness is not None:
-        return (ContactStiffness(om.contact_stiffness, om.contact_exponent)
-                if om.contact_stiffness > 0 else None)
-    if not object_enabled(scenario) or scenario.plant.object_mode != "contact":
-        return None
-    E = (scenario.plant.pad_modulus if scenario.plant.pad_modulus is not None
-         else pad_modulus(scenario.robots[index]))
-    # The sphere's exact law (ContactStiffness's radius), a = π E.
-    return None if E is None else ContactStiffness(np.pi * E, 2.0,
-                                                   radius=pad_radius(scenario.robots[index]))
-
-
-def pad_modulus(robot) -> float | None:
-    """The hydroelastic modulus (Pa) of the end-effector link's collision geometry in the
-    robot's model file (``drake:hydroelastic_modulus``), None if it has none."""
-    from drake_coop.scenario.resources import model_urdf_path
-    text = model_urdf_path(robot).read_text()
-    link = re.search(r'<link\s+name="%s"(.*?)</link>' % re.escape(robot.ee_frame), text, re.S)
-    if link is None:
-        return None
-    value = re.search(r'hydroelastic_modulus\s+value="([^"]+)"', link.group(1))
-    return None if value is None else float(value.group(1))
-
-
-def pad_radius(robot) -> float | None:
-    """The radius (m) of the end-effector link's spherical collision geometry in the robot's
-    model file, None if it has none."""
-    from drake_coop.scenario.resources import model_urdf_path
-    text = model_urdf_path(robot).read_text()
-    link = re.search(r'<link\s+name="%s"(.*?)</link>' % re.escape(robot.ee_frame), text, re.S)
-    collision = link and re.search(r"<collision.*?</collision>", link.group(1), re.S)
-    sphere = collision and re.search(r'<sphere\s+radius="([^"]+)"', collision.group(0))
-    return float(sphere.group(1)) if sphere else None
-
-
-def controls_contact_point(scenario: Scenario) -> bool:
-    """Whether the arms control their pads' material contact point
-    (``object_model.control_point``: ``contact``, or ``auto`` with an object model in
-    ``contact`` mode on the paper's arms) instead of the pads' centres."""
-    from drake_coop.scenario.reach import has_closed_form
-
-    om = scenario.object_model
-    if om.control_point != "auto":
-        return om.control_point == "contact"
-    return (om.mode != "none" and scenario.plant.object_mode == "contact"
-            and all(has_closed_form(r) for r in scenario.robots)
-            and all(pad_radius(r) is not None for r in scenario.robots))
-
-
-@dataclass(frozen=True)
-class ControlPoint:
-    """Robot ``i``'s pad's material contact point, which its references follow across the
-    normal (:func:`~drake_coop.experiment.references.contact_point_reference`).
-
-    Attributes
-    ----------
-    offset : ndarray, shape (3,)
-        The point in the pad's frame, from its centre (the kinematics' ``offset``):
-        ``ρ R_WP(q_g)ᵀ n``, ``ρ`` the pad's radius, ``n`` the unit inward normal, ``q_g``
-        the posture with the pad's centre at the contact point of the grasp (the point on
-        the undeformed surface that touches the box there).
-    shift : ndarray, shape (3,)
-        ``ρ n`` (world): the point's desired path is the centre's plus this constant vector
-        (along the normal, so across it the two paths are the same).
-    normal : ndarray, shape (3,)
-        The unit outward normal ``N_1`` of the constraint (the squeeze's direction).
-    """
-
-    offset: np.ndarray
-    shift: np.ndarray
-    normal: np.ndarray
-
-
-def control_point(scenario: Scenario, index: int, arm) -> ControlPoint | None:
-    """Robot ``index``'s :class:`ControlPoint` (``arm``: its
-    :class:`~drake_coop.plant.arms.Arm`), None when it controls its pad's centre
-    (:func:`controls_contact_point`).
-
-    The two pads' shifts are opposite (equal radii, opposite normals): the midpoint of the
-    points' desired paths is the midpoint of the centres', the object's desired path.
-    """
-    if not controls_contact_point(scenario):
-        return None
-    robot = scenario.robots[index]
-    rho = pad_radius(robot)
-    n = -np.asarray(robot.normals[0], dtype=float)
-    shift = rho * n / np.linalg.norm(n)
-    kin = arm.kinematics
-    q_g = kin.ik(arm.c)
-    return ControlPoint(offset=kin.pad_rotation(q_g).T @ shift, shift=shift,
-                        normal=-n / np.linalg.norm(n))
-
-
-def contact_offset(scenario: Scenario, index: int) -> np.ndarray | None:
-    """Where the object's force acts on robot ``index``'s pad, from its centre E: in
-    ``contact`` mode the pad's surface along the inward normal (``ρ n``, ``ρ`` its sphere's
-    radius: where the pad touches the box's face whatever the pad's orientation, also when
-    the references follow the pad's material contact point, :func:`control_point`); None
-    (at E) in ``rigid`` mode, whose ball constraint holds E itself."""
-    if scenario.plant.object_mode != "contact":
-        return None
-    robot = scenario.robots[index]
-    rho = pad_radius(robot)
-    if rho is None:
-        return None
-    n = -np.asarray(robot.normals[0], dtype=float)
-    return rho * n / np.linalg.norm(n)
-
-
-def acceleration_samples(scenario: Scenario, index: int, t: np.ndarray) -> np.ndarray:
-    """The object's desired acceleration along robot ``index``'s path (N, 3): the pad's
-    ``ẍ_d`` (the path translates the object)."""
-    return cartesian_reference(scenario.task, scenario.robots[index], t)[2]
-
-
-def friction_squeeze(scenario: Scenario, t: np.ndarray, ramp: float = 1.0) -> np.ndarray:
-    """``object_model.squeeze: friction``: the least squeeze holding the object in every
-    friction cone along the desired path (:func:`~drake_coop.control.object.squeeze_for_grasp`
-    on the loads of :func:`~drake_coop.control.object.load_distribution`, the controllers'
-    mass, ``mu``, ``margin``, ``squeeze_min``), between the grasp and the release, ramped
-    linearly over ``ramp`` seconds after the grasp and before the release (N, one per time)."""
-    om, task = scenario.object_model, scenario.task
-    obj = scenario_object(scenario, controller_mass(scenario))
-    mu = om.mu if om.mu is not None else scenario.plant.friction
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-    xdd = acceleration_samples(scenario, 0, t)
-    lam = np.zeros_like(t)
-    held = (t >= task.t_grasp) & (t <= task.t_release)
-    for k in np.flatnonzero(held):
-        loads = load_distribution(obj, xdd[k])
-        lam[k] = squeeze_for_grasp(loads, obj.grasp_normals, mu, om.margin,
-                                   lambda_min=om.squeeze_min)[0]
-    scale = np.clip(np.minimum(t - task.t_grasp, task.t_release - t) / ramp, 0.0, 1.0)
-    return lam * scale
-
-
-def uses_couple(scenario: Scenario) -> bool:
-    """Whether the feedforward carries the squeeze's couple (``object_model.couple``: true,
-    or null when the arms follow their pads' material contact points, whose centres then
-    leave the same height, :func:`controls_contact_point`); two robots only."""
-    om = scenario.object_model
-    if om.mode == "none" or len(scenario.robots) != 2 or om.couple is False:
-        return False
-    return om.couple is True or controls_contact_point(scenario)
-
-
-def couple_samples(scenario: Scenario, index: int, arms, trajectories, t: np.ndarray
-                   ) -> np.ndarray:
+def couple_samples(plan: RunPlan, index: int, trajectories, t: np.ndarray) -> np.ndarray:
     """Robot ``index``'s part ``f_c,i`` of the squeeze's couple at the times ``t`` (K, 3):
     :func:`~drake_coop.control.couple.squeeze_couple` on the two pads' centres
     along their references (forward kinematics of both ``q_d``, fixed before the run), the
@@ -263,53 +76,57 @@ def couple_samples(scenario: Scenario, index: int, arms, trajectories, t: np.nda
 
     Parameters
     ----------
-    arms : sequence of Arm
-        Both robots' arms (their kinematics give the centres).
+    plan : RunPlan
+        The run's plan (both arms' kinematics, contact offsets and stiffnesses).
     trajectories : sequence of PiecewisePolynomial
         Both robots' reference trajectories (:func:`~drake_coop.experiment.references.
         reference_trajectory`).
     """
     t = np.asarray(t, dtype=float)
     centres, lam, held, rho, delta = [], [], [], [], []
-    for j, (arm, traj) in enumerate(zip(arms, trajectories)):
+    for robot, traj in zip(plan.robots, trajectories):
         r = np.asarray(traj.vector_values(t)).T
         # Rows [q_d, q̇_d, q̈_d, λ_d, held] (ReferenceLayout).
-        n = (r.shape[1] - len(scenario.robots[j].normals) - 1) // 3
-        centres.append(arm.kinematics.fk(r[:, :n]))
+        n = (r.shape[1] - len(robot.robot.normals) - 1) // 3
+        centres.append(robot.arm.kinematics.fk(r[:, :n]))
         lam.append(r[:, 3 * n] * r[:, -1])
         held.append(r[:, -1])
-        offset = contact_offset(scenario, j)
+        offset = robot.contact_offset
         rho.append(0.0 if offset is None else float(np.linalg.norm(offset)))
-        stiffness = contact_stiffness(scenario, j)
+        stiffness = robot.stiffness
         delta.append(np.zeros_like(t) if stiffness is None or offset is None
                      else stiffness.compression(lam[-1]))
     E = np.stack(centres, axis=1)
-    normal = -np.asarray(scenario.robots[0].normals[0], dtype=float)
+    normal = -np.asarray(plan.scenario.robots[0].normals[0], dtype=float)
     w = face_distance(E, normal, rho, np.stack(delta, axis=1))
     f = squeeze_couple(E, normal, lam[index], w)[:, index, :]
     return f * held[index][:, None]
 
 
-def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: str,
-                      model: ArmModel, period: float, q: OutputPort, reference: OutputPort,
-                      control, t_samples: np.ndarray, couple: np.ndarray | None = None
-                      ) -> ObjectBlocks:
-    """Add robot ``index``'s feedforward (and, when ``estimated``, its mass estimator); return
-    the summed torque port to connect to the actuators. ``couple``: the arm's part of the
-    squeeze's couple at ``t_samples`` (:func:`couple_samples`), fed to both."""
-    om = scenario.object_model
-    a = acceleration_samples(scenario, index, t_samples)
+def add_object_blocks(b: DiagramBuilder, robot: RobotPlan, period: float, q: OutputPort,
+                      reference: OutputPort, control, t_samples: np.ndarray,
+                      couple: np.ndarray | None = None,
+                      estimator_period: float | None = None) -> ObjectBlocks:
+    """Add the robot's feedforward (and, when ``estimated``, its mass estimator); return
+    the summed torque port to connect to the actuators. ``robot``: its section of the run's
+    plan (controller's model, mass share, contact offset, the object's friction);
+    ``couple``: the arm's part of the squeeze's couple at ``t_samples``
+    (:func:`couple_samples`), fed to both; ``estimator_period``: the mass estimator's period
+    (default ``ESTIMATOR_TICKS`` periods; the diagram passes it checked once for all arms)."""
+    om = robot.object_settings
+    name, model = robot.name, robot.controller_model
+    a = acceleration_samples(robot, t_samples)
     acc = b.AddNamedSystem(f"{name}_acceleration_d", TrajectorySource(
         PiecewisePolynomial.FirstOrderHold(t_samples, a.T)))
-    share0 = float(mass_shares(scenario_object(scenario, controller_mass(scenario)))[index])
-    r = contact_offset(scenario, index)
+    share0 = robot.mass_share
+    r = robot.contact_offset
     # A grasp held by friction (contact mode) passes the object at most μ λ_d across the
     # normal: the feedforward follows the squeeze in (LoadFeedforward's friction limit), with
     # the grasp's margin (μ λ_d / margin): the squeeze lags λ_d while it ramps up at the
     # grasp, and a feedforward at the cone's edge of λ_d slid the pads up the box by 0.35 mm.
     friction = None
-    if scenario.plant.object_mode == "contact":
-        friction = (om.mu if om.mu is not None else scenario.plant.friction) / om.margin
+    if robot.object_mode == "contact":
+        friction = robot.object.mu / om.margin
     ff = b.AddNamedSystem(f"{name}_load_feedforward", LoadFeedforward(
         model, period, contact_offset=r, friction=friction, couple=couple is not None))
     f_couple = None
@@ -328,8 +145,10 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
     if om.mode == "estimated":
         # Every ESTIMATOR_TICKS ticks, with the forgetting per tick of the scenario (ρ^N per
         # update): the same horizon in seconds at a fifth of the cost.
+        if estimator_period is None:
+            estimator_period = ESTIMATOR_TICKS * period
         estimator = b.AddNamedSystem(f"{name}_mass_estimator", MassEstimator(
-            model, ESTIMATOR_TICKS * period, prior=share0,
+            model, estimator_period, prior=share0,
             prior_std=om.prior_std_factor * share0,
             forgetting=om.forgetting ** ESTIMATOR_TICKS, contact_offset=r,
             couple=f_couple is not None))
@@ -352,24 +171,20 @@ def add_object_blocks(b: DiagramBuilder, scenario: Scenario, index: int, name: s
                         acceleration_d=acc.get_output_port())
 
 
-def shared_enabled(scenario: Scenario) -> bool:
-    """Whether the run has the shared object-state block (``object_model.shared``)."""
-    return object_enabled(scenario) and bool(scenario.object_model.shared)
-
-
-def add_object_state_estimator(b: DiagramBuilder, scenario: Scenario,
+def add_object_state_estimator(b: DiagramBuilder, plan: RunPlan,
                                layouts: list[ReferenceLayout], period: float
                                ) -> ObjectStateEstimator:
-    """The shared ``object_state_estimator``: the scenario's grasp (:func:`scenario_object`),
-    ``mu``, ``margin``, ``squeeze_min``, the grasp window and ramp of
-    :func:`friction_squeeze`, ``squeeze_rate`` and each robot's force weights. Its inputs
-    (mass shares, ``a_d``) are connected by :func:`connect_object_state_estimator`, the
-    references by the caller."""
+    """The shared ``object_state_estimator``: the plan's grasp (:class:`~drake_coop.
+    experiment.plan.ObjectPlan`: grasp points and normals, ``mu``), ``margin``,
+    ``squeeze_min``, the grasp window and ramp of :func:`~drake_coop.experiment.plan.
+    friction_squeeze`, ``squeeze_rate`` and each robot's force weights. Its inputs (mass
+    shares, ``a_d``) are connected by :func:`connect_object_state_estimator`, the references
+    by the caller."""
+    scenario = plan.scenario
     om, task = scenario.object_model, scenario.task
-    obj = scenario_object(scenario, controller_mass(scenario))
-    mu = om.mu if om.mu is not None else scenario.plant.friction
+    obj = plan.object
     return b.AddNamedSystem("object_state_estimator", ObjectStateEstimator(
-        obj.grasp_points, obj.grasp_normals, layouts, period, mu, om.margin,
+        obj.model.grasp_points, obj.model.grasp_normals, layouts, period, obj.mu, om.margin,
         grasp_window=(task.t_grasp, task.t_release), ramp=1.0, rate=om.squeeze_rate,
         lambda_min=om.squeeze_min,
         force_weights=[r.force_weights for r in scenario.robots]))

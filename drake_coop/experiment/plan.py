@@ -12,18 +12,31 @@ scenario):
   (``⌈t_grasp/h⌉``, ``⌈t_release/h⌉``): the only instants where the plant changes;
 * ``k_end`` — the last tick of the run (``min(t_end, task.t_end)``);
 * ``z_grasp`` — the contact points' height at the grasp (``circle_top_z − lift_height``);
-* ``arms`` — each robot's :class:`~drake_coop.plant.arms.Arm` (base, constraints,
-  kinematics).
+* ``robots`` — per robot a :class:`RobotPlan`, everything decided from the scenario for that
+  arm: its :class:`~drake_coop.plant.arms.Arm` (base, constraints, kinematics), the
+  controller's model, the pad's geometry and stiffness (read once, by Drake's parser), the
+  control point, the load's mass share, ``λ_d``; ``arms`` are their arms;
+* ``object`` — the controllers' object model (:class:`ObjectPlan`), None without one.
+
+Every rule of the ``object_model`` section (``auto`` and ``null`` values) is decided here, in
+one place; the plant builder, the references, the diagram, the object blocks and the runner
+read the plan (each its own section), never the rule again. What is expensive (the pads'
+files, the controller's model) is resolved on first use and kept: a plan of the ``planes``
+run reads no pad.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
 
 from drake_coop.control.timing import aligned_periods
 from drake_coop.plant.arms import Arm
-from drake_coop.scenario.schema import Scenario, ScenarioError, Task
+from drake_coop.scenario.schema import Robot, Scenario, ScenarioError, Task
 
 #: Largest run (control ticks of ``h``, and plant steps) accepted: the references and the
 #: logs cost about 5 kB per tick (1 GB at the limit), a plant step about 50 µs.
@@ -85,6 +98,224 @@ def num_ticks_until(t: float, h: float) -> int:
 
 
 @dataclass(frozen=True)
+class Pad:
+    """A pad's collision geometry in its arm's model file (the end-effector link's first
+    collision geometry): its sphere's ``radius`` (m) and its ``drake:hydroelastic_modulus``
+    (Pa), each None when the model has none."""
+
+    radius: float | None
+    modulus: float | None
+
+
+def read_pad(urdf: str | Path, ee_frame: str) -> Pad:
+    """The :class:`Pad` of the link ``ee_frame`` of the model ``urdf``, parsed by Drake.
+
+    Only a link's own geometry counts (an ``ee_frame`` that is a frame on a link has none)."""
+    from pydrake.geometry import SceneGraph, Sphere
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+
+    plant, scene_graph = MultibodyPlant(0.0), SceneGraph()
+    plant.RegisterAsSourceForSceneGraph(scene_graph)
+    (instance,) = Parser(plant, scene_graph).AddModels(str(urdf))
+    if not plant.HasBodyNamed(ee_frame, instance):
+        return Pad(None, None)
+    ids = plant.GetCollisionGeometriesForBody(plant.GetBodyByName(ee_frame, instance))
+    if not ids:
+        return Pad(None, None)
+    inspector = scene_graph.model_inspector()
+    shape = inspector.GetShape(ids[0])
+    radius = float(shape.radius()) if isinstance(shape, Sphere) else None
+    modulus = None
+    for gid in ids:
+        props = inspector.GetProximityProperties(gid)
+        if props is not None and props.HasProperty("hydroelastic", "hydroelastic_modulus"):
+            modulus = float(props.GetProperty("hydroelastic", "hydroelastic_modulus"))
+            break
+    return Pad(radius, modulus)
+
+
+@dataclass(frozen=True)
+class ControlPoint:
+    """Robot ``i``'s pad's material contact point, which its references follow across the
+    normal (:func:`~drake_coop.experiment.references.contact_point_reference`).
+
+    Attributes
+    ----------
+    offset : ndarray, shape (3,)
+        The point in the pad's frame, from its centre (the kinematics' ``offset``):
+        ``ρ R_WP(q_g)ᵀ n``, ``ρ`` the pad's radius, ``n`` the unit inward normal, ``q_g``
+        the posture with the pad's centre at the contact point of the grasp (the point on
+        the undeformed surface that touches the box there).
+    shift : ndarray, shape (3,)
+        ``ρ n`` (world): the point's desired path is the centre's plus this constant vector
+        (along the normal, so across it the two paths are the same).
+    normal : ndarray, shape (3,)
+        The unit outward normal ``N_1`` of the constraint (the squeeze's direction).
+    """
+
+    offset: np.ndarray
+    shift: np.ndarray
+    normal: np.ndarray
+
+
+class ObjectPlan:
+    """The controllers' object model (``object_model.mode`` known or estimated).
+
+    Attributes
+    ----------
+    mass : float
+        The mass the controllers start from: the truth (or ``object_model.mass``) when
+        ``known``, ``prior_mass_factor`` times the truth when ``estimated``.
+    model : ObjectModel
+        Grasp points at the robots' contact points (``contact_xy``, at a common height),
+        inward normals ``−N_i`` (first row), centre of mass at the points' midpoint.
+    shares : ndarray
+        Each arm's share of ``mass`` (:func:`~drake_coop.control.object.mass_shares`).
+    mu : float
+        The grasp's friction (``object_model.mu``, else ``plant.friction``).
+    """
+
+    def __init__(self, scenario: Scenario):
+        from drake_coop.control.object import ObjectModel, mass_shares
+
+        om = scenario.object_model
+        truth = float(scenario.plant.object_mass)
+        if om.mode == "estimated":
+            self.mass = om.prior_mass_factor * truth
+        else:
+            self.mass = float(om.mass) if om.mass is not None else truth
+        points = np.array([[r.contact_xy[0], r.contact_xy[1], 0.0] for r in scenario.robots])
+        normals = -np.array([np.asarray(r.normals[0], dtype=float) for r in scenario.robots])
+        self.model = ObjectModel(mass=self.mass, com=points.mean(axis=0), grasp_points=points,
+                                 grasp_normals=normals)
+        self.shares = np.asarray(mass_shares(self.model), dtype=float)
+        self.mu = om.mu if om.mu is not None else scenario.plant.friction
+
+
+class RobotPlan:
+    """What one robot's run is, decided from the scenario (see the module's docstring).
+
+    Attributes
+    ----------
+    index : int
+    robot : Robot
+    arm : Arm
+    """
+
+    def __init__(self, run: "RunPlan", index: int, arm: Arm):
+        self._run = run
+        self.index = index
+        self.robot: Robot = run.scenario.robots[index]
+        self.arm = arm
+
+    @property
+    def name(self) -> str:
+        """The robot's name."""
+        return self.robot.name
+
+    @property
+    def task(self) -> Task:
+        """The run's task (the paths)."""
+        return self._run.scenario.task
+
+    @property
+    def object_settings(self):
+        """The scenario's ``object_model`` section."""
+        return self._run.scenario.object_model
+
+    @property
+    def object(self) -> "ObjectPlan | None":
+        """The run's :class:`ObjectPlan` (None without an object model)."""
+        return self._run.object
+
+    @property
+    def object_mode(self) -> str:
+        """The plant's ``object_mode``."""
+        return self._run.scenario.plant.object_mode
+
+    @cached_property
+    def pad(self) -> Pad:
+        """The pad's sphere and modulus in the simulated arm's model file (read once)."""
+        return read_pad(self.arm.urdf_path, self.robot.ee_frame)
+
+    @cached_property
+    def controller_model(self):
+        """The controller's :class:`~drake_coop.control.arm_model.ArmModel` (the controller's
+        URDF with the robot's ``model_error`` scales, built once)."""
+        from drake_coop.plant.model_error import controller_arm_model
+
+        return controller_arm_model(self.arm, self.robot.model_error)
+
+    @cached_property
+    def stiffness(self):
+        """The compliant-contact model of the pad (``object_model.contact_stiffness``; by
+        default, with an object model in ``contact`` mode, Drake's hydroelastic sphere of
+        radius ``r`` pressed on a rigid face, ``λ = π E (δ² − 2δ³/(3r))`` exactly
+        (ContactStiffness's ``radius``; ``π E δ²`` to first order in ``δ/r``), from the pad's
+        hydroelastic modulus ``E``: ``plant.pad_modulus``, else the arm's model file's); None
+        for a rigid contact."""
+        from drake_coop.control.object import ContactStiffness
+
+        scenario = self._run.scenario
+        om = scenario.object_model
+        if om.contact_stiffness is not None:
+            return (ContactStiffness(om.contact_stiffness, om.contact_exponent)
+                    if om.contact_stiffness > 0 else None)
+        if om.mode == "none" or scenario.plant.object_mode != "contact":
+            return None
+        E = (scenario.plant.pad_modulus if scenario.plant.pad_modulus is not None
+             else self.pad.modulus)
+        # The sphere's exact law (ContactStiffness's radius), a = π E.
+        return None if E is None else ContactStiffness(np.pi * E, 2.0, radius=self.pad.radius)
+
+    def _at_radius(self) -> np.ndarray:
+        """``ρ n``: the pad's radius along the unit inward normal ``n = −N_1 / |N_1|``."""
+        n = -np.asarray(self.robot.normals[0], dtype=float)
+        return self.pad.radius * n / np.linalg.norm(n)
+
+    @cached_property
+    def control_point(self) -> ControlPoint | None:
+        """The pad's :class:`ControlPoint`, None when the arm controls its pad's centre
+        (:attr:`RunPlan.controls_contact_point`).
+
+        The two pads' shifts are opposite (equal radii, opposite normals): the midpoint of
+        the points' desired paths is the midpoint of the centres', the object's desired
+        path."""
+        if not self._run.controls_contact_point:
+            return None
+        shift = self._at_radius()
+        n = -np.asarray(self.robot.normals[0], dtype=float)
+        kin = self.arm.kinematics
+        q_g = kin.ik(self.arm.c)
+        return ControlPoint(offset=kin.pad_rotation(q_g).T @ shift, shift=shift,
+                            normal=-n / np.linalg.norm(n))
+
+    @cached_property
+    def contact_offset(self) -> np.ndarray | None:
+        """Where the object's force acts on the pad, from its centre E: in ``contact`` mode
+        the pad's surface along the inward normal (``ρ n``, ``ρ`` its sphere's radius: where
+        the pad touches the box's face whatever the pad's orientation, also when the
+        references follow the pad's material contact point); None (at E) in ``rigid`` mode,
+        whose ball constraint holds E itself."""
+        if self._run.scenario.plant.object_mode != "contact" or self.pad.radius is None:
+            return None
+        return self._at_radius()
+
+    @property
+    def mass_share(self) -> float | None:
+        """The arm's share of the controllers' object mass (None without an object model)."""
+        obj = self._run.object
+        return None if obj is None else float(obj.shares[self.index])
+
+    def lambda_d(self, t: np.ndarray) -> np.ndarray:
+        """``λ_d`` at the times ``t`` (K, m): the force weights times the squeeze (29), or the
+        friction squeeze (``object_model.squeeze: friction``)."""
+        return (self._run.squeeze(t)[:, None]
+                * np.asarray(self.robot.force_weights, dtype=float))
+
+
+@dataclass(frozen=True)
 class RunPlan:
     """The resolved numbers of one run (see the module's docstring)."""
 
@@ -97,6 +328,53 @@ class RunPlan:
     k_release: int
     z_grasp: float
     arms: tuple[Arm, ...]
+
+    @cached_property
+    def robots(self) -> tuple[RobotPlan, ...]:
+        """Each robot's :class:`RobotPlan`."""
+        return tuple(RobotPlan(self, i, arm) for i, arm in enumerate(self.arms))
+
+    @cached_property
+    def object(self) -> ObjectPlan | None:
+        """The controllers' object model, None with ``object_model.mode: none``."""
+        return None if self.scenario.object_model.mode == "none" else ObjectPlan(self.scenario)
+
+    @property
+    def shared(self) -> bool:
+        """Whether the run has the shared object-state block (``object_model.shared``)."""
+        return self.object is not None and bool(self.scenario.object_model.shared)
+
+    @cached_property
+    def controls_contact_point(self) -> bool:
+        """Whether the arms control their pads' material contact point
+        (``object_model.control_point``: ``contact``, or ``auto`` with an object model in
+        ``contact`` mode on the paper's arms) instead of the pads' centres."""
+        om = self.scenario.object_model
+        if om.control_point != "auto":
+            return om.control_point == "contact"
+        return (om.mode != "none" and self.scenario.plant.object_mode == "contact"
+                and all(arm.closed_form for arm in self.arms)
+                and all(r.pad.radius is not None for r in self.robots))
+
+    @cached_property
+    def uses_couple(self) -> bool:
+        """Whether the feedforward carries the squeeze's couple (``object_model.couple``:
+        true, or null when the arms follow their pads' material contact points, whose
+        centres then leave the same height); two robots only."""
+        om = self.scenario.object_model
+        if om.mode == "none" or len(self.scenario.robots) != 2 or om.couple is False:
+            return False
+        return om.couple is True or self.controls_contact_point
+
+    def squeeze(self, t: np.ndarray) -> np.ndarray:
+        """The squeeze at the times ``t`` (K,): the task's profile (29), or with an object
+        model and ``object_model.squeeze: friction`` the friction squeeze
+        (:func:`friction_squeeze`)."""
+        from drake_coop.scenario.task_path import force_reference
+
+        if self.object is not None and self.scenario.object_model.squeeze == "friction":
+            return friction_squeeze(self.scenario, self.object, t)
+        return force_reference(self.scenario.task, t)
 
     @property
     def switches(self) -> dict[int, bool]:
@@ -120,3 +398,27 @@ def plan_run(scenario: Scenario, t_end: float | None = None) -> RunPlan:
                    k_grasp=k_grasp, k_release=k_release,
                    z_grasp=task.circle_top_z - task.lift_height,
                    arms=tuple(Arm(r, task) for r in scenario.robots))
+
+
+def friction_squeeze(scenario: Scenario, obj: ObjectPlan, t: np.ndarray,
+                     ramp: float = 1.0) -> np.ndarray:
+    """``object_model.squeeze: friction``: the least squeeze holding the object in every
+    friction cone along the desired path (:func:`~drake_coop.control.object.squeeze_for_grasp`
+    on the loads of :func:`~drake_coop.control.object.load_distribution`, the controllers'
+    object ``obj``, its ``mu``, ``margin``, ``squeeze_min``), between the grasp and the
+    release, ramped linearly over ``ramp`` seconds after the grasp and before the release (N,
+    one per time)."""
+    from drake_coop.control.object import load_distribution, squeeze_for_grasp
+    from drake_coop.scenario.task_path import cartesian_reference
+
+    om, task = scenario.object_model, scenario.task
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    xdd = cartesian_reference(task, scenario.robots[0], t)[2]
+    lam = np.zeros_like(t)
+    held = (t >= task.t_grasp) & (t <= task.t_release)
+    for k in np.flatnonzero(held):
+        loads = load_distribution(obj.model, xdd[k])
+        lam[k] = squeeze_for_grasp(loads, obj.model.grasp_normals, obj.mu, om.margin,
+                                   lambda_min=om.squeeze_min)[0]
+    scale = np.clip(np.minimum(t - task.t_grasp, task.t_release - t) / ramp, 0.0, 1.0)
+    return lam * scale

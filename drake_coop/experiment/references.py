@@ -51,7 +51,7 @@ def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
 def start_posture(arm: Arm, task, point=None) -> np.ndarray:
     """``q_d(0)``: the reference's posture at ``t = 0`` (the run's rest posture), for either
     kind of arm (the same doubles as the first sample of :func:`reference_samples`);
-    ``point`` (:class:`~drake_coop.experiment.object_blocks.ControlPoint`) when the arm
+    ``point`` (:class:`~drake_coop.experiment.plan.ControlPoint`) when the arm
     controls its pad's material contact point."""
     x, xd, xdd = cartesian_reference(task, arm.robot, [0.0])
     kin = arm.kinematics
@@ -99,7 +99,8 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
         Last time needed (a run stopped early): the samples end at the first tick at or after
         ``min(t_end, task.t_end)``; the ticks before are the same as the full run's.
     plan : RunPlan, optional
-        The run's plan when the caller has it (else computed from ``scenario``).
+        The run's plan when the caller has it (else computed from ``scenario``): its arm,
+        ``λ_d``, control point and contact stiffness of the robot.
 
     Returns
     -------
@@ -120,14 +121,10 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     if not redundant:
         x, xd, xdd = cartesian_reference(task, robot, t)
     held = ((k >= plan.k_grasp) & (k < plan.k_release)).astype(float)
-    profile = force_reference(task, t)
-    if scenario.object_model.mode != "none" and scenario.object_model.squeeze == "friction":
-        from drake_coop.experiment.object_blocks import friction_squeeze
-        profile = friction_squeeze(scenario, t)
-    lam = profile[:, None] * np.asarray(robot.force_weights, dtype=float)
-    from drake_coop.experiment.object_blocks import contact_stiffness, control_point
-    point = None if redundant else control_point(scenario, index, arm)
-    stiffness = contact_stiffness(scenario, index)
+    resolved = plan.robots[index]       # λ_d, the control point, the stiffness: the plan's
+    lam = resolved.lambda_d(t)
+    point = None if redundant else resolved.control_point
+    stiffness = resolved.stiffness
     if stiffness is not None and not redundant and not scenario.object_model.shared:
         # (object_model.shared: λ_d is chosen during the run, and so is the compression:
         # CompressedReference presses the joint references in online.)
@@ -178,7 +175,7 @@ def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,
     kinematics : CrsKinematics
         The arm's kinematics of its pad's centre (``with_offset`` gives ``P``'s).
     point : ControlPoint
-        :func:`~drake_coop.experiment.object_blocks.control_point`.
+        :attr:`~drake_coop.experiment.plan.RobotPlan.control_point`.
     x, xd, xdd : ndarray, shape (K, 3)
         The centre's desired path (compressed, :func:`compressed_path`).
 

@@ -79,17 +79,23 @@ def initialize(exp: Experiment, context) -> None:
 
     ``q(0)`` as the encoders read it at rest (quantized, no noise; the exact ``q(0)`` with
     ideal encoders)."""
-    set_rest_state(exp, context, *rest_posture(exp.scenario, [h.arm for h in exp.coop.arms]))
+    set_rest_state(exp, context, *rest_posture(
+        exp.plan if exp.plan is not None else exp.scenario, [h.arm for h in exp.coop.arms]))
 
 
-def rest_posture(scenario: Scenario, arms: list) -> tuple[list[np.ndarray], float]:
-    """The run's start: each arm's ``q_d(0)`` (one posture per robot) and the height of the
-    object's sliders at the grasp (``circle_top_z − lift_height``)."""
-    from drake_coop.experiment.object_blocks import control_point
-
-    q0 = [start_posture(arm, scenario.task, control_point(scenario, i, arm))
-          for i, arm in enumerate(arms)]
-    return q0, scenario.task.circle_top_z - scenario.task.lift_height
+def rest_posture(plan: RunPlan | Scenario, arms: list | None = None
+                 ) -> tuple[list[np.ndarray], float]:
+    """The run's start: each arm's ``q_d(0)`` (one posture per robot, with the plan's control
+    points) and the height of the object's sliders at the grasp
+    (``circle_top_z − lift_height``). ``arms``: the arms to pose (default: the plan's); a
+    scenario is planned here."""
+    if not isinstance(plan, RunPlan):
+        plan = plan_run(plan)
+    task = plan.scenario.task
+    arms = plan.arms if arms is None else arms
+    q0 = [start_posture(arm, task, resolved.control_point)
+          for arm, resolved in zip(arms, plan.robots)]
+    return q0, task.circle_top_z - task.lift_height
 
 
 def set_rest_state(exp: Experiment, context, q0: list[np.ndarray], z_grasp: float) -> None:
@@ -327,7 +333,7 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     # References only to the run's end: a long task stopped early stays cheap.
     references = [reference_trajectory(scenario, i, T, plan)
                   for i in range(len(scenario.robots))]
-    exp = build_experiment(scenario, before_build=before_build, references=references,
+    exp = build_experiment(plan, before_build=before_build, references=references,
                            live_ground_truth=live_ground_truth)
     simulator = Simulator(exp.diagram)
     context = simulator.get_mutable_context()

@@ -96,14 +96,17 @@ class Arm:
         """x component of the first normal (the paper's ``s_i = ±1``)."""
         return float(self.N[0, 0])
 
-    @property
+    @cached_property
     def urdf_path(self) -> Path:
-        """The simulated arm's URDF."""
+        """The simulated arm's URDF (resolved once)."""
         return model_urdf_path(self.robot)
 
-    @property
+    @cached_property
     def controller_urdf_path(self) -> Path:
-        """The controller's own model of the arm (defaults to the simulated one)."""
+        """The controller's own model of the arm (defaults to the simulated one; resolved
+        once)."""
+        if not self.robot.controller_model:
+            return self.urdf_path
         return controller_urdf_path(self.robot)
 
     @cached_property

@@ -31,7 +31,7 @@ inertia); the controllers never read it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 from pydrake.geometry import Box, SceneGraph
@@ -213,11 +213,13 @@ def _add_slider(plant: MultibodyPlant, name: str, p_anchor: np.ndarray, axes: np
 
 
 def add_arms(plant: MultibodyPlant, scene_graph: SceneGraph | None,
-             scenario: Scenario) -> list[ArmHandles]:
-    """Parse every arm, weld its base frame at its pose in the palm frame."""
+             scenario: Scenario, arms: Sequence[Arm] | None = None) -> list[ArmHandles]:
+    """Parse every arm, weld its base frame at its pose in the palm frame (``arms``: the
+    run's resolved arms, one per robot; default: made here from the scenario)."""
+    if arms is None:
+        arms = [Arm(robot, scenario.task) for robot in scenario.robots]
     handles = []
-    for robot in scenario.robots:
-        arm = Arm(robot, scenario.task)
+    for robot, arm in zip(scenario.robots, arms):
         parser = Parser(plant, scene_graph, model_name_prefix=robot.name)
         (instance,) = parser.AddModels(str(arm.urdf_path))
         X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
@@ -250,7 +252,8 @@ def _outboard_bodies(plant: MultibodyPlant, weld: Joint) -> list[RigidBody]:
 
 
 def build_plant(builder: DiagramBuilder, scenario: Scenario,
-                time_step: float | None = None) -> CoopPlant:
+                time_step: float | None = None, arms: Sequence[Arm] | None = None
+                ) -> CoopPlant:
     """Add the cooperative plant (with its SceneGraph) to ``builder``.
 
     Parameters
@@ -262,6 +265,10 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario,
         The plant step on the run's time grid (``RunPlan.dt``,
         :func:`drake_coop.experiment.plan.time_grid`: a multiple of it is exactly the control
         period); default ``scenario.plant.time_step`` as written.
+    arms : sequence of Arm, optional
+        The run's resolved arms (``RunPlan.arms``, one per robot, in order), so that the plant
+        and the run share one :class:`~drake_coop.plant.arms.Arm` per robot; default: made
+        from the scenario.
 
     Returns
     -------
@@ -286,7 +293,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario,
     # controllers' (all read x(t_k)); the force sensor then reports the forces of the step
     # that starts at t_k, under the torque τ(k) of that tick.
     plant.SetUseSampledOutputPorts(False)
-    arms = add_arms(plant, scene_graph, scenario)
+    arms = add_arms(plant, scene_graph, scenario, arms)
     from drake_coop.plant.model_error import add_payload  # the unmodelled payloads
 
     for h, robot in zip(arms, scenario.robots):

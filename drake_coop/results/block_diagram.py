@@ -29,6 +29,8 @@ import html
 from collections import defaultdict
 from typing import TYPE_CHECKING
 
+from drake_coop.control.registry import SOURCES
+
 if TYPE_CHECKING:
     from pydrake.systems.framework import Diagram, System
 
@@ -36,36 +38,38 @@ __all__ = ["BLOCK_LABELS", "SIGNAL_LABELS", "paper_block_diagram"]
 
 #: What a subsystem is, by its type's name: (label, equation numbers or role, column).
 #: Columns order each robot's loop left to right: 0 reference, 1 control, 2 actuators and
-#: sensors, 3 the plant.
+#: sensors, 3 the plant. The velocity and force sources' labels are their registry entries'
+#: (:data:`drake_coop.control.registry.SOURCES`).
 BLOCK_LABELS: dict[str, tuple[str, str, int]] = {
     "TrajectorySource": ("reference", "(28)–(29)", 0),
     "Controller": ("controller", "(13)", 1),
-    "VelocityObserver": ("velocity observer", "(15)–(16)", 1),
-    "ForceObserver": ("force observer", "(22)", 1),
-    "MeasuredVelocity": ("measured velocity", "baseline", 1),
-    "DifferenceVelocity": ("backward difference", "of the encoders", 1),
-    "SensedForce": ("force feedback", "F/T sensor in (13)", 1),
-    "NoForceEstimate": ("no force estimate", "λ̂ = λ_d", 1),
+    **{s.class_name: (s.label, s.role, 1) for s in SOURCES},
     "Saturation": ("actuators", "saturation", 2),
     "CoulombFriction": ("joint friction", "unknown to (13)", 2),
     "Adder": ("+", "", 2),
     "Encoders": ("encoders", "q only", 2),
+    "Demultiplexer": ("encoders", "q only, exact", 2),
     "FTSensor": ("F/T sensor model", "λ_s", 2),
     "ForceSensor": ("wrist force", "ground truth", 2),
     "WristKinematics": ("wrist kinematics", "", 3),
+    "WristDynamics": ("wrist dynamics", "ground truth", 3),
+    "ZeroOrderHold": ("hold", "", 2),
+    "Multiplexer": ("signals", "", 2),
     "MultibodyPlant": ("cooperative plant", "(1)–(2): arms and object", 3),
 }
 #: Order of the blocks inside a robot's box (top to bottom within a column): the controller
 #: beside its velocity estimate, the force estimate below, the actuators above the encoders.
-_ORDER = ("TrajectorySource", "Controller", "VelocityObserver", "MeasuredVelocity",
-          "DifferenceVelocity", "ForceObserver", "SensedForce", "NoForceEstimate",
-          "Saturation", "CoulombFriction", "Adder", "Encoders", "FTSensor", "ForceSensor")
+_ORDER = ("TrajectorySource", "Controller",
+          *(s.class_name for s in SOURCES if s.kind == "velocity"),
+          *(s.class_name for s in SOURCES if s.kind == "force"),
+          "Saturation", "CoulombFriction", "Adder", "Encoders", "Demultiplexer", "FTSensor", "ForceSensor")
 #: Signals by output port name, as the paper writes them (HTML-like graphviz text).
 SIGNAL_LABELS: dict[str, str] = {
     "q": "q", "tau": "τ",
     "qddot_r_hat": "q̈̂<SUB>r</SUB>", "q_hat": "q̂", "qdot_hat": "dq̂/dt",
     "qdot_o": "q̇<SUB>o</SUB>", "lambda_hat": "λ̂", "Delta_F_tilde": "ΔF̃",
     "lambda_sensor": "λ<SUB>s</SUB>", "lambda_meas": "λ", "F_meas": "F",
+    "tau_ext_hat": "τ̂<SUB>ext</SUB>", "O_F_ext_hat": "F̂<SUB>ext</SUB>",
 }
 _SKIPPED_TYPES = {"SceneGraph"}
 

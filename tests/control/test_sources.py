@@ -94,3 +94,73 @@ def test_measured_velocity_takes_q_from_the_encoders_and_the_velocity_from_the_p
     np.testing.assert_array_equal(mv.GetOutputPort("q_hat").Eval(ctx), [1.001, 2.001, 3.001])
     np.testing.assert_array_equal(mv.GetOutputPort("qdot_hat").Eval(ctx), [0.1, 0.2, 0.3])
     np.testing.assert_array_equal(mv.GetOutputPort("qdot_o").Eval(ctx), [0.1, 0.2, 0.3])
+
+
+# ---------------------------------------------------------------- the sources' registry
+
+def _law():
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    from drake_coop.control import ArmModel, FingerLaw, Gains
+    from drake_coop.control.arm_model import make_arm_controller_plant
+    from drake_coop.scenario.resources import urdf_dir
+
+    plant = make_arm_controller_plant(str(urdf_dir() / "crs_a465_3dof.urdf"), "base_link",
+                                      RigidTransform(RotationMatrix.MakeZRotation(0.0),
+                                                     [-0.65, 0.0, 0.0]))
+    model = ArmModel.from_plant(plant, "pad", [[-1.0, 0.0, 0.0]], [0.0, 0.0, 0.43])
+    return FingerLaw(model, Gains())
+
+
+def test_every_registered_source_is_built_with_the_ports_it_declares():
+    """Each entry of the registry builds its system, of the kind it says, whose input ports
+    are exactly the inputs it declares (each a signal of the block or an input from outside)
+    and whose outputs hold its kind's and its own."""
+    from drake_coop.control.interfaces import ForceSource, VelocitySource
+    from drake_coop.control.registry import (
+        BLOCK_SIGNALS,
+        EXTERNAL_INPUTS,
+        KIND_OUTPUTS,
+        SOURCES,
+    )
+
+    law = _law()
+    options = {"difference_cutoff_hz": 20.0, "momentum_torque_limits": None}
+    assert len({(s.kind, s.name) for s in SOURCES}) == len(SOURCES)
+    assert len({s.suffix for s in SOURCES}) == len(SOURCES)
+    for spec in SOURCES:
+        system = spec.make(law, H, options)
+        assert isinstance(system, {"velocity": VelocitySource, "force": ForceSource}[spec.kind])
+        assert type(system).__name__ == spec.class_name
+        inputs = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
+        assert sorted(inputs) == sorted(spec.inputs), spec.name
+        assert set(spec.inputs) <= set(BLOCK_SIGNALS) | set(EXTERNAL_INPUTS)
+        outputs = {system.get_output_port(i).get_name()
+                   for i in range(system.num_output_ports())}
+        assert set(KIND_OUTPUTS[spec.kind]) | set(spec.outputs) <= outputs, spec.name
+
+
+def test_the_names_exports_and_docs_of_the_sources_are_the_registrys():
+    """The accepted names, ``drake_coop.control``'s exports, and for each source an API
+    entry (docs/api/control.md) and a line in the sensing guide's table of
+    ``velocity_source`` / ``force_source`` (docs/guide/sensing.md)."""
+    from pathlib import Path
+
+    import drake_coop.control as control
+    from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES
+    from drake_coop.control.registry import SOURCES, names
+
+    assert VELOCITY_SOURCES == names("velocity") == tuple(
+        s.name for s in SOURCES if s.kind == "velocity")
+    assert FORCE_SOURCES == names("force")
+    docs = Path(__file__).resolve().parents[2] / "docs"
+    api = (docs / "api" / "control.md").read_text(encoding="utf-8")
+    guide = (docs / "guide" / "sensing.md").read_text(encoding="utf-8")
+    for spec in SOURCES:
+        assert spec.class_name in control.__all__
+        assert getattr(control, spec.class_name) is spec.system_class()
+        assert f"\n   {spec.class_name}\n" in api, f"{spec.class_name}: no API entry"
+        row = next(line for line in guide.splitlines()
+                   if line.startswith(f"| `{spec.kind}_source` |"))
+        assert f"`{spec.name}`" in row, f"{spec.kind}_source: {spec.name} not in the guide"
+        assert spec.label and spec.role

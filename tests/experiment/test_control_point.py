@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drake_coop.experiment.object_blocks import control_point, controls_contact_point
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.references import (
     cartesian_reference,
@@ -31,6 +30,10 @@ def estimated():
     return s, plan_run(s)
 
 
+def controls_contact_point(scenario) -> bool:
+    return plan_run(scenario).controls_contact_point
+
+
 def test_the_default_is_the_contact_point_only_with_an_object_model_held_by_friction():
     assert controls_contact_point(load_scenario(data=CONTACT + "object_model: {mode: known}\n"))
     assert not controls_contact_point(load_scenario(data=CONTACT))          # the paper's
@@ -45,7 +48,7 @@ def test_the_point_is_on_the_pads_surface_facing_the_box_at_the_grasp(estimated)
     s, plan = estimated
     shifts = []
     for i, arm in enumerate(plan.arms):
-        p = control_point(s, i, arm)
+        p = plan.robots[i].control_point
         kin = arm.kinematics
         q_g = kin.ik(arm.c)
         # At the grasp the point is the pad's centre plus its radius along the inward normal.
@@ -61,7 +64,7 @@ def test_the_point_is_on_the_pads_surface_facing_the_box_at_the_grasp(estimated)
 def test_references_put_the_contact_point_on_the_path_across_the_normal(estimated):
     s, plan = estimated
     for i, arm in enumerate(plan.arms):
-        p = control_point(s, i, arm)
+        p = plan.robots[i].control_point
         t = np.linspace(14.0, 30.0, 40)
         x, xd, xdd = cartesian_reference(s.task, arm.robot, t)
         q, qd, qdd = contact_point_reference(arm.kinematics, p, x, xd, xdd)
@@ -92,7 +95,7 @@ def test_references_put_the_contact_point_on_the_path_across_the_normal(estimate
 def test_the_rolling_correction_is_the_integral_of_delta_omega_cross_n(estimated):
     s, plan = estimated
     arm = plan.arms[0]
-    p = control_point(s, 0, arm)
+    p = plan.robots[0].control_point
     h = 0.009
     t = 15.0 + h * np.arange(800)
     x, xd, xdd = cartesian_reference(s.task, arm.robot, t)
@@ -117,5 +120,5 @@ def test_the_rest_posture_is_the_references_first_sample(estimated):
     s, plan = estimated
     for i, arm in enumerate(plan.arms):
         t, r = reference_samples(s, i, t_end=0.05, plan=plan)
-        q0 = start_posture(arm, s.task, control_point(s, i, arm))
+        q0 = start_posture(arm, s.task, plan.robots[i].control_point)
         assert (r[0, :3] == q0).all()

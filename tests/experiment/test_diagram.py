@@ -258,3 +258,43 @@ def test_logs_of_a_run_stopped_early_end_at_the_last_latched_tick(offset_steps, 
     scale = np.abs(log["tau"]).max()
     np.testing.assert_allclose(replay["tau"], log["tau"], rtol=0, atol=1e-11 * scale)
     assert all(v.shape[0] == log["t"].size for v in log.values())
+
+
+def test_the_block_diagram_of_every_source_combination_is_labelled():
+    """Each registered velocity source with each registered force source (two robots a
+    diagram): every block drawn has its own label (none falls back to its system's name), and
+    each source's box reads its registry entry's label and role (the momentum observer had
+    none)."""
+    import itertools
+    import re
+
+    from drake_coop.control.registry import SOURCES
+    from drake_coop.results.block_diagram import BLOCK_LABELS, paper_block_diagram
+    from drake_coop.scenario import default_scenario
+
+    velocity = [s for s in SOURCES if s.kind == "velocity"]
+    force = [s for s in SOURCES if s.kind == "force"]
+    pairs = list(itertools.product(velocity, force))
+    seen = set()
+    for k in range(0, len(pairs), 2):
+        scenario = default_scenario()
+        chosen = pairs[k:k + 2] + pairs[:max(0, k + 2 - len(pairs))]
+        for robot, (v, f) in zip(scenario.robots, chosen):
+            robot.velocity_source, robot.force_source = v.name, f.name
+        exp = build_experiment(scenario, log=False)
+        dot = paper_block_diagram(exp.diagram)
+        labels = {}
+        for label in re.findall(r"\[label=<(.*)>, fillcolor", dot):
+            title = re.search(r"<B>(.*?)</B>", label).group(1)
+            role = re.search(r"</B><BR/>(.*?)<BR/><FONT", label)
+            system = re.search(r'COLOR="#667788">(.*?)</FONT>', label).group(1)
+            labels[system] = (title, re.sub(r"<[^>]+>", "", role.group(1)) if role else "")
+            assert title != system, f"{system} has no label in the block diagram"
+        for robot, (v, f) in zip(scenario.robots, chosen):
+            for spec in (v, f):
+                system = f"{robot.name}_{spec.suffix}"
+                assert labels[system][0] == spec.label
+                assert labels[system][1] == spec.role.replace("λ_d", "λd")
+                assert BLOCK_LABELS[spec.class_name][:2] == (spec.label, spec.role)
+            seen.add((v.name, f.name))
+    assert seen == {(v.name, f.name) for v, f in pairs}

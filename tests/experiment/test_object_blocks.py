@@ -8,13 +8,17 @@ import numpy as np
 import pytest
 
 from drake_coop.control.finger import ReferenceLayout
-from drake_coop.experiment.object_blocks import couple_samples, uses_couple
+from drake_coop.experiment.object_blocks import couple_samples
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.scenario import load_scenario
 from drake_coop.scenario.resources import find_scenario
 
 CONTACT = "plant: {object_mode: contact, object_mass: 0.5, friction: 1.0, time_step: 0.003}\n"
+
+
+def uses_couple(scenario) -> bool:
+    return plan_run(scenario).uses_couple
 
 
 def test_the_couple_is_used_where_the_pads_follow_their_contact_points():
@@ -44,7 +48,7 @@ def test_each_arm_gets_its_part_of_the_moment_balance_along_the_references():
     plan = plan_run(s, 30.0)
     trajectories = [reference_trajectory(s, i, 30.0, plan) for i in range(2)]
     t = np.linspace(10.0, 30.0, 81)
-    f = [couple_samples(s, i, plan.arms, trajectories, t) for i in range(2)]
+    f = [couple_samples(plan, i, trajectories, t) for i in range(2)]
     layout = ReferenceLayout(3, 1)
     r = [np.asarray(tr.vector_values(t)).T for tr in trajectories]
     E = [np.array([arm_model(arm, closed_form=False).ee_position(q)
