@@ -41,7 +41,10 @@ def _dunder_all(path: Path) -> list[str] | None:
     for node in ast.parse(path.read_text(encoding="utf-8")).body:
         if isinstance(node, ast.Assign) and any(
                 isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
-            return [e.value for e in node.value.elts]
+            if all(isinstance(e, ast.Constant) for e in node.value.elts):
+                return [e.value for e in node.value.elts]
+            # A computed __all__ (control's reads its sources' registry): the module says it.
+            return list(importlib.import_module(_dotted(path)).__all__)
     return None
 
 

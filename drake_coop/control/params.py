@@ -276,7 +276,20 @@ class CheckedPeriod(float):
 
 def checked_period(period: float, time_step: float | None = None) -> CheckedPeriod:
     """``period`` checked by :func:`check_period` and marked so: the value to hand to every
-    block of a diagram that ticks at it."""
+    block of a diagram that ticks at it.
+
+    Parameters
+    ----------
+    period : float
+        The sampling time ``h`` (s).
+    time_step : float, optional
+        The plant's step (s); given, ``h`` must be a whole multiple of it.
+
+    Returns
+    -------
+    CheckedPeriod
+        ``h``, marked as checked against ``time_step``.
+    """
     h = CheckedPeriod(check_period(period, time_step))
     h.time_step = time_step
     return h

@@ -128,12 +128,31 @@ SOURCES: tuple[Source, ...] = (
 
 
 def names(kind: str) -> tuple[str, ...]:
-    """The names of the sources of ``kind`` (``"velocity"`` or ``"force"``), in order."""
+    """The names of the sources of ``kind``, in their registry order.
+
+    Parameters
+    ----------
+    kind : str
+        ``"velocity"`` or ``"force"``.
+    """
     return tuple(s.name for s in SOURCES if s.kind == kind)
 
 
 def source(kind: str, name: str) -> Source:
-    """The source of ``kind`` named ``name`` (``KeyError`` if none)."""
+    """The source of ``kind`` named ``name``.
+
+    Parameters
+    ----------
+    kind : str
+        ``"velocity"`` or ``"force"``.
+    name : str
+        The source's name, as a scenario spells it.
+
+    Raises
+    ------
+    KeyError
+        If no source of ``kind`` has that name.
+    """
     for s in SOURCES:
         if s.kind == kind and s.name == name:
             return s
