@@ -70,12 +70,12 @@ def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
 
 
 def tripped(controller: ControllerSide, context: Context) -> str | None:
-    """``"<robot>: <reason>"`` of the first tripped watchdog, else None."""
+    """``"<robot>: <reason> on <status channel>"`` of the first tripped watchdog, else None."""
     for arm in controller.arms:
         wd = arm.watchdog
         wd_context = wd.GetMyContextFromRoot(context)
         if wd.is_tripped(wd_context):
-            return f"{arm.spec.robot}: {wd.reason(wd_context)}"
+            return f"{arm.spec.robot}: {wd.reason(wd_context)} on {arm.spec.status_channel}"
     return None
 
 
