@@ -3,6 +3,7 @@ and a watchdog trip end with the safe command sent (in-process, ``memq://`` only
 plays the driver inside the serve loop's LCM pump)."""
 
 import json
+import math
 import os
 import signal
 
@@ -68,10 +69,25 @@ def test_a_bad_lcm_url_exits_2(tmp_path, capsys):
     assert "--lcm-url" in capsys.readouterr().err
 
 
-def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None, joints=3):
+def status_message(q, utime, joints=3):
+    """An ``lcmt_panda_status`` at ``q`` (resized to ``joints``), its other fields zero."""
+    msg = lcmt_panda_status()
+    msg.utime = utime
+    msg.num_joints = joints
+    msg.joint_position = list(np.resize(np.asarray(q, dtype=float), joints))
+    for f in ("joint_velocity", "joint_torque", "joint_torque_external",
+              "joint_position_desired", "joint_velocity_desired",
+              "joint_acceleration_desired", "joint_torque_desired"):
+        setattr(msg, f, [0.0] * joints)
+    return msg
+
+
+def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None, joints=3,
+                  hostile=None):
     """Make serve use ``lcm`` and play the driver in its pump: a status per arm at rest
     (fresh stamps) at every pump, until ``stop_status_after`` pumps; ``signal_after`` pumps
-    then send that signal to this process."""
+    then send that signal to this process; ``hostile = (pump, make)``: at that pump robot1's
+    status is replaced by the bytes ``make(q, utime)``, then the good ones go on."""
     import time
 
     from drake_coop.experiment.plan import plan_run
@@ -87,15 +103,10 @@ def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None, j
         calls["n"] += 1
         if stop_status_after is None or calls["n"] <= stop_status_after:
             for name, q in zip(("robot1", "robot2"), q0):
-                msg = lcmt_panda_status()
-                msg.utime = calls["n"]
-                msg.num_joints = joints
-                msg.joint_position = list(np.resize(q, joints))
-                for f in ("joint_velocity", "joint_torque", "joint_torque_external",
-                          "joint_position_desired", "joint_velocity_desired",
-                          "joint_acceleration_desired", "joint_torque_desired"):
-                    setattr(msg, f, [0.0] * joints)
-                lcm.Publish(f"PANDA_STATUS_{name}", msg.encode())
+                data = status_message(q, calls["n"], joints).encode()
+                if hostile is not None and name == "robot1" and calls["n"] == hostile[0]:
+                    data = hostile[1](q, calls["n"])
+                lcm.Publish(f"PANDA_STATUS_{name}", data)
         if signal_after is not None and calls["n"] == signal_after[0]:
             os.kill(os.getpid(), signal_after[1])
         lcm.HandleSubscriptions(0)
@@ -156,7 +167,7 @@ def test_a_driver_reporting_another_joint_count_exits_2_naming_the_driver(tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert "robots[0].driver" in err[0] and "7 joints" in err[0]
     lcm.HandleSubscriptions(0)
-    assert all(list(m[-1].joint_torque) == [0.0] * 3 for m in commands.values())
+    assert commands == {"robot1": [], "robot2": []}     # no command before a valid status
     assert not out.exists()
 
 
@@ -180,3 +191,101 @@ def test_bad_option_exits_2_in_one_line_before_anything_starts(tmp_path, capsys,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and named in err[0], err
     assert not out.exists()
+
+
+def _shifted(q, utime, dq):
+    return status_message(np.asarray(q) + np.asarray(dq), utime).encode()
+
+
+def _command_bytes(q, utime):
+    msg = lcmt_panda_command()
+    msg.utime = utime
+    msg.num_joint_torque = 3
+    msg.joint_torque = [1.0, 2.0, 3.0]
+    return msg.encode()
+
+
+#: What a hostile or broken driver may put on the status channel, and a word of the one line.
+HOSTILE = {
+    "no joints": (lambda q, u: status_message(q, u, joints=0).encode(), "0 joints"),
+    "seven joints": (lambda q, u: status_message(q, u, joints=7).encode(), "7 joints"),
+    "truncated": (lambda q, u: status_message(q, u).encode()[:100], "truncated"),
+    "random bytes": (lambda q, u: np.random.default_rng(5).bytes(230), "another message type"),
+    "fingerprint then random": (
+        lambda q, u: status_message(q, u).encode()[:20]
+        + np.random.default_rng(6).bytes(210), "robot1"),
+    "trailing bytes": (lambda q, u: status_message(q, u).encode() + b"\0", "wrong size"),
+    "command message": (_command_bytes, "another message type"),
+    "nan": (lambda q, u: _shifted(q, u, [0.0, math.nan, 0.0]), "non-finite"),
+    "+inf": (lambda q, u: _shifted(q, u, [math.inf, 0.0, 0.0]), "non-finite"),
+    "-inf": (lambda q, u: _shifted(q, u, [0.0, 0.0, -math.inf]), "non-finite"),
+    "0.5 rad jump": (lambda q, u: _shifted(q, u, [0.0, 0.5, 0.0]), "jumped"),
+}
+#: The URDF's effort limits of the paper's arms (urdf/crs_a465_3dof.urdf, effort="2000").
+URDF_EFFORT = 2000.0
+
+
+@pytest.mark.parametrize("case", sorted(HOSTILE))
+@pytest.mark.parametrize("pump", [1, 30])              # the first status, or mid-run
+def test_a_hostile_status_trips_at_its_tick_with_one_line_and_the_run_kept(
+        tmp_path, monkeypatch, capsys, case, pump):
+    make, word = HOSTILE[case]
+    if pump == 1 and case == "0.5 rad jump":
+        pytest.skip("a jump needs a reading before it")
+    lcm = DrakeLcm("memq://")
+    commands = played_driver(monkeypatch, lcm, hostile=(pump, make))
+    out = tmp_path / "run"
+    code = main(["serve", "paper", "--lcm-url", "memq://", "--out", str(out),
+                 "--delay-margin", "0.002", "--quiet", "--t-end", "2"])
+    lcm.HandleSubscriptions(0)
+    err = capsys.readouterr().err.strip().splitlines()
+    if pump == 1 and case in ("no joints", "seven joints"):
+        # a first status of another joint count: the driver of another arm, a setup error
+        assert code == 2 and len(err) == 1 and "robots[0].driver" in err[0], err
+        assert commands == {"robot1": [], "robot2": []} and not out.exists()
+        return
+    assert code == 1
+    assert len(err) == 1, err
+    assert "robot1" in err[0] and "PANDA_STATUS_robot1" in err[0] and word in err[0], err
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["status"] == "stopped" and meta["watchdog"]["robot"] == "robot1"
+    assert meta["watchdog"]["channel"] == "PANDA_STATUS_robot1"
+    # the tick that read it is the last: pump p precedes tick p - 2 (pump 1: the wait)
+    k_trip = max(pump - 2, 0)
+    assert meta["pacing"]["ticks"] == k_trip + 1
+    assert (out / "pacing.csv").read_text().count("\n") == k_trip + 2   # header + ticks
+    for name, msgs in commands.items():
+        tau = np.array([m.joint_torque for m in msgs])
+        assert tau.shape == (k_trip + 2, 3)           # one per tick, and the safe one last
+        assert np.all(np.isfinite(tau)) and np.all(np.abs(tau) <= URDF_EFFORT)
+    tau = np.array([m.joint_torque for m in commands["robot1"]])
+    np.testing.assert_array_equal(tau[k_trip:], 0.0)   # the tick's command and the last
+    if k_trip > 0:
+        assert np.any(tau[k_trip - 1] != 0.0)          # the controller ran until then
+
+
+def test_without_configured_limits_the_urdfs_effort_limits_bound_the_command(
+        tmp_path, monkeypatch, capsys):
+    """The paper's scenario sets no torque limit: serve takes the URDF's (read here from the
+    file's XML, independently of Drake)."""
+    import xml.etree.ElementTree as ET
+
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import model_urdf_path
+
+    s = load_scenario()
+    assert all(r.driver is None or r.driver.torque_limits is None for r in s.robots)
+    assert all(r.actuators.torque_limits is None for r in s.robots)
+    effort = {}
+    for robot in s.robots:
+        root = ET.parse(model_urdf_path(robot)).getroot()
+        effort[robot.name] = [float(j.find("limit").get("effort")) for j in root.iter("joint")
+                              if j.get("type") == "revolute"]
+    assert effort == {"robot1": [URDF_EFFORT] * 3, "robot2": [URDF_EFFORT] * 3}
+    lcm = DrakeLcm("memq://")
+    played_driver(monkeypatch, lcm)
+    out = tmp_path / "run"
+    assert main(["serve", "paper", "--lcm-url", "memq://", "--out", str(out),
+                 "--delay-margin", "0.002", "--quiet", "--t-end", "0.05"]) == 0
+    meta = json.loads((out / "run.json").read_text())
+    assert meta["torque_limits"] == effort
