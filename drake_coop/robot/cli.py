@@ -18,6 +18,12 @@ the run with one line naming the robot, the status channel and what was wrong. T
 is committed only once the loop has ticked: an interrupted wait for the first status leaves
 the folder (and a previous run in it) as it was.
 
+``run.json`` also records the real-time settings the process actually got, read back from
+the kernel (scheduling policy and priority, CPU affinity, locked memory:
+:func:`~drake_coop.robot.pacing.realtime_settings`); ``--require-rt`` refuses to start (exit 2,
+one line naming what is missing) without a real-time policy, a CPU affinity narrower than the
+online CPUs and memory locked (``mlockall``, attempted once the other two are granted).
+
 ``sim-driver`` runs the scenario's plant behind the same messages at the driver's rate,
 paced at real time; its arms are held still (brakes on) until the first command arrives.
 
@@ -55,6 +61,9 @@ def add_robot_parsers(sub) -> None:
                        help="the loop's delay margin (default: computed by the stability map)")
     serve.add_argument("--status-wait", type=float, default=STATUS_WAIT,
                        help=f"wait for the first status (s, default {STATUS_WAIT:g})")
+    serve.add_argument("--require-rt", action="store_true",
+                       help="refuse to start without real-time scheduling (SCHED_FIFO/RR), "
+                            "a CPU affinity and locked memory (mlockall, attempted then)")
     serve.add_argument("--quiet", action="store_true", help="no progress messages")
     serve.set_defaults(func=cmd_serve)
     drv = sub.add_parser("sim-driver", help="the scenario's simulated arms behind their "
@@ -140,21 +149,37 @@ def cmd_serve(args) -> int:
     scenario, specs, lcm = loaded
     from drake_coop.experiment.plan import plan_run
     from drake_coop.results.run_folder import OutputFolderError, RunFolder
+    from drake_coop.robot.pacing import missing_realtime, realtime_settings, unlock_memory
 
+    rt = realtime_settings()
+    if getattr(args, "require_rt", False):
+        # memory is locked (for good: MCL_FUTURE) only once the rest is granted
+        missing = missing_realtime(rt, memory=False)
+        if not missing:
+            rt = realtime_settings(lock_memory=True)
+            missing = missing_realtime(rt)
+            if missing:
+                unlock_memory()
+        else:
+            missing.append("locked memory (not attempted without the rest)")
+        if missing:
+            return _error("--require-rt: missing " + "; ".join(missing))
     plan = plan_run(scenario, args.t_end)
     folder = RunFolder(args.out)
     try:
         staging = folder.prepare(plan.k_end + 1, robots=len(specs), replace=args.force)
     except OutputFolderError as exc:
+        if rt["mlockall"] == "ok":
+            unlock_memory()
         return _error(str(exc))
     try:
-        return _serve(args, scenario, specs, plan, lcm, folder, staging)
+        return _serve(args, scenario, specs, plan, lcm, folder, staging, rt)
     except BaseException:
         folder.discard()
         raise
 
 
-def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
+def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     import numpy as np
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
@@ -172,6 +197,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
         PacingRecord,
         StatusArrivals,
         delay_margin,
+        missing_realtime,
         pacing_summary,
         plot_pacing,
         pump_until,
@@ -290,6 +316,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
             "channels": {s.robot: [s.status_channel, s.command_channel] for s in specs},
             "safe_command": {s.robot: s.safe_command for s in specs},
             "torque_limits": {s.robot: [float(v) for v in s.torque_limits] for s in specs},
+            "realtime": realtime, "realtime_missing": missing_realtime(realtime),
             "pacing": summary}
     write_pacing_csv(staging / "pacing.csv", record)
     if record.k:

@@ -338,3 +338,49 @@ def test_without_configured_limits_the_urdfs_effort_limits_bound_the_command(
                  "--delay-margin", "0.002", "--quiet", "--t-end", "0.05"]) == 0
     meta = json.loads((out / "run.json").read_text())
     assert meta["torque_limits"] == effort
+
+
+def test_run_json_records_the_realtime_settings_read_back(tmp_path, monkeypatch, capsys):
+    lcm = DrakeLcm("memq://")
+    played_driver(monkeypatch, lcm)
+    out = tmp_path / "run"
+    assert main(["serve", "paper", "--lcm-url", "memq://", "--out", str(out), "--quiet",
+                 "--delay-margin", "0.002", "--t-end", "0.05"]) == 0
+    rt = json.loads((out / "run.json").read_text())["realtime"]
+    policy = os.sched_getscheduler(0)
+    assert getattr(os, rt["policy"]) == policy
+    assert rt["priority"] == os.sched_getparam(0).sched_priority
+    assert rt["cpu_affinity"] == sorted(os.sched_getaffinity(0))
+    assert rt["mlockall"] == "not requested"
+
+
+def test_require_rt_refuses_to_start_naming_what_is_missing(tmp_path, capsys):
+    assert os.sched_getscheduler(0) == os.SCHED_OTHER      # the test process is not real-time
+    out = tmp_path / "run"
+    assert main(["serve", "paper", "--lcm-url", "memq://", "--out", str(out), "--quiet",
+                 "--delay-margin", "0.002", "--require-rt"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--require-rt" in err[0] and "SCHED_OTHER" in err[0], err
+    assert "locked memory (not attempted" in err[0]
+    assert not out.exists()
+
+
+def test_require_rt_refuses_when_mlockall_fails(tmp_path, monkeypatch, capsys):
+    import errno
+    from types import SimpleNamespace
+
+    from drake_coop.robot import pacing
+
+    monkeypatch.setattr(os, "sched_getscheduler", lambda pid: os.SCHED_FIFO)
+    monkeypatch.setattr(os, "sched_getparam", lambda pid: SimpleNamespace(sched_priority=80))
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {1})
+    monkeypatch.setattr(os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(pacing, "_mlockall", lambda: errno.EPERM)
+    monkeypatch.setattr(pacing, "_locked_kib", lambda: 0)
+    out = tmp_path / "run"
+    assert main(["serve", "paper", "--lcm-url", "memq://", "--out", str(out), "--quiet",
+                 "--delay-margin", "0.002", "--require-rt"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "locked memory (mlockall failed: EPERM" in err[0], err
+    assert "scheduling" not in err[0] and "affinity" not in err[0]
+    assert not out.exists()
