@@ -205,7 +205,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         summary_line,
         write_pacing_csv,
     )
-    from drake_coop.robot.status import check_panda_status
+    from drake_coop.robot.status import RawMessage, check_panda_status
     from drake_coop.scenario.loading import dump_scenario
 
     quiet = args.quiet
@@ -220,10 +220,13 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     builder = DiagramBuilder()
     # No LcmInterfaceSystem: the wall-clock loop pumps LCM between ticks (and records each
     # status's arrival with a plain handler, which must not run inside AdvanceTo).
-    side = add_controller_side(builder, scenario, lcm, plan, specs)
+    side = add_controller_side(builder, scenario, lcm, plan, specs, status_input="loop")
     specs = [arm.spec for arm in side.arms]          # the torque limits resolved
     diagram = builder.Build()
-    arrivals = StatusArrivals(lcm, [s.status_channel for s in specs])
+    arrivals = StatusArrivals(  # every message's bytes checked as it arrives
+        lcm, [s.status_channel for s in specs],
+        check={s.status_channel: (lambda data, n=s.n: check_panda_status(data, n)[2]
+                                  == STATUS_OK) for s in specs})
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
     record = PacingRecord(period=plan.h, driver_period=max(s.period for s in specs))
@@ -273,6 +276,8 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         for i, spec in enumerate(specs):
             q, _, fault, value = check_panda_status(arrivals.message[spec.status_channel],
                                                     spec.n)
+            if fault == STATUS_OK and arrivals.faulty[spec.status_channel] is not None:
+                fault = check_panda_status(arrivals.faulty[spec.status_channel], spec.n)[2]
             if fault == 4:           # a driver of another arm: a setup error, nothing started
                 print(f"drake-coop: robots[{i}].driver: the status on {spec.status_channel} "
                       f"has {value:.0f} joints, the arm {spec.n}", file=sys.stderr)
@@ -281,6 +286,20 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
             # any other fault trips the watchdog at the first tick
             q0.append(q if fault == STATUS_OK else np.asarray(rest[i], dtype=float))
         initialize_sides(scenario, plan, context, None, side, q0)
+        # each arm's newest status, handed to its receiver before every tick
+        fed = [arm.status_receiver.get_message_input_port().FixValue(
+            arm.status_receiver.GetMyMutableContextFromRoot(context),
+            RawMessage()) for arm in side.arms]
+        seen = [-1] * len(specs)            # the first tick takes the first faulty or newest
+
+        def feed(k: int) -> None:
+            for i, spec in enumerate(specs):
+                count = arrivals.count[spec.status_channel]
+                if count != seen[i]:
+                    seen[i] = count
+                    fed[i].GetMutableData().set_value(
+                        RawMessage(arrivals.take(spec.status_channel)))
+
         simulator.Initialize()
         if not quiet:
             print(f"drake-coop: serving {len(specs)} arms at h = {plan.h * 1e3:g} ms to "
@@ -288,7 +307,8 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         started = True
         try:
             reason = run_paced(simulator, lcm, arrivals, plan.h, plan.k_end, COMMAND_OFFSET,
-                               record, lambda k: "tripped" if tripped_arm() else "")
+                               record, lambda k: "tripped" if tripped_arm() else "",
+                               before_tick=feed)
         except Exception as exc:       # a defect, not an input: the record is kept all the same
             status, code = "failed", 1
             message = (f"error at t = {context.get_time():.3f} s: {type(exc).__name__}: "

@@ -229,7 +229,7 @@ class ArmController:
     spec: DriverSpec
     block: ControllerHandles
     watchdog: Watchdog
-    status_subscriber: LcmSubscriberSystem
+    status_subscriber: LcmSubscriberSystem | None
     status_receiver: CheckedStatusReceiver
     command_sender: PandaCommandSender
     command_publisher: LcmPublisherSystem
@@ -289,8 +289,16 @@ def urdf_limits(plant, instance) -> tuple[np.ndarray, np.ndarray]:
 
 
 def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
-                        plan: RunPlan, specs: list[DriverSpec] | None = None) -> ControllerSide:
+                        plan: RunPlan, specs: list[DriverSpec] | None = None, *,
+                        status_input: str = "subscriber") -> ControllerSide:
     """Add each arm's control block, watchdog and LCM status/command systems to ``builder``.
+
+    ``status_input="subscriber"``: each arm's status arrives through an
+    ``LcmSubscriberSystem`` (pumped by an ``LcmInterfaceSystem`` or by the caller);
+    ``"loop"``: no subscriber, the caller sets the newest status's bytes on each
+    ``status_receiver``'s ``message`` input (a fixed value, :class:`RawMessage`) before the
+    tick, as ``drake-coop serve``'s loop does (no Simulator step to latch a message, no
+    message decoded for nothing at the driver's rate).
 
     The control blocks are the public
     :func:`~drake_coop.control.block.AddCooperativeController` with ``q`` from the driver's
@@ -309,15 +317,20 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     coop = build_plant(model_builder, scenario, plan.dt)
     joints = [coop.plant.num_positions(a.instance) for a in coop.arms]
     specs = specs if specs is not None else driver_specs(scenario, joints)
+    if status_input not in ("subscriber", "loop"):
+        raise ValueError(f"status_input: 'subscriber' or 'loop' (got {status_input!r})")
     guards = scenario.guards
     margin = math.radians(guards.joint_limit_margin_deg)
     arms = []
     for i, (handles, robot, spec) in enumerate(zip(coop.arms, scenario.robots, specs)):
         name, n = robot.name, spec.n
-        status_sub = builder.AddNamedSystem(f"{name}_status_subscriber", LcmSubscriberSystem.Make(
-            spec.status_channel, RawMessage, lcm))
         receiver = builder.AddNamedSystem(f"{name}_status_receiver", CheckedStatusReceiver(n))
-        builder.Connect(status_sub.get_output_port(), receiver.get_message_input_port())
+        status_sub = None
+        if status_input == "subscriber":
+            status_sub = builder.AddNamedSystem(
+                f"{name}_status_subscriber",
+                LcmSubscriberSystem.Make(spec.status_channel, RawMessage, lcm))
+            builder.Connect(status_sub.get_output_port(), receiver.get_message_input_port())
         model = controller_arm_model(handles.arm, robot.model_error)
         arm = handles.arm
         effort, velocity = urdf_limits(coop.plant, handles.instance)

@@ -59,23 +59,44 @@ class PacingRecord:
 
 
 class StatusArrivals:
-    """Wall time at which the newest message of each channel arrived in this process
-    (a plain ``DrakeLcm`` subscription beside the Diagram's subscribers; pump it outside
-    ``AdvanceTo`` only, see :func:`~drake_coop.robot.drivers.add_lcm_interface`)."""
+    """Wall time at which the newest message of each channel arrived in this process, and
+    that message (a plain ``DrakeLcm`` subscription; pump it outside ``AdvanceTo`` only, see
+    :func:`~drake_coop.robot.drivers.add_lcm_interface`).
 
-    def __init__(self, lcm, channels: list[str]):
+    ``check``, optional, maps a channel to ``check(data) -> bool`` (False: a faulty message);
+    every message is checked as it arrives, and :meth:`take` gives the first faulty one since
+    the last :meth:`take` in preference to the newest, so that a bad message followed by good
+    ones between two ticks is still seen by the next tick.
+    """
+
+    def __init__(self, lcm, channels: list[str], check: dict | None = None):
         self.last = {c: math.nan for c in channels}
         self.count = {c: 0 for c in channels}
         self.message = {c: None for c in channels}
+        self.faulty = {c: None for c in channels}
+        self._check = dict(check or {})
         for c in channels:
             lcm.Subscribe(c, self._handler(c))
 
     def _handler(self, channel: str):
+        check = self._check.get(channel)
+
         def handle(data: bytes) -> None:
             self.last[channel] = time.perf_counter()
             self.count[channel] += 1
             self.message[channel] = data
+            if check is not None and self.faulty[channel] is None and not check(data):
+                self.faulty[channel] = data
         return handle
+
+    def take(self, channel: str) -> bytes | None:
+        """The first faulty message since the last call if any (then forgotten), else the
+        newest."""
+        data = self.faulty[channel]
+        if data is None:
+            return self.message[channel]
+        self.faulty[channel] = None
+        return data
 
     def all_arrived(self) -> bool:
         return all(n > 0 for n in self.count.values())
@@ -100,18 +121,23 @@ def pump_until(lcm, deadline: float) -> None:
 
 
 def run_paced(simulator, lcm, arrivals: StatusArrivals, h: float, k_end: int, offset: float,
-              record: PacingRecord, after_tick=None, lead: float = 0.05) -> float:
+              record: PacingRecord, after_tick=None, lead: float = 0.05,
+              before_tick=None) -> float:
     """Advance ``simulator`` tick by tick against the wall clock.
 
-    For ``k = 0 … k_end``: pump LCM until ``t0 + k h``, then ``AdvanceTo(k h + offset)``; the
-    tick's figures go to ``record``. ``after_tick(k)`` returning a string stops the loop (the
-    watchdog's reason); it is returned. ``t0`` is ``lead`` seconds after the call.
+    For ``k = 0 … k_end``: pump LCM until ``t0 + k h``, call ``before_tick(k)`` (e.g. hand the
+    newest statuses to the Diagram), then ``AdvanceTo(k h + offset)``; the tick's figures go
+    to ``record`` (its computation includes ``before_tick``). ``after_tick(k)`` returning a
+    string stops the loop (the watchdog's reason); it is returned. ``t0`` is ``lead`` seconds
+    after the call.
     """
     t0 = time.perf_counter() + lead
     for k in range(k_end + 1):
         pump_until(lcm, t0 + k * h)
         start = time.perf_counter()
         age = arrivals.age(start)
+        if before_tick is not None:
+            before_tick(k)
         simulator.AdvanceTo(k * h + offset)
         end = time.perf_counter()
         record.add(k, end - start, end - (t0 + k * h), age)

@@ -136,8 +136,9 @@ def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None, j
                   hostile=None):
     """Make serve use ``lcm`` and play the driver in its pump: a status per arm at rest
     (fresh stamps) at every pump, until ``stop_status_after`` pumps; ``signal_after`` pumps
-    then send that signal to this process; ``hostile = (pump, make)``: at that pump robot1's
-    status is replaced by the bytes ``make(q, utime)``, then the good ones go on."""
+    then send that signal to this process; ``hostile = (pump, make[, then_good])``: at that
+    pump robot1's status is replaced by the bytes ``make(q, utime)`` (followed within the same
+    pump by a good one if ``then_good``), then the good ones go on."""
     import time
 
     from drake_coop.experiment.plan import plan_run
@@ -155,7 +156,10 @@ def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None, j
             for name, q in zip(("robot1", "robot2"), q0):
                 data = status_message(q, calls["n"], joints).encode()
                 if hostile is not None and name == "robot1" and calls["n"] == hostile[0]:
-                    data = hostile[1](q, calls["n"])
+                    lcm.Publish(f"PANDA_STATUS_{name}", hostile[1](q, calls["n"]))
+                    if len(hostile) < 3 or not hostile[2]:
+                        continue
+                    data = status_message(q, calls["n"] * 10 + 1).encode()  # a good one after
                 lcm.Publish(f"PANDA_STATUS_{name}", data)
         if signal_after is not None and calls["n"] == signal_after[0]:
             os.kill(os.getpid(), signal_after[1])
@@ -384,3 +388,21 @@ def test_require_rt_refuses_when_mlockall_fails(tmp_path, monkeypatch, capsys):
     assert len(err) == 1 and "locked memory (mlockall failed: EPERM" in err[0], err
     assert "scheduling" not in err[0] and "affinity" not in err[0]
     assert not out.exists()
+
+
+def test_a_bad_status_followed_by_a_good_one_before_the_tick_still_trips(tmp_path, monkeypatch,
+                                                                        capsys):
+    """At 1 kHz a tick of 9 ms reads one status of nine: every message's bytes are checked as
+    it arrives, and the next tick reads the faulty one."""
+    lcm = DrakeLcm("memq://")
+    commands = played_driver(monkeypatch, lcm, hostile=(30, HOSTILE["truncated"][0], True))
+    out = tmp_path / "run"
+    assert main(["serve", "paper", "--lcm-url", "memq://", "--out", str(out),
+                 "--delay-margin", "0.002", "--quiet", "--t-end", "2"]) == 1
+    lcm.HandleSubscriptions(0)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "truncated" in err[0] and "PANDA_STATUS_robot1" in err[0], err
+    assert json.loads((out / "run.json").read_text())["pacing"]["ticks"] == 29
+    tau = np.array([m.joint_torque for m in commands["robot1"]])
+    np.testing.assert_array_equal(tau[28:], 0.0)
+    assert np.any(tau[27] != 0.0)
