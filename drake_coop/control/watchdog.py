@@ -1,14 +1,17 @@
 """The controller's watchdog between its torque and an arm's driver: :class:`Watchdog`.
 
 A real arm's controller must stop safely when its input goes bad. At every tick the watchdog
-checks the driver's newest status (its age, its reading) and the force estimate (the run's
-force guard), and passes the controller's torque on, clipped to the torque limits, until one
-check fails; from then on it sends the driver's safe command (zero torque, or the gravity
-torque that holds the arm) and reports why. Its torque output is never non-finite.
+checks the driver's newest status (its arrival, its shape, its age, its reading, how far the
+reading moved since the last one) and the force estimate (the run's force guard), and passes
+the controller's torque on, always clipped to the torque limits, once a valid status has
+arrived and until one check fails; from then on it sends the driver's safe command (zero
+torque, or the gravity torque that holds the arm) and reports why. Its torque output is never
+non-finite and never beyond the limits.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
@@ -21,8 +24,23 @@ from pydrake.systems.framework import (
 
 from drake_coop.control.params import check_period
 
-#: What :class:`Watchdog` sends once tripped.
+#: What :class:`Watchdog` sends once tripped (and before the first valid status).
 SAFE_COMMANDS = ("zero_torque", "hold")
+
+#: The ``status`` input's fault codes (its second entry), set by whatever decodes the driver's
+#: messages: ``STATUS_OK`` a valid status, ``STATUS_NONE`` none has arrived yet (not a fault:
+#: the watchdog waits, sending the safe command, at most ``max_status_age``); the others are
+#: faults that trip the watchdog at the tick they arrive. The third entry is a number the
+#: one-line reason quotes (``{v}``; ``{n}`` is the arm's joint count).
+STATUS_OK, STATUS_NONE = 0, 1
+STATUS_FAULTS = {
+    2: "not a status message (another message type, {v:.0f} bytes)",
+    3: "truncated status ({v:.0f} bytes)",
+    4: "status of {v:.0f} joints, the arm has {n}",
+    5: "status of the wrong size ({v:.0f} bytes)",
+    6: "non-finite joint position in the status",
+}
+
 #: The watchdog's reason codes (its ``tripped`` output) and their one-line meaning.
 TRIP_REASONS = {
     0: "",
@@ -31,7 +49,13 @@ TRIP_REASONS = {
     3: "joint position out of range",
     4: "force guard: |lambda_hat| beyond max_force",
     5: "non-finite torque from the controller",
+    6: "non-finite status stamp (a stale status)",
+    7: "malformed status",
+    8: "joint position jumped faster than the velocity limits allow",
 }
+
+#: Readings may differ by this much (rad) beyond what the velocity limits allow (noise floor).
+JUMP_TOLERANCE = 1e-6
 
 
 class Watchdog(LeafSystem):
@@ -42,7 +66,7 @@ class Watchdog(LeafSystem):
         name: Watchdog
         input_ports:
         - q
-        - status_stamp
+        - status
         - tau
         - lambda_hat
         output_ports:
@@ -50,34 +74,47 @@ class Watchdog(LeafSystem):
         - tau_safe
         - tripped
 
-    At every tick ``t_k = k h`` (a periodic discrete update, after the controller has latched
-    ``τ(k)``), with ``s`` the newest status's stamp and ``t_s`` the tick at which that stamp was
-    first seen, the watchdog trips (once, for good) when
+    The ``status`` input is ``[s, f, v]``: the newest status's stamp ``s`` (s, the driver's
+    clock), its fault code ``f`` (:data:`STATUS_OK`, :data:`STATUS_NONE` before the first one,
+    or a key of :data:`STATUS_FAULTS`) and a number ``v`` the fault's reason quotes.
 
-    * ``t_k − t_s > a_max`` (the status stopped arriving; ``t_s = 0`` before the first one),
+    At every tick ``t_k = k h`` (a periodic discrete update, after the controller has latched
+    ``τ(k)``), with ``t_s`` the tick at which the newest stamp was first seen (the start
+    before the first status), ``q_g`` and ``s_g`` the last reading that passed the checks and
+    its stamp, the watchdog trips (once, for good) when
+
+    * ``f`` is a fault (a malformed status: wrong type, truncated, another joint count, the
+      wrong size, a non-finite position),
+    * ``s`` is not finite while ``f = STATUS_OK`` (counts as stale),
+    * ``t_k − t_s > a_max`` (the status stopped arriving, or none arrived),
     * a reading ``q_j`` is not finite, or ``q_j ∉ [q_min,j, q_max,j]``,
+    * ``|q_j − q_g,j| > v_max,j · max(s − s_g, 0) + ε`` (a jump the arm cannot make in the time
+      between the two statuses; ``ε`` = :data:`JUMP_TOLERANCE`; checked from the second valid
+      status on),
     * ``max_j |λ̂_j| > F_max`` or ``λ̂`` is not finite (the run's force guard),
     * ``τ(k)`` is not finite.
 
     Its output, at any time::
 
-        tau_safe = clip(τ, −τ_max, τ_max)   if not tripped and τ finite
+        tau_safe = clip(τ, −τ_max, τ_max)   if a valid status has arrived, not tripped,
+                                            and τ finite
                    τ_safe                   otherwise
 
-    with ``τ_safe = 0`` (``zero_torque``) or ``τ_safe = g(q_good)`` (``hold``: the gravity
-    torque, from the caller's model, at the last reading that passed the checks), itself clipped
-    and finite (0 where it is not). So the first bad tick already sends ``τ_safe``.
+    with ``τ_safe = 0`` (``zero_torque``) or ``τ_safe = clip(g(q_g))`` (``hold``: the gravity
+    torque, from the caller's model, at the last good reading; 0 where not finite). So the
+    controller's torque never leaves before a valid status, and the first bad tick already
+    sends ``τ_safe``; ``τ_max`` is required and finite: ``tau_safe`` is always within it.
 
     The controller reads its positions through ``q_checked``: the reading itself (the same
-    doubles) when it is finite, else the last good reading, so that a NaN never reaches the
-    control blocks (Drake's models refuse non-finite positions); the tick that sees it trips.
+    doubles) when the status is valid and finite, else the last good reading, so that no
+    NaN or stale zero (before the first status) reaches the control blocks.
 
     Input ports
     -----------
     q : n-vector
         The driver's measured joint positions (the reading the controller uses).
-    status_stamp : 1-vector
-        Any number that changes with every new status (its time stamp).
+    status : 3-vector
+        ``[s, f, v]`` above.
     tau : n-vector
         The controller's torque ``τ(k)``.
     lambda_hat : m-vector
@@ -86,7 +123,7 @@ class Watchdog(LeafSystem):
     Output ports
     ------------
     q_checked : n-vector
-        ``q`` if finite, else the last good reading (for the control blocks).
+        ``q`` if valid, else the last good reading (for the control blocks).
     tau_safe : n-vector
         What to send to the driver.
     tripped : 1-vector
@@ -99,13 +136,15 @@ class Watchdog(LeafSystem):
     period : float
         The control period ``h`` (s).
     max_status_age : float
-        ``a_max`` (s, > 0).
+        ``a_max`` (s, ≥ h: a shorter one would trip whenever a tick sees no new status).
     q_min, q_max : array_like, shape (n,)
         The accepted range of each reading (rad), ``q_min < q_max``.
     max_force : float
         ``F_max`` (N, > 0).
-    torque_limits : array_like, shape (n,), optional
-        ``τ_max`` (N·m, > 0); default none.
+    torque_limits : array_like, shape (n,)
+        ``τ_max`` (N·m, finite, > 0): the arm's effort limits, or tighter ones.
+    velocity_limits : array_like, shape (n,), optional
+        ``v_max`` (rad/s, > 0; ``inf`` leaves a joint unchecked); default none: no jump check.
     safe_command : {"zero_torque", "hold"}
         ``τ_safe``.
     hold_torque : callable, optional
@@ -113,7 +152,7 @@ class Watchdog(LeafSystem):
     """
 
     def __init__(self, n: int, m: int, period: float, *, max_status_age: float, q_min,
-                 q_max, max_force: float, torque_limits=None,
+                 q_max, max_force: float, torque_limits, velocity_limits=None,
                  safe_command: str = "zero_torque",
                  hold_torque: Callable[[np.ndarray], np.ndarray] | None = None):
         super().__init__()
@@ -123,6 +162,9 @@ class Watchdog(LeafSystem):
         self._h = check_period(period)
         self._n, self._m = int(n), int(m)
         self._max_age = _positive(max_status_age, "max_status_age")
+        if self._max_age < self._h * (1 - 1e-9):
+            raise ValueError(f"max_status_age: at least one control period ({self._h:g} s) is "
+                             f"required (got {max_status_age!r})")
         self._max_force = _positive(max_force, "max_force")
         self._q_min = _vector(q_min, n, "q_min")
         self._q_max = _vector(q_max, n, "q_max")
@@ -130,11 +172,17 @@ class Watchdog(LeafSystem):
                 self._q_min >= self._q_max):
             raise ValueError("q_min, q_max: q_min < q_max is required for every joint")
         if torque_limits is None:
-            self._tau_max = np.full(n, np.inf)
+            raise ValueError("torque_limits: n finite limits > 0 are required (the arm's "
+                             "effort limits, or tighter ones)")
+        self._tau_max = _vector(torque_limits, n, "torque_limits")
+        if not np.all((self._tau_max > 0) & np.isfinite(self._tau_max)):
+            raise ValueError("torque_limits: every limit must be finite and > 0")
+        if velocity_limits is None:
+            self._v_max = None
         else:
-            self._tau_max = _vector(torque_limits, n, "torque_limits")
-            if not np.all(self._tau_max > 0):
-                raise ValueError("torque_limits: every limit must be > 0")
+            self._v_max = _vector(velocity_limits, n, "velocity_limits")
+            if not np.all(self._v_max > 0):       # NaN fails too
+                raise ValueError("velocity_limits: every limit must be > 0 (inf: unchecked)")
         if safe_command not in SAFE_COMMANDS:
             raise ValueError(f"safe_command: one of {', '.join(SAFE_COMMANDS)} "
                              f"(got {safe_command!r})")
@@ -143,17 +191,19 @@ class Watchdog(LeafSystem):
         self._safe_command = safe_command
         self._hold_torque = hold_torque
         self._q = self.DeclareVectorInputPort("q", n)
-        self._stamp = self.DeclareVectorInputPort("status_stamp", 1)
+        self._status = self.DeclareVectorInputPort("status", 3)
         self._tau = self.DeclareVectorInputPort("tau", n)
         self._lambda = self.DeclareVectorInputPort("lambda_hat", m)
-        # [reason, last stamp, tick at which it was first seen]; the last good reading; τ_safe.
-        self._flags = self.DeclareDiscreteState(np.array([0.0, np.nan, 0.0]))
+        # _F: [reason, last stamp, tick at which it was first seen, a valid status seen,
+        #      s_g, detail 0, detail 1, detail 2]; the last good reading q_g; τ_safe.
+        self._flags = self.DeclareDiscreteState(
+            np.array([0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, 0.0]))
         self._q_good = self.DeclareDiscreteState(n)
         self._safe = self.DeclareDiscreteState(n)
         self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
         self.DeclareVectorOutputPort(
             "q_checked", n, self._calc_q,
-            prerequisites_of_calc={self.xd_ticket(), self._q.ticket()})
+            prerequisites_of_calc={self.xd_ticket(), self._q.ticket(), self._status.ticket()})
         self.DeclareVectorOutputPort(
             "tau_safe", n, self._calc_tau,
             prerequisites_of_calc={self.xd_ticket(), self._tau.ticket()})
@@ -163,8 +213,8 @@ class Watchdog(LeafSystem):
     def get_q_input_port(self):
         return self._q
 
-    def get_status_stamp_input_port(self):
-        return self._stamp
+    def get_status_input_port(self):
+        return self._status
 
     def get_tau_input_port(self):
         return self._tau
@@ -181,19 +231,40 @@ class Watchdog(LeafSystem):
     def get_tripped_output_port(self):
         return self.GetOutputPort("tripped")
 
+    @property
+    def torque_limits(self) -> np.ndarray:
+        """``τ_max`` (a copy)."""
+        return self._tau_max.copy()
+
     def set_initial_state(self, context: Context, q: np.ndarray) -> None:
-        """Start untripped with ``q_good = q`` (the arm's reading at the start)."""
+        """Start untripped, no status seen yet, with ``q_g = q`` (the arm's expected reading
+        at the start: what ``q_checked`` gives and ``hold`` holds until the first status)."""
         q = _vector(q, self._n, "q")
-        context.SetDiscreteState(self._flags, np.array([0.0, np.nan, context.get_time()]))
+        context.SetDiscreteState(self._flags, np.array(
+            [0.0, math.nan, context.get_time(), 0.0, math.nan, 0.0, 0.0, 0.0]))
         context.SetDiscreteState(self._q_good, q)
         context.SetDiscreteState(self._safe, self._safe_torque(q))
 
     def reason(self, context: Context) -> str:
         """The one-line reason of a trip ('' if not tripped)."""
-        return TRIP_REASONS[int(context.get_discrete_state(self._flags).get_value()[0])]
+        flags = context.get_discrete_state(self._flags).get_value()
+        code = int(flags[0])
+        if code == 7:
+            fault, value = int(flags[5]), flags[6]
+            text = STATUS_FAULTS.get(fault, "unknown status fault {f}")
+            return f"{TRIP_REASONS[7]}: " + text.format(v=value, n=self._n, f=fault)
+        if code == 8:
+            j, jump, dt = flags[5:8]
+            return (f"{TRIP_REASONS[8]}: joint {int(j)} moved {jump:.4g} rad in {dt:.4g} s "
+                    f"(limit {self._v_max[int(j)]:.4g} rad/s)")
+        return TRIP_REASONS[code]
 
     def is_tripped(self, context: Context) -> bool:
         return context.get_discrete_state(self._flags).get_value()[0] != 0.0
+
+    def last_good_position(self, context: Context) -> np.ndarray:
+        """``q_g``: the last reading that passed the checks (the start's before the first)."""
+        return context.get_discrete_state(self._q_good).get_value().copy()
 
     def _safe_torque(self, q: np.ndarray) -> np.ndarray:
         if self._safe_command == "zero_torque":
@@ -202,46 +273,64 @@ class Watchdog(LeafSystem):
         tau = np.where(np.isfinite(tau), tau, 0.0)
         return np.clip(tau, -self._tau_max, self._tau_max)
 
-    def _check(self, context: Context, t: float, t_seen: float) -> int:
-        if t - t_seen > self._max_age * (1 + 1e-9):
-            return 1
-        q = self._q.Eval(context)
-        if not np.all(np.isfinite(q)):
-            return 2
-        if np.any(q < self._q_min) or np.any(q > self._q_max):
-            return 3
+    def _check(self, context: Context, flags: np.ndarray, t: float, q_good: np.ndarray):
+        """``(code, details, new status valid)`` of this tick; updates ``flags``' stamp."""
+        stamp, fault, value = self._status.Eval(context)
+        if fault != STATUS_OK and fault != STATUS_NONE:
+            return 7, (fault, value, 0.0), False
+        valid = fault == STATUS_OK
+        if valid:
+            if not math.isfinite(stamp):
+                return 6, (0.0, 0.0, 0.0), False
+            if stamp != flags[1]:                   # a new status
+                flags[1], flags[2] = stamp, t
+        if t - flags[2] > self._max_age * (1 + 1e-9):
+            return 1, (0.0, 0.0, 0.0), False
+        if valid:
+            q = self._q.Eval(context)
+            if not np.all(np.isfinite(q)):
+                return 2, (0.0, 0.0, 0.0), False
+            if np.any(q < self._q_min) or np.any(q > self._q_max):
+                return 3, (0.0, 0.0, 0.0), False
+            if self._v_max is not None and flags[3] != 0.0:
+                dt = max(stamp - flags[4], 0.0)
+                excess = np.abs(q - q_good) - (self._v_max * dt + JUMP_TOLERANCE)
+                j = int(np.argmax(excess))
+                if excess[j] > 0:
+                    return 8, (float(j), float(abs(q[j] - q_good[j])), dt), False
         lam = self._lambda.Eval(context)
         if not np.all(np.isfinite(lam)) or np.max(np.abs(lam)) > self._max_force:
-            return 4
+            return 4, (0.0, 0.0, 0.0), False
         if not np.all(np.isfinite(self._tau.Eval(context))):
-            return 5
-        return 0
+            return 5, (0.0, 0.0, 0.0), False
+        return 0, (0.0, 0.0, 0.0), valid
 
     def _update(self, context: Context, discrete: DiscreteValues) -> None:
-        reason, last, t_seen = context.get_discrete_state(self._flags).get_value()
-        if reason != 0.0:
+        flags = context.get_discrete_state(self._flags).get_value().copy()
+        if flags[0] != 0.0:
             return
-        t = context.get_time()
-        stamp = float(self._stamp.Eval(context)[0])
-        if stamp != last:                        # a new status (NaN never equals: the first)
-            last, t_seen = stamp, t
-        code = self._check(context, t, t_seen)
-        discrete.set_value(self._flags, np.array([float(code), last, t_seen]))
-        if code == 0:
+        q_good = context.get_discrete_state(self._q_good).get_value()
+        code, details, valid = self._check(context, flags, context.get_time(), q_good)
+        flags[0] = float(code)
+        flags[5:8] = details
+        if valid:
+            flags[3], flags[4] = 1.0, self._status.Eval(context)[0]
             discrete.set_value(self._q_good, self._q.Eval(context))
-        else:
-            q_good = context.get_discrete_state(self._q_good).get_value()
+        elif code != 0:
             discrete.set_value(self._safe, self._safe_torque(q_good))
+        discrete.set_value(self._flags, flags)
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
         q = self._q.Eval(context)
-        output.SetFromVector(q if np.all(np.isfinite(q))
-                             else context.get_discrete_state(self._q_good).get_value())
+        if self._status.Eval(context)[1] == STATUS_OK and np.all(np.isfinite(q)):
+            output.SetFromVector(q)
+        else:
+            output.SetFromVector(context.get_discrete_state(self._q_good).get_value())
 
     def _calc_tau(self, context: Context, output: BasicVector) -> None:
+        flags = context.get_discrete_state(self._flags).get_value()
         tau = self._tau.Eval(context)
-        if context.get_discrete_state(self._flags).get_value()[0] != 0.0 or not np.all(
-                np.isfinite(tau)):
+        if flags[0] != 0.0 or flags[3] == 0.0 or not np.all(np.isfinite(tau)):
             output.SetFromVector(context.get_discrete_state(self._safe).get_value())
         else:
             output.SetFromVector(np.clip(tau, -self._tau_max, self._tau_max))

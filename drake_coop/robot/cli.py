@@ -9,6 +9,21 @@ SIGTERM, and in every case sends each driver its safe command last. The run fold
 ``run.json`` (status, reason, pacing summary against the delay margin), ``pacing.csv`` and
 ``pacing.png``.
 
+Before anything starts, the LCM URL's provider is checked (``udpm``, ``mpudpm``, ``tcpq``,
+``memq``; ``memq://`` is in-process only: ``serve`` says so, since no driver in another
+process can reach it). The loop starts once every arm's status channel has carried a message;
+the watchdog checks each status at the tick it arrives (its bytes, its age, its reading:
+:mod:`drake_coop.robot.status`, :class:`~drake_coop.control.watchdog.Watchdog`); a trip ends
+the run with one line naming the robot, the status channel and what was wrong. The run folder
+is committed only once the loop has ticked: an interrupted wait for the first status leaves
+the folder (and a previous run in it) as it was.
+
+``run.json`` also records the real-time settings the process actually got, read back from
+the kernel (scheduling policy and priority, CPU affinity, locked memory:
+:func:`~drake_coop.robot.pacing.realtime_settings`); ``--require-rt`` refuses to start (exit 2,
+one line naming what is missing) without a real-time policy, a CPU affinity narrower than the
+online CPUs and memory locked (``mlockall``, attempted once the other two are granted).
+
 ``sim-driver`` runs the scenario's plant behind the same messages at the driver's rate,
 paced at real time; its arms are held still (brakes on) until the first command arrives.
 
@@ -25,6 +40,11 @@ import time
 
 #: Default wait for the first status of every arm (s).
 STATUS_WAIT = 10.0
+#: The LCM providers ``--lcm-url`` accepts (``file://`` would write a log outside the run).
+LCM_PROVIDERS = ("udpm", "mpudpm", "tcpq", "memq")
+#: Said of ``memq://`` where it matters.
+MEMQ_NOTE = ("memq:// is in-process only: a driver in another process cannot reach it; "
+             "use udpm:// or tcpq://")
 
 
 def add_robot_parsers(sub) -> None:
@@ -41,6 +61,9 @@ def add_robot_parsers(sub) -> None:
                        help="the loop's delay margin (default: computed by the stability map)")
     serve.add_argument("--status-wait", type=float, default=STATUS_WAIT,
                        help=f"wait for the first status (s, default {STATUS_WAIT:g})")
+    serve.add_argument("--require-rt", action="store_true",
+                       help="refuse to start without real-time scheduling (SCHED_FIFO/RR), "
+                            "a CPU affinity and locked memory (mlockall, attempted then)")
     serve.add_argument("--quiet", action="store_true", help="no progress messages")
     serve.set_defaults(func=cmd_serve)
     drv = sub.add_parser("sim-driver", help="the scenario's simulated arms behind their "
@@ -71,6 +94,10 @@ def _load(args, wait_option: str, wait: float):
     from drake_coop.scenario.schema import ScenarioError
     from drake_coop.experiment.plan import check_run_size
 
+    try:
+        check_lcm_url(args.lcm_url)
+    except ValueError as exc:
+        return _error(str(exc))
     if args.t_end is not None and not (0 < args.t_end < math.inf):
         return _error(f"--t-end must be a finite number > 0, got {args.t_end}")
     try:
@@ -88,12 +115,24 @@ def _load(args, wait_option: str, wait: float):
     return scenario, specs, lcm
 
 
+def check_lcm_url(url) -> None:
+    """Raise ``ValueError`` (one line naming ``--lcm-url``) unless ``url`` is None or a URL of
+    one of :data:`LCM_PROVIDERS`."""
+    if url is None:
+        return
+    if not isinstance(url, str) or "://" not in url:
+        raise ValueError(f"--lcm-url must be a URL such as memq:// or udpm://239.255.76.67:7667"
+                         f"?ttl=0, got {url!r}")
+    provider = url.split("://", 1)[0]
+    if provider not in LCM_PROVIDERS:
+        raise ValueError(f"--lcm-url {url!r}: unknown LCM provider {provider!r}; one of "
+                         + ", ".join(f"{p}://" for p in LCM_PROVIDERS))
+
+
 def _make_lcm(url):
     from pydrake.lcm import DrakeLcm
 
-    if url is not None and (not isinstance(url, str) or "://" not in url):
-        raise ValueError(f"--lcm-url must be a URL such as memq:// or udpm://239.255.76.67:7667"
-                         f"?ttl=0, got {url!r}")
+    check_lcm_url(url)
     try:
         return DrakeLcm(url) if url is not None else DrakeLcm()
     except Exception as exc:
@@ -110,37 +149,55 @@ def cmd_serve(args) -> int:
     scenario, specs, lcm = loaded
     from drake_coop.experiment.plan import plan_run
     from drake_coop.results.run_folder import OutputFolderError, RunFolder
+    from drake_coop.robot.pacing import missing_realtime, realtime_settings, unlock_memory
 
+    rt = realtime_settings()
+    if getattr(args, "require_rt", False):
+        # memory is locked (for good: MCL_FUTURE) only once the rest is granted
+        missing = missing_realtime(rt, memory=False)
+        if not missing:
+            rt = realtime_settings(lock_memory=True)
+            missing = missing_realtime(rt)
+            if missing:
+                unlock_memory()
+        else:
+            missing.append("locked memory (not attempted without the rest)")
+        if missing:
+            return _error("--require-rt: missing " + "; ".join(missing))
     plan = plan_run(scenario, args.t_end)
     folder = RunFolder(args.out)
     try:
         staging = folder.prepare(plan.k_end + 1, robots=len(specs), replace=args.force)
     except OutputFolderError as exc:
+        if rt["mlockall"] == "ok":
+            unlock_memory()
         return _error(str(exc))
     try:
-        return _serve(args, scenario, specs, plan, lcm, folder, staging)
+        return _serve(args, scenario, specs, plan, lcm, folder, staging, rt)
     except BaseException:
         folder.discard()
         raise
 
 
-def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
+def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     import numpy as np
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
 
-    from drake import lcmt_panda_status
+    from drake_coop.control.watchdog import STATUS_OK
+    from drake_coop.experiment.simulate import rest_posture
     from drake_coop.results.io import atomic_write_text
     from drake_coop.robot.drivers import (
         COMMAND_OFFSET,
         add_controller_side,
         safe_command_message,
     )
-    from drake_coop.robot.loopback import initialize_sides, tripped
+    from drake_coop.robot.loopback import initialize_sides
     from drake_coop.robot.pacing import (
         PacingRecord,
         StatusArrivals,
         delay_margin,
+        missing_realtime,
         pacing_summary,
         plot_pacing,
         pump_until,
@@ -148,9 +205,11 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
         summary_line,
         write_pacing_csv,
     )
+    from drake_coop.robot.status import RawMessage, check_panda_status
     from drake_coop.scenario.loading import dump_scenario
 
     quiet = args.quiet
+    memq = isinstance(args.lcm_url, str) and args.lcm_url.startswith("memq://")
     margin = args.delay_margin
     if margin is None:
         if not quiet:
@@ -161,79 +220,123 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
     builder = DiagramBuilder()
     # No LcmInterfaceSystem: the wall-clock loop pumps LCM between ticks (and records each
     # status's arrival with a plain handler, which must not run inside AdvanceTo).
-    side = add_controller_side(builder, scenario, lcm, plan, specs)
+    side = add_controller_side(builder, scenario, lcm, plan, specs, status_input="loop")
+    specs = [arm.spec for arm in side.arms]          # the torque limits resolved
     diagram = builder.Build()
-    arrivals = StatusArrivals(lcm, [s.status_channel for s in specs])
+    arrivals = StatusArrivals(  # every message's bytes checked as it arrives
+        lcm, [s.status_channel for s in specs],
+        check={s.status_channel: (lambda data, n=s.n: check_panda_status(data, n)[2]
+                                  == STATUS_OK) for s in specs})
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
     record = PacingRecord(period=plan.h, driver_period=max(s.period for s in specs))
-    status, message, code = "ok", f"completed {plan.t_end:g} s", 0
+    status, message, code, trip = "ok", f"completed {plan.t_end:g} s", 0, None
     interrupted: BaseException | None = None
-    last_q = [None] * len(specs)
+    started = False          # the loop has begun commanding the arms
 
     def send_safe() -> None:
-        """Each driver's safe command (zero torque, or the hold torque at the last reading)."""
-        for i, (arm, spec) in enumerate(zip(side.arms, specs)):
-            q = last_q[i]
-            tau = (np.zeros(spec.n) if spec.safe_command == "zero_torque" or q is None
-                   else arm.hold_torque(q))
+        """Each driver's safe command (zero torque, or the hold torque at the last good
+        reading), once the loop has commanded anything."""
+        if not started:
+            return
+        for arm, spec in zip(side.arms, specs):
+            wd = arm.watchdog
+            q = wd.last_good_position(wd.GetMyContextFromRoot(context))
+            tau = np.zeros(spec.n) if spec.safe_command == "zero_torque" else arm.hold_torque(q)
             msg = safe_command_message(spec, tau, int(time.time() * 1e6))
             lcm.Publish(spec.command_channel, msg.encode())
+
+    def tripped_arm() -> dict | None:
+        for arm in side.arms:
+            wd = arm.watchdog
+            wd_context = wd.GetMyContextFromRoot(context)
+            if wd.is_tripped(wd_context):
+                return {"robot": arm.spec.robot, "channel": arm.spec.status_channel,
+                        "reason": wd.reason(wd_context)}
+        return None
 
     try:
         if not quiet:
             print("drake-coop: waiting for the status of "
-                  + ", ".join(s.status_channel for s in specs), file=sys.stderr)
+                  + ", ".join(s.status_channel for s in specs)
+                  + (f" ({MEMQ_NOTE})" if memq else ""), file=sys.stderr)
         deadline = time.perf_counter() + args.status_wait
         while not arrivals.all_arrived() and time.perf_counter() < deadline:
             pump_until(lcm, min(deadline, time.perf_counter() + 0.05))
         if not arrivals.all_arrived():
             missing = [c for c, n in arrivals.count.items() if n == 0]
             print(f"drake-coop: no status on {', '.join(missing)} within "
-                  f"{args.status_wait:g} s (is the driver running, on the same --lcm-url?)",
-                  file=sys.stderr)
+                  f"{args.status_wait:g} s ("
+                  + (MEMQ_NOTE if memq else "is the driver running, on the same --lcm-url?")
+                  + "); nothing written", file=sys.stderr)
             folder.discard()
             return 1
+        rest, _ = rest_posture(scenario, list(plan.arms))
         q0 = []
-        for spec in specs:
-            msg = lcmt_panda_status.decode(arrivals.message[spec.status_channel])
-            if msg.num_joints != spec.n:
-                print(f"drake-coop: robots[{specs.index(spec)}].driver: the status on "
-                      f"{spec.status_channel} has {msg.num_joints} joints, the arm "
-                      f"{spec.n}", file=sys.stderr)
+        for i, spec in enumerate(specs):
+            q, _, fault, value = check_panda_status(arrivals.message[spec.status_channel],
+                                                    spec.n)
+            if fault == STATUS_OK and arrivals.faulty[spec.status_channel] is not None:
+                fault = check_panda_status(arrivals.faulty[spec.status_channel], spec.n)[2]
+            if fault == 4:           # a driver of another arm: a setup error, nothing started
+                print(f"drake-coop: robots[{i}].driver: the status on {spec.status_channel} "
+                      f"has {value:.0f} joints, the arm {spec.n}", file=sys.stderr)
                 folder.discard()
                 return 2
-            q0.append(np.asarray(msg.joint_position, dtype=float))
-        last_q[:] = q0
+            # any other fault trips the watchdog at the first tick
+            q0.append(q if fault == STATUS_OK else np.asarray(rest[i], dtype=float))
         initialize_sides(scenario, plan, context, None, side, q0)
+        # each arm's newest status, handed to its receiver before every tick
+        fed = [arm.status_receiver.get_message_input_port().FixValue(
+            arm.status_receiver.GetMyMutableContextFromRoot(context),
+            RawMessage()) for arm in side.arms]
+        seen = [-1] * len(specs)            # the first tick takes the first faulty or newest
+
+        def feed(k: int) -> None:
+            for i, spec in enumerate(specs):
+                count = arrivals.count[spec.status_channel]
+                if count != seen[i]:
+                    seen[i] = count
+                    fed[i].GetMutableData().set_value(
+                        RawMessage(arrivals.take(spec.status_channel)))
+
         simulator.Initialize()
-
-        def after_tick(k: int) -> str:
-            for i, arm in enumerate(side.arms):
-                q = arm.status_receiver.get_position_measured_output_port().Eval(
-                    arm.status_receiver.GetMyContextFromRoot(context))
-                if np.all(np.isfinite(q)):
-                    last_q[i] = np.array(q)
-            return tripped(side, context) or ""
-
         if not quiet:
             print(f"drake-coop: serving {len(specs)} arms at h = {plan.h * 1e3:g} ms to "
                   f"t = {plan.t_end:g} s", file=sys.stderr)
-        reason = run_paced(simulator, lcm, arrivals, plan.h, plan.k_end, COMMAND_OFFSET,
-                           record, after_tick)
-        if reason:
-            status, code = "stopped", 1
-            message = f"watchdog at t = {context.get_time():.3f} s: {reason}"
+        started = True
+        try:
+            reason = run_paced(simulator, lcm, arrivals, plan.h, plan.k_end, COMMAND_OFFSET,
+                               record, lambda k: "tripped" if tripped_arm() else "",
+                               before_tick=feed)
+        except Exception as exc:       # a defect, not an input: the record is kept all the same
+            status, code = "failed", 1
+            message = (f"error at t = {context.get_time():.3f} s: {type(exc).__name__}: "
+                       + " ".join(str(exc).split())[:200])
+        else:
+            trip = tripped_arm() if reason else None
+            if trip is not None:
+                status, code = "stopped", 1
+                message = (f"watchdog at t = {context.get_time():.3f} s: {trip['robot']}: "
+                           f"{trip['reason']} on {trip['channel']}")
     except KeyboardInterrupt as exc:    # Ctrl-C, or SIGTERM (raised as one by the command line)
         status, interrupted = "interrupted", exc
         message = f"interrupted at t = {context.get_time():.3f} s"
     finally:
         send_safe()
+    if not started:                     # interrupted while waiting: nothing to keep
+        folder.discard()
+        print("drake-coop: interrupted while waiting for the first status; nothing written",
+              file=sys.stderr)
+        raise interrupted
     summary = pacing_summary(record, margin)
     meta = {"status": status, "message": message, "command": "serve",
+            "watchdog": trip,
             "lcm_url": args.lcm_url, "control_period": plan.h,
             "channels": {s.robot: [s.status_channel, s.command_channel] for s in specs},
             "safe_command": {s.robot: s.safe_command for s in specs},
+            "torque_limits": {s.robot: [float(v) for v in s.torque_limits] for s in specs},
+            "realtime": realtime, "realtime_missing": missing_realtime(realtime),
             "pacing": summary}
     write_pacing_csv(staging / "pacing.csv", record)
     if record.k:
@@ -242,7 +345,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging) -> int:
     atomic_write_text(staging / "run.json", json.dumps(meta, indent=1, default=float))
     folder.commit()
     print(f"drake-coop: {message}; safe command sent", file=sys.stderr)
-    if record.k:
+    if record.k and not quiet:
         print(f"drake-coop: {summary_line(summary)}", file=sys.stderr)
     if interrupted is not None:
         raise interrupted      # the command line's exit code: 130 (Ctrl-C) or 143 (SIGTERM)

@@ -3,16 +3,19 @@ joined only by the driver's LCM messages.
 
 Controller side (:func:`add_controller_side`), per arm::
 
-    status channel ─▶ LcmSubscriberSystem ─▶ PandaStatusReceiver ─ position_measured ─▶ Watchdog
-                     (lcmt_panda_status)      (velocity, torque: not connected)
+    status channel ─▶ LcmSubscriberSystem ─▶ CheckedStatusReceiver ─ position_measured, status
+                     (the raw bytes)           (robot/status.py)                  ─▶ Watchdog
     Watchdog ─ q_checked ─▶ AddCooperativeController(q, connect_actuation=False) ─ tau ─▶ Watchdog
     reference ─▶ AddCooperativeController
     Watchdog ─ tau_safe ─▶ PandaCommandSender (torque mode) ─▶ LcmPublisherSystem ─▶ command channel
 
 The control blocks read the driver's measured position only, never its velocity or torque
-(the paper's premise: no tachometer, no force sensor). The command is published once per
-tick, :data:`COMMAND_OFFSET` after ``t_k`` (after the tick's updates); a second, Python-typed
-subscriber on the status channel gives the watchdog each status's time stamp.
+(the paper's premise: no tachometer, no force sensor). The status's bytes are checked before
+anything reaches the controller (:mod:`drake_coop.robot.status`: type, size, joint count,
+finite positions); the watchdog clips every torque to the scenario's torque limits, else the
+URDF's effort limits, and checks each reading's jump against the URDF's velocity limits. The
+command is published once per tick, :data:`COMMAND_OFFSET` after ``t_k`` (after the tick's
+updates): before the first valid status, and once tripped, it is the safe command.
 
 Simulated driver (:func:`add_driver_side`), per arm, on the scenario's cooperative plant::
 
@@ -34,7 +37,7 @@ way.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -43,7 +46,6 @@ from pydrake.manipulation import (
     PandaCommandReceiver,
     PandaCommandSender,
     PandaControlMode,
-    PandaStatusReceiver,
     PandaStatusSender,
 )
 from pydrake.systems.framework import (
@@ -63,6 +65,7 @@ from drake_coop.experiment.plan import RunPlan, time_grid
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import CoopPlant, build_plant
 from drake_coop.plant.model_error import controller_arm_model
+from drake_coop.robot.status import CheckedStatusReceiver, RawMessage
 from drake_coop.scenario.schema import Driver, Scenario, ScenarioError
 from drake_coop.scenario.validation import driver_channels
 
@@ -98,8 +101,8 @@ def shared_message_type(lcm_type):
     return Shared
 
 
-#: The Python-typed messages the stamps are read from (shared, see :func:`shared_message_type`).
-SharedPandaStatus = shared_message_type(lcmt_panda_status)
+#: The Python-typed command the driver's stamp is read from (shared, see
+#: :func:`shared_message_type`).
 SharedPandaCommand = shared_message_type(lcmt_panda_command)
 
 
@@ -126,8 +129,10 @@ def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
     ------
     ScenarioError
         A velocity or force source that needs what a driver does not give (``measured``
-        velocities, an F/T ``sensor``), naming the field.
+        velocities, an F/T ``sensor``), or a ``max_status_age`` shorter than one control
+        period, naming the field.
     """
+    h = time_grid(scenario)[0]
     specs = []
     for i, (robot, n) in enumerate(zip(scenario.robots, joints)):
         if robot.velocity_source == "measured":
@@ -138,6 +143,9 @@ def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
             raise ScenarioError(f"robots[{i}].force_source: 'sensor' needs an F/T sensor the "
                                 "driver does not carry; use observer, momentum or none")
         d = robot.driver if robot.driver is not None else Driver()
+        if d.max_status_age < h * (1 - 1e-9):
+            raise ScenarioError(f"robots[{i}].driver.max_status_age: at least one control "
+                                f"period ({h:g} s) is required, got {d.max_status_age:g}")
         if d.num_joints is not None and d.num_joints != n:     # also checked by validate()
             raise ScenarioError(f"robots[{i}].driver.num_joints is {d.num_joints} but the arm "
                                 f"has {n} joints")
@@ -151,29 +159,6 @@ def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
             max_status_age=d.max_status_age, command_timeout=d.command_timeout,
             safe_command=d.safe_command))
     return specs
-
-
-class MessageStamp(LeafSystem):
-    """The time stamp of an LCM message (its ``utime``, in seconds) as a vector.
-
-    .. pydrake_system::
-
-        name: MessageStamp
-        input_ports:
-        - message
-        output_ports:
-        - stamp
-
-    ``stamp = utime · 1e-6`` (0 before the first message: the empty message's).
-    """
-
-    def __init__(self, lcm_type):
-        super().__init__()
-        self._in = self.DeclareAbstractInputPort("message", AbstractValue.Make(lcm_type()))
-        self.DeclareVectorOutputPort("stamp", 1, self._calc)
-
-    def _calc(self, context: Context, output: BasicVector) -> None:
-        output.SetAtIndex(0, self._in.Eval(context).utime * 1e-6)
 
 
 class CommandHold(LeafSystem):
@@ -244,9 +229,8 @@ class ArmController:
     spec: DriverSpec
     block: ControllerHandles
     watchdog: Watchdog
-    status_subscriber: LcmSubscriberSystem
-    stamp_subscriber: LcmSubscriberSystem
-    status_receiver: PandaStatusReceiver
+    status_subscriber: LcmSubscriberSystem | None
+    status_receiver: CheckedStatusReceiver
     command_sender: PandaCommandSender
     command_publisher: LcmPublisherSystem
     hold_torque: object = None
@@ -294,42 +278,75 @@ def add_lcm_interface(builder: DiagramBuilder, lcm: DrakeLcm) -> LcmInterfaceSys
     return builder.AddNamedSystem("lcm_interface", LcmInterfaceSystem(lcm))
 
 
+def urdf_limits(plant, instance) -> tuple[np.ndarray, np.ndarray]:
+    """``(effort, velocity)``: the URDF's limits of a model instance's joints, read through
+    the plant (its joint actuators' effort limits, in the order of the instance's velocities;
+    ``inf`` where none is given)."""
+    effort = plant.GetVelocitiesFromArray(
+        instance, plant.MakeActuationMatrix() @ plant.GetEffortUpperLimits())
+    velocity = plant.GetVelocitiesFromArray(instance, plant.GetVelocityUpperLimits())
+    return np.asarray(effort, dtype=float), np.asarray(velocity, dtype=float)
+
+
 def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
-                        plan: RunPlan, specs: list[DriverSpec] | None = None) -> ControllerSide:
+                        plan: RunPlan, specs: list[DriverSpec] | None = None, *,
+                        status_input: str = "subscriber") -> ControllerSide:
     """Add each arm's control block, watchdog and LCM status/command systems to ``builder``.
+
+    ``status_input="subscriber"``: each arm's status arrives through an
+    ``LcmSubscriberSystem`` (pumped by an ``LcmInterfaceSystem`` or by the caller);
+    ``"loop"``: no subscriber, the caller sets the newest status's bytes on each
+    ``status_receiver``'s ``message`` input (a fixed value, :class:`RawMessage`) before the
+    tick, as ``drake-coop serve``'s loop does (no Simulator step to latch a message, no
+    message decoded for nothing at the driver's rate).
 
     The control blocks are the public
     :func:`~drake_coop.control.block.AddCooperativeController` with ``q`` from the driver's
     ``position_measured`` and ``connect_actuation=False``; their models come from a plant
-    built from the scenario in a builder of its own (never simulated).
+    built from the scenario in a builder of its own (never simulated), and so do the
+    watchdog's limits: each arm's ``spec.torque_limits`` (in the returned
+    :class:`ArmController`) is the driver's or the actuators' torque limits, else the URDF's
+    effort limits (:func:`urdf_limits`), and its velocity limits the URDF's.
+
+    Raises
+    ------
+    ScenarioError
+        An arm with no finite torque limit anywhere (``robots[i].driver.torque_limits``).
     """
     model_builder = DiagramBuilder()
     coop = build_plant(model_builder, scenario, plan.dt)
     joints = [coop.plant.num_positions(a.instance) for a in coop.arms]
     specs = specs if specs is not None else driver_specs(scenario, joints)
+    if status_input not in ("subscriber", "loop"):
+        raise ValueError(f"status_input: 'subscriber' or 'loop' (got {status_input!r})")
     guards = scenario.guards
     margin = math.radians(guards.joint_limit_margin_deg)
     arms = []
     for i, (handles, robot, spec) in enumerate(zip(coop.arms, scenario.robots, specs)):
         name, n = robot.name, spec.n
-        status_sub = builder.AddNamedSystem(f"{name}_status_subscriber", LcmSubscriberSystem.Make(
-            spec.status_channel, lcmt_panda_status, lcm, use_cpp_serializer=True))
-        stamp_sub = builder.AddNamedSystem(f"{name}_status_stamp_subscriber",
-                                           LcmSubscriberSystem.Make(spec.status_channel,
-                                                                    SharedPandaStatus, lcm))
-        receiver = builder.AddNamedSystem(f"{name}_status_receiver", PandaStatusReceiver(n))
-        builder.Connect(status_sub.get_output_port(), receiver.get_input_port(0))
-        stamp = builder.AddNamedSystem(f"{name}_status_stamp", MessageStamp(SharedPandaStatus))
-        builder.Connect(stamp_sub.get_output_port(), stamp.get_input_port(0))
+        receiver = builder.AddNamedSystem(f"{name}_status_receiver", CheckedStatusReceiver(n))
+        status_sub = None
+        if status_input == "subscriber":
+            status_sub = builder.AddNamedSystem(
+                f"{name}_status_subscriber",
+                LcmSubscriberSystem.Make(spec.status_channel, RawMessage, lcm))
+            builder.Connect(status_sub.get_output_port(), receiver.get_message_input_port())
         model = controller_arm_model(handles.arm, robot.model_error)
         arm = handles.arm
+        effort, velocity = urdf_limits(coop.plant, handles.instance)
+        limits = spec.torque_limits if spec.torque_limits is not None else effort
+        if not np.all(np.isfinite(limits)):
+            raise ScenarioError(f"robots[{i}].driver.torque_limits: required, the arm's URDF "
+                                "gives no effort limit for every joint")
+        spec = replace(spec, torque_limits=np.asarray(limits, dtype=float))
         watchdog = builder.AddNamedSystem(f"{name}_watchdog", Watchdog(
             n, arm.m, plan.h, max_status_age=spec.max_status_age,
             q_min=arm.q_min - margin, q_max=arm.q_max + margin, max_force=guards.max_force,
-            torque_limits=spec.torque_limits, safe_command=spec.safe_command,
-            hold_torque=model.g))
+            torque_limits=spec.torque_limits, velocity_limits=velocity,
+            safe_command=spec.safe_command, hold_torque=model.g))
         builder.Connect(receiver.get_position_measured_output_port(),
                         watchdog.get_q_input_port())
+        builder.Connect(receiver.get_status_output_port(), watchdog.get_status_input_port())
         q = watchdog.get_q_checked_output_port()
         block = AddCooperativeController(
             builder, coop.plant, handles.instance, gains=robot.gains, period=plan.h,
@@ -339,7 +356,6 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
         ref = builder.AddNamedSystem(f"{name}_reference", TrajectorySource(
             reference_trajectory(scenario, i, plan.t_end, plan)))
         builder.Connect(ref.get_output_port(), block.reference_input)
-        builder.Connect(stamp.get_output_port(0), watchdog.get_status_stamp_input_port())
         builder.Connect(block.tau_output, watchdog.get_tau_input_port())
         builder.Connect(block.lambda_hat_output, watchdog.get_lambda_hat_input_port())
         sender = builder.AddNamedSystem(f"{name}_command_sender",
@@ -350,7 +366,7 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
             publish_offset=COMMAND_OFFSET, use_cpp_serializer=True))
         builder.Connect(sender.get_output_port(), publisher.get_input_port())
         arms.append(ArmController(spec=spec, block=block, watchdog=watchdog,
-                                  status_subscriber=status_sub, stamp_subscriber=stamp_sub,
+                                  status_subscriber=status_sub,
                                   status_receiver=receiver, command_sender=sender,
                                   command_publisher=publisher, hold_torque=model.g))
     return ControllerSide(arms=arms, model_plant=coop, keep=[model_builder])

@@ -17,6 +17,7 @@ import numpy as np
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder
+from pydrake.systems.primitives import LogVectorOutput
 
 from drake_coop.control.finger import ReferenceLayout
 from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
@@ -38,8 +39,10 @@ from drake_coop.sensing.force_sensor import FTModel
 
 @dataclass
 class LoopbackResult:
-    """Per robot ``t``, ``lambda_meas`` (the plant's squeeze), ``lambda_d``; the status
-    (``ok`` or ``stopped``, with the watchdog's one-line reason) and the wall time."""
+    """Per robot ``t``, ``lambda_meas`` (the plant's squeeze), ``lambda_d`` and
+    ``tau_commanded`` (the newest command the driver had received at ``t``: the wire's; zero
+    before the first); the status (``ok`` or ``stopped``, with the watchdog's one-line
+    reason) and the wall time."""
 
     logs: dict[str, dict[str, np.ndarray]]
     status: str
@@ -70,12 +73,12 @@ def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
 
 
 def tripped(controller: ControllerSide, context: Context) -> str | None:
-    """``"<robot>: <reason>"`` of the first tripped watchdog, else None."""
+    """``"<robot>: <reason> on <status channel>"`` of the first tripped watchdog, else None."""
     for arm in controller.arms:
         wd = arm.watchdog
         wd_context = wd.GetMyContextFromRoot(context)
         if wd.is_tripped(wd_context):
-            return f"{arm.spec.robot}: {wd.reason(wd_context)}"
+            return f"{arm.spec.robot}: {wd.reason(wd_context)} on {arm.spec.status_channel}"
     return None
 
 
@@ -103,6 +106,8 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
         [FTModel.from_settings(r.force_sensor, plan.h, i, arm.arm.m)
          for i, (r, arm) in enumerate(zip(scenario.robots, driver.coop.arms))],
         [arm.hold.get_output_port(0) for arm in driver.arms], tick_forces=False)
+    wire = [LogVectorOutput(arm.command_receiver.get_commanded_torque_output_port(), builder,
+                            publish_period=plan.h) for arm in driver.arms]
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
@@ -132,8 +137,10 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
         lam_d = np.array([layout.column(traj.value(tk).reshape(1, -1), "lambda_d")[0]
                           for tk in t]).reshape(n, m)
         lam = np.asarray(forces[i]["lambda_meas"]).reshape(n, m)
+        tau = wire[i].FindLog(context).data().T[:n]
         logs[robot.name] = {"t": t, "lambda_meas": lam[:, 0] if m == 1 else lam,
-                            "lambda_d": lam_d[:, 0] if m == 1 else lam_d}
+                            "lambda_d": lam_d[:, 0] if m == 1 else lam_d,
+                            "tau_commanded": tau}
     return LoopbackResult(logs=logs, status=status, message=message, wall_time=wall)
 
 

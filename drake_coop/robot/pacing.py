@@ -59,23 +59,44 @@ class PacingRecord:
 
 
 class StatusArrivals:
-    """Wall time at which the newest message of each channel arrived in this process
-    (a plain ``DrakeLcm`` subscription beside the Diagram's subscribers; pump it outside
-    ``AdvanceTo`` only, see :func:`~drake_coop.robot.drivers.add_lcm_interface`)."""
+    """Wall time at which the newest message of each channel arrived in this process, and
+    that message (a plain ``DrakeLcm`` subscription; pump it outside ``AdvanceTo`` only, see
+    :func:`~drake_coop.robot.drivers.add_lcm_interface`).
 
-    def __init__(self, lcm, channels: list[str]):
+    ``check``, optional, maps a channel to ``check(data) -> bool`` (False: a faulty message);
+    every message is checked as it arrives, and :meth:`take` gives the first faulty one since
+    the last :meth:`take` in preference to the newest, so that a bad message followed by good
+    ones between two ticks is still seen by the next tick.
+    """
+
+    def __init__(self, lcm, channels: list[str], check: dict | None = None):
         self.last = {c: math.nan for c in channels}
         self.count = {c: 0 for c in channels}
         self.message = {c: None for c in channels}
+        self.faulty = {c: None for c in channels}
+        self._check = dict(check or {})
         for c in channels:
             lcm.Subscribe(c, self._handler(c))
 
     def _handler(self, channel: str):
+        check = self._check.get(channel)
+
         def handle(data: bytes) -> None:
             self.last[channel] = time.perf_counter()
             self.count[channel] += 1
             self.message[channel] = data
+            if check is not None and self.faulty[channel] is None and not check(data):
+                self.faulty[channel] = data
         return handle
+
+    def take(self, channel: str) -> bytes | None:
+        """The first faulty message since the last call if any (then forgotten), else the
+        newest."""
+        data = self.faulty[channel]
+        if data is None:
+            return self.message[channel]
+        self.faulty[channel] = None
+        return data
 
     def all_arrived(self) -> bool:
         return all(n > 0 for n in self.count.values())
@@ -100,18 +121,23 @@ def pump_until(lcm, deadline: float) -> None:
 
 
 def run_paced(simulator, lcm, arrivals: StatusArrivals, h: float, k_end: int, offset: float,
-              record: PacingRecord, after_tick=None, lead: float = 0.05) -> float:
+              record: PacingRecord, after_tick=None, lead: float = 0.05,
+              before_tick=None) -> float:
     """Advance ``simulator`` tick by tick against the wall clock.
 
-    For ``k = 0 … k_end``: pump LCM until ``t0 + k h``, then ``AdvanceTo(k h + offset)``; the
-    tick's figures go to ``record``. ``after_tick(k)`` returning a string stops the loop (the
-    watchdog's reason); it is returned. ``t0`` is ``lead`` seconds after the call.
+    For ``k = 0 … k_end``: pump LCM until ``t0 + k h``, call ``before_tick(k)`` (e.g. hand the
+    newest statuses to the Diagram), then ``AdvanceTo(k h + offset)``; the tick's figures go
+    to ``record`` (its computation includes ``before_tick``). ``after_tick(k)`` returning a
+    string stops the loop (the watchdog's reason); it is returned. ``t0`` is ``lead`` seconds
+    after the call.
     """
     t0 = time.perf_counter() + lead
     for k in range(k_end + 1):
         pump_until(lcm, t0 + k * h)
         start = time.perf_counter()
         age = arrivals.age(start)
+        if before_tick is not None:
+            before_tick(k)
         simulator.AdvanceTo(k * h + offset)
         end = time.perf_counter()
         record.add(k, end - start, end - (t0 + k * h), age)
@@ -244,3 +270,106 @@ def plot_pacing(path: Path, record: PacingRecord, summary: dict) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=90)
     plt.close(fig)
+
+
+#: Scheduling policies that count as real-time.
+REALTIME_POLICIES = ("SCHED_FIFO", "SCHED_RR")
+
+
+def _policy_name(policy: int) -> str:
+    import os
+
+    for name in ("SCHED_OTHER", "SCHED_BATCH", "SCHED_IDLE", "SCHED_FIFO", "SCHED_RR",
+                 "SCHED_DEADLINE"):
+        if getattr(os, name, None) == policy:
+            return name
+    return f"policy {policy}"
+
+
+def _locked_kib() -> int | None:
+    """``VmLck`` of this process (kB; None where ``/proc`` does not say)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmLck:"):
+                    return int(line.split()[1])
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def _libc():
+    import ctypes
+    import ctypes.util
+
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True)
+    except OSError:
+        return None
+
+
+def _mlockall() -> int:
+    """``mlockall(MCL_CURRENT | MCL_FUTURE)``: 0, or the errno of its failure (-1: no libc)."""
+    import ctypes
+
+    libc = _libc()
+    if libc is None:
+        return -1
+    return 0 if libc.mlockall(1 | 2) == 0 else ctypes.get_errno()
+
+
+def unlock_memory() -> None:
+    """``munlockall()`` (undo :func:`realtime_settings`'s lock when the run does not start)."""
+    libc = _libc()
+    if libc is not None:
+        libc.munlockall()
+
+
+def realtime_settings(lock_memory: bool = False) -> dict:
+    """The real-time settings this process actually has, read back from the kernel.
+
+    ``policy`` and ``priority`` (``os.sched_getscheduler`` / ``os.sched_getparam``),
+    ``cpu_affinity`` (``os.sched_getaffinity``) against ``cpus_online``, ``locked_kib``
+    (``VmLck``), and ``mlockall``: ``"not requested"``, ``"ok"`` or the error of
+    ``mlockall(MCL_CURRENT | MCL_FUTURE)``, called only when ``lock_memory``.
+    """
+    import errno
+    import os
+
+    settings: dict = {}
+    try:
+        settings["policy"] = _policy_name(os.sched_getscheduler(0))
+        settings["priority"] = int(os.sched_getparam(0).sched_priority)
+    except (AttributeError, OSError):
+        settings["policy"], settings["priority"] = "unknown", None
+    try:
+        settings["cpu_affinity"] = sorted(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        settings["cpu_affinity"] = None
+    settings["cpus_online"] = os.cpu_count()
+    if lock_memory:
+        err = _mlockall()
+        settings["mlockall"] = "ok" if err == 0 else (
+            f"failed: {errno.errorcode.get(err, err)}" if err > 0 else "failed: no libc")
+    else:
+        settings["mlockall"] = "not requested"
+    settings["locked_kib"] = _locked_kib()
+    return settings
+
+
+def missing_realtime(settings: dict, memory: bool = True) -> list[str]:
+    """What :func:`realtime_settings` shows is missing for a real-time loop, one phrase each
+    (empty: all granted): a real-time policy with a priority > 0, the process pinned to fewer
+    CPUs than are online, and (``memory``) memory locked."""
+    missing = []
+    if settings.get("policy") not in REALTIME_POLICIES or not settings.get("priority"):
+        missing.append(f"real-time scheduling (got {settings.get('policy')} priority "
+                       f"{settings.get('priority')}: run under chrt -f 80)")
+    affinity, online = settings.get("cpu_affinity"), settings.get("cpus_online")
+    if affinity is None or online is None or (online > 1 and len(affinity) >= online):
+        missing.append(f"CPU affinity (runs on {len(affinity or [])} of {online} CPUs: pin it "
+                       "with taskset -c)")
+    if memory and (settings.get("mlockall") != "ok" or not settings.get("locked_kib")):
+        missing.append(f"locked memory (mlockall {settings.get('mlockall')}: needs "
+                       "CAP_IPC_LOCK or ulimit -l unlimited)")
+    return missing

@@ -209,9 +209,11 @@ class Driver:
         Panda's is 1 kHz); ``control_period`` must be a whole number of cycles.
     torque_limits : list[float] or None
         Per-joint limits of the commanded torque (N·m, > 0), applied by the controller before
-        sending (and by the simulated driver); null: ``actuators.torque_limits``, else none.
+        sending (and by the simulated driver); null: ``actuators.torque_limits``, else the
+        controller clips to the URDF's effort limits (the simulated driver to none).
     max_status_age : float
-        The controller's watchdog trips when the newest status is older than this (s).
+        The controller's watchdog trips when the newest status is older than this (s, at
+        least one control period).
     command_timeout : float
         The (simulated) driver applies zero torque when the newest command is older (s).
     safe_command : str

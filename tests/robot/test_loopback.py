@@ -41,3 +41,18 @@ def test_split_at_the_cable_reproduces_the_simulated_run():
         squeeze = log["lambda_meas"][circle]
         assert circle.sum() > 200 and np.all(squeeze > 0.5 * (s.task.force_mean
                                                                - s.task.force_amplitude))
+
+
+def test_the_loopback_run_sends_no_controller_torque_before_the_first_status():
+    """Tick 0 runs before the driver's first status has arrived (it comes one driver cycle
+    later): its command on the wire is the safe one (zero torque), and every command stays
+    finite and within the URDF's effort limits (2000 N·m, urdf/crs_a4x5_3dof.urdf)."""
+    s = load_scenario()
+    run = run_loopback(s, 0.1)
+    assert run.status == "ok", run.message
+    for name, log in run.logs.items():
+        tau = log["tau_commanded"]
+        assert tau.shape == (log["t"].size, 3)
+        np.testing.assert_array_equal(tau[:2], 0.0)     # none yet at t = 0; tick 0's at h
+        assert np.all(np.any(tau[2:] != 0.0, axis=1))    # the controller's from tick 1 on
+        assert np.all(np.isfinite(tau)) and np.all(np.abs(tau) <= 2000.0)

@@ -1,0 +1,149 @@
+"""A driver's status read defensively: the raw LCM bytes checked before anything reaches the
+controller.
+
+Drake's ``PandaStatusReceiver`` reads a status of ``num_joints = 0`` as ``q = 0`` (inside the
+CRS arms' joint ranges, so a range check lets it through), and the message's generated Python
+decoder raises on truncated or foreign bytes. Here the subscriber keeps the bytes as they came
+(:class:`RawMessage`), and :func:`check_panda_status` reads them field by field against the
+``lcmt_panda_status`` layout of an ``n``-joint arm::
+
+    fingerprint (8) | utime int64 | num_joints int32 | 8 arrays of num_joints doubles
+    | control_command_success_rate double | robot_mode int8 | robot_utime int64
+    | control_mode int8                                         (38 + 64 n bytes)
+
+giving the reading, the stamp and a fault code of :data:`~drake_coop.control.watchdog.
+STATUS_FAULTS` for the :class:`~drake_coop.control.watchdog.Watchdog`'s ``status`` input.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, LeafSystem
+
+from drake import lcmt_panda_status
+from drake_coop.control.watchdog import STATUS_NONE, STATUS_OK
+
+#: The 8-byte fingerprint that starts every ``lcmt_panda_status``.
+PANDA_STATUS_FINGERPRINT = lcmt_panda_status._get_packed_fingerprint()
+#: Bytes before the first array (fingerprint, utime, num_joints) and after the last one.
+_HEAD, _TAIL = 20, 18
+
+
+def panda_status_size(n: int) -> int:
+    """Bytes of an encoded ``lcmt_panda_status`` of ``n`` joints."""
+    return _HEAD + 64 * n + _TAIL
+
+
+class RawMessage:
+    """An LCM message's bytes as received: the value of a subscriber that decodes nothing
+    (``LcmSubscriberSystem.Make(channel, RawMessage, lcm)``; ``data`` empty before the first
+    message). Shared, not copied, when Drake copies the subscriber's state: it is never
+    modified."""
+
+    __slots__ = ("data",)
+
+    def __init__(self, data: bytes = b""):
+        self.data = data
+
+    @staticmethod
+    def decode(data) -> "RawMessage":
+        return RawMessage(bytes(data))
+
+    def encode(self) -> bytes:
+        return self.data
+
+    def __copy__(self):
+        return self
+
+    def __deepcopy__(self, memo):
+        return self
+
+
+def check_panda_status(data: bytes, n: int) -> tuple[np.ndarray, float, int, float]:
+    """``(q, stamp, fault, value)`` of the bytes of one status for an ``n``-joint arm.
+
+    ``q`` is NaN unless ``fault`` is ``STATUS_OK``; ``stamp`` is ``utime · 1e-6`` (NaN before
+    the stamp is readable); ``fault`` and ``value`` as the watchdog's ``status`` input
+    (:data:`~drake_coop.control.watchdog.STATUS_FAULTS`). Never raises.
+    """
+    bad = np.full(n, math.nan)
+    size = len(data)
+    if size == 0:
+        return bad, math.nan, STATUS_NONE, 0.0
+    if size < 8 or data[:8] != PANDA_STATUS_FINGERPRINT:
+        return bad, math.nan, 2, float(size)
+    if size < _HEAD:
+        return bad, math.nan, 3, float(size)
+    utime, joints = struct.unpack_from(">qi", data, 8)
+    stamp = utime * 1e-6
+    if joints != n:
+        return bad, stamp, 4, float(joints)
+    if size < panda_status_size(n):
+        return bad, stamp, 3, float(size)
+    if size > panda_status_size(n):
+        return bad, stamp, 5, float(size)
+    q = np.frombuffer(data, dtype=">f8", count=n, offset=_HEAD).astype(float)
+    if not np.all(np.isfinite(q)):
+        return bad, stamp, 6, 0.0
+    return q, stamp, STATUS_OK, 0.0
+
+
+class CheckedStatusReceiver(LeafSystem):
+    """One arm's status, checked: the reading and ``[stamp, fault, value]`` of the newest raw
+    ``lcmt_panda_status`` (:func:`check_panda_status`).
+
+    .. pydrake_system::
+
+        name: CheckedStatusReceiver
+        input_ports:
+        - message
+        output_ports:
+        - position_measured
+        - status
+
+    ``position_measured`` is NaN unless the status is valid; ``status`` feeds the
+    :class:`~drake_coop.control.watchdog.Watchdog`. Each message is read once (the result is
+    kept with the message it came from).
+
+    Parameters
+    ----------
+    n : int
+        The arm's joints.
+    """
+
+    def __init__(self, n: int):
+        super().__init__()
+        self._n = int(n)
+        self._in = self.DeclareAbstractInputPort("message", AbstractValue.Make(RawMessage()))
+        self._memo: tuple[object, tuple] | None = None
+        self.DeclareVectorOutputPort("position_measured", self._n, self._calc_q)
+        self.DeclareVectorOutputPort("status", 3, self._calc_status)
+
+    def get_message_input_port(self):
+        return self._in
+
+    def get_position_measured_output_port(self):
+        return self.GetOutputPort("position_measured")
+
+    def get_status_output_port(self):
+        return self.GetOutputPort("status")
+
+    def _read(self, context: Context) -> tuple:
+        msg = self._in.Eval(context)
+        memo = self._memo
+        if memo is not None and memo[0] is msg:
+            return memo[1]
+        result = check_panda_status(msg.data, self._n)
+        self._memo = (msg, result)
+        return result
+
+    def _calc_q(self, context: Context, output: BasicVector) -> None:
+        output.SetFromVector(self._read(context)[0])
+
+    def _calc_status(self, context: Context, output: BasicVector) -> None:
+        _, stamp, fault, value = self._read(context)
+        output.SetFromVector([stamp, float(fault), value])
