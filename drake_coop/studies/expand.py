@@ -467,7 +467,8 @@ def _label(params: dict) -> str:
 
 
 def expand(study: Study, *, max_cases: int = MAX_CASES,
-           max_cases_option: str | None = "--max-cases") -> list[Case]:
+           max_cases_option: str | None = "--max-cases", first: int | None = None
+           ) -> list[Case]:
     """All cases of ``study``, each scenario validated, in order (grid outer, samples inner).
 
     Parameters
@@ -487,7 +488,7 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
         before any run.
     """
     n_cases, points, samples_n = study_size(study)
-    if n_cases > max_cases:
+    if min(n_cases, n_cases if first is None else first) > max_cases:
         raise StudyError(f"the study has {n_cases} cases ({points} grid points × {samples_n} "
                          f"samples), more than {max_cases}; shrink the grid or monte_carlo.n"
                          + (f", or raise the bound on purpose with {max_cases_option}"
@@ -516,6 +517,8 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
         grid_assign = [(keys, "set", value) for path, value in grid_params.items()
                        for keys in grid_targets[path]]
         for s, draws in enumerate(samples):
+            if first is not None and len(cases) >= first:
+                break
             params = dict(grid_params)
             if study.monte_carlo is not None:
                 params["sample"] = s
