@@ -407,7 +407,9 @@ def cmd_identify(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``drake-coop``."""
-    parser = argparse.ArgumentParser(
+    from drake_coop.argparsing import OneLineParser
+
+    parser = OneLineParser(
         prog="drake-coop",
         description="Decentralized position/force control of cooperating robot arms holding "
                     "an object, without joint-velocity or contact-force measurements, on "

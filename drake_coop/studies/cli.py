@@ -332,7 +332,8 @@ def _size_problem(out: Path, given: dict, recorded: dict | None) -> str | None:
     """The one-line refusal of a size other than the one ``out`` was run at, or None."""
     if recorded is None or not given or given == recorded:
         return None
-    key = next(k for k in OPTIONS if given.get(k) != recorded.get(k))
+    differ = [k for k in OPTIONS if given.get(k) != recorded.get(k)]
+    key = next((k for k in differ if k in given), differ[0])
     return (f"{OPTIONS[key]}: --out {out} was run at {size_text(recorded)}; resume it at that "
             "size (the same options, or none), or choose another --out")
 
