@@ -407,7 +407,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``drake-coop``."""
-    from drake_coop.argparsing import OneLineParser
+    from drake_coop.console import OneLineParser
 
     parser = OneLineParser(
         prog="drake-coop",
