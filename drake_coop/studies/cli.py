@@ -89,16 +89,19 @@ _DEFER = 0
 _PENDING: int | None = None
 
 
+#: Set once a signal has been raised: the study is stopping, and a second signal (an
+#: impatient Ctrl-C) is only recorded, so that it cannot cut the last tables.
+_STOPPING = False
+
+
 def _on_signal(signum, frame):
-    global _SIGTERM_SEEN, _PENDING
+    global _SIGTERM_SEEN, _PENDING, _STOPPING
     _SIGTERM_SEEN = _SIGTERM_SEEN or signum == signal.SIGTERM
-    if _DEFER:
+    if _DEFER or _STOPPING:
         _PENDING = _PENDING or signum
         return
+    _STOPPING = True
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
-
-
-_on_sigterm = _on_signal
 
 
 @contextlib.contextmanager
@@ -106,14 +109,14 @@ def _writing(raise_pending: bool = True):
     """A block that a SIGINT/SIGTERM does not cut: a finished case's file and the tables
     that list it are written together (the signal is raised when the block ends, or left in
     :data:`_PENDING` with ``raise_pending=False``)."""
-    global _DEFER, _PENDING
+    global _DEFER, _PENDING, _STOPPING
     _DEFER += 1
     try:
         yield
     finally:
         _DEFER -= 1
-    if raise_pending and not _DEFER and _PENDING is not None:
-        signum, _PENDING = _PENDING, None
+    if raise_pending and not _DEFER and _PENDING is not None and not _STOPPING:
+        signum, _PENDING, _STOPPING = _PENDING, None, True
         raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
@@ -258,8 +261,8 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
                     progress.update(case, result)
             store.write_tables(study, cases, records, engine, died)
 
-    global _SIGTERM_SEEN, _PENDING
-    _SIGTERM_SEEN, _PENDING = False, None
+    global _SIGTERM_SEEN, _PENDING, _STOPPING
+    _SIGTERM_SEEN, _PENDING, _STOPPING = False, None, False
     previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     code = 0
     started = time.perf_counter()
@@ -297,8 +300,9 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
                 print(f"drake-coop study: writing results.csv to --out {out} failed "
                       f"({_one_line(exc)})", file=sys.stderr)
             return code or 1
-        if _PENDING is not None and not code:
+        if _PENDING is not None and not code:     # a signal during the last tables
             code = 143 if _PENDING == signal.SIGTERM else 130
+        _PENDING, _STOPPING = None, False
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
