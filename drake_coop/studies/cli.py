@@ -9,7 +9,10 @@
     Exit codes: 0 every case finished (diverged cases are results, not failures); 1 after
     work: a case's process died (it runs again on the next resume), the engine failed, or
     writing failed (full disk); 2 bad input or an unusable ``DIR``, before any case ran;
-    130 Ctrl-C, 143 SIGTERM (finished cases are kept; rerun to resume).
+    130 Ctrl-C, 143 SIGTERM (finished cases are kept; rerun to resume). A case's file and
+    the tables that list it are written in one block no signal cuts, and the tables are
+    written once more from the case files on disk when the run stops: ``results.csv`` lists
+    every finished case as finished, whenever the study is stopped.
 ``drake-coop study STUDY.yaml --out DIR [--t-end S] [--draws N] [--cases N]``
     The study sized from the command line (:mod:`drake_coop.studies.size`): recorded in
     ``DIR``; a resume without these options keeps that size, one with another is refused.

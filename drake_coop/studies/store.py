@@ -13,7 +13,11 @@ scenario YAML, status (``ok``, ``diverged`` or ``error``: what the case's run sa
 message. Resuming skips every case whose hash has a valid file; a case that was interrupted,
 or whose process died, is never written as a result (a ``.died`` note says so, and the case is
 run again on the next resume). A case file that cannot be read or misses a field is skipped
-with a warning (:attr:`ResultStore.skipped`) and its case runs again. ``results.csv`` and
+with a warning (:attr:`ResultStore.skipped`) and its case runs again. Its metrics must have
+the shapes :mod:`drake_coop.results.metrics` writes: ``{"rms", "max"}`` numbers for an error,
+plain numbers for the sample counts, and for the held object's counts and times those that
+:data:`~drake_coop.results.object_metrics.EVENT_METRICS` declares (``{"count": k}``, an
+integer >= 0; ``{"time": s}``, a number or null). ``results.csv`` and
 ``study.json`` are rewritten (atomically) after every finished case; their parameter columns
 are :attr:`~drake_coop.studies.expand.Case.values`, read from each case's resolved scenario.
 
