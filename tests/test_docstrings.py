@@ -22,6 +22,7 @@ import dataclasses
 import importlib
 import inspect
 import re
+import sys
 from pathlib import Path
 
 import pytest
@@ -115,6 +116,8 @@ def _signature_parameters(obj) -> list[str]:
         owner = next(c for c in obj.__mro__ if "__init__" in vars(c))
         if not inspect.isfunction(vars(owner)["__init__"]):
             return []          # a compiled constructor (an exception's, a binding's): not ours
+        if owner.__module__.split(".")[0] in sys.stdlib_module_names:
+            return []          # a constructor inherited from the standard library: its docs
         target = obj.__init__
     else:
         target = obj

@@ -18,7 +18,9 @@ from drake_coop.cli.signals import Signals
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``drake-coop``."""
-    parser = argparse.ArgumentParser(
+    from drake_coop.console import OneLineParser
+
+    parser = OneLineParser(
         prog="drake-coop",
         description="Decentralized position/force control of cooperating robot arms holding "
                     "an object, without joint-velocity or contact-force measurements, on "

@@ -55,7 +55,7 @@ import numpy as np
 
 from drake_coop.kinematics.rotations import quaternion_rotations
 
-__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
+__all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "EVENT_METRICS", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
            "SETTLE_TIME",
            "SLIP_DISTANCE", "object_metrics",
            "object_signals"]
@@ -75,6 +75,13 @@ REST_HEIGHT = 1e-3
 MASS_TOLERANCE = 0.05
 #: The phases where the box is held.
 HELD_PHASES = ("lift", "circle", "put_down")
+#: The object's counts and times, as :func:`object_metrics` writes them: metric name ->
+#: (its one value's key, whether that value may be null). A count is an integer >= 0
+#: (``{"count": k}``), a time a number of seconds or null (``{"time": s}``, null: never);
+#: every other entry of a phase is ``{"rms": …, "max": …}``. A study's stored-case check
+#: (:mod:`drake_coop.studies.store`) reads this table.
+EVENT_METRICS = {"slips": ("count", False), "drops": ("count", False),
+                 "mass_convergence_time": ("time", True)}
 
 
 def _rotation_angle(R: np.ndarray) -> np.ndarray:
@@ -262,12 +269,14 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
                     entry["mass_estimate_error"] = {"rms": float(np.sqrt(np.mean(x ** 2))),
                                                     "max": float(np.max(np.abs(x))),
                                                     "unit": "kg"}
-                entry["mass_convergence_time"] = {"time": sig["mass_convergence_time"],
+                key = EVENT_METRICS["mass_convergence_time"][0]
+                entry["mass_convergence_time"] = {key: sig["mass_convergence_time"],
                                                   "unit": "s"}
             index = np.flatnonzero(mask)
             for name in ("slips", "drops"):
                 events = sig.get(f"{name[:-1]}_events", np.zeros(0, dtype=int))
-                entry[name] = {"count": int(np.isin(events, index).sum()), "unit": "events"}
+                entry[name] = {EVENT_METRICS[name][0]: int(np.isin(events, index).sum()),
+                               "unit": "events"}
             per_phase[phase] = entry
         out[robot] = per_phase
     return out

@@ -503,7 +503,7 @@ class ObjectModelSettings:
         the mass online, from ``prior_mass_factor`` times its true share).
     mass : float, optional
         The object's mass the controllers are given in ``known`` mode (kg); default the
-        plant's ``object_mass`` (the truth).
+        plant's ``object_mass`` (the truth). Refused with any other mode (which ignores it).
     prior_mass_factor : float
         ``estimated``: the prior is this times the true mass (1.5: +50 %).
     prior_std_factor : float

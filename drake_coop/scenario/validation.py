@@ -171,6 +171,10 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
         raise ScenarioError(f"object_model.mode: {scenario.object_model.mode} needs a held "
                             f"object (plant.object_mode rigid or contact), got "
                             f"{show(p.object_mode)}")
+    if scenario.object_model.mass is not None and scenario.object_model.mode != "known":
+        raise ScenarioError(f"object_model.mass: only mode known gives the controllers a "
+                            f"mass; mode {show(scenario.object_model.mode)} ignores it "
+                            f"(remove it, or use mode known)")
     if scenario.object_model.squeeze == "friction" and scenario.object_model.mode == "none":
         raise ScenarioError("object_model.squeeze: friction needs object_model.mode known or "
                             "estimated (the controllers must know the object's load)")

@@ -9,7 +9,13 @@
     Exit codes: 0 every case finished (diverged cases are results, not failures); 1 after
     work: a case's process died (it runs again on the next resume), the engine failed, or
     writing failed (full disk); 2 bad input or an unusable ``DIR``, before any case ran;
-    130 Ctrl-C, 143 SIGTERM (finished cases are kept; rerun to resume).
+    130 Ctrl-C, 143 SIGTERM (finished cases are kept; rerun to resume). A case's file and
+    the tables that list it are written in one block no signal cuts, and the tables are
+    written once more from the case files on disk when the run stops: ``results.csv`` lists
+    every finished case as finished, whenever the study is stopped.
+``drake-coop study STUDY.yaml --out DIR [--t-end S] [--draws N] [--cases N]``
+    The study sized from the command line (:mod:`drake_coop.studies.size`): recorded in
+    ``DIR``; a resume without these options keeps that size, one with another is refused.
 ``drake-coop study --plot DIR``
     Redraw the figures from ``DIR/study.json`` (exit 2 with one line if it is missing or
     damaged, or the folder is read-only).
@@ -18,6 +24,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import sys
@@ -26,6 +33,7 @@ from pathlib import Path
 
 from drake_coop.console import error
 from drake_coop.studies.expand import MAX_CASES, Case, expand
+from drake_coop.studies.size import OPTIONS, apply_size, given_size, size_text
 from drake_coop.studies.spec import StudyError, load_study
 from drake_coop.studies.store import FINISHED, ResultStore, check_metric_names
 
@@ -75,15 +83,44 @@ def _error(message: str) -> int:
     return error(message, "drake-coop study")
 
 
-#: Set by the SIGTERM handler: Ray's ``ray.wait`` turns any exception raised in a signal
+#: Set by the signal handler: Ray's ``ray.wait`` turns any exception raised in a signal
 #: handler into a plain KeyboardInterrupt, so the exit code is taken from this flag.
 _SIGTERM_SEEN = False
+#: Inside :func:`_writing` (a case's file and the tables being written) a signal is only
+#: recorded here, and raised when the block ends.
+_DEFER = 0
+_PENDING: int | None = None
 
 
-def _on_sigterm(signum, frame):
-    global _SIGTERM_SEEN
-    _SIGTERM_SEEN = True
-    raise Terminated()
+#: Set once a signal has been raised: the study is stopping, and a second signal (an
+#: impatient Ctrl-C) is only recorded, so that it cannot cut the last tables.
+_STOPPING = False
+
+
+def _on_signal(signum, frame):
+    global _SIGTERM_SEEN, _PENDING, _STOPPING
+    _SIGTERM_SEEN = _SIGTERM_SEEN or signum == signal.SIGTERM
+    if _DEFER or _STOPPING:
+        _PENDING = _PENDING or signum
+        return
+    _STOPPING = True
+    raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+@contextlib.contextmanager
+def _writing(raise_pending: bool = True):
+    """A block that a SIGINT/SIGTERM does not cut: a finished case's file and the tables
+    that list it are written together (the signal is raised when the block ends, or left in
+    :data:`_PENDING` with ``raise_pending=False``)."""
+    global _DEFER, _PENDING, _STOPPING
+    _DEFER += 1
+    try:
+        yield
+    finally:
+        _DEFER -= 1
+    if raise_pending and not _DEFER and _PENDING is not None and not _STOPPING:
+        signum, _PENDING, _STOPPING = _PENDING, None, True
+        raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _default_max_workers() -> int:
@@ -130,9 +167,18 @@ def cmd_study(args: argparse.Namespace) -> int:
     if not 1 <= args.workers <= max_workers:
         return _error(f"--workers must be between 1 and {max_workers} (4 per CPU; raise the "
                       f"bound on purpose with --max-workers), got {args.workers}")
+    out = Path(args.out)
+    folder = StudyFolder(out)
     try:
         study = load_study(args.study)
-        cases = expand(study, max_cases=args.max_cases)
+        given = given_size(args)
+        recorded = folder.recorded_size() if folder.owner() == study.name else None
+        problem = _size_problem(out, given, recorded)
+        if problem:
+            return _error(problem)
+        size = given if given or recorded is None else recorded
+        study, first = apply_size(study, size)
+        cases = expand(study, max_cases=args.max_cases, first=first)
     except StudyError as exc:
         return _error(str(exc))
     robots = _robot_names(cases[0])
@@ -144,13 +190,21 @@ def cmd_study(args: argparse.Namespace) -> int:
             import ray  # noqa: F401
         except ImportError:
             return _error('--ray needs ray: pip install "drake_coop[ray]"')
-    out = Path(args.out)
-    folder = StudyFolder(out)
     try:
         folder.claim(study.name)
     except StudyFolderError as exc:
         return _error(str(exc))
     try:
+        problem = _size_problem(out, size, folder.recorded_size())   # again, under the lock
+        if problem:
+            return _error(problem)
+        try:
+            folder.record_size(study.name, size)
+        except OSError as exc:
+            return _error(f"--out {out}: {_one_line(exc)}")
+        if size and not given and not args.quiet:
+            print(f"drake-coop study: resuming at the size recorded in {out}: "
+                  f"{size_text(size)}", file=sys.stderr)
         return _run_study(args, study, cases, folder)
     finally:
         folder.release()
@@ -195,55 +249,66 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
     def on_result(case: Case, result: dict) -> None:
         if result["status"] == "interrupted":
             return
-        if result["status"] not in FINISHED:          # its process died: not a result
-            message = f"{result['message']}; it runs again on the next resume"
-            died[case.hash] = message
-            lost.append(case.hash)
-            store.mark_died(case, message)
-            if not args.quiet:
-                print(f"\ndrake-coop study: case {case.index}: {message}", file=sys.stderr)
-        else:
-            records[case.hash] = store.save(case, result, study.t_end)
-            died.pop(case.hash, None)
-            if progress is not None:
-                progress.update(case, result)
-        store.write_tables(study, cases, records, engine, died)
+        with _writing():
+            if result["status"] not in FINISHED:          # its process died: not a result
+                message = f"{result['message']}; it runs again on the next resume"
+                died[case.hash] = message
+                lost.append(case.hash)
+                store.mark_died(case, message)
+                if not args.quiet:
+                    print(f"\ndrake-coop study: case {case.index}: {message}", file=sys.stderr)
+            else:
+                records[case.hash] = store.save(case, result, study.t_end)
+                died.pop(case.hash, None)
+                if progress is not None:
+                    progress.update(case, result)
+            store.write_tables(study, cases, records, engine, died)
 
-    global _SIGTERM_SEEN
-    _SIGTERM_SEEN = False
-    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    global _SIGTERM_SEEN, _PENDING, _STOPPING
+    _SIGTERM_SEEN, _PENDING, _STOPPING = False, None, False
+    previous = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     code = 0
     started = time.perf_counter()
     try:
-        if args.ray is None:
-            from drake_coop.studies.engines import run_local
-            run_local(todo, study.t_end, on_result, workers=args.workers)
-        else:
-            from drake_coop.studies.engines import run_ray
-            run_ray(todo, study.t_end, on_result, address=args.ray or None,
-                    workers=args.workers)
-    except KeyboardInterrupt as exc:
-        # this module's SIGTERM handler, or drake_coop.cli's before it was installed
-        code = 143 if type(exc).__name__ == "Terminated" or _SIGTERM_SEEN else 130
-    except OSError as exc:        # writing a case or a table failed (full disk, read-only)
-        print(f"\ndrake-coop study: writing to --out {out} failed ({_one_line(exc)}); the "
-              "cases finished before are kept; free the space and run again to resume",
-              file=sys.stderr)
-        code = 1
-    except Exception as exc:      # the engine itself failed (Ray down)
-        print(f"\ndrake-coop study: engine failed: {type(exc).__name__}: "
-              f"{_one_line(exc)}", file=sys.stderr)
-        code = 1
+        try:
+            if args.ray is None:
+                from drake_coop.studies.engines import run_local
+                run_local(todo, study.t_end, on_result, workers=args.workers)
+            else:
+                from drake_coop.studies.engines import run_ray
+                run_ray(todo, study.t_end, on_result, address=args.ray or None,
+                        workers=args.workers)
+        except KeyboardInterrupt as exc:
+            # this module's handler, or drake_coop.cli's before it was installed
+            code = 143 if type(exc).__name__ == "Terminated" or _SIGTERM_SEEN else 130
+        except OSError as exc:        # writing a case or a table failed (full disk, read-only)
+            print(f"\ndrake-coop study: writing to --out {out} failed ({_one_line(exc)}); the "
+                  "cases finished before are kept; free the space and run again to resume",
+                  file=sys.stderr)
+            code = 1
+        except Exception as exc:      # the engine itself failed (Ray down)
+            print(f"\ndrake-coop study: engine failed: {type(exc).__name__}: "
+                  f"{_one_line(exc)}", file=sys.stderr)
+            code = 1
+        elapsed = time.perf_counter() - started
+        # The tables once more, from every case file on disk (one saved as the run was cut
+        # is listed finished, never pending), not cut by a signal.
+        try:
+            with _writing(raise_pending=False):
+                for key, record in _reload(store).items():
+                    records.setdefault(key, record)
+                store.write_tables(study, cases, records, engine, died)
+        except OSError as exc:
+            if code != 1:                 # not said already
+                print(f"drake-coop study: writing results.csv to --out {out} failed "
+                      f"({_one_line(exc)})", file=sys.stderr)
+            return code or 1
+        if _PENDING is not None and not code:     # a signal during the last tables
+            code = 143 if _PENDING == signal.SIGTERM else 130
+        _PENDING, _STOPPING = None, False
     finally:
-        signal.signal(signal.SIGTERM, previous)
-    elapsed = time.perf_counter() - started
-    try:
-        store.write_tables(study, cases, records, engine, died)
-    except OSError as exc:
-        if code != 1:                 # not said already
-            print(f"drake-coop study: writing results.csv to --out {out} failed "
-                  f"({_one_line(exc)})", file=sys.stderr)
-        return code or 1
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     done = sum(c.hash in records for c in cases)
     if code:
         if code != 1:
@@ -270,6 +335,25 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
     return code
 
 
+def _size_problem(out: Path, given: dict, recorded: dict | None) -> str | None:
+    """The one-line refusal of a size other than the one ``out`` was run at, or None."""
+    if recorded is None or not given or given == recorded:
+        return None
+    differ = [k for k in OPTIONS if given.get(k) != recorded.get(k)]
+    key = next((k for k in differ if k in given), differ[0])
+    return (f"{OPTIONS[key]}: --out {out} was run at {size_text(recorded)}; resume it at that "
+            "size (the same options, or none), or choose another --out")
+
+
+def _reload(store: ResultStore) -> dict[str, dict]:
+    """The finished cases on disk ({} when they cannot be read: the tables keep what the run
+    knew)."""
+    try:
+        return store.load()
+    except OSError:
+        return {}
+
+
 def _robot_names(case: Case) -> list[str]:
     from drake_coop.scenario.loading import load_scenario
 
@@ -291,6 +375,13 @@ def add_study_parser(sub) -> None:
                         "(default 4 per CPU); --workers sets the count")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="run on Ray: a local instance, or the cluster at ADDRESS")
+    p.add_argument("--t-end", type=float, default=None, metavar="S",
+                   help="stop every case at S seconds (the study's t_end)")
+    p.add_argument("--draws", type=int, default=None, metavar="N",
+                   help="N Monte Carlo samples per grid point (the study's monte_carlo.n)")
+    p.add_argument("--cases", type=int, default=None, metavar="N",
+                   help="run only the first N cases (grid outer, samples inner); the size "
+                        "given is recorded in --out, and a resume keeps it")
     p.add_argument("--plot", default=None, metavar="DIR", help="only redraw DIR's figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar or messages")
     p.set_defaults(func=cmd_study)

@@ -416,7 +416,9 @@ class _Builder:
                 text = dump_scenario(scenario)
             check_run_size(scenario, self.t_end)
         except ScenarioError as exc:
-            raise StudyError(f"{where}: {exc}") from None
+            error = StudyError(f"{where}: {exc}")
+            error.detail = str(exc)
+            raise error from None
         return scenario, text
 
 
@@ -478,7 +480,8 @@ def _label(params: dict) -> str:
 
 
 def expand(study: Study, *, max_cases: int = MAX_CASES,
-           max_cases_option: str | None = "--max-cases") -> list[Case]:
+           max_cases_option: str | None = "--max-cases", first: int | None = None
+           ) -> list[Case]:
     """All cases of ``study``, each scenario validated, in order (grid outer, samples inner).
 
     Parameters
@@ -489,6 +492,8 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
     max_cases_option : str or None
         The command-line option that raises the bound, named in the message (None: a command
         without one, such as ``stability``).
+    first : int or None
+        Only the first ``first`` cases (``study --cases N``); None: all of them.
 
     Raises
     ------
@@ -498,7 +503,7 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
         before any run.
     """
     n_cases, points, samples_n = study_size(study)
-    if n_cases > max_cases:
+    if min(n_cases, n_cases if first is None else first) > max_cases:
         raise StudyError(f"the study has {n_cases} cases ({points} grid points × {samples_n} "
                          f"samples), more than {max_cases}; shrink the grid or monte_carlo.n"
                          + (f", or raise the bound on purpose with {max_cases_option}"
@@ -509,15 +514,24 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
     _fill_joint_lists(builder, paths)
     base = builder.base_dict
     grid_targets = {path: resolve(base, path, f"grid.{path}") for path in study.grid}
-    for path, values in study.grid.items():     # each value alone: names the bad one
-        seen = set()
+    # Each value alone on the base first, so that a bad value is named as the grid gives it.
+    # A value refused alone may still be valid with the other keys' values (control_period
+    # with plant.time_step): only a case, a combination, that fails is an error, named by
+    # that value when it fails for the same reason, by the case otherwise.
+    alone: dict[tuple[str, str], StudyError] = {}
+    for path, values in study.grid.items():
         for value in values:
             marker = json.dumps(value, sort_keys=True, default=repr)
-            if marker in seen:
+            if (path, marker) in alone:
                 continue
-            seen.add(marker)
-            builder.build([(keys, "set", value) for keys in grid_targets[path]],
-                          f"grid.{path} = {value!r}")
+            try:
+                builder.build([(keys, "set", value) for keys in grid_targets[path]],
+                              f"grid.{path} = {value!r}")
+                alone[(path, marker)] = None
+            except StudyError as exc:
+                if len(study.grid) == 1 and not study.monte_carlo:
+                    raise
+                alone[(path, marker)] = exc
     samples = _samples(study, base)
     mc_paths = [] if not samples[0] else list(dict.fromkeys(k for k, _, _ in samples[0]))
     cases = []
@@ -527,11 +541,21 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
         grid_assign = [(keys, "set", value) for path, value in grid_params.items()
                        for keys in grid_targets[path]]
         for s, draws in enumerate(samples):
+            if first is not None and len(cases) >= first:
+                break
             params = dict(grid_params)
             if study.monte_carlo is not None:
                 params["sample"] = s
-            scenario, text = builder.build(grid_assign + draws,
-                                           f"case {len(cases)} ({_label(params)})")
+            try:
+                scenario, text = builder.build(grid_assign + draws,
+                                               f"case {len(cases)} ({_label(params)})")
+            except StudyError as exc:
+                for path, value in grid_params.items():
+                    first_error = alone[(path, json.dumps(value, sort_keys=True,
+                                                          default=repr))]
+                    if first_error is not None and first_error.detail == exc.detail:
+                        raise first_error from None
+                raise
             values = {}
             for path, spec in grid_params.items():
                 read = [_read(scenario, keys, spec) for keys in grid_targets[path]]

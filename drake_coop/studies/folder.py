@@ -73,6 +73,24 @@ class StudyFolder:
                 return doc[key]
         return None
 
+    def recorded_size(self) -> dict | None:
+        """The size the folder's study was run at (:mod:`drake_coop.studies.size`): the
+        marker's ``size``; ``{}`` (the file's own size) for a folder written before sizes
+        were recorded; None for a folder that holds no study yet."""
+        path = self.out / MARKER
+        try:
+            if not path.is_symlink() and path.is_file() and path.stat().st_size < 1_000_000:
+                doc = json.loads(path.read_bytes().decode("utf-8"))
+                if isinstance(doc, dict) and isinstance(doc.get("size"), dict):
+                    return doc["size"]
+        except (OSError, ValueError, RecursionError):
+            pass
+        return {} if (self.out / "study.json").is_file() else None
+
+    def record_size(self, name: str, size: dict) -> None:
+        """Write study ``name``'s size into the marker (atomically)."""
+        atomic_write_text(self.out / MARKER, json.dumps({"name": name, "size": size}) + "\n")
+
     def _check(self, name: str) -> bool:
         """Raise unless the folder may be used by study ``name``; True if it exists."""
         out = self.out

@@ -13,7 +13,11 @@ scenario YAML, status (``ok``, ``diverged`` or ``error``: what the case's run sa
 message. Resuming skips every case whose hash has a valid file; a case that was interrupted,
 or whose process died, is never written as a result (a ``.died`` note says so, and the case is
 run again on the next resume). A case file that cannot be read or misses a field is skipped
-with a warning (:attr:`ResultStore.skipped`) and its case runs again. ``results.csv`` and
+with a warning (:attr:`ResultStore.skipped`) and its case runs again. Its metrics must have
+the shapes :mod:`drake_coop.results.metrics` writes: ``{"rms", "max"}`` numbers for an error,
+plain numbers for the sample counts, and for the held object's counts and times those that
+:data:`~drake_coop.results.object_metrics.EVENT_METRICS` declares (``{"count": k}``, an
+integer >= 0; ``{"time": s}``, a number or null). ``results.csv`` and
 ``study.json`` are rewritten (atomically) after every finished case; their parameter columns
 are :attr:`~drake_coop.studies.expand.Case.values`, read from each case's resolved scenario.
 
@@ -38,6 +42,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from drake_coop.results.io import atomic_write_text
+from drake_coop.results.object_metrics import EVENT_METRICS
 from drake_coop.studies.expand import Case
 from drake_coop.studies.spec import Study
 
@@ -55,8 +60,8 @@ ERRORS = ("x_tilde", "y_tilde", "z_tilde", "position_error", "force_error", "est
           "friction_use", "object_position_error", "object_angle_error", "slip",
           "mass_estimate_error")
 #: The held object's counts and times (``contact`` mode,
-#: :mod:`drake_coop.results.object_metrics`): ``<robot>.<name>.<stat>``.
-EVENTS = {"slips": "count", "drops": "count", "mass_convergence_time": "time"}
+#: :data:`drake_coop.results.object_metrics.EVENT_METRICS`): ``<robot>.<name>.<stat>``.
+EVENTS = {name: key for name, (key, _) in EVENT_METRICS.items()}
 _GROUPS = {"position_error": ("x_tilde", "y_tilde", "z_tilde"),
            "observation_error": JOINT_ERRORS}
 STATS = ("rms", "max")
@@ -252,6 +257,29 @@ def _is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def _entry_problem(name: str, entry) -> str | None:
+    """What makes one entry of a phase's metrics unusable, or None: the shapes
+    :mod:`drake_coop.results.metrics` writes (``{"rms", "max"}``, and the sample counts
+    ``n_samples`` / ``n_nonfinite`` as plain integers) and those of
+    :data:`~drake_coop.results.object_metrics.EVENT_METRICS` (a count, a time or null)."""
+    if not isinstance(entry, dict):
+        return None if _is_number(entry) else "must be a number or a mapping"
+    if name in EVENT_METRICS:
+        key, nullable = EVENT_METRICS[name]
+        value = entry.get(key)
+        if value is None and nullable:
+            return None
+        if key == "count":
+            ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
+            return None if ok else f"needs {key!r}, an integer >= 0"
+        if _is_number(value) and math.isfinite(value):
+            return None
+        return f"needs {key!r}, a number" + (" or null" if nullable else "")
+    if all(_is_number(entry.get(s)) and math.isfinite(entry[s]) for s in STATS):
+        return None
+    return f"needs {' and '.join(repr(s) for s in STATS)}, numbers"
+
+
 def _record_problem(record, stem: str) -> str | None:
     """What makes a loaded case file unusable, or None."""
     if not isinstance(record, dict):
@@ -267,10 +295,15 @@ def _record_problem(record, stem: str) -> str | None:
         if key not in record or not ok(record[key]):
             return f"field {key!r} is missing or of the wrong type"
     for robot, phases in record["metrics"].items():
-        if not isinstance(phases, dict) or not all(
-                isinstance(m, dict) and all(isinstance(e, dict) and _is_number(e.get("rms"))
-                                            and _is_number(e.get("max"))
-                                            for e in m.values() if isinstance(e, dict))
-                for m in phases.values()):
-            return f"metrics of {str(robot)[:40]!r} are malformed"
+        where = f"metrics of {str(robot)[:40]!r}"
+        if not isinstance(phases, dict):
+            return f"{where} are malformed"
+        for phase, entries in phases.items():
+            if not isinstance(entries, dict):
+                return f"{where} are malformed (phase {str(phase)[:40]!r})"
+            for name, entry in entries.items():
+                problem = _entry_problem(str(name), entry)
+                if problem:
+                    return f"{where} are malformed ({str(phase)[:40]}.{str(name)[:40]}: " \
+                           f"{problem})"
     return None

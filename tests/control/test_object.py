@@ -5,6 +5,8 @@ with a moved contact point."""
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 import pytest
 from pydrake.multibody.parsing import Parser
@@ -285,15 +287,57 @@ def test_the_spheres_law_is_drakes_linear_pressure_field_integrated():
 def test_the_spheres_law_of_one_force_inverts_the_law_as_the_array_path_does():
     """One force (the controller's ``λ_d`` every tick) takes the float path of
     :meth:`ContactStiffness.compression`: the law's inverse (``force``) to 1e-12, and the
-    array path's value for the same forces (two at a time) to 1e-14 relative."""
+    array path's value for the same forces (two at a time) to 4 ulp (the two paths do the
+    same IEEE operations in the same order, so they agree bit for bit; the test does not rely
+    on it)."""
     k = ContactStiffness(np.pi * 5e6, 2.0, radius=0.015)
     lam = np.array([0.0, 1e-9, 0.3, 14.0, 32.0, 50.0, 400.0])
     single = np.array([k.compression(np.array([x]))[0] for x in lam])
     assert k.compression(np.array([32.0])).shape == (1,)
     np.testing.assert_allclose(k.force(single), lam, rtol=1e-12, atol=1e-12)
     pairs = np.array([k.compression(np.array([x, x]))[0] for x in lam])
-    np.testing.assert_allclose(single, pairs, rtol=1e-14, atol=0.0)
-    assert k.compression(np.array([1e9]))[0] == 0.015       # beyond the hemisphere: r
+    np.testing.assert_allclose(single, pairs, rtol=1e-15, atol=0.0)
+    # beyond the hemisphere: r itself (the function returns its radius, no arithmetic)
+    assert k.compression(np.array([1e9]))[0] == 0.015
+
+
+def _exact_sphere_root(t: Fraction, r: Fraction) -> Fraction:
+    """The root of ``δ² − 2δ³/(3r) = t`` in ``[0, r]`` by bisection in exact rationals (to
+    2⁻⁹⁰ r): independent of the floating-point Newton steps under test."""
+    lo, hi = Fraction(0), r
+    for _ in range(90):
+        mid = (lo + hi) / 2
+        if mid * mid - 2 * mid ** 3 / (3 * r) < t:
+            lo = mid
+        else:
+            hi = mid
+    return (lo + hi) / 2
+
+
+def test_the_spheres_root_at_and_near_its_double_root_is_the_exact_root_on_any_cpu():
+    """At ``λ = a r²/3`` the law's slope vanishes (a double root at ``δ = r``): a force there
+    or beyond gives exactly ``r`` (no arithmetic); just below it the Newton steps (on
+    ``u = 1 − δ/r``) converge to the exact root of the law. The tolerance is the problem's
+    own error bound: ``s = 1 − 3λ/(a r²)`` carries a rounding of a few ulp of 1 (8 ε), which
+    moves the root by ``r · 8ε / (6u)`` (``du/ds = 1/(6u(1 − u))``), plus 8 ulp of ``r``
+    for the last steps."""
+    r = 0.015
+    k = ContactStiffness(np.pi * 5e6, 2.0, radius=r)
+    cap = k.a * r * r / 3.0
+    eps = np.finfo(float).eps
+    assert k.compression(cap) == r and k.compression(np.array([cap, 2 * cap]))[0] == r
+    forces = [cap * (1 - x) for x in (1e-15, 1e-12, 1e-9, 1e-6, 1e-3, 0.3, 0.5, 0.5000001,
+                                      0.7, 0.99)] + [np.nextafter(cap, 0.0), 1e-6, 32.0]
+    single = np.array([float(k.compression(x)) for x in forces])
+    array = k.compression(np.array(forces))
+    for lam, d_one, d_array in zip(forces, single, array):
+        t = Fraction(float(lam)) / Fraction(k.a)
+        exact = float(_exact_sphere_root(t, Fraction(r)))
+        u = max(1.0 - exact / r, 1e-300)
+        bound = r * 8 * eps / (6 * u) + 8 * eps * r
+        assert abs(d_one - exact) <= bound, (lam, d_one, exact)
+        assert abs(d_array - exact) <= bound, (lam, d_array, exact)
+        assert 0.0 <= d_one <= r
 
 
 def test_law_with_a_compliant_contact_is_the_law_with_the_contact_point_pressed_in():
