@@ -24,6 +24,15 @@ def add_arms_parser(sub) -> None:
     p.set_defaults(func=cmd_arms)
 
 
+def _error(message: str) -> int:
+    """``drake-coop: error: <message>`` on one line, exit code 2 (as
+    :func:`drake_coop.console.error`, which sits above this layer)."""
+    from drake_coop.scenario.bounds import one_line
+
+    print(f"drake-coop: error: {one_line(message)}", file=sys.stderr)
+    return 2
+
+
 def _numbers(values) -> str:
     return " ".join("-" if v is None else f"{v:g}" for v in values)
 
@@ -56,7 +65,6 @@ def _yaml(name: str) -> str:
 
 def cmd_arms(args) -> int:
     """List the arms (see the module's docstring for the exit codes)."""
-    from drake_coop.console import error as _error
     from drake_coop.control.arm_model import description_packages
     from drake_coop.scenario.description import ROBOTS_EXTRA
     from drake_coop.scenario.lab_arms import LAB_ARMS, arm_facts
