@@ -22,6 +22,17 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
     end-effector points (28) plus the box's offset from it at the grasp tick (where the box
     rests on its stand); its rotation against its orientation at the grasp. Held phases only
     (``lift``, ``circle``, ``put_down``).
+``object_turn``, ``object_tilt`` (rad)
+    The box's rotation since the grasp tick split about the grasp line (:func:`turn_and_tilt`):
+    ``q_rel = q₀* ⊗ q`` (the rotation in the box's frame at the grasp) = ``swing ⊗ twist``,
+    the twist about the grasp line ``a`` (the turn, signed: ``2 atan2(v·a, w)``) and the swing
+    about an axis normal to it (the tilt, ``2 arccos √(w² + (v·a)²)``). The grasp line is the
+    line through the two pads' contact points at the grasp tick (each pad's centre projected
+    on its face: ``pad_in_object`` with its x set to the face's ``±`` half width), fixed in the
+    box; with three or more pads, the normal of the plane through their contact points (the
+    turn is then the box's rotation in that plane). The turn is the "spin" the paper's
+    introduction asks the squeeze to prevent: two pads resist it only through the torsional
+    friction of their contact patches. Held phases only.
 ``slip`` (m)
     The pad's sliding on the box's face since the grasp, net of rolling: at each step the
     pad's material point at the contact (``−d n`` from the pad's centre, ``d`` the centre's
@@ -57,8 +68,8 @@ from drake_coop.kinematics.rotations import quaternion_rotations
 
 __all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
            "SETTLE_TIME",
-           "SLIP_DISTANCE", "object_metrics",
-           "object_signals"]
+           "SLIP_DISTANCE", "grasp_axis", "object_metrics",
+           "object_signals", "turn_and_tilt"]
 
 #: A pad presses on the box when its normal force is at least this (N).
 CONTACT_FORCE = 0.5
@@ -81,6 +92,65 @@ def _rotation_angle(R: np.ndarray) -> np.ndarray:
     """Angle of each rotation ``(K, 3, 3)`` (rad)."""
     c = 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
     return np.arccos(np.clip(c, -1.0, 1.0))
+
+
+def _quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products ``a ⊗ b`` of ``[w, x, y, z]`` rows (broadcast)."""
+    aw, av = a[..., :1], a[..., 1:]
+    bw, bv = b[..., :1], b[..., 1:]
+    return np.concatenate([aw * bw - np.sum(av * bv, axis=-1, keepdims=True),
+                           aw * bv + bw * av + np.cross(av, bv)], axis=-1)
+
+
+def turn_and_tilt(quaternions: np.ndarray, k0: int, axis: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The box's turn about ``axis`` and its tilt since sample ``k0`` (rad).
+
+    Parameters
+    ----------
+    quaternions : ndarray, shape (K, 4)
+        The box's orientation ``[w, x, y, z]`` (world from box) per sample.
+    k0 : int
+        The reference sample (the grasp tick).
+    axis : ndarray, shape (3,)
+        The grasp line's direction in the box's frame (normalized here).
+
+    Returns
+    -------
+    turn, tilt : ndarray, shape (K,)
+        With ``q_rel = q₀* ⊗ q = (w, v)`` (sign chosen so ``w ≥ 0``) written
+        ``swing ⊗ twist``, the twist about ``a`` of angle ``turn = 2 atan2(v·a, w)`` and the
+        swing about an axis normal to ``a`` of angle ``tilt = 2 arccos √(w² + (v·a)²)``
+        (computed as ``2 atan2(|s_v|, s_w)`` of the swing ``s``, accurate near 0):
+        ``R = R₀ R_swing(tilt) R_twist(turn)``.
+    """
+    q = np.asarray(quaternions, dtype=float)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    q0_conj = q[k0] * np.array([1.0, -1.0, -1.0, -1.0])
+    rel = _quaternion_product(q0_conj[None, :], q)
+    rel = np.where(rel[:, :1] < 0.0, -rel, rel)
+    w, along = rel[:, 0], rel[:, 1:] @ a
+    turn = 2.0 * np.arctan2(along, w)
+    norm = np.sqrt(w * w + along * along)
+    twist = np.column_stack([w, np.outer(along, a)]) / np.where(norm > 0.0, norm, 1.0)[:, None]
+    swing = _quaternion_product(rel, twist * np.array([1.0, -1.0, -1.0, -1.0]))
+    # atan2 of the swing's parts, not arccos of its w: accurate for small tilts too.
+    tilt = 2.0 * np.arctan2(np.linalg.norm(swing[:, 1:], axis=1), np.abs(swing[:, 0]))
+    return turn, tilt
+
+
+def grasp_axis(pads_in_object: list[np.ndarray], half_width: float) -> np.ndarray:
+    """The grasp line's unit direction in the box's frame from the pads' centres in it (each
+    projected on its ``±x`` face: the contact point): through the two contact points, or with
+    three or more the normal of the plane through them (the smallest singular vector)."""
+    points = np.array([[np.copysign(half_width, c[0]), c[1], c[2]] for c in pads_in_object])
+    if len(points) == 2:
+        d = points[1] - points[0]
+        return d / np.linalg.norm(d)
+    _, _, vt = np.linalg.svd(points - points.mean(axis=0))
+    return vt[-1]
 
 
 def _held_window(t: np.ndarray, phases: list) -> tuple[float, float]:
@@ -114,7 +184,7 @@ def _carried_end(phases: list) -> float:
 def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
                    ) -> dict[str, dict[str, np.ndarray]] | None:
     """Per robot, the per-sample object signals (``friction_use``, ``object_position_error``,
-    ``object_angle_error``, ``slip``) and the sample indices where a slip or a drop is
+    ``object_angle_error``, ``object_turn``, ``object_tilt``, ``slip``) and the sample indices where a slip or a drop is
     counted (``slip_events``, ``drop_events``); None without an ``object_pose`` log.
 
     Parameters
@@ -143,6 +213,8 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
     k0 = int(np.searchsorted(t, t_grasp - 1e-9))
     position_error = np.full(K, np.nan)
     angle_error = np.full(K, np.nan)
+    turn = np.full(K, np.nan)
+    tilt = np.full(K, np.nan)
     R_B = quaternion_rotations(pose[:, :4])
     if k0 < K:
         offset = pose[k0, 4:7] - mid_d[k0]
@@ -150,6 +222,12 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
         angle_error = _rotation_angle(np.einsum("ji,kjl->kil", R_B[k0], R_B))
         position_error[~held] = np.nan
         angle_error[~held] = np.nan
+        if all("pad_in_object" in logs[r] for r in robots):
+            axis = grasp_axis([np.asarray(logs[r]["pad_in_object"], dtype=float)[k0]
+                               for r in robots], 0.5 * float(meta["object_size"][0]))
+            turn, tilt = turn_and_tilt(pose[:, :4], k0, axis)
+            turn[~held] = np.nan
+            tilt[~held] = np.nan
     normals = {r: np.asarray(logs[r]["pad_normal_force"], dtype=float) for r in robots}
     pressing = np.all([normals[r] >= CONTACT_FORCE for r in robots], axis=0)
     established = held & _settled(t, held & pressing)
@@ -167,7 +245,8 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
         slip, slip_events = _slip(log, R_B, pose, established,
                                   0.5 * float(meta["object_size"][0]))
         out[r] = {"friction_use": use, "object_position_error": position_error,
-                  "object_angle_error": angle_error, "slip": slip,
+                  "object_angle_error": angle_error, "object_turn": turn,
+                  "object_tilt": tilt, "slip": slip,
                   "slip_events": slip_events, "drop_events": drop_events}
     if all("mass_share" in logs[r] for r in robots) and "object_mass" in meta:
         m = float(meta["object_mass"])
@@ -241,7 +320,7 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
     if signals is None:
         return {}
     units = {"friction_use": "", "object_position_error": "m", "object_angle_error": "rad",
-             "slip": "m"}
+             "object_turn": "rad", "object_tilt": "rad", "slip": "m"}
     out: dict[str, dict[str, dict]] = {}
     for robot, sig in signals.items():
         per_phase = {}
