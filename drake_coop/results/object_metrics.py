@@ -69,7 +69,7 @@ from drake_coop.kinematics.rotations import quaternion_rotations
 __all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
            "SETTLE_TIME",
            "SLIP_DISTANCE", "grasp_axis", "object_metrics",
-           "object_signals", "turn_and_tilt"]
+           "object_signals", "slip_between", "turn_and_tilt"]
 
 #: A pad presses on the box when its normal force is at least this (N).
 CONTACT_FORCE = 0.5
@@ -300,6 +300,25 @@ def _slip(log: dict[str, np.ndarray], R_B: np.ndarray, pose: np.ndarray,
                 events.append(b)
         slip[b] = np.linalg.norm(total)
     return slip, np.asarray(events, dtype=int)
+
+
+def slip_between(logs: dict[str, dict[str, np.ndarray]], meta: dict, t0: float, t1: float
+                 ) -> dict[str, float]:
+    """Each pad's sliding on the box from ``t0`` to ``t1`` (m): the ``slip`` of the module
+    summed over the samples in ``[t0, t1]`` only (from the plant's logged poses, net of
+    rolling). With the path held still, this is the box's creep against the pads."""
+    robots = list(logs)
+    first = logs[robots[0]]
+    t = np.asarray(first["t"], dtype=float)
+    pose = np.asarray(first["object_pose"], dtype=float)
+    window = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
+    R_B = quaternion_rotations(pose[:, :4])
+    half = 0.5 * float(meta["object_size"][0])
+    out = {}
+    for r in robots:
+        slip, _ = _slip(logs[r], R_B, pose, window, half)
+        out[r] = float(slip[np.flatnonzero(window)[-1]]) if window.any() else 0.0
+    return out
 
 
 def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
