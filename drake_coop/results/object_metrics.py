@@ -39,6 +39,9 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
     distance to the face) moves with the pad's body and the box's point under it with the
     box; their tangential difference (box frame) is summed. Rolling (the pad is a sphere on
     a link whose orientation changes) moves neither relative to the other.
+    Beside it, ``floor`` (m): :func:`creep_floor` of the run's plant step over the phase's held
+    time, the sliding the simulator's friction regularization alone can give a box held
+    still; a slip at or below it is not the controller's.
 ``slips`` (a count, ``{"count": k}``)
     Slides of :data:`SLIP_DISTANCE` each: every time the summed slip has moved that far from
     where the last count left it, one more (a continuous slide of 5 mm counts 2).
@@ -68,13 +71,19 @@ from drake_coop.kinematics.rotations import quaternion_rotations
 
 __all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
            "SETTLE_TIME",
-           "SLIP_DISTANCE", "grasp_axis", "object_metrics",
+           "CREEP_RATE", "SLIP_DISTANCE", "creep_floor", "grasp_axis", "object_metrics",
            "object_signals", "slip_between", "turn_and_tilt"]
 
 #: A pad presses on the box when its normal force is at least this (N).
 CONTACT_FORCE = 0.5
 #: One counted slip: the pad slides this far on the box's face (m).
 SLIP_DISTANCE = 2e-3
+#: The creep floor's rate at a 3 ms plant step (m/s): twice the largest creep measured with the
+#: path held still on ``contact.yaml``'s plant (0.5 kg, μ 1: 0.045-0.056 mm per 90 s; 1.5 kg,
+#: μ 0.5: 0.087-0.089 mm per 90 s; a third of it at a 1 ms step: the creep is proportional to
+#: the step, SAP's friction regularization), ``tests/results/test_creep.py`` keeps it above
+#: the measured creep.
+CREEP_RATE = 2e-6
 #: The grasp is established once both pads have pressed this long without a break (s).
 SETTLE_TIME = 0.1
 #: The box is dropped when its centre is this far from the desired path (m).
@@ -86,6 +95,13 @@ REST_HEIGHT = 1e-3
 MASS_TOLERANCE = 0.05
 #: The phases where the box is held.
 HELD_PHASES = ("lift", "circle", "put_down")
+
+
+def creep_floor(time_step: float, duration: float) -> float:
+    """The creep floor (m): how far a box held still by friction slides on the pads in
+    ``duration`` seconds at plant step ``time_step`` (s), from :data:`CREEP_RATE` scaled in
+    proportion to the step."""
+    return CREEP_RATE * (float(time_step) / 3e-3) * float(duration)
 
 
 def _rotation_angle(R: np.ndarray) -> np.ndarray:
@@ -338,6 +354,8 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
     signals = object_signals(logs, meta)
     if signals is None:
         return {}
+    t = np.asarray(next(iter(logs.values()))["t"], dtype=float)
+    step = meta.get("plant_time_step")
     units = {"friction_use": "", "object_position_error": "m", "object_angle_error": "rad",
              "object_turn": "rad", "object_tilt": "rad", "slip": "m"}
     out: dict[str, dict[str, dict]] = {}
@@ -353,6 +371,9 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
                 if x.size:
                     entry[name] = {"rms": float(np.sqrt(np.mean(x ** 2))),
                                    "max": float(np.max(np.abs(x))), "unit": unit}
+                    if name == "slip" and step is not None:
+                        held = t[mask & np.isfinite(sig[name])]
+                        entry[name]["floor"] = creep_floor(step, float(held[-1] - held[0]))
             if "mass_error" in sig:
                 x = sig["mass_error"][mask]
                 x = x[np.isfinite(x)]

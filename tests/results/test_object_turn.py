@@ -82,3 +82,14 @@ def test_a_turn_alone_is_no_tilt_and_a_tilt_alone_no_turn():
     turn2, tilt2 = turn_and_tilt(q * np.array([[1], [-1], [1], [-1], [1]]), 0, a)
     np.testing.assert_allclose(turn2, turn, atol=1e-12)
     np.testing.assert_allclose(tilt2, tilt, atol=1e-12)
+
+
+def test_the_creep_floor_is_stated_beside_the_slip():
+    from drake_coop.results.object_metrics import CREEP_RATE, creep_floor
+
+    t, logs, meta = _run()
+    meta["plant_time_step"] = 0.001
+    m = compute_metrics(logs, meta)["robot1"]["circle"]["slip"]
+    circle = t[(t >= 4.0) & (t < 8.0)]
+    assert m["floor"] == pytest.approx(CREEP_RATE / 3 * (circle[-1] - circle[0]), rel=1e-12)
+    assert creep_floor(0.003, 90.0) == pytest.approx(90 * CREEP_RATE, rel=1e-12)
