@@ -152,6 +152,6 @@ def check_squeeze_path(t, tau0, c, lam, limits, name: str,
     allowed = ("no squeeze is within them there" if lo > hi else
                f"they allow {lo:.4g} to {hi:.4g} N there")
     raise ValueError(
-        f"{name}: at t = {t[k]:.3f} s the squeeze {lam[k]:.4g} N with the object's load "
-        f"needs {tau[k, j]:.4g} at {label}, beyond its torque limit {limits[j]:.4g}; "
-        f"{allowed} (a lighter object, more friction, or stronger arms)")
+        f"{name}: at t = {t[k]:.3f} s the arm's motion and weight, the object's load and the "
+        f"squeeze {lam[k]:.4g} N need {tau[k, j]:.4g} at {label}, beyond its torque limit "
+        f"{limits[j]:.4g}; {allowed} (a lighter object, more friction, or stronger arms)")

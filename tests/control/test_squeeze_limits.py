@@ -181,7 +181,7 @@ def test_check_squeeze_path_names_the_joint_and_time():
     tau0 = np.array([[1.0, 0.0], [1.0, 0.0], [1.0, 0.0]])
     c = np.array([[0.0, 1.0], [0.0, 1.0], [0.0, 1.0]])
     check_squeeze_path(t, tau0, c, np.array([1.0, 2.0, 3.0]), np.array([2.0, 3.0]), "arm")
-    with pytest.raises(ValueError, match=r"^arm: at t = 0\.200 s the squeeze 4 N .* at wrist,"
+    with pytest.raises(ValueError, match=r"^arm: at t = 0\.200 s .* squeeze 4 N need 4 at wrist,"
                                          r" beyond its torque limit 3; they allow 0 to 3 N"):
         check_squeeze_path(t, tau0, c, np.array([1.0, 2.0, 4.0]), np.array([2.0, 3.0]), "arm",
                            ["shoulder", "wrist"])
