@@ -93,3 +93,17 @@ def test_the_creep_floor_is_stated_beside_the_slip():
     circle = t[(t >= 4.0) & (t < 8.0)]
     assert m["floor"] == pytest.approx(CREEP_RATE / 3 * (circle[-1] - circle[0]), rel=1e-12)
     assert creep_floor(0.003, 90.0) == pytest.approx(90 * CREEP_RATE, rel=1e-12)
+
+
+def test_the_summary_prints_the_box_line_with_its_turn_and_floor():
+    from drake_coop.results.summary import summary_lines
+
+    t, logs, meta = _run()
+    _with_rotation(t, logs)
+    meta["plant_time_step"] = 0.003
+    metrics = compute_metrics(logs, meta)
+    (line,) = [x for x in summary_lines(metrics, meta) if x.strip().startswith("object:")]
+    circle = (t >= 4.0) & (t < 8.0)
+    turn = np.degrees(_turn(t[circle]))
+    assert f"turn {np.sqrt(np.mean(turn ** 2)):.3g} / {np.max(np.abs(turn)):.3g}°" in line
+    assert "creep floor" in line and line.endswith(" slips, 0 drops")
