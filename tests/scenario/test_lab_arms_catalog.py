@@ -82,3 +82,4 @@ def test_arms_command_lists_every_arm_and_prints_a_robot_entry():
     done = _cli("arms", "--yaml", "iiwa")
     assert done.returncode == 2
     assert done.stderr.count("\n") == 1 and "--yaml must be one of" in done.stderr
+
