@@ -80,9 +80,9 @@ CONTACT_FORCE = 0.5
 SLIP_DISTANCE = 2e-3
 #: The creep floor's rate at a 3 ms plant step (m/s): twice the largest creep measured with the
 #: path held still on ``contact.yaml``'s plant (0.5 kg, μ 1: 0.045-0.056 mm per 90 s; 1.5 kg,
-#: μ 0.5: 0.087-0.089 mm per 90 s; a third of it at a 1 ms step: the creep is proportional to
-#: the step, SAP's friction regularization), ``tests/results/test_creep.py`` keeps it above
-#: the measured creep.
+#: μ 0.5: 0.087-0.089 mm per 90 s; a third of each at a 1 ms step, 0.015-0.030 mm: the creep is
+#: proportional to the step, SAP's friction regularization); ``tests/results/test_creep.py``
+#: keeps it above the measured creep.
 CREEP_RATE = 2e-6
 #: The grasp is established once both pads have pressed this long without a break (s).
 SETTLE_TIME = 0.1
