@@ -79,6 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_stability_parser(sub)
     from drake_coop.stability.gains_cli import add_gains_parser
     add_gains_parser(sub)
+    from drake_coop.scenario.arms_cli import add_arms_parser
+    add_arms_parser(sub)
     from drake_coop.robot.cli import add_robot_parsers
     add_robot_parsers(sub)
     return parser

@@ -127,9 +127,12 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"drake-coop: simulating {label} ({scenario.plant.object_mode} mode, "
                   f"h = {scenario.control_period * 1e3:g} ms, plant step "
                   f"{scenario.plant.time_step * 1e3:g} ms) -> {out}", file=sys.stderr)
-        result = simulate(scenario, t_end=args.t_end, progress=progress,
-                          before_build=before_build, on_start=on_start,
-                          hold_signals=_signals.SIGNALS.deferred)
+        try:
+            result = simulate(scenario, t_end=args.t_end, progress=progress,
+                              before_build=before_build, on_start=on_start,
+                              hold_signals=_signals.SIGNALS.deferred)
+        except ScenarioError as exc:      # refused before the run (a squeeze beyond limits)
+            return _error(str(exc))
         if progress is not None:
             progress.close()
         if result.meta["status"] == "interrupted":

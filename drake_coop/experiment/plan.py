@@ -159,6 +159,19 @@ class ControlPoint:
     normal: np.ndarray
 
 
+def grasp_object(scenario: Scenario, mass: float):
+    """The object as the grasp sees it, with ``mass`` (kg): grasp points at the robots'
+    contact points (``contact_xy``, at a common height), inward normals ``−N_i`` (first row),
+    centre of mass at the points' midpoint (an
+    :class:`~drake_coop.control.object.ObjectModel`)."""
+    from drake_coop.control.object import ObjectModel
+
+    points = np.array([[r.contact_xy[0], r.contact_xy[1], 0.0] for r in scenario.robots])
+    normals = -np.array([np.asarray(r.normals[0], dtype=float) for r in scenario.robots])
+    return ObjectModel(mass=mass, com=points.mean(axis=0), grasp_points=points,
+                       grasp_normals=normals)
+
+
 class ObjectPlan:
     """The controllers' object model (``object_model.mode`` known or estimated).
 
@@ -177,7 +190,7 @@ class ObjectPlan:
     """
 
     def __init__(self, scenario: Scenario):
-        from drake_coop.control.object import ObjectModel, mass_shares
+        from drake_coop.control.object import mass_shares
 
         om = scenario.object_model
         truth = float(scenario.plant.object_mass)
@@ -185,10 +198,7 @@ class ObjectPlan:
             self.mass = om.prior_mass_factor * truth
         else:
             self.mass = float(om.mass) if om.mass is not None else truth
-        points = np.array([[r.contact_xy[0], r.contact_xy[1], 0.0] for r in scenario.robots])
-        normals = -np.array([np.asarray(r.normals[0], dtype=float) for r in scenario.robots])
-        self.model = ObjectModel(mass=self.mass, com=points.mean(axis=0), grasp_points=points,
-                                 grasp_normals=normals)
+        self.model = grasp_object(scenario, self.mass)
         self.shares = np.asarray(mass_shares(self.model), dtype=float)
         self.mu = om.mu if om.mu is not None else scenario.plant.friction
 

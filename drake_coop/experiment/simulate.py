@@ -325,7 +325,9 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     ------
     ScenarioError
         If the run's work exceeds :data:`~drake_coop.experiment.plan.MAX_TICKS` or
-        :data:`~drake_coop.experiment.plan.MAX_PLANT_STEPS` (checked before anything is built).
+        :data:`~drake_coop.experiment.plan.MAX_PLANT_STEPS` (checked before anything is built),
+        or, in ``contact`` mode, if an arm's squeeze and load need more than its torque limits
+        somewhere along the path (:mod:`drake_coop.experiment.squeeze_check`, also before).
     """
     plan = plan_run(scenario, t_end)
     T = plan.t_end
@@ -333,6 +335,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     # References only to the run's end: a long task stopped early stays cheap.
     references = [reference_trajectory(scenario, i, T, plan)
                   for i in range(len(scenario.robots))]
+    from drake_coop.experiment.squeeze_check import check_squeeze_limits
+    check_squeeze_limits(scenario, plan, T, references)      # contact mode: refused before
     exp = build_experiment(plan, before_build=before_build, references=references,
                            live_ground_truth=live_ground_truth)
     simulator = Simulator(exp.diagram)

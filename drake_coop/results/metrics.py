@@ -28,7 +28,8 @@ it).
 
 In ``contact`` mode each robot's phases also hold the object's metrics
 (:mod:`drake_coop.results.object_metrics`): ``friction_use``, ``object_position_error``,
-``object_angle_error``, ``slip`` (``rms``/``max``/``unit``) and the counts ``slips`` and
+``object_angle_error``, ``object_turn``, ``object_tilt`` (the rotation about the grasp line
+and the rest), ``slip`` (``rms``/``max``/``unit``) and the counts ``slips`` and
 ``drops`` (``{"count": k, "unit": "events"}``).
 """
 

@@ -22,12 +22,26 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
     end-effector points (28) plus the box's offset from it at the grasp tick (where the box
     rests on its stand); its rotation against its orientation at the grasp. Held phases only
     (``lift``, ``circle``, ``put_down``).
+``object_turn``, ``object_tilt`` (rad)
+    The box's rotation since the grasp tick split about the grasp line (:func:`turn_and_tilt`):
+    ``q_rel = q₀* ⊗ q`` (the rotation in the box's frame at the grasp) = ``swing ⊗ twist``,
+    the twist about the grasp line ``a`` (the turn, signed: ``2 atan2(v·a, w)``) and the swing
+    about an axis normal to it (the tilt, ``2 arccos √(w² + (v·a)²)``). The grasp line is the
+    line through the two pads' contact points at the grasp tick (each pad's centre projected
+    on its face: ``pad_in_object`` with its x set to the face's ``±`` half width), fixed in the
+    box; with three or more pads, the normal of the plane through their contact points (the
+    turn is then the box's rotation in that plane). The turn is the "spin" the paper's
+    introduction asks the squeeze to prevent: two pads resist it only through the torsional
+    friction of their contact patches. Held phases only.
 ``slip`` (m)
     The pad's sliding on the box's face since the grasp, net of rolling: at each step the
     pad's material point at the contact (``−d n`` from the pad's centre, ``d`` the centre's
     distance to the face) moves with the pad's body and the box's point under it with the
     box; their tangential difference (box frame) is summed. Rolling (the pad is a sphere on
     a link whose orientation changes) moves neither relative to the other.
+    Beside it, ``floor`` (m): :func:`creep_floor` of the run's plant step over the phase's held
+    time, the sliding the simulator's friction regularization alone can give a box held
+    still; a slip at or below it is not the controller's.
 ``slips`` (a count, ``{"count": k}``)
     Slides of :data:`SLIP_DISTANCE` each: every time the summed slip has moved that far from
     where the last count left it, one more (a continuous slide of 5 mm counts 2).
@@ -57,13 +71,19 @@ from drake_coop.kinematics.rotations import quaternion_rotations
 
 __all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "EVENT_METRICS", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
            "SETTLE_TIME",
-           "SLIP_DISTANCE", "object_metrics",
-           "object_signals"]
+           "CREEP_RATE", "SLIP_DISTANCE", "creep_floor", "grasp_axis", "object_metrics",
+           "object_signals", "slip_between", "turn_and_tilt"]
 
 #: A pad presses on the box when its normal force is at least this (N).
 CONTACT_FORCE = 0.5
 #: One counted slip: the pad slides this far on the box's face (m).
 SLIP_DISTANCE = 2e-3
+#: The creep floor's rate at a 3 ms plant step (m/s): twice the largest creep measured with the
+#: path held still on ``contact.yaml``'s plant (0.5 kg, μ 1: 0.045-0.056 mm per 90 s; 1.5 kg,
+#: μ 0.5: 0.087-0.089 mm per 90 s; a third of each at a 1 ms step, 0.015-0.030 mm: the creep is
+#: proportional to the step, SAP's friction regularization); ``tests/results/test_creep.py``
+#: keeps it above the measured creep.
+CREEP_RATE = 2e-6
 #: The grasp is established once both pads have pressed this long without a break (s).
 SETTLE_TIME = 0.1
 #: The box is dropped when its centre is this far from the desired path (m).
@@ -84,10 +104,76 @@ EVENT_METRICS = {"slips": ("count", False), "drops": ("count", False),
                  "mass_convergence_time": ("time", True)}
 
 
+def creep_floor(time_step: float, duration: float) -> float:
+    """The creep floor (m): how far a box held still by friction slides on the pads in
+    ``duration`` seconds at plant step ``time_step`` (s), from :data:`CREEP_RATE` scaled in
+    proportion to the step."""
+    return CREEP_RATE * (float(time_step) / 3e-3) * float(duration)
+
+
 def _rotation_angle(R: np.ndarray) -> np.ndarray:
     """Angle of each rotation ``(K, 3, 3)`` (rad)."""
     c = 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
     return np.arccos(np.clip(c, -1.0, 1.0))
+
+
+def _quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products ``a ⊗ b`` of ``[w, x, y, z]`` rows (broadcast)."""
+    aw, av = a[..., :1], a[..., 1:]
+    bw, bv = b[..., :1], b[..., 1:]
+    return np.concatenate([aw * bw - np.sum(av * bv, axis=-1, keepdims=True),
+                           aw * bv + bw * av + np.cross(av, bv)], axis=-1)
+
+
+def turn_and_tilt(quaternions: np.ndarray, k0: int, axis: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The box's turn about ``axis`` and its tilt since sample ``k0`` (rad).
+
+    Parameters
+    ----------
+    quaternions : ndarray, shape (K, 4)
+        The box's orientation ``[w, x, y, z]`` (world from box) per sample.
+    k0 : int
+        The reference sample (the grasp tick).
+    axis : ndarray, shape (3,)
+        The grasp line's direction in the box's frame (normalized here).
+
+    Returns
+    -------
+    turn, tilt : ndarray, shape (K,)
+        With ``q_rel = q₀* ⊗ q = (w, v)`` (sign chosen so ``w ≥ 0``) written
+        ``swing ⊗ twist``, the twist about ``a`` of angle ``turn = 2 atan2(v·a, w)`` and the
+        swing about an axis normal to ``a`` of angle ``tilt = 2 arccos √(w² + (v·a)²)``
+        (computed as ``2 atan2(|s_v|, s_w)`` of the swing ``s``, accurate near 0):
+        ``R = R₀ R_swing(tilt) R_twist(turn)``.
+    """
+    q = np.asarray(quaternions, dtype=float)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a)
+    q0_conj = q[k0] * np.array([1.0, -1.0, -1.0, -1.0])
+    rel = _quaternion_product(q0_conj[None, :], q)
+    rel = np.where(rel[:, :1] < 0.0, -rel, rel)
+    w, along = rel[:, 0], rel[:, 1:] @ a
+    turn = 2.0 * np.arctan2(along, w)
+    norm = np.sqrt(w * w + along * along)
+    twist = np.column_stack([w, np.outer(along, a)]) / np.where(norm > 0.0, norm, 1.0)[:, None]
+    swing = _quaternion_product(rel, twist * np.array([1.0, -1.0, -1.0, -1.0]))
+    # atan2 of the swing's parts, not arccos of its w: accurate for small tilts too.
+    tilt = 2.0 * np.arctan2(np.linalg.norm(swing[:, 1:], axis=1), np.abs(swing[:, 0]))
+    return turn, tilt
+
+
+def grasp_axis(pads_in_object: list[np.ndarray], half_width: float) -> np.ndarray:
+    """The grasp line's unit direction in the box's frame from the pads' centres in it (each
+    projected on its ``±x`` face: the contact point): through the two contact points, or with
+    three or more the normal of the plane through them (the smallest singular vector)."""
+    points = np.array([[np.copysign(half_width, c[0]), c[1], c[2]] for c in pads_in_object])
+    if len(points) == 2:
+        d = points[1] - points[0]
+        return d / np.linalg.norm(d)
+    _, _, vt = np.linalg.svd(points - points.mean(axis=0))
+    return vt[-1]
 
 
 def _held_window(t: np.ndarray, phases: list) -> tuple[float, float]:
@@ -121,7 +207,7 @@ def _carried_end(phases: list) -> float:
 def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
                    ) -> dict[str, dict[str, np.ndarray]] | None:
     """Per robot, the per-sample object signals (``friction_use``, ``object_position_error``,
-    ``object_angle_error``, ``slip``) and the sample indices where a slip or a drop is
+    ``object_angle_error``, ``object_turn``, ``object_tilt``, ``slip``) and the sample indices where a slip or a drop is
     counted (``slip_events``, ``drop_events``); None without an ``object_pose`` log.
 
     Parameters
@@ -150,6 +236,8 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
     k0 = int(np.searchsorted(t, t_grasp - 1e-9))
     position_error = np.full(K, np.nan)
     angle_error = np.full(K, np.nan)
+    turn = np.full(K, np.nan)
+    tilt = np.full(K, np.nan)
     R_B = quaternion_rotations(pose[:, :4])
     if k0 < K:
         offset = pose[k0, 4:7] - mid_d[k0]
@@ -157,6 +245,12 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
         angle_error = _rotation_angle(np.einsum("ji,kjl->kil", R_B[k0], R_B))
         position_error[~held] = np.nan
         angle_error[~held] = np.nan
+        if all("pad_in_object" in logs[r] for r in robots):
+            axis = grasp_axis([np.asarray(logs[r]["pad_in_object"], dtype=float)[k0]
+                               for r in robots], 0.5 * float(meta["object_size"][0]))
+            turn, tilt = turn_and_tilt(pose[:, :4], k0, axis)
+            turn[~held] = np.nan
+            tilt[~held] = np.nan
     normals = {r: np.asarray(logs[r]["pad_normal_force"], dtype=float) for r in robots}
     pressing = np.all([normals[r] >= CONTACT_FORCE for r in robots], axis=0)
     established = held & _settled(t, held & pressing)
@@ -174,7 +268,8 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
         slip, slip_events = _slip(log, R_B, pose, established,
                                   0.5 * float(meta["object_size"][0]))
         out[r] = {"friction_use": use, "object_position_error": position_error,
-                  "object_angle_error": angle_error, "slip": slip,
+                  "object_angle_error": angle_error, "object_turn": turn,
+                  "object_tilt": tilt, "slip": slip,
                   "slip_events": slip_events, "drop_events": drop_events}
     if all("mass_share" in logs[r] for r in robots) and "object_mass" in meta:
         m = float(meta["object_mass"])
@@ -230,6 +325,25 @@ def _slip(log: dict[str, np.ndarray], R_B: np.ndarray, pose: np.ndarray,
     return slip, np.asarray(events, dtype=int)
 
 
+def slip_between(logs: dict[str, dict[str, np.ndarray]], meta: dict, t0: float, t1: float
+                 ) -> dict[str, float]:
+    """Each pad's sliding on the box from ``t0`` to ``t1`` (m): the ``slip`` of the module
+    summed over the samples in ``[t0, t1]`` only (from the plant's logged poses, net of
+    rolling). With the path held still, this is the box's creep against the pads."""
+    robots = list(logs)
+    first = logs[robots[0]]
+    t = np.asarray(first["t"], dtype=float)
+    pose = np.asarray(first["object_pose"], dtype=float)
+    window = (t >= t0 - 1e-12) & (t <= t1 + 1e-12)
+    R_B = quaternion_rotations(pose[:, :4])
+    half = 0.5 * float(meta["object_size"][0])
+    out = {}
+    for r in robots:
+        slip, _ = _slip(logs[r], R_B, pose, window, half)
+        out[r] = float(slip[np.flatnonzero(window)[-1]]) if window.any() else 0.0
+    return out
+
+
 def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
                    masks: dict[str, np.ndarray]) -> dict[str, dict[str, dict]]:
     """``metrics[robot][phase]`` entries of the object (see the module); {} without an
@@ -247,8 +361,10 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
     signals = object_signals(logs, meta)
     if signals is None:
         return {}
+    t = np.asarray(next(iter(logs.values()))["t"], dtype=float)
+    step = meta.get("plant_time_step")
     units = {"friction_use": "", "object_position_error": "m", "object_angle_error": "rad",
-             "slip": "m"}
+             "object_turn": "rad", "object_tilt": "rad", "slip": "m"}
     out: dict[str, dict[str, dict]] = {}
     for robot, sig in signals.items():
         per_phase = {}
@@ -262,6 +378,9 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
                 if x.size:
                     entry[name] = {"rms": float(np.sqrt(np.mean(x ** 2))),
                                    "max": float(np.max(np.abs(x))), "unit": unit}
+                    if name == "slip" and step is not None:
+                        held = t[mask & np.isfinite(sig[name])]
+                        entry[name]["floor"] = creep_floor(step, float(held[-1] - held[0]))
             if "mass_error" in sig:
                 x = sig["mass_error"][mask]
                 x = x[np.isfinite(x)]

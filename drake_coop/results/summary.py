@@ -6,7 +6,11 @@ units a reader reads: µm, N, µrad), taken from :func:`~drake_coop.results.metr
 * ``|x − x_d|``: the worst Cartesian axis of the tracking error (Fig. 2);
 * ``λ − λ_d``: measured minus desired squeeze (Fig. 3);
 * ``λ − λ̂``: measured minus estimated squeeze (Fig. 4);
-* ``z``: the worst joint's observation error ``q − q̂`` (Fig. 6).
+* ``z``: the worst joint's observation error ``q − q̂`` (Fig. 6);
+
+and in ``contact`` mode one more line, the held box (:mod:`~drake_coop.results.object_metrics`,
+object-level: robot 1's entry): its position error, its turn about the grasp line and its tilt
+(degrees), the worst pad's slip with its creep ``floor``, and the slips and drops counted.
 
 :func:`sanity_warnings` looks at the measured squeeze itself. While the object is held and the
 desired force of a constraint row is at least :data:`MIN_DESIRED_SHARE` of its peak, the
@@ -87,7 +91,32 @@ def summary_lines(metrics: dict, meta: dict) -> list[str]:
     widths = [max(len(r[j]) for r in rows) for j in range(len(rows[0]))]
     table = ["  " + "  ".join(c.ljust(w) if j == 0 else c.rjust(w)
                               for j, (c, w) in enumerate(zip(r, widths))) for r in rows]
-    return [title] + table
+    return [title] + table + _object_line(metrics, phase)
+
+
+def _object_line(metrics: dict, phase: str) -> list[str]:
+    """The held box's line (``contact`` mode), or none."""
+    entries = [m.get(phase, {}) for m in metrics.values()]
+    first = entries[0] if entries else {}
+    if "object_position_error" not in first:
+        return []
+    e = first["object_position_error"]
+    parts = ["box " + _format(e["rms"], e["max"], ((1e3, "mm"),))]
+    for name, label in (("object_turn", "turn"), ("object_tilt", "tilt")):
+        if name in first:
+            e = first[name]
+            parts.append(f"{label} {np.degrees(e['rms']):.3g} / {np.degrees(e['max']):.3g}°")
+    slips = [e["slip"] for e in entries if "slip" in e]
+    if slips:
+        worst = max(slips, key=lambda e: e["max"])
+        text = f"slip {worst['max'] * 1e3:.3g} mm max"
+        if "floor" in worst:
+            text += f" (creep floor {worst['floor'] * 1e3:.2g} mm)"
+        parts.append(text)
+    slip_count = sum(e.get("slips", {}).get("count", 0) for e in entries)
+    drops = first.get("drops", {}).get("count", 0)
+    parts.append(f"{slip_count} slips, {drops} drops")
+    return ["  object: " + ", ".join(parts)]
 
 
 def sanity_warnings(logs: dict[str, dict[str, np.ndarray]]) -> list[str]:

@@ -28,7 +28,10 @@ error's scaled copy, identification), derived from the package's file and the ro
   discrete ``MultibodyPlant`` makes a convex hull of every collision mesh, which Drake 1.51
   computes for ``.obj``, ``.vtk`` and ``.gltf`` only (it refuses the Panda's ``link0.stl``).
   Only the pads touch anything (the ``contact`` mode's box); the arms' links pass through each
-  other and the object.
+  other and the object;
+* materials: a ``<material name=...>`` defined again with another colour or texture (Kinova
+  Jaco2's ``carbon_fiber``), which Drake's parser refuses once a ``SceneGraph`` is attached,
+  is renamed ``name__2``, ``name__3``, ... (each visual keeps its own colour).
 
 The base is welded where the scenario says (``base_frame`` at ``base_xyz``, ``base_yaw_deg``)
 by every loader, which also removes a floating base (the Panda's); a ``world`` link of the
@@ -62,7 +65,7 @@ TOOL_NAMES = ("force_sensor", "pad", "flange_sensor_weld", "sensor_pad_weld")
 _DRAKE = "{http://drake.mit.edu}"
 _MOVING = ("revolute", "continuous", "prismatic")
 #: Bump when the prepared file's layout changes (part of the cache key).
-_VERSION = "4"
+_VERSION = "5"
 
 
 def cache_dir() -> Path:
@@ -242,6 +245,24 @@ def _clean(root: ET.Element) -> None:
                 joint.remove(old)
 
 
+def _dedupe_materials(root: ET.Element) -> None:
+    """Each material name defined once: a later definition (a ``<material>`` with a ``color`` or
+    ``texture``) that differs from the first of its name is renamed ``name__k``; a repeated
+    identical definition and a bare reference keep the name."""
+    first: dict[str, bytes] = {}
+    count: dict[str, int] = {}
+    for material in root.iter("material"):
+        name = material.get("name")
+        if name is None or (material.find("color") is None and material.find("texture") is None):
+            continue
+        body = b"".join(ET.tostring(child) for child in material)
+        if name not in first:
+            first[name] = body
+        elif body != first[name]:
+            count[name] = count.get(name, 1) + 1
+            material.set("name", f"{name}__{count[name]}")
+
+
 def _absolute_meshes(root: ET.Element, resolve, base_dir: Path) -> None:
     """Mesh file names as absolute paths (the prepared file lives elsewhere): ``package://``
     URLs through ``resolve``, relative paths from the source file's folder."""
@@ -302,6 +323,7 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
         raise ScenarioError(f"{field}: {one_line(source, 120)} is not a URDF (no <robot> root)")
     if from_package:
         _clean(root)
+    _dedupe_materials(root)
     _absolute_meshes(root, resolve, Path(source).parent)
     for name, value in robot.locked_joints.items():
         _lock(root, name, float(value), f"{where}locked_joints")

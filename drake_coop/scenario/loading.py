@@ -18,7 +18,8 @@ from drake_coop.scenario.schema import Robot, Scenario, ScenarioError
 from drake_coop.scenario.validation import validate
 
 
-def load_scenario(path: str | Path | None = None, *, data: str | None = None) -> Scenario:
+def load_scenario(path: str | Path | None = None, *, data: str | None = None,
+                  before_validation=None) -> Scenario:
     """Load and validate a scenario from a YAML file (or a YAML string).
 
     Parameters
@@ -30,6 +31,9 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
         file first (:func:`drake_coop.scenario.resources.resolve_models`), then among the shipped models.
     data : str, optional
         YAML text instead of a file.
+    before_validation : callable, optional
+        Called with the typed scenario before it is validated (``drake-coop gains`` sizes a
+        placeholder ``K_R`` there: deriving it is its job).
 
     Returns
     -------
@@ -70,6 +74,8 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None) ->
         if "robots" not in untyped:
             scenario.robots = paper_robots()
     resolve_models(scenario, Path(path).resolve().parent if path is not None else Path.cwd())
+    if before_validation is not None:
+        before_validation(scenario)
     validate(scenario)
     return scenario
 

@@ -4,7 +4,7 @@ Each arm's URDF (a shipped ``model`` or a ``.urdf`` path) and each ``controller_
 a readable regular ``.urdf`` file of at most :data:`MAX_MODEL_BYTES`, parse as XML with a
 ``<robot>`` root (no DTD: no entity expansion), and load into a single-arm ``MultibodyPlant``
 exactly as :class:`~drake_coop.control.arm_model.ArmModel` loads it (``base_frame`` welded to
-the world), with the ``ee_frame``, the fixed ``sensor_joint`` and between
+the world) with a ``SceneGraph`` attached (as in a run), with the ``ee_frame``, the fixed ``sensor_joint`` and between
 :data:`MIN_JOINTS` and :data:`MAX_JOINTS` one-degree-of-freedom joints. A failure raises
 :class:`~drake_coop.scenario.ScenarioError` with one line naming the field and the path.
 
@@ -148,7 +148,10 @@ def _check_cached(path: str, mtime_ns: int, size: int, base_frame: str, ee_frame
 
 
 def _drake_problem(path: Path, base_frame: str, ee_frame: str) -> tuple[str, int]:
-    """Load the file as :class:`~drake_coop.control.arm_model.ArmModel` does."""
+    """Load the file as :class:`~drake_coop.control.arm_model.ArmModel` does, with a
+    ``SceneGraph`` attached as a run's plant has (the parser checks the visual geometry and
+    materials only then: a material defined twice differently is refused there)."""
+    from pydrake.geometry import SceneGraph
     from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import MultibodyPlant
 
@@ -157,6 +160,8 @@ def _drake_problem(path: Path, base_frame: str, ee_frame: str) -> tuple[str, int
     logger.setLevel(logging.CRITICAL)        # warnings would add lines to the one-line error
     try:
         plant = MultibodyPlant(0.0)
+        scene_graph = SceneGraph()       # kept alive: the plant points at it
+        plant.RegisterAsSourceForSceneGraph(scene_graph)
         Parser(plant).AddModels(str(path))
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_frame))
         plant.Finalize()

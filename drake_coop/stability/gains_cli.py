@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["add_gains_parser", "cmd_gains"]
+__all__ = ["add_gains_parser", "cmd_gains", "load_for_gains"]
 
 
 def add_gains_parser(sub) -> None:
@@ -103,16 +103,43 @@ def _signals_blocked():
     return blocked()
 
 
+def _size_gains(scenario) -> None:
+    """Each robot's ``K_R`` sized to its arm's joints: a scenario without gains has the
+    schema's 3-entry default, a placeholder may have any length; the derivation replaces the
+    values, so a wrong-length list becomes the schema's default value on every joint."""
+    from drake_coop.control.params import Gains
+    from drake_coop.scenario.model_check import check_models
+
+    default = Gains().K_R[0]
+    for robot, n in zip(scenario.robots, check_models(scenario)):
+        if len(robot.gains.K_R) != n:
+            robot.gains.K_R = [default] * n
+
+
+def load_for_gains(name_or_path):
+    """The scenario ``drake-coop gains`` derives gains for: loaded and validated as ``run``
+    loads it, except that each robot's ``K_R`` may be absent or of any length (deriving it is
+    the command's job).
+
+    Raises
+    ------
+    ScenarioError
+        As :func:`~drake_coop.scenario.loading.load_scenario`: one line naming the field.
+    """
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import find_scenario
+
+    return load_scenario(find_scenario(name_or_path), before_validation=_size_gains)
+
+
 def cmd_gains(args) -> int:
     """Derive, check, write (see the module docstring for the exit codes)."""
     from drake_coop.console import error as _error
     from drake_coop.results.run_folder import OutputFolderError, RunFolder
-    from drake_coop.scenario.loading import load_scenario
-    from drake_coop.scenario.resources import find_scenario
     from drake_coop.scenario.schema import ScenarioError
 
     try:
-        scenario = load_scenario(find_scenario(args.scenario))
+        scenario = load_for_gains(args.scenario)
     except (ScenarioError, OSError, ValueError) as exc:
         return _error(str(exc))
     folder = RunFolder(args.out)

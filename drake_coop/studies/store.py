@@ -26,7 +26,8 @@ Summary columns (of the study's ``phase``): ``<robot>.<error>.<rms|max>`` for th
 ``sqrt(rms_x² + rms_y² + rms_z²)``; max = the largest single-axis max) and ``observation_error``
 (the same over the joints' ``z1 … zn``), ``velocity_error`` when the run logs it (the sensing alternatives),
 the held object's errors in ``contact`` mode (``friction_use``, ``object_position_error``,
-``object_angle_error``, ``slip``, ``mass_estimate_error``) and its counts and times
+``object_angle_error``, ``object_turn``, ``object_tilt``, ``slip``, ``mass_estimate_error``) and
+its counts and times
 (``slips.count``, ``drops.count``, ``mass_convergence_time.time``), and
 ``worst.<error>.<stat>``, the largest over the robots.
 """
@@ -57,7 +58,8 @@ MAX_CASE_BYTES = 4_000_000
 JOINT_ERRORS = tuple(f"z{k}" for k in range(1, 13))
 ERRORS = ("x_tilde", "y_tilde", "z_tilde", "position_error", "force_error", "estimate_error",
           "aux_force_error", *JOINT_ERRORS, "observation_error", "velocity_error",
-          "friction_use", "object_position_error", "object_angle_error", "slip",
+          "friction_use", "object_position_error", "object_angle_error", "object_turn",
+          "object_tilt", "slip",
           "mass_estimate_error")
 #: The held object's counts and times (``contact`` mode,
 #: :data:`drake_coop.results.object_metrics.EVENT_METRICS`): ``<robot>.<name>.<stat>``.

@@ -1,0 +1,102 @@
+"""Before a ``contact`` run: every arm's commanded squeeze and the object's load within its
+torque limits along the whole path (:mod:`drake_coop.control.squeeze_limits`).
+
+Per robot and control tick: the reference ``(q_d, q̇_d, q̈_d, λ_d, held)``
+(:func:`~drake_coop.experiment.references.reference_samples`: with ``object_model.squeeze:
+friction`` its ``λ_d`` is the friction squeeze), on the ticks where the object is held, the arm's load ``f_i`` of the object's true
+mass along the desired acceleration (:func:`~drake_coop.control.object.load_distribution`:
+what the arms must carry whatever the controllers know), the contact point at the pad's surface
+(:attr:`~drake_coop.experiment.plan.RobotPlan.contact_offset`) and the limits: the robot's
+``actuators.torque_limits``, else the effort limits of its simulated URDF as Drake reads them.
+A tick whose torque is beyond them raises
+:class:`~drake_coop.scenario.schema.ScenarioError` with one line naming the robot, the time, the
+joint and the squeezes the limits allow there (``drake-coop run`` exits 2, nothing is built).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from drake_coop.scenario.schema import Scenario, ScenarioError
+
+__all__ = ["check_squeeze_limits", "torque_limits"]
+
+
+def torque_limits(scenario: Scenario, index: int, plan=None) -> np.ndarray:
+    """Robot ``index``'s ``τ_max``: ``actuators.torque_limits``, else its simulated URDF's
+    effort limits (Drake's reading; ``inf`` where none)."""
+    from drake_coop.control.arm_model import make_arm_controller_plant
+    from drake_coop.control.squeeze_limits import effort_limits
+    from drake_coop.experiment.plan import plan_run
+
+    robot = scenario.robots[index]
+    if robot.actuators.torque_limits is not None:
+        return np.asarray(robot.actuators.torque_limits, dtype=float)
+    arm = (plan or plan_run(scenario)).arms[index]
+    return effort_limits(make_arm_controller_plant(arm.urdf_path, arm.base_frame))
+
+
+def check_squeeze_limits(scenario: Scenario, plan=None, t_end: float | None = None,
+                         references=None) -> None:
+    """Refuse a grasp the arms cannot hold within their torque limits (see the module).
+
+    Only in ``contact`` mode (the other modes hold the object by constraints, not friction).
+    ``references``: the run's reference trajectories when the caller has them
+    (:func:`~drake_coop.experiment.references.reference_trajectory`, one per robot: their
+    breaks are the ticks and their values the samples), else computed here.
+
+    Raises
+    ------
+    ScenarioError
+        ``robots[i] (name): at t = ... s the squeeze ... N with the object's load needs ...
+        at <joint>, beyond its torque limit ...; they allow ... N there``.
+    """
+    if scenario.plant.object_mode != "contact":
+        return
+    from drake_coop.control.finger import ReferenceLayout
+    from drake_coop.control.object import load_distribution
+    from drake_coop.control.squeeze_limits import check_squeeze_path, squeeze_torques
+    from drake_coop.experiment.object_blocks import acceleration_samples
+    from drake_coop.experiment.plan import grasp_object, plan_run
+    from drake_coop.experiment.references import reference_samples
+    from drake_coop.plant.arms import arm_model
+
+    plan = plan or plan_run(scenario, t_end)
+    obj = grasp_object(scenario, float(scenario.plant.object_mass))   # the true object
+    for i, robot in enumerate(scenario.robots):
+        limits = torque_limits(scenario, i, plan)
+        if not np.isfinite(limits).any():
+            continue
+        if references is not None:
+            t = np.asarray(references[i].get_segment_times(), dtype=float)
+            r = np.asarray(references[i].vector_values(t)).T
+        else:
+            t, r = reference_samples(scenario, i, t_end, plan)
+        arm = plan.arms[i]
+        n = (r.shape[1] - arm.m - 1) // 3
+        layout = ReferenceLayout(n, arm.m)
+        q, qd, qdd = (layout.column(r, row) for row in ("q_d", "qdot_d", "qddot_d"))
+        held = layout.column(r, "held")[:, 0]
+        lam = layout.column(r, "lambda_d")[:, 0] * held
+        xdd = acceleration_samples(plan.robots[i], t)
+        nu = obj.grasp_normals[i]
+        offset = plan.robots[i].contact_offset
+        model = arm_model(arm, arm.urdf_path)
+        # The load is affine in the acceleration (G⁺ w, w = [m (a − g); 0]): from 4 solves.
+        f0 = load_distribution(obj, np.zeros(3))[i]
+        L = np.column_stack([load_distribution(obj, e)[i] - f0 for e in np.eye(3)])
+        loads = f0[None, :] + xdd @ L.T
+        # Only the held ticks carry a load and a squeeze (elsewhere the arm moves alone).
+        ticks = np.flatnonzero(held > 0.5)
+        tau0 = np.empty((ticks.size, n))
+        c = np.empty((ticks.size, n))
+        for row, k in enumerate(ticks):
+            tau0[row], c[row] = squeeze_torques(model, q[k], qd[k], qdd[k], loads[k], nu,
+                                                offset)
+        joints = [model.plant.get_joint(j).name() for j in model.plant.GetJointIndices()
+                  if model.plant.get_joint(j).num_velocities() == 1]
+        try:
+            check_squeeze_path(t[ticks], tau0, c, lam[ticks], limits, f"robots[{i}] ({robot.name})",
+                               joints if len(joints) == n else None)
+        except ValueError as exc:
+            raise ScenarioError(str(exc)) from None
