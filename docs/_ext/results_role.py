@@ -1,0 +1,222 @@
+"""The ``{result}`` role: a number printed from a shipped results file, with its unit.
+
+The docs' measured numbers are not typed: each is read, at build time, from the file the
+command that measured it wrote (a study's ``results.csv``, a run's ``metrics.json``), so
+re-running the study and rebuilding the docs updates the prose. Syntax (MyST)::
+
+    {result}`SOURCE:EXPR as FORMAT UNIT`
+
+``SOURCE``
+    a study's name, read as ``docs/figures/studies/<name>_results.csv`` (where ``drake-coop
+    study --plot`` ships its ``results.csv``), or a path from the repository's root to a
+    ``.csv`` or ``.json`` file.
+``EXPR``
+    ``COLUMN [where FILTER [and FILTER ...]]``, or ``AGG(COLUMN [where ...])`` with ``AGG`` one
+    of ``min``, ``max``, ``mean``, ``median``, ``range`` (printed ``lo–hi``) and ``count``.
+    ``COLUMN`` is a CSV column, named in full or by a unique ending after a ``.``
+    (``force_source`` for ``robots.*.force_source``); without ``AGG`` the filters must select
+    exactly one row. A ``FILTER`` is ``COLUMN=VALUE`` (numbers compared as numbers, text
+    exactly) or ``COLUMN~TEXT`` (the cell contains the text). In a JSON file ``COLUMN`` is a
+    dotted key path (list items by index), and an ``AGG`` applies to a list.
+``FORMAT``
+    a Python format specification (``.3f``, ``.2g``, ``.0f``); ``.3g`` when omitted.
+``UNIT``
+    the unit printed after the value; the file's SI value is scaled to it
+    (:data:`UNITS`). A number without a unit (a ratio, a count) writes ``as .2f`` alone.
+
+Example: ``{result}`force_sensing:robot1.force_error.rms where force_source=observer and
+noise_std=0.1 as .3f N``` prints ``0.047 N``. A role that does not resolve (no file, no such
+column, no row, several rows, an unknown unit) is a build error, fatal under ``-W``; the
+test ``tests/test_docs_numbers.py`` resolves every role of every page, and checks that the
+claims pages and the object guide hold no measured number outside a role.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+import statistics
+from functools import lru_cache
+from pathlib import Path
+
+from docutils import nodes
+
+ROOT = Path(__file__).resolve().parents[2]
+STUDIES = ROOT / "docs" / "figures" / "studies"
+
+#: Units a value may be printed in, and the factor from the file's SI value to that unit.
+UNITS: dict[str, float] = {
+    "": 1.0, "m": 1.0, "mm": 1e3, "µm": 1e6, "N": 1.0, "mN": 1e3, "N/s": 1.0, "N m": 1.0,
+    "s": 1.0, "ms": 1e3, "µs": 1e6, "kg": 1.0, "g": 1e3, "rad": 1.0, "mrad": 1e3,
+    "rad/s": 1.0, "mrad/s": 1e3, "m/s": 1.0, "mm/s": 1e3, "%": 100.0, "×": 1.0,
+}
+AGGREGATES = ("min", "max", "mean", "median", "range", "count")
+
+_SPEC = re.compile(r"^(?P<source>[^:\s]+):(?P<expr>.+?)(?:\s+as\s+(?P<fmt>[^\s]*)"
+                   r"(?:\s+(?P<unit>.+?))?)?\s*$", re.S)
+_AGG = re.compile(r"^(?P<agg>\w+)\((?P<inner>.+)\)$", re.S)
+_FILTER = re.compile(r"^(?P<col>[^=~\s]+)\s*(?P<op>[=~])\s*(?P<value>.+?)$")
+
+
+class ResultError(ValueError):
+    """A ``{result}`` role that does not resolve (the message names what is wrong)."""
+
+
+def source_path(source: str) -> Path:
+    """The file a role's ``SOURCE`` names (a study's name or a repository path)."""
+    if source.endswith((".csv", ".json")):
+        path = ROOT / source
+    else:
+        path = STUDIES / f"{source}_results.csv"
+    if not path.is_file():
+        raise ResultError(f"{source}: no file {path.relative_to(ROOT)}")
+    return path
+
+
+@lru_cache(maxsize=None)
+def _read(path: Path, mtime: float) -> object:
+    if path.suffix == ".json":
+        return json.loads(path.read_text())
+    with path.open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def load(path: Path) -> object:
+    """The rows of a CSV file (dicts) or the document of a JSON file, cached per mtime."""
+    return _read(path, path.stat().st_mtime)
+
+
+def _column(rows: list[dict], name: str, source: str) -> str:
+    columns = list(rows[0]) if rows else []
+    if name in columns:
+        return name
+    ends = [c for c in columns if c.endswith("." + name)]
+    if len(ends) != 1:
+        raise ResultError(f"{source}: column {name!r} " + (
+            "matches none" if not ends else f"is ambiguous ({', '.join(ends)})"))
+    return ends[0]
+
+
+def _number(text: str) -> float | None:
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return None
+
+
+def _matches(cell: str, op: str, value: str) -> bool:
+    if op == "~":
+        return value in cell
+    a, b = _number(cell), _number(value)
+    if a is not None and b is not None:
+        return math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
+    return cell.strip() == value.strip()
+
+
+def _csv_values(rows: list[dict], inner: str, source: str, numeric: bool = True) -> list:
+    column, _, where = inner.partition(" where ")
+    column = _column(rows, column.strip(), source)
+    selected = rows
+    for item in (where.split(" and ") if where.strip() else []):
+        m = _FILTER.match(item.strip())
+        if m is None:
+            raise ResultError(f"{source}: filter {item.strip()!r} is not COLUMN=VALUE "
+                              "or COLUMN~TEXT")
+        col = _column(rows, m["col"], source)
+        selected = [r for r in selected if _matches(r[col], m["op"], m["value"])]
+    values = [_number(r[column]) if numeric else r[column] for r in selected]
+    if not values:
+        raise ResultError(f"{source}: no row where {where.strip() or 'any'}")
+    if numeric and any(v is None or not math.isfinite(v) for v in values):
+        raise ResultError(f"{source}: {column} is not a finite number in every selected row")
+    return values
+
+
+def _json_values(document: object, path: str, source: str) -> list[float]:
+    node = document
+    for key in path.strip().split("."):
+        if isinstance(node, list) and key.isdigit() and int(key) < len(node):
+            node = node[int(key)]
+        elif isinstance(node, dict) and key in node:
+            node = node[key]
+        else:
+            raise ResultError(f"{source}: no key {key!r} on the path {path.strip()!r}")
+    values = node if isinstance(node, list) else [node]
+    if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                             and math.isfinite(v) for v in values):
+        raise ResultError(f"{source}: {path.strip()!r} is not a finite number or list of them")
+    return [float(v) for v in values]
+
+
+def resolve(spec: str) -> str:
+    """The text a ``{result}`` role prints for ``spec`` (raises :class:`ResultError`)."""
+    return resolve_with_source(spec)[0]
+
+
+def resolve_with_source(spec: str) -> tuple[str, Path]:
+    """The text a ``{result}`` role prints for ``spec``, and the file it read."""
+    m = _SPEC.match(" ".join(spec.split()))
+    if m is None:
+        raise ResultError(f"{spec!r} is not SOURCE:EXPR [as FORMAT [UNIT]]")
+    source, expr = m["source"], m["expr"].strip()
+    fmt = m["fmt"] or ".3g"
+    unit = (m["unit"] or "").strip()
+    if unit not in UNITS:
+        raise ResultError(f"{spec!r}: unit {unit!r} is not one of {', '.join(u for u in UNITS if u)}")
+    agg = None
+    a = _AGG.match(expr)
+    if a is not None:
+        agg, expr = a["agg"], a["inner"].strip()
+        if agg not in AGGREGATES:
+            raise ResultError(f"{spec!r}: {agg!r} is not one of {', '.join(AGGREGATES)}")
+    path = source_path(source)
+    data = load(path)
+    if isinstance(data, list):
+        values = _csv_values(data, expr, source, numeric=agg != "count")
+    else:
+        if " where " in expr:
+            raise ResultError(f"{spec!r}: 'where' applies to a CSV file only")
+        values = _json_values(data, expr, source)
+    if agg is None and len(values) != 1:
+        raise ResultError(f"{spec!r}: {len(values)} values where one was meant "
+                          "(filter further, or aggregate: " + ", ".join(AGGREGATES) + ")")
+    scale = UNITS[unit]
+
+    def fmt_one(v: float) -> str:
+        try:
+            return format(v * scale, fmt)
+        except ValueError as exc:
+            raise ResultError(f"{spec!r}: format {fmt!r}: {exc}") from None
+
+    if agg == "count":
+        text = str(len(values))
+    elif agg == "range":
+        text = f"{fmt_one(min(values))}–{fmt_one(max(values))}"
+    else:
+        value = values[0] if agg is None else {
+            "min": min, "max": max, "mean": statistics.fmean,
+            "median": statistics.median}[agg](values)
+        text = fmt_one(value)
+    return (f"{text} {unit}" if unit and agg != "count" else text), path
+
+
+def result_role(name, rawtext, text, lineno, inliner, options=None, content=None):
+    """Docutils role: ``{result}`SOURCE:EXPR as FORMAT UNIT```."""
+    try:
+        value, path = resolve_with_source(text)
+    except ResultError as exc:
+        msg = inliner.reporter.error(f"{{result}} role: {exc}", line=lineno)
+        return [inliner.problematic(rawtext, rawtext, msg)], [msg]
+    env = getattr(inliner.document.settings, "env", None)
+    if env is not None:             # a re-run study's results.csv re-reads the page
+        env.note_dependency(str(path))
+    node = nodes.inline(rawtext, value.replace(" ", "\u00a0", 1) if " " in value else value,
+                        classes=["result"])
+    return [node], []
+
+
+def setup(app):
+    app.add_role("result", result_role)
+    return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}

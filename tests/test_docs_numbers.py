@@ -1,0 +1,167 @@
+"""The docs' measured numbers come from their commands (``docs/_ext/results_role.py``).
+
+* every ``{result}`` role of every page resolves against the shipped results files (a role
+  that names a missing column, a missing row, several rows or an unknown unit fails);
+* the role reads the file's value (checked against an independent ``csv`` read) and scales
+  it to the stated unit;
+* the claims pages (``docs/claims/``) and the object guide hold no measured number typed by
+  hand: prose digits followed by a physical unit or a percentage, outside a role, math, code
+  and links. The inputs a page states (the scenario's fields: the control period, the run's
+  length, the object's mass, ...) are listed in :data:`INPUTS` with the reason;
+* the detector finds typed numbers (it is run on a sample page that has them).
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+sys.path.insert(0, str(DOCS / "_ext"))
+
+import results_role  # noqa: E402
+
+#: The pages that must hold no hand-typed measured number.
+CHECKED = sorted((DOCS / "claims").glob("*.md")) + [DOCS / "guide" / "object.md"]
+
+UNIT = (r"(?:N/s|N\s?m|mN|N|mm/s|m/s|mm|µm|um|nm|m|ms|µs|s|kg|g|mrad/s|rad/s|mrad|rad|Hz|"
+        r"°|%|×|x(?=\s)|dB|min|h)")
+#: digits (a range, a decimal, an exponent) then a unit: a number a measurement would print.
+MEASURED = re.compile(r"(?<![\w.\-/])(?:[~≈<>≤≥][ \u00a0]?)?\d(?:[\d.]|[ ,](?=\d{3}\b))*"
+                      r"(?:[eE][-−+]?\d+)?(?:[ \u00a0]?[–-][ \u00a0]?\d[\d.]*)?[ \u00a0]?"
+                      + UNIT + r"(?![\w/])")
+
+#: Inputs a page states in prose (not measurements): (page, exact text, reason).
+INPUTS: list[tuple[str, str, str]] = [
+    ("*", "9 ms", "the control period h, the scenario's control_period"),
+    ("*", "1 ms", "the plant's time step, the scenario's plant.time_step"),
+    ("*", "65 s", "the run's end, the study's t_end"),
+    ("*", "66 s", "the run's end, a command's --t-end"),
+    ("*", "15 s", "the grasp's time in the scenario's timeline"),
+    ("*", "25 s", "the lift's end in the scenario's timeline"),
+    ("*", "25–65 s", "the circle phase of the scenario's timeline"),
+    ("*", "15–25 s", "the lift phase of the scenario's timeline"),
+    ("*", "1 s", "the squeeze ramps' length, a fixed input of the reference"),
+    ("*", "0.5 kg", "the object's mass, an input of scenarios/contact.yaml"),
+    ("*", "2 kg", "the object's mass of the issue's case, an input"),
+    ("*", "50 %", "the estimated model's prior: prior_mass_factor 1.5, an input"),
+    ("*", "+50 %", "the estimated model's prior: prior_mass_factor 1.5, an input"),
+    ("*", "1 N/s", "squeeze_rate's default, an input"),
+    ("*", "20 N/s", "the shared squeeze's rise limit, a constant of the block"),
+    ("*", "1.5×", "the prior's factor, prior_mass_factor 1.5, an input"),
+    ("*", "1.8 s", "the forgetting horizon 200 ticks x 9 ms, from the inputs"),
+    ("*", "14–50 N", "the paper's force profile (29), an input"),
+    ("*", "32–50 N", "the paper's force profile (29) over the circle, an input"),
+    ("claims/force_sensing.md", "0.1 N", "a swept noise level (force_sensor.noise_std)"),
+    ("claims/force_sensing.md", "0.3 N", "a swept noise level (force_sensor.noise_std)"),
+    ("claims/force_sensing.md", "1 N", "a swept noise level (force_sensor.noise_std)"),
+    ("claims/force_sensing.md", "3 N", "a swept noise level (force_sensor.noise_std)"),
+    ("claims/force_sensing.md", "35 s", "the old runs' end (t_end), an input"),
+    ("claims/force_sensing.md", "10 s", "a window of the timeline, an input"),
+    ("claims/force_sensing.md", "25–35 s", "a window of the timeline, an input"),
+    ("claims/force_sensing.md", "35–65 s", "a window of the timeline, an input"),
+]
+
+
+def strip_page(text: str) -> str:
+    """A page's prose: without code blocks, math, roles, code spans, links' targets,
+    comments and the tables a directive generates."""
+    text = re.sub(r"<!--.*?-->", " ", text, flags=re.S)
+    # fenced blocks that are not prose: code, math, generated tables, toctrees
+    text = re.sub(r"^(`{3,}|~{3,})\s*(?:\{(?:math|code|code-block|toctree|literalinclude|"
+                  r"eval-rst|result-table)\}|[\w+-]*)\s*\n.*?^\1\s*$", " ", text,
+                  flags=re.S | re.M)
+    text = re.sub(r"\$\$.*?\$\$", " ", text, flags=re.S)
+    text = re.sub(r"\{[\w:-]+\}`[^`]*`", " ", text)          # roles ({result}, {math}, refs)
+    text = re.sub(r"(`+)(?!`).*?(?<!`)\1(?!`)", " ", text, flags=re.S)   # code spans
+    text = re.sub(r"(?<![\\$])\$(?!\s)[^$\n]+?(?<!\s)\$", " ", text)      # inline math
+    text = re.sub(r"\]\([^)]*\)", "]", text)                 # link targets
+    return text
+
+
+def measured_numbers(text: str) -> list[str]:
+    """The measured-looking numbers in a page's prose (see :data:`MEASURED`)."""
+    return [m.group(0).strip() for m in MEASURED.finditer(strip_page(text))]
+
+
+def _allowed(page: str, found: str) -> bool:
+    norm = " ".join(found.replace("\u00a0", " ").split())
+    return any(p in ("*", page) and norm == text for p, text, _ in INPUTS)
+
+
+def test_the_detector_finds_typed_numbers_and_skips_roles_math_and_code():
+    page = ("The error is 0.047 N RMS (56 % less), 20.1 µm at most, 3–5 mm.\n"
+            "Equation (22), the year 2026, [ref](a/1 s.md), `h = 0.009 s`, $x = 3 N$,\n"
+            "{result}`force_sensing:count(status) as .0f`.\n```yaml\nt_end: 65 s\n```\n")
+    assert measured_numbers(page) == ["0.047 N", "56 %", "20.1 µm", "3–5 mm"]
+
+
+@pytest.mark.parametrize("page", CHECKED, ids=lambda p: str(p.relative_to(DOCS)))
+def test_no_hand_typed_measured_number(page):
+    rel = str(page.relative_to(DOCS))
+    found = [n for n in measured_numbers(page.read_text()) if not _allowed(rel, n)]
+    assert not found, (f"{rel}: measured numbers typed by hand (use a {{result}} role, keep the "
+                       f"sentence qualitative, or list an input in INPUTS): {found}")
+
+
+ROLE = re.compile(r"\{result\}`([^`]*)`")
+
+
+def _all_roles() -> list[tuple[str, str]]:
+    return [(str(p.relative_to(DOCS)), m.group(1))
+            for p in sorted(DOCS.rglob("*.md")) if "_build" not in p.parts
+            for m in ROLE.finditer(p.read_text())]
+
+
+def test_every_result_role_resolves():
+    roles = _all_roles()
+    assert roles, "no {result} role in the docs"
+    failures = []
+    for page, spec in roles:
+        try:
+            results_role.resolve(spec)
+        except results_role.ResultError as exc:
+            failures.append(f"{page}: {exc}")
+    assert not failures, "\n".join(failures)
+
+
+def _csv_rows(name: str) -> list[dict]:
+    with (DOCS / "figures" / "studies" / f"{name}_results.csv").open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_a_role_prints_the_files_value_in_its_unit():
+    rows = [r for r in _csv_rows("force_sensing")
+            if r["robots.*.force_source"] == "sensor"
+            and float(r["robots.*.force_sensor.noise_std"]) == 3.0]
+    assert len(rows) == 1
+    expected = float(rows[0]["worst.position_error.max"]) * 1e6
+    text = results_role.resolve("force_sensing:worst.position_error.max where "
+                                "force_source=sensor and noise_std=3 as .4f µm")
+    assert text == f"{expected:.4f} µm"
+    values = [float(r["robot1.force_error.rms"]) for r in _csv_rows("force_sensing")]
+    text = results_role.resolve("force_sensing:range(robot1.force_error.rms) as .4f mN")
+    assert text == f"{min(values) * 1e3:.4f}–{max(values) * 1e3:.4f} mN"
+    assert results_role.resolve("force_sensing:count(status where status=ok)") == str(
+        sum(r["status"] == "ok" for r in _csv_rows("force_sensing")))
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("force_sensing:no_such_column", "matches none"),
+    ("no_such_study:worst.force_error.rms", "no file"),
+    ("force_sensing:worst.force_error.rms", "values where one was meant"),
+    ("force_sensing:worst.force_error.rms where force_source=nothing", "no row"),
+    ("force_sensing:max(worst.force_error.rms) as .3f parsec", "unit 'parsec'"),
+    ("force_sensing:spread(worst.force_error.rms)", "is not one of"),
+    ("force_sensing:max(worst.force_error.rms) as .3q N", "format"),
+    ("force_sensing:max(x_tilde.rms)", "ambiguous"),
+    ("tests/golden/paper_run.json:no.such.key", "no key"),
+])
+def test_a_role_that_does_not_resolve_says_why(spec, message):
+    with pytest.raises(results_role.ResultError, match=re.escape(message)):
+        results_role.resolve(spec)
