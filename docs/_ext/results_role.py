@@ -12,7 +12,8 @@ re-running the study and rebuilding the docs updates the prose. Syntax (MyST)::
     ``.csv`` or ``.json`` file.
 ``EXPR``
     ``COLUMN [where FILTER [and FILTER ...]]``, or ``AGG(COLUMN [where ...])`` with ``AGG`` one
-    of ``min``, ``max``, ``mean``, ``median``, ``range`` (printed ``lo–hi``) and ``count``.
+    of ``min``, ``max``, ``mean``, ``median``, ``sum``, ``range`` (printed ``lo–hi``, or one value when both print the same) and
+    ``count`` (of the selected rows; any column).
     ``COLUMN`` is a CSV column, named in full or by a unique ending after a ``.``
     (``force_source`` for ``robots.*.force_source``); without ``AGG`` the filters must select
     exactly one row. A ``FILTER`` is ``COLUMN=VALUE`` (numbers compared as numbers, text
@@ -52,7 +53,7 @@ UNITS: dict[str, float] = {
     "s": 1.0, "ms": 1e3, "µs": 1e6, "kg": 1.0, "g": 1e3, "rad": 1.0, "mrad": 1e3,
     "rad/s": 1.0, "mrad/s": 1e3, "m/s": 1.0, "mm/s": 1e3, "%": 100.0, "×": 1.0,
 }
-AGGREGATES = ("min", "max", "mean", "median", "range", "count")
+AGGREGATES = ("min", "max", "mean", "median", "sum", "range", "count")
 
 _SPEC = re.compile(r"^(?P<source>[^:\s]+):(?P<expr>.+?)(?:\s+as\s+(?P<fmt>[^\s]*)"
                    r"(?:\s+(?P<unit>.+?))?)?\s*$", re.S)
@@ -127,7 +128,7 @@ def _csv_values(rows: list[dict], inner: str, source: str, numeric: bool = True)
         col = _column(rows, m["col"], source)
         selected = [r for r in selected if _matches(r[col], m["op"], m["value"])]
     values = [_number(r[column]) if numeric else r[column] for r in selected]
-    if not values:
+    if not values and numeric:
         raise ResultError(f"{source}: no row where {where.strip() or 'any'}")
     if numeric and any(v is None or not math.isfinite(v) for v in values):
         raise ResultError(f"{source}: {column} is not a finite number in every selected row")
@@ -193,11 +194,12 @@ def resolve_with_source(spec: str) -> tuple[str, Path]:
     if agg == "count":
         text = str(len(values))
     elif agg == "range":
-        text = f"{fmt_one(min(values))}–{fmt_one(max(values))}"
+        lo, hi = fmt_one(min(values)), fmt_one(max(values))
+        text = lo if lo == hi else f"{lo}–{hi}"
     else:
         value = values[0] if agg is None else {
             "min": min, "max": max, "mean": statistics.fmean,
-            "median": statistics.median}[agg](values)
+            "median": statistics.median, "sum": math.fsum}[agg](values)
         text = fmt_one(value)
     return (f"{text} {unit}" if unit and agg != "count" else text), path
 
