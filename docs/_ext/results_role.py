@@ -23,7 +23,8 @@ re-running the study and rebuilding the docs updates the prose. Syntax (MyST)::
     a Python format specification (``.3f``, ``.2g``, ``.0f``); ``.3g`` when omitted.
 ``UNIT``
     the unit printed after the value; the file's SI value is scaled to it
-    (:data:`UNITS`). A number without a unit (a ratio, a count) writes ``as .2f`` alone.
+    (:data:`UNITS`). ``[UNIT]`` scales the same and prints no unit (a table whose header
+    names it). A number without a unit (a ratio, a count) writes ``as .2f`` alone.
 
 Example: ``{result}`force_sensing:robot1.force_error.rms where force_source=observer and
 noise_std=0.1 as .3f N``` prints ``0.047 N``. A role that does not resolve (no file, no such
@@ -164,6 +165,8 @@ def resolve_with_source(spec: str) -> tuple[str, Path]:
     source, expr = m["source"], m["expr"].strip()
     fmt = m["fmt"] or ".3g"
     unit = (m["unit"] or "").strip()
+    silent = unit.startswith("[") and unit.endswith("]")    # scaled, not printed
+    unit = unit[1:-1].strip() if silent else unit
     if unit not in UNITS:
         raise ResultError(f"{spec!r}: unit {unit!r} is not one of {', '.join(u for u in UNITS if u)}")
     agg = None
@@ -201,7 +204,7 @@ def resolve_with_source(spec: str) -> tuple[str, Path]:
             "min": min, "max": max, "mean": statistics.fmean,
             "median": statistics.median, "sum": math.fsum}[agg](values)
         text = fmt_one(value)
-    return (f"{text} {unit}" if unit and agg != "count" else text), path
+    return (f"{text} {unit}" if unit and not silent and agg != "count" else text), path
 
 
 def result_role(name, rawtext, text, lineno, inliner, options=None, content=None):
