@@ -12,13 +12,17 @@ re-running the study and rebuilding the docs updates the prose. Syntax (MyST)::
     ``.csv`` or ``.json`` file.
 ``EXPR``
     ``COLUMN [where FILTER [and FILTER ...]]``, or ``AGG(COLUMN [where ...])`` with ``AGG`` one
-    of ``min``, ``max``, ``mean``, ``median``, ``sum``, ``range`` (printed ``lo–hi``, or one value when both print the same) and
+    of ``min``, ``max``, ``mean``, ``median``, ``pNN`` (the NN th percentile, ``p10``),
+    ``sum``, ``range`` (printed ``lo–hi``, or one value when both print the same) and
     ``count`` (of the selected rows; any column).
     ``COLUMN`` is a CSV column, named in full or by a unique ending after a ``.``
     (``force_source`` for ``robots.*.force_source``); without ``AGG`` the filters must select
     exactly one row. A ``FILTER`` is ``COLUMN=VALUE`` (numbers compared as numbers, text
-    exactly) or ``COLUMN~TEXT`` (the cell contains the text). In a JSON file ``COLUMN`` is a
-    dotted key path (list items by index), and an ``AGG`` applies to a list.
+    exactly), ``COLUMN~TEXT`` (the cell contains the text), or ``COLUMN<NUMBER``,
+    ``COLUMN>NUMBER`` (in the file's SI unit). In a JSON file ``COLUMN`` is a
+    dotted key path (list items by index; ``*`` in a key matches any, as ``fnmatch``), and an
+    ``AGG`` applies to every value it reaches (``max(*.circle.force_error.rms)``: the worst
+    robot's).
 ``FORMAT``
     a Python format specification (``.3f``, ``.2g``, ``.0f``); ``.3g`` when omitted.
 ``UNIT``
@@ -36,6 +40,7 @@ claims pages and the object guide hold no measured number outside a role.
 from __future__ import annotations
 
 import csv
+import fnmatch
 import json
 import math
 import re
@@ -58,8 +63,9 @@ AGGREGATES = ("min", "max", "mean", "median", "sum", "range", "count")
 
 _SPEC = re.compile(r"^(?P<source>[^:\s]+):(?P<expr>.+?)(?:\s+as\s+(?P<fmt>[^\s]*)"
                    r"(?:\s+(?P<unit>.+?))?)?\s*$", re.S)
+_PERCENTILE = re.compile(r"^p(\d{1,2})$")
 _AGG = re.compile(r"^(?P<agg>\w+)\((?P<inner>.+)\)$", re.S)
-_FILTER = re.compile(r"^(?P<col>[^=~\s]+)\s*(?P<op>[=~])\s*(?P<value>.+?)$")
+_FILTER = re.compile(r"^(?P<col>[^=~<>\s]+)\s*(?P<op>[=~<>])\s*(?P<value>.+?)$")
 
 
 class ResultError(ValueError):
@@ -112,6 +118,10 @@ def _matches(cell: str, op: str, value: str) -> bool:
     if op == "~":
         return value in cell
     a, b = _number(cell), _number(value)
+    if op in "<>":
+        if b is None:
+            raise ResultError(f"{op}{value}: a comparison needs a number")
+        return a is not None and (a < b if op == "<" else a > b)
     if a is not None and b is not None:
         return math.isclose(a, b, rel_tol=1e-9, abs_tol=0.0)
     return cell.strip() == value.strip()
@@ -124,8 +134,8 @@ def _csv_values(rows: list[dict], inner: str, source: str, numeric: bool = True)
     for item in (where.split(" and ") if where.strip() else []):
         m = _FILTER.match(item.strip())
         if m is None:
-            raise ResultError(f"{source}: filter {item.strip()!r} is not COLUMN=VALUE "
-                              "or COLUMN~TEXT")
+            raise ResultError(f"{source}: filter {item.strip()!r} is not COLUMN=VALUE, "
+                              "COLUMN~TEXT, COLUMN<NUMBER or COLUMN>NUMBER")
         col = _column(rows, m["col"], source)
         selected = [r for r in selected if _matches(r[col], m["op"], m["value"])]
     values = [_number(r[column]) if numeric else r[column] for r in selected]
@@ -137,19 +147,31 @@ def _csv_values(rows: list[dict], inner: str, source: str, numeric: bool = True)
 
 
 def _json_values(document: object, path: str, source: str) -> list[float]:
-    node = document
+    nodes_ = [document]
     for key in path.strip().split("."):
-        if isinstance(node, list) and key.isdigit() and int(key) < len(node):
-            node = node[int(key)]
-        elif isinstance(node, dict) and key in node:
-            node = node[key]
-        else:
+        found = []
+        for node in nodes_:
+            if isinstance(node, list) and key.isdigit() and int(key) < len(node):
+                found.append(node[int(key)])
+            elif isinstance(node, dict):
+                found += [node[k] for k in node if fnmatch.fnmatchcase(k, key)]
+        if not found:
             raise ResultError(f"{source}: no key {key!r} on the path {path.strip()!r}")
-    values = node if isinstance(node, list) else [node]
+        nodes_ = found
+    values = [v for node in nodes_ for v in (node if isinstance(node, list) else [node])]
     if not values or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
                              and math.isfinite(v) for v in values):
         raise ResultError(f"{source}: {path.strip()!r} is not a finite number or list of them")
     return [float(v) for v in values]
+
+
+def percentile(values: list[float], p: int) -> float:
+    """The ``p`` th percentile, linear between the closest ranks (NumPy's default rule)."""
+    ordered = sorted(values)
+    rank = (len(ordered) - 1) * p / 100.0
+    lo = math.floor(rank)
+    hi = min(lo + 1, len(ordered) - 1)
+    return ordered[lo] + (ordered[hi] - ordered[lo]) * (rank - lo)
 
 
 def resolve(spec: str) -> str:
@@ -173,7 +195,7 @@ def resolve_with_source(spec: str) -> tuple[str, Path]:
     a = _AGG.match(expr)
     if a is not None:
         agg, expr = a["agg"], a["inner"].strip()
-        if agg not in AGGREGATES:
+        if agg not in AGGREGATES and not _PERCENTILE.match(agg):
             raise ResultError(f"{spec!r}: {agg!r} is not one of {', '.join(AGGREGATES)}")
     path = source_path(source)
     data = load(path)
@@ -200,7 +222,8 @@ def resolve_with_source(spec: str) -> tuple[str, Path]:
         lo, hi = fmt_one(min(values)), fmt_one(max(values))
         text = lo if lo == hi else f"{lo}–{hi}"
     else:
-        value = values[0] if agg is None else {
+        value = values[0] if agg is None else percentile(values, int(agg[1:])) \
+            if _PERCENTILE.match(agg) else {
             "min": min, "max": max, "mean": statistics.fmean,
             "median": statistics.median, "sum": math.fsum}[agg](values)
         text = fmt_one(value)
