@@ -74,6 +74,17 @@ INPUTS: list[tuple[str, str, str]] = [
     ("claims/model_mismatch.md", "3 ms", "the earlier runs' plant step, an input"),
     ("claims/model_mismatch.md", "35 s", "the earlier runs' end (t_end), an input"),
     ("claims/model_mismatch.md", "10 s", "a window of the timeline, an input"),
+    ("claims/object_carry.md", "10 mm", "the stand's lowering, plant.stand_clearance, an input"),
+    ("claims/object_carry.md", "3 ms", "the contact scenario's plant step, an input"),
+    ("claims/object_carry.md", "18 N", "the force profile's amplitude (29), an input"),
+    ("claims/object_carry.md", "10 %", "the nominal models' mass error, mass_scale 1.1, an input"),
+    ("claims/object_carry.md", "0.5 mm", "the issue's target, a requirement"),
+    ("claims/object_carry.md", "5 %", "the convergence band of mass_convergence_time, a definition"),
+    ("claims/object_carry.md", "20 mm", "the 'carried' criterion, a definition"),
+    ("claims/object_carry.md", "2 mm", "a slip's length, the metric's definition"),
+    ("claims/object_carry.md", "2 cm", "a drop's distance, the metric's definition"),
+    ("claims/object_carry.md", "0.5 N", "a grasp's least pressing force, the metric's definition"),
+    ("claims/object_carry.md", "65–75 s", "the put-down and release in the timeline, an input"),
     ("claims/sampling_period.md", "5 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "12 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "16 ms", "a swept control period h (the table's header)"),
@@ -93,11 +104,12 @@ def strip_page(text: str) -> str:
     text = re.sub(r"<!--.*?-->", " ", text, flags=re.S)
     # fenced blocks that are not prose: code, math, generated tables, toctrees
     text = re.sub(r"^(`{3,}|~{3,})\s*(?:\{(?:math|code|code-block|toctree|literalinclude|"
-                  r"eval-rst|result-table)\}|[\w+-]*)\s*\n.*?^\1\s*$", " ", text,
+                  r"eval-rst|result-table)\}|[\w+-]*)[^\n]*\n.*?^\1\s*$", " ", text,
                   flags=re.S | re.M)
     text = re.sub(r"\$\$.*?\$\$", " ", text, flags=re.S)
     text = re.sub(r"\{[\w:-]+\}`[^`]*`", " ", text)          # roles ({result}, {math}, refs)
-    text = re.sub(r"(`+)(?!`).*?(?<!`)\1(?!`)", " ", text, flags=re.S)   # code spans
+    # code spans (may wrap a line, never a paragraph)
+    text = re.sub(r"(`+)(?!`)(?:(?!\n[ \t]*\n).)*?(?<!`)\1(?!`)", " ", text, flags=re.S)
     text = re.sub(r"(?<![\\$])\$(?!\s)[^$\n]+?(?<!\s)\$", " ", text)      # inline math
     text = re.sub(r"\]\([^)]*\)", "]", text)                 # link targets
     return text

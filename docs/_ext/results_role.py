@@ -24,7 +24,8 @@ re-running the study and rebuilding the docs updates the prose. Syntax (MyST)::
     ``AGG`` applies to every value it reaches (``max(*.circle.force_error.rms)``: the worst
     robot's).
 ``FORMAT``
-    a Python format specification (``.3f``, ``.2g``, ``.0f``); ``.3g`` when omitted.
+    a Python format specification (``.3f``, ``.2g``, ``.0f``); ``.3g`` when omitted;
+    ``text`` prints one CSV cell as written (a variant's label).
 ``UNIT``
     the unit printed after the value; the file's SI value is scaled to it
     (:data:`UNITS`). ``[UNIT]`` scales the same and prints no unit (a table whose header
@@ -49,6 +50,7 @@ from functools import lru_cache
 from pathlib import Path
 
 from docutils import nodes
+from docutils.parsers.rst import Directive, directives
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "docs" / "figures" / "studies"
@@ -58,6 +60,7 @@ UNITS: dict[str, float] = {
     "": 1.0, "m": 1.0, "mm": 1e3, "µm": 1e6, "N": 1.0, "mN": 1e3, "N/s": 1.0, "N m": 1.0,
     "s": 1.0, "ms": 1e3, "µs": 1e6, "kg": 1.0, "g": 1e3, "rad": 1.0, "mrad": 1e3,
     "rad/s": 1.0, "mrad/s": 1e3, "m/s": 1.0, "mm/s": 1e3, "%": 100.0, "×": 1.0,
+    "MPa": 1e-6, "N·m": 1.0,
 }
 AGGREGATES = ("min", "max", "mean", "median", "sum", "range", "count")
 
@@ -70,6 +73,10 @@ _FILTER = re.compile(r"^(?P<col>[^=~<>\s]+)\s*(?P<op>[=~<>])\s*(?P<value>.+?)$")
 
 class ResultError(ValueError):
     """A ``{result}`` role that does not resolve (the message names what is wrong)."""
+
+
+class MissingValue(ResultError):
+    """The selected cell is empty or not finite (a metric a diverged or ungrasped case lacks)."""
 
 
 def source_path(source: str) -> Path:
@@ -142,7 +149,7 @@ def _csv_values(rows: list[dict], inner: str, source: str, numeric: bool = True)
     if not values and numeric:
         raise ResultError(f"{source}: no row where {where.strip() or 'any'}")
     if numeric and any(v is None or not math.isfinite(v) for v in values):
-        raise ResultError(f"{source}: {column} is not a finite number in every selected row")
+        raise MissingValue(f"{source}: {column} is not a finite number in every selected row")
     return values
 
 
@@ -199,6 +206,13 @@ def resolve_with_source(spec: str) -> tuple[str, Path]:
             raise ResultError(f"{spec!r}: {agg!r} is not one of {', '.join(AGGREGATES)}")
     path = source_path(source)
     data = load(path)
+    if fmt == "text":               # a CSV cell as it is written (a variant's label)
+        if agg is not None or unit or not isinstance(data, list):
+            raise ResultError(f"{spec!r}: 'as text' takes one CSV cell, no aggregate or unit")
+        cells = _csv_values(data, expr, source, numeric=False)
+        if len(cells) != 1:
+            raise ResultError(f"{spec!r}: {len(cells)} values where one was meant")
+        return cells[0], path
     if isinstance(data, list):
         values = _csv_values(data, expr, source, numeric=agg != "count")
     else:
@@ -230,6 +244,62 @@ def resolve_with_source(spec: str) -> tuple[str, Path]:
     return (f"{text} {unit}" if unit and not silent and agg != "count" else text), path
 
 
+def _and_filter(expr: str, where: str) -> str:
+    """``EXPR`` (``COL [where F]`` or ``AGG(COL [where F])``) with ``where`` ANDed in."""
+    if not where:
+        return expr
+    a = _AGG.match(expr)
+    inner = a["inner"].strip() if a else expr
+    inner = f"{inner} and {where}" if " where " in inner else f"{inner} where {where}"
+    return f"{a['agg']}({inner})" if a else inner
+
+
+_CELL = re.compile(r"\{([^{}]+)\}")
+_ROW_FILTER = re.compile(r"^\s*\[([^\]]*)\]\s*\|?")
+
+
+def table_cells(source: str, lines: list[str], where: str = "",
+                each_row: bool = False) -> list[list[str]]:
+    """The body of a ``result-table``: ``lines`` are its rows, cells split on `` | ``; a cell's
+    ``{EXPR as FORMAT UNIT}`` parts are resolved against ``source`` (anything else is text);
+    ``{EXPR as FORMAT UNIT else TEXT}`` prints ``TEXT`` where the value is missing (an empty
+    cell: a metric the case does not have), and only there.
+    A row may start with ``[FILTER]``, ANDed (with ``where``) into each of its expressions.
+    With ``each_row`` the one line is a template repeated for every file row ``where``
+    selects, in the file's order."""
+    if each_row:
+        if len(lines) != 1:
+            raise ResultError(f"{source}: :each-row: takes one template line, got {len(lines)}")
+        rows = load(source_path(source))
+        if not isinstance(rows, list):
+            raise ResultError(f"{source}: :each-row: needs a CSV file")
+        index = _column(rows, "index", source)
+        picked = _csv_values(rows, f"{index}" + (f" where {where}" if where else ""), source)
+        lines = [f"[{index}={int(i)}] {lines[0]}" for i in picked]
+        where = ""
+    body = []
+    for line in lines:
+        m = _ROW_FILTER.match(line)
+        row_where = " and ".join(w for w in (where, m[1].strip() if m else "") if w)
+        line = line[m.end():] if m else line
+        cells = []
+        for cell in line.split(" | "):
+            def one(match: re.Match) -> str:
+                body, has_else, fallback = match[1].partition(" else ")
+                expr, sep, fmt = body.partition(" as ")
+                spec = f"{source}:{_and_filter(expr.strip(), row_where)}" + (
+                    f" as {fmt.strip()}" if sep else "")
+                try:
+                    return resolve(spec)
+                except MissingValue:
+                    if not has_else:
+                        raise
+                    return fallback.strip()
+            cells.append(_CELL.sub(one, cell.strip()))
+        body.append(cells)
+    return body
+
+
 def result_role(name, rawtext, text, lineno, inliner, options=None, content=None):
     """Docutils role: ``{result}`SOURCE:EXPR as FORMAT UNIT```."""
     try:
@@ -245,6 +315,60 @@ def result_role(name, rawtext, text, lineno, inliner, options=None, content=None
     return [node], []
 
 
+class ResultTable(Directive):
+    """``result-table``: a table whose numbers are read from a results file.
+
+    ::
+
+        ```{result-table} object_carry
+        :header: object model | λ − λ_d RMS, median / max (N)
+        :where: robots.*~mass_scale=1.1
+        [object_model=mode=none] `none` | {median(worst.force_error.rms) as .3g} / {max(worst.force_error.rms) as .3g}
+        ```
+
+    ``:header:`` names the columns (`` | ``-separated), ``:where:`` filters every expression,
+    ``:each-row:`` repeats the one template line for each selected file row.
+    """
+
+    required_arguments = 1
+    has_content = True
+    option_spec = {"header": directives.unchanged_required, "where": directives.unchanged,
+                   "each-row": directives.flag}
+
+    def run(self):
+        source = self.arguments[0]
+        header = [h.strip() for h in self.options["header"].split(" | ")]
+        lines = [line for line in self.content if line.strip()]
+        try:
+            body = table_cells(source, lines, " ".join(self.options.get("where", "").split()),
+                               "each-row" in self.options)
+            width = {len(row) for row in body} | {len(header)}
+            if len(width) != 1:
+                raise ResultError(f"{source}: rows of {sorted(width)} cells under a header of "
+                                  f"{len(header)}")
+            self.state.document.settings.env.note_dependency(str(source_path(source)))
+        except ResultError as exc:
+            raise self.error(f"result-table: {exc}") from None
+        table = nodes.table(classes=["result-table"])
+        group = nodes.tgroup(cols=len(header))
+        table += group
+        group += [nodes.colspec(colwidth=1) for _ in header]
+        thead, tbody = nodes.thead(), nodes.tbody()
+        group += thead
+        group += tbody
+        for cells, parent in [(header, thead)] + [(row, tbody) for row in body]:
+            row = nodes.row()
+            for text in cells:
+                entry = nodes.entry()
+                inline, messages = self.state.inline_text(text, self.lineno)
+                entry += nodes.paragraph("", "", *inline)
+                entry += messages
+                row += entry
+            parent += row
+        return [table]
+
+
 def setup(app):
     app.add_role("result", result_role)
+    app.add_directive("result-table", ResultTable)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
