@@ -85,6 +85,11 @@ INPUTS: list[tuple[str, str, str]] = [
     ("claims/object_carry.md", "2 cm", "a drop's distance, the metric's definition"),
     ("claims/object_carry.md", "0.5 N", "a grasp's least pressing force, the metric's definition"),
     ("claims/object_carry.md", "65–75 s", "the put-down and release in the timeline, an input"),
+    ("claims/index.md", "35 s", "the earlier runs' end (t_end), an input"),
+    ("claims/index.md", "10 s", "a window of the timeline (and the speed study's t_end), an input"),
+    ("claims/index.md", "3 ms", "a plant step, an input"),
+    ("claims/index.md", "1 N", "a sensor noise level of study 4, an input"),
+    ("claims/index.md", "30 %", "study 5's draws' range, an input"),
     ("claims/sampling_period.md", "5 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "12 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "16 ms", "a swept control period h (the table's header)"),
@@ -134,8 +139,7 @@ def test_the_detector_finds_typed_numbers_and_skips_roles_math_and_code():
 
 #: Pages whose conversion is not finished (issue 36): expected to fail, strictly (a page that
 #: passes must leave this list). Each is a known debt, not an exception.
-NOT_YET_CONVERTED = {"claims/index.md",
-                     "claims/object_carry.md",
+NOT_YET_CONVERTED = {"claims/object_carry.md",
                      "guide/object.md"}
 
 
@@ -156,6 +160,58 @@ def _all_roles() -> list[tuple[str, str]]:
     return [(str(p.relative_to(DOCS)), m.group(1))
             for p in sorted(DOCS.rglob("*.md")) if "_build" not in p.parts
             for m in ROLE.finditer(p.read_text())]
+
+
+TABLE = re.compile(r"^(`{3,})\{result-table\}\s+(\S+)\s*\n(.*?)^\1\s*$", re.S | re.M)
+
+
+def _all_tables() -> list[tuple[str, str, dict, list[str]]]:
+    """Every ``result-table`` of the docs: (page, source, options, content lines)."""
+    out = []
+    for p in sorted(DOCS.rglob("*.md")):
+        if "_build" in p.parts:
+            continue
+        for m in TABLE.finditer(p.read_text()):
+            options, content = {}, []
+            for line in m.group(3).splitlines():
+                opt = re.match(r"^:([\w-]+):\s*(.*)$", line)
+                if opt and not content:
+                    options[opt[1]] = opt[2]
+                elif line.strip():
+                    content.append(line)
+            out.append((str(p.relative_to(DOCS)), m.group(2), options, content))
+    return out
+
+
+def test_every_result_table_resolves_with_its_header_width():
+    tables = _all_tables()
+    assert tables, "no result-table in the docs"
+    failures = []
+    for page, source, options, content in tables:
+        try:
+            body = results_role.table_cells(source, content, options.get("where", ""),
+                                            "each-row" in options)
+            width = len(options["header"].split(" | "))
+            failures += [f"{page}: {source}: a row of {len(r)} cells, header {width}"
+                         for r in body if len(r) != width]
+        except results_role.ResultError as exc:
+            failures.append(f"{page}: {exc}")
+    assert not failures, "\n".join(failures)
+
+
+def test_a_table_prints_the_files_values_and_a_fallback_only_where_one_is_missing():
+    rows = _csv_rows("object_carry")
+    body = results_role.table_cells(
+        "object_carry", ["{sample as .0f} | {worst.friction_use.max as .6f else none}"],
+        "robots.*~mass_scale=1.1 and object_model=mode=known squeeze=friction", each_row=True)
+    picked = [r for r in rows if "mass_scale=1.1" in r["robots.*"]
+              and r["object_model"] == "mode=known squeeze=friction"]
+    assert [b[0] for b in body] == [r["sample"] for r in picked]
+    assert [b[1] for b in body] == [f"{float(r['worst.friction_use.max']):.6f}"
+                                    if r["worst.friction_use.max"] else "none" for r in picked]
+    assert "none" in [b[1] for b in body]
+    with pytest.raises(results_role.ResultError, match="matches none"):
+        results_role.table_cells("object_carry", ["{no_such_column else —}"], "index=0")
 
 
 def test_every_result_role_resolves():
