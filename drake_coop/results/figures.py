@@ -32,7 +32,7 @@ when λ = ±F_x (the paper's normals ±e_x), λ otherwise; the reference figure 
 colour ``C{i}`` with its own line style. For the paper (two robots, n = 3, m = 1) the figures
 keep their layout. Units are those a reader reads: each figure takes the first of µm / mm / m
 (µrad / mrad / rad, mN / N, mrad/s / rad/s) in which its largest value is below 1000, one
-unit for all its panels, and the labels carry the robot's index (``z_{i,j}``: robot i,
+unit for all its panels, and the labels carry the robot's index (:math:`z_{i,j}`: robot i,
 joint j).
 
 Phase boundaries are thin grey vertical lines, with the phase names above the top panels (a
