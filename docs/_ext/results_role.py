@@ -79,19 +79,21 @@ class MissingValue(ResultError):
     """The selected cell is empty or not finite (a metric a diverged or ungrasped case lacks)."""
 
 
-def source_path(source: str) -> Path:
-    """The file a role's ``SOURCE`` names (a study's name or a repository path)."""
+def source_path(source: str, root: Path = ROOT) -> Path:
+    """The file a role's ``SOURCE`` names (a study's name or a path from ``root``, the
+    repository's root unless the Sphinx config value ``results_root`` says otherwise)."""
+    root = Path(root)
     if source.endswith((".csv", ".json")):
-        path = ROOT / source
+        path = root / source
     else:
-        path = STUDIES / f"{source}_results.csv"
+        path = root / STUDIES.relative_to(ROOT) / f"{source}_results.csv"
     if not path.is_file():
-        raise ResultError(f"{source}: no file {path.relative_to(ROOT)}")
+        raise ResultError(f"{source}: no file {path.relative_to(root)}")
     return path
 
 
-@lru_cache(maxsize=None)
-def _read(path: Path, mtime: float) -> object:
+@lru_cache(maxsize=64)
+def _read(path: Path, stamp: tuple[int, int]) -> object:
     if path.suffix == ".json":
         return json.loads(path.read_text())
     with path.open(newline="") as handle:
@@ -99,8 +101,10 @@ def _read(path: Path, mtime: float) -> object:
 
 
 def load(path: Path) -> object:
-    """The rows of a CSV file (dicts) or the document of a JSON file, cached per mtime."""
-    return _read(path, path.stat().st_mtime)
+    """The rows of a CSV file (dicts) or the document of a JSON file, cached per version
+    (modification time and size)."""
+    stat = path.stat()
+    return _read(path, (stat.st_mtime_ns, stat.st_size))
 
 
 def _column(rows: list[dict], name: str, source: str) -> str:
@@ -181,12 +185,12 @@ def percentile(values: list[float], p: int) -> float:
     return ordered[lo] + (ordered[hi] - ordered[lo]) * (rank - lo)
 
 
-def resolve(spec: str) -> str:
+def resolve(spec: str, root: Path = ROOT) -> str:
     """The text a ``{result}`` role prints for ``spec`` (raises :class:`ResultError`)."""
-    return resolve_with_source(spec)[0]
+    return resolve_with_source(spec, root)[0]
 
 
-def resolve_with_source(spec: str) -> tuple[str, Path]:
+def resolve_with_source(spec: str, root: Path = ROOT) -> tuple[str, Path]:
     """The text a ``{result}`` role prints for ``spec``, and the file it read."""
     m = _SPEC.match(" ".join(spec.split()))
     if m is None:
@@ -204,7 +208,7 @@ def resolve_with_source(spec: str) -> tuple[str, Path]:
         agg, expr = a["agg"], a["inner"].strip()
         if agg not in AGGREGATES and not _PERCENTILE.match(agg):
             raise ResultError(f"{spec!r}: {agg!r} is not one of {', '.join(AGGREGATES)}")
-    path = source_path(source)
+    path = source_path(source, root)
     data = load(path)
     if fmt == "text":               # a CSV cell as it is written (a variant's label)
         if agg is not None or unit or not isinstance(data, list):
@@ -259,7 +263,7 @@ _ROW_FILTER = re.compile(r"^\s*\[([^\]]*)\]\s*\|?")
 
 
 def table_cells(source: str, lines: list[str], where: str = "",
-                each_row: bool = False) -> list[list[str]]:
+                each_row: bool = False, root: Path = ROOT) -> list[list[str]]:
     """The body of a ``result-table``: ``lines`` are its rows, cells split on `` | ``; a cell's
     ``{EXPR as FORMAT UNIT}`` parts are resolved against ``source`` (anything else is text);
     ``{EXPR as FORMAT UNIT else TEXT}`` prints ``TEXT`` where the value is missing (an empty
@@ -270,7 +274,7 @@ def table_cells(source: str, lines: list[str], where: str = "",
     if each_row:
         if len(lines) != 1:
             raise ResultError(f"{source}: :each-row: takes one template line, got {len(lines)}")
-        rows = load(source_path(source))
+        rows = load(source_path(source, root))
         if not isinstance(rows, list):
             raise ResultError(f"{source}: :each-row: needs a CSV file")
         index = _column(rows, "index", source)
@@ -290,7 +294,7 @@ def table_cells(source: str, lines: list[str], where: str = "",
                 spec = f"{source}:{_and_filter(expr.strip(), row_where)}" + (
                     f" as {fmt.strip()}" if sep else "")
                 try:
-                    return resolve(spec)
+                    return resolve(spec, root)
                 except MissingValue:
                     if not has_else:
                         raise
@@ -302,12 +306,14 @@ def table_cells(source: str, lines: list[str], where: str = "",
 
 def result_role(name, rawtext, text, lineno, inliner, options=None, content=None):
     """Docutils role: ``{result}`SOURCE:EXPR as FORMAT UNIT```."""
+    env = getattr(inliner.document.settings, "env", None)
+    root = Path(env.config.results_root) if env is not None and env.config.results_root \
+        else ROOT
     try:
-        value, path = resolve_with_source(text)
+        value, path = resolve_with_source(text, root)
     except ResultError as exc:
         msg = inliner.reporter.error(f"{{result}} role: {exc}", line=lineno)
         return [inliner.problematic(rawtext, rawtext, msg)], [msg]
-    env = getattr(inliner.document.settings, "env", None)
     if env is not None:             # a re-run study's results.csv re-reads the page
         env.note_dependency(str(path))
     node = nodes.inline(rawtext, value.replace(" ", "\u00a0", 1) if " " in value else value,
@@ -339,14 +345,16 @@ class ResultTable(Directive):
         source = self.arguments[0]
         header = [h.strip() for h in self.options["header"].split(" | ")]
         lines = [line for line in self.content if line.strip()]
+        env = self.state.document.settings.env
+        root = Path(env.config.results_root) if env.config.results_root else ROOT
         try:
             body = table_cells(source, lines, " ".join(self.options.get("where", "").split()),
-                               "each-row" in self.options)
+                               "each-row" in self.options, root)
             width = {len(row) for row in body} | {len(header)}
             if len(width) != 1:
                 raise ResultError(f"{source}: rows of {sorted(width)} cells under a header of "
                                   f"{len(header)}")
-            self.state.document.settings.env.note_dependency(str(source_path(source)))
+            env.note_dependency(str(source_path(source, root)))
         except ResultError as exc:
             raise self.error(f"result-table: {exc}") from None
         table = nodes.table(classes=["result-table"])
@@ -369,6 +377,7 @@ class ResultTable(Directive):
 
 
 def setup(app):
+    app.add_config_value("results_root", "", "env")     # "" : the repository's root
     app.add_role("result", result_role)
     app.add_directive("result-table", ResultTable)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
