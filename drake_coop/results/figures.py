@@ -113,9 +113,10 @@ PHASE_LABEL = "phase_label"
 
 def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> None:
     """Raise a phase name that, as drawn, overlaps a neighbour of its panel by ``step`` points
-    until it overlaps none (at most ``levels`` rows). Short phases (``put_down`` and
-    ``return`` are 2 s and 3 s of a 65 s run) would print their names over each other; the
-    measured text extents decide, whatever the run's timeline or the panel's width."""
+    until it overlaps none (at most ``levels`` rows). Short phases on a narrow panel
+    (``put_down`` and ``return``, 10 s and 15 s of the paper's 90 s run, on a third of the
+    page's width) would print their names over each other; the measured text extents
+    decide, whatever the run's timeline or the panel's width."""
     renderer = fig.canvas.get_renderer()
     for ax in fig.axes:
         labels = [t for t in ax.texts if t.get_gid() == PHASE_LABEL]

@@ -220,8 +220,9 @@ def _drawn_figures(monkeypatch, logs, meta, tmp_path) -> dict:
 
 
 def test_phase_names_do_not_overlap_on_the_papers_timeline(tmp_path, monkeypatch):
-    """Figs. 2 and 6 printed "put_down" and "return" over each other (phases of 2-3 s on a
-    65 s axis): every phase name's drawn box clears its neighbours' and the panel's title."""
+    """Figs. 2 and 6 printed "put_down" and "return" over each other (short phases on a
+    third of the page): every phase name's drawn box clears its neighbours' and the panel's
+    title."""
     from drake_coop.experiment.simulate import phases
     from drake_coop.scenario import load_scenario
 
