@@ -33,6 +33,7 @@ extensions = [
     "numpydoc",                     # the package's docstrings are numpydoc
     "pydrake_system",               # docs/_ext: the LeafSystems' port blocks
     "scenario_fields",              # docs/_ext: the scenario reference, generated from the code
+    "results_role",                 # docs/_ext: {result}`...`, numbers read from shipped results
 ]
 
 # MyST: $...$ and $$...$$ math, amsmath environments, definition lists, heading anchors.
@@ -93,7 +94,10 @@ def _stage_mathjax() -> Path:
 
 
 # Math rendered in the browser by a local MathJax (no CDN): _static/mathjax/tex-mml-chtml.js.
-html_static_path = [str(_stage_mathjax())]
+html_static_path = [str(_stage_mathjax()), "_static"]
+# docs/_static/wide.css: a wider body column (alabaster's 940 px page cut YAML blocks and the
+# split diagram), code blocks scrolled rather than cut, figures scaled to the column.
+html_css_files = ["wide.css"]
 mathjax_path = "mathjax/tex-mml-chtml.js"
 
 

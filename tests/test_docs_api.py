@@ -220,3 +220,65 @@ def test_readme_and_getting_started_state_the_same_timings():
                  re.findall(pattern, guide)[0] if re.findall(pattern, guide) else None}
         assert len(found) == 1 and None not in found, (pattern, found)
     assert "1–1.5 min" not in guide and "about 2 min" not in readme
+
+
+DOCS = ROOT / "docs"
+_FENCE = re.compile(r"^(`{3,}|~{3,}).*?^\1\s*$", re.S | re.M)
+_SPAN = re.compile(r"(?<![`{}])(`+)(?!`)((?:(?!\n[ \t]*\n).)*?)(?<!`)\1(?!`)", re.S)
+_TEX = re.compile(r"\\[A-Za-z]+|[_^]\{")
+
+
+def _pages() -> list[Path]:
+    return [p for p in sorted(DOCS.rglob("*.md"))
+            if not {"_build", "_generated"} & set(p.parts)]
+
+
+def _code_spans(text: str) -> list[str]:
+    text = re.sub(r"\{[\w:-]+\}`[^`]*`", " ", _FENCE.sub(" ", text))     # roles, fences
+    return [m.group(2) for m in _SPAN.finditer(text)]
+
+
+def test_no_tex_inside_code_spans_on_any_page():
+    """Math is math ($...$, ```{math}```), never TeX shown as code."""
+    found = [f"{p.relative_to(DOCS)}: `{s}`" for p in _pages()
+             for s in _code_spans(p.read_text(encoding="utf-8")) if _TEX.search(s)]
+    assert not found, "TeX in code spans:\n" + "\n".join(found)
+
+
+def test_the_tex_detector_finds_a_tex_code_span():
+    assert [s for s in _code_spans("a `t_{k+1}` and `\\dot q` but `q_d` and $t_{k}$")
+            if _TEX.search(s)] == ["t_{k+1}", "\\dot q"]
+
+
+def test_no_equation_inside_a_table_of_the_object_guide():
+    """The object guide's equations are displayed math, not code spans in wrapping cells."""
+    rows = [line for line in (DOCS / "guide" / "object.md").read_text(encoding="utf-8")
+            .splitlines() if line.lstrip().startswith("|")]
+    cells = [s for row in rows for s in _code_spans(row) if "=" in s or "$" in s]
+    maths = [row for row in rows if re.search(r"(?<!\\)\$[^$]+\$", row)]
+    assert not cells and not maths, cells + maths
+
+
+def test_the_index_shelves_the_pages_as_tutorials_how_to_reference_explanation():
+    index = (DOCS / "index.md").read_text(encoding="utf-8")
+    trees = re.findall(r"```\{toctree\}\n(.*?)```", index, re.S)
+    shelves = {}
+    for tree in trees:
+        caption = re.search(r"^:caption:\s*(.+)$", tree, re.M)
+        assert caption, "a toctree without a caption"
+        shelves[caption.group(1).strip()] = [line.strip() for line in tree.splitlines()
+                                             if line.strip() and not line.startswith(":")]
+    assert list(shelves) == ["Tutorials", "How-to guides", "Reference", "Explanation"]
+    assert "api_usage" in shelves["How-to guides"]          # the library's how-to, named
+    assert not any("*" in e for entries in shelves.values() for e in entries)  # no catch-all
+    listed = {e for entries in shelves.values() for e in entries}
+    top = {p.stem for p in DOCS.glob("*.md") if p.stem != "index"}
+    assert top <= listed, f"pages on no shelf: {sorted(top - listed)}"
+
+
+def test_the_body_column_is_widened_by_the_sites_css():
+    css = (DOCS / "_static" / "wide.css").read_text(encoding="utf-8")
+    assert re.search(r"div\.document\s*\{[^}]*max-width:\s*1[2-9]\d\dpx", css)
+    assert re.search(r"div\.body\s*\{[^}]*max-width:\s*none", css)
+    conf = (DOCS / "conf.py").read_text(encoding="utf-8")
+    assert 'html_css_files = ["wide.css"]' in conf and '"_static"' in conf

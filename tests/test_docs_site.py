@@ -136,3 +136,70 @@ def test_port_sections_become_rubrics_before_the_numpydoc_sections():
         "Summary.", "", ".. rubric:: Output ports", "", "``a`` : m-vector", "",
         "``b`` : m-vector", "    State only.", "", "", "Parameters", "----------", "n : int",
         "    Joints.", ""]
+
+
+def _built_site() -> Path:
+    site = os.environ.get("DRAKE_COOP_SITE")
+    if not site:
+        pytest.skip("no built site: DRAKE_COOP_SITE=docs/_build/html (set by .ci/run)")
+    return Path(site)
+
+
+def test_built_site_loads_the_wide_column_css():
+    site = _built_site()
+    assert (site / "_static" / "wide.css").read_text("utf-8") == \
+        (DOCS / "_static" / "wide.css").read_text("utf-8")
+    for page in ("index.html", "guide/object.html", "claims/object_carry.html"):
+        assert re.search(r'<link[^>]+href="[./]*_static/wide\.css', (site / page).read_text("utf-8")), page
+
+
+def test_built_site_prints_the_results_files_numbers():
+    """The claims pages show the values their roles read (not the role's source text)."""
+    sys.path.insert(0, str(DOCS / "_ext"))
+    import results_role
+
+    site = _built_site()
+    html = _text((site / "claims" / "force_sensing.html").read_text("utf-8")).replace("\xa0", " ")
+    spec = "force_sensing:median(robot1.force_error.rms where force_source=observer) as .3f N"
+    assert results_role.resolve(spec) in html
+    assert "{result}" not in html and "force_source=observer)" not in html
+    table = _text((site / "claims" / "object_carry.html").read_text("utf-8"))
+    assert "result-table" not in table and "{sample as" not in table
+
+
+def test_rebuilding_after_a_rerun_updates_the_numbers(tmp_path):
+    """A study re-run (its results.csv rewritten) and an incremental rebuild: the prose and the
+    generated table print the new values (the role notes the file as the page's dependency)."""
+    _need_sphinx()
+    from sphinx.application import Sphinx
+
+    root = tmp_path / "repo"
+    studies = root / "docs" / "figures" / "studies"
+    studies.mkdir(parents=True)
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "conf.py").write_text(
+        f"import sys\nsys.path.insert(0, {str(DOCS / '_ext')!r})\n"
+        f"extensions = ['myst_parser', 'results_role']\nresults_root = {str(root)!r}\n",
+        encoding="utf-8")
+    (src / "index.md").write_text(
+        "# Numbers\n\nThe error is {result}`demo:max(worst.force_error.rms) as .3f N`.\n\n"
+        "```{result-table} demo\n:header: case | error (mN)\n:each-row:\n"
+        "{index as .0f} | {worst.force_error.rms as .1f [mN]}\n```\n", encoding="utf-8")
+
+    def write(values):
+        lines = ["index,worst.force_error.rms"] + [f"{i},{v}" for i, v in enumerate(values)]
+        (studies / "demo_results.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+    def build():
+        app = Sphinx(str(src), str(src), str(tmp_path / "out"), str(tmp_path / "doctrees"),
+                     "html", status=None, warning=None, freshenv=False, warningiserror=True)
+        app.build()
+        return _text((tmp_path / "out" / "index.html").read_text("utf-8")).replace("\xa0", " ")
+
+    write([0.0123, 0.0456])
+    first = build()
+    assert "The error is 0.046 N" in first and "45.6" in first and "12.3" in first
+    write([0.0123, 0.0456, 0.0789])
+    second = build()
+    assert "The error is 0.079 N" in second and "78.9" in second

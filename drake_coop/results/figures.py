@@ -18,7 +18,8 @@ file                         content (panels as in the paper; one row or panel p
                              joint, laid out as Fig. 6; only for logs holding ``qdot`` and
                              ``qdot_hat`` (runs with the sensing models)
 ``fig_object_mass``          the object's mass as the controllers know it: each robot's share
-                             m̂_i and their sum (kg); only for logs holding ``mass_share``
+                             m̂_i and their sum (kg), against the true mass (dashed) on a
+                             plant with a body; only for logs holding ``mass_share``
                              (``object_model`` known or estimated)
 ``fig_references``           the designed references: x_d, y_d, z_d of each robot, the path
                              (in the y–z plane for the paper, see :func:`path_plane`) and λ_d
@@ -31,10 +32,11 @@ when λ = ±F_x (the paper's normals ±e_x), λ otherwise; the reference figure 
 colour ``C{i}`` with its own line style. For the paper (two robots, n = 3, m = 1) the figures
 keep their layout. Units are those a reader reads: each figure takes the first of µm / mm / m
 (µrad / mrad / rad, mN / N, mrad/s / rad/s) in which its largest value is below 1000, one
-unit for all its panels, and the labels carry the robot's index (``z_{i,j}``: robot i,
+unit for all its panels, and the labels carry the robot's index (:math:`z_{i,j}`: robot i,
 joint j).
 
-Phase boundaries are thin grey vertical lines, with the phase names above the top panels; a run
+Phase boundaries are thin grey vertical lines, with the phase names above the top panels (a
+name that would overlap its neighbour, as measured once drawn, raised a row); a run
 stopped early (diverged, interrupted) is drawn up to its last sample. Figures are drawn on
 matplotlib's Agg canvas without pyplot: nothing is shown, no global backend is changed and no
 figure outlives its function. Every file is written atomically.
@@ -102,7 +104,37 @@ def _phases(ax: Axes, meta: dict, t_end: float | None, label: bool,
                         xycoords=ax.get_xaxis_transform(),
                         xytext=(0, 18 if narrow and k % 2 else 10),
                         textcoords="offset points", fontsize=6.5, color="0.35",
-                        ha="center", va="bottom")
+                        ha="center", va="bottom", gid=PHASE_LABEL)
+
+
+#: ``gid`` of the phase names drawn by :func:`_phases` (:func:`_unstack_phase_labels`).
+PHASE_LABEL = "phase_label"
+
+
+def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> None:
+    """Raise a phase name that, as drawn, overlaps a neighbour of its panel by ``step`` points
+    until it overlaps none (at most ``levels`` rows). Short phases on a narrow panel
+    (``put_down`` and ``return``, 10 s and 15 s of the paper's 90 s run, on a third of the
+    page's width) would print their names over each other; the measured text extents
+    decide, whatever the run's timeline or the panel's width."""
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        labels = [t for t in ax.texts if t.get_gid() == PHASE_LABEL]
+        placed = []
+        for text in labels:
+            x, y0 = text.xyann
+            for level in range(levels):
+                text.xyann = (x, y0 + step * level)
+                box = text.get_window_extent(renderer)
+                if not any(box.overlaps(other) for other in placed):
+                    break
+            placed.append(text.get_window_extent(renderer))
+        if labels:   # the title above the highest row of names (pads in points)
+            top = max(t.get_window_extent(renderer).y1 for t in labels)
+            needed = (top - ax.get_window_extent(renderer).y1) * 72.0 / fig.dpi + 3.0
+            current = ax.titleOffsetTrans.get_matrix()[1, 2] * 72.0 / fig.dpi
+            if needed > current:
+                ax.set_title(ax.get_title(), fontsize=ax.title.get_fontsize(), pad=needed)
 
 
 def _style(ax: Axes, title: str, ylabel: str, xlabel: str | None = "t [s]",
@@ -122,6 +154,8 @@ def _style(ax: Axes, title: str, ylabel: str, xlabel: str | None = "t [s]",
 
 def _finish(fig: Figure, title: str) -> Figure:
     fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    _unstack_phase_labels(fig)
     fig.tight_layout()
     return fig
 
@@ -362,6 +396,10 @@ def _object_mass(logs: dict[str, Log], meta: dict) -> Figure:
         total = log["mass_share"] if total is None else total + log["mass_share"]
     t = logs[robots[0]]["t"]
     ax.plot(t, total, color="k", lw=1.0, label=r"$\sum_i \hat m_i$")
+    true_mass = meta.get("object_mass") if meta.get("object_size") is not None else None
+    if true_mass is not None:   # a body on the plant: the truth the sum should reach
+        ax.axhline(float(true_mass), color="0.3", lw=0.9, ls="--",
+                   label=f"true mass m = {float(true_mass):g} kg")
     _phases(ax, meta, _t_end(logs[robots[0]]), label=True)
     _style(ax, "", "mass [kg]", top=True)
     ax.legend(fontsize=7, loc="best")

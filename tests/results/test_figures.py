@@ -21,6 +21,8 @@ from drake_coop.results import (
 )
 from tests.results.test_io import synthetic_run
 
+ROOT_DIR = __import__("pathlib").Path(__file__).resolve().parents[2]
+
 FIGURES = ["fig2_tracking_errors", "fig3_force_tracking", "fig4_force_estimate",
            "fig5_aux_force_error", "fig6_observation_errors", "fig_force_errors"]
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -194,3 +196,65 @@ def test_object_mass_figure_only_with_mass_shares_and_its_sum_line(tmp_path):
     assert len(sums) == 1 and np.allclose(sums[0].get_ydata(), expected)
     paths = plot_figures(logs, meta, tmp_path / "b", formats=("png",))
     check_png(next(p for p in paths if p.stem == "fig_object_mass"))
+
+
+def _drawn_figures(monkeypatch, logs, meta, tmp_path) -> dict:
+    """Per figure :func:`plot_figures` draws (drawn as saved, texts laid out, before it is
+    cleared): per panel, the title's box and the phase names with their boxes."""
+    import drake_coop.results.figures as figures_module
+
+    captured = {}
+
+    def keep(fig, out_dir, name, formats):
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        captured[name] = [
+            (ax.title.get_window_extent(renderer),
+             [(t.get_text(), t.get_window_extent(renderer)) for t in ax.texts
+              if t.get_gid() == figures_module.PHASE_LABEL]) for ax in fig.axes]
+        return []
+
+    monkeypatch.setattr(figures_module, "_save", keep)
+    plot_figures(logs, meta, tmp_path, formats=("png",))
+    return captured
+
+
+def test_phase_names_do_not_overlap_on_the_papers_timeline(tmp_path, monkeypatch):
+    """Figs. 2 and 6 printed "put_down" and "return" over each other (short phases on a
+    third of the page): every phase name's drawn box clears its neighbours' and the panel's
+    title."""
+    from drake_coop.experiment.simulate import phases
+    from drake_coop.scenario import load_scenario
+
+    timeline = phases(load_scenario(ROOT_DIR / "scenarios" / "paper.yaml"))
+    t_end = float(timeline[-1][2])
+    logs, meta = synthetic_run(t_end=t_end, h=0.05)
+    meta["phases"] = [list(p) for p in timeline]
+    names = [p[0] for p in timeline]
+    assert "put_down" in names and "return" in names
+    drawn = _drawn_figures(monkeypatch, logs, meta, tmp_path)
+    for name in ("fig2_tracking_errors", "fig6_observation_errors", "fig3_force_tracking"):
+        panels = [labels for _, labels in drawn[name] if labels]
+        assert panels and all({text for text, _ in labels} >= {"put_down", "return"}
+                              for labels in panels), name
+        for title, labels in drawn[name]:
+            for i, (a, box_a) in enumerate(labels):
+                assert not box_a.overlaps(title), (name, a, "title")
+                for b, box_b in labels[i + 1:]:
+                    assert not box_a.overlaps(box_b), (name, a, b)
+
+
+def test_object_mass_figure_draws_the_true_mass_when_the_plant_has_a_body(tmp_path):
+    import drake_coop.results.figures as figures_module
+
+    logs, meta = synthetic_run(h=0.03)
+    for k, log in enumerate(logs.values()):
+        log["mass_share"] = np.full(log["t"].shape, 0.2 + 0.1 * k)
+    fig = figures_module._object_mass(logs, dict(meta, object_mass=0.5))
+    assert not [ln for ln in fig.axes[0].get_lines() if "true mass" in ln.get_label()]
+    meta = dict(meta, object_mass=0.75, object_size=[0.1, 0.2, 0.1])
+    fig = figures_module._object_mass(logs, meta)
+    true = [ln for ln in fig.axes[0].get_lines() if "true mass" in ln.get_label()]
+    assert len(true) == 1 and np.allclose(true[0].get_ydata(), 0.75)
+    legend = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert "true mass m = 0.75 kg" in legend

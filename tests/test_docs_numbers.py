@@ -1,0 +1,279 @@
+"""The docs' measured numbers come from their commands (``docs/_ext/results_role.py``).
+
+* every ``{result}`` role of every page resolves against the shipped results files (a role
+  that names a missing column, a missing row, several rows or an unknown unit fails);
+* the role reads the file's value (checked against an independent ``csv`` read) and scales
+  it to the stated unit;
+* the claims pages (``docs/claims/``) and the object guide hold no measured number typed by
+  hand: prose digits followed by a physical unit or a percentage, outside a role, math, code
+  and links. The inputs a page states (the scenario's fields: the control period, the run's
+  length, the object's mass, ...) are listed in :data:`INPUTS` with the reason;
+* the detector finds typed numbers (it is run on a sample page that has them).
+"""
+
+from __future__ import annotations
+
+import csv
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+sys.path.insert(0, str(DOCS / "_ext"))
+
+import results_role  # noqa: E402
+
+#: The pages that must hold no hand-typed measured number.
+CHECKED = sorted((DOCS / "claims").glob("*.md")) + [DOCS / "guide" / "object.md"]
+
+UNIT = (r"(?:MPa|kPa|Pa|N/s|N\s?m|mN|N|mm/s|m/s|mm|cm|µm|um|nm|m|ms|µs|s|kg|g|mrad/s|rad/s|mrad|rad|Hz|"
+        r"°|%|×|x(?=\s)|dB|min|h)")
+#: digits (a range, a decimal, an exponent) then a unit: a number a measurement would print.
+MEASURED = re.compile(r"(?<![\w.\-/])(?:[~≈<>≤≥][ \u00a0]?)?\d(?:[\d.]|[ ,](?=\d{3}\b))*"
+                      r"(?:[eE][-−+]?\d+)?(?:[ \u00a0]?[–-][ \u00a0]?\d[\d.]*)?[ \u00a0]?"
+                      + UNIT + r"(?![\w/])")
+
+#: Inputs a page states in prose (not measurements): (page, exact text, reason).
+INPUTS: list[tuple[str, str, str]] = [
+    ("*", "9 ms", "the control period h, the scenario's control_period"),
+    ("*", "1 ms", "the plant's time step, the scenario's plant.time_step"),
+    ("*", "65 s", "the run's end, the study's t_end"),
+    ("*", "66 s", "the run's end, a command's --t-end"),
+    ("*", "15 s", "the grasp's time in the scenario's timeline"),
+    ("*", "25–65 s", "the circle phase of the scenario's timeline"),
+    ("*", "15–25 s", "the lift phase of the scenario's timeline"),
+    ("*", "1 s", "the squeeze ramps' length, a fixed input of the reference"),
+    ("*", "0.5 kg", "the object's mass, an input of scenarios/contact.yaml"),
+    ("*", "2 kg", "the object's mass of the issue's case, an input"),
+    ("*", "50 %", "the estimated model's prior: prior_mass_factor 1.5, an input"),
+    ("*", "1 N/s", "squeeze_rate's default, an input"),
+    ("*", "20 N/s", "the shared squeeze's rise limit, a constant of the block"),
+    ("*", "1.5×", "the prior's factor, prior_mass_factor 1.5, an input"),
+    ("*", "1.8 s", "the forgetting horizon 200 ticks x 9 ms, from the inputs"),
+    ("*", "14–50 N", "the paper's force profile (29), an input"),
+    ("*", "32–50 N", "the paper's force profile (29) over the circle, an input"),
+    ("claims/force_sensing.md", "0.1 N", "a swept noise level (force_sensor.noise_std)"),
+    ("claims/force_sensing.md", "0.3 N", "a swept noise level (force_sensor.noise_std)"),
+    ("claims/force_sensing.md", "1 N", "a swept noise level (force_sensor.noise_std)"),
+    ("claims/force_sensing.md", "3 N", "a swept noise level (force_sensor.noise_std)"),
+    ("claims/force_sensing.md", "35 s", "the old runs' end (t_end), an input"),
+    ("claims/gain_map.md", "3 ms", "the earlier runs' plant step (plant.time_step), an input"),
+    ("claims/gain_map.md", "35 s", "the earlier runs' end (t_end), an input"),
+    ("claims/gain_map.md", "10 s", "a window of the timeline, an input"),
+    ("claims/model_mismatch.md", "10 %", "a percentile (the table's header)"),
+    ("claims/model_mismatch.md", "90 %", "a percentile (the table's header)"),
+    ("claims/model_mismatch.md", "30 %", "the draws' range U(0.7, 1.3), an input"),
+    ("claims/model_mismatch.md", "1 N", "the friction draws' range U(0, 1) N·m, an input"),
+    ("claims/model_mismatch.md", "10 N", "a threshold the sentence counts the cases against"),
+    ("claims/model_mismatch.md", "20 N", "a threshold the sentence counts the cases against"),
+    ("claims/model_mismatch.md", "3 ms", "the earlier runs' plant step, an input"),
+    ("claims/model_mismatch.md", "35 s", "the earlier runs' end (t_end), an input"),
+    ("claims/model_mismatch.md", "10 s", "a window of the timeline, an input"),
+    ("claims/object_carry.md", "10 mm", "the stand's lowering, plant.stand_clearance, an input"),
+    ("claims/object_carry.md", "3 ms", "the contact scenario's plant step, an input"),
+    ("claims/object_carry.md", "18 N", "the force profile's amplitude (29), an input"),
+    ("claims/object_carry.md", "10 %", "the nominal models' mass error, mass_scale 1.1, an input"),
+    ("claims/object_carry.md", "0.5 mm", "the issue's target, a requirement"),
+    ("claims/object_carry.md", "5 %", "the convergence band of mass_convergence_time, a definition"),
+    ("claims/object_carry.md", "20 mm", "the 'carried' criterion, a definition"),
+    ("claims/object_carry.md", "2 mm", "a slip's length, the metric's definition"),
+    ("claims/object_carry.md", "≥ 2 cm", "a drop's distance, the metric's definition"),
+    ("claims/object_carry.md", "10 cm", "the lift's height, task.lift_height, an input"),
+    ("claims/object_carry.md", "32 N", "the force profile's mean (29), an input"),
+    ("claims/object_carry.md", "14 N", "the force profile's least value in the circle, 32 − 18 N"),
+    ("claims/object_carry.md", "≥ 0.5 N", "a grasp's least pressing force, the metric's definition"),
+    ("claims/object_carry.md", "1 N", "a squeeze a test of the metric sets, an input"),
+    ("claims/object_carry.md", "65–75 s", "the put-down and release in the timeline, an input"),
+    ("claims/index.md", "35 s", "the earlier runs' end (t_end), an input"),
+    ("claims/index.md", "10 s", "a window of the timeline (and the speed study's t_end), an input"),
+    ("claims/index.md", "3 ms", "a plant step, an input"),
+    ("claims/index.md", "1 N", "a sensor noise level of study 4, an input"),
+    ("claims/index.md", "30 %", "study 5's draws' range, an input"),
+    ("*", "5 MPa", "the shipped pads' modulus, an input of the arm's model file"),
+    ("guide/object.md", "15 mm", "the pads' radius, an input of the arm's model file"),
+    ("guide/object.md", "10 %", "a requirement (the benchmark's bar) and study 6's model error"),
+    ("guide/object.md", "5 %", "the convergence band of mass_convergence_time, a definition"),
+    ("guide/object.md", "1 mm", "object_metrics.REST_HEIGHT, a definition"),
+    ("claims/sampling_period.md", "5 ms", "a swept control period h (the table's header)"),
+    ("claims/sampling_period.md", "12 ms", "a swept control period h (the table's header)"),
+    ("claims/sampling_period.md", "16 ms", "a swept control period h (the table's header)"),
+    ("claims/sampling_period.md", "20 ms", "a swept control period h (the table's header)"),
+    ("claims/sampling_period.md", "25 – 50 ms", "swept control periods h (the table's header)"),
+    ("claims/sampling_period.md", "35 s", "the old runs' end (t_end), an input"),
+    ("claims/sampling_period.md", "10 s", "a window of the timeline, an input"),
+    ("claims/force_sensing.md", "10 s", "a window of the timeline, an input"),
+]
+
+
+def strip_page(text: str) -> str:
+    """A page's prose: without code blocks, math, roles, code spans, links' targets,
+    comments and the tables a directive generates."""
+    text = re.sub(r"<!--.*?-->", " ", text, flags=re.S)
+    # fenced blocks that are not prose: code, math, generated tables, toctrees
+    text = re.sub(r"^(`{3,}|~{3,})\s*(?:\{(?:math|code|code-block|toctree|literalinclude|"
+                  r"eval-rst|result-table)\}|[\w+-]*)[^\n]*\n.*?^\1\s*$", " ", text,
+                  flags=re.S | re.M)
+    text = re.sub(r"\$\$.*?\$\$", " ", text, flags=re.S)
+    text = re.sub(r"\{[\w:-]+\}`[^`]*`", " ", text)          # roles ({result}, {math}, refs)
+    # code spans (may wrap a line, never a paragraph)
+    text = re.sub(r"(`+)(?!`)(?:(?!\n[ \t]*\n).)*?(?<!`)\1(?!`)", " ", text, flags=re.S)
+    text = re.sub(r"(?<![\\$])\$(?!\s)[^$\n]+?(?<!\s)\$", " ", text)      # inline math
+    text = re.sub(r"\]\([^)]*\)", "]", text)                 # link targets
+    return text
+
+
+def measured_numbers(text: str) -> list[str]:
+    """The measured-looking numbers in a page's prose (see :data:`MEASURED`)."""
+    return [m.group(0).strip() for m in MEASURED.finditer(strip_page(text))]
+
+
+def _allowed(page: str, found: str) -> bool:
+    norm = " ".join(found.replace("\u00a0", " ").split())
+    return any(p in ("*", page) and norm == text for p, text, _ in INPUTS)
+
+
+def test_the_detector_finds_typed_numbers_and_skips_roles_math_and_code():
+    page = ("The error is 0.047 N RMS (56 % less), 20.1 µm at most, 3–5 mm.\n"
+            "Equation (22), the year 2026, [ref](a/1 s.md), `h = 0.009 s`, $x = 3 N$,\n"
+            "{result}`force_sensing:count(status) as .0f`.\n```yaml\nt_end: 65 s\n```\n")
+    assert measured_numbers(page) == ["0.047 N", "56 %", "20.1 µm", "3–5 mm"]
+
+
+@pytest.mark.parametrize("page", CHECKED, ids=lambda p: str(p.relative_to(DOCS)))
+def test_no_hand_typed_measured_number(page):
+    rel = str(page.relative_to(DOCS))
+    found = [n for n in measured_numbers(page.read_text()) if not _allowed(rel, n)]
+    assert not found, (f"{rel}: measured numbers typed by hand (use a {{result}} role, keep the "
+                       f"sentence qualitative, or list an input in INPUTS): {found}")
+
+
+ROLE = re.compile(r"\{result\}`([^`]*)`")
+
+
+def _all_roles() -> list[tuple[str, str]]:
+    return [(str(p.relative_to(DOCS)), m.group(1))
+            for p in sorted(DOCS.rglob("*.md")) if "_build" not in p.parts
+            for m in ROLE.finditer(p.read_text())]
+
+
+TABLE = re.compile(r"^(`{3,})\{result-table\}\s+(\S+)\s*\n(.*?)^\1\s*$", re.S | re.M)
+
+
+def _all_tables() -> list[tuple[str, str, dict, list[str]]]:
+    """Every ``result-table`` of the docs: (page, source, options, content lines)."""
+    out = []
+    for p in sorted(DOCS.rglob("*.md")):
+        if "_build" in p.parts:
+            continue
+        for m in TABLE.finditer(p.read_text()):
+            options, content = {}, []
+            for line in m.group(3).splitlines():
+                opt = re.match(r"^:([\w-]+):\s*(.*)$", line)
+                if opt and not content:
+                    options[opt[1]] = opt[2]
+                elif line.strip():
+                    content.append(line)
+            out.append((str(p.relative_to(DOCS)), m.group(2), options, content))
+    return out
+
+
+def test_every_result_table_resolves_with_its_header_width():
+    tables = _all_tables()
+    assert tables, "no result-table in the docs"
+    failures = []
+    for page, source, options, content in tables:
+        try:
+            body = results_role.table_cells(source, content, options.get("where", ""),
+                                            "each-row" in options)
+            width = len(options["header"].split(" | "))
+            failures += [f"{page}: {source}: a row of {len(r)} cells, header {width}"
+                         for r in body if len(r) != width]
+        except results_role.ResultError as exc:
+            failures.append(f"{page}: {exc}")
+    assert not failures, "\n".join(failures)
+
+
+def test_a_table_prints_the_files_values_and_a_fallback_only_where_one_is_missing():
+    rows = _csv_rows("object_carry")
+    body = results_role.table_cells(
+        "object_carry", ["{sample as .0f} | {worst.friction_use.max as .6f else none}"],
+        "robots.*~mass_scale=1.1 and object_model=mode=known squeeze=friction", each_row=True)
+    picked = [r for r in rows if "mass_scale=1.1" in r["robots.*"]
+              and r["object_model"] == "mode=known squeeze=friction"]
+    assert [b[0] for b in body] == [r["sample"] for r in picked]
+    assert [b[1] for b in body] == [f"{float(r['worst.friction_use.max']):.6f}"
+                                    if r["worst.friction_use.max"] else "none" for r in picked]
+    assert "none" in [b[1] for b in body]
+    with pytest.raises(results_role.ResultError, match="matches none"):
+        results_role.table_cells("object_carry", ["{no_such_column else —}"], "index=0")
+
+
+def test_every_result_role_resolves():
+    roles = _all_roles()
+    assert roles, "no {result} role in the docs"
+    failures = []
+    for page, spec in roles:
+        try:
+            results_role.resolve(spec)
+        except results_role.ResultError as exc:
+            failures.append(f"{page}: {exc}")
+    assert not failures, "\n".join(failures)
+
+
+def _csv_rows(name: str) -> list[dict]:
+    with (DOCS / "figures" / "studies" / f"{name}_results.csv").open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_a_role_prints_the_files_value_in_its_unit():
+    rows = [r for r in _csv_rows("force_sensing")
+            if r["robots.*.force_source"] == "sensor"
+            and float(r["robots.*.force_sensor.noise_std"]) == 3.0]
+    assert len(rows) == 1
+    expected = float(rows[0]["worst.position_error.max"]) * 1e6
+    text = results_role.resolve("force_sensing:worst.position_error.max where "
+                                "force_source=sensor and noise_std=3 as .4f µm")
+    assert text == f"{expected:.4f} µm"
+    values = [float(r["robot1.force_error.rms"]) for r in _csv_rows("force_sensing")]
+    text = results_role.resolve("force_sensing:range(robot1.force_error.rms) as .4f mN")
+    assert text == f"{min(values) * 1e3:.4f}–{max(values) * 1e3:.4f} mN"
+    assert results_role.resolve("force_sensing:count(status where status=ok)") == str(
+        sum(r["status"] == "ok" for r in _csv_rows("force_sensing")))
+
+
+@pytest.mark.parametrize("spec, message", [
+    ("force_sensing:no_such_column", "matches none"),
+    ("no_such_study:worst.force_error.rms", "no file"),
+    ("force_sensing:worst.force_error.rms", "values where one was meant"),
+    ("force_sensing:worst.force_error.rms where force_source=nothing", "no row"),
+    ("force_sensing:max(worst.force_error.rms) as .3f parsec", "unit 'parsec'"),
+    ("force_sensing:spread(worst.force_error.rms)", "is not one of"),
+    ("force_sensing:max(worst.force_error.rms) as .3q N", "format"),
+    ("force_sensing:max(x_tilde.rms)", "ambiguous"),
+    ("tests/golden/paper_run.json:no.such.key", "no key"),
+])
+def test_a_role_that_does_not_resolve_says_why(spec, message):
+    with pytest.raises(results_role.ResultError, match=re.escape(message)):
+        results_role.resolve(spec)
+
+
+def test_percentiles_are_numpys_linear_rule():
+    np = pytest.importorskip("numpy")
+    values = [float(r["worst.force_error.rms"]) for r in _csv_rows("model_mismatch")]
+    for p in (10, 50, 90):
+        assert results_role.resolve(f"model_mismatch:p{p}(worst.force_error.rms) as .6f N") \
+            == f"{np.percentile(values, p):.6f} N"
+
+
+def test_every_listed_input_is_still_on_its_page():
+    """An exception that no page needs any more is removed, not kept."""
+    found = {str(p.relative_to(DOCS)): {" ".join(n.replace("\u00a0", " ").split())
+                                        for n in measured_numbers(p.read_text())}
+             for p in CHECKED}
+    stale = [(page, text) for page, text, _ in INPUTS
+             if not any(text in numbers for p, numbers in found.items()
+                        if page in ("*", p))]
+    assert not stale, stale
