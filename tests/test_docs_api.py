@@ -294,7 +294,7 @@ DOCSTRING_TEX_PENDING: dict[str, str] = {
     "scenario/schema.py": "converted after the scenario branches merge",
     "stability/period_map.py": "converted after the stability branch merges",
 }
-_DOC_SPAN = re.compile(r"(?<![`:])``(?!`)((?:(?!\n[ \t]*\n).)+?)``(?!`)", re.S)
+_DOC_SPAN = re.compile(r"(?<!`)``(?!`)((?:(?!\n[ \t]*\n).)+?)``(?!`)", re.S)
 _DOC_TEX = re.compile(r"[_^]\{|\\|\^T(?![A-Za-z])")
 _DOC_COMMENT = re.compile(r"^[ \t]*#:(.*)$", re.M)
 
