@@ -103,7 +103,7 @@ INPUTS: list[tuple[str, str, str]] = [
     ("guide/object.md", "0.001 N", "the squeeze grid of tests/control/test_squeeze_limits.py"),
     ("guide/object.md", "32 N", "the creep measurement's squeeze, the mean of (29), an input"),
     ("guide/object.md", "3 ms", "contact.yaml's plant step (plant.time_step), an input"),
-    ("guide/object.md", "90 s", "the creep's reference length (per the paper's 90 s task), a definition"),
+    ("guide/object.md", "90 s", "creep per 90 s: the paper's task length, a definition"),
     ("claims/sampling_period.md", "5 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "12 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "16 ms", "a swept control period h (the table's header)"),
