@@ -33,8 +33,9 @@ from one ``CalcJacobianSpatialVelocity``), kept while ``q`` is unchanged and sha
 ``J̇_φ`` along a direction ``d`` on a serial chain of revolute and prismatic joints is the
 closed-form derivative of the geometric Jacobian's columns (no AutoDiff): with ``a_k`` the
 angular column of joint ``k`` (its world axis, 0 for a prismatic joint), ``J_k`` its
-translational column, ``ω_k = Σ_{j<k} a_j d_j`` the angular velocity of the body that carries
-joint ``k`` and ``s_k = Σ_{j≥k} J_j d_j`` the pad's velocity relative to that body,
+translational column, :math:`\\omega_k = \\sum_{j<k} a_j d_j` the angular velocity of the body
+that carries joint ``k`` and :math:`s_k = \\sum_{j \\ge k} J_j d_j` the pad's velocity relative
+to that body,
 
 .. math:: \\dot J_k = \\omega_k \\times J_k + a_k \\times s_k
 

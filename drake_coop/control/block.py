@@ -164,7 +164,7 @@ class ControllerHandles:
     q_input : InputPort
         The measured ``q`` (already connected).
     tau_output : OutputPort
-        The torque ``τ(k)``, held over ``[t_k, t_{k+1})``.
+        The torque ``τ(k)``, held over :math:`[t_k, t_{k+1})`.
     q_hat_output, qdot_hat_output, qdot_o_output : OutputPort
         The velocity source's ``q̂``, ``d/dt q̂``, ``q̇_o`` (for logging).
     lambda_hat_output, Delta_F_tilde_output : OutputPort

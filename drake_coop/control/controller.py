@@ -10,7 +10,7 @@ of (7) along ``q̇_o``; in free motion (before the grasp, after the release) the
 ``Q = I``, ``J_φ = 0``, ``J⁺ = 0``.
 
 Sampling (zero-order hold, no computation delay): the torque of tick ``k`` is computed from
-``q(k)`` and the observers' tick-``k`` outputs and applied on ``[t_k, t_{k+1})``. A periodic
+``q(k)`` and the observers' tick-``k`` outputs and applied on :math:`[t_k, t_{k+1})`. A periodic
 *unrestricted* update at ``t_k`` latches ``τ(k)`` and ``q̈̂_r(k)`` into state; Drake runs a
 time's unrestricted updates before its discrete updates (the plant's step, the observers'
 updates), so the plant's step at ``t_k`` already applies ``τ(k)`` and the velocity observer's
@@ -19,9 +19,9 @@ happens at the plant's steps between two ticks.
 
 What the outputs mean at a tick *before* its events (a simulator stopped by ``AdvanceTo(k h)``,
 a logger publishing at ``t_k``): ``tau`` and ``qddot_r_hat`` still hold ``τ(k − 1)`` and
-``q̈̂_r(k − 1)``, the values applied on ``[t_{k−1}, t_k)``. The values the tick's update will
-latch are :meth:`Controller.next_tau` and :meth:`Controller.terms` (the law at the current
-inputs). Loggers therefore see ``τ(k)`` at ``t_{k+1}``;
+``q̈̂_r(k − 1)``, the values applied on :math:`[t_{k-1}, t_k)`. The values the tick's update
+will latch are :meth:`Controller.next_tau` and :meth:`Controller.terms` (the law at the current
+inputs). Loggers therefore see ``τ(k)`` at :math:`t_{k+1}`;
 :func:`~drake_coop.experiment.simulate.collect_logs` shifts those logs back by one sample.
 """
 
@@ -90,7 +90,7 @@ class Controller(LeafSystem):
     Output ports
     ------------
     tau : n-vector
-        Joint torques ``τ(k)``, latched at ``t_k`` and held over ``[t_k, t_{k+1})`` (state
+        Joint torques ``τ(k)``, latched at ``t_k`` and held over :math:`[t_k, t_{k+1})` (state
         only; ``τ(k − 1)`` at ``t_k`` before the tick's update).
     qddot_r_hat : n-vector
         ``q̈̂_r(k)`` of (11), latched with ``τ(k)`` for the velocity observer's update (16) at
@@ -179,7 +179,7 @@ class Controller(LeafSystem):
 
     def next_tau(self, context: Context) -> np.ndarray:
         """``τ(k)`` of (13) at the current inputs: at tick ``k`` before its events, the torque
-        the tick's update latches and the plant then applies on ``[t_k, t_{k+1})``."""
+        the tick's update latches and the plant then applies on :math:`[t_k, t_{k+1})`."""
         return self.terms(context)["tau"]
 
     def latched_tick(self, context: Context) -> int:

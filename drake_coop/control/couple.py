@@ -19,15 +19,15 @@ opposite, across the normal) solves ``(p_1 − p_2) × f_1 = −M`` with ``f_2 =
 .. math::
     f_{c,1} = -\\frac{\\lambda}{w}\\, T (E_1 - E_2), \\qquad f_{c,2} = -f_{c,1}
 
-(check: ``(p_1 − p_2) × f_{c,1} = (−w n) × (−λ d/w) = λ n × d = −M``). Along a vertical
-offset ``Δz = z_1 − z_2`` this is the moment balance of the object about its centre of mass
-under the two pads' forces: each pad's vertical force is its share of the weight and inertial
-load ``m_i (g + a_z)`` and ``∓ λ Δz / w``,
+(check: :math:`(p_1 - p_2) \\times f_{c,1} = (-w n) \\times (-\\lambda d/w) = \\lambda\\, n \\times
+d = -M`). Along a vertical offset ``Δz = z_1 − z_2`` this is the moment balance of the object about
+its centre of mass under the two pads' forces: each pad's vertical force is its share of the weight
+and inertial load ``m_i (g + a_z)`` and ``∓ λ Δz / w``,
 
 .. math:: f_{1,z} - f_{2,z} = -\\frac{2 \\lambda \\Delta z}{w}
 
 (the higher pad carries less). The forces are the ones *the arms apply to the object*, as
-:class:`~drake_coop.control.object.LoadFeedforward`'s ``f_i``: add ``f_{c,i}`` to arm ``i``'s
+:class:`~drake_coop.control.object.LoadFeedforward`'s ``f_i``: add :math:`f_{c,i}` to arm ``i``'s
 load (its ``f_couple`` input). A centre-of-mass offset along the grasp line changes the
 weight's split (:func:`~drake_coop.control.object.mass_shares`), not the couple's. The pair
 ``f_c`` has no moment about the grasp line itself; a moment about it (the weight, when the
@@ -74,7 +74,7 @@ def squeeze_couple(centres, normal, lam, lever) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 2, 3)
-        ``f_{c,1} = −(λ/w) T (E_1 − E_2)`` and ``f_{c,2} = −f_{c,1}`` (N).
+        :math:`f_{c,1} = -(\\lambda/w)\\, T (E_1 - E_2)` and :math:`f_{c,2} = -f_{c,1}` (N).
 
     Raises
     ------

@@ -174,12 +174,12 @@ def add_object_blocks(b: DiagramBuilder, robot: RobotPlan, period: float, q: Out
 def add_object_state_estimator(b: DiagramBuilder, plan: RunPlan,
                                layouts: list[ReferenceLayout], period: float
                                ) -> ObjectStateEstimator:
-    """The shared ``object_state_estimator``: the plan's grasp (:class:`~drake_coop.
-    experiment.plan.ObjectPlan`: grasp points and normals, ``mu``), ``margin``,
-    ``squeeze_min``, the grasp window and ramp of :func:`~drake_coop.experiment.plan.
-    friction_squeeze`, ``squeeze_rate`` and each robot's force weights. Its inputs (mass
-    shares, ``a_d``) are connected by :func:`connect_object_state_estimator`, the references
-    by the caller."""
+    """The shared ``object_state_estimator``: the plan's grasp
+    (:class:`~drake_coop.experiment.plan.ObjectPlan`: grasp points and normals, ``mu``),
+    ``margin``, ``squeeze_min``, the grasp window and ramp of
+    :func:`~drake_coop.experiment.plan.friction_squeeze`, ``squeeze_rate`` and each robot's
+    force weights. Its inputs (mass shares, ``a_d``) are connected by
+    :func:`connect_object_state_estimator`, the references by the caller."""
     scenario = plan.scenario
     om, task = scenario.object_model, scenario.task
     obj = plan.object

@@ -48,7 +48,7 @@ from drake_coop.control.timing import tick_of
 from drake_coop.sensing.encoders import Encoders
 
 #: Logged signals latched at a tick by its own updates (the torque, the force of the step
-#: taken): a logger publishing at ``t_{k+1}`` holds the value of tick ``k``.
+#: taken): a logger publishing at :math:`t_{k+1}` holds the value of tick ``k``.
 LATCHED_SIGNALS = ("tau", "tau_cmd", "F_meas", "lambda_meas", "tau_ff", "f_load")
 
 
@@ -190,7 +190,7 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
 
     Alignment: loggers publish at ``t_k`` before the tick's updates. The signals of
     :data:`LATCHED_SIGNALS` (``τ(k)`` and the force of the step taken from ``t_k``) are
-    latched by those updates, so the sample published at ``t_{k+1}`` holds tick ``k``: they
+    latched by those updates, so the sample published at :math:`t_{k+1}` holds tick ``k``: they
     are shifted back by one sample, and the last published tick's come from the logged ports'
     current values when its updates have run (:func:`finish_last_tick`). Rule for a run that
     stopped before the last published tick's updates ran (an exception or Ctrl-C during them):
@@ -199,7 +199,7 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
     With the offline ground truth (:attr:`Experiment.ground_truth`), ``F_meas``,
     ``lambda_meas`` and ``lambda_sensor`` are computed here from the held plant data
     (:meth:`~drake_coop.plant.ground_truth.GroundTruthLog.evaluate`), under the same rules:
-    the holds of tick ``k`` are published at ``t_{k+1}``, the last tick's are the holds'
+    the holds of tick ``k`` are published at :math:`t_{k+1}`, the last tick's are the holds'
     current values, and the rows end where the torque's do.
     """
     logs = {}

@@ -30,7 +30,7 @@ move it across a plant update):
   next step for it. With ``h = Δt`` that step is the previous tick's.
 
 A :class:`~pydrake.systems.primitives.VectorLogSink` (``ground_truth_log``) publishes them at
-every tick, *before* the tick's updates: the sample at ``t_{k+1}`` holds the tick hold of
+every tick, *before* the tick's updates: the sample at :math:`t_{k+1}` holds the tick hold of
 tick ``k`` (shifted back as every latched signal, see
 :func:`~drake_coop.experiment.simulate.collect_logs`), the sample at ``t_k`` the step before
 ``t_k``. :meth:`GroundTruthLog.evaluate` returns per robot ``F_meas`` and ``lambda_meas`` of
@@ -112,7 +112,7 @@ class GroundTruthLog:
         the ticks ``0 … n − 1``.
 
         ``F_meas`` of tick ``k`` is the force of the step ``[t_k, t_k + Δt)``: the tick hold of
-        ``k``, published at ``t_{k+1}``. With ``complete`` (the last published tick's updates
+        ``k``, published at :math:`t_{k+1}`. With ``complete`` (the last published tick's updates
         ran, :func:`~drake_coop.experiment.simulate.finish_last_tick`) the last tick's come from
         the hold's current value when it has sampled that tick (the context's time is past
         ``t_K``), else that row is NaN. ``lambda_sensor`` of tick ``k ≥ 1`` is the model's
@@ -348,8 +348,8 @@ class PadForceLog:
     from the plant's contact results when read; a C++ ``ZeroOrderHold``
     (``pad_forces_hold``, period ``Δt``, offset 0) reads it in the discrete phase of every
     plant update, from the context of the plant's own update (after the controllers' latch
-    at a tick: the step taken, its solve shared), so between ``t_j`` and ``t_{j+1}`` it holds
-    the force of the step ``[t_j, t_j + Δt)``; a ``VectorLogSink`` (``pad_forces_log``)
+    at a tick: the step taken, its solve shared), so between :math:`t_j` and :math:`t_{j+1}` it
+    holds the force of the step ``[t_j, t_j + Δt)``; a ``VectorLogSink`` (``pad_forces_log``)
     publishes it at every plant step, before that step's updates: the sample at ``t_j`` is
     the step ``[t_j − Δt, t_j)``. One Python call per plant step (the output's calculation,
     which reads the contact results only at the two steps next to a tick, NaN at the others),

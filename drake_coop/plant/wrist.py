@@ -32,7 +32,7 @@ latches at every tick ``t_k`` the force of the plant step actually taken from ``
 update runs after the controller's unrestricted update (so under ``τ(k)``) and after a grasp
 switch made between two ``AdvanceTo`` calls (so a grasp or release tick logs the step of the
 new form), from the same context as the plant's own update (the step's solve is shared). A
-logger publishing at ``t_{k+1}`` sees it; :func:`~drake_coop.experiment.simulate.collect_logs`
+logger publishing at :math:`t_{k+1}` sees it; :func:`~drake_coop.experiment.simulate.collect_logs`
 shifts it back to the row of ``t_k``. The live ports (``F_meas``, ``lambda_meas``) at a tick
 before its events would read the state of ``t_k`` under ``τ(k − 1)``: a step that is not
 taken.
@@ -199,7 +199,7 @@ class ArmForces:
     def steps(self, x: np.ndarray, a: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
         """``F`` of every arm for ``K`` plant steps at once: step ``i`` starts at ``x[i]``
         (plant state ``[q, v]``) with the acceleration ``a[i]`` (the plant's
-        generalized-acceleration port, ``(v_{j+1} − v_j)/Δt``) under ``u[i]``.
+        generalized-acceleration port, :math:`(v_{j+1} - v_j)/\\Delta t`) under ``u[i]``.
 
         Returns one ``(K, 3)`` array per arm; the square solves are batched (NumPy's LU), the
         plant's calls are one inverse dynamics and one Jacobian per arm and step.
@@ -239,8 +239,8 @@ class WristDynamics(LeafSystem):
     modes where the object's pull on the end-effector point is the only external force on an
     arm (``planes``, ``rigid``: a ball constraint at the end-effector body's origin).
 
-    For the plant step from ``(q_j, v_j)`` to ``v_{j+1} = v_j + Δt a`` under the actuation
-    ``u``, SAP's momentum balance with the joints' damping taken implicitly is
+    For the plant step from ``(q_j, v_j)`` to :math:`v_{j+1} = v_j + \\Delta t\\, a` under the
+    actuation ``u``, SAP's momentum balance with the joints' damping taken implicitly is
 
     .. math::
         J_x(q_j)^T F = M(q_j)\\,a + C(q_j, v_j) v_j - \\tau_g(q_j) + D (v_j + \\Delta t\\, a)
@@ -263,10 +263,10 @@ class WristDynamics(LeafSystem):
     * with a control ``period`` of at least two plant steps, ``<robot>_lambda_last_step``,
       ``N_i F`` of the step that *ended* at the context's state: ``(q_j, v_j, u)`` held by a
       C++ hold at ``t_k − 3Δt/2`` (input ``held``, see :func:`add_force_sensors`) and
-      ``a = (v_{j+1} − v_j)/Δt`` from the live state (the acceleration port's own formula,
-      bit for bit). Read in ``(t_k − Δt, t_k]`` it is the step ``[t_k − Δt, t_k)``: the F/T
-      sensor model's reading of tick ``k``. The plant's solve is not repeated: reading the
-      acceleration port between two plant updates would solve that step a second time
+      :math:`a = (v_{j+1} - v_j)/\\Delta t` from the live state (the acceleration port's own
+      formula, bit for bit). Read in ``(t_k − Δt, t_k]`` it is the step ``[t_k − Δt, t_k)``:
+      the F/T sensor model's reading of tick ``k``. The plant's solve is not repeated: reading
+      the acceleration port between two plant updates would solve that step a second time
       (a change of time invalidates the solve; measured in ``docs/benchmark.md``).
 
     Input ports

@@ -23,8 +23,8 @@ reads the step ``[t_k, t_k + Δt)`` under the old torque ``τ(k − 1)`` — a s
 happens (the fault of an earlier version: 23 of 2 000 ticks of ``scenarios/realistic.yaml``, up to
 0.58 N). Half a plant step from every plant update, no rounding can move the read across
 one. When ``h = Δt`` there is no step in between: the update is at the previous tick
-``t_{k−1}`` (offset 0, on the plant's own grid), where the live port is the step
-``[t_{k−1}, t_k)`` under ``τ(k − 1)``.
+:math:`t_{k-1}` (offset 0, on the plant's own grid), where the live port is the step
+:math:`[t_{k-1}, t_k)` under ``τ(k − 1)``.
 
 Without a second solve (``planes`` and ``rigid`` modes, ``h ≥ 2Δt``): reading the plant's
 live port between two plant updates makes the plant solve that step once for the read and
@@ -151,7 +151,7 @@ class FTSensor(LeafSystem):
         Sampling time ``h`` (s).
     plant_step : float
         The plant's step ``Δt`` (s), a divisor of ``h``: the sensor reads the force of the
-        step ``[t_k − Δt, t_k)``, at ``t_k − 3Δt/2`` (at ``t_{k−1}`` when ``h = Δt``).
+        step ``[t_k − Δt, t_k)``, at ``t_k − 3Δt/2`` (at :math:`t_{k-1}` when ``h = Δt``).
     settings : drake_coop.scenario.ForceSensorModel
         Noise, bias, cutoff and seed.
     robot_index : int

@@ -31,10 +31,10 @@ class MassEstimator(LeafSystem):
         \\hat F = J_x(q)^{+T}\\big(H(q)\\ddot{\\hat q}_r + C(q,\\dot q_o)\\dot q_o
                   + D\\dot q_o + g(q) - \\tau\\big)
 
-    (``J_x^{+T}`` the least-squares inverse of ``J_xᵀ``; the inverse for a 3-joint arm). The
-    arm applies ``−F̂`` to the object, whose vertical part is ``m_i (g + a_d,z)``: a linear
-    regression ``y = φ θ`` with ``y = −F̂_z``, ``φ = g + a_d,z``, ``θ = m_i``, solved by RLS
-    with forgetting factor ``ρ`` and measurement variance ``R``:
+    (:math:`J_x^{+T}` the least-squares inverse of :math:`J_x^T`; the inverse for a 3-joint arm).
+    The arm applies ``−F̂`` to the object, whose vertical part is ``m_i (g + a_d,z)``: a linear
+    regression ``y = φ θ`` with ``y = −F̂_z``, ``φ = g + a_d,z``, ``θ = m_i``, solved by RLS with
+    forgetting factor ``ρ`` and measurement variance ``R``:
 
     .. math::
         K = \\frac{P\\varphi}{\\rho R + \\varphi^2 P},\\quad
@@ -44,13 +44,13 @@ class MassEstimator(LeafSystem):
     updated at every tick while the object is held (``held`` row of the reference), frozen
     otherwise. The squeeze (along the grasp line, horizontal here) does not enter ``F̂_z``.
 
-    Persistence of excitation: the regressor must satisfy
-    ``Σ_{window} φ² ≥ α > 0`` over every window of the forgetting horizon ``1/(1 − ρ)``
-    samples; with ``φ = g + a_d,z`` this holds whenever the desired vertical acceleration stays
-    away from free fall (``a_d,z > −g``), i.e. always in a carrying task: gravity itself
-    excites the mass. A centre-of-mass offset along the grasp line is identifiable only from
-    both arms' shares together (``c = (m_1 p_1 + m_2 p_2)/(m_1 + m_2)`` on that line); each
-    arm alone estimates what its own feedforward needs, its share ``m_i``.
+    Persistence of excitation: the regressor must satisfy :math:`\\sum_{\\text{window}} \\varphi^2
+    \\ge \\alpha > 0` over every window of the forgetting horizon ``1/(1 − ρ)`` samples; with
+    ``φ = g + a_d,z`` this holds whenever the desired vertical acceleration stays away from free
+    fall (``a_d,z > −g``), i.e. always in a carrying task: gravity itself excites the mass. A
+    centre-of-mass offset along the grasp line is identifiable only from both arms' shares together
+    (``c = (m_1 p_1 + m_2 p_2)/(m_1 + m_2)`` on that line); each arm alone estimates what its own
+    feedforward needs, its share ``m_i``.
 
     .. pydrake_system::
 
@@ -194,8 +194,9 @@ class MassEstimator(LeafSystem):
         return self._F_out
 
     def pad_force(self, q, qdot_o, qddot_r_hat, tau) -> np.ndarray:
-        """``F̂ = J_x^{+T} (H q̈̂_r + C(q, q̇_o) q̇_o + D q̇_o + g − τ)``: the object's force
-        on the pad, from the arm's model (N) (``J_c`` with a ``contact_offset``)."""
+        """The object's force on the pad, from the arm's model (N):
+        :math:`\\hat F = J_x^{+T} (H \\ddot{\\hat q}_r + C(q, \\dot q_o)\\, \\dot q_o
+        + D \\dot q_o + g - \\tau)` (``J_c`` with a ``contact_offset``)."""
         rhs = self._model.inverse_dynamics_terms(q, qdot_o, qddot_r_hat) - tau
         J = contact_jacobian(self._model, q, self._r)
         if J.shape[1] == 3:

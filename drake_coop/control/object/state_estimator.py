@@ -61,7 +61,8 @@ class ObjectStateEstimator(LeafSystem):
     grasp's envelope: ``clip(min(t − t_grasp, t_release − t)/ramp, 0, 1)``, the same linear
     ramps as the decentralized friction squeeze (``object_model.squeeze: friction``), so the
     squeeze never jumps. ``λ_k`` is state updated at ``t_k``: the arms' controllers, which
-    latch ``τ(k)`` before the tick's discrete updates, read ``λ_{k−1}`` (one tick of delay).
+    latch ``τ(k)`` before the tick's discrete updates, read :math:`\\lambda_{k-1}` (one tick of
+    delay).
 
     Each arm's feedforward share from the shared estimate would be the lever rule of
     ``(m̂, ĉ)`` at its grasp point, which is ``m̂_i`` again (``ĉ`` is defined from the
@@ -286,7 +287,8 @@ class ObjectStateEstimator(LeafSystem):
         return lam, hold
 
     def step(self, previous: float, shares, acceleration, held: bool) -> float:
-        """``λ_k`` from ``λ_{k−1}`` (the rate limit and the floor while held)."""
+        """:math:`\\lambda_k` from :math:`\\lambda_{k-1}` (the rate limit and the floor while
+        held)."""
         lam, hold = self.target(shares, acceleration)
         if not held:
             return lam

@@ -74,9 +74,9 @@ class ContactStiffness:
         return self.compliance(lam) / self.integral_time
 
     def compression(self, lam) -> np.ndarray:
-        """``δ(λ) = (max(λ, 0)/a)^{1/p}`` (m), elementwise; with ``radius`` the root of
-        the sphere's law ``λ/a = δ² − 2δ³/(3r)`` in ``[0, r]``; a force at or beyond the
-        whole hemisphere's ``a r²/3`` gives exactly ``r``.
+        """:math:`\\delta(\\lambda) = (\\max(\\lambda, 0)/a)^{1/p}` (m), elementwise; with
+        ``radius`` the root of the sphere's law ``λ/a = δ² − 2δ³/(3r)`` in ``[0, r]``; a force
+        at or beyond the whole hemisphere's ``a r²/3`` gives exactly ``r``.
 
         The sphere's root by Newton's method, in the variable where it is a simple root:
         for ``δ ≤ r/2`` (``λ/a ≤ r²/6``) on ``δ`` from ``√(λ/a)``; for ``δ > r/2`` on
