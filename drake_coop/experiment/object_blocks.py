@@ -141,18 +141,37 @@ def pad_radius(robot) -> float | None:
     return float(sphere.group(1)) if sphere else None
 
 
-def controls_contact_point(scenario: Scenario) -> bool:
-    """Whether the arms control their pads' material contact point
-    (``object_model.control_point``: ``contact``, or ``auto`` with an object model in
-    ``contact`` mode on the paper's arms) instead of the pads' centres."""
-    from drake_coop.scenario.reach import has_closed_form
+def pad_point_control(scenario: Scenario, index: int, kinematics=None) -> str:
+    """What robot ``index``'s references hold of its pad: ``pose``, ``contact`` or ``centre``.
+
+    The one rule behind ``object_model.control_point``. ``centre`` (the pad's centre E, the
+    paper's end-effector point) without an object model, outside the ``contact`` mode, for a
+    pad without a spherical collision geometry or with ``control_point: centre``; otherwise
+    (``auto`` or ``contact``) what the arm can do,
+    :func:`~drake_coop.kinematics.pose_task.pad_control`: ``pose`` on an arm whose task
+    holds its pad's orientation (six or more joints and ``ee_rpy_deg``: the material point
+    then moves with the centre), ``contact`` on a 3-joint arm (the references follow the
+    pad's material contact point across the normal, closed form or Drake's kinematics),
+    ``centre`` on a redundant arm with a position-only task (validation refuses
+    ``control_point: contact`` there). ``kinematics``: the arm's (default: built from the
+    robot's entry).
+    """
+    from drake_coop.kinematics.pose_task import pad_control
+    from drake_coop.scenario.reach import robot_kinematics
 
     om = scenario.object_model
-    if om.control_point != "auto":
-        return om.control_point == "contact"
-    return (om.mode != "none" and scenario.plant.object_mode == "contact"
-            and all(has_closed_form(r) for r in scenario.robots)
-            and all(pad_radius(r) is not None for r in scenario.robots))
+    robot = scenario.robots[index]
+    if (om.control_point == "centre" or om.mode == "none"
+            or scenario.plant.object_mode != "contact" or pad_radius(robot) is None):
+        return "centre"
+    return pad_control(kinematics if kinematics is not None else robot_kinematics(robot))
+
+
+def controls_contact_point(scenario: Scenario) -> bool:
+    """Whether every arm follows its pad's material contact point (:func:`pad_point_control`
+    ``pose`` or ``contact``) instead of its pad's centre."""
+    return all(pad_point_control(scenario, i) != "centre"
+               for i in range(len(scenario.robots)))
 
 
 @dataclass(frozen=True)
@@ -182,21 +201,29 @@ class ControlPoint:
 def control_point(scenario: Scenario, index: int, arm) -> ControlPoint | None:
     """Robot ``index``'s :class:`ControlPoint` (``arm``: its
     :class:`~drake_coop.plant.arms.Arm`), None when it controls its pad's centre
-    (:func:`controls_contact_point`).
+    (:func:`pad_point_control`).
 
-    The two pads' shifts are opposite (equal radii, opposite normals): the midpoint of the
-    points' desired paths is the midpoint of the centres', the object's desired path.
+    The offset is ``ρ R(q_g)ᵀ n``: ``R(q_g)`` the pad's orientation at the posture with its
+    centre at the grasp's contact point (the closed-form or Drake's inverse kinematics of a
+    3-joint arm), or the orientation ``R_d`` the pose task holds. The two pads' shifts are
+    opposite (equal radii, opposite normals): the midpoint of the points' desired paths is
+    the midpoint of the centres', the object's desired path.
     """
-    if not controls_contact_point(scenario):
+    kin = arm.kinematics
+    kind = pad_point_control(scenario, index, kin)
+    if kind == "centre":
         return None
     robot = scenario.robots[index]
     rho = pad_radius(robot)
     n = -np.asarray(robot.normals[0], dtype=float)
     shift = rho * n / np.linalg.norm(n)
-    kin = arm.kinematics
-    q_g = kin.ik(arm.c)
-    return ControlPoint(offset=kin.pad_rotation(q_g).T @ shift, shift=shift,
-                        normal=-n / np.linalg.norm(n))
+    if kind == "pose":
+        R_g = np.asarray(kin.R_d.matrix())
+    elif hasattr(kin, "pad_rotation"):
+        R_g = kin.pad_rotation(kin.ik(arm.c))
+    else:
+        R_g = kin.rotation(kin.joint_positions(arm.c)[0])
+    return ControlPoint(offset=R_g.T @ shift, shift=shift, normal=-n / np.linalg.norm(n))
 
 
 def contact_offset(scenario: Scenario, index: int) -> np.ndarray | None:
