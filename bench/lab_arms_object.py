@@ -8,8 +8,8 @@ to a JSON file::
     python -m bench.lab_arms_object two_pandas two_ur5 contact --out docs/results/lab_arms_object.json
 
 A name is a shipped scenario (or a YAML file); ``contact`` is the paper's arms. Each case is
-written as soon as it ends (the file keeps the cases of earlier calls that this one does not
-run), with the command, the drake version and the CPU.
+written as soon as it ends, with its command, the drake version and the CPU (the file keeps
+the cases of other calls).
 """
 
 from __future__ import annotations
@@ -77,6 +77,17 @@ def measure(scenario) -> dict:
     return out
 
 
+def _cpu_name() -> str:
+    """The CPU's model name (``/proc/cpuinfo``; the platform's otherwise)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("names", nargs="+")
@@ -84,18 +95,19 @@ def main(argv=None) -> int:
     parser.add_argument("--control-point", default="auto")
     args = parser.parse_args(argv)
     out = Path(args.out)
-    data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
     import pydrake
 
     for name in args.names:
         scenario = contact_scenario(name, args.control_point)
         case = measure(scenario)
         case["control_point"] = args.control_point
-        data["cases"][name] = case
-        data["command"] = ("python -m bench.lab_arms_object " + " ".join(sys.argv[1:])
+        case["command"] = ("python -m bench.lab_arms_object " + " ".join(sys.argv[1:])
                            if argv is None else "")
-        data["drake"] = getattr(pydrake, "__version__", "")
-        data["cpu"] = platform.processor() or platform.machine()
+        case["drake"] = getattr(pydrake, "__version__", "")
+        case["cpu"] = _cpu_name()
+        # Read again just before writing: another call may have added its cases meanwhile.
+        data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
+        data["cases"][name] = case
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = out.with_suffix(".tmp")
         tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
