@@ -28,17 +28,20 @@ CONTACT_PLANT = ("object_mode", "object_mass", "friction", "time_step", "stand_c
 
 
 def contact_scenario(name: str, control_point: str = "auto"):
-    """``name`` with contact.yaml's plant and an estimated object model."""
+    """``name`` with contact.yaml's plant (unless it is a ``contact`` scenario already) and an
+    estimated object model (unless it has one)."""
     from drake_coop.scenario import validate
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.resources import scenarios_dir
 
     path = Path(name) if name.endswith(".yaml") else scenarios_dir() / f"{name}.yaml"
     scenario = load_scenario(path)
-    contact = load_scenario(scenarios_dir() / "contact.yaml")
-    for field in CONTACT_PLANT:
-        setattr(scenario.plant, field, getattr(contact.plant, field))
-    scenario.object_model.mode = "estimated"
+    if scenario.plant.object_mode != "contact":
+        contact = load_scenario(scenarios_dir() / "contact.yaml")
+        for field in CONTACT_PLANT:
+            setattr(scenario.plant, field, getattr(contact.plant, field))
+    if scenario.object_model.mode == "none":
+        scenario.object_model.mode = "estimated"
     scenario.object_model.control_point = control_point
     validate(scenario)
     return scenario
