@@ -98,7 +98,7 @@ def main(argv=None) -> int:
     parser.add_argument("--control-point", default="auto")
     args = parser.parse_args(argv)
     out = Path(args.out)
-    import pydrake
+    from importlib.metadata import version
 
     for name in args.names:
         scenario = contact_scenario(name, args.control_point)
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
         case["control_point"] = args.control_point
         case["command"] = ("python -m bench.lab_arms_object " + " ".join(sys.argv[1:])
                            if argv is None else "")
-        case["drake"] = getattr(pydrake, "__version__", "")
+        case["drake"] = version("drake")
         case["cpu"] = _cpu_name()
         # Read again just before writing: another call may have added its cases meanwhile.
         data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
