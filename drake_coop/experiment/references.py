@@ -39,7 +39,8 @@ from drake_coop.scenario.task_path import (
 __all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", "quintic",
            "segments", "waypoints", "joint_reference", "redundant_joint_reference", "start_posture",
            "reference_samples", "reference_trajectory", "compressed_path",
-           "contact_point_reference", "followed_point", "rolling_correction", "pressed_path"]
+           "contact_point_reference", "followed_point", "rolling_correction", "pressed_path",
+           "desired_squeeze"]
 
 
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
@@ -122,14 +123,8 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     x, xd, xdd = cartesian_reference(task, robot, t)
     held = ((k >= plan.k_grasp) & (k < plan.k_release)).astype(float)
     weights = np.asarray(robot.force_weights, dtype=float)
-    if scenario.object_model.mode != "none" and scenario.object_model.squeeze == "friction":
-        from drake_coop.experiment.object_blocks import friction_squeeze
-
-        def squeeze(times):
-            return friction_squeeze(scenario, times)
-    else:
-        def squeeze(times):
-            return force_reference(task, times)
+    def squeeze(times):
+        return desired_squeeze(scenario, times)
     lam = squeeze(t)[:, None] * weights
     from drake_coop.experiment.object_blocks import contact_stiffness, control_point
     point = control_point(scenario, index, arm)
@@ -167,6 +162,33 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     else:      # the centre's path (with the pose held: the material point's too)
         q, qd, qdd = joint_reference(arm, x, xd, xdd)
     return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
+
+
+def desired_squeeze(scenario: Scenario, t: np.ndarray) -> np.ndarray:
+    """The desired squeeze ``λ_d(t)`` (N) before the robots' ``force_weights``.
+
+    The task's profile (29) without an object model (the paper's); ``object_model.squeeze:
+    friction``'s least squeeze that holds the object in every friction cone
+    (:func:`~drake_coop.experiment.object_blocks.friction_squeeze`); and with an object model
+    in ``contact`` mode and ``squeeze: profile``, the profile but never less than that least
+    squeeze: ``max((29), friction)``. The profile rises from zero at the grasp (32 N over the
+    10 s lift in the paper's task) while the path already lifts the object: a friction-held
+    object slides down against its pads until the squeeze carries its weight (0.43 mm on two
+    UR5s, 0.15 mm on the paper's arms before this rule), which no later control recovers. The
+    least squeeze rises to the object model's over ``friction_squeeze``'s ramp (1 s) instead;
+    the circle's profile (32 ± 18 N in the paper's task) is above it for a light object.
+    """
+    om = scenario.object_model
+    if om.mode == "none":
+        return force_reference(scenario.task, t)
+    from drake_coop.experiment.object_blocks import friction_squeeze
+
+    if om.squeeze == "friction":
+        return friction_squeeze(scenario, t)
+    profile = force_reference(scenario.task, t)
+    if scenario.plant.object_mode != "contact":
+        return profile
+    return np.maximum(profile, friction_squeeze(scenario, t))
 
 
 def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,
