@@ -122,8 +122,10 @@ def test_the_pose_reference_holds_the_pads_orientation_and_material_point(name):
         T = np.eye(3) - np.outer(inward, inward)
         x_d = cartesian_reference(s.task, robot, t)[0]
         held = (t >= SHORT["t_grasp"] - 1e-9) & (t < SHORT["t_release"] - 1e-9)
-        delta = contact_stiffness(s, i).compression(
-            force_reference(s.task, t) * robot.force_weights[0] * held)
+        np.testing.assert_array_equal(r[:, 3 * n_q + 1], held)
+        lam_d = r[:, 3 * n_q]                         # λ_d of the reference's rows
+        assert (lam_d >= force_reference(s.task, t) * robot.force_weights[0] - 1e-12).all()
+        delta = contact_stiffness(s, i).compression(lam_d * held)
         assert delta.max() > 1e-3                         # pressed in by more than a mm
         worst_angle, worst_point = 0.0, 0.0
         for k in range(0, len(t), 11):
