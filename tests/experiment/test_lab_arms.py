@@ -140,18 +140,3 @@ def test_the_pose_reference_holds_the_pads_orientation_and_material_point(name):
         assert worst_angle < 1e-9, worst_angle
         assert worst_point < 1e-9, worst_point
 
-
-@pytest.mark.parametrize("name", ["two_pandas", "two_ur5"])
-def test_the_shipped_contact_scenario_is_the_arms_with_contacts_plant(name):
-    """``<name>_contact.yaml`` is ``<name>.yaml``'s arms and task with ``contact.yaml``'s plant
-    and an estimated object model: what ``docs/results/lab_arms_object.json`` measured."""
-    from drake_coop.scenario.loading import load_scenario
-
-    def shipped(stem):
-        return load_scenario(scenarios_dir() / f"{stem}.yaml")
-
-    composed, ready = shipped(name), shipped(f"{name}_contact")
-    contact = shipped("contact")
-    composed.plant = contact.plant
-    composed.object_model.mode = "estimated"
-    assert dataclasses.asdict(ready) == dataclasses.asdict(composed)

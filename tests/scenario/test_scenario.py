@@ -89,7 +89,7 @@ def test_aligned_periods_make_every_tick_a_plant_step(h, dt):
 
 #: Shipped scenarios of arms from example-robot-data (the ``robots`` extra): loaded only when it
 #: is installed, and slow (validation integrates two 7-joint references over 90 s).
-LAB_ARMS = ("two_pandas.yaml", "two_ur5.yaml", "two_pandas_contact.yaml", "two_ur5_contact.yaml")
+LAB_ARMS = ("two_pandas.yaml", "two_ur5.yaml")
 
 
 def _shipped(path):
