@@ -144,3 +144,31 @@ def test_an_object_model_never_asks_for_less_squeeze_than_holds_the_object(estim
     paper = load_scenario(data=CONTACT)
     t = np.linspace(0.0, task.t_end, 200)
     assert (desired_squeeze(paper, t) == force_reference(paper.task, t)).all()
+
+
+def test_the_contact_point_reference_through_drakes_kinematics_is_the_closed_forms(estimated):
+    """The same references on the paper's arm's URDF through Drake's kinematics (any 3-joint
+    arm: ``DrakePadPoint``) as through the closed form, to the Newton tolerance."""
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    from drake_coop.kinematics.drake_arm import DrakeArmKinematics
+    from drake_coop.kinematics.pose_task import pad_control
+    from drake_coop.scenario.resources import urdf_dir
+
+    s, plan = estimated
+    arm = plan.arms[0]
+    p = control_point(s, 0, arm)
+    drake = DrakeArmKinematics(urdf_dir() / "crs_a465_3dof.urdf",
+                               RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base),
+                               name=arm.name)
+    assert pad_control(drake) == "contact"
+    t = np.linspace(15.0, 30.0, 12)
+    x, xd, xdd = cartesian_reference(s.task, arm.robot, t)
+    closed = contact_point_reference(arm.kinematics, p, x, xd, xdd)
+    numeric = contact_point_reference(drake, p, x, xd, xdd)
+    for a, b, tol in zip(closed, numeric, (1e-10, 1e-9, 1e-8)):
+        np.testing.assert_allclose(b, a, rtol=0, atol=tol)
+    np.testing.assert_allclose(followed_point(drake, p, numeric[0]), x, rtol=0, atol=1e-12)
+    c_closed = rolling_correction(arm.kinematics, p, closed[0], closed[1], 1e-3 + 0 * t, 0.1)
+    c_drake = rolling_correction(drake, p, numeric[0], numeric[1], 1e-3 + 0 * t, 0.1)
+    np.testing.assert_allclose(c_drake[0], c_closed[0], rtol=0, atol=1e-12)
