@@ -8,7 +8,14 @@ inverse kinematics (closed form for the paper's arms, Drake's otherwise,
 position, and orientation held fixed for 6-joint arms). A redundant arm (more joints than task
 coordinates, a 7-joint Panda) gets a differential inverse kinematics with a null-space posture
 objective, integrated in time (:func:`redundant_joint_reference`). Each constraint row's desired force is
-its weight (``robots[i].force_weights``) times (29).
+its weight (``robots[i].force_weights``) times :func:`desired_squeeze` ((29) without an object
+model).
+
+With an object model held by friction, each arm follows what it can hold of its pad
+(:func:`~drake_coop.experiment.object_blocks.pad_point_control`): ``pose`` (a 6-D task, square
+or redundant: the path pressed in by the contact's compression, :func:`compressed_path`,
+:func:`pressed_path`), ``contact`` (a 3-joint arm: the pad's material point across the normal,
+:func:`contact_point_reference`, closed form or Drake's kinematics) or ``centre``.
 
 The object is held (constraint active, controller in its constrained form) on the control
 ticks ``k`` with ``k_grasp ≤ k < k_release``, ``k_grasp = ⌈t_grasp/h⌉``: integer tick indices,
