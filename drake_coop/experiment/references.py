@@ -8,8 +8,8 @@ inverse kinematics (closed form for the paper's arms, Drake's otherwise,
 position, and orientation held fixed for 6-joint arms). A redundant arm (more joints than task
 coordinates, a 7-joint Panda) gets a differential inverse kinematics with a null-space posture
 objective, integrated in time (:func:`redundant_joint_reference`). Each constraint row's desired force is
-its weight (``robots[i].force_weights``) times :func:`desired_squeeze` ((29) without an object
-model).
+its weight (``robots[i].force_weights``) times :func:`desired_squeeze` ((29), or with
+``object_model.squeeze: friction`` the least squeeze that holds the object).
 
 With an object model held by friction, each arm follows what it can hold of its pad
 (:func:`~drake_coop.experiment.object_blocks.pad_point_control`): ``pose`` (a 6-D task, square
@@ -172,30 +172,21 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
 
 
 def desired_squeeze(scenario: Scenario, t: np.ndarray) -> np.ndarray:
-    """The desired squeeze ``λ_d(t)`` (N) before the robots' ``force_weights``.
+    """The desired squeeze ``λ_d(t)`` (N) before the robots' ``force_weights``: the task's
+    profile (29), or with an object model and ``object_model.squeeze: friction`` the least
+    squeeze that holds the object in every friction cone
+    (:func:`~drake_coop.experiment.object_blocks.friction_squeeze`).
 
-    The task's profile (29) without an object model (the paper's); ``object_model.squeeze:
-    friction``'s least squeeze that holds the object in every friction cone
-    (:func:`~drake_coop.experiment.object_blocks.friction_squeeze`); and with an object model
-    in ``contact`` mode and ``squeeze: profile``, the profile but never less than that least
-    squeeze: ``max((29), friction)``. The profile rises from zero at the grasp (32 N over the
-    10 s lift in the paper's task) while the path already lifts the object: a friction-held
-    object slides down against its pads until the squeeze carries its weight (0.43 mm on two
-    UR5s, 0.15 mm on the paper's arms before this rule), which no later control recovers. The
-    least squeeze rises to the object model's over ``friction_squeeze``'s ramp (1 s) instead;
-    the circle's profile (32 ± 18 N in the paper's task) is above it for a light object.
+    (A floor ``max((29), friction)`` for ``squeeze: profile`` with an object model, so that
+    the squeeze holds the object before the lift moves it, was measured and lost: the object
+    guide, "Which point each arm follows".)
     """
     om = scenario.object_model
-    if om.mode == "none":
-        return force_reference(scenario.task, t)
-    from drake_coop.experiment.object_blocks import friction_squeeze
+    if om.mode != "none" and om.squeeze == "friction":
+        from drake_coop.experiment.object_blocks import friction_squeeze
 
-    if om.squeeze == "friction":
         return friction_squeeze(scenario, t)
-    profile = force_reference(scenario.task, t)
-    if scenario.plant.object_mode != "contact":
-        return profile
-    return np.maximum(profile, friction_squeeze(scenario, t))
+    return force_reference(scenario.task, t)
 
 
 def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,

@@ -504,10 +504,8 @@ class ObjectModelSettings:
     forgetting : float
         ``estimated``: the RLS forgetting factor ``ρ`` (per tick).
     squeeze : str
-        ``profile`` (the task's force profile (29); in ``contact`` mode never below
-        ``friction``'s squeeze, :func:`~drake_coop.experiment.references.desired_squeeze`)
-        or ``friction`` (the least squeeze that holds the object in the friction cone along
-        the desired path, times ``margin``).
+        ``profile`` (the task's force profile (29)) or ``friction`` (the least squeeze that
+        holds the object in the friction cone along the desired path, times ``margin``).
     mu : float, optional
         The friction coefficient the controllers assume (default ``plant.friction``).
     margin : float

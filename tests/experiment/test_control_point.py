@@ -121,31 +121,6 @@ def test_the_rest_posture_is_the_references_first_sample(estimated):
         assert (r[0, :3] == q0).all()
 
 
-def test_an_object_model_never_asks_for_less_squeeze_than_holds_the_object(estimated):
-    """``desired_squeeze``: with an object model held by friction and ``squeeze: profile``,
-    λ_d is (29) but never below the least squeeze holding the model's load, here by hand: two
-    pads, the estimated model's prior mass ``1.5 m``, ``μ`` and the margin 1.5 (the path's
-    accelerations add under 2 %)."""
-    from drake_coop.experiment.references import desired_squeeze, force_reference
-
-    s, _ = estimated
-    task = s.task
-    hold = s.object_model.margin * s.object_model.prior_mass_factor * s.plant.object_mass \
-        * 9.81 / (2.0 * s.plant.friction)
-    t = np.linspace(task.t_grasp + 1.0, task.t_grasp + 2.0, 11)       # after the 1 s ramp
-    lam = desired_squeeze(s, t)
-    profile = force_reference(task, t)
-    assert (profile < 0.9 * hold).any()                   # the profile alone is below it
-    np.testing.assert_allclose(lam, np.maximum(profile, hold), rtol=0.02)
-    # In the circle the profile is above it: λ_d is (29) exactly.
-    t = np.linspace(task.t_circle_start, task.t_circle_end, 50, endpoint=False)
-    assert (desired_squeeze(s, t) == force_reference(task, t)).all()
-    # Without an object model: (29), the paper's.
-    paper = load_scenario(data=CONTACT)
-    t = np.linspace(0.0, task.t_end, 200)
-    assert (desired_squeeze(paper, t) == force_reference(paper.task, t)).all()
-
-
 def test_the_contact_point_reference_through_drakes_kinematics_is_the_closed_forms(estimated):
     """The same references on the paper's arm's URDF through Drake's kinematics (any 3-joint
     arm: ``DrakePadPoint``) as through the closed form, to the Newton tolerance."""
