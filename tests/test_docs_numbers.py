@@ -104,6 +104,8 @@ INPUTS: list[tuple[str, str, str]] = [
     ("guide/object.md", "32 N", "the creep measurement's squeeze, the mean of (29), an input"),
     ("guide/object.md", "3 ms", "contact.yaml's plant step (plant.time_step), an input"),
     ("guide/object.md", "90 s", "creep per 90 s: the paper's task length, a definition"),
+    ("guide/object.md", "≤ 0.3 N", "issue 33's bar for the squeeze error, a target"),
+    ("guide/object.md", "≤ 0.5 mm", "issue 33's bar for the box's position error, a target"),
     ("claims/sampling_period.md", "5 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "12 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "16 ms", "a swept control period h (the table's header)"),

@@ -285,20 +285,51 @@ class RobotPlan:
         return self.pad.radius * n / np.linalg.norm(n)
 
     @cached_property
+    def pad_point_control(self) -> str:
+        """What the robot's references hold of its pad: ``pose``, ``contact`` or ``centre``.
+
+        The one rule behind ``object_model.control_point``. ``centre`` (the pad's centre E,
+        the paper's end-effector point) without an object model, outside the ``contact``
+        mode, for a pad without a spherical collision geometry or with ``control_point:
+        centre``; otherwise (``auto`` or ``contact``) what the arm can do,
+        :func:`~drake_coop.kinematics.pose_task.pad_control`: ``pose`` on an arm whose task
+        holds its pad's orientation (six or more joints and ``ee_rpy_deg``: the material
+        point then moves with the centre), ``contact`` on a 3-joint arm (the references
+        follow the pad's material contact point across the normal, closed form or Drake's
+        kinematics), ``centre`` on a redundant arm with a position-only task (validation
+        refuses ``control_point: contact`` there)."""
+        from drake_coop.kinematics.pose_task import pad_control
+
+        scenario = self._run.scenario
+        om = scenario.object_model
+        if (om.control_point == "centre" or om.mode == "none"
+                or scenario.plant.object_mode != "contact" or self.pad.radius is None):
+            return "centre"
+        return pad_control(self.arm.kinematics)
+
+    @cached_property
     def control_point(self) -> ControlPoint | None:
         """The pad's :class:`ControlPoint`, None when the arm controls its pad's centre
-        (:attr:`RunPlan.controls_contact_point`).
+        (:attr:`pad_point_control`).
 
-        The two pads' shifts are opposite (equal radii, opposite normals): the midpoint of
-        the points' desired paths is the midpoint of the centres', the object's desired
-        path."""
-        if not self._run.controls_contact_point:
+        The offset is ``ρ R(q_g)ᵀ n``: ``R(q_g)`` the pad's orientation at the posture with
+        its centre at the grasp's contact point (the closed-form or Drake's inverse
+        kinematics of a 3-joint arm), or the orientation ``R_d`` the pose task holds. The two
+        pads' shifts are opposite (equal radii, opposite normals): the midpoint of the
+        points' desired paths is the midpoint of the centres', the object's desired path."""
+        kind = self.pad_point_control
+        if kind == "centre":
             return None
         shift = self._at_radius()
         n = -np.asarray(self.robot.normals[0], dtype=float)
         kin = self.arm.kinematics
-        q_g = kin.ik(self.arm.c)
-        return ControlPoint(offset=kin.pad_rotation(q_g).T @ shift, shift=shift,
+        if kind == "pose":
+            R_g = np.asarray(kin.R_d.matrix())
+        elif hasattr(kin, "pad_rotation"):
+            R_g = kin.pad_rotation(kin.ik(self.arm.c))
+        else:
+            R_g = kin.rotation(kin.joint_positions(self.arm.c)[0])
+        return ControlPoint(offset=R_g.T @ shift, shift=shift,
                             normal=-n / np.linalg.norm(n))
 
     @cached_property
@@ -356,15 +387,10 @@ class RunPlan:
 
     @cached_property
     def controls_contact_point(self) -> bool:
-        """Whether the arms control their pads' material contact point
-        (``object_model.control_point``: ``contact``, or ``auto`` with an object model in
-        ``contact`` mode on the paper's arms) instead of the pads' centres."""
-        om = self.scenario.object_model
-        if om.control_point != "auto":
-            return om.control_point == "contact"
-        return (om.mode != "none" and self.scenario.plant.object_mode == "contact"
-                and all(arm.closed_form for arm in self.arms)
-                and all(r.pad.radius is not None for r in self.robots))
+        """Whether every arm follows its pad's material contact point
+        (:attr:`RobotPlan.pad_point_control` ``pose`` or ``contact``) instead of its pad's
+        centre."""
+        return all(r.pad_point_control != "centre" for r in self.robots)
 
     @cached_property
     def uses_couple(self) -> bool:

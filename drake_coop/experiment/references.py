@@ -8,7 +8,15 @@ inverse kinematics (closed form for the paper's arms, Drake's otherwise,
 position, and orientation held fixed for 6-joint arms). A redundant arm (more joints than task
 coordinates, a 7-joint Panda) gets a differential inverse kinematics with a null-space posture
 objective, integrated in time (:func:`redundant_joint_reference`). Each constraint row's desired force is
-its weight (``robots[i].force_weights``) times (29).
+its weight (``robots[i].force_weights``) times the run plan's squeeze
+(:meth:`~drake_coop.experiment.plan.RunPlan.squeeze`: (29), or with
+``object_model.squeeze: friction`` the least squeeze that holds the object).
+
+With an object model held by friction, each arm follows what it can hold of its pad
+(:attr:`~drake_coop.experiment.plan.RobotPlan.pad_point_control`): ``pose`` (a 6-D task, square
+or redundant: the path pressed in by the contact's compression, :func:`compressed_path`,
+:func:`pressed_path`), ``contact`` (a 3-joint arm: the pad's material point across the normal,
+:func:`contact_point_reference`, closed form or Drake's kinematics) or ``centre``.
 
 The object is held (constraint active, controller in its constrained form) on the control
 ticks ``k`` with ``k_grasp ≤ k < k_release``, ``k_grasp = ⌈t_grasp/h⌉``: integer tick indices,
@@ -22,6 +30,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control.finger import ReferenceLayout
 from drake_coop.experiment.plan import RunPlan, num_ticks_until, plan_run
+from drake_coop.kinematics.pose_task import pad_control, point_kinematics
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Scenario
 from drake_coop.scenario.task_path import (
@@ -38,7 +47,7 @@ from drake_coop.scenario.task_path import (
 __all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", "quintic",
            "segments", "waypoints", "joint_reference", "redundant_joint_reference", "start_posture",
            "reference_samples", "reference_trajectory", "compressed_path",
-           "contact_point_reference", "followed_point", "rolling_correction"]
+           "contact_point_reference", "followed_point", "rolling_correction", "pressed_path"]
 
 
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
@@ -57,17 +66,18 @@ def start_posture(arm: Arm, task, point=None) -> np.ndarray:
     kin = arm.kinematics
     if getattr(kin, "redundant", False):
         return kin.start_posture(x[0], kin.nominal_posture(arm.robot.q_nominal))
-    if point is not None:
+    if point is not None and pad_control(kin) == "contact":
         return np.asarray(contact_point_reference(kin, point, x, xd, xdd)[0]).reshape(-1)
     return np.asarray(joint_reference(arm, x, xd, xdd)[0]).reshape(-1)
 
 
-def redundant_joint_reference(arm: Arm, task, t: np.ndarray
+def redundant_joint_reference(arm: Arm, task, t: np.ndarray, path=None
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``q_d``, ``q̇_d``, ``q̈_d`` of a redundant arm (``n > task_dim``) at the times ``t``:
     the differential inverse kinematics with a null-space posture objective
     (:meth:`~drake_coop.kinematics.drake_arm.DrakeArmKinematics.redundant_reference`, the
-    robot's ``q_nominal`` and ``nullspace_gain``).
+    robot's ``q_nominal`` and ``nullspace_gain``) along ``path(times) -> (x, ẋ, ẍ)``
+    (default: the task's path of the robot, :func:`cartesian_reference`).
 
     Raises
     ------
@@ -78,7 +88,7 @@ def redundant_joint_reference(arm: Arm, task, t: np.ndarray
     robot = arm.robot
     kin = arm.kinematics
     q, qd, qdd = kin.redundant_reference(
-        t, lambda tt: cartesian_reference(task, robot, tt), robot.q_nominal,
+        t, path or (lambda tt: cartesian_reference(task, robot, tt)), robot.q_nominal,
         robot.nullspace_gain)
     outside = (q < kin.q_min) | (q > kin.q_max)
     if outside.any():
@@ -118,24 +128,34 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     t = k * h
     arm = plan.arms[index]
     redundant = getattr(arm.kinematics, "redundant", False)
-    if not redundant:
-        x, xd, xdd = cartesian_reference(task, robot, t)
+    x, xd, xdd = cartesian_reference(task, robot, t)
     held = ((k >= plan.k_grasp) & (k < plan.k_release)).astype(float)
     resolved = plan.robots[index]       # λ_d, the control point, the stiffness: the plan's
     lam = resolved.lambda_d(t)
-    point = None if redundant else resolved.control_point
+    point = resolved.control_point
     stiffness = resolved.stiffness
-    if stiffness is not None and not redundant and not scenario.object_model.shared:
+    inward = -np.asarray(robot.normals[0], dtype=float)
+    path = None
+    if stiffness is not None and not scenario.object_model.shared:
         # (object_model.shared: λ_d is chosen during the run, and so is the compression:
         # CompressedReference presses the joint references in online.)
         # A compliant contact: the pad is held where the contact carries λ_d, pressed in by
         # δ(λ_d) along the inward normal, in the joint references too (else the tangent
         # part of (4) sees the compression as a position error: the pad sags).
-        x, xd, xdd = compressed_path(stiffness, x, xd, xdd, lam[:, 0] * held, h,
-                                     -np.asarray(robot.normals[0], dtype=float))
-    if redundant:     # the null-space reference follows the task itself (no compressed path)
-        q, qd, qdd = redundant_joint_reference(arm, task, t)
-    elif point is not None:      # the pad's material contact point across the normal
+        x, xd, xdd = compressed_path(stiffness, x, xd, xdd, lam[:, 0] * held, h, inward)
+        if redundant:      # the same pressed path between the ticks, for the integration
+            t_on, t_off = plan.k_grasp * h, plan.k_release * h
+
+            def path(times):
+                times = np.asarray(times, dtype=float)
+                return pressed_path(stiffness, lambda tt: cartesian_reference(task, robot, tt),
+                                    lambda tt: resolved.lambda_d(tt)[:, 0]
+                                    * ((tt >= t_on - 1e-9) & (tt < t_off - 1e-9)),
+                                    times, h, inward)
+    if redundant:      # the null-space reference (the pose task holds the pad's orientation)
+        q, qd, qdd = redundant_joint_reference(arm, task, t, path)
+    elif point is not None and resolved.pad_point_control == "contact":
+        # The pad's material contact point across the normal (a 3-joint arm's pad rolls).
         q, qd, qdd = contact_point_reference(arm.kinematics, point, x, xd, xdd)
         if stiffness is not None:
             # The pad pressed in by δ rolls on the face about its material point at ρ − δ
@@ -144,7 +164,7 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
                                    stiffness.compression(lam[:, 0] * held), h)
             q, qd, qdd = contact_point_reference(arm.kinematics, point, x + c[0], xd + c[1],
                                                  xdd + c[2])
-    else:
+    else:      # the centre's path (with the pose held: the material point's too)
         q, qd, qdd = joint_reference(arm, x, xd, xdd)
     return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
 
@@ -187,7 +207,8 @@ def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,
     n = np.asarray(point.normal, dtype=float)
     Pn = np.outer(n, n)
     T = np.eye(3) - Pn
-    kin_p = kinematics.with_offset(point.offset)
+    kin_p = point_kinematics(kinematics, point.offset)
+    kinematics = point_kinematics(kinematics)
     x = np.atleast_2d(x)
     q = kin_p.ik(x + point.shift)
 
@@ -233,7 +254,7 @@ def rolling_correction(kinematics, point, q: np.ndarray, qd: np.ndarray, delta: 
     """
     n = -np.asarray(point.normal, dtype=float)           # inward
     T = np.eye(3) - np.outer(n, n)
-    w = kinematics.angular_velocity(q, qd)
+    w = point_kinematics(kinematics).angular_velocity(q, qd)
     rate = (np.asarray(delta, dtype=float)[:, None] * np.cross(w, n)) @ T
     c = np.zeros_like(rate)
     if len(rate) > 1:
@@ -251,7 +272,8 @@ def followed_point(kinematics, point, q: np.ndarray) -> np.ndarray:
     if point is None:
         return kinematics.fk(q)
     n = np.asarray(point.normal, dtype=float)
-    return _followed(kinematics, kinematics.with_offset(point.offset), np.outer(n, n), q)
+    return _followed(point_kinematics(kinematics), point_kinematics(kinematics, point.offset),
+                     np.outer(n, n), q)
 
 
 def _followed(kinematics, kin_p, Pn: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -270,6 +292,20 @@ def compressed_path(stiffness, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
     d1 = np.gradient(delta, h) if delta.size > 1 else np.zeros_like(delta)
     d2 = np.gradient(d1, h) if delta.size > 1 else np.zeros_like(delta)
     return (x + delta[:, None] * n, xd + d1[:, None] * n, xdd + d2[:, None] * n)
+
+
+def pressed_path(stiffness, path, lam, times: np.ndarray, h: float, inward: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`compressed_path` at any times: ``x_d + δ(λ_d) n`` with ``δ̇``, ``δ̈`` by central
+    differences of step ``h`` (the tick grid's, so that at a tick it is
+    :func:`compressed_path`'s first difference); ``path(times) -> (x, ẋ, ẍ)``,
+    ``lam(times)`` the squeeze (N)."""
+    n = inward / np.linalg.norm(inward)
+    x, xd, xdd = path(times)
+    d0, dp, dm = (stiffness.compression(lam(times + s)) for s in (0.0, h, -h))
+    d1 = (dp - dm) / (2.0 * h)
+    d2 = (dp - 2.0 * d0 + dm) / h ** 2
+    return (x + d0[:, None] * n, xd + d1[:, None] * n, xdd + d2[:, None] * n)
 
 
 def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = None,

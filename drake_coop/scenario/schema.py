@@ -541,9 +541,11 @@ class ObjectModelSettings:
         end-effector point), ``contact`` (the pad's *material* contact point: fixed in the pad
         body at its radius from the centre along the inward normal at the grasp, so the box,
         stuck to it by friction, follows its path even when the pad turns; needs an object
-        model, ``contact`` mode and the paper's arms' closed-form kinematics) or ``auto``
-        (the default: ``contact`` where it applies, ``centre`` otherwise; the paper's control,
-        ``mode: none``, is always ``centre``).
+        model, ``contact`` mode and an arm whose reference can follow it: a 3-joint arm, or
+        one that holds its pad's orientation, six or more joints with ``ee_rpy_deg``) or
+        ``auto`` (the default: ``contact`` where it applies, ``centre`` otherwise; the
+        paper's control, ``mode: none``, is always ``centre``). Per arm, decided by
+        :func:`~drake_coop.experiment.object_blocks.pad_point_control`.
     couple : bool, optional
         Whether each arm's feedforward carries its part of the squeeze's couple (the pads'
         normal forces act through their centres; offset across the normal, they make a couple

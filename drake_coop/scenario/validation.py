@@ -190,16 +190,10 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
         raise ScenarioError(f"object_model.couple: true, false or null is required, got "
                             f"{show(scenario.object_model.couple)}")
     if scenario.object_model.control_point == "contact":
-        from drake_coop.scenario.reach import has_closed_form
-
         if scenario.object_model.mode == "none" or p.object_mode != "contact":
             raise ScenarioError("object_model.control_point: contact needs object_model.mode "
                                 "known or estimated and plant.object_mode contact (a pad held "
                                 "by friction)")
-        if not all(has_closed_form(r) for r in scenario.robots):
-            raise ScenarioError("object_model.control_point: contact needs the paper's arms "
-                                "(crs_a465, crs_a255 with their default frames); use centre "
-                                "or auto")
 
     names = [r.name for r in scenario.robots]
     for i, r in enumerate(scenario.robots):
@@ -250,6 +244,16 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
         check_dimensions(robot, n, f"robots[{i}]")
         _validate_driver_joints(robot, n, f"robots[{i}]")
     check_axes(scenario)
+    if scenario.object_model.control_point == "contact":
+        from drake_coop.kinematics.pose_task import pad_control
+        from drake_coop.scenario.reach import robot_kinematics
+
+        for i, r in enumerate(scenario.robots):
+            if pad_control(robot_kinematics(r)) == "centre":
+                raise ScenarioError(
+                    f"object_model.control_point: contact needs arms whose references can "
+                    f"follow the pad's material point: robots[{i}] ({r.name}) is redundant "
+                    f"with a position-only task (give it ee_rpy_deg); use centre or auto")
     if cache is None:
         check_reachable(scenario)
         return

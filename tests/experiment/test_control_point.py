@@ -122,3 +122,31 @@ def test_the_rest_posture_is_the_references_first_sample(estimated):
         t, r = reference_samples(s, i, t_end=0.05, plan=plan)
         q0 = start_posture(arm, s.task, plan.robots[i].control_point)
         assert (r[0, :3] == q0).all()
+
+
+def test_the_contact_point_reference_through_drakes_kinematics_is_the_closed_forms(estimated):
+    """The same references on the paper's arm's URDF through Drake's kinematics (any 3-joint
+    arm: ``DrakePadPoint``) as through the closed form, to the Newton tolerance."""
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    from drake_coop.kinematics.drake_arm import DrakeArmKinematics
+    from drake_coop.kinematics.pose_task import pad_control
+    from drake_coop.scenario.resources import urdf_dir
+
+    s, plan = estimated
+    arm = plan.arms[0]
+    p = plan.robots[0].control_point
+    drake = DrakeArmKinematics(urdf_dir() / "crs_a465_3dof.urdf",
+                               RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base),
+                               name=arm.name)
+    assert pad_control(drake) == "contact"
+    t = np.linspace(15.0, 30.0, 12)
+    x, xd, xdd = cartesian_reference(s.task, arm.robot, t)
+    closed = contact_point_reference(arm.kinematics, p, x, xd, xdd)
+    numeric = contact_point_reference(drake, p, x, xd, xdd)
+    for a, b, tol in zip(closed, numeric, (1e-10, 1e-9, 1e-8)):
+        np.testing.assert_allclose(b, a, rtol=0, atol=tol)
+    np.testing.assert_allclose(followed_point(drake, p, numeric[0]), x, rtol=0, atol=1e-12)
+    c_closed = rolling_correction(arm.kinematics, p, closed[0], closed[1], 1e-3 + 0 * t, 0.1)
+    c_drake = rolling_correction(drake, p, numeric[0], numeric[1], 1e-3 + 0 * t, 0.1)
+    np.testing.assert_allclose(c_drake[0], c_closed[0], rtol=0, atol=1e-12)

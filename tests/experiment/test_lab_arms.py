@@ -63,3 +63,75 @@ def test_the_lab_arms_build_and_run_in_the_contact_mode(name):
     assert result.ok
     for robot in ("robot1", "robot2"):
         assert np.all(np.isfinite(result.logs[robot]["q"]))
+
+
+def contact_estimated(name: str) -> Scenario:
+    """``name`` (compressed phases) with contact.yaml's plant and an estimated object model."""
+    s = short(name, "contact")
+    contact = yaml_load_typed(schema=Scenario,
+                              data=(scenarios_dir() / "contact.yaml").read_text())
+    for field in ("object_mass", "friction", "time_step", "stand_clearance"):
+        setattr(s.plant, field, getattr(contact.plant, field))
+    s.object_model.mode = "estimated"
+    validate(s)
+    return s
+
+
+@pytest.mark.parametrize("name", ["two_pandas", "two_ur5"])
+def test_the_pose_reference_holds_the_pads_orientation_and_material_point(name):
+    """The references of an arm holding its pad's pose (``pad_point_control`` ``pose``),
+    against Drake's forward kinematics of a plant built here from the arm's model file: the
+    pad's orientation is ``ee_rpy_deg`` all along, its material contact point follows the
+    task's path across the normal, its centre the path pressed in by δ(λ_d) along it."""
+    from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.experiment.references import (
+        cartesian_reference,
+        force_reference,
+        reference_samples,
+    )
+    from drake_coop.scenario.resources import model_urdf_path
+
+    s = contact_estimated(name)
+    plan = plan_run(s)
+    h = plan.h
+    for i, robot in enumerate(s.robots):
+        assert plan.robots[i].pad_point_control == "pose"
+        t, r = reference_samples(s, i, plan=plan)
+        n_q = plan.arms[i].kinematics.n
+        q = r[:, :n_q]
+        plant = MultibodyPlant(0.0)
+        Parser(plant).AddModels(str(model_urdf_path(robot)))
+        X_WB = RigidTransform(RotationMatrix.MakeZRotation(np.radians(robot.base_yaw_deg)),
+                              np.asarray(robot.base_xyz, dtype=float))
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(robot.base_frame), X_WB)
+        plant.Finalize()
+        context = plant.CreateDefaultContext()
+        pad = plant.GetFrameByName(robot.ee_frame)
+        R_d = RollPitchYaw(np.radians(robot.ee_rpy_deg)).ToRotationMatrix().matrix()
+        point = plan.robots[i].control_point
+        inward = -np.asarray(robot.normals[0], dtype=float)
+        T = np.eye(3) - np.outer(inward, inward)
+        x_d = cartesian_reference(s.task, robot, t)[0]
+        held = (t >= SHORT["t_grasp"] - 1e-9) & (t < SHORT["t_release"] - 1e-9)
+        np.testing.assert_array_equal(r[:, 3 * n_q + 1], held)
+        lam_d = r[:, 3 * n_q]                         # λ_d of the reference's rows
+        assert (lam_d >= force_reference(s.task, t) * robot.force_weights[0] - 1e-12).all()
+        delta = plan.robots[i].stiffness.compression(lam_d * held)
+        assert delta.max() > 1e-3                         # pressed in by more than a mm
+        worst_angle, worst_point = 0.0, 0.0
+        for k in range(0, len(t), 11):
+            plant.SetPositions(context, q[k])
+            X = plant.CalcRelativeTransform(context, plant.world_frame(), pad)
+            turn = RotationMatrix(X.rotation().matrix() @ R_d.T).ToAngleAxis().angle()
+            worst_angle = max(worst_angle, turn)
+            P = X.multiply(point.offset)                  # the pad's material point
+            E = X.translation()
+            worst_point = max(worst_point, np.abs(T @ (P - x_d[k])).max(),
+                              abs(inward @ (E - x_d[k]) - delta[k]))
+        assert worst_angle < 1e-9, worst_angle
+        assert worst_point < 1e-9, worst_point
+

@@ -301,7 +301,30 @@ def test_a_bad_control_point_is_refused_naming_it(text, start):
     assert _refused(text).startswith(start)
 
 
-def test_the_contact_point_needs_the_papers_arms():
-    text = ("plant: {object_mode: contact}\nobject_model: {mode: known, control_point: contact}\n"
-            "robots: [{model: coop6, contact_xy: [0.6, 0]}, " + ROBOT2 + "]")
-    assert "paper's arms" in _refused(text)
+def _ur5_contact(control_point: str) -> str:
+    from drake_coop.control.arm_model import description_packages
+    from drake_coop.scenario.resources import scenarios_dir
+
+    if "example-robot-data" not in description_packages():
+        pytest.skip("example-robot-data is not installed")
+    text = (scenarios_dir() / "two_ur5.yaml").read_text()
+    text = text.replace("  object_mode: planes", "  object_mode: contact")
+    return text + f"object_model: {{mode: known, control_point: {control_point}}}\n"
+
+
+def test_the_contact_point_is_accepted_on_an_arm_holding_its_pads_pose():
+    # Two UR5s hold their pads' orientation (6 joints, ee_rpy_deg): pad_control "pose".
+    assert load_scenario(data=_ur5_contact("contact")).object_model.control_point == "contact"
+
+
+def test_the_contact_point_is_refused_on_an_arm_that_cannot_follow_it(monkeypatch):
+    # An arm whose reference holds neither its pad's orientation nor a posture per point
+    # (a 4- or 5-joint arm with a position-only task: pose_task.pad_control "centre"; the
+    # arms shipped and example-robot-data's all have 3 or >= 6 joints, so one is faked).
+    import drake_coop.kinematics.pose_task as pose_task
+
+    text = _ur5_contact("contact")
+    monkeypatch.setattr(pose_task, "pad_control", lambda kinematics: "centre")
+    assert _refused(text).startswith(
+        "object_model.control_point: contact needs arms whose references can follow the pad's "
+        "material point: robots[0] (robot1) is redundant with a position-only task")

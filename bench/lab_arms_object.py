@@ -1,0 +1,123 @@
+"""The object remedy on lab arms: squeeze, box path, slips, drops and mass estimate.
+
+Runs each named scenario with ``contact.yaml``'s plant (a real box held by friction at
+hydroelastic pads, 3 ms plant step) and ``object_model: {mode: estimated}`` to the circle's
+end (+1 s), and writes the circle phase's metrics (and the mass estimate at the lift's end)
+to a JSON file::
+
+    python -m bench.lab_arms_object two_pandas two_ur5 contact --out docs/results/lab_arms_object.json
+
+A name is a shipped scenario (or a YAML file); ``contact`` is the paper's arms. Each case is
+written as soon as it ends, with its command, the drake version and the CPU (the file keeps
+the cases of other calls).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+#: contact.yaml's plant fields copied onto a lab-arm scenario.
+CONTACT_PLANT = ("object_mode", "object_mass", "friction", "time_step", "stand_clearance")
+
+
+def contact_scenario(name: str, control_point: str = "auto"):
+    """``name`` with contact.yaml's plant (unless it is a ``contact`` scenario already) and an
+    estimated object model (unless it has one)."""
+    from drake_coop.scenario import validate
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import scenarios_dir
+
+    path = Path(name) if name.endswith(".yaml") else scenarios_dir() / f"{name}.yaml"
+    scenario = load_scenario(path)
+    if scenario.plant.object_mode != "contact":
+        contact = load_scenario(scenarios_dir() / "contact.yaml")
+        for field in CONTACT_PLANT:
+            setattr(scenario.plant, field, getattr(contact.plant, field))
+    if scenario.object_model.mode == "none":
+        scenario.object_model.mode = "estimated"
+    scenario.object_model.control_point = control_point
+    validate(scenario)
+    return scenario
+
+
+def measure(scenario) -> dict:
+    """The circle phase's metrics of one run (to the circle's end + 1 s)."""
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.results.metrics import compute_metrics
+
+    task = scenario.task
+    start = time.process_time()
+    result = simulate(scenario, t_end=task.t_circle_end + 1.0)
+    cpu = time.process_time() - start
+    metrics = compute_metrics(result.logs, result.meta)
+    out: dict = {"status": result.meta["status"], "cpu_seconds": round(cpu, 1), "robots": {}}
+    mass = float(scenario.plant.object_mass)
+    for robot, log in result.logs.items():
+        circle = metrics[robot]["circle"]
+        entry = {"squeeze_error_rms_N": circle["force_error"]["rms"]}
+        for key in ("object_position_error", "object_angle_error", "friction_use"):
+            if key in circle:
+                entry[f"{key}_rms"] = circle[key]["rms"]
+                entry[f"{key}_max"] = circle[key]["max"]
+        entry["slips"] = circle.get("slips", {}).get("count")
+        entry["drops"] = circle.get("drops", {}).get("count")
+        out["robots"][robot] = entry
+    t = np.asarray(next(iter(result.logs.values()))["t"])
+    k = int(np.searchsorted(t, task.t_circle_start - 1e-9)) - 1
+    shares = [np.asarray(log["mass_share"])[k] for log in result.logs.values()
+              if "mass_share" in log]
+    if shares:
+        out["mass_at_lift_end_kg"] = float(np.sum(shares))
+        out["mass_error_at_lift_end"] = float(np.sum(shares) / mass - 1.0)
+    out["object_mass_kg"] = mass
+    return out
+
+
+def _cpu_name() -> str:
+    """The CPU's model name (``/proc/cpuinfo``; the platform's otherwise)."""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("names", nargs="+")
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--control-point", default="auto")
+    args = parser.parse_args(argv)
+    out = Path(args.out)
+    from importlib.metadata import version
+
+    for name in args.names:
+        scenario = contact_scenario(name, args.control_point)
+        case = measure(scenario)
+        case["control_point"] = args.control_point
+        case["command"] = ("python -m bench.lab_arms_object " + " ".join(sys.argv[1:])
+                           if argv is None else "")
+        case["drake"] = version("drake")
+        case["cpu"] = _cpu_name()
+        # Read again just before writing: another call may have added its cases meanwhile.
+        data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
+        data["cases"][name] = case
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = out.with_suffix(".tmp")
+        tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+        tmp.replace(out)
+        print(name, json.dumps(case), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
