@@ -40,6 +40,7 @@ from pydrake.systems.primitives import Demultiplexer
 
 from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
 from drake_coop.control.controller import Controller
+from drake_coop.control.delay import DelayPredictor
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.momentum import MomentumObserver
 from drake_coop.control.observers import ForceObserver, VelocityObserver
@@ -72,7 +73,7 @@ def _check_sources(velocity_source, force_source, difference_cutoff_hz) -> None:
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
                         difference_cutoff_hz: float | None = None,
-                        momentum_torque_limits=None
+                        momentum_torque_limits=None, prediction_horizon: float | None = None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -96,6 +97,11 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         ``force_source = momentum`` only: the actuators' torque limits, so the observer
         integrates the torque actually applied (after saturation) instead of the commanded
         one (opt-in; :class:`~drake_coop.control.momentum.MomentumObserver`).
+    prediction_horizon : float, optional
+        Delay compensation (opt-in): a :class:`~drake_coop.control.delay.DelayPredictor`
+        ``<name>_predictor`` with this horizon (s) between the sources and the controller;
+        the force observer (22) reads the predicted values too. None (default): the paper's
+        block, unchanged.
 
     The momentum observer's gain ``K_O`` of ``force_source = momentum`` is the law's
     (``Gains.momentum_gain``).
@@ -131,22 +137,43 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     else:
         force = b.AddNamedSystem(f"{name}_force_observer", ForceObserver(law, period))
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
+    # What the controller and the force observer read: the sources' values, or predicted.
+    inputs = {port: vel.GetOutputPort(port) for port in ("q_hat", "qdot_hat", "qdot_o")}
+    predictor = None
+    if prediction_horizon is not None:
+        predictor = b.AddNamedSystem(f"{name}_predictor",
+                                     DelayPredictor(law, period, prediction_horizon))
+        for port in ("q_hat", "qdot_hat", "qdot_o"):
+            b.Connect(vel.GetOutputPort(port), predictor.GetInputPort(port))
+            inputs[port] = predictor.GetOutputPort(f"{port}_p")
+        b.Connect(ctrl.get_tau_output_port(), predictor.GetInputPort("tau"))
+        b.Connect(ctrl.get_qddot_r_hat_output_port(), predictor.GetInputPort("qddot_r_hat"))
+        b.Connect(force.GetOutputPort("lambda_hat"), predictor.GetInputPort("lambda_hat"))
     for port in ("q_hat", "qdot_hat", "qdot_o"):
-        b.Connect(vel.GetOutputPort(port), ctrl.GetInputPort(port))
+        b.Connect(inputs[port], ctrl.GetInputPort(port))
     b.Connect(force.GetOutputPort("lambda_hat"), ctrl.get_lambda_hat_input_port())
     b.Connect(force.GetOutputPort("Delta_F_tilde"), ctrl.get_Delta_F_tilde_input_port())
-    b.ExportInput(ctrl.get_q_input_port(), "q")
+    if predictor is None:
+        b.ExportInput(ctrl.get_q_input_port(), "q")
+    else:
+        b.ExportInput(predictor.GetInputPort("q"), "q")
+        b.Connect(predictor.GetOutputPort("q_p"), ctrl.get_q_input_port())
     if velocity_source == "measured":
         b.ExportInput(vel.get_state_input_port(), "state")
     if velocity_source == "observer":
-        b.Connect(ctrl.get_qddot_r_hat_output_port(), vel.get_qddot_r_hat_input_port())
+        b.Connect(ctrl.get_qddot_r_hat_output_port() if predictor is None
+                  else predictor.GetOutputPort("qddot_fed"), vel.get_qddot_r_hat_input_port())
     b.ConnectInput("q", vel.get_q_input_port())
     b.ExportInput(ctrl.get_reference_input_port(), "reference")
     b.ConnectInput("reference", force.get_reference_input_port())
-    if force_source == "observer":
+    if force_source == "observer" and predictor is None:
         b.ConnectInput("q", force.get_q_input_port())
         b.Connect(vel.get_q_hat_output_port(), force.get_q_hat_input_port())
         b.Connect(vel.get_qdot_o_output_port(), force.get_qdot_o_input_port())
+    elif force_source == "observer":
+        b.Connect(predictor.GetOutputPort("q_p"), force.get_q_input_port())
+        b.Connect(inputs["q_hat"], force.get_q_hat_input_port())
+        b.Connect(inputs["qdot_o"], force.get_qdot_o_input_port())
     elif force_source == "sensor":
         b.ExportInput(force.get_lambda_sensor_input_port(), "lambda_sensor")
     elif force_source == "momentum":
@@ -283,7 +310,8 @@ def AddCooperativeController(
         q: OutputPort | None = None,
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
         name: str | None = None, allow_sampled_output_ports: bool = False,
-        pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None
+        pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None,
+        prediction_horizon: float | None = None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -359,6 +387,9 @@ def AddCooperativeController(
     momentum_torque_limits : array_like, optional
         ``force_source = "momentum"``: the actuators' torque limits, so the momentum observer
         integrates the applied (saturated) torque (see :func:`build_control_block`).
+    prediction_horizon : float, optional
+        Delay compensation over this horizon (s, ``0 < p <= period``; see
+        :func:`build_control_block`). None (default): off.
 
     The identified Coulomb friction is compensated by passing an
     :class:`~drake_coop.control.arm_model.ArmModel` built with ``coulomb=`` as
@@ -458,7 +489,7 @@ def AddCooperativeController(
     law = FingerLaw(model, gains, contact_stiffness, pinv_damping=pinv_damping)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
                                                   force_source, difference_cutoff_hz,
-                                                  momentum_torque_limits)
+                                                  momentum_torque_limits, prediction_horizon)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
                                     velocity_source, force_source, lambda_sensor,

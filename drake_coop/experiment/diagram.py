@@ -333,6 +333,7 @@ def build_experiment(scenario: Scenario, *, builder: DiagramBuilder | None = Non
             lambda_sensor=lambda_sensor if robot.force_source == "sensor" else None,
             connect_actuation=False,
             contact_stiffness=contact_stiffness(scenario, i),
+            prediction_horizon=robot.timing.prediction_horizon,
             name=name)
         law, control = block.law, block.system
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller

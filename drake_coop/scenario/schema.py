@@ -138,12 +138,17 @@ class Timing:
         Its scale (s, >= 0; > 0 with a distribution, 0 with ``none``).
     seed : int
         Seed of the lateness (>= 0); ``ℓ_k`` is a deterministic function of (seed, robot, k).
+    prediction_horizon : float or None
+        Delay compensation (:mod:`drake_coop.control.delay`): the controller predicts its
+        inputs over this horizon ``p`` (s, ``0 < p <= control_period``) with its own model and
+        the torque on the arm. None (the default): off, the paper's block.
     """
 
     computation_delay: float = 0.0
     jitter: str = "none"
     jitter_scale: float = 0.0
     seed: int = 0
+    prediction_horizon: Optional[float] = None
 
 
 @dataclass

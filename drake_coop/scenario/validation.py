@@ -70,6 +70,7 @@ BOUNDS: dict[str, Bound] = {
     "robots[].timing.computation_delay": Bound(0.0, 0.1, "s"),
     "robots[].timing.jitter_scale": Bound(0.0, 0.1, "s"),
     "robots[].timing.seed": Bound(0, 2**63 - 1),
+    "robots[].timing.prediction_horizon": Bound(0.0, 0.1, "s", **_POS),
     "robots[].tool.sensor_xyz[]": Bound(-1.0, 1.0, "m"),
     "robots[].tool.sensor_rpy_deg[]": Bound(-360.0, 360.0, "deg"),
     "robots[].tool.pad_xyz[]": Bound(-1.0, 1.0, "m"),
@@ -399,6 +400,10 @@ def _validate_timing(robot: Robot, where: str, h: float) -> None:
         raise ScenarioError(f"{where}.computation_delay must be <= control_period = {h:g} s "
                             f"(a tick's torque is applied before the next tick's), got "
                             f"{show(t.computation_delay)}")
+    if t.prediction_horizon is not None and t.prediction_horizon > h * (1 + 1e-9):
+        raise ScenarioError(f"{where}.prediction_horizon must be <= control_period = {h:g} s "
+                            f"(or null: no delay compensation), got "
+                            f"{show(t.prediction_horizon)}")
     if t.jitter == "none" and t.jitter_scale != 0.0:
         raise ScenarioError(f"{where}.jitter_scale applies to a jitter distribution only; set "
                             f"it to 0 or choose jitter: uniform or exponential")
