@@ -217,6 +217,13 @@ class Driver:
     safe_command : str
         What the controller sends when its watchdog trips or it stops: ``zero_torque`` or
         ``hold`` (the controller model's gravity torque at the last good position).
+    clock_phase : float
+        The simulated driver's clock (``drake-coop sim-driver``, the loopback run): its
+        cycles fall at ``clock_phase + j T (1 + clock_drift)``, ``T = 1/rate_hz``; s,
+        ``0 <= clock_phase < T``. Two real arms' clocks are not synchronised (up to a cycle
+        apart); default 0, the controller's grid.
+    clock_drift : float
+        The simulated driver's clock-rate error (relative, ``|clock_drift| <= 1e-3``); default 0.
     """
 
     kind: str = "panda"
@@ -228,6 +235,8 @@ class Driver:
     max_status_age: float = 0.05
     command_timeout: float = 0.05
     safe_command: str = "zero_torque"
+    clock_phase: float = 0.0
+    clock_drift: float = 0.0
 
 
 @dataclass

@@ -84,6 +84,8 @@ BOUNDS: dict[str, Bound] = {
     "robots[].driver.torque_limits[]": Bound(0.0, 1e4, "N·m", **_POS),
     "robots[].driver.max_status_age": Bound(0.0, 10.0, "s", **_POS),
     "robots[].driver.command_timeout": Bound(0.0, 10.0, "s", **_POS),
+    "robots[].driver.clock_phase": Bound(0.0, 1.0, "s"),
+    "robots[].driver.clock_drift": Bound(-1e-3, 1e-3, ""),
     **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
         "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
@@ -283,6 +285,10 @@ def _validate_drivers(scenario: Scenario) -> None:
             if not _is_multiple(scenario.control_period, 1.0 / d.rate_hz):
                 raise ScenarioError(f"{where}.rate_hz ({d.rate_hz}) must make control_period "
                                     f"({scenario.control_period}) a whole number of cycles")
+            if d.clock_phase >= 1.0 / d.rate_hz:
+                raise ScenarioError(f"{where}.clock_phase must be < one driver cycle "
+                                    f"(1/rate_hz = {1.0 / d.rate_hz:g} s), got "
+                                    f"{show(d.clock_phase)}")
             for key in ("status_channel", "command_channel"):
                 value = getattr(d, key)
                 if not isinstance(value, str) or len(value) > 100 or not value.isprintable():

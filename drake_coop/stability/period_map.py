@@ -141,17 +141,27 @@ class MapReport:
         return [self.labels[i] for i in self.dynamic]
 
 
-#: Steps of the central differences where ρ(Φ) of the paper's loops does not depend on them
-#: (1e-3 … 1e-6 agree to 1e-6; at 1e-7 and below the contact solver's tolerance shows, at
-#: 1e-16 rounding dominates: ρ = 1.11 for a loop whose ρ is 0.896).
+#: Steps of the central differences a user may choose. The free loop's ρ(Φ) does not depend on
+#: them (1e-3 … 1e-6 agree to 1e-6; at 1e-16 rounding dominates: ρ = 1.11 for a loop whose ρ
+#: is 0.896). The held loop's plateau starts higher: SAP, the plant's iterative solver, stops
+#: at a relative tolerance of the constraint impulses, so a perturbation below ~1e-4 does not
+#: always move its solution (a torque column of Φ is exactly 0 at ε = 1e-5 and 0.0048 at
+#: 3e-5 … 3e-4); with a 4 ms delay ρ is 0.9995 at ε ≤ 1e-5, 1.0646 at 1e-4, 1.06359 at
+#: 1e-3 … 1e-2 (``docs/stability.md``). Hence the default :data:`DEFAULT_EPSILON`.
 EPSILON_RANGE = (1e-6, 1e-3)
+#: The default step: on the plateau of both operating points (free: 1e-6 … 1e-3; held:
+#: 1e-3 … 1e-2, ρ to ~1e-5).
+DEFAULT_EPSILON = 1e-3
 #: Largest ``|ρ_ε − ρ_check|`` (relative to ``max(1, ρ)``) accepted as agreement.
 STEP_AGREEMENT = 1e-4
 
 
 def check_step(epsilon: float) -> float:
-    """The second step :func:`analyse` computes ρ with: the default 1e-5 (inside the plateau
-    of :data:`EPSILON_RANGE`), or 1e-4 when ``ε`` is within a factor √10 of 1e-5."""
+    """The second step :func:`analyse` computes ρ with: ``3 ε`` from ``ε = 3e-4`` up (the
+    default 1e-3 is checked at 3e-3, both on the held loop's plateau; a step below it is
+    checked toward it), else 1e-5, or 1e-4 when ``ε`` is within a factor √10 of 1e-5."""
+    if epsilon >= 3e-4:
+        return 3.0 * epsilon
     return 1e-4 if abs(math.log10(epsilon / 1e-5)) < 0.5 else 1e-5
 
 
@@ -228,7 +238,8 @@ def modes(Phi: np.ndarray, labels: list[str], period: float, top: int = 3
     return mu, mode(0), mode(nonzero[-1]) if nonzero else None
 
 
-def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float = 1e-5,
+def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *,
+            epsilon: float = DEFAULT_EPSILON,
             newton: bool = True, tol: float = 1e-10, check: bool = True) -> MapReport:
     """Equilibrium, Φ on the dynamic entries, ρ(Φ) and the slowest and fastest modes.
 
@@ -246,10 +257,11 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float =
         Start of the equilibrium search (default: the operating point's state).
     epsilon : float
         Step of the central differences (absolute, every entry: radians, rad/s, metres, N·s
-        and N·m, all of order 0.1–1 at the operating points). Default 1e-5: inside the plateau
-        where ρ does not depend on it (1e-3 … 1e-6 agree to 1e-6 on the paper's loop; at 1e-7
-        and below the plant's iterative contact solver stops resolving the held loop's
-        fastest constraint mode, see :func:`step_sensitivity`).
+        and N·m, all of order 0.1–1 at the operating points). Default
+        :data:`DEFAULT_EPSILON` (1e-3): on the plateau of both points (free: 1e-3 … 1e-6
+        agree to 1e-6; held: 1e-3 … 1e-2 agree to ~1e-5, while below 1e-4 the plant's
+        iterative solver does not resolve a small perturbation of the held loop, see
+        :data:`EPSILON_RANGE` and :func:`step_sensitivity`).
     newton : bool
         Solve ``F(x) = x`` first (else Φ is taken at ``x_guess``).
     check : bool

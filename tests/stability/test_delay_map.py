@@ -1,0 +1,87 @@
+"""Delay compensation on the one-period map, and the plant step's half-step bias, against
+independent computations: the continuous joint integrated exactly (matrix exponential, checked
+against the closed-form solution) and the Drake loop's map."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from drake_coop.stability.continuous import continuous_rho, continuous_rows
+from drake_coop.stability.one_joint import (
+    _expm,
+    _plant_steps,
+    one_joint_predicted_rho,
+    one_joint_rho,
+)
+
+# robot 2's slow joint (the free loop's binding mode), the paper's gains
+J, D, LAMBDA, K_D, K_R, H = 0.478, 1.0, 26.0, 40.0, 100.0, 0.009
+
+
+def test_exact_joint_solution_is_the_closed_form():
+    t, tau, q0, v0 = 0.004, 3.0, 0.2, -0.5
+    A, B = _plant_steps(J, D, t, None)
+    q, v = A @ [q0, v0] + B * tau
+    e = math.exp(-D * t / J)
+    v_ref = v0 * e + tau / D * (1 - e)
+    q_ref = q0 + tau / D * t + (v0 - tau / D) * J / D * (1 - e)
+    assert v == pytest.approx(v_ref, rel=1e-12)
+    assert q == pytest.approx(q_ref, rel=1e-12)
+    np.testing.assert_allclose(_expm(np.array([[0.0, 2.0], [0.0, 0.0]])), [[1, 2], [0, 1]])
+
+
+def test_one_joint_without_predictor_is_the_existing_closed_form():
+    for steps in range(0, 9):
+        assert one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, steps * 1e-3, None,
+                                       dt=1e-3) == pytest.approx(
+            one_joint_rho(J, D, LAMBDA, K_D, K_R, H, 1e-3, "observer", steps), rel=1e-12)
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.002, 0.004])
+def test_fine_plant_step_converges_to_the_continuous_joint(delay):
+    cont = one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, delay, None, dt=None)
+    fine = one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, delay, None, dt=H / 360)
+    assert abs(fine - cont) < 2e-3
+
+
+@pytest.mark.parametrize("delay", [0.001, 0.002, 0.003, 0.004, 0.006])
+def test_one_ms_plant_acts_half_a_step_early(delay):
+    """The 1 ms plant at delay d is the continuous joint at d − 0.5 ms, not at d."""
+    disc = one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, delay, None, dt=1e-3)
+    assert abs(disc - one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, delay - 5e-4, None)) \
+        < 3e-3
+    assert one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, delay, None) - disc > 0.01
+
+
+@pytest.mark.parametrize("horizon", [None, 0.003])
+@pytest.mark.parametrize("delay", [0.0, 0.002, 0.004, 0.006])
+def test_richardson_of_two_plant_steps_is_the_continuous_joint(delay, horizon):
+    rho = [one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, delay, horizon, dt=dt)
+           for dt in (1e-3, 5e-4)]
+    cont = one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, delay, horizon, dt=None)
+    # 1e-3 where one mode dominates at both steps; where the largest eigenvalue changes mode
+    # between them (4 ms with the predictor) the extrapolation is off by 0.004
+    assert abs(continuous_rho(*rho) - cont) < (5e-3 if (delay, horizon) == (0.004, 0.003)
+                                               else 1e-3)
+    assert abs(rho[0] - cont) > abs(continuous_rho(*rho) - cont)
+
+
+@pytest.mark.parametrize("scale", [0.7, 1.0, 1.3])
+def test_one_joint_predictor_keeps_the_continuous_joint_stable_to_8ms(scale):
+    for d in np.arange(0.0, 0.0081, 0.0005):
+        assert one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, d, 0.003,
+                                       model_scale=scale) < 1.0
+    assert one_joint_predicted_rho(J, D, LAMBDA, K_D, K_R, H, 0.002, None) > 1.0
+
+
+def test_continuous_rows_pairs_the_plant_steps():
+    rows = [{"d": 0.002, "plant.time_step": dt, "point": "free", "rho": rho, "status": "stable"}
+            for dt, rho in ((0.001, 0.98), (0.0005, 0.99))]
+    (row,) = continuous_rows(rows, ["d", "plant.time_step"])
+    assert row["rho_continuous"] == pytest.approx(1.0)
+    assert row["d"] == 0.002 and row["time_step"] == 0.001
+    with pytest.raises(ValueError, match="plant.time_step"):
+        continuous_rows(rows, ["d"])
