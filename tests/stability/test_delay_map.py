@@ -85,3 +85,44 @@ def test_continuous_rows_pairs_the_plant_steps():
     assert row["d"] == 0.002 and row["time_step"] == 0.001
     with pytest.raises(ValueError, match="plant.time_step"):
         continuous_rows(rows, ["d"])
+
+
+# --- the Drake loop's own map ----------------------------------------------------------------
+
+def _paper(delay: float, horizon=None):
+    from drake_coop.scenario import default_scenario
+
+    s = default_scenario()
+    for robot in s.robots:
+        robot.timing.computation_delay = delay
+        robot.timing.prediction_horizon = horizon
+    return s
+
+
+@pytest.mark.slow
+def test_held_map_default_step_is_on_the_solvers_plateau():
+    """At 4 ms of delay the held loop is unstable: ρ 1.0636 on the plateau 1e-3 … 1e-2; at
+    ε = 1e-5 the plant's solver does not move and the map read 0.9995 (what the old default
+    reported)."""
+    from drake_coop.stability.operating import operating_point
+    from drake_coop.stability.period_map import analyse, step_sensitivity
+
+    F = operating_point(_paper(0.004), "held").map
+    report = analyse(F)
+    assert report.step_agrees and report.epsilon == 1e-3 and report.epsilon_check == 3e-3
+    assert report.rho > 1.05
+    (_, rho_big, _), (_, rho_small, _) = step_sensitivity(F, F.x0, report.dynamic, (1e-2, 1e-5))
+    assert abs(rho_big - report.rho) < 1e-4
+    assert rho_small < 1.0                   # the unresolved step's wrong answer
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("point", ["free", "held"])
+def test_compensation_makes_the_6ms_loop_stable(point):
+    from drake_coop.stability.operating import operating_point
+    from drake_coop.stability.period_map import analyse
+
+    off = analyse(operating_point(_paper(0.006), point).map)
+    on = analyse(operating_point(_paper(0.006, 0.003), point).map)
+    assert off.step_agrees and on.step_agrees
+    assert off.rho > 1.05 and on.rho < 1.0
