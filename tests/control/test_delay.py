@@ -205,3 +205,32 @@ def test_add_cooperative_controller_takes_the_horizon():
             builder, plant, arm, gains=Gains(), period=H, controller_model=URDF,
             ee_frame="pad", normals=[[-1.0, 0.0, 0.0]], contact_point=[0.0, 0.0, 0.43],
             prediction_horizon=0.02, name="again", connect_actuation=False)
+
+
+@pytest.mark.parametrize("value, message", [
+    (0.02, r"robots\[0\]\.timing\.prediction_horizon must be <= control_period"),
+    (0.0, r"robots\[0\]\.timing\.prediction_horizon"),
+    (-0.001, r"robots\[0\]\.timing\.prediction_horizon")])
+def test_scenario_refuses_a_horizon_by_name(value, message):
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+    from drake_coop.scenario.schema import ScenarioError
+
+    s = load_scenario()
+    s.robots[0].timing.prediction_horizon = value
+    with pytest.raises(ScenarioError, match=message):
+        load_scenario(data=dump_scenario(s))
+
+
+def test_scenario_default_has_no_predictor():
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.scenario.loading import load_scenario
+
+    s = load_scenario()
+    assert all(r.timing.prediction_horizon is None for r in s.robots)
+    names = {sys.get_name() for r in build_experiment(s, log=False).robots
+             for sys in r.control.GetSystems()}
+    assert not any(n.endswith("_predictor") for n in names)
+    s.robots[1].timing.prediction_horizon = 0.003
+    names = {sys.get_name() for r in build_experiment(s, log=False).robots
+             for sys in r.control.GetSystems()}
+    assert [n for n in names if n.endswith("_predictor")] == ["robot2_predictor"]
