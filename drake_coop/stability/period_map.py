@@ -134,8 +134,7 @@ class MapReport:
     def step_agrees(self) -> bool:
         """ρ does not depend on the finite-difference step (the two steps agree to
         :data:`STEP_AGREEMENT`; True when no check ran)."""
-        return math.isnan(self.epsilon_check) or abs(self.rho - self.rho_check) <= \
-            STEP_AGREEMENT * max(1.0, abs(self.rho))
+        return math.isnan(self.epsilon_check) or _agree(self.rho, self.rho_check)
 
     def dynamic_labels(self) -> list[str]:
         return [self.labels[i] for i in self.dynamic]
@@ -156,10 +155,17 @@ DEFAULT_EPSILON = 1e-3
 STEP_AGREEMENT = 1e-4
 
 
+def _agree(rho: float, rho_check: float) -> bool:
+    """``|ρ − ρ_check| <= STEP_AGREEMENT · max(1, |ρ|)``."""
+    return abs(rho - rho_check) <= STEP_AGREEMENT * max(1.0, abs(rho))
+
+
 def check_step(epsilon: float) -> float:
     """The second step :func:`analyse` computes ρ with: ``3 ε`` from ``ε = 3e-4`` up (the
-    default 1e-3 is checked at 3e-3, both on the held loop's plateau; a step below it is
-    checked toward it), else 1e-5, or 1e-4 when ``ε`` is within a factor √10 of 1e-5."""
+    default 1e-3 is checked at 3e-3; when they disagree :func:`analyse` also tries ``ε/3`` and
+    accepts ε if either neighbour agrees: ε then lies on a plateau — the delayed held loop's
+    starts at 1e-3, the encoder-delayed held loop's ends there), else 1e-5, or 1e-4 when ``ε``
+    is within a factor √10 of 1e-5."""
     if epsilon >= 3e-4:
         return 3.0 * epsilon
     return 1e-4 if abs(math.log10(epsilon / 1e-5)) < 0.5 else 1e-5
@@ -265,7 +271,8 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *,
     newton : bool
         Solve ``F(x) = x`` first (else Φ is taken at ``x_guess``).
     check : bool
-        Compute ρ again with a second step (:func:`check_step`) and report both
+        Compute ρ again with a second step (:func:`check_step`; from ``ε = 3e-4`` up, a third
+        one, ``ε/3``, when the second disagrees) and report the agreeing one, or the second
         (``rho_check``; :attr:`MapReport.step_agrees`): a ρ that depends on the step is not
         the map's.
     """
@@ -293,11 +300,21 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *,
     mu, slow, fast = modes(Phi, [labels[j] for j in dynamic], F.period)
     rho = float(np.max(np.abs(mu))) if len(mu) else 0.0
     rho_check = epsilon_check = math.nan
+
+    def rho_at(step: float) -> float:
+        J_check = jacobian(F, x, dynamic, step)[dynamic, :]
+        return (float(np.max(np.abs(np.linalg.eigvals(J_check))))
+                if np.all(np.isfinite(J_check)) else math.inf)
+
     if check and dynamic:
         epsilon_check = check_step(epsilon)
-        Phi_check = jacobian(F, x, dynamic, epsilon_check)[dynamic, :]
-        rho_check = (float(np.max(np.abs(np.linalg.eigvals(Phi_check))))
-                     if np.all(np.isfinite(Phi_check)) else math.inf)
+        rho_check = rho_at(epsilon_check)
+        if epsilon >= 3e-4 and not _agree(rho, rho_check):
+            # ε is on a plateau if either neighbour agrees: the delayed held loop's plateau
+            # starts at 1e-3, the encoder-delayed held loop's ends there.
+            below = rho_at(epsilon / 3.0)
+            if _agree(rho, below):
+                rho_check, epsilon_check = below, epsilon / 3.0
     return MapReport(rho=rho, Phi=Phi, labels=labels, dynamic=dynamic, counters=counters,
                      locked=locked, overwritten=overwritten, residual=residual,
                      epsilon=epsilon, evaluations=F.evaluations, eigenvalues=mu,
