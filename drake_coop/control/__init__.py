@@ -34,6 +34,7 @@ _EXPORTS = {
     "build_control_block": "block",
     "ArmModel": "arm_model",
     "Controller": "controller",
+    "DelayPredictor": "delay",
     "FingerLaw": "finger",
     "Reference": "finger",
     "ReferenceLayout": "finger",
@@ -59,6 +60,7 @@ _EXPORTS = {
 __all__ = [
     "AddCooperativeController",
     "ArmModel",
+    "DelayPredictor",
     "ContactStiffness",
     "LoadFeedforward",
     "MassEstimator",

@@ -40,6 +40,7 @@ from pydrake.systems.primitives import Demultiplexer
 
 from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
 from drake_coop.control.controller import Controller
+from drake_coop.control.delay import DelayPredictor
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.registry import EXTERNAL_INPUTS, SOURCES, source
 from drake_coop.control.sources import MeasuredVelocity
@@ -66,7 +67,7 @@ def _check_sources(velocity_source, force_source, difference_cutoff_hz) -> None:
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
                         difference_cutoff_hz: float | None = None,
-                        momentum_torque_limits=None
+                        momentum_torque_limits=None, prediction_horizon: float | None = None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -93,6 +94,11 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         ``force_source = momentum`` only: the actuators' torque limits, so the observer
         integrates the torque actually applied (after saturation) instead of the commanded
         one (opt-in; :class:`~drake_coop.control.momentum.MomentumObserver`).
+    prediction_horizon : float, optional
+        Delay compensation (opt-in): a :class:`~drake_coop.control.delay.DelayPredictor`
+        ``<name>_predictor`` with this horizon (s) between the sources and the controller;
+        the force observer (22) reads the predicted values too. None (default): the paper's
+        block, unchanged.
 
     Returns
     -------
@@ -113,26 +119,58 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     vel, force = (b.AddNamedSystem(f"{name}_{spec.suffix}", spec.make(law, period, options))
                   for spec in specs)
     ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
+    # What the controller and the force observer read: the sources' values, or predicted.
+    inputs = {port: vel.GetOutputPort(port) for port in ("q_hat", "qdot_hat", "qdot_o")}
+    predictor = None
+    if prediction_horizon is not None:
+        predictor = b.AddNamedSystem(f"{name}_predictor",
+                                     DelayPredictor(law, period, prediction_horizon))
+        for port in ("q_hat", "qdot_hat", "qdot_o"):
+            b.Connect(vel.GetOutputPort(port), predictor.GetInputPort(port))
+            inputs[port] = predictor.GetOutputPort(f"{port}_p")
+        b.Connect(ctrl.get_tau_output_port(), predictor.GetInputPort("tau"))
+        b.Connect(ctrl.get_qddot_r_hat_output_port(), predictor.GetInputPort("qddot_r_hat"))
+        b.Connect(force.GetOutputPort("lambda_hat"), predictor.GetInputPort("lambda_hat"))
     for port in ("q_hat", "qdot_hat", "qdot_o"):
-        b.Connect(vel.GetOutputPort(port), ctrl.GetInputPort(port))
+        b.Connect(inputs[port], ctrl.GetInputPort(port))
     b.Connect(force.GetOutputPort("lambda_hat"), ctrl.get_lambda_hat_input_port())
     b.Connect(force.GetOutputPort("Delta_F_tilde"), ctrl.get_Delta_F_tilde_input_port())
     # Each source's inputs, as its registry entry declares them: a signal of the block, or
     # an input from outside (exported under its name). The block's inputs in the order
-    # q, the velocity source's own, reference, the force source's own.
+    # q, the velocity source's own, reference, the force source's own. With the predictor,
+    # the controller and the force observer (22) read the predicted q, q̂, q̇_o, and the
+    # velocity observer is fed the predictor's acceleration (DelayPredictor).
     signals = {"q_hat": vel, "qdot_hat": vel, "qdot_o": vel, "qddot_r_hat": ctrl,
                "tau": ctrl}
-    b.ExportInput(ctrl.get_q_input_port(), "q")
+
+    def feed(spec, port: str):
+        """The output feeding ``port`` of ``spec``'s system; None: the block's input."""
+        if predictor is not None:
+            if spec.kind == "velocity" and port == "qddot_r_hat":
+                return predictor.GetOutputPort("qddot_fed")
+            if spec.kind == "force" and spec.name == "observer" and port != "reference":
+                return predictor.GetOutputPort(f"{port}_p")
+        if port in ("q", "reference"):
+            return None
+        return signals[port].GetOutputPort(port)
+
+    if predictor is None:
+        b.ExportInput(ctrl.get_q_input_port(), "q")
+    else:
+        b.ExportInput(predictor.GetInputPort("q"), "q")
+        b.Connect(predictor.GetOutputPort("q_p"), ctrl.get_q_input_port())
     for spec, system in zip(specs, (vel, force)):
         if spec.kind == "force":
             b.ExportInput(ctrl.get_reference_input_port(), "reference")
         for port in spec.inputs:
             if port in EXTERNAL_INPUTS:
                 b.ExportInput(system.GetInputPort(port), port)
-            elif port in ("q", "reference"):
+                continue
+            output = feed(spec, port)
+            if output is None:
                 b.ConnectInput(port, system.GetInputPort(port))
             else:
-                b.Connect(signals[port].GetOutputPort(port), system.GetInputPort(port))
+                b.Connect(output, system.GetInputPort(port))
         for port in spec.outputs:
             b.ExportOutput(system.GetOutputPort(port), port)
     b.ExportOutput(ctrl.get_tau_output_port(), "tau")
@@ -263,7 +301,8 @@ def AddCooperativeController(
         q: OutputPort | None = None,
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
         name: str | None = None, allow_sampled_output_ports: bool = False,
-        pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None
+        pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None,
+        prediction_horizon: float | None = None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -343,6 +382,9 @@ def AddCooperativeController(
     momentum_torque_limits : array_like, optional
         ``force_source = "momentum"``: the actuators' torque limits, so the momentum observer
         integrates the applied (saturated) torque (see :func:`build_control_block`).
+    prediction_horizon : float, optional
+        Delay compensation over this horizon (s, ``0 < p <= period``; see
+        :func:`build_control_block`). None (default): off.
 
     Returns
     -------
@@ -440,7 +482,7 @@ def AddCooperativeController(
     law = FingerLaw(model, gains, contact_stiffness, pinv_damping=pinv_damping)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
                                                   force_source, difference_cutoff_hz,
-                                                  momentum_torque_limits)
+                                                  momentum_torque_limits, prediction_horizon)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
                                     lambda_sensor, connect_actuation)

@@ -337,6 +337,7 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
             lambda_sensor=lambda_sensor if reads_sensor(robot) else None,
             connect_actuation=False,
             contact_stiffness=resolved.stiffness,
+            prediction_horizon=robot.timing.prediction_horizon,
             name=name)
         law, control = block.law, block.system
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller

@@ -120,6 +120,9 @@ class DriverSpec:
     max_status_age: float
     command_timeout: float
     safe_command: str
+    #: The simulated driver's clock: cycles at ``phase + j period (1 + drift)``.
+    clock_phase: float = 0.0
+    clock_drift: float = 0.0
 
 
 def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
@@ -157,7 +160,8 @@ def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
             n=n, period=1.0 / d.rate_hz,
             torque_limits=None if limits is None else np.asarray(limits, dtype=float),
             max_status_age=d.max_status_age, command_timeout=d.command_timeout,
-            safe_command=d.safe_command))
+            safe_command=d.safe_command, clock_phase=d.clock_phase,
+            clock_drift=d.clock_drift))
     return specs
 
 
@@ -190,9 +194,12 @@ class CommandHold(LeafSystem):
         ``T_out`` (s).
     torque_limits : array_like, optional
         ``τ_max`` (N·m); default none.
+    offset : float
+        The first cycle's time (the driver clock's phase, s); default 0.
     """
 
-    def __init__(self, n: int, period: float, timeout: float, torque_limits=None):
+    def __init__(self, n: int, period: float, timeout: float, torque_limits=None,
+                 offset: float = 0.0):
         super().__init__()
         self._n = n
         self._timeout = float(timeout)
@@ -203,7 +210,7 @@ class CommandHold(LeafSystem):
                                                   AbstractValue.Make(lcmt_panda_command()))
         self._applied = self.DeclareDiscreteState(n)
         self._seen = self.DeclareDiscreteState(np.array([0.0, -math.inf]))   # utime, t_c
-        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period, offset, self._update)
         self.DeclareStateOutputPort("tau_applied", self._applied)
 
     def _update(self, context: Context, state: State) -> None:
@@ -352,6 +359,7 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
             builder, coop.plant, handles.instance, gains=robot.gains, period=plan.h,
             controller_model=model, velocity_source=robot.velocity_source,
             force_source=robot.force_source, difference_cutoff_hz=robot.difference_cutoff_hz,
+            prediction_horizon=robot.timing.prediction_horizon,
             q=q, connect_actuation=False, name=name)
         ref = builder.AddNamedSystem(f"{name}_reference", TrajectorySource(
             reference_trajectory(scenario, i, plan.t_end, plan)))
@@ -394,8 +402,11 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
                                           PandaCommandReceiver(n, PandaControlMode.kTorque))
         builder.Connect(cmd_sub.get_output_port(), receiver.get_message_input_port())
         builder.Connect(state.get_output_port(0), receiver.get_position_measured_input_port())
+        # The driver's own clock (phase and drift); the plant still reads the held torque and
+        # gives its state on its own step grid, so both act to within one plant step.
+        cycle = spec.period * (1.0 + spec.clock_drift)
         hold = builder.AddNamedSystem(f"{name}_command_hold", CommandHold(
-            n, spec.period, spec.command_timeout, spec.torque_limits))
+            n, cycle, spec.command_timeout, spec.torque_limits, offset=spec.clock_phase))
         builder.Connect(receiver.get_commanded_torque_output_port(), hold.get_input_port(0))
         builder.Connect(cmd_stamp.get_output_port(), hold.get_input_port(1))
         builder.Connect(hold.get_output_port(0), plant.get_actuation_input_port(handles.instance))
@@ -407,8 +418,8 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
                         sender.get_torque_commanded_input_port())
         builder.Connect(hold.get_output_port(0), sender.get_torque_measured_input_port())
         publisher = builder.AddNamedSystem(f"{name}_status_publisher", LcmPublisherSystem.Make(
-            spec.status_channel, lcmt_panda_status, lcm, publish_period=spec.period,
-            use_cpp_serializer=True))
+            spec.status_channel, lcmt_panda_status, lcm, publish_period=cycle,
+            publish_offset=spec.clock_phase, use_cpp_serializer=True))
         builder.Connect(sender.get_output_port(), publisher.get_input_port())
         arms.append(ArmDriver(spec=spec, command_subscriber=cmd_sub, command_receiver=receiver,
                               hold=hold,

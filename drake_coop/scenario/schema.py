@@ -143,12 +143,17 @@ class Timing:
         Its scale (s, >= 0; > 0 with a distribution, 0 with ``none``).
     seed : int
         Seed of the lateness (>= 0); ``ℓ_k`` is a deterministic function of (seed, robot, k).
+    prediction_horizon : float or None
+        Delay compensation (:mod:`drake_coop.control.delay`): the controller predicts its
+        inputs over this horizon ``p`` (s, ``0 < p <= control_period``) with its own model and
+        the torque on the arm. None (the default): off, the paper's block.
     """
 
     computation_delay: float = 0.0
     jitter: str = "none"
     jitter_scale: float = 0.0
     seed: int = 0
+    prediction_horizon: Optional[float] = None
 
 
 @dataclass
@@ -219,6 +224,13 @@ class Driver:
     safe_command : str
         What the controller sends when its watchdog trips or it stops: ``zero_torque`` or
         ``hold`` (the controller model's gravity torque at the last good position).
+    clock_phase : float
+        The simulated driver's clock (``drake-coop sim-driver``, the loopback run): its
+        cycles fall at ``clock_phase + j T (1 + clock_drift)``, ``T = 1/rate_hz``; s,
+        ``0 <= clock_phase < T``. Two real arms' clocks are not synchronised (up to a cycle
+        apart); default 0, the controller's grid.
+    clock_drift : float
+        The simulated driver's clock-rate error (relative, ``|clock_drift| <= 1e-3``); default 0.
     """
 
     kind: str = "panda"
@@ -230,6 +242,8 @@ class Driver:
     max_status_age: float = 0.05
     command_timeout: float = 0.05
     safe_command: str = "zero_torque"
+    clock_phase: float = 0.0
+    clock_drift: float = 0.0
 
 
 @dataclass

@@ -70,6 +70,7 @@ BOUNDS: dict[str, Bound] = {
     "robots[].timing.computation_delay": Bound(0.0, 0.1, "s"),
     "robots[].timing.jitter_scale": Bound(0.0, 0.1, "s"),
     "robots[].timing.seed": Bound(0, 2**63 - 1),
+    "robots[].timing.prediction_horizon": Bound(0.0, 0.1, "s", **_POS),
     "robots[].tool.sensor_xyz[]": Bound(-1.0, 1.0, "m"),
     "robots[].tool.sensor_rpy_deg[]": Bound(-360.0, 360.0, "deg"),
     "robots[].tool.pad_xyz[]": Bound(-1.0, 1.0, "m"),
@@ -83,6 +84,8 @@ BOUNDS: dict[str, Bound] = {
     "robots[].driver.torque_limits[]": Bound(0.0, 1e4, "N·m", **_POS),
     "robots[].driver.max_status_age": Bound(0.0, 10.0, "s", **_POS),
     "robots[].driver.command_timeout": Bound(0.0, 10.0, "s", **_POS),
+    "robots[].driver.clock_phase": Bound(0.0, 1.0, "s"),
+    "robots[].driver.clock_drift": Bound(-1e-3, 1e-3, ""),
     **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
         "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
@@ -290,6 +293,10 @@ def _validate_drivers(scenario: Scenario) -> None:
             if not _is_multiple(scenario.control_period, 1.0 / d.rate_hz):
                 raise ScenarioError(f"{where}.rate_hz ({d.rate_hz}) must make control_period "
                                     f"({scenario.control_period}) a whole number of cycles")
+            if d.clock_phase >= 1.0 / d.rate_hz:
+                raise ScenarioError(f"{where}.clock_phase must be < one driver cycle "
+                                    f"(1/rate_hz = {1.0 / d.rate_hz:g} s), got "
+                                    f"{show(d.clock_phase)}")
             for key in ("status_channel", "command_channel"):
                 value = getattr(d, key)
                 if not isinstance(value, str) or len(value) > 100 or not value.isprintable():
@@ -407,6 +414,10 @@ def _validate_timing(robot: Robot, where: str, h: float) -> None:
         raise ScenarioError(f"{where}.computation_delay must be <= control_period = {h:g} s "
                             f"(a tick's torque is applied before the next tick's), got "
                             f"{show(t.computation_delay)}")
+    if t.prediction_horizon is not None and t.prediction_horizon > h * (1 + 1e-9):
+        raise ScenarioError(f"{where}.prediction_horizon must be <= control_period = {h:g} s "
+                            f"(or null: no delay compensation), got "
+                            f"{show(t.prediction_horizon)}")
     if t.jitter == "none" and t.jitter_scale != 0.0:
         raise ScenarioError(f"{where}.jitter_scale applies to a jitter distribution only; set "
                             f"it to 0 or choose jitter: uniform or exponential")

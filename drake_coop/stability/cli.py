@@ -60,9 +60,10 @@ def add_stability_parser(sub) -> None:
                    help="parallel processes, one grid point each (default 2)")
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="run on Ray: a local instance, or the cluster at ADDRESS")
-    p.add_argument("--epsilon", type=float, default=1e-5,
-                   help="central-difference step, 1e-6 to 1e-3 (default 1e-5; ρ is computed "
-                        "again with a second step and must agree)")
+    p.add_argument("--epsilon", type=float, default=1e-3,
+                   help="central-difference step, 1e-6 to 1e-3 (default 1e-3, on the held "
+                        "loop's plateau too; ρ is computed again with a second step and must "
+                        "agree)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_stability)
 

@@ -55,7 +55,7 @@ def grid_cases(base_yaml: str | None, grid: dict[str, list]) -> list[Case]:
                   max_cases_option=None)
 
 
-def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-5) -> list[dict]:
+def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-3) -> list[dict]:
     """ρ(Φ) of one scenario at each operating point (never raises: ``status = error``)."""
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.stability.operating import operating_point
@@ -94,7 +94,7 @@ def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-5) -> 
 
 def run_grid(cases: list[Case], points: list[str], on_result: Callable[[Case, list], None], *,
              workers: int = 2, engine: str = "local", address: str | None = None,
-             epsilon: float = 1e-5) -> None:
+             epsilon: float = 1e-3) -> None:
     """Compute every case's rows in fresh processes (``local``) or Ray tasks (``ray``),
     handing each case's rows to ``on_result`` as they arrive."""
     if engine == "ray":

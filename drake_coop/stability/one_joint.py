@@ -32,7 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["crossing_period", "observer_period_limit", "one_joint_phi", "one_joint_rho"]
+__all__ = ["crossing_period", "observer_period_limit", "one_joint_phi", "one_joint_predicted_phi",
+           "one_joint_predicted_rho", "one_joint_rho"]
 
 
 def one_joint_phi(J: float, D: float, Lambda: float, k_d: float, K_R: float, h: float,
@@ -107,3 +108,98 @@ def observer_period_limit(Lambda: float, k_d: float) -> float:
     b = 2.0 * Lambda + k_d
     p_fast = 0.5 * (b + np.sqrt(b * b - 4.0 * Lambda * k_d))
     return float(2.0 / p_fast)
+
+
+def _plant_steps(J: float, D: float, duration: float, dt: float | None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(A, B)`` with ``[q, v](t + duration) = A [q, v](t) + B τ`` for a constant ``τ``: the
+    discrete plant's steps of ``dt`` (``duration`` a whole number of them), or the exact
+    solution of ``J q̈ + D q̇ = τ`` when ``dt`` is None (the continuous arm)."""
+    if duration <= 0.0:
+        return np.eye(2), np.zeros(2)
+    if dt is None:
+        # Exact: the matrix exponential of the augmented system [q, v, τ].
+        M = np.array([[0.0, 1.0, 0.0], [0.0, -D / J, 1.0 / J], [0.0, 0.0, 0.0]]) * duration
+        E = _expm(M)
+        return E[0:2, 0:2], E[0:2, 2]
+    m = int(round(duration / dt))
+    a = J / (J + dt * D)
+    b = dt / (J + dt * D)
+    A = np.array([[1.0, dt * a], [0.0, a]])
+    B = np.array([dt * b, b])
+    return (np.linalg.matrix_power(A, m),
+            sum((np.linalg.matrix_power(A, i) @ B for i in range(m)), np.zeros(2)))
+
+
+def _expm(M: np.ndarray) -> np.ndarray:
+    """Matrix exponential by scaling and squaring of a Taylor series (small matrices)."""
+    norm = np.max(np.sum(np.abs(M), axis=1))
+    s = max(0, int(np.ceil(np.log2(norm))) + 1) if norm > 0 else 0
+    A = M / 2.0 ** s
+    E = np.eye(len(M))
+    term = np.eye(len(M))
+    for i in range(1, 20):
+        term = term @ A / i
+        E = E + term
+    for _ in range(s):
+        E = E @ E
+    return E
+
+
+def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: float,
+                            h: float, delay: float, horizon: float | None,
+                            dt: float | None = None, model_scale: float = 1.0,
+                            feed: str = "horizon") -> np.ndarray:
+    """Φ of one joint under the observer-based law with a computation delay and, optionally,
+    the delay compensation of :class:`~drake_coop.control.delay.DelayPredictor`.
+
+    State ``x = [q, v, q̂, q̇̂_o, τ_prev]``, ``τ_prev`` the torque on the arm when the tick
+    starts. The torque ``τ(k)`` switches on at ``t_k + delay``; the plant is the discrete one
+    of :func:`one_joint_phi` (``dt``; the delay rounded up to whole steps as
+    :mod:`drake_coop.sensing.latency` does) or, with ``dt = None``, the continuous arm
+    integrated exactly across the switch. The controller's model is ``model_scale·(J, D)``.
+    The predictor (``horizon = p``, None: off) computes ``a = (τ_prev − D̂ q̇̂)/Ĵ`` and feeds
+    the law ``q_p = q + p q̇̂ + p² a/2`` (likewise ``q̂``), ``q̇̂ + p a``, ``q̇_o + p a``; the
+    observer (16) is fed ``w a + (1 − w) q̈̂_r`` with ``w = p/h`` (``feed = "horizon"``) or
+    ``w = delay/h`` (``feed = "delay"``).
+    """
+    Jm, Dm = model_scale * J, model_scale * D
+    e = np.eye(5)
+    q, v, qh, qo, tp = e
+    z = q - qh
+    qdot_hat = qo + (Lambda + k_d) * z
+    qdot_o = qo + k_d * z
+    if horizon is None:
+        a = np.zeros(5)
+        p = 0.0
+        w = 0.0
+    else:
+        p = float(horizon)
+        a = (tp - Dm * qdot_hat) / Jm
+        w = (p if feed == "horizon" else delay) / h
+    shift = p * qdot_hat + 0.5 * p * p * a
+    qh_p = qh + shift
+    qdot_hat_p = qdot_hat + p * a
+    qdot_o_p = qdot_o + p * a
+    qdot_r = -Lambda * qh_p
+    qddot_r = -Lambda * qdot_hat_p
+    tau = Jm * qddot_r + Dm * qdot_r - K_R * (qdot_o_p - qdot_r)
+    fed = w * a + (1.0 - w) * qddot_r
+    if dt is None:
+        d_early = float(delay)
+    else:
+        d_early = int(min(round(h / dt), max(0, np.ceil(delay / dt - 1e-9)))) * dt
+    A_e, B_e = _plant_steps(J, D, d_early, dt)
+    A_l, B_l = _plant_steps(J, D, h - d_early, dt)
+    X = np.vstack([q, v])
+    X_next = A_l @ (A_e @ X + np.outer(B_e, tp)) + np.outer(B_l, tau)
+    Phi = np.vstack([X_next,
+                     qh + h * qdot_hat,
+                     qo + h * (fed + k_d * Lambda * z),
+                     tau])
+    return Phi
+
+
+def one_joint_predicted_rho(*args, **kwargs) -> float:
+    """``ρ(Φ)`` of :func:`one_joint_predicted_phi` (same arguments)."""
+    return float(np.max(np.abs(np.linalg.eigvals(one_joint_predicted_phi(*args, **kwargs)))))

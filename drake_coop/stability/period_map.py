@@ -166,24 +166,40 @@ class MapReport:
     def step_agrees(self) -> bool:
         """ρ does not depend on the finite-difference step (the two steps agree to
         :data:`STEP_AGREEMENT`; True when no check ran)."""
-        return math.isnan(self.epsilon_check) or abs(self.rho - self.rho_check) <= \
-            STEP_AGREEMENT * max(1.0, abs(self.rho))
+        return math.isnan(self.epsilon_check) or _agree(self.rho, self.rho_check)
 
     def dynamic_labels(self) -> list[str]:
         return [self.labels[i] for i in self.dynamic]
 
 
-#: Steps of the central differences where ρ(Φ) of the paper's loops does not depend on them
-#: (1e-3 … 1e-6 agree to 1e-6; at 1e-7 and below the contact solver's tolerance shows, at
-#: 1e-16 rounding dominates: ρ = 1.11 for a loop whose ρ is 0.896).
+#: Steps of the central differences a user may choose. The free loop's ρ(Φ) does not depend on
+#: them (1e-3 … 1e-6 agree to 1e-6; at 1e-16 rounding dominates: ρ = 1.11 for a loop whose ρ
+#: is 0.896). The held loop's plateau starts higher: SAP, the plant's iterative solver, stops
+#: at a relative tolerance of the constraint impulses, so a perturbation below ~1e-4 does not
+#: always move its solution (a torque column of Φ is exactly 0 at ε = 1e-5 and 0.0048 at
+#: 3e-5 … 3e-4); with a 4 ms delay ρ is 0.9995 at ε ≤ 1e-5, 1.0646 at 1e-4, 1.06359 at
+#: 1e-3 … 1e-2 (``docs/stability.md``). Hence the default :data:`DEFAULT_EPSILON`.
 EPSILON_RANGE = (1e-6, 1e-3)
+#: The default step: on the plateau of both operating points (free: 1e-6 … 1e-3; held:
+#: 1e-3 … 1e-2, ρ to ~1e-5).
+DEFAULT_EPSILON = 1e-3
 #: Largest ``|ρ_ε − ρ_check|`` (relative to ``max(1, ρ)``) accepted as agreement.
 STEP_AGREEMENT = 1e-4
 
 
+def _agree(rho: float, rho_check: float) -> bool:
+    """``|ρ − ρ_check| <= STEP_AGREEMENT · max(1, |ρ|)``."""
+    return abs(rho - rho_check) <= STEP_AGREEMENT * max(1.0, abs(rho))
+
+
 def check_step(epsilon: float) -> float:
-    """The second step :func:`analyse` computes ρ with: the default 1e-5 (inside the plateau
-    of :data:`EPSILON_RANGE`), or 1e-4 when ``ε`` is within a factor √10 of 1e-5."""
+    """The second step :func:`analyse` computes ρ with: ``3 ε`` from ``ε = 3e-4`` up (the
+    default 1e-3 is checked at 3e-3; when they disagree :func:`analyse` also tries ``ε/3`` and
+    accepts ε if either neighbour agrees: ε then lies on a plateau — the delayed held loop's
+    starts at 1e-3, the encoder-delayed held loop's ends there), else 1e-5, or 1e-4 when ``ε``
+    is within a factor √10 of 1e-5."""
+    if epsilon >= 3e-4:
+        return 3.0 * epsilon
     return 1e-4 if abs(math.log10(epsilon / 1e-5)) < 0.5 else 1e-5
 
 
@@ -260,7 +276,8 @@ def modes(Phi: np.ndarray, labels: list[str], period: float, top: int = 3
     return mu, mode(0), mode(nonzero[-1]) if nonzero else None
 
 
-def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float = 1e-5,
+def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *,
+            epsilon: float = DEFAULT_EPSILON,
             newton: bool = True, tol: float = 1e-10, check: bool = True) -> MapReport:
     """Equilibrium, Φ on the dynamic entries, ρ(Φ) and the slowest and fastest modes.
 
@@ -278,17 +295,19 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float =
         Start of the equilibrium search (default: the operating point's state).
     epsilon : float
         Step of the central differences (absolute, every entry: radians, rad/s, metres, N·s
-        and N·m, all of order 0.1–1 at the operating points). Default 1e-5: inside the plateau
-        where ρ does not depend on it (1e-3 … 1e-6 agree to 1e-6 on the paper's loop; at 1e-7
-        and below the plant's iterative contact solver stops resolving the held loop's
-        fastest constraint mode, see :func:`step_sensitivity`).
+        and N·m, all of order 0.1–1 at the operating points). Default
+        :data:`DEFAULT_EPSILON` (1e-3): on the plateau of both points (free: 1e-3 … 1e-6
+        agree to 1e-6; held: 1e-3 … 1e-2 agree to ~1e-5, while below 1e-4 the plant's
+        iterative solver does not resolve a small perturbation of the held loop, see
+        :data:`EPSILON_RANGE` and :func:`step_sensitivity`).
     newton : bool
         Solve ``F(x) = x`` first (else Φ is taken at ``x_guess``).
     tol : float
         Newton's stopping residual, ``max |F(x) − x|`` over the dynamic entries
         (:func:`find_equilibrium`).
     check : bool
-        Compute ρ again with a second step (:func:`check_step`) and report both
+        Compute ρ again with a second step (:func:`check_step`; from ``ε = 3e-4`` up, a third
+        one, ``ε/3``, when the second disagrees) and report the agreeing one, or the second
         (``rho_check``; :attr:`MapReport.step_agrees`): a ρ that depends on the step is not
         the map's.
     """
@@ -316,11 +335,21 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *, epsilon: float =
     mu, slow, fast = modes(Phi, [labels[j] for j in dynamic], F.period)
     rho = float(np.max(np.abs(mu))) if len(mu) else 0.0
     rho_check = epsilon_check = math.nan
+
+    def rho_at(step: float) -> float:
+        J_check = jacobian(F, x, dynamic, step)[dynamic, :]
+        return (float(np.max(np.abs(np.linalg.eigvals(J_check))))
+                if np.all(np.isfinite(J_check)) else math.inf)
+
     if check and dynamic:
         epsilon_check = check_step(epsilon)
-        Phi_check = jacobian(F, x, dynamic, epsilon_check)[dynamic, :]
-        rho_check = (float(np.max(np.abs(np.linalg.eigvals(Phi_check))))
-                     if np.all(np.isfinite(Phi_check)) else math.inf)
+        rho_check = rho_at(epsilon_check)
+        if epsilon >= 3e-4 and not _agree(rho, rho_check):
+            # ε is on a plateau if either neighbour agrees: the delayed held loop's plateau
+            # starts at 1e-3, the encoder-delayed held loop's ends there.
+            below = rho_at(epsilon / 3.0)
+            if _agree(rho, below):
+                rho_check, epsilon_check = below, epsilon / 3.0
     return MapReport(rho=rho, Phi=Phi, labels=labels, dynamic=dynamic, counters=counters,
                      locked=locked, overwritten=overwritten, residual=residual,
                      epsilon=epsilon, evaluations=F.evaluations, eigenvalues=mu,
