@@ -186,12 +186,12 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
         if stop is not None and stop.reason is not None:
             return f"stop: {stop.reason}"
         if on_arrival:
-            before = [arrivals.count[c] for c in channels]
             limit = grid + timeout
-            while not all(arrivals.count[c] > b or arrivals.faulty[c] is not None
-                          for c, b in zip(channels, before)):
+            while not all(arrivals.last[c] >= grid or arrivals.faulty[c] is not None
+                          for c in channels):
                 remaining = limit - time.perf_counter()
-                if remaining <= 0:
+                if remaining <= 0:          # what is already there is still taken
+                    lcm.HandleSubscriptions(0)
                     break
                 lcm.HandleSubscriptions(max(1, int(math.ceil(remaining * 1e3))))
             if stop is not None and stop.reason is not None:
