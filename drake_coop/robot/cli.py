@@ -196,7 +196,6 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     from drake_coop.results.io import atomic_write_text
     from drake_coop.robot.pacing import (
         PacingRecord,
-        StatusArrivals,
         delay_margin,
         missing_realtime,
         pacing_summary,
@@ -205,7 +204,13 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         summary_line,
         write_pacing_csv,
     )
-    from drake_coop.robot.serve_loop import STOP_CHANNEL, ServeLoop, StopListener, run_on_arrival
+    from drake_coop.robot.serve_loop import (
+        STOP_CHANNEL,
+        ServeLoop,
+        StopListener,
+        run_on_arrival,
+        status_arrivals,
+    )
     from drake_coop.robot.status import check_panda_status
     from drake_coop.scenario.loading import dump_scenario
 
@@ -223,10 +228,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     index = [names.index(r) for r in served]
     loop = ServeLoop(scenario, plan, lcm, specs, robots=served)
     specs = loop.specs                    # the arms served, their torque limits resolved
-    arrivals = StatusArrivals(  # every message's bytes read once, as it arrives
-        lcm, [s.status_channel for s in specs],
-        parse={s.status_channel: (lambda data, n=s.n: check_panda_status(data, n))
-               for s in specs})
+    arrivals = status_arrivals(lcm, specs)   # every message's bytes checked as it arrives
     stop = StopListener(lcm, served)
     record = PacingRecord(period=plan.h, driver_period=max(s.period for s in specs))
     status, message, code, trip = "ok", f"completed {plan.t_end:g} s", 0, None
@@ -252,7 +254,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         rest, _ = rest_posture(scenario, list(plan.arms))
         q0 = []
         for i, spec in zip(index, specs):
-            q, _, fault, value = arrivals.parsed[spec.status_channel]
+            q, _, fault, value = arrivals.parsed(spec.status_channel)
             if fault == STATUS_OK and arrivals.faulty[spec.status_channel] is not None:
                 fault = check_panda_status(arrivals.faulty[spec.status_channel], spec.n)[2]
             if fault == 4:           # a driver of another arm: a setup error, nothing started

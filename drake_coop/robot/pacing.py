@@ -85,8 +85,6 @@ class StatusArrivals:
         self.count = {c: 0 for c in channels}
         self.message = {c: None for c in channels}
         self.faulty = {c: None for c in channels}
-        self.parsed = {c: None for c in channels}
-        self._faulty_parsed = {c: None for c in channels}
         self._check = dict(check or {})
         self._parse = dict(parse or {})
         for c in channels:
@@ -94,16 +92,6 @@ class StatusArrivals:
 
     def _handler(self, channel: str):
         check = self._check.get(channel)
-        parse = self._parse.get(channel)
-        if parse is not None:
-            def handle(data: bytes) -> None:
-                self.last[channel] = time.perf_counter()
-                self.count[channel] += 1
-                self.message[channel] = data
-                result = self.parsed[channel] = parse(data)
-                if result[2] != 0 and self.faulty[channel] is None:
-                    self.faulty[channel], self._faulty_parsed[channel] = data, result
-            return handle
 
         def handle(data: bytes) -> None:
             self.last[channel] = time.perf_counter()
@@ -113,14 +101,14 @@ class StatusArrivals:
                 self.faulty[channel] = data
         return handle
 
+    def parsed(self, channel: str):
+        """``parse`` (given for the channel) of the newest message."""
+        return self._parse[channel](self.message[channel])
+
     def take_parsed(self, channel: str):
-        """As :meth:`take`, the ``parse`` result (``parse`` maps the channel to a function
-        whose result's third entry is 0 for a valid message, a fault code otherwise)."""
-        if self.faulty[channel] is None:
-            return self.parsed[channel]
-        self.faulty[channel] = None
-        result, self._faulty_parsed[channel] = self._faulty_parsed[channel], None
-        return result
+        """``parse`` of what :meth:`take` gives (None before the first message)."""
+        data = self.take(channel)
+        return None if data is None else self._parse[channel](data)
 
     def take(self, channel: str) -> bytes | None:
         """The first faulty message since the last call if any (then forgotten), else the

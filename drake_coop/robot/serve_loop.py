@@ -36,6 +36,20 @@ from drake_coop.robot.status import check_panda_status
 STOP_CHANNEL = "DRAKE_COOP_STOP"
 
 
+def status_arrivals(lcm, specs):
+    """The arms' status channels subscribed (:class:`~drake_coop.robot.pacing.StatusArrivals`):
+    every message's bytes checked as it arrives (:func:`~drake_coop.robot.status.
+    panda_status_ok`), the one a tick takes read (:func:`check_panda_status`)."""
+    from drake_coop.robot.pacing import StatusArrivals
+    from drake_coop.robot.status import panda_status_ok
+
+    return StatusArrivals(
+        lcm, [s.status_channel for s in specs],
+        check={s.status_channel: (lambda data, n=s.n: panda_status_ok(data, n)) for s in specs},
+        parse={s.status_channel: (lambda data, n=s.n: check_panda_status(data, n))
+               for s in specs})
+
+
 class StopListener:
     """The stop messages of the other ``serve`` processes (:data:`STOP_CHANNEL`), ignoring
     this process's own (``robots``: the arms this process serves)."""

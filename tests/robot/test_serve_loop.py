@@ -20,9 +20,14 @@ from drake_coop.experiment.simulate import rest_posture
 from drake_coop.robot import pacing
 from drake_coop.robot.drivers import COMMAND_OFFSET, add_controller_side, driver_specs
 from drake_coop.robot.loopback import initialize_sides
-from drake_coop.robot.pacing import PacingRecord, StatusArrivals
-from drake_coop.robot.serve_loop import STOP_CHANNEL, ServeLoop, StopListener, run_on_arrival
-from drake_coop.robot.status import check_panda_status
+from drake_coop.robot.pacing import PacingRecord
+from drake_coop.robot.serve_loop import (
+    STOP_CHANNEL,
+    ServeLoop,
+    StopListener,
+    run_on_arrival,
+    status_arrivals,
+)
 from drake_coop.scenario.loading import load_scenario
 from drake_coop.scenario.model_check import check_models
 
@@ -150,14 +155,13 @@ def test_ticking_on_arrival_uses_a_status_that_arrived_after_the_grid_time(paper
     channels = [s.status_channel for s in specs]
     driver = ClockedDriver(lcm, q0, channels, time.perf_counter())
     loop = ServeLoop(scenario, plan, lcm, specs)
-    arrivals = StatusArrivals(lcm, channels, parse={
-        c: (lambda d, n=s.n: check_panda_status(d, n)) for c, s in zip(channels, specs)})
+    arrivals = status_arrivals(lcm, specs)
     stamps = []
     feed = loop.feed
 
     def logged_feed(i, parsed):
         if i == 0:
-            stamps.append(arrivals.parsed[channels[0]][1])
+            stamps.append(arrivals.parsed(channels[0])[1])
             driver.log.append(("tick", None))
         feed(i, parsed)
 
