@@ -7,16 +7,18 @@ In one process, on ``memq://``, the paper's scenario, both arms:
   scripted 1 kHz driver: per tick, nine statuses per arm published (pre-encoded bytes of the
   reference's ``q_d`` at the driver's cycles) and received (each one's bytes read as it
   arrives, :class:`~drake_coop.robot.pacing.StatusArrivals`), the newest fed, one tick (the
-  blocks, the watchdog, one Simulator step), each arm's command encoded and published. The
-  scripted driver's own publishing is inside this time (measured alone below, reported as
-  ``driver_publish_us``); unpaced: no waiting.
+  blocks, the watchdog, one Simulator step), each arm's command encoded and published;
+  unpaced: no waiting. Each part is timed (``serve_parts_us_median``); the scripted driver's
+  own publishing (``driver``: the driver's process in reality) is left out of the ratio.
 * **batch**: the same blocks (``AddCooperativeController`` per arm, the same references) in a
   Diagram whose ``q`` comes from a C++ ``TrajectorySource`` holding the same readings
   (zero-order hold), advanced over the same ticks in one ``AdvanceTo``.
 
 Each is built outside the timing; the two are alternated ``pairs`` times; the figure is the
 ratio of CPU times (``time.process_time``) of each pair, its median and range (on a shared
-machine the alternated pairs cancel most of the other processes' load). Also reported: the
+machine the alternated pairs cancel most of the other processes' load): the whole serve tick
+(``ratio_cpu``), and its Simulator step and commands alone (``ratio_cpu_step_and_command``:
+the same blocks plus the watchdog, without the 1 kHz reception). Also reported: the
 Python callbacks per serve tick (every ``drake_coop`` function called from C++, the LCM
 handlers included: :func:`bench.callbacks._calls_from_builtins`), and the Simulator steps
 per tick.
@@ -82,38 +84,43 @@ class _Serve:
         self.next = 0                # the next tick's readings (runs continue the stream)
         self.loop.start([data[i][0][1] for i in range(len(self.channels))])
 
-    def run(self, ticks: int) -> float:
+    def run(self, ticks: int) -> dict[str, float]:
+        """CPU seconds of ``ticks`` ticks by part: ``driver`` (the scripted driver's
+        publishing: the driver's process in reality), ``receive`` (LCM's dispatch of every
+        status and its check), ``feed`` (the newest read and set), ``step`` (the Simulator
+        step: blocks and watchdog), ``command`` (each arm's command encoded and published)."""
         lcm, loop, arrivals, channels = self.lcm, self.loop, self.arrivals, self.channels
         data, cycles = self.data, self.cycles
         first = self.next
         self.next += ticks
-        cpu = time.process_time()
+        clock = time.process_time
+        parts = dict.fromkeys(("driver", "receive", "feed", "step", "command"), 0.0)
+        arms = list(zip(loop.side.arms, loop._pub))
         for k in range(first, first + ticks):
+            a = clock()
             for j in range(k * cycles, (k + 1) * cycles):
                 for i, c in enumerate(channels):
                     lcm.Publish(c, data[i][j][0])
+            b = clock()
             lcm.HandleSubscriptions(0)
+            c_ = clock()
             for i, c in enumerate(channels):
                 loop.feed(i, arrivals.take_parsed(c))
-            loop.tick()
-        cpu = time.process_time() - cpu
+            d = clock()
+            loop.k += 1                      # ServeLoop.tick, in its two parts
+            loop.simulator.AdvanceTo(loop.k * loop.h)
+            e = clock()
+            for arm, context in arms:
+                arm.command_publisher.ForcedPublish(context)
+            f = clock()
+            parts["driver"] += b - a
+            parts["receive"] += c_ - b
+            parts["feed"] += d - c_
+            parts["step"] += e - d
+            parts["command"] += f - e
         if loop.tripped() is not None:
             raise RuntimeError(f"benchmark serve run tripped: {loop.tripped()}")
-        return cpu
-
-
-def _driver_publish_cpu(data, channels, ticks, cycles) -> float:
-    """CPU seconds of the scripted driver's publishing alone (nobody subscribed)."""
-    from pydrake.lcm import DrakeLcm
-
-    lcm = DrakeLcm("memq://")
-    cpu = time.process_time()
-    for k in range(ticks):
-        for j in range(k * cycles, (k + 1) * cycles):
-            for i, c in enumerate(channels):
-                lcm.Publish(c, data[i][j][0])
-        lcm.HandleSubscriptions(0)
-    return time.process_time() - cpu
+        return parts
 
 
 class _Batch:
@@ -207,28 +214,34 @@ def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5) -> dict:
     plan = plan_run(scenario, min(total * scenario.control_period, 90.0))
     readings = _readings(scenario, plan, total, cycles)
     data = [[(_status_bytes(q, j * 1000), q) for j, q in enumerate(r)] for r in readings]
-    ratios, serve_cpu, batch_cpu = [], [], []
+    ratios, step_ratios, serve_cpu, batch_cpu = [], [], [], []
+    parts_us = []
     for _ in range(pairs):
         batch = _Batch(scenario, plan, readings, cycles)
         b = batch.run(ticks)
         del batch
         serve = _Serve(scenario, plan, specs, data, cycles)
-        s = serve.run(ticks)
+        parts = serve.run(ticks)
         del serve
+        s = parts["receive"] + parts["feed"] + parts["step"] + parts["command"]
         ratios.append(s / b)
+        step_ratios.append((parts["step"] + parts["command"]) / b)
         serve_cpu.append(s / ticks)
         batch_cpu.append(b / ticks)
+        parts_us.append({k: 1e6 * v / ticks for k, v in parts.items()})
     serve = _Serve(scenario, plan, specs, data, cycles)
     serve.run(ticks)
     steps = _steps_per_tick(serve, 50)
     callbacks = _callbacks_per_tick(serve, 100)
-    publish = _driver_publish_cpu(data, serve.channels, ticks, cycles) / ticks
     return {
         "ticks": ticks, "pairs": pairs, "machine": platform.processor() or platform.machine(),
         "ratio_cpu": ratios, "ratio_cpu_median": statistics.median(ratios),
+        "ratio_cpu_step_and_command": step_ratios,
+        "ratio_cpu_step_and_command_median": statistics.median(step_ratios),
         "serve_tick_cpu_us_median": 1e6 * statistics.median(serve_cpu),
         "batch_tick_cpu_us_median": 1e6 * statistics.median(batch_cpu),
-        "driver_publish_us": 1e6 * publish,
+        "serve_parts_us_median": {k: statistics.median(p[k] for p in parts_us)
+                                  for k in parts_us[0]},
         "simulator_steps_per_tick": steps,
         "python_callbacks_per_tick": callbacks["per_tick"],
         "callbacks_by_function": callbacks["by_function"],
