@@ -71,6 +71,11 @@ def add_robot_parsers(sub) -> None:
                        help="tick on each arm's fresh status (default) or on the wall clock")
     serve.add_argument("--quiet", action="store_true", help="no progress messages")
     serve.set_defaults(func=cmd_serve)
+    hub = sub.add_parser("tcpq-hub", help="the hub of LCM's tcpq:// provider on 127.0.0.1 "
+                                          "(two processes on one machine, no multicast)")
+    hub.add_argument("--port", type=int, default=7700, help="TCP port (default 7700)")
+    hub.add_argument("--quiet", action="store_true", help="no progress messages")
+    hub.set_defaults(func=_cmd_tcpq_hub)
     drv = sub.add_parser("sim-driver", help="the scenario's simulated arms behind their "
                                             "drivers' LCM messages, at real time")
     drv.add_argument("scenario", help="scenario YAML or shipped scenario name")
@@ -80,6 +85,12 @@ def add_robot_parsers(sub) -> None:
                      help="wait for the first command (s, default 60)")
     drv.add_argument("--quiet", action="store_true", help="no progress messages")
     drv.set_defaults(func=cmd_sim_driver)
+
+
+def _cmd_tcpq_hub(args) -> int:
+    from drake_coop.robot.tcpq_hub import cmd_tcpq_hub
+
+    return cmd_tcpq_hub(args)
 
 
 def _error(message: str) -> int:
