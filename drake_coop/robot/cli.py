@@ -67,8 +67,8 @@ def add_robot_parsers(sub) -> None:
     serve.add_argument("--robot", default=None, metavar="NAME",
                        help="serve this arm only (one serve per arm; a trip in one stops "
                             "the others through the DRAKE_COOP_STOP channel)")
-    serve.add_argument("--tick", choices=("arrival", "grid"), default="arrival",
-                       help="tick on each arm's fresh status (default) or on the wall clock")
+    serve.add_argument("--tick", choices=("grid", "arrival"), default="grid",
+                       help="tick on the wall clock (default) or on each arm's fresh status")
     serve.add_argument("--quiet", action="store_true", help="no progress messages")
     serve.set_defaults(func=cmd_serve)
     hub = sub.add_parser("tcpq-hub", help="the hub of LCM's tcpq:// provider on 127.0.0.1 "
