@@ -143,8 +143,8 @@ class ServeLoop:
             arm.command_publisher.ForcedPublish(context)
 
     def time(self) -> float:
-        """``t_k`` of the last tick (s)."""
-        return (self.k - 1) * self.h
+        """``t_k`` of the last tick (s; 0 before the first)."""
+        return max(self.k - 1, 0) * self.h
 
     def tripped(self) -> dict | None:
         """The first tripped arm's robot, status channel and reason, else None."""
