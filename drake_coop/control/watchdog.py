@@ -54,6 +54,9 @@ TRIP_REASONS = {
     8: "joint position jumped faster than the velocity limits allow",
 }
 
+#: No details (a trip's reason quotes none).
+_NONE = (0.0, 0.0, 0.0)
+
 #: Readings may differ by this much (rad) beyond what the velocity limits allow (noise floor).
 JUMP_TOLERANCE = 1e-6
 
@@ -73,6 +76,7 @@ class Watchdog(LeafSystem):
         - q_checked
         - tau_safe
         - tripped
+        - tau_latched
 
     The ``status`` input is ``[s, f, v]``: the newest status's stamp ``s`` (s, the driver's
     clock), its fault code ``f`` (:data:`STATUS_OK`, :data:`STATUS_NONE` before the first one,
@@ -105,6 +109,12 @@ class Watchdog(LeafSystem):
     controller's torque never leaves before a valid status, and the first bad tick already
     sends ``τ_safe``; ``τ_max`` is required and finite: ``tau_safe`` is always within it.
 
+    ``tau_latched`` is ``tau_safe`` as the tick's update saw it, latched into state (the same
+    doubles): in a Diagram where ``τ`` changes only at the ticks (a controller that latches
+    ``τ(k)`` before the watchdog's update at ``t_k``) it equals ``tau_safe`` from the tick on,
+    and reading it costs no Python call. ``tripped`` is a state output too: the watchdog's one
+    Python callback per tick is its update, computed on plain floats.
+
     The controller reads its positions through ``q_checked``: the reading itself (the same
     doubles) when the status is valid and finite, else the last good reading, so that no
     NaN or stale zero (before the first status) reaches the control blocks.
@@ -128,6 +138,8 @@ class Watchdog(LeafSystem):
         What to send to the driver.
     tripped : 1-vector
         The reason code (0: not tripped; :data:`TRIP_REASONS`).
+    tau_latched : n-vector
+        ``tau_safe`` latched at the last tick (the safe command before the first).
 
     Parameters
     ----------
@@ -194,12 +206,19 @@ class Watchdog(LeafSystem):
         self._status = self.DeclareVectorInputPort("status", 3)
         self._tau = self.DeclareVectorInputPort("tau", n)
         self._lambda = self.DeclareVectorInputPort("lambda_hat", m)
-        # _F: [reason, last stamp, tick at which it was first seen, a valid status seen,
-        #      s_g, detail 0, detail 1, detail 2]; the last good reading q_g; τ_safe.
+        # _flags: [reason, last stamp, tick at which it was first seen, a valid status seen,
+        #          s_g, detail 0, detail 1, detail 2]; the last good reading q_g; τ_safe;
+        # the reason code alone (the tripped port); tau_latched.
         self._flags = self.DeclareDiscreteState(
             np.array([0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, 0.0]))
         self._q_good = self.DeclareDiscreteState(n)
         self._safe = self.DeclareDiscreteState(n)
+        self._code = self.DeclareDiscreteState(1)
+        self._latched = self.DeclareDiscreteState(n)
+        # plain floats for the tick's arithmetic (no NumPy on n-vectors at every tick)
+        self._q_min_l, self._q_max_l = self._q_min.tolist(), self._q_max.tolist()
+        self._tau_max_l = self._tau_max.tolist()
+        self._v_max_l = None if self._v_max is None else self._v_max.tolist()
         self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
         self.DeclareVectorOutputPort(
             "q_checked", n, self._calc_q,
@@ -207,8 +226,8 @@ class Watchdog(LeafSystem):
         self.DeclareVectorOutputPort(
             "tau_safe", n, self._calc_tau,
             prerequisites_of_calc={self.xd_ticket(), self._tau.ticket()})
-        self.DeclareVectorOutputPort("tripped", 1, self._calc_tripped,
-                                     prerequisites_of_calc={self.xd_ticket()})
+        self.DeclareStateOutputPort("tripped", self._code)
+        self.DeclareStateOutputPort("tau_latched", self._latched)
 
     def get_q_input_port(self):
         return self._q
@@ -231,6 +250,9 @@ class Watchdog(LeafSystem):
     def get_tripped_output_port(self):
         return self.GetOutputPort("tripped")
 
+    def get_tau_latched_output_port(self):
+        return self.GetOutputPort("tau_latched")
+
     @property
     def torque_limits(self) -> np.ndarray:
         """``τ_max`` (a copy)."""
@@ -243,7 +265,10 @@ class Watchdog(LeafSystem):
         context.SetDiscreteState(self._flags, np.array(
             [0.0, math.nan, context.get_time(), 0.0, math.nan, 0.0, 0.0, 0.0]))
         context.SetDiscreteState(self._q_good, q)
-        context.SetDiscreteState(self._safe, self._safe_torque(q))
+        safe = self._safe_torque(q)
+        context.SetDiscreteState(self._safe, safe)
+        context.SetDiscreteState(self._code, np.zeros(1))
+        context.SetDiscreteState(self._latched, safe)
 
     def reason(self, context: Context) -> str:
         """The one-line reason of a trip ('' if not tripped)."""
@@ -273,51 +298,73 @@ class Watchdog(LeafSystem):
         tau = np.where(np.isfinite(tau), tau, 0.0)
         return np.clip(tau, -self._tau_max, self._tau_max)
 
-    def _check(self, context: Context, flags: np.ndarray, t: float, q_good: np.ndarray):
-        """``(code, details, new status valid)`` of this tick; updates ``flags``' stamp."""
-        stamp, fault, value = self._status.Eval(context)
+    def _check(self, context: Context, flags: list, t: float, q_good: list):
+        """``(code, details, q)`` of this tick (``q`` the new valid reading, else None);
+        updates ``flags``' stamp. Plain floats throughout."""
+        stamp, fault, value = self._status.Eval(context).tolist()
         if fault != STATUS_OK and fault != STATUS_NONE:
-            return 7, (fault, value, 0.0), False
+            return 7, (fault, value, 0.0), None
         valid = fault == STATUS_OK
         if valid:
             if not math.isfinite(stamp):
-                return 6, (0.0, 0.0, 0.0), False
+                return 6, _NONE, None
             if stamp != flags[1]:                   # a new status
                 flags[1], flags[2] = stamp, t
         if t - flags[2] > self._max_age * (1 + 1e-9):
-            return 1, (0.0, 0.0, 0.0), False
+            return 1, _NONE, None
+        q = None
         if valid:
-            q = self._q.Eval(context)
-            if not np.all(np.isfinite(q)):
-                return 2, (0.0, 0.0, 0.0), False
-            if np.any(q < self._q_min) or np.any(q > self._q_max):
-                return 3, (0.0, 0.0, 0.0), False
-            if self._v_max is not None and flags[3] != 0.0:
+            q = self._q.Eval(context).tolist()
+            isfinite = math.isfinite
+            for qj in q:
+                if not isfinite(qj):
+                    return 2, _NONE, None
+            for qj, lo, hi in zip(q, self._q_min_l, self._q_max_l):
+                if qj < lo or qj > hi:
+                    return 3, _NONE, None
+            if self._v_max_l is not None and flags[3] != 0.0:
                 dt = max(stamp - flags[4], 0.0)
-                excess = np.abs(q - q_good) - (self._v_max * dt + JUMP_TOLERANCE)
-                j = int(np.argmax(excess))
-                if excess[j] > 0:
-                    return 8, (float(j), float(abs(q[j] - q_good[j])), dt), False
-        lam = self._lambda.Eval(context)
-        if not np.all(np.isfinite(lam)) or np.max(np.abs(lam)) > self._max_force:
-            return 4, (0.0, 0.0, 0.0), False
-        if not np.all(np.isfinite(self._tau.Eval(context))):
-            return 5, (0.0, 0.0, 0.0), False
-        return 0, (0.0, 0.0, 0.0), valid
+                worst, j_worst = 0.0, -1
+                for j, (qj, gj, vj) in enumerate(zip(q, q_good, self._v_max_l)):
+                    excess = abs(qj - gj) - (vj * dt + JUMP_TOLERANCE)
+                    if excess > worst:
+                        worst, j_worst = excess, j
+                if j_worst >= 0:
+                    return 8, (float(j_worst), abs(q[j_worst] - q_good[j_worst]), dt), None
+        biggest = 0.0
+        for lj in self._lambda.Eval(context).tolist():
+            if not math.isfinite(lj):
+                return 4, _NONE, None
+            biggest = max(biggest, abs(lj))
+        if biggest > self._max_force:
+            return 4, _NONE, None
+        return 0, _NONE, q
 
     def _update(self, context: Context, discrete: DiscreteValues) -> None:
-        flags = context.get_discrete_state(self._flags).get_value().copy()
+        flags = context.get_discrete_state(self._flags).get_value().tolist()
         if flags[0] != 0.0:
             return
-        q_good = context.get_discrete_state(self._q_good).get_value()
-        code, details, valid = self._check(context, flags, context.get_time(), q_good)
+        q_good = context.get_discrete_state(self._q_good).get_value().tolist()
+        code, details, q = self._check(context, flags, context.get_time(), q_good)
+        tau = None
+        if code == 0:
+            tau = self._tau.Eval(context).tolist()
+            if not all(map(math.isfinite, tau)):
+                code, tau = 5, None
         flags[0] = float(code)
         flags[5:8] = details
-        if valid:
-            flags[3], flags[4] = 1.0, self._status.Eval(context)[0]
-            discrete.set_value(self._q_good, self._q.Eval(context))
-        elif code != 0:
-            discrete.set_value(self._safe, self._safe_torque(q_good))
+        if q is not None:
+            flags[3], flags[4] = 1.0, flags[1]
+            discrete.set_value(self._q_good, q)
+            q_good = q
+        if code != 0:
+            safe = self._safe_torque(np.array(q_good))
+            discrete.set_value(self._safe, safe)
+            discrete.set_value(self._latched, safe)
+            discrete.set_value(self._code, [float(code)])
+        elif flags[3] != 0.0:
+            discrete.set_value(self._latched, [min(max(tj, -mj), mj) for tj, mj in
+                                               zip(tau, self._tau_max_l)])
         discrete.set_value(self._flags, flags)
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
@@ -334,9 +381,6 @@ class Watchdog(LeafSystem):
             output.SetFromVector(context.get_discrete_state(self._safe).get_value())
         else:
             output.SetFromVector(np.clip(tau, -self._tau_max, self._tau_max))
-
-    def _calc_tripped(self, context: Context, output: BasicVector) -> None:
-        output.SetFromVector(context.get_discrete_state(self._flags).get_value()[:1])
 
 
 def _positive(value, name: str) -> float:

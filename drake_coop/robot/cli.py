@@ -64,8 +64,18 @@ def add_robot_parsers(sub) -> None:
     serve.add_argument("--require-rt", action="store_true",
                        help="refuse to start without real-time scheduling (SCHED_FIFO/RR), "
                             "a CPU affinity and locked memory (mlockall, attempted then)")
+    serve.add_argument("--robot", default=None, metavar="NAME",
+                       help="serve this arm only (one serve per arm; a trip in one stops "
+                            "the others through the DRAKE_COOP_STOP channel)")
+    serve.add_argument("--tick", choices=("grid", "arrival"), default="grid",
+                       help="tick on the wall clock (default) or on each arm's fresh status")
     serve.add_argument("--quiet", action="store_true", help="no progress messages")
     serve.set_defaults(func=cmd_serve)
+    hub = sub.add_parser("tcpq-hub", help="the hub of LCM's tcpq:// provider on 127.0.0.1 "
+                                          "(two processes on one machine, no multicast)")
+    hub.add_argument("--port", type=int, default=7700, help="TCP port (default 7700)")
+    hub.add_argument("--quiet", action="store_true", help="no progress messages")
+    hub.set_defaults(func=_cmd_tcpq_hub)
     drv = sub.add_parser("sim-driver", help="the scenario's simulated arms behind their "
                                             "drivers' LCM messages, at real time")
     drv.add_argument("scenario", help="scenario YAML or shipped scenario name")
@@ -75,6 +85,12 @@ def add_robot_parsers(sub) -> None:
                      help="wait for the first command (s, default 60)")
     drv.add_argument("--quiet", action="store_true", help="no progress messages")
     drv.set_defaults(func=cmd_sim_driver)
+
+
+def _cmd_tcpq_hub(args) -> int:
+    from drake_coop.robot.tcpq_hub import cmd_tcpq_hub
+
+    return cmd_tcpq_hub(args)
 
 
 def _error(message: str) -> int:
@@ -147,6 +163,9 @@ def cmd_serve(args) -> int:
     if isinstance(loaded, int):
         return loaded
     scenario, specs, lcm = loaded
+    robots = [s.robot for s in specs]
+    if getattr(args, "robot", None) is not None and args.robot not in robots:
+        return _error(f"--robot: one of {', '.join(robots)} (got {args.robot!r})")
     from drake_coop.experiment.plan import plan_run
     from drake_coop.results.run_folder import OutputFolderError, RunFolder
     from drake_coop.robot.pacing import missing_realtime, realtime_settings, unlock_memory
@@ -167,7 +186,8 @@ def cmd_serve(args) -> int:
     plan = plan_run(scenario, args.t_end)
     folder = RunFolder(args.out)
     try:
-        staging = folder.prepare(plan.k_end + 1, robots=len(specs), replace=args.force)
+        staging = folder.prepare(plan.k_end + 1, robots=1 if args.robot else len(specs),
+                                 replace=args.force)
     except OutputFolderError as exc:
         if rt["mlockall"] == "ok":
             unlock_memory()
@@ -181,31 +201,28 @@ def cmd_serve(args) -> int:
 
 def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     import numpy as np
-    from pydrake.systems.analysis import Simulator
-    from pydrake.systems.framework import DiagramBuilder
 
     from drake_coop.control.watchdog import STATUS_OK
     from drake_coop.experiment.simulate import rest_posture
     from drake_coop.results.io import atomic_write_text
-    from drake_coop.robot.drivers import (
-        COMMAND_OFFSET,
-        add_controller_side,
-        safe_command_message,
-    )
-    from drake_coop.robot.loopback import initialize_sides
     from drake_coop.robot.pacing import (
         PacingRecord,
-        StatusArrivals,
         delay_margin,
         missing_realtime,
         pacing_summary,
         plot_pacing,
         pump_until,
-        run_paced,
         summary_line,
         write_pacing_csv,
     )
-    from drake_coop.robot.status import RawMessage, check_panda_status
+    from drake_coop.robot.serve_loop import (
+        STOP_CHANNEL,
+        ServeLoop,
+        StopListener,
+        run_on_arrival,
+        status_arrivals,
+    )
+    from drake_coop.robot.status import check_panda_status
     from drake_coop.scenario.loading import dump_scenario
 
     quiet = args.quiet
@@ -217,43 +234,17 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                   file=sys.stderr)
         margin = delay_margin(scenario)
         margin = None if math.isnan(margin) else margin
-    builder = DiagramBuilder()
-    # No LcmInterfaceSystem: the wall-clock loop pumps LCM between ticks (and records each
-    # status's arrival with a plain handler, which must not run inside AdvanceTo).
-    side = add_controller_side(builder, scenario, lcm, plan, specs, status_input="loop")
-    specs = [arm.spec for arm in side.arms]          # the torque limits resolved
-    diagram = builder.Build()
-    arrivals = StatusArrivals(  # every message's bytes checked as it arrives
-        lcm, [s.status_channel for s in specs],
-        check={s.status_channel: (lambda data, n=s.n: check_panda_status(data, n)[2]
-                                  == STATUS_OK) for s in specs})
-    simulator = Simulator(diagram)
-    context = simulator.get_mutable_context()
+    names = [s.robot for s in specs]
+    served = names if args.robot is None else [args.robot]
+    index = [names.index(r) for r in served]
+    loop = ServeLoop(scenario, plan, lcm, specs, robots=served)
+    specs = loop.specs                    # the arms served, their torque limits resolved
+    arrivals = status_arrivals(lcm, specs)   # every message's bytes checked as it arrives
+    stop = StopListener(lcm, served)
     record = PacingRecord(period=plan.h, driver_period=max(s.period for s in specs))
     status, message, code, trip = "ok", f"completed {plan.t_end:g} s", 0, None
     interrupted: BaseException | None = None
     started = False          # the loop has begun commanding the arms
-
-    def send_safe() -> None:
-        """Each driver's safe command (zero torque, or the hold torque at the last good
-        reading), once the loop has commanded anything."""
-        if not started:
-            return
-        for arm, spec in zip(side.arms, specs):
-            wd = arm.watchdog
-            q = wd.last_good_position(wd.GetMyContextFromRoot(context))
-            tau = np.zeros(spec.n) if spec.safe_command == "zero_torque" else arm.hold_torque(q)
-            msg = safe_command_message(spec, tau, int(time.time() * 1e6))
-            lcm.Publish(spec.command_channel, msg.encode())
-
-    def tripped_arm() -> dict | None:
-        for arm in side.arms:
-            wd = arm.watchdog
-            wd_context = wd.GetMyContextFromRoot(context)
-            if wd.is_tripped(wd_context):
-                return {"robot": arm.spec.robot, "channel": arm.spec.status_channel,
-                        "reason": wd.reason(wd_context)}
-        return None
 
     try:
         if not quiet:
@@ -273,9 +264,8 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
             return 1
         rest, _ = rest_posture(scenario, list(plan.arms))
         q0 = []
-        for i, spec in enumerate(specs):
-            q, _, fault, value = check_panda_status(arrivals.message[spec.status_channel],
-                                                    spec.n)
+        for i, spec in zip(index, specs):
+            q, _, fault, value = arrivals.parsed(spec.status_channel)
             if fault == STATUS_OK and arrivals.faulty[spec.status_channel] is not None:
                 fault = check_panda_status(arrivals.faulty[spec.status_channel], spec.n)[2]
             if fault == 4:           # a driver of another arm: a setup error, nothing started
@@ -285,45 +275,42 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                 return 2
             # any other fault trips the watchdog at the first tick
             q0.append(q if fault == STATUS_OK else np.asarray(rest[i], dtype=float))
-        initialize_sides(scenario, plan, context, None, side, q0)
-        # each arm's newest status, handed to its receiver before every tick
-        fed = [arm.status_receiver.get_message_input_port().FixValue(
-            arm.status_receiver.GetMyMutableContextFromRoot(context),
-            RawMessage()) for arm in side.arms]
-        seen = [-1] * len(specs)            # the first tick takes the first faulty or newest
-
-        def feed(k: int) -> None:
-            for i, spec in enumerate(specs):
-                count = arrivals.count[spec.status_channel]
-                if count != seen[i]:
-                    seen[i] = count
-                    fed[i].GetMutableData().set_value(
-                        RawMessage(arrivals.take(spec.status_channel)))
-
-        simulator.Initialize()
+        loop.start(q0)
         if not quiet:
-            print(f"drake-coop: serving {len(specs)} arms at h = {plan.h * 1e3:g} ms to "
-                  f"t = {plan.t_end:g} s", file=sys.stderr)
+            print(f"drake-coop: serving {', '.join(served)} at h = {plan.h * 1e3:g} ms to "
+                  f"t = {plan.t_end:g} s, ticking on "
+                  + ("each status's arrival" if args.tick == "arrival" else "the wall clock"),
+                  file=sys.stderr)
         started = True
         try:
-            reason = run_paced(simulator, lcm, arrivals, plan.h, plan.k_end, COMMAND_OFFSET,
-                               record, lambda k: "tripped" if tripped_arm() else "",
-                               before_tick=feed)
+            reason = run_on_arrival(loop, lcm, arrivals, plan.k_end, record,
+                                    lambda k: "tripped" if loop.tripped() else "",
+                                    stop=stop, on_arrival=args.tick == "arrival")
         except Exception as exc:       # a defect, not an input: the record is kept all the same
             status, code = "failed", 1
-            message = (f"error at t = {context.get_time():.3f} s: {type(exc).__name__}: "
+            message = (f"error at t = {loop.time():.3f} s: {type(exc).__name__}: "
                        + " ".join(str(exc).split())[:200])
         else:
-            trip = tripped_arm() if reason else None
+            trip = loop.tripped() if reason else None
             if trip is not None:
                 status, code = "stopped", 1
-                message = (f"watchdog at t = {context.get_time():.3f} s: {trip['robot']}: "
+                message = (f"watchdog at t = {loop.time():.3f} s: {trip['robot']}: "
                            f"{trip['reason']} on {trip['channel']}")
+            elif reason.startswith("stop: "):
+                status, code = "stopped", 1
+                trip = {"robot": reason[6:].split(":", 1)[0], "channel": STOP_CHANNEL,
+                        "reason": reason[6:]}
+                message = (f"stopped at t = {loop.time():.3f} s by another serve on "
+                           f"{STOP_CHANNEL}: {reason[6:]}")
     except KeyboardInterrupt as exc:    # Ctrl-C, or SIGTERM (raised as one by the command line)
         status, interrupted = "interrupted", exc
-        message = f"interrupted at t = {context.get_time():.3f} s"
+        message = f"interrupted at t = {loop.time():.3f} s"
     finally:
-        send_safe()
+        if started:
+            loop.send_safe()
+            if status != "ok" and not (trip and trip["channel"] == STOP_CHANNEL):
+                # the other arms' serve processes stop too (a trip, a defect, Ctrl-C)
+                StopListener.publish(lcm, served[0], trip["reason"] if trip else message)
     if not started:                     # interrupted while waiting: nothing to keep
         folder.discard()
         print("drake-coop: interrupted while waiting for the first status; nothing written",
@@ -331,7 +318,8 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         raise interrupted
     summary = pacing_summary(record, margin)
     meta = {"status": status, "message": message, "command": "serve",
-            "watchdog": trip,
+            "watchdog": trip, "robots": served, "tick": args.tick,
+            "stop_channel": STOP_CHANNEL,
             "lcm_url": args.lcm_url, "control_period": plan.h,
             "channels": {s.robot: [s.status_channel, s.command_channel] for s in specs},
             "safe_command": {s.robot: s.safe_command for s in specs},

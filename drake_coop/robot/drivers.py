@@ -54,9 +54,10 @@ from pydrake.systems.framework import (
     DiagramBuilder,
     LeafSystem,
     State,
+    TriggerType,
 )
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
-from pydrake.systems.primitives import Demultiplexer, TrajectorySource
+from pydrake.systems.primitives import Demultiplexer, PassThrough, TrajectorySource
 
 from drake import lcmt_panda_command, lcmt_panda_status
 from drake_coop.control.block import AddCooperativeController, ControllerHandles
@@ -237,10 +238,13 @@ class ArmController:
     block: ControllerHandles
     watchdog: Watchdog
     status_subscriber: LcmSubscriberSystem | None
-    status_receiver: CheckedStatusReceiver
+    status_receiver: CheckedStatusReceiver | None
     command_sender: PandaCommandSender
     command_publisher: LcmPublisherSystem
     hold_torque: object = None
+    #: ``status_input="loop"``: the C++ pass-through whose input the caller sets to the
+    #: checked reading (it feeds the watchdog's ``q`` and the control blocks' ``q``).
+    position_input: PassThrough | None = None
 
 
 @dataclass
@@ -297,15 +301,27 @@ def urdf_limits(plant, instance) -> tuple[np.ndarray, np.ndarray]:
 
 def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
                         plan: RunPlan, specs: list[DriverSpec] | None = None, *,
-                        status_input: str = "subscriber") -> ControllerSide:
+                        status_input: str = "subscriber",
+                        robots: list[str] | None = None) -> ControllerSide:
     """Add each arm's control block, watchdog and LCM status/command systems to ``builder``.
 
     ``status_input="subscriber"``: each arm's status arrives through an
-    ``LcmSubscriberSystem`` (pumped by an ``LcmInterfaceSystem`` or by the caller);
-    ``"loop"``: no subscriber, the caller sets the newest status's bytes on each
-    ``status_receiver``'s ``message`` input (a fixed value, :class:`RawMessage`) before the
-    tick, as ``drake-coop serve``'s loop does (no Simulator step to latch a message, no
-    message decoded for nothing at the driver's rate).
+    ``LcmSubscriberSystem`` (pumped by an ``LcmInterfaceSystem`` or by the caller) and a
+    :class:`CheckedStatusReceiver`, the blocks read the watchdog's ``q_checked``, and the
+    command is published periodically, :data:`COMMAND_OFFSET` after each tick.
+    ``"loop"``: no subscriber and no receiver system; the caller reads each status's bytes
+    (:func:`~drake_coop.robot.status.check_panda_status`, as
+    :class:`~drake_coop.robot.serve_loop.ServeLoop` does), fixes the watchdog's ``status``
+    input and the checked reading on ``position_input`` (a C++ ``PassThrough`` feeding the
+    watchdog's ``q`` and the blocks' ``q``) before the tick, and publishes the command itself
+    (``ForcedPublish`` of the ``command_publisher``, which has no periodic event) as soon as
+    the tick's updates are done: no Python callback for the status, one for the watchdog.
+
+    ``robots``: the names of the arms to add (default all; ``serve --robot``), in the
+    scenario's order.
+
+    Either way the command carries the watchdog's ``tau_latched`` (its ``tau_safe`` latched at
+    the tick: no Python call to publish it).
 
     The control blocks are the public
     :func:`~drake_coop.control.block.AddCooperativeController` with ``q`` from the driver's
@@ -330,10 +346,15 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     margin = math.radians(guards.joint_limit_margin_deg)
     arms = []
     for i, (handles, robot, spec) in enumerate(zip(coop.arms, scenario.robots, specs)):
+        if robots is not None and robot.name not in robots:
+            continue
         name, n = robot.name, spec.n
-        receiver = builder.AddNamedSystem(f"{name}_status_receiver", CheckedStatusReceiver(n))
-        status_sub = None
-        if status_input == "subscriber":
+        receiver = status_sub = position = None
+        if status_input == "loop":
+            position = builder.AddNamedSystem(f"{name}_position", PassThrough(n))
+        else:
+            receiver = builder.AddNamedSystem(f"{name}_status_receiver",
+                                              CheckedStatusReceiver(n))
             status_sub = builder.AddNamedSystem(
                 f"{name}_status_subscriber",
                 LcmSubscriberSystem.Make(spec.status_channel, RawMessage, lcm))
@@ -351,10 +372,14 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
             q_min=arm.q_min - margin, q_max=arm.q_max + margin, max_force=guards.max_force,
             torque_limits=spec.torque_limits, velocity_limits=velocity,
             safe_command=spec.safe_command, hold_torque=model.g))
-        builder.Connect(receiver.get_position_measured_output_port(),
-                        watchdog.get_q_input_port())
-        builder.Connect(receiver.get_status_output_port(), watchdog.get_status_input_port())
-        q = watchdog.get_q_checked_output_port()
+        if position is not None:
+            builder.Connect(position.get_output_port(), watchdog.get_q_input_port())
+            q = position.get_output_port()
+        else:
+            builder.Connect(receiver.get_position_measured_output_port(),
+                            watchdog.get_q_input_port())
+            builder.Connect(receiver.get_status_output_port(), watchdog.get_status_input_port())
+            q = watchdog.get_q_checked_output_port()
         block = AddCooperativeController(
             builder, coop.plant, handles.instance, gains=robot.gains, period=plan.h,
             controller_model=model, velocity_source=robot.velocity_source,
@@ -368,15 +393,22 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
         builder.Connect(block.lambda_hat_output, watchdog.get_lambda_hat_input_port())
         sender = builder.AddNamedSystem(f"{name}_command_sender",
                                         PandaCommandSender(n, PandaControlMode.kTorque))
-        builder.Connect(watchdog.get_tau_safe_output_port(), sender.get_torque_input_port())
-        publisher = builder.AddNamedSystem(f"{name}_command_publisher", LcmPublisherSystem.Make(
-            spec.command_channel, lcmt_panda_command, lcm, publish_period=plan.h,
-            publish_offset=COMMAND_OFFSET, use_cpp_serializer=True))
+        builder.Connect(watchdog.get_tau_latched_output_port(), sender.get_torque_input_port())
+        if position is not None:
+            publisher = LcmPublisherSystem.Make(
+                spec.command_channel, lcmt_panda_command, lcm, use_cpp_serializer=True,
+                publish_triggers={TriggerType.kForced})
+        else:
+            publisher = LcmPublisherSystem.Make(
+                spec.command_channel, lcmt_panda_command, lcm, publish_period=plan.h,
+                publish_offset=COMMAND_OFFSET, use_cpp_serializer=True)
+        publisher = builder.AddNamedSystem(f"{name}_command_publisher", publisher)
         builder.Connect(sender.get_output_port(), publisher.get_input_port())
         arms.append(ArmController(spec=spec, block=block, watchdog=watchdog,
                                   status_subscriber=status_sub,
                                   status_receiver=receiver, command_sender=sender,
-                                  command_publisher=publisher, hold_torque=model.g))
+                                  command_publisher=publisher, hold_torque=model.g,
+                                  position_input=position))
     return ControllerSide(arms=arms, model_plant=coop, keep=[model_builder])
 
 

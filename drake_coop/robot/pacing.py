@@ -11,11 +11,17 @@ publication (``t_k + COMMAND_OFFSET``). Per tick it records:
 * ``lateness`` — when the command left, against ``t0 + t_k``;
 * ``status_age`` — age of the newest status the tick used (the oldest over the arms), from
   its arrival in this process;
-* ``missed`` — the command left after ``t_{k+1}`` (the next tick's deadline).
+* ``missed`` — the command left after ``t_{k+1}`` (the next tick's deadline);
+* ``wait`` — how long the tick waited past ``t0 + t_k`` for a fresh status of every arm
+  (ticking on the status's arrival, :func:`~drake_coop.robot.serve_loop.run_on_arrival`;
+  0 on the wall-clock grid).
 
 The loop's delay at a tick (what the stability map calls a computation delay ``d``: from the
 measurement to the torque acting) is ``status_age + lateness + one driver cycle`` (the
-driver applies a command at its next cycle). :func:`pacing_summary` compares its 99th
+driver applies a command at its next cycle). Ticking on the status's arrival, a tick is due
+when the status that releases it arrives: ``lateness`` is then counted from the tick's start
+(its release), so that ``status_age + lateness`` is the time from the oldest status's arrival
+to the command's departure. :func:`pacing_summary` compares its 99th
 percentile with the delay margin of :func:`delay_margin`.
 """
 
@@ -29,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 #: Columns of ``pacing.csv``.
-PACING_COLUMNS = ("k", "t", "compute_s", "lateness_s", "status_age_s", "missed")
+PACING_COLUMNS = ("k", "t", "compute_s", "lateness_s", "status_age_s", "missed", "wait_s")
 
 
 @dataclass
@@ -42,12 +48,15 @@ class PacingRecord:
     compute: list[float] = field(default_factory=list)
     lateness: list[float] = field(default_factory=list)
     status_age: list[float] = field(default_factory=list)
+    wait: list[float] = field(default_factory=list)
 
-    def add(self, k: int, compute: float, lateness: float, status_age: float) -> None:
+    def add(self, k: int, compute: float, lateness: float, status_age: float,
+            wait: float = 0.0) -> None:
         self.k.append(k)
         self.compute.append(compute)
         self.lateness.append(lateness)
         self.status_age.append(status_age)
+        self.wait.append(wait)
 
     def arrays(self) -> dict[str, np.ndarray]:
         k = np.asarray(self.k, dtype=int)
@@ -55,7 +64,8 @@ class PacingRecord:
         return {"k": k, "t": k * self.period, "compute_s": np.asarray(self.compute, dtype=float),
                 "lateness_s": lateness,
                 "status_age_s": np.asarray(self.status_age, dtype=float),
-                "missed": (lateness > self.period).astype(int)}
+                "missed": (lateness > self.period).astype(int),
+                "wait_s": np.asarray(self.wait, dtype=float)}
 
 
 class StatusArrivals:
@@ -69,12 +79,14 @@ class StatusArrivals:
     ones between two ticks is still seen by the next tick.
     """
 
-    def __init__(self, lcm, channels: list[str], check: dict | None = None):
+    def __init__(self, lcm, channels: list[str], check: dict | None = None,
+                 parse: dict | None = None):
         self.last = {c: math.nan for c in channels}
         self.count = {c: 0 for c in channels}
         self.message = {c: None for c in channels}
         self.faulty = {c: None for c in channels}
         self._check = dict(check or {})
+        self._parse = dict(parse or {})
         for c in channels:
             lcm.Subscribe(c, self._handler(c))
 
@@ -88,6 +100,15 @@ class StatusArrivals:
             if check is not None and self.faulty[channel] is None and not check(data):
                 self.faulty[channel] = data
         return handle
+
+    def parsed(self, channel: str):
+        """``parse`` (given for the channel) of the newest message."""
+        return self._parse[channel](self.message[channel])
+
+    def take_parsed(self, channel: str):
+        """``parse`` of what :meth:`take` gives (None before the first message)."""
+        data = self.take(channel)
+        return None if data is None else self._parse[channel](data)
 
     def take(self, channel: str) -> bytes | None:
         """The first faulty message since the last call if any (then forgotten), else the
@@ -171,6 +192,7 @@ def pacing_summary(record: PacingRecord, margin: float | None) -> dict:
         "lateness_p99_s": percentile(a["lateness_s"], 99),
         "lateness_max_s": float(a["lateness_s"].max()) if a["k"].size else math.nan,
         "status_age_p99_s": percentile(a["status_age_s"], 99),
+        "wait_p99_s": percentile(a["wait_s"], 99),
         "loop_delay_p99_s": percentile(delay, 99),
         "missed_deadlines": int(a["missed"].sum()),
         "delay_margin_s": margin,
@@ -225,7 +247,8 @@ def write_pacing_csv(path: Path, record: PacingRecord) -> None:
     lines = [",".join(PACING_COLUMNS)]
     for i in range(a["k"].size):
         lines.append(f"{a['k'][i]},{a['t'][i]:.6f},{a['compute_s'][i]:.9f},"
-                     f"{a['lateness_s'][i]:.9f},{a['status_age_s'][i]:.9f},{a['missed'][i]}")
+                     f"{a['lateness_s'][i]:.9f},{a['status_age_s'][i]:.9f},{a['missed'][i]},"
+                     f"{a['wait_s'][i]:.9f}")
     atomic_write_text(path, "\n".join(lines) + "\n")
 
 

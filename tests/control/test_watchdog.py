@@ -265,3 +265,29 @@ def test_a_joint_with_an_infinite_velocity_limit_is_not_jump_checked():
     set_status(fixed, 0.101)
     advance_tick(sim, 1)
     assert out(wd, ctx)[1] == ""
+
+
+@pytest.mark.parametrize("safe_command", ["zero_torque", "hold"])
+def test_tau_latched_is_tau_safe_after_every_tick_and_tripped_is_the_reason_code(safe_command):
+    """Random readings and torques, some beyond the limits, the torque changed only before
+    a tick (as a controller that latches it does), a bad reading at tick 12: after every tick
+    the state output equals the live one, and ``tripped`` carries the code the reason names."""
+    rng = np.random.default_rng(3)
+    wd, sim, ctx, fixed = make(safe_command=safe_command,
+                               hold_torque=lambda q: np.array([q[0], 2 * q[1], -q[2]]),
+                               velocity_limits=[10.0] * N)
+    code_of = {text: code for code, text in TRIP_REASONS.items()}
+    for k in range(16):
+        q = np.array([0.1, -0.2, 0.3]) + rng.normal(scale=0.01, size=N)
+        if k == 12:
+            q[1] = 1.5                                  # out of range: trips
+        fixed["q"].GetMutableData().set_value(q)
+        fixed["tau"].GetMutableData().set_value(rng.normal(scale=8.0, size=N))
+        set_status(fixed, k * H)
+        advance_tick(sim, k)
+        live = wd.get_tau_safe_output_port().Eval(ctx)
+        latched = wd.get_tau_latched_output_port().Eval(ctx)
+        assert latched.tolist() == live.tolist(), k
+        reason = wd.reason(ctx)
+        assert wd.get_tripped_output_port().Eval(ctx)[0] == code_of[reason], k
+        assert (reason != "") == (k >= 12)

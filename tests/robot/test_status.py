@@ -69,3 +69,20 @@ def test_any_bytes_give_a_result_never_an_exception():
         q, _, fault, _ = check_panda_status(data, 3)
         assert q.shape == (3,)
         assert fault != STATUS_OK or np.all(np.isfinite(q))
+
+
+def test_the_quick_check_agrees_with_the_full_reading_on_any_bytes():
+    """``panda_status_ok`` (every message at the driver's rate) says valid exactly when
+    ``check_panda_status`` does, on valid, malformed and random bytes."""
+    from drake_coop.robot.status import panda_status_ok
+
+    rng = np.random.default_rng(1)
+    good = status([0.1, 0.2, 0.3])
+    cases = [good, status([0.1, math.nan, 0.3]), status([0.1, 0.2, 0.3], joints=7),
+             status([0.1, 0.2, 0.3], joints=0), good + b"\0", lcmt_panda_command().encode()]
+    cases += [rng.bytes(k) for k in range(0, 300, 7)] + [good[:k] for k in range(len(good))]
+    cases += [good[:20] + rng.bytes(210) for _ in range(50)]
+    cases += [status(rng.normal(size=3), utime=int(u)) for u in rng.integers(0, 2**40, 20)]
+    for data in cases:
+        assert panda_status_ok(data, 3) == (check_panda_status(data, 3)[2] == STATUS_OK)
+    assert sum(panda_status_ok(d, 3) for d in cases) >= 21          # valid ones among them

@@ -1,0 +1,261 @@
+"""The cost of ``drake-coop serve``'s tick against the batch cost of the same blocks:
+``python bench/serve_tick.py [--ticks 2000] [--pairs 5] [--out serve_tick.json]``.
+
+In one process, on ``memq://``, the paper's scenario, both arms:
+
+* **serve**: :class:`~drake_coop.robot.serve_loop.ServeLoop` as ``serve`` runs it, fed by a
+  scripted 1 kHz driver: per tick, nine statuses per arm published (pre-encoded bytes of the
+  reference's ``q_d`` at the driver's cycles) and received (each one's bytes read as it
+  arrives, :class:`~drake_coop.robot.pacing.StatusArrivals`), the newest fed, one tick (the
+  blocks, the watchdog, one Simulator step), each arm's command encoded and published;
+  unpaced: no waiting. Each part is timed (``serve_parts_us_median``); the scripted driver's
+  own publishing (``driver``: the driver's process in reality) is left out of the ratio.
+* **batch**: the same blocks (``AddCooperativeController`` per arm, the same references) in a
+  Diagram whose ``q`` comes from a C++ ``TrajectorySource`` holding the same readings
+  (zero-order hold), advanced over the same ticks in one ``AdvanceTo``.
+
+Each is built outside the timing; the two are alternated ``pairs`` times; the figure is the
+ratio of CPU times (``time.process_time``) of each pair, its median and range (on a shared
+machine the alternated pairs cancel most of the other processes' load): the whole serve tick
+(``ratio_cpu``), and its Simulator step and commands alone (``ratio_cpu_step_and_command``:
+the same blocks plus the watchdog, without the 1 kHz reception). Also reported: the
+Python callbacks per serve tick (every ``drake_coop`` function called from C++, the LCM
+handlers included: :func:`bench.callbacks._calls_from_builtins`), and the Simulator steps
+per tick.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import platform
+import statistics
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the checkout: bench.*
+
+
+def _readings(scenario, plan, ticks: int, cycles: int) -> list[np.ndarray]:
+    """Each arm's ``q_d`` at every driver cycle of ``ticks`` ticks (``cycles`` per tick)."""
+    from drake_coop.experiment.references import reference_trajectory
+
+    out = []
+    for i, arm in enumerate(plan.arms):
+        n = arm.kinematics.n
+        traj = reference_trajectory(scenario, i, plan.t_end, plan)
+        t = np.arange(ticks * cycles) * (plan.h / cycles)
+        out.append(np.array([traj.value(min(tk, plan.t_end)).ravel()[:n] for tk in t]))
+    return out
+
+
+def _status_bytes(q, utime: int) -> bytes:
+    from drake import lcmt_panda_status
+
+    msg = lcmt_panda_status()
+    msg.utime = int(utime)
+    msg.num_joints = len(q)
+    msg.joint_position = [float(v) for v in q]
+    for f in ("joint_velocity", "joint_torque", "joint_torque_external",
+              "joint_position_desired", "joint_velocity_desired",
+              "joint_acceleration_desired", "joint_torque_desired"):
+        setattr(msg, f, [0.0] * len(q))
+    return msg.encode()
+
+
+class _Serve:
+    """serve's side, built; :meth:`run` times ``ticks`` ticks."""
+
+    def __init__(self, scenario, plan, specs, data, cycles):
+        from pydrake.lcm import DrakeLcm
+
+        from drake_coop.robot.serve_loop import ServeLoop, status_arrivals
+
+        self.lcm = DrakeLcm("memq://")
+        self.loop = ServeLoop(scenario, plan, self.lcm, specs)
+        self.channels = [s.status_channel for s in self.loop.specs]
+        self.arrivals = status_arrivals(self.lcm, self.loop.specs)
+        self.data, self.cycles = data, cycles
+        self.next = 0                # the next tick's readings (runs continue the stream)
+        self.loop.start([data[i][0][1] for i in range(len(self.channels))])
+
+    def run(self, ticks: int) -> dict[str, float]:
+        """CPU seconds of ``ticks`` ticks by part: ``driver`` (the scripted driver's
+        publishing: the driver's process in reality), ``receive`` (LCM's dispatch of every
+        status and its check), ``feed`` (the newest read and set), ``step`` (the Simulator
+        step: blocks and watchdog), ``command`` (each arm's command encoded and published)."""
+        lcm, loop, arrivals, channels = self.lcm, self.loop, self.arrivals, self.channels
+        data, cycles = self.data, self.cycles
+        first = self.next
+        self.next += ticks
+        clock = time.process_time
+        parts = dict.fromkeys(("driver", "receive", "feed", "step", "command"), 0.0)
+        arms = list(zip(loop.side.arms, loop._pub))
+        for k in range(first, first + ticks):
+            a = clock()
+            for j in range(k * cycles, (k + 1) * cycles):
+                for i, c in enumerate(channels):
+                    lcm.Publish(c, data[i][j][0])
+            b = clock()
+            lcm.HandleSubscriptions(0)
+            c_ = clock()
+            for i, c in enumerate(channels):
+                loop.feed(i, arrivals.take_parsed(c))
+            d = clock()
+            loop.k += 1                      # ServeLoop.tick, in its two parts
+            loop.simulator.AdvanceTo(loop.k * loop.h)
+            e = clock()
+            for arm, context in arms:
+                arm.command_publisher.ForcedPublish(context)
+            f = clock()
+            parts["driver"] += b - a
+            parts["receive"] += c_ - b
+            parts["feed"] += d - c_
+            parts["step"] += e - d
+            parts["command"] += f - e
+        if loop.tripped() is not None:
+            raise RuntimeError(f"benchmark serve run tripped: {loop.tripped()}")
+        return parts
+
+
+class _Batch:
+    """The same blocks with ``q`` from a C++ TrajectorySource; :meth:`run` times them."""
+
+    def __init__(self, scenario, plan, readings, cycles):
+        from pydrake.systems.analysis import Simulator
+        from pydrake.systems.framework import DiagramBuilder
+        from pydrake.systems.primitives import TrajectorySource
+        from pydrake.trajectories import PiecewisePolynomial
+
+        from drake_coop.control.block import AddCooperativeController
+        from drake_coop.experiment.references import reference_trajectory
+        from drake_coop.plant.cooperative import build_plant
+        from drake_coop.plant.model_error import controller_arm_model
+
+        model_builder = DiagramBuilder()
+        coop = build_plant(model_builder, scenario, plan.dt)
+        builder = DiagramBuilder()
+        self.blocks = []
+        for i, (handles, robot) in enumerate(zip(coop.arms, scenario.robots)):
+            q = readings[i][::cycles]                   # the reading each tick uses
+            t = np.arange(len(q) + 1) * plan.h
+            pp = PiecewisePolynomial.ZeroOrderHold(t, np.vstack([q, q[-1:]]).T)
+            src = builder.AddSystem(TrajectorySource(pp))
+            block = AddCooperativeController(
+                builder, coop.plant, handles.instance, gains=robot.gains, period=plan.h,
+                controller_model=controller_arm_model(handles.arm, robot.model_error),
+                velocity_source=robot.velocity_source, force_source=robot.force_source,
+                difference_cutoff_hz=robot.difference_cutoff_hz, q=src.get_output_port(),
+                connect_actuation=False, name=robot.name)
+            ref = builder.AddSystem(TrajectorySource(
+                reference_trajectory(scenario, i, plan.t_end, plan)))
+            builder.Connect(ref.get_output_port(), block.reference_input)
+            self.blocks.append((block, q[0]))
+        self._keep = (model_builder, coop)
+        self.diagram = builder.Build()
+        self.simulator = Simulator(self.diagram)
+        context = self.simulator.get_mutable_context()
+        for block, q0 in self.blocks:
+            source = block.velocity_source
+            if hasattr(source, "set_initial_state"):
+                source.set_initial_state(source.GetMyMutableContextFromRoot(context), q0)
+        self.simulator.Initialize()
+        self.h = plan.h
+
+    def run(self, ticks: int) -> float:
+        t = self.simulator.get_context().get_time()
+        cpu = time.process_time()
+        self.simulator.AdvanceTo(t + ticks * self.h)
+        return time.process_time() - cpu
+
+
+def _callbacks_per_tick(serve: _Serve, ticks: int) -> dict:
+    import inspect
+
+    from bench.callbacks import _calls_from_builtins
+
+    counts: dict[str, int] = defaultdict(int)
+
+    def count(frame):
+        code, module = frame.f_code, frame.f_globals.get("__name__", "?")
+        if module.startswith("drake_coop") and not code.co_flags & inspect.CO_GENERATOR:
+            counts[f"{module}.{code.co_qualname}"] += 1
+
+    with _calls_from_builtins(count):
+        serve.run(ticks)
+    return {"per_tick": sum(counts.values()) / ticks,
+            "by_function": {k: v / ticks for k, v in sorted(counts.items(),
+                                                          key=lambda kv: -kv[1])}}
+
+
+def _steps_per_tick(serve: _Serve, ticks: int) -> float:
+    before = serve.loop.simulator.get_num_steps_taken()
+    serve.run(ticks)
+    return (serve.loop.simulator.get_num_steps_taken() - before) / ticks
+
+
+def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5) -> dict:
+    """The figures of the module's docstring."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.robot.drivers import driver_specs
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.model_check import check_models
+
+    scenario = load_scenario()
+    specs = driver_specs(scenario, check_models(scenario))
+    cycles = int(round(scenario.control_period / specs[0].period))
+    # enough readings for every run of the pairs plus the counting runs
+    total = ticks + 150          # the counting runs continue after a timed run
+    plan = plan_run(scenario, min(total * scenario.control_period, 90.0))
+    readings = _readings(scenario, plan, total, cycles)
+    data = [[(_status_bytes(q, j * 1000), q) for j, q in enumerate(r)] for r in readings]
+    ratios, step_ratios, serve_cpu, batch_cpu = [], [], [], []
+    parts_us = []
+    for _ in range(pairs):
+        batch = _Batch(scenario, plan, readings, cycles)
+        b = batch.run(ticks)
+        del batch
+        serve = _Serve(scenario, plan, specs, data, cycles)
+        parts = serve.run(ticks)
+        del serve
+        s = parts["receive"] + parts["feed"] + parts["step"] + parts["command"]
+        ratios.append(s / b)
+        step_ratios.append((parts["step"] + parts["command"]) / b)
+        serve_cpu.append(s / ticks)
+        batch_cpu.append(b / ticks)
+        parts_us.append({k: 1e6 * v / ticks for k, v in parts.items()})
+    serve = _Serve(scenario, plan, specs, data, cycles)
+    serve.run(ticks)
+    steps = _steps_per_tick(serve, 50)
+    callbacks = _callbacks_per_tick(serve, 100)
+    return {
+        "ticks": ticks, "pairs": pairs, "machine": platform.processor() or platform.machine(),
+        "ratio_cpu": ratios, "ratio_cpu_median": statistics.median(ratios),
+        "ratio_cpu_step_and_command": step_ratios,
+        "ratio_cpu_step_and_command_median": statistics.median(step_ratios),
+        "serve_tick_cpu_us_median": 1e6 * statistics.median(serve_cpu),
+        "batch_tick_cpu_us_median": 1e6 * statistics.median(batch_cpu),
+        "serve_parts_us_median": {k: statistics.median(p[k] for p in parts_us)
+                                  for k in parts_us[0]},
+        "simulator_steps_per_tick": steps,
+        "python_callbacks_per_tick": callbacks["per_tick"],
+        "callbacks_by_function": callbacks["by_function"],
+    }
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--ticks", type=int, default=2000)
+    parser.add_argument("--pairs", type=int, default=5)
+    parser.add_argument("--out", default=None, help="write the numbers as JSON")
+    args = parser.parse_args()
+    result = serve_tick_benchmark(args.ticks, args.pairs)
+    text = json.dumps(result, indent=1)
+    print(text)
+    if args.out:
+        Path(args.out).write_text(text + "\n")
