@@ -49,7 +49,6 @@ from pydrake.manipulation import (
     PandaStatusSender,
 )
 from pydrake.systems.framework import (
-    BasicVector,
     Context,
     DiagramBuilder,
     LeafSystem,

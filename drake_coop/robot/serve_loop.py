@@ -7,7 +7,7 @@ arrived (:func:`~drake_coop.robot.status.check_panda_status`), set on the watchd
 ``status`` input and, as the checked reading (the reading itself when the status is valid,
 else the last valid one: never a NaN), on the C++ ``PassThrough`` that feeds the watchdog and
 the control blocks (``add_controller_side(..., status_input="loop")``); **one** Simulator step
-(``AdvanceTo(t_{k+1})`` from ``t_k`` runs the updates at ``t_k``: the controller's latch, the
+(``AdvanceTo`` to :math:`t_{k+1}` from ``t_k`` runs the updates at ``t_k``: the controller's latch, the
 observers, the watchdog); then each arm's command is published at once (``ForcedPublish`` of
 its C++ publisher, reading the watchdog's latched ``tau_latched``). The Python callbacks of a
 tick are the paper's blocks' and one per arm for the watchdog.
@@ -177,7 +177,7 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
     ``g_k + timeout`` (default: one driver cycle and a half; the watchdog's age check covers
     a driver that stopped): the status's age at the tick is the transport time, and the
     command leaves as soon as ``τ`` is computed. The grid follows the driver's clock:
-    ``g_{k+1} = a_k + h − c/2`` (``a_k`` the newest arrival that released tick ``k``, ``c`` the
+    :math:`g_{k+1} = a_k + h - c/2` (``a_k`` the newest arrival that released tick ``k``, ``c`` the
     driver's cycle), so the wait ends on the status of the driver's cycle ``h`` later.
     Without ``on_arrival``, ``g_k = t0 + k h`` and nothing is waited for (the wall-clock
     grid). Before each tick, LCM is pumped until ``g_k`` (:func:`~drake_coop.robot.pacing.
