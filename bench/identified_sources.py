@@ -77,7 +77,8 @@ def parameter_errors(ident) -> dict:
     c, v = s.joint_slice("coulomb"), s.joint_slice("viscous")
     return {"first_moment_error_pct": float(100.0 * (th[k] / tr[k] - 1.0)),
             "coulomb_error_max": float(max(abs(th[c] - tr[c]))),
-            "viscous_error_max_pct": float(100.0 * max(abs(th[v] / tr[v] - 1.0)))}
+            "viscous_error_max_pct": float(100.0 * max(abs(th[v] / tr[v] - 1.0))),
+            "coulomb_identified": th[c].tolist(), "coulomb_true": tr[c].tolist()}
 
 
 def identify_and_run(scenario_yaml: str, folder: str, duration: float, estimator: str,
@@ -98,6 +99,68 @@ def identify_and_run(scenario_yaml: str, folder: str, duration: float, estimator
         rec["squeeze_error"] = (squeeze_error(r["metrics"]) if rec["status"] == "ok"
                                 else float("nan"))
     return rec
+
+
+def run_with_coulomb(scenario_yaml: str, coulomb: dict, t_end: float) -> dict:
+    """Run a scenario whose controller models compensate Coulomb friction ``coulomb[name]``
+    (:class:`~drake_coop.control.arm_model.ArmModel`'s ``coulomb``, smoothed as
+    ``tanh(q̇ / 0.02)`` like the identification's column: in (13), (22) and the momentum
+    observer). The experiment diagram has no scenario field for it yet: this wraps its
+    ``controller_arm_model`` in this worker process."""
+    import functools
+
+    import drake_coop.experiment.diagram as diagram
+    from drake_coop.studies.sweep import run_one
+
+    original = diagram.controller_arm_model
+
+    @functools.wraps(original)
+    def with_coulomb(arm, error=None):
+        model = original(arm, error)
+        model.coulomb = np.asarray(coulomb[arm.name], float)
+        model.coulomb_velocity = 0.02
+        return model
+
+    diagram.controller_arm_model = with_coulomb
+    r = run_one(scenario_yaml, t_end)
+    return {"status": r["meta"]["status"],
+            "squeeze_error": (squeeze_error(r["metrics"]) if r["meta"]["status"] == "ok"
+                              else float("nan"))}
+
+
+def friction(args) -> None:
+    """``--friction``: rerun the identified runs of ``budgets.jsonl`` (``--estimators``,
+    ``--durations``) with the identified Coulomb friction compensated; appended to
+    ``DIR/friction.jsonl`` and printed against the same runs without compensation."""
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+
+    out = Path(args.out)
+    recs = [json.loads(x) for x in (out / "budgets.jsonl").read_text().splitlines()]
+    recs = [r for r in recs if r["estimator"] in args.estimators
+            and r["duration"] in args.durations and "squeeze_error" in r
+            and all("coulomb_identified" in v for v in r["robots"].values())][: args.draws]
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx,
+                             max_tasks_per_child=1) as pool:
+        jobs = []
+        for r in recs:
+            folder = out / f"draw{r['draw']:03d}_{r['estimator']}_{r['duration']:g}s"
+            cases = {k: y for k, y, _ in published_cases(r["draw"] + 1)}
+            ided = load_scenario(data=with_plant_step(cases[r["draw"]], PUBLISHED_TIME_STEP))
+            for robot in ided.robots:
+                robot.controller_model = str((folder / f"{robot.name}_identified.urdf").resolve())
+                robot.model_error.mass_scale = robot.model_error.inertia_scale = 1.0
+                robot.model_error.damping_scale = 1.0
+                robot.force_source = "observer"
+            coulomb = {name: v["coulomb_identified"] for name, v in r["robots"].items()}
+            jobs.append((r, pool.submit(run_with_coulomb, dump_scenario(ided), coulomb,
+                                        PUBLISHED_T_END)))
+        for r, job in jobs:
+            rec = {"draw": r["draw"], "estimator": r["estimator"], "duration": r["duration"],
+                   "squeeze_error_uncompensated": r["squeeze_error"], **job.result()}
+            with (out / "friction.jsonl").open("a") as f:
+                f.write(json.dumps(rec) + "\n")
+            print(rec, flush=True)
 
 
 def budgets(args) -> None:
@@ -312,12 +375,16 @@ def main() -> None:
     p.add_argument("--summarize", action="store_true")
     p.add_argument("--budgets", action="store_true",
                    help="compare the estimators over excitation lengths (published draws)")
+    p.add_argument("--friction", action="store_true",
+                   help="rerun --budgets' identified runs with Coulomb compensation")
     p.add_argument("--estimators", nargs="+", default=["map_sdp", "didim"])
     p.add_argument("--durations", type=float, nargs="+", default=[2.0, 5.0, 10.0, 60.0])
     p.add_argument("--run-durations", type=float, nargs="*", default=[2.0, 5.0, 10.0],
                    help="excitation lengths whose identified models are also run")
     args = p.parse_args()
-    if args.budgets:
+    if args.friction:
+        friction(args)
+    elif args.budgets:
         budgets(args)
     elif args.summarize:
         summarize(args)
