@@ -65,17 +65,23 @@ def one_run(scenario_yaml: str, t_end: float, applied: bool) -> dict:
         diagram.AddCooperativeController = with_applied_torque
     result = simulate(scenario, t_end=t_end)
     metrics = compute_metrics(result.logs, result.meta)
-    out = {"status": result.meta["status"], "robots": {}}
+    out = {"status": result.meta["status"], "message": result.meta.get("message", ""),
+           "robots": {}}
     for robot in scenario.robots:
         log = result.logs[robot.name]
         masks = phase_masks(log["t"], result.meta["phases"])
         tau = np.asarray(log["tau_cmd"])
-        rec = {p: metrics[robot.name][p]["force_error"]["rms"] for p in ("lift", "circle")}
+        rec = {p: (metrics[robot.name][p]["force_error"]["rms"] if p in metrics[robot.name]
+                   else float("nan")) for p in ("lift", "circle")}
         rec["peak_lift"] = np.max(np.abs(tau[masks["lift"]]), axis=0).tolist()
         rec["peak_other"] = np.max(np.abs(tau[~masks["lift"]]), axis=0).tolist()
-        rec["peak_circle"] = np.max(np.abs(tau[masks["circle"]]), axis=0).tolist()
+        rec["peak_circle"] = (np.max(np.abs(tau[masks["circle"]]), axis=0).tolist()
+                              if np.any(masks.get("circle", [])) else None)
         lim = robot.actuators.torque_limits
         for phase in ("free", "lift", "circle"):
+            if not np.any(masks.get(phase, [])):
+                rec[f"saturated_{phase}_share"] = float("nan")
+                continue
             rec[f"saturated_{phase}_share"] = (
                 float(np.mean(np.any(np.abs(tau[masks[phase]]) >= np.asarray(lim), axis=1)))
                 if lim is not None else 0.0)
@@ -94,7 +100,7 @@ def main() -> None:
     p.add_argument("--t-end", type=float, default=35.0)
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--reuse", action="store_true",
-                   help="take the run without limits from DIR/momentum_saturation.json")
+                   help="take the run without limits from DIR/no_limits.json")
     args = p.parse_args()
     if not 0.0 < args.fraction < 1.0:
         p.error(f"--fraction must be in (0, 1), got {args.fraction:g}")
@@ -104,10 +110,12 @@ def main() -> None:
     base = base_yaml()
     with ProcessPoolExecutor(max_workers=args.workers, mp_context=ctx,
                              max_tasks_per_child=1) as pool:
-        previous = out / "momentum_saturation.json"
-        free = (json.loads(previous.read_text())["runs"]["no limits"]
-                if args.reuse and previous.exists()
-                else pool.submit(one_run, base, args.t_end, False).result())
+        previous = out / "no_limits.json"
+        if args.reuse and previous.exists():
+            free = json.loads(previous.read_text())
+        else:
+            free = pool.submit(one_run, base, args.t_end, False).result()
+            previous.write_text(json.dumps(free))
         s = load_scenario(data=base)
         for robot in s.robots:
             r = free["robots"][robot.name]
@@ -133,12 +141,13 @@ def main() -> None:
                               for x in ("free", "lift", "circle")),
                             f"{r.get('excess_lift_max', 0.0):.3f}",
                             "" if case == "no limits" else " ".join(f"{x:.2f}" for x in lim)])
-    print("| case | lift RMS r1 / r2 (N) | circle RMS r1 / r2 (N) | lift ticks saturated r1 / r2 |")
-    print("| --- | --- | --- | --- |")
+    print("| case | status | lift RMS r1 / r2 (N) | circle RMS r1 / r2 (N) "
+          "| lift ticks saturated r1 / r2 |")
+    print("| --- | --- | --- | --- | --- |")
     for case, run in runs.items():
         a, b = run["robots"].values()
-        print(f"| {case} | {a['lift']:.3f} / {b['lift']:.3f} | {a['circle']:.3f} / "
-              f"{b['circle']:.3f} | {a['saturated_lift_share']:.2f} / "
+        print(f"| {case} | {run['status']} | {a['lift']:.3f} / {b['lift']:.3f} | "
+              f"{a['circle']:.3f} / {b['circle']:.3f} | {a['saturated_lift_share']:.2f} / "
               f"{b['saturated_lift_share']:.2f} |")
 
 

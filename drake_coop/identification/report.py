@@ -84,6 +84,7 @@ class RobotIdentification:
     validation: dict
     fit: dict
     urdf_text: str
+    estimator: str = "map_sdp"
 
 
 def _velocity_limits(structure: ArmStructure) -> np.ndarray:
@@ -189,7 +190,8 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
         nominal_text, structure, estimate.theta,
         note=f"Robot {robot.name}, {duration:g} s of excitation.")
     return RobotIdentification(robot.name, structure, excitation, data, estimate, theta_true,
-                               theta_nominal, identifiable, validation, fit, urdf_text)
+                               theta_nominal, identifiable, validation, fit, urdf_text,
+                               estimator)
 
 
 def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, nominal,
@@ -254,6 +256,7 @@ def summary(ident: RobotIdentification, duration: float) -> dict:
         "regressor_condition_number": e.condition_number,
         "identifiable_combinations": e.rank, "parameters_total": s.num_parameters,
         "residual_torque_rms": e.residual_rms.tolist(), "solver": e.solver,
+        "estimator": ident.estimator,
         "validation": ident.validation, "masses": masses(ident), "parameters": params,
         "excitation": {"q0": ident.excitation.q0.tolist(), "period_s": ident.excitation.period,
                        "harmonics": int(ident.excitation.a.shape[1]),
@@ -335,7 +338,8 @@ def parse_robots(text: str | None, count: int) -> list[int]:
 
 
 def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
-                 duration: float = 10.0, seed: int = 0, log=print) -> dict:
+                 duration: float = 10.0, seed: int = 0, log=print,
+                 estimator: str = "map_sdp") -> dict:
     """Identify ``robots`` of ``scenario`` and write ``out`` whole (module docstring).
 
     Returns
@@ -350,12 +354,15 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
         raise IdentifyInputError(f"--duration must be in [{lo:g}, {hi:g}] s, got {duration:g}")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32 - 1:
         raise IdentifyInputError(f"--seed must be an integer from 0 to {2**32 - 2}, got {seed!r}")
+    if estimator not in ESTIMATORS:
+        raise IdentifyInputError(f"--estimator must be one of {', '.join(ESTIMATORS)}, "
+                                 f"got {estimator!r}")
     out = Path(out)
     _check_out(out)
     idents = {}
     for i in robots:
         log(f"drake-coop: identifying {scenario.robots[i].name} ({duration:g} s of excitation)")
-        idents[i] = identify_robot(scenario, i, duration, seed)
+        idents[i] = identify_robot(scenario, i, duration, seed, estimator)
     report = {"scenario_robots": [r.name for r in scenario.robots],
               "robots": {ident.name: summary(ident, duration) for ident in idents.values()}}
     with staged_folder(out) as staging:
