@@ -161,6 +161,15 @@ def friction(args) -> None:
             with (out / "friction.jsonl").open("a") as f:
                 f.write(json.dumps(rec) + "\n")
             print(rec, flush=True)
+    rows = [json.loads(x) for x in (out / "friction.jsonl").read_text().splitlines()]
+    with (out / "identification_friction.csv").open("w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["draw", "estimator", "excitation_s", "squeeze_error_uncompensated",
+                    "squeeze_error_coulomb_compensated"])
+        for r in rows:
+            w.writerow([r["draw"], r["estimator"], f"{r['duration']:g}",
+                        f"{r['squeeze_error_uncompensated']:.4f}",
+                        f"{r['squeeze_error']:.4f}"])
 
 
 def budgets(args) -> None:

@@ -246,10 +246,13 @@ def instruments(regressor: Regressor, theta: np.ndarray, loop: ClosedLoop,
 class IVEstimate(Estimate):
     """:class:`~drake_coop.identification.estimate.Estimate` of the IV estimator, with its
     iterations: ``history`` the parameters after each (first: the MAP start), ``changes`` the
-    relative change of the simulated torques between iterations."""
+    relative change of the simulated torques between iterations, ``stopped`` why the iterations
+    ended before converging (empty when they converged or used every iteration): the solver
+    failed on an iteration's program, whose iterate is then not taken."""
 
     history: list = field(default_factory=list)
     changes: list = field(default_factory=list)
+    stopped: str = ""
 
 
 def estimate_parameters_iv(regressor: Regressor, data: PreparedData, theta0: np.ndarray,
@@ -281,7 +284,7 @@ def estimate_parameters_iv(regressor: Regressor, data: PreparedData, theta0: np.
     y = data.tau.reshape(-1)
     start = start or estimate_parameters(regressor, data, theta0)
     theta = start.theta
-    history, changes = [theta], []
+    history, changes, stopped = [theta], [], ""
     tau_prev = None
     solver = start.solver
     for _ in range(iterations):
@@ -290,7 +293,11 @@ def estimate_parameters_iv(regressor: Regressor, data: PreparedData, theta0: np.
         rank = condition_number(Y)[1]
         sigma2 = max(float(np.sum((y - Y @ theta_iv) ** 2)) / max(1, Y.shape[0] - rank), 1e-12)
         A, b = projected_equations(Y, Z, y)
-        theta, solver = physically_consistent_map(s, A, b, sigma2, theta0)
+        try:
+            theta, solver = physically_consistent_map(s, A, b, sigma2, theta0)
+        except RuntimeError as exc:
+            stopped = str(exc)
+            break
         history.append(theta)
         if tau_prev is not None:
             change = float(np.sqrt(np.mean((tau_sim - tau_prev) ** 2))
@@ -304,7 +311,7 @@ def estimate_parameters_iv(regressor: Regressor, data: PreparedData, theta0: np.
                       residual_rms=np.sqrt(np.mean(res ** 2, axis=0)),
                       condition_number=start.condition_number, rank=start.rank,
                       samples=start.samples, solver=solver, history=history,
-                      changes=changes)
+                      changes=changes, stopped=stopped)
 
 
 def estimate_parameters_didim(regressor: Regressor, tau: np.ndarray, theta0: np.ndarray,
@@ -357,7 +364,7 @@ def estimate_parameters_didim(regressor: Regressor, tau: np.ndarray, theta0: np.
     keep[0] = False                      # the first tick: the loop's initial latch
     y = tau[keep].reshape(-1)
     theta = start.theta
-    history, changes, tau_prev = [theta], [], None
+    history, changes, tau_prev, stopped = [theta], [], None, ""
     solver, theta_ls = start.solver, start.theta_ls
     for _ in range(iterations):
         sim = simulate_tracking(ModelDynamics(s, theta, regressor.coulomb_velocity),
@@ -375,11 +382,16 @@ def estimate_parameters_didim(regressor: Regressor, tau: np.ndarray, theta0: np.
         theta_ls = np.linalg.lstsq(Y / scale, y, rcond=1e-8)[0] / scale
         rank = condition_number(Y)[1]
         sigma2 = max(float(np.sum((y - Y @ theta_ls) ** 2)) / max(1, Y.shape[0] - rank), 1e-12)
-        theta, solver = physically_consistent_map(s, Y, y, sigma2, theta0)
+        try:
+            theta_next, solver = physically_consistent_map(s, Y, y, sigma2, theta0)
+        except RuntimeError as exc:
+            stopped = str(exc)
+            break
+        theta = theta_next
         history.append(theta)
     res = (y - Y @ theta).reshape(-1, s.n)
     return IVEstimate(theta=theta, theta_ls=theta_ls,
                       residual_rms=np.sqrt(np.mean(res ** 2, axis=0)),
                       condition_number=start.condition_number, rank=start.rank,
                       samples=int(keep.sum()), solver=solver, history=history,
-                      changes=changes)
+                      changes=changes, stopped=stopped)

@@ -257,6 +257,7 @@ def summary(ident: RobotIdentification, duration: float) -> dict:
         "identifiable_combinations": e.rank, "parameters_total": s.num_parameters,
         "residual_torque_rms": e.residual_rms.tolist(), "solver": e.solver,
         "estimator": ident.estimator,
+        "estimator_stopped": getattr(e, "stopped", ""),
         "validation": ident.validation, "masses": masses(ident), "parameters": params,
         "excitation": {"q0": ident.excitation.q0.tolist(), "period_s": ident.excitation.period,
                        "harmonics": int(ident.excitation.a.shape[1]),

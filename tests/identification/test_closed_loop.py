@@ -180,3 +180,32 @@ def test_idim_iv_from_ten_seconds_matches_the_truth():
     assert v["torque_error_rms_identified"] < 0.01 * v["torque_rms"]
     assert v["torque_error_rms_identified"] < 0.1 * v["torque_error_rms_nominal"]
     assert len(ident.estimate.history) >= 2
+
+
+def test_a_failed_iteration_keeps_the_last_solved_iterate(monkeypatch):
+    """When the solver fails on an iteration's program, DIDIM stops with the previous
+    iterate (here the second program fails: the estimate is the first DIDIM iterate, the
+    same as a run limited to one iteration) and says why."""
+    import drake_coop.identification.instrumental as instrumental
+
+    sc = load_scenario("scenarios/paper.yaml")
+    ident = identify_robot(sc, 0, 2.0)
+    loop = closed_loop(sc, 0, ident.excitation, _nominal(sc, 0), ident.data)
+    reg = Regressor(ident.structure)
+    one = estimate_parameters_didim(reg, ident.data.tau, ident.theta_nominal, loop,
+                                    iterations=1, start=ident.estimate)
+    calls = []
+    original = instrumental.physically_consistent_map
+
+    def second_fails(*args):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("the identification program failed: kIterationLimit")
+        return original(*args)
+
+    monkeypatch.setattr(instrumental, "physically_consistent_map", second_fails)
+    est = estimate_parameters_didim(reg, ident.data.tau, ident.theta_nominal, loop,
+                                    iterations=5, tol=0.0, start=ident.estimate)
+    assert "kIterationLimit" in est.stopped and len(est.history) == 2
+    np.testing.assert_array_equal(est.theta, one.theta)
+    assert one.stopped == ""
