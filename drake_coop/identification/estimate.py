@@ -92,6 +92,7 @@ class PreparedData:
     v: np.ndarray
     a: np.ndarray
     tau: np.ndarray
+    index: np.ndarray | None = None     # the tick k of each kept sample
 
 
 def prepare(t: np.ndarray, q_m: np.ndarray, tau_cmd: np.ndarray, h: float,
@@ -106,7 +107,9 @@ def prepare(t: np.ndarray, q_m: np.ndarray, tau_cmd: np.ndarray, h: float,
     keep = ~bad
     keep[:1] = False                         # the first sample's torque average is one-sided
     ts = t[half: len(t) - half]
-    return PreparedData(t=ts[keep], q=q[keep], v=v[keep], a=a[keep], tau=tau[keep])
+    ticks = np.arange(half, len(t) - half)
+    return PreparedData(t=ts[keep], q=q[keep], v=v[keep], a=a[keep], tau=tau[keep],
+                        index=ticks[keep])
 
 
 def prior_spread(structure: ArmStructure, theta0: np.ndarray) -> np.ndarray:
@@ -149,6 +152,61 @@ class Estimate:
     solver: str
 
 
+def physically_consistent_map(structure: ArmStructure, A: np.ndarray, b: np.ndarray,
+                              sigma2: float, theta0: np.ndarray) -> tuple[np.ndarray, str]:
+    """The SDP of the module docstring on a generic data term ``‖Aθ − b‖² / σ²``.
+
+    ``A = Y, b = τ`` is the MAP estimate of :func:`estimate_parameters`; the instrumental
+    variable estimate (:mod:`~drake_coop.identification.instrumental`) passes the projected
+    equations ``A = U_rᵀ Y, b = U_rᵀ τ`` instead. Same prior, same constraints (each composite
+    body's pseudo-inertia ``⪰ PSD_MARGIN · 1``; rotor inertia, viscous and Coulomb friction
+    ``≥ 0``).
+
+    Parameters
+    ----------
+    structure : ArmStructure
+    A : ndarray, shape (M, p)
+    b : ndarray, shape (M,)
+    sigma2 : float
+        The data term's variance (> 0).
+    theta0 : ndarray, shape (p,)
+        The prior's centre.
+
+    Returns
+    -------
+    (theta, solver_name)
+
+    Raises
+    ------
+    RuntimeError
+        When the solver reports no solution.
+    """
+    s = structure
+    spread = prior_spread(s, theta0)
+    # Decision variables in units of the prior's spread: x = (θ − θ_0) / s.
+    prog = MathematicalProgram()
+    x = prog.NewContinuousVariables(s.num_parameters, "x")
+    As = A * spread / np.sqrt(sigma2)
+    r = (b - A @ theta0) / np.sqrt(sigma2)
+    Q = 2.0 * (As.T @ As + np.eye(s.num_parameters))
+    prog.AddQuadraticCost(Q, -2.0 * As.T @ r, float(r @ r), x, is_convex=True)
+    theta_expr = np.array([float(t0) + float(sp) * xi                 # elementwise: numpy's
+                           for t0, sp, xi in zip(theta0, spread, x)])  # ufuncs warn on symbols
+    for i, _ in enumerate(s.links):
+        J = pseudo_inertia(theta_expr[10 * i: 10 * i + 10])
+        for d in range(4):
+            J[d, d] = J[d, d] - PSD_MARGIN
+        prog.AddPositiveSemidefiniteConstraint(J)
+    for kind in ("rotor_inertia", "viscous", "coulomb"):
+        sl = s.joint_slice(kind)
+        prog.AddBoundingBoxConstraint(-theta0[sl] / spread[sl], np.full(s.n, np.inf), x[sl])
+    solver = ClarabelSolver()
+    result = solver.Solve(prog)
+    if not result.is_success():
+        raise RuntimeError(f"the identification program failed: {result.get_solution_result()}")
+    return theta0 + spread * result.GetSolution(x), solver.solver_id().name()
+
+
 def estimate_parameters(regressor: Regressor, data: PreparedData, theta0: np.ndarray
                         ) -> Estimate:
     """The physically consistent MAP estimate (module docstring).
@@ -170,31 +228,9 @@ def estimate_parameters(regressor: Regressor, data: PreparedData, theta0: np.nda
     theta_ls = np.linalg.lstsq(Y / scale, y, rcond=1e-8)[0] / scale
     dof = max(1, Y.shape[0] - rank)
     sigma2 = max(float(np.sum((y - Y @ theta_ls) ** 2)) / dof, 1e-12)
-    spread = prior_spread(s, theta0)
-    # Decision variables in units of the prior's spread: x = (θ − θ_0) / s.
-    prog = MathematicalProgram()
-    x = prog.NewContinuousVariables(s.num_parameters, "x")
-    A = Y * spread / np.sqrt(sigma2)
-    r = (y - Y @ theta0) / np.sqrt(sigma2)
-    Q = 2.0 * (A.T @ A + np.eye(s.num_parameters))
-    prog.AddQuadraticCost(Q, -2.0 * A.T @ r, float(r @ r), x, is_convex=True)
-    theta_expr = np.array([float(t0) + float(sp) * xi                 # elementwise: numpy's
-                           for t0, sp, xi in zip(theta0, spread, x)])  # ufuncs warn on symbols
-    for i, _ in enumerate(s.links):
-        J = pseudo_inertia(theta_expr[10 * i: 10 * i + 10])
-        for d in range(4):
-            J[d, d] = J[d, d] - PSD_MARGIN
-        prog.AddPositiveSemidefiniteConstraint(J)
-    for kind in ("rotor_inertia", "viscous", "coulomb"):
-        sl = s.joint_slice(kind)
-        prog.AddBoundingBoxConstraint(-theta0[sl] / spread[sl], np.full(s.n, np.inf), x[sl])
-    solver = ClarabelSolver()
-    result = solver.Solve(prog)
-    if not result.is_success():
-        raise RuntimeError(f"the identification program failed: {result.get_solution_result()}")
-    theta = theta0 + spread * result.GetSolution(x)
+    theta, solver = physically_consistent_map(s, Y, y, sigma2, theta0)
     res = (y - Y @ theta).reshape(-1, s.n)
     return Estimate(theta=theta, theta_ls=theta_ls,
                     residual_rms=np.sqrt(np.mean(res ** 2, axis=0)),
                     condition_number=cond, rank=rank, samples=data.q.shape[0],
-                    solver=solver.solver_id().name())
+                    solver=solver)

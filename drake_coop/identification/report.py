@@ -30,6 +30,11 @@ import numpy as np
 
 from drake_coop.identification.collect import ExcitationData, simulate_excitation
 from drake_coop.identification.estimate import Estimate, estimate_parameters, prepare
+from drake_coop.identification.instrumental import (
+    ClosedLoop,
+    estimate_parameters_didim,
+    estimate_parameters_iv,
+)
 from drake_coop.identification.excitation import (
     ExcitationLimits,
     FourierExcitation,
@@ -48,6 +53,13 @@ from drake_coop.scenario.schema import Scenario
 
 #: Allowed excitation lengths (s).
 DURATION_RANGE = (1.0, 120.0)
+#: The estimators, by name: ``map_sdp`` the physically consistent MAP estimate
+#: (:func:`~drake_coop.identification.estimate.estimate_parameters`), ``idim_iv`` the iterated
+#: instrumental-variable estimate for closed-loop data under the same constraints
+#: (:func:`~drake_coop.identification.instrumental.estimate_parameters_iv`), ``didim`` the
+#: closed-loop output-error estimate on simulated states, same constraints
+#: (:func:`~drake_coop.identification.instrumental.estimate_parameters_didim`).
+ESTIMATORS = ("map_sdp", "idim_iv", "didim")
 #: Files ``identify`` writes (an existing ``--out`` may hold only these).
 OUTPUT_FILES = ("identify.json", "identify_fit.png", "identified.yaml")
 
@@ -72,6 +84,7 @@ class RobotIdentification:
     validation: dict
     fit: dict
     urdf_text: str
+    estimator: str = "map_sdp"
 
 
 def _velocity_limits(structure: ArmStructure) -> np.ndarray:
@@ -80,15 +93,30 @@ def _velocity_limits(structure: ArmStructure) -> np.ndarray:
                      for j in structure.joints])
 
 
-def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed: int = 0
-                   ) -> RobotIdentification:
+def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed: int = 0,
+                   estimator: str = "map_sdp") -> RobotIdentification:
     """Identify robot ``index`` of ``scenario`` (module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    index : int
+        The robot (0-based).
+    duration : float
+        Excitation length (s).
+    seed : int
+        The excitation's random candidates.
+    estimator : str
+        One of :data:`ESTIMATORS`.
 
     Raises
     ------
     IdentifyInputError
-        When no excitation fits the arm's limits.
+        When no excitation fits the arm's limits, or an unknown ``estimator``.
     """
+    if estimator not in ESTIMATORS:
+        raise IdentifyInputError(f"estimator must be one of {', '.join(ESTIMATORS)}, "
+                                 f"got {estimator!r}")
     from drake_coop.identification.excitation import ExcitationError
     from drake_coop.plant.arms import Arm
     from drake_coop.plant.model_error import controller_arm_model
@@ -124,6 +152,14 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     data = simulate_excitation(scenario, index, excitation, nominal)
     prepared = prepare(data.t, data.q, data.tau, data.h, data.torque_limits)
     estimate = estimate_parameters(regressor, prepared, theta_nominal)
+    if estimator == "idim_iv":
+        estimate = estimate_parameters_iv(
+            regressor, prepared, theta_nominal,
+            closed_loop(scenario, index, excitation, nominal, data), start=estimate)
+    elif estimator == "didim":
+        estimate = estimate_parameters_didim(
+            regressor, data.tau, theta_nominal,
+            closed_loop(scenario, index, excitation, nominal, data), start=estimate)
     Y = regressor.matrix(prepared.q, prepared.v, prepared.a)
     scale, V = identifiable_basis(Y)
     identifiable = np.linalg.norm(V, axis=1)
@@ -154,7 +190,39 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
         nominal_text, structure, estimate.theta,
         note=f"Robot {robot.name}, {duration:g} s of excitation.")
     return RobotIdentification(robot.name, structure, excitation, data, estimate, theta_true,
-                               theta_nominal, identifiable, validation, fit, urdf_text)
+                               theta_nominal, identifiable, validation, fit, urdf_text,
+                               estimator)
+
+
+def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, nominal,
+                data: ExcitationData) -> ClosedLoop:
+    """The identification experiment's closed loop as the IV instruments simulate it: the
+    reference and the tracking law's nominal feedforward at the recorded ticks, its gains
+    (:func:`~drake_coop.identification.collect.tracking_gains`), the plant steps per tick,
+    the torque limits and the encoders' delay.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    index : int
+        The robot (0-based).
+    excitation : FourierExcitation
+    nominal : ArmModel
+        The model of the tracking law's feedforward.
+    data : ExcitationData
+        The recorded experiment (its ticks and torque limits).
+    """
+    from drake_coop.experiment.plan import time_grid
+    from drake_coop.identification.collect import tracking_gains
+
+    h, dt = time_grid(scenario)
+    q_d, v_d, a_d = excitation.evaluate(data.t)
+    feedforward = np.array([nominal.inverse_dynamics_terms(q_d[k], v_d[k], a_d[k])
+                            for k in range(len(data.t))])
+    kp, kv = tracking_gains(nominal, excitation.q0)
+    return ClosedLoop(q_d=q_d, v_d=v_d, feedforward=feedforward, kp=kp, kv=kv, h=h,
+                      substeps=max(1, int(round(h / dt))), torque_limits=data.torque_limits,
+                      encoder_delay=int(scenario.robots[index].encoders.delay_samples))
 
 
 def masses(ident: RobotIdentification) -> dict:
@@ -188,6 +256,8 @@ def summary(ident: RobotIdentification, duration: float) -> dict:
         "regressor_condition_number": e.condition_number,
         "identifiable_combinations": e.rank, "parameters_total": s.num_parameters,
         "residual_torque_rms": e.residual_rms.tolist(), "solver": e.solver,
+        "estimator": ident.estimator,
+        "estimator_stopped": getattr(e, "stopped", ""),
         "validation": ident.validation, "masses": masses(ident), "parameters": params,
         "excitation": {"q0": ident.excitation.q0.tolist(), "period_s": ident.excitation.period,
                        "harmonics": int(ident.excitation.a.shape[1]),
@@ -269,7 +339,8 @@ def parse_robots(text: str | None, count: int) -> list[int]:
 
 
 def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
-                 duration: float = 10.0, seed: int = 0, log=print) -> dict:
+                 duration: float = 10.0, seed: int = 0, log=print,
+                 estimator: str = "map_sdp") -> dict:
     """Identify ``robots`` of ``scenario`` and write ``out`` whole (module docstring).
 
     Returns
@@ -284,12 +355,15 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
         raise IdentifyInputError(f"--duration must be in [{lo:g}, {hi:g}] s, got {duration:g}")
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32 - 1:
         raise IdentifyInputError(f"--seed must be an integer from 0 to {2**32 - 2}, got {seed!r}")
+    if estimator not in ESTIMATORS:
+        raise IdentifyInputError(f"--estimator must be one of {', '.join(ESTIMATORS)}, "
+                                 f"got {estimator!r}")
     out = Path(out)
     _check_out(out)
     idents = {}
     for i in robots:
         log(f"drake-coop: identifying {scenario.robots[i].name} ({duration:g} s of excitation)")
-        idents[i] = identify_robot(scenario, i, duration, seed)
+        idents[i] = identify_robot(scenario, i, duration, seed, estimator)
     report = {"scenario_robots": [r.name for r in scenario.robots],
               "robots": {ident.name: summary(ident, duration) for ident in idents.values()}}
     with staged_folder(out) as staging:
