@@ -32,6 +32,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
         scenario = load_scenario(find_scenario(args.scenario))
         robots = parse_robots(args.robots, len(scenario.robots))
         report = run_identify(scenario, args.out, robots, args.duration, seed=args.seed,
+                              estimator=args.estimator,
                               log=(lambda *a: None) if args.quiet else
                               (lambda m: print(m, flush=True)))
     except (ScenarioError, IdentifyInputError) as exc:

@@ -15,6 +15,10 @@ from drake_coop.cli.run import cmd_run
 from drake_coop.cli.scenarios import cmd_scenarios
 from drake_coop.cli.signals import Signals
 
+#: ``identify --estimator``'s choices: :data:`drake_coop.identification.report.ESTIMATORS`
+#: (a test checks they are the same; named here so that the parser imports no Drake).
+IDENTIFY_ESTIMATORS = ("map_sdp", "idim_iv", "didim")
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``drake-coop``."""
@@ -71,6 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
     ident.add_argument("--duration", type=float, default=10.0,
                        help="excitation length in seconds (1 to 120, default 10)")
     ident.add_argument("--seed", type=int, default=0, help="seed of the excitation's design")
+    ident.add_argument("--estimator", choices=IDENTIFY_ESTIMATORS, default="map_sdp",
+                       help="map_sdp (default: least squares under the physical-consistency "
+                            "LMIs), idim_iv (instrumental variables from the simulated closed "
+                            "loop) or didim (the simulated loop's regressor); all three keep "
+                            "the LMIs")
     ident.add_argument("--quiet", action="store_true", help="no progress messages")
     ident.set_defaults(func=cmd_identify)
     from drake_coop.studies.cli import add_study_parser

@@ -51,3 +51,20 @@ def test_other_argument_errors_are_one_line_too(capsys, argv, named):
     assert exited.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and named in err[0] and "usage:" not in err[0]
+
+
+def test_identify_offers_every_estimator_the_identification_has():
+    from drake_coop.cli.parser import IDENTIFY_ESTIMATORS
+    from drake_coop.identification.report import ESTIMATORS
+
+    assert tuple(IDENTIFY_ESTIMATORS) == tuple(ESTIMATORS)
+
+
+def test_identify_refuses_an_unknown_estimator_in_one_line(capsys):
+    from drake_coop.cli import main
+
+    with pytest.raises(SystemExit) as exited:        # the command line's exit, code 2
+        main(["identify", "paper", "--out", "unused", "--estimator", "ols"])
+    assert exited.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--estimator" in err[0] and "didim" in err[0]
