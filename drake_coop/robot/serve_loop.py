@@ -38,8 +38,9 @@ STOP_CHANNEL = "DRAKE_COOP_STOP"
 
 def status_arrivals(lcm, specs):
     """The arms' status channels subscribed (:class:`~drake_coop.robot.pacing.StatusArrivals`):
-    every message's bytes checked as it arrives (:func:`~drake_coop.robot.status.
-    panda_status_ok`), the one a tick takes read (:func:`check_panda_status`)."""
+    every message's bytes checked as it arrives
+    (:func:`~drake_coop.robot.status.panda_status_ok`), the one a tick takes read
+    (:func:`check_panda_status`)."""
     from drake_coop.robot.pacing import StatusArrivals
     from drake_coop.robot.status import panda_status_ok
 
