@@ -24,7 +24,7 @@ identifiable_basis`), it minimizes ``‖U_rᵀ(Yθ − τ)‖²`` — for a squa
 closed form ``θ = (ZᵀY)⁻¹Zᵀτ`` — under the *same* prior and physical-consistency constraints
 as the MAP estimate (:func:`~drake_coop.identification.estimate.physically_consistent_map`:
 ``A = U_rᵀY``, ``b = U_rᵀτ``). ``σ²`` is the variance of the full residual ``τ − Yθ`` of the
-unconstrained IV solution. Iterated (``θ_0`` the MAP estimate, then ``θ_{i+1}`` from the
+unconstrained IV solution. Iterated (``θ_0`` the MAP estimate, then :math:`θ_{i+1}` from the
 instruments of ``θ_i``) until the simulated torques change by less than ``tol`` of their RMS
 or ``iterations`` are done.
 """
@@ -128,8 +128,8 @@ def simulate_tracking(dynamics: ModelDynamics, q_d: np.ndarray, v_d: np.ndarray,
 
     The law of :class:`~drake_coop.identification.collect.JointTracker`,
     ``τ(k) = τ_ff(k) + K_p(q_d(k) − q_m(k)) + K_v(q̇_d(k) − (q_m(k) − q_m(k−1))/h)`` with
-    ``q_m(k) = q(t_{k−d})`` (exact positions, ``d = encoder_delay`` samples, the initial
-    posture before), held over ``[t_k, t_{k+1})``, clipped at ``torque_limits``, integrated with
+    :math:`q_m(k) = q(t_{k-d})` (exact positions, ``d = encoder_delay`` samples, the initial
+    posture before), held over :math:`[t_k, t_{k+1})`, clipped at ``torque_limits``, integrated with
     ``substeps`` steps of :meth:`ModelDynamics.step` per tick. The arm starts at rest in
     ``q_d(0)``.
 

@@ -7,8 +7,9 @@ the paper (phase times, circle (28), force profile (29)) and the simulation guar
 :func:`~drake_coop.scenario.loading.default_scenario` and ``paper_robots`` read it. The dataclass defaults below are
 what a field takes when a scenario file leaves it out (the paper's robot 1 and task; a test
 pins them to ``paper.yaml``). Loading is in :mod:`drake_coop.scenario.loading`, the ranges and rules
-in :mod:`drake_coop.scenario.validation`. This module imports only the leaf
-:mod:`drake_coop.scenario.bounds` (for the one-line message of :class:`ScenarioError`).
+in :mod:`drake_coop.scenario.validation`. This module imports only the leaves
+:mod:`drake_coop.scenario.bounds` (for the one-line message of :class:`ScenarioError`) and
+:mod:`drake_coop.scenario.driver` (a robot's LCM driver section).
 """
 
 import math
@@ -17,6 +18,11 @@ from typing import Optional
 
 from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains  # noqa: F401 (re-exported)
 from drake_coop.scenario.bounds import one_line
+from drake_coop.scenario.driver import (  # noqa: F401 (re-exported)
+    DRIVER_KINDS,
+    SAFE_COMMANDS,
+    Driver,
+)
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
 #: What the controllers know of the held object (``object_model.mode``).
@@ -185,65 +191,6 @@ class ModelError:
     damping_scale: float = 1.0
     payload_mass: float = 0.0
     coulomb_friction: list[float] = field(default_factory=list)
-
-
-#: The LCM drivers ``drake-coop serve`` and ``sim-driver`` speak (:class:`Driver`).
-DRIVER_KINDS = ("panda",)
-#: What a driver is sent when the watchdog trips or the controller stops (:class:`Driver`).
-SAFE_COMMANDS = ("zero_torque", "hold")
-
-
-@dataclass
-class Driver:
-    """The arm's LCM driver, for ``drake-coop serve`` and ``drake-coop sim-driver``
-    (:mod:`drake_coop.robot`); unused by simulated runs. Null (the default): a Panda driver
-    with the defaults below.
-
-    Attributes
-    ----------
-    kind : str
-        The driver's messages: ``panda`` (``lcmt_panda_status`` / ``lcmt_panda_command``,
-        torque mode, as drake-franka-driver speaks them).
-    status_channel, command_channel : str
-        LCM channels; empty: ``PANDA_STATUS_<name>`` and ``PANDA_COMMAND_<name>``. Every
-        channel of a scenario is distinct.
-    num_joints : int or None
-        The driver's joint count; it must equal the arm's ``n_i``. Null: the arm's.
-    rate_hz : float
-        The driver's cycle (status published and command applied every ``1/rate_hz`` s; the
-        Panda's is 1 kHz); ``control_period`` must be a whole number of cycles.
-    torque_limits : list[float] or None
-        Per-joint limits of the commanded torque (N·m, > 0), applied by the controller before
-        sending (and by the simulated driver); null: ``actuators.torque_limits``, else the
-        controller clips to the URDF's effort limits (the simulated driver to none).
-    max_status_age : float
-        The controller's watchdog trips when the newest status is older than this (s, at
-        least one control period).
-    command_timeout : float
-        The (simulated) driver applies zero torque when the newest command is older (s).
-    safe_command : str
-        What the controller sends when its watchdog trips or it stops: ``zero_torque`` or
-        ``hold`` (the controller model's gravity torque at the last good position).
-    clock_phase : float
-        The simulated driver's clock (``drake-coop sim-driver``, the loopback run): its
-        cycles fall at ``clock_phase + j T (1 + clock_drift)``, ``T = 1/rate_hz``; s,
-        ``0 <= clock_phase < T``. Two real arms' clocks are not synchronised (up to a cycle
-        apart); default 0, the controller's grid.
-    clock_drift : float
-        The simulated driver's clock-rate error (relative, ``|clock_drift| <= 1e-3``); default 0.
-    """
-
-    kind: str = "panda"
-    status_channel: str = ""
-    command_channel: str = ""
-    num_joints: Optional[int] = None
-    rate_hz: float = 1000.0
-    torque_limits: Optional[list[float]] = None
-    max_status_age: float = 0.05
-    command_timeout: float = 0.05
-    safe_command: str = "zero_torque"
-    clock_phase: float = 0.0
-    clock_drift: float = 0.0
 
 
 @dataclass
