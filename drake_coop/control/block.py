@@ -22,6 +22,8 @@ read ``q`` one plant step late; the tracking and force errors are then 2–4× l
 
 from __future__ import annotations
 
+import warnings
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -182,6 +184,35 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     diagram = b.Build()
     diagram.set_name(f"{name}_control")
     return diagram, vel, force, ctrl
+
+
+class GraspWarning(UserWarning):
+    """Two controllers of one builder whose pads pass each other: each arm's squeeze (a
+    positive ``λ`` pushes its end effector along its inward normal ``−N_1``) would push away
+    from the other's contact point, a pull on the object (:func:`AddCooperativeController`)."""
+
+
+#: Each builder's controllers so far: ``(name, c, −N_1)`` (see :func:`_check_opposed`).
+_GRASPS: "weakref.WeakKeyDictionary[DiagramBuilder, list]" = weakref.WeakKeyDictionary()
+
+
+def _check_opposed(builder: DiagramBuilder, name: str, model: ArmModel) -> None:
+    """Warn (:class:`GraspWarning`, one line naming both arms) when this arm's contact point
+    ``c_i`` and another controller's ``c_j`` of the same builder are not on each other's
+    inward side: a squeeze pushes arm ``i``'s end effector along :math:`\nu_i = -N_{i,1}`,
+    towards the object, which lies between the pads only if ``(c_j − c_i)·ν_i ≥ 0`` and
+    ``(c_i − c_j)·ν_j ≥ 0`` (equal to 0: both pads at one point, a zero-width object)."""
+    inward = -np.asarray(model.N[0], dtype=float)
+    c = np.asarray(model.c, dtype=float)
+    grasps = _GRASPS.setdefault(builder, [])
+    for other, c_o, inward_o in grasps:
+        gap = c_o - c
+        if float(gap @ inward) < 0.0 or float(-gap @ inward_o) < 0.0:
+            warnings.warn(GraspWarning(
+                f"{name} and {other}: their pads pass each other (each contact point is not on "
+                f"the other's inward side along the normals), so a squeeze λ > 0 pulls the "
+                f"object apart; check normals and contact_point"), stacklevel=3)
+    grasps.append((name, c, inward))
 
 
 @dataclass
@@ -398,6 +429,13 @@ def AddCooperativeController(
     ValueError
         One line naming the argument at fault; also for a second controller on an arm whose
         actuation input is already connected, or a ``name`` already used in ``builder``.
+
+    Warns
+    -----
+    GraspWarning
+        This arm's pad and another controller's of the same ``builder`` pass each other (the
+        other's contact point is not on this one's inward side ``−N_1``, or the reverse): a
+        squeeze would pull the object apart.
     """
     if not isinstance(builder, DiagramBuilder):
         raise TypeError(f"builder: a DiagramBuilder is required (got {type(builder).__name__})")
@@ -489,6 +527,7 @@ def AddCooperativeController(
     except (RuntimeError, SystemExit) as exc:   # Drake's wiring errors, never a SystemExit
         raise ValueError(f"model_instance: wiring the controller of the arm {arm_name!r} "
                          f"failed ({' '.join(str(exc).split())[:200]})") from None
+    _check_opposed(builder, name, model)
     return ControllerHandles(
         system=block, law=law, velocity_source=vel, force_source=force, controller=ctrl,
         reference_input=block.GetInputPort("reference"), q_input=block.GetInputPort("q"),

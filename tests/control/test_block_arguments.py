@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
@@ -226,3 +226,48 @@ def test_good_arguments_are_accepted():
     _add(force_source="sensor", lambda_sensor=_port(1))
     VelocityObserver(3, 35.0, 40.0, 0.009)
     DifferenceVelocity(3, 0.009, 5.0)
+
+
+def _two_arms(c2, n2):
+    """Two CRS A465 arms in one builder: arm1 at x = −0.65 pressing on the face whose outward
+    normal is −x at c1 = (0, 0, 0.43) (its inward normal +x), arm2 at x = +0.65 with the
+    given contact point and outward normal."""
+    import warnings
+
+    from drake_coop.control.block import GraspWarning
+
+    builder = DiagramBuilder()
+    plant, _ = AddMultibodyPlantSceneGraph(builder, time_step=1e-3)
+    plant.SetUseSampledOutputPorts(False)
+    arms = []
+    for name, x, yaw in (("arm1", -0.65, 0.0), ("arm2", 0.65, math.pi)):
+        (arm,) = Parser(plant, name).AddModels(URDF)
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link", arm),
+                         RigidTransform(RollPitchYaw(0.0, 0.0, yaw), [x, 0.0, 0.0]))
+        arms.append(arm)
+    plant.Finalize()
+    common = dict(gains=Gains(), period=0.009, controller_model=URDF, ee_frame="pad")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        AddCooperativeController(builder, plant, arms[0], normals=[[-1.0, 0.0, 0.0]],
+                                 contact_point=[-0.05, 0.0, 0.43], **common)
+        AddCooperativeController(builder, plant, arms[1], normals=[n2], contact_point=c2,
+                                 **common)
+    return [str(w.message) for w in caught if issubclass(w.category, GraspWarning)]
+
+
+def test_pads_that_pass_each_other_are_named_in_one_warning():
+    """The squeeze of two opposed pads: none; arm2's pad placed beyond arm1's (the pads pass
+    each other, a positive λ pulls), or its normal turned the wrong way: one warning naming
+    both arms (the independent check: the sign of (c_j − c_i)·ν_i by hand below)."""
+    nu1 = np.array([1.0, 0.0, 0.0])
+    c1 = np.array([-0.05, 0.0, 0.43])
+    good = ([0.05, 0.0, 0.43], [1.0, 0.0, 0.0])
+    assert (np.array(good[0]) - c1) @ nu1 > 0 and (c1 - good[0]) @ -np.array(good[1]) > 0
+    assert _two_arms(*good) == []
+    passed = ([-0.10, 0.0, 0.43], [1.0, 0.0, 0.0])
+    assert (np.array(passed[0]) - c1) @ nu1 < 0
+    (message,) = _two_arms(*passed)
+    assert "arm2" in message and "arm1" in message and "\n" not in message
+    flipped = ([0.05, 0.0, 0.43], [-1.0, 0.0, 0.0])
+    assert len(_two_arms(*flipped)) == 1
