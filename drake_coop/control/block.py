@@ -199,7 +199,7 @@ _GRASPS: "weakref.WeakKeyDictionary[DiagramBuilder, list]" = weakref.WeakKeyDict
 def _check_opposed(builder: DiagramBuilder, name: str, model: ArmModel) -> None:
     """Warn (:class:`GraspWarning`, one line naming both arms) when this arm's contact point
     ``c_i`` and another controller's ``c_j`` of the same builder are not on each other's
-    inward side: a squeeze pushes arm ``i``'s end effector along :math:`\nu_i = -N_{i,1}`,
+    inward side: a squeeze pushes arm ``i``'s end effector along :math:`ν_i = -N_{i,1}`,
     towards the object, which lies between the pads only if ``(c_j − c_i)·ν_i ≥ 0`` and
     ``(c_i − c_j)·ν_j ≥ 0`` (equal to 0: both pads at one point, a zero-width object)."""
     inward = -np.asarray(model.N[0], dtype=float)
