@@ -9,7 +9,14 @@ to a JSON file::
 
 A name is a shipped scenario (or a YAML file); ``contact`` is the paper's arms. Each case is
 written as soon as it ends, with its command, the drake version and the CPU (the file keeps
-the cases of other calls).
+the cases of other calls). ``--mass`` (kg), ``--mu`` and ``--time-step`` (s) change the
+plant's box mass, pad–box friction and plant step (the controllers' assumed μ follows the
+plant's unless the scenario sets ``object_model.mu``); such a case is stored under
+``NAME@m<mass>_mu<mu>[_dt<step>]`` (``.`` written ``p``, as the docs' ``{result}`` role splits
+a key path on dots) unless ``--case`` names it. Per robot the circle phase's squeeze error,
+the box's position error, its whole rotation, its turn about the grasp line and its tilt
+(``object_turn``, ``object_tilt``: RMS of the signed turn, max of its magnitude; rad), the
+friction use, the largest slip with its creep floor, slips and drops.
 """
 
 from __future__ import annotations
@@ -27,9 +34,11 @@ import numpy as np
 CONTACT_PLANT = ("object_mode", "object_mass", "friction", "time_step", "stand_clearance")
 
 
-def contact_scenario(name: str, control_point: str = "auto"):
+def contact_scenario(name: str, control_point: str = "auto", *, mass: float | None = None,
+                     mu: float | None = None, time_step: float | None = None):
     """``name`` with contact.yaml's plant (unless it is a ``contact`` scenario already) and an
-    estimated object model (unless it has one)."""
+    estimated object model (unless it has one); ``mass``, ``mu``, ``time_step`` (when given)
+    replace the plant's box mass, friction and step."""
     from drake_coop.scenario import validate
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.resources import scenarios_dir
@@ -43,6 +52,9 @@ def contact_scenario(name: str, control_point: str = "auto"):
     if scenario.object_model.mode == "none":
         scenario.object_model.mode = "estimated"
     scenario.object_model.control_point = control_point
+    for field, value in (("object_mass", mass), ("friction", mu), ("time_step", time_step)):
+        if value is not None:
+            setattr(scenario.plant, field, float(value))
     validate(scenario)
     return scenario
 
@@ -62,10 +74,14 @@ def measure(scenario) -> dict:
     for robot, log in result.logs.items():
         circle = metrics[robot]["circle"]
         entry = {"squeeze_error_rms_N": circle["force_error"]["rms"]}
-        for key in ("object_position_error", "object_angle_error", "friction_use"):
+        for key in ("object_position_error", "object_angle_error", "object_turn",
+                    "object_tilt", "friction_use"):
             if key in circle:
                 entry[f"{key}_rms"] = circle[key]["rms"]
                 entry[f"{key}_max"] = circle[key]["max"]
+        if "slip" in circle:
+            entry["slip_max"] = circle["slip"]["max"]
+            entry["slip_floor"] = circle["slip"].get("floor")
         entry["slips"] = circle.get("slips", {}).get("count")
         entry["drops"] = circle.get("drops", {}).get("count")
         out["robots"][robot] = entry
@@ -77,7 +93,16 @@ def measure(scenario) -> dict:
         out["mass_at_lift_end_kg"] = float(np.sum(shares))
         out["mass_error_at_lift_end"] = float(np.sum(shares) / mass - 1.0)
     out["object_mass_kg"] = mass
+    out["friction"] = float(scenario.plant.friction)
+    out["time_step_s"] = float(scenario.plant.time_step)
     return out
+
+
+def case_name(name: str, mass: float | None, mu: float | None, time_step: float | None) -> str:
+    """The case's key: ``name``, with the changed box and step when any is given."""
+    parts = [f"{tag}{value:g}".replace(".", "p") for tag, value in
+             (("m", mass), ("mu", mu), ("dt", time_step)) if value is not None]
+    return name if not parts else f"{name}@{'_'.join(parts)}"
 
 
 def _cpu_name() -> str:
@@ -96,12 +121,19 @@ def main(argv=None) -> int:
     parser.add_argument("names", nargs="+")
     parser.add_argument("--out", required=True)
     parser.add_argument("--control-point", default="auto")
+    parser.add_argument("--mass", type=float, help="the box's mass (kg)")
+    parser.add_argument("--mu", type=float, help="the pad-box friction coefficient")
+    parser.add_argument("--time-step", type=float, help="the plant step (s)")
+    parser.add_argument("--case", help="the case's key in the file (one name only)")
     args = parser.parse_args(argv)
+    if args.case is not None and len(args.names) != 1:
+        parser.error("--case: names one case; give one scenario name with it")
     out = Path(args.out)
     from importlib.metadata import version
 
     for name in args.names:
-        scenario = contact_scenario(name, args.control_point)
+        scenario = contact_scenario(name, args.control_point, mass=args.mass, mu=args.mu,
+                                    time_step=args.time_step)
         case = measure(scenario)
         case["control_point"] = args.control_point
         case["command"] = ("python -m bench.lab_arms_object " + " ".join(sys.argv[1:])
@@ -110,7 +142,7 @@ def main(argv=None) -> int:
         case["cpu"] = _cpu_name()
         # Read again just before writing: another call may have added its cases meanwhile.
         data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
-        data["cases"][name] = case
+        data["cases"][args.case or case_name(name, args.mass, args.mu, args.time_step)] = case
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = out.with_suffix(".tmp")
         tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
