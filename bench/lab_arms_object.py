@@ -92,9 +92,54 @@ def measure(scenario) -> dict:
     if shares:
         out["mass_at_lift_end_kg"] = float(np.sum(shares))
         out["mass_error_at_lift_end"] = float(np.sum(shares) / mass - 1.0)
+    sources = turn_sources(result.logs, result.meta)
+    if sources is not None:
+        out["turn_sources"] = sources
     out["object_mass_kg"] = mass
     out["friction"] = float(scenario.plant.friction)
     out["time_step_s"] = float(scenario.plant.time_step)
+    return out
+
+
+def turn_sources(logs: dict, meta: dict) -> dict | None:
+    """What the box's turn about the grasp line follows over the circle, among what the
+    controllers can compute from their encoders: each pad's own twist about the same line
+    since the grasp (the pad body's rotation, forward kinematics of the logged ``q``), and the
+    least-squares fit ``turn ≈ k · mean twist`` (slope ``k``, the correlation ``r`` and the
+    RMS of what the fit leaves). None without the object's signals."""
+    from drake_coop.kinematics.rotations import quaternion_rotations
+    from drake_coop.results.object_metrics import grasp_axis, object_signals, turn_and_tilt
+    from pydrake.math import RotationMatrix
+
+    signals = object_signals(logs, meta)
+    robots = list(logs)
+    if not signals or any("pad_rotation" not in logs[r] for r in robots):
+        return None
+    t = np.asarray(logs[robots[0]]["t"])
+    span = {str(name): (a, b) for name, a, b in meta["phases"]}
+    if "circle" not in span:
+        return None
+    k0 = int(np.searchsorted(t, float(span["lift"][0]) - 1e-9))
+    circle = (t >= span["circle"][0]) & (t < span["circle"][1])
+    pose = np.asarray(logs[robots[0]]["object_pose"])
+    a_B = grasp_axis([np.asarray(logs[r]["pad_in_object"])[k0] for r in robots],
+                     0.5 * float(meta["object_size"][0]))
+    a_W = quaternion_rotations(pose[k0:k0 + 1, :4])[0] @ a_B
+    turn = signals[robots[0]]["object_turn"]
+    twists = {}
+    for r in robots:
+        R = np.asarray(logs[r]["pad_rotation"])
+        quats = np.array([RotationMatrix(Rk).ToQuaternion().wxyz() for Rk in R])
+        twists[r], _ = turn_and_tilt(quats, k0, R[k0].T @ a_W)
+    mean = np.mean([twists[r] for r in robots], axis=0)
+    x, y = mean[circle], turn[circle]
+    k = float(x @ y / (x @ x)) if x @ x > 0 else 0.0
+    out = {"pad_twist_rms": {r: float(np.sqrt(np.mean(twists[r][circle] ** 2)))
+                             for r in robots},
+           "pad_twist_max": {r: float(np.max(np.abs(twists[r][circle]))) for r in robots},
+           "fit_slope": k,
+           "fit_residual_rms": float(np.sqrt(np.mean((y - k * x) ** 2))),
+           "correlation": float(np.corrcoef(x, y)[0, 1]) if np.std(x) > 0 else None}
     return out
 
 
