@@ -11,8 +11,9 @@ A name is a shipped scenario (or a YAML file); ``contact`` is the paper's arms. 
 written as soon as it ends, with its command, the drake version and the CPU (the file keeps
 the cases of other calls). ``--mass`` (kg), ``--mu`` and ``--time-step`` (s) change the
 plant's box mass, pad–box friction and plant step (the controllers' assumed μ follows the
-plant's unless the scenario sets ``object_model.mu``); such a case is stored under
-``NAME@m<mass>_mu<mu>[_dt<step>]`` (``.`` written ``p``, as the docs' ``{result}`` role splits
+plant's unless the scenario sets ``object_model.mu``), ``--squeeze`` the object model's
+squeeze source (``profile``, the task's (29), or ``friction``); such a case is stored under
+``NAME@m<mass>_mu<mu>[_dt<step>][_sq<squeeze>]`` (``.`` written ``p``, as the docs' ``{result}`` role splits
 a key path on dots) unless ``--case`` names it. Per robot the circle phase's squeeze error,
 the box's position error, its whole rotation, its turn about the grasp line and its tilt
 (``object_turn``, ``object_tilt``: RMS of the signed turn, max of its magnitude; rad), the
@@ -35,10 +36,12 @@ CONTACT_PLANT = ("object_mode", "object_mass", "friction", "time_step", "stand_c
 
 
 def contact_scenario(name: str, control_point: str = "auto", *, mass: float | None = None,
-                     mu: float | None = None, time_step: float | None = None):
+                     mu: float | None = None, time_step: float | None = None,
+                     squeeze: str | None = None):
     """``name`` with contact.yaml's plant (unless it is a ``contact`` scenario already) and an
     estimated object model (unless it has one); ``mass``, ``mu``, ``time_step`` (when given)
-    replace the plant's box mass, friction and step."""
+    replace the plant's box mass, friction and step, ``squeeze`` the object model's squeeze
+    source (``profile`` or ``friction``)."""
     from drake_coop.scenario import validate
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.resources import scenarios_dir
@@ -55,6 +58,8 @@ def contact_scenario(name: str, control_point: str = "auto", *, mass: float | No
     for field, value in (("object_mass", mass), ("friction", mu), ("time_step", time_step)):
         if value is not None:
             setattr(scenario.plant, field, float(value))
+    if squeeze is not None:
+        scenario.object_model.squeeze = squeeze
     validate(scenario)
     return scenario
 
@@ -98,6 +103,7 @@ def measure(scenario) -> dict:
     out["object_mass_kg"] = mass
     out["friction"] = float(scenario.plant.friction)
     out["time_step_s"] = float(scenario.plant.time_step)
+    out["squeeze"] = scenario.object_model.squeeze
     return out
 
 
@@ -143,10 +149,12 @@ def turn_sources(logs: dict, meta: dict) -> dict | None:
     return out
 
 
-def case_name(name: str, mass: float | None, mu: float | None, time_step: float | None) -> str:
-    """The case's key: ``name``, with the changed box and step when any is given."""
+def case_name(name: str, mass: float | None, mu: float | None, time_step: float | None,
+              squeeze: str | None = None) -> str:
+    """The case's key: ``name``, with the changed box, step and squeeze when any is given."""
     parts = [f"{tag}{value:g}".replace(".", "p") for tag, value in
              (("m", mass), ("mu", mu), ("dt", time_step)) if value is not None]
+    parts += [f"sq{squeeze}"] if squeeze is not None else []
     return name if not parts else f"{name}@{'_'.join(parts)}"
 
 
@@ -169,6 +177,8 @@ def main(argv=None) -> int:
     parser.add_argument("--mass", type=float, help="the box's mass (kg)")
     parser.add_argument("--mu", type=float, help="the pad-box friction coefficient")
     parser.add_argument("--time-step", type=float, help="the plant step (s)")
+    parser.add_argument("--squeeze", choices=("profile", "friction"),
+                        help="the object model's squeeze source")
     parser.add_argument("--case", help="the case's key in the file (one name only)")
     args = parser.parse_args(argv)
     if args.case is not None and len(args.names) != 1:
@@ -178,7 +188,7 @@ def main(argv=None) -> int:
 
     for name in args.names:
         scenario = contact_scenario(name, args.control_point, mass=args.mass, mu=args.mu,
-                                    time_step=args.time_step)
+                                    time_step=args.time_step, squeeze=args.squeeze)
         case = measure(scenario)
         case["control_point"] = args.control_point
         case["command"] = ("python -m bench.lab_arms_object " + " ".join(sys.argv[1:])
@@ -187,7 +197,8 @@ def main(argv=None) -> int:
         case["cpu"] = _cpu_name()
         # Read again just before writing: another call may have added its cases meanwhile.
         data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
-        data["cases"][args.case or case_name(name, args.mass, args.mu, args.time_step)] = case
+        data["cases"][args.case or case_name(name, args.mass, args.mu, args.time_step,
+                                                  args.squeeze)] = case
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = out.with_suffix(".tmp")
         tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
