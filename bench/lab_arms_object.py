@@ -109,10 +109,14 @@ def measure(scenario) -> dict:
 
 def turn_sources(logs: dict, meta: dict) -> dict | None:
     """What the box's turn about the grasp line follows over the circle, among what the
-    controllers can compute from their encoders: each pad's own twist about the same line
-    since the grasp (the pad body's rotation, forward kinematics of the logged ``q``), and the
-    least-squares fit ``turn ≈ k · mean twist`` (slope ``k``, the correlation ``r`` and the
-    RMS of what the fit leaves). None without the object's signals."""
+    controllers can compute from their encoders (the pad body's rotation, forward kinematics
+    of the logged ``q``): each pad's twist about the same line since the grasp (its finite
+    rotation's twist, :func:`~drake_coop.results.object_metrics.turn_and_tilt`) and each pad's
+    **spin** about it, ``∫ ω·a dt`` since the grasp (``ω`` the pad's angular velocity, from
+    one logged rotation to the next; ``a`` the grasp line, fixed in the box, in the world at
+    each sample): the rotation a patch that does not slide in torsion gives the box. For each,
+    the least-squares fit ``turn ≈ k · (the two pads' mean)``: slope ``k``, the correlation
+    ``r`` and the RMS of what the fit leaves. None without the object's signals."""
     from drake_coop.kinematics.rotations import quaternion_rotations
     from drake_coop.results.object_metrics import grasp_axis, object_signals, turn_and_tilt
     from pydrake.math import RotationMatrix
@@ -130,23 +134,32 @@ def turn_sources(logs: dict, meta: dict) -> dict | None:
     pose = np.asarray(logs[robots[0]]["object_pose"])
     a_B = grasp_axis([np.asarray(logs[r]["pad_in_object"])[k0] for r in robots],
                      0.5 * float(meta["object_size"][0]))
-    a_W = quaternion_rotations(pose[k0:k0 + 1, :4])[0] @ a_B
+    R_B = quaternion_rotations(pose[:, :4])
+    a_W = np.einsum("kij,j->ki", R_B, a_B)
     turn = signals[robots[0]]["object_turn"]
-    twists = {}
+    twists, spins = {}, {}
     for r in robots:
         R = np.asarray(logs[r]["pad_rotation"])
         quats = np.array([RotationMatrix(Rk).ToQuaternion().wxyz() for Rk in R])
-        twists[r], _ = turn_and_tilt(quats, k0, R[k0].T @ a_W)
-    mean = np.mean([twists[r] for r in robots], axis=0)
-    x, y = mean[circle], turn[circle]
-    k = float(x @ y / (x @ x)) if x @ x > 0 else 0.0
-    out = {"pad_twist_rms": {r: float(np.sqrt(np.mean(twists[r][circle] ** 2)))
-                             for r in robots},
-           "pad_twist_max": {r: float(np.max(np.abs(twists[r][circle]))) for r in robots},
-           "fit_slope": k,
-           "fit_residual_rms": float(np.sqrt(np.mean((y - k * x) ** 2))),
-           "correlation": float(np.corrcoef(x, y)[0, 1]) if np.std(x) > 0 else None}
-    return out
+        twists[r], _ = turn_and_tilt(quats, k0, R[k0].T @ a_W[k0])
+        step = np.zeros(len(R))
+        for k in range(k0 + 1, len(R)):
+            aa = RotationMatrix(R[k - 1].T @ R[k]).ToAngleAxis()   # body frame at k - 1
+            step[k] = aa.angle() * float((R[k - 1] @ aa.axis()) @ a_W[k])
+        spins[r] = np.cumsum(step)
+
+    def fit(signal: dict) -> dict:
+        x, y = np.mean([signal[r] for r in robots], axis=0)[circle], turn[circle]
+        k = float(x @ y / (x @ x)) if x @ x > 0 else 0.0
+        return {"slope": k, "residual_rms": float(np.sqrt(np.mean((y - k * x) ** 2))),
+                "correlation": float(np.corrcoef(x, y)[0, 1]) if np.std(x) > 0 else None}
+
+    return {"pad_twist_rms": {r: float(np.sqrt(np.mean(twists[r][circle] ** 2)))
+                              for r in robots},
+            "pad_twist_max": {r: float(np.max(np.abs(twists[r][circle]))) for r in robots},
+            "pad_spin_rms": {r: float(np.sqrt(np.mean(spins[r][circle] ** 2))) for r in robots},
+            "pad_spin_max": {r: float(np.max(np.abs(spins[r][circle]))) for r in robots},
+            "twist_fit": fit(twists), "spin_fit": fit(spins)}
 
 
 def case_name(name: str, mass: float | None, mu: float | None, time_step: float | None,
