@@ -108,6 +108,7 @@ INPUTS: list[tuple[str, str, str]] = [
     ("guide/object.md", "≤ 0.5 mm", "issue 33's bar for the box's position error, a target"),
     ("guide/object.md", "≤ 0.3°", "issue 33's bar for the box's turn, a target"),
     ("guide/object.md", "1.5 kg", "the heavier box's mass, an input of bench/lab_arms_object.py"),
+    ("guide/object.md", "1–1.5 kg", "issue 33's range of the heavier boxes' masses, a requirement"),
     ("claims/sampling_period.md", "5 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "12 ms", "a swept control period h (the table's header)"),
     ("claims/sampling_period.md", "16 ms", "a swept control period h (the table's header)"),
