@@ -348,6 +348,20 @@ def _validate_two_sided(scenario: Scenario) -> None:
         if not horizontal:
             raise ScenarioError("plant.object_mode contact with 3 or more robots needs one "
                                 "horizontal normal [x, y, 0] per robot (the prism's faces)")
+        # The squeezes lambda w_i along the inward normals must be an internal force (no net
+        # force, no net moment), or the squeeze alone would push the object off its path.
+        w = [float(r.force_weights[0]) for r in robots]
+        n = [[float(v) / math.hypot(*map(float, r.normals[0][:2])) for v in r.normals[0][:2]]
+             for r in robots]
+        fx = sum(wi * ni[0] for wi, ni in zip(w, n))
+        fy = sum(wi * ni[1] for wi, ni in zip(w, n))
+        mz = sum(wi * (float(r.contact_xy[0]) * ni[1] - float(r.contact_xy[1]) * ni[0])
+                 for wi, ni, r in zip(w, n, robots))
+        reach = max(math.hypot(*map(float, r.contact_xy)) for r in robots) or 1.0
+        if max(abs(fx), abs(fy), abs(mz) / reach) > 1e-6 * sum(abs(wi) for wi in w):
+            raise ScenarioError("robots[*].normals, force_weights: with 3 or more robots in "
+                                "plant.object_mode contact the squeezes force_weights[0] N_i "
+                                "must balance (sum of w_i N_i = 0 and no moment about z)")
     elif len(robots) != 2 or sorted(signs) != [-1.0, 1.0] or any(
             list(map(float, r.normals[0][1:])) != [0.0, 0.0] for r in robots):
         raise ScenarioError(f"plant.object_mode {mode} holds one object between exactly 2 "
