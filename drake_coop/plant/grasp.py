@@ -133,7 +133,7 @@ class ContactObject:
     stand : RigidBody or None
         The stand, welded to the world.
     size : ndarray, shape (3,)
-        The box's x, y, z size (m).
+        The box's x, y, z size (m); a prism's bounding box.
     X_WBox0 : RigidTransform
         The box's rest pose on the stand (world = palm frame).
     box_geometry : GeometryId or None

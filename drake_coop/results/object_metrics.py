@@ -28,8 +28,9 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
     the twist about the grasp line ``a`` (the turn, signed: ``2 atan2(v·a, w)``) and the swing
     about an axis normal to it (the tilt, ``2 arccos √(w² + (v·a)²)``). The grasp line is the
     line through the two pads' contact points at the grasp tick (each pad's centre projected
-    on its face: ``pad_in_object`` with its x set to the face's ``±`` half width), fixed in the
-    box; with three or more pads, the normal of the plane through their contact points (the
+    on its face: ``pad_in_object`` with its x set to the face's ``±`` half width, or on its own
+    face of the prism, :func:`pad_faces`), fixed in the box; with three or more pads, the
+    normal of the plane through their contact points (the
     turn is then the box's rotation in that plane). The turn is the "spin" the paper's
     introduction asks the squeeze to prevent: two pads resist it only through the torsional
     friction of their contact patches. Held phases only.
