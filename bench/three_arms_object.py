@@ -4,7 +4,7 @@ Runs ``scenarios/three_arms_contact.yaml`` (three CRS A255 arms 120° apart, a t
 held only by friction at hydroelastic pads, 3 ms plant step) with ``object_model: {mode:
 estimated}`` to the circle's end (+1 s): the shipped object (``shipped``) and ``--draws``
 paired draws of mass (uniform in 0.2–1.5 kg) and friction (uniform in 0.5–1.0) from
-``--seed``; writes, per case, the circle phase's metrics, the lift's and circle's slips and
+``--seed`` (``--time-step``: at another plant step); writes, per case, the circle phase's metrics, the lift's and circle's slips and
 drops, and the mass estimate at the lift's end to a JSON file::
 
     python -m bench.three_arms_object --draws 4 --out docs/results/three_arms_object.json
@@ -35,8 +35,10 @@ def draws(n: int, seed: int) -> list[tuple[float, float]]:
             for _ in range(n)]
 
 
-def measure_case(mass: float | None, mu: float | None, mode: str = "estimated") -> dict:
-    """One run of the three-arm scenario with ``mass`` and ``μ`` (None: the shipped ones)."""
+def measure_case(mass: float | None, mu: float | None, mode: str = "estimated",
+                 time_step: float | None = None) -> dict:
+    """One run of the three-arm scenario with ``mass`` and ``μ`` (None: the shipped ones),
+    at the plant step ``time_step`` (None: the shipped one)."""
     import time
 
     from drake_coop.experiment.simulate import simulate
@@ -49,6 +51,8 @@ def measure_case(mass: float | None, mu: float | None, mode: str = "estimated") 
         scenario.plant.object_mass = mass
     if mu is not None:
         scenario.plant.friction = mu
+    if time_step is not None:
+        scenario.plant.time_step = time_step
     validate(scenario)
     task = scenario.task
     start = time.process_time()
@@ -57,7 +61,8 @@ def measure_case(mass: float | None, mu: float | None, mode: str = "estimated") 
     metrics = compute_metrics(result.logs, result.meta)
     out: dict = {"status": result.meta["status"], "cpu_seconds": round(cpu, 1),
                  "object_mass_kg": float(scenario.plant.object_mass),
-                 "friction": float(scenario.plant.friction), "mode": mode, "robots": {}}
+                 "friction": float(scenario.plant.friction), "mode": mode,
+                 "plant_time_step": float(scenario.plant.time_step), "robots": {}}
     for robot in result.logs:
         circle = metrics[robot]["circle"]
         entry = {"squeeze_error_rms_N": circle["force_error"]["rms"]}
@@ -88,6 +93,8 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=33)
     parser.add_argument("--only", default=None, help="run only this case (shipped, draw1, …)")
     parser.add_argument("--mode", default="estimated", choices=("none", "known", "estimated"))
+    parser.add_argument("--time-step", type=float, default=None,
+                        help="the plant step (s); default the scenario's")
     args = parser.parse_args(argv)
     out = Path(args.out)
     from importlib.metadata import version
@@ -98,12 +105,14 @@ def main(argv=None) -> int:
     for name, mass, mu in cases:
         if args.only is not None and name != args.only:
             continue
-        case = measure_case(mass, mu, args.mode)
+        case = measure_case(mass, mu, args.mode, args.time_step)
         case["command"] = ("python -m bench.three_arms_object " + " ".join(sys.argv[1:])
                            if argv is None else "")
         case["drake"] = version("drake")
         case["cpu"] = _cpu_name()
         key = name if args.mode == "estimated" else f"{name}_{args.mode}"
+        if args.time_step is not None:
+            key += f"_dt{args.time_step * 1e3:g}ms"
         # Read again just before writing: another call may have added its cases meanwhile.
         data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
         data["cases"][key] = case
