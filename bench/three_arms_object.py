@@ -4,7 +4,8 @@ Runs ``scenarios/three_arms_contact.yaml`` (three CRS A255 arms 120° apart, a t
 held only by friction at hydroelastic pads, 3 ms plant step) with ``object_model: {mode:
 estimated}`` to the circle's end (+1 s): the shipped object (``shipped``) and ``--draws``
 paired draws of mass (uniform in 0.2–1.5 kg) and friction (uniform in 0.5–1.0) from
-``--seed`` (``--time-step``: at another plant step); writes, per case, the circle phase's metrics, the lift's and circle's slips and
+``--seed`` (``--time-step``: at another plant step; ``--squeeze``: another ``object_model.squeeze``);
+writes, per case, the circle phase's metrics, the lift's and circle's slips and
 drops, and the mass estimate at the lift's end to a JSON file::
 
     python -m bench.three_arms_object --draws 4 --out docs/results/three_arms_object.json
@@ -36,9 +37,10 @@ def draws(n: int, seed: int) -> list[tuple[float, float]]:
 
 
 def measure_case(mass: float | None, mu: float | None, mode: str = "estimated",
-                 time_step: float | None = None) -> dict:
+                 time_step: float | None = None, squeeze: str | None = None) -> dict:
     """One run of the three-arm scenario with ``mass`` and ``μ`` (None: the shipped ones),
-    at the plant step ``time_step`` (None: the shipped one)."""
+    at the plant step ``time_step`` (None: the shipped one), with ``object_model.squeeze``
+    ``squeeze`` (None: the default, the task's profile (29))."""
     import time
 
     from drake_coop.experiment.simulate import simulate
@@ -53,6 +55,8 @@ def measure_case(mass: float | None, mu: float | None, mode: str = "estimated",
         scenario.plant.friction = mu
     if time_step is not None:
         scenario.plant.time_step = time_step
+    if squeeze is not None:
+        scenario.object_model.squeeze = squeeze
     validate(scenario)
     task = scenario.task
     start = time.process_time()
@@ -62,7 +66,8 @@ def measure_case(mass: float | None, mu: float | None, mode: str = "estimated",
     out: dict = {"status": result.meta["status"], "cpu_seconds": round(cpu, 1),
                  "object_mass_kg": float(scenario.plant.object_mass),
                  "friction": float(scenario.plant.friction), "mode": mode,
-                 "plant_time_step": float(scenario.plant.time_step), "robots": {}}
+                 "plant_time_step": float(scenario.plant.time_step),
+                 "squeeze": scenario.object_model.squeeze, "robots": {}}
     for robot in result.logs:
         circle = metrics[robot]["circle"]
         entry = {"squeeze_error_rms_N": circle["force_error"]["rms"]}
@@ -95,6 +100,8 @@ def main(argv=None) -> int:
     parser.add_argument("--mode", default="estimated", choices=("none", "known", "estimated"))
     parser.add_argument("--time-step", type=float, default=None,
                         help="the plant step (s); default the scenario's")
+    parser.add_argument("--squeeze", default=None, choices=("profile", "friction"),
+                        help="object_model.squeeze; default the scenario's")
     args = parser.parse_args(argv)
     out = Path(args.out)
     from importlib.metadata import version
@@ -105,7 +112,7 @@ def main(argv=None) -> int:
     for name, mass, mu in cases:
         if args.only is not None and name != args.only:
             continue
-        case = measure_case(mass, mu, args.mode, args.time_step)
+        case = measure_case(mass, mu, args.mode, args.time_step, args.squeeze)
         case["command"] = ("python -m bench.three_arms_object " + " ".join(sys.argv[1:])
                            if argv is None else "")
         case["drake"] = version("drake")
@@ -113,6 +120,8 @@ def main(argv=None) -> int:
         key = name if args.mode == "estimated" else f"{name}_{args.mode}"
         if args.time_step is not None:
             key += f"_dt{args.time_step * 1e3:g}ms"
+        if args.squeeze is not None:
+            key += f"_{args.squeeze}"
         # Read again just before writing: another call may have added its cases meanwhile.
         data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
         data["cases"][key] = case
