@@ -76,6 +76,10 @@ def measure_case(mass: float | None, mu: float | None, mode: str = "estimated",
             if key in circle:
                 entry[f"{key}_rms"] = circle[key]["rms"]
                 entry[f"{key}_max"] = circle[key]["max"]
+        lift = metrics[robot]["lift"]
+        for key in ("slip", "friction_use"):
+            if key in lift:
+                entry[f"lift_{key}_max"] = lift[key]["max"]
         entry["slips"] = sum(metrics[robot][p].get("slips", {}).get("count", 0)
                              for p in ("lift", "circle"))
         entry["drops"] = sum(metrics[robot][p].get("drops", {}).get("count", 0)
