@@ -4,9 +4,10 @@ Runs ``scenarios/three_arms_contact.yaml`` (three CRS A255 arms 120° apart, a t
 held only by friction at hydroelastic pads, 3 ms plant step) with ``object_model: {mode:
 estimated}`` to the circle's end (+1 s): the shipped object (``shipped``) and ``--draws``
 paired draws of mass (uniform in 0.2–1.5 kg) and friction (uniform in 0.5–1.0) from
-``--seed`` (``--time-step``: at another plant step; ``--squeeze``: another ``object_model.squeeze``);
-writes, per case, the circle phase's metrics, the lift's and circle's slips and
-drops, and the mass estimate at the lift's end to a JSON file::
+``--seed`` (``--time-step``: at another plant step; ``--squeeze``: another
+``object_model.squeeze``); writes, per case, the circle phase's metrics, the lift's and
+circle's slips and drops, the lift's largest slip and cone use, and the mass estimate at the
+lift's end to a JSON file::
 
     python -m bench.three_arms_object --draws 4 --out docs/results/three_arms_object.json
 
