@@ -293,3 +293,33 @@ def test_three_pads_rolling_is_not_slip_and_a_slide_on_its_face_is_counted():
     assert np.nanmax(sig["robot1"]["slip"]) < 1e-6 and np.nanmax(sig["robot3"]["slip"]) < 1e-6
     events = t[sig["robot2"]["slip_events"]]
     assert events.size == 2 and (events > 5.0).all() and (events <= 6.0).all()
+
+
+# ------------------------------------------------------------------------- the run's plan
+
+
+def test_the_plan_of_three_arms_splits_the_mass_in_thirds_without_the_couple():
+    from drake_coop.experiment.plan import plan_run
+
+    s = _three_arms()
+    s.object_model.mode, s.object_model.squeeze = "estimated", "friction"
+    validate(s)
+    plan = plan_run(s)
+    assert not plan.uses_couple                       # a two-arm term
+    np.testing.assert_allclose(plan.object.shares, [plan.object.mass / 3] * 3, rtol=1e-12)
+    # The friction squeeze in the lift: the least that holds a third of m (a − g) in each
+    # cone (its part across pad i's normal N_i against μ λ, its part along N_i adding to or
+    # taking from λ), times the margin; a from the desired path.
+    from drake_coop.scenario.task_path import cartesian_reference
+
+    m, mu = plan.object.mass, plan.object.mu
+    for t in (s.task.t_grasp + 2.0, s.task.t_grasp + 5.0):
+        a = cartesian_reference(s.task, s.robots[0], np.array([t]))[2][0]
+        f = m * (a - GRAVITY) / 3
+        need = []
+        for r in s.robots:
+            n = -np.asarray(r.normals[0], dtype=float)      # inward
+            need.append(np.linalg.norm(f - (f @ n) * n) / mu - f @ n)
+        hand = max(s.object_model.squeeze_min, s.object_model.margin * max(need))
+        assert plan.squeeze(np.array([t]))[0] == pytest.approx(hand, rel=1e-9)
+    assert [r.pad_point_control for r in plan.robots] == ["contact"] * 3
