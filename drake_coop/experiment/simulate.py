@@ -265,7 +265,9 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
         logs[rs.name].update({k: v for k, v in optional.items() if v is not None})
         if "object_state" in data:              # contact mode: the box and this pad
             pose = data["object_state"][:, :7].copy()
-            f_n, f_t, p_B = pad_contact_components(data["F_meas"], logs[rs.name]["x"], pose)
+            faces = exp.coop.grasp.face_normals
+            f_n, f_t, p_B = pad_contact_components(data["F_meas"], logs[rs.name]["x"], pose,
+                                                   None if faces is None else faces[i])
             logs[rs.name].update({"object_pose": pose, "pad_normal_force": f_n,
                                   "pad_tangential_force": f_t, "pad_in_object": p_B,
                                   "pad_rotation": _pad_rotations(exp, i, data["q"])})
@@ -398,6 +400,10 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         "object_mass": scenario.plant.object_mass,
         **({"object_size": [float(v) for v in exp.coop.grasp.size]}
            if exp.coop.grasp is not None else {}),
+        # l >= 3 pads (the prism): each pad's face, [n_x, n_y, n_z, offset] in the object's frame
+        **({"object_faces": [[*map(float, n), float(d)] for n, d in zip(
+            exp.coop.grasp.face_normals, exp.coop.grasp.face_offsets)]}
+           if exp.coop.grasp is not None and exp.coop.grasp.face_normals is not None else {}),
         "t_end": t_stop,
         "wall_time_s": wall,
         "realtime_factor": t_stop / wall if wall > 0 else None,

@@ -26,12 +26,15 @@ def quaternion_rotations(quaternions: np.ndarray) -> np.ndarray:
     ], axis=1)
 
 
-def pad_contact_components(F: np.ndarray, p_pad: np.ndarray, pose: np.ndarray
+def pad_contact_components(F: np.ndarray, p_pad: np.ndarray, pose: np.ndarray,
+                           face_normal: np.ndarray | None = None
                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Normal and tangential parts of a pad's contact force, per sample.
 
     The pad touches one of the box's x faces (the one on its side of the box's centre); its
-    outward normal is ``n = ± R_WB e_x``. With ``F`` the box's force on the pad,
+    outward normal is ``n = ± R_WB e_x``; on another object (the prism of three or more
+    arms) the face of ``face_normal`` (its outward unit normal in the object's frame):
+    ``n = R_WB face_normal``. With ``F`` the box's force on the pad,
     ``f_n = n · F`` (positive when the box pushes the pad away: a compressive contact) and
     ``f_t = ‖F − f_n n‖``.
 
@@ -43,6 +46,8 @@ def pad_contact_components(F: np.ndarray, p_pad: np.ndarray, pose: np.ndarray
         The pad's centre (the end-effector point, m).
     pose : ndarray, shape (K, 7)
         The box's ``[w, x, y, z]`` quaternion and position (the plant's free-body positions).
+    face_normal : ndarray, shape (3,), optional
+        The pad's face's outward normal in the object's frame (default: the box's ``±x``).
 
     Returns
     -------
@@ -52,8 +57,11 @@ def pad_contact_components(F: np.ndarray, p_pad: np.ndarray, pose: np.ndarray
     """
     R = quaternion_rotations(pose[:, :4])
     p_B = np.einsum("kji,kj->ki", R, np.asarray(p_pad, dtype=float) - pose[:, 4:7])
-    side = np.where(p_B[:, 0] >= 0.0, 1.0, -1.0)
-    n = R[:, :, 0] * side[:, None]
+    if face_normal is None:
+        side = np.where(p_B[:, 0] >= 0.0, 1.0, -1.0)
+        n = R[:, :, 0] * side[:, None]
+    else:
+        n = R @ np.asarray(face_normal, dtype=float)
     F = np.asarray(F, dtype=float)
     f_n = np.einsum("ki,ki->k", n, F)
     f_t = np.linalg.norm(F - f_n[:, None] * n, axis=1)

@@ -1,18 +1,40 @@
-"""The ``contact`` object mode: a real box on a stand, held only by friction at the two pads.
+"""The ``contact`` object mode: a real object on a stand, held only by friction at the pads.
 
 Model
 -----
-Box
+The object has one flat face per pad, its outward normal the arm's constraint normal ``N_i``:
+with two arms (normals ``∓x``) the box below; with ``l ≥ 3`` arms (horizontal normals that
+surround the object) the right prism below, whose ``l`` side faces are where the pads'
+surfaces are. A curved object (a cylinder) is not offered: a pad on a curved face touches it
+along a line that moves as the object turns, so no face frame exists for the slip and the
+normal/tangential split, and the contact patch is no longer a sphere on a plane.
+
+Box (two arms)
     A free body (model instance ``object``, body ``box``) of mass ``scenario.plant.object_mass``
     (default 0.5 kg), a solid cuboid of size ``(b_2 − b_1 − 2 r_pad) × 0.08 × 0.10`` m. The
     end-effector point E_i is the centre of the spherical pad, so the box's x faces lie where the
     pads' surfaces are when E_i is on its plane ``x = b_i``: at ``b_1 + r_pad`` and
     ``b_2 − r_pad``. At rest its centre is at ``(½(b_1 + b_2), 0, z_grasp)``, ``z_grasp =
     circle_top_z − lift_height`` (0.535 m): the grasp points are the centres of its x faces.
+Prism (``l ≥ 3`` arms)
+    A free body (model instance ``object``, body ``box``: the name is the object's, whatever
+    its shape) of mass ``scenario.plant.object_mass``: a right prism 0.10 m high whose
+    cross-section is the polygon ``{p : N_i · (p − c) ≤ d_i}``, ``c`` the mean of the robots'
+    contact points, ``d_i = N_i · (p_i − c) − r_pad`` (face ``i`` lies where pad ``i``'s surface
+    is when E_i is on its plane); an equilateral triangle for three arms 120° apart. Each face
+    is a rectangle, so the pad-on-face physics of the box (a sphere on a plane, its pressure
+    patch, its torsional friction) and the slip on the pad's own face carry over unchanged,
+    and ``l`` equal squeezes ``N_i`` 120° apart sum to zero. Drake's :class:`Convex` from the
+    prism's vertices, rigid-hydroelastic; its spatial inertia Drake's
+    :func:`CalcSpatialInertia` of that shape at the uniform density. Rest pose: frame at
+    ``(c, z_grasp)``, identity rotation. The normals must surround the object (every angular
+    gap between consecutive normals below 180°), every face must be an edge of the polygon, and
+    each pad's contact point must lie on its face at least a pad radius from its ends.
 Stand
     A body (``stand``) welded to the world, a box under the object: half the object's width in x
     (so it never reaches the pads, which touch the object 5 cm above its bottom face), the
-    object's depth in y, from the floor (z = 0) to the object's bottom face, on a locked
+    object's depth in y (for a prism: a square of side the polygon's smallest face distance
+    ``min d_i``, inside its inscribed circle), from the floor (z = 0) to the object's bottom face, on a locked
     vertical slide (model instance ``stand``). The circle (28) passes through the grasp pose
     at its lowest point (43–46 s), so a box carried along it comes back onto its stand there.
     With ``scenario.plant.stand_clearance`` = d > 0 the run lowers the stand by d while the
@@ -111,13 +133,19 @@ class ContactObject:
     stand : RigidBody or None
         The stand, welded to the world.
     size : ndarray, shape (3,)
-        The box's x, y, z size (m).
+        The box's x, y, z size (m); a prism's bounding box.
     X_WBox0 : RigidTransform
         The box's rest pose on the stand (world = palm frame).
     box_geometry : GeometryId or None
         The box's collision geometry.
     pad_geometries : list[GeometryId]
         The pads' collision geometries, one per arm, in the scenario's robot order.
+    face_normals : ndarray, shape (l, 3) or None
+        The outward unit normal, in the object's frame, of the face each pad touches (robot
+        order); None for the two-arm box, whose pads touch its ``±x`` faces (the pad's side).
+    face_offsets : ndarray, shape (l,) or None
+        Each face's distance from the object's frame origin along its normal (m); None for
+        the box (``size[0] / 2``).
     """
 
     box: RigidBody
@@ -126,6 +154,8 @@ class ContactObject:
     X_WBox0: RigidTransform
     box_geometry: GeometryId | None = None
     pad_geometries: list[GeometryId] = field(default_factory=list)
+    face_normals: np.ndarray | None = None
+    face_offsets: np.ndarray | None = None
     stand_slide: PrismaticJoint | None = None
     stand_drop: float = 0.0
     _pad_index: dict = field(init=False, repr=False, compare=False, default_factory=dict)
@@ -297,9 +327,90 @@ def pad_radius(scene_graph: SceneGraph, pad: GeometryId) -> float:
     return float(shape.radius())
 
 
+@dataclass(frozen=True)
+class PrismSection:
+    """The cross-section of the ``l ≥ 3`` pads' prism (horizontal, in the object's frame).
+
+    Attributes
+    ----------
+    normals : ndarray, shape (l, 3)
+        Each face's outward unit normal (robot order), horizontal.
+    offsets : ndarray, shape (l,)
+        Each face's distance from the origin (m): face ``i`` is ``normals[i] · p = offsets[i]``.
+    vertices : ndarray, shape (l, 2)
+        The polygon's corners, counter-clockwise.
+    """
+
+    normals: np.ndarray
+    offsets: np.ndarray
+    vertices: np.ndarray
+
+
+def prism_section(points: np.ndarray, normals: np.ndarray, r_pad: float) -> PrismSection:
+    """The polygon whose side ``i`` lies a pad radius inside contact point ``i`` along the
+    outward normal ``i`` (both horizontal, robot order), about the points' mean.
+
+    Parameters
+    ----------
+    points : ndarray, shape (l, 2)
+        The robots' contact points (``contact_xy``), l ≥ 3.
+    normals : ndarray, shape (l, 2)
+        Their outward normals ``N_i`` (x, y; normalized here).
+    r_pad : float
+        The pads' radius (m).
+
+    Raises
+    ------
+    ValueError
+        The normals leave a gap of 180° or more (the faces do not enclose an object), a face is
+        not a side of the polygon, or a pad's contact point is within a pad radius of its
+        side's ends (or off it).
+    """
+    points = np.asarray(points, dtype=float)
+    n = np.asarray(normals, dtype=float)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    rel = points - points.mean(axis=0)
+    offsets = np.einsum("ij,ij->i", n, rel) - r_pad
+    angle = np.arctan2(n[:, 1], n[:, 0])
+    order = np.argsort(angle)
+    gaps = np.diff(np.concatenate([angle[order], [angle[order[0]] + 2 * np.pi]]))
+    if np.any(gaps >= np.pi - 1e-9) or np.any(gaps <= 1e-9):
+        raise ValueError("contact mode: the robots' normals must surround the object (every "
+                         "angle between neighbouring normals in (0°, 180°)) for a prism")
+    corners = []
+    for a, b in zip(order, np.roll(order, -1)):
+        corners.append(np.linalg.solve(np.array([n[a], n[b]]), [offsets[a], offsets[b]]))
+    vertices = np.array(corners)
+    if np.any(vertices @ n.T > offsets + 1e-9):
+        raise ValueError("contact mode: every robot's face must be a side of the prism (a "
+                         "face lies outside the others': move its contact point inwards)")
+    for k, i in enumerate(order):
+        v0, v1 = vertices[k - 1], vertices[k]        # the side between its two neighbours
+        touch = rel[i] - r_pad * n[i]
+        d = v1 - v0
+        s = float((touch - v0) @ d) / float(d @ d)
+        length = float(np.linalg.norm(d))
+        if not (r_pad / length < s < 1.0 - r_pad / length):
+            raise ValueError(f"contact mode: robot {int(i) + 1}'s contact point must lie on "
+                             f"its face at least a pad radius ({r_pad} m) from its ends")
+    return PrismSection(normals=np.column_stack([n, np.zeros(len(n))]), offsets=offsets,
+                        vertices=vertices)
+
+
+def _prism_shape(section: PrismSection, height: float):
+    """Drake's :class:`Convex` of the prism of ``section`` and ``height``, centred on z."""
+    from pydrake.geometry import Convex
+
+    v = section.vertices
+    top = np.column_stack([v, np.full(len(v), height / 2)])
+    bottom = np.column_stack([v, np.full(len(v), -height / 2)])
+    return Convex(np.vstack([bottom, top]).T, "prism")
+
+
 def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
                        scenario: Scenario) -> ContactObject:
-    """Add the box (model instance ``object``), its stand and the floor to a plant.
+    """Add the object (model instance ``object``: the box of two arms, the prism of three or
+    more), its stand and the floor to a plant.
 
     Call after the arms are added (their pads' collisions with the stand and floor are
     filtered) and before ``plant.Finalize()``.
@@ -318,6 +429,8 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
     -------
     ContactObject
     """
+    if len(scenario.robots) >= 3:
+        return _add_prism(plant, scene_graph, scenario)
     r1, r2 = scenario.robots
     pads = _pad_geometries(plant, scenario)
     r_pad = pad_radius(scene_graph, pads[0])
@@ -343,12 +456,28 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
     stand_shape = Box(STAND_WIDTH_FRACTION * width, BOX_DEPTH, stand_top)
     # The stand in a model instance of its own, on a locked vertical slide (the box's state
     # stays the "object" instance's alone); lowered by stand_clearance during the circle.
+    stand, stand_slide = _add_stand_and_floor(plant, scene_graph, scenario, pads, center,
+                                              stand_shape, mu)
+    return ContactObject(box=box, stand=stand, size=size, X_WBox0=RigidTransform(center),
+                         box_geometry=box_geometry, pad_geometries=pads,
+                         stand_slide=stand_slide,
+                         stand_drop=float(scenario.plant.stand_clearance))
+
+
+def _add_stand_and_floor(plant: MultibodyPlant, scene_graph: SceneGraph, scenario: Scenario,
+                         pads: list[GeometryId], center: np.ndarray, stand_shape: Box,
+                         mu: float) -> tuple[RigidBody, PrismaticJoint]:
+    """The stand (``stand_shape`` under ``center``, on its locked slide), the floor, the pads'
+    material and the collision filters (see the module)."""
+    stand_top = center[2] - BOX_HEIGHT / 2
+    # The stand in a model instance of its own, on a locked vertical slide (the box's state
+    # stays the "object" instance's alone); lowered by stand_clearance during the circle.
     stand = plant.AddRigidBody("stand", plant.AddModelInstance("stand"),
                                SpatialInertia(1.0, np.zeros(3), UnitInertia.SolidBox(
-                                   STAND_WIDTH_FRACTION * width, BOX_DEPTH, stand_top)))
+                                   stand_shape.width(), stand_shape.depth(), stand_top)))
     anchor = plant.AddFrame(FixedOffsetFrame(
         "stand_anchor", plant.world_frame(),
-        RigidTransform(np.array([center[0], 0.0, stand_top / 2]))))
+        RigidTransform(np.array([center[0], center[1], stand_top / 2]))))
     stand_slide = plant.AddJoint(PrismaticJoint("stand_slide", anchor, stand.body_frame(),
                                                 [0.0, 0.0, 1.0]))
     stand_geometry = plant.RegisterCollisionGeometry(
@@ -358,7 +487,7 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
                                  _STAND_COLOR)
 
     floor = Box(1.0, 1.0, 0.02)
-    X_WF = RigidTransform(np.array([center[0], 0.0, -0.01]))
+    X_WF = RigidTransform(np.array([center[0], center[1], -0.01]))
     floor_geometry = plant.RegisterCollisionGeometry(
         plant.world_body(), X_WF, floor, "floor_collision",
         _props(mu, compliant_modulus=STAND_MODULUS))
@@ -371,10 +500,44 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
                   .ExcludeWithin(statics)
                   .ExcludeBetween(GeometrySet(pads), statics)
                   .ExcludeWithin(GeometrySet(pads)))
+    return stand, stand_slide
+
+
+def _add_prism(plant: MultibodyPlant, scene_graph: SceneGraph,
+               scenario: Scenario) -> ContactObject:
+    """:func:`add_contact_object` for ``l ≥ 3`` robots: the prism of :func:`prism_section`."""
+    from pydrake.multibody.tree import CalcSpatialInertia
+
+    pads = _pad_geometries(plant, scenario)
+    r_pad = pad_radius(scene_graph, pads[0])
+    points = np.array([r.contact_xy for r in scenario.robots], dtype=float)
+    normals = np.array([r.normals[0][:2] for r in scenario.robots], dtype=float)
+    section = prism_section(points, normals, r_pad)
+    shape = _prism_shape(section, BOX_HEIGHT)
+    lo, hi = section.vertices.min(axis=0), section.vertices.max(axis=0)
+    size = np.array([hi[0] - lo[0], hi[1] - lo[1], BOX_HEIGHT])
+    z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
+    center = np.array([*points.mean(axis=0), z_grasp])
+    mu = scenario.plant.friction
+
+    instance = plant.AddModelInstance("object")
+    m = scenario.plant.object_mass
+    area = 0.5 * abs(float(np.sum(section.vertices[:, 0] * np.roll(section.vertices[:, 1], -1)
+                                  - np.roll(section.vertices[:, 0], -1)
+                                  * section.vertices[:, 1])))
+    box = plant.AddRigidBody("box", instance,
+                             CalcSpatialInertia(shape, m / (area * BOX_HEIGHT)))
+    box_geometry = plant.RegisterCollisionGeometry(box, RigidTransform(), shape,
+                                                   "box_collision", _props(mu))
+    plant.RegisterVisualGeometry(box, RigidTransform(), shape, "box_visual", _BOX_COLOR)
+    side = STAND_WIDTH_FRACTION * 2.0 * float(section.offsets.min())
+    stand, stand_slide = _add_stand_and_floor(plant, scene_graph, scenario, pads, center,
+                                              Box(side, side, center[2] - BOX_HEIGHT / 2), mu)
     return ContactObject(box=box, stand=stand, size=size, X_WBox0=RigidTransform(center),
                          box_geometry=box_geometry, pad_geometries=pads,
                          stand_slide=stand_slide,
-                         stand_drop=float(scenario.plant.stand_clearance))
+                         stand_drop=float(scenario.plant.stand_clearance),
+                         face_normals=section.normals, face_offsets=section.offsets)
 
 
 class PadForces(LeafSystem):

@@ -28,13 +28,16 @@ pad_contact_components`), ``pad_in_object`` (the pad's centre in the box's frame
     the twist about the grasp line ``a`` (the turn, signed: ``2 atan2(v·a, w)``) and the swing
     about an axis normal to it (the tilt, ``2 arccos √(w² + (v·a)²)``). The grasp line is the
     line through the two pads' contact points at the grasp tick (each pad's centre projected
-    on its face: ``pad_in_object`` with its x set to the face's ``±`` half width), fixed in the
-    box; with three or more pads, the normal of the plane through their contact points (the
+    on its face: ``pad_in_object`` with its x set to the face's ``±`` half width, or on its own
+    face of the prism, :func:`pad_faces`), fixed in the box; with three or more pads, the
+    normal of the plane through their contact points (the
     turn is then the box's rotation in that plane). The turn is the "spin" the paper's
     introduction asks the squeeze to prevent: two pads resist it only through the torsional
     friction of their contact patches. Held phases only.
 ``slip`` (m)
-    The pad's sliding on the box's face since the grasp, net of rolling: at each step the
+    The pad's sliding on its own face of the object since the grasp (the box's ``±x`` face on
+    its side; with three or more pads the prism's face in the run's ``object_faces``), net of
+    rolling: at each step the
     pad's material point at the contact (``−d n`` from the pad's centre, ``d`` the centre's
     distance to the face) moves with the pad's body and the box's point under it with the
     box; their tangential difference (box frame) is summed. Rolling (the pad is a sphere on
@@ -71,7 +74,7 @@ from drake_coop.kinematics.rotations import quaternion_rotations
 
 __all__ = ["CONTACT_FORCE", "DROP_DISTANCE", "EVENT_METRICS", "HELD_PHASES", "MASS_TOLERANCE", "REST_HEIGHT",
            "SETTLE_TIME",
-           "CREEP_RATE", "SLIP_DISTANCE", "creep_floor", "grasp_axis", "object_metrics",
+           "CREEP_RATE", "pad_faces", "SLIP_DISTANCE", "creep_floor", "grasp_axis", "object_metrics",
            "object_signals", "slip_between", "turn_and_tilt"]
 
 #: A pad presses on the box when its normal force is at least this (N).
@@ -164,11 +167,34 @@ def turn_and_tilt(quaternions: np.ndarray, k0: int, axis: np.ndarray
     return turn, tilt
 
 
-def grasp_axis(pads_in_object: list[np.ndarray], half_width: float) -> np.ndarray:
+def pad_faces(meta: dict, robots: list[str]) -> list[tuple[np.ndarray, float] | None]:
+    """Each robot's face ``(outward normal in the object's frame, offset)`` from the run's
+    ``object_faces`` (the prism of three or more pads), or None per robot for the two-pad box
+    (its ``±x`` face on the pad's side, at ``object_size[0] / 2``)."""
+    faces = meta.get("object_faces")
+    if faces is None:
+        return [None] * len(robots)
+    return [(np.asarray(f[:3], dtype=float), float(f[3])) for f in faces]
+
+
+def _on_face(c: np.ndarray, face: tuple[np.ndarray, float] | None, half_width: float
+             ) -> np.ndarray:
+    """A pad's centre ``c`` (object frame) projected on its face: the contact point."""
+    if face is None:
+        return np.array([np.copysign(half_width, c[0]), c[1], c[2]])
+    n, d = face
+    return c - (float(n @ c) - d) * n
+
+
+def grasp_axis(pads_in_object: list[np.ndarray], half_width: float,
+               faces: list[tuple[np.ndarray, float] | None] | None = None) -> np.ndarray:
     """The grasp line's unit direction in the box's frame from the pads' centres in it (each
-    projected on its ``±x`` face: the contact point): through the two contact points, or with
-    three or more the normal of the plane through them (the smallest singular vector)."""
-    points = np.array([[np.copysign(half_width, c[0]), c[1], c[2]] for c in pads_in_object])
+    projected on its face: the ``±x`` face of the box, or the pad's own face ``faces[i]``,
+    :func:`pad_faces`: the contact point): through the two contact points, or with three or
+    more the normal of the plane through them (the smallest singular vector)."""
+    faces = [None] * len(pads_in_object) if faces is None else faces
+    points = np.array([_on_face(np.asarray(c, dtype=float), f, half_width)
+                       for c, f in zip(pads_in_object, faces)])
     if len(points) == 2:
         d = points[1] - points[0]
         return d / np.linalg.norm(d)
@@ -247,7 +273,8 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
         angle_error[~held] = np.nan
         if all("pad_in_object" in logs[r] for r in robots):
             axis = grasp_axis([np.asarray(logs[r]["pad_in_object"], dtype=float)[k0]
-                               for r in robots], 0.5 * float(meta["object_size"][0]))
+                               for r in robots], 0.5 * float(meta["object_size"][0]),
+                              pad_faces(meta, robots))
             turn, tilt = turn_and_tilt(pose[:, :4], k0, axis)
             turn[~held] = np.nan
             tilt[~held] = np.nan
@@ -259,14 +286,14 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
         resting = np.abs(pose[:, 6] - pose[k0, 6]) <= REST_HEIGHT
     lost = established & ((~pressing & ~resting) | (position_error > DROP_DISTANCE))
     drop_events = np.flatnonzero(lost & ~np.concatenate([[False], lost[:-1]]))
-    for r in robots:
+    for r, face in zip(robots, pad_faces(meta, robots)):
         log = logs[r]
         f_n = normals[r]
         f_t = np.asarray(log["pad_tangential_force"], dtype=float)
         with np.errstate(invalid="ignore", divide="ignore"):
             use = np.where(f_n >= CONTACT_FORCE, f_t / (mu * f_n), np.nan)
         slip, slip_events = _slip(log, R_B, pose, established,
-                                  0.5 * float(meta["object_size"][0]))
+                                  0.5 * float(meta["object_size"][0]), face)
         out[r] = {"friction_use": use, "object_position_error": position_error,
                   "object_angle_error": angle_error, "object_turn": turn,
                   "object_tilt": tilt, "slip": slip,
@@ -295,9 +322,12 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
 
 
 def _slip(log: dict[str, np.ndarray], R_B: np.ndarray, pose: np.ndarray,
-          established: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
+          established: np.ndarray, half_width: float,
+          face: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The pad's summed sliding on the box's face (m, NaN outside the established grasp) and
-    the samples where a :data:`SLIP_DISTANCE` slide is counted (see the module)."""
+    the samples where a :data:`SLIP_DISTANCE` slide is counted (see the module). ``face``:
+    the pad's own face (outward normal in the object's frame, offset), :func:`pad_faces`;
+    None for the box's ``±x`` face on the pad's side at ``half_width``."""
     K = R_B.shape[0]
     slip = np.full(K, np.nan)
     if "pad_rotation" not in log or not established.any():
@@ -308,16 +338,27 @@ def _slip(log: dict[str, np.ndarray], R_B: np.ndarray, pose: np.ndarray,
     p = pose[:, 4:7]
     ks = np.flatnonzero(established)
     total, ref = np.zeros(2), np.zeros(2)
+    if face is not None:
+        # Two unit vectors spanning the face (object frame): its tangent plane.
+        n_B, d_B = face
+        u = np.cross([0.0, 0.0, 1.0], n_B)
+        u = u / np.linalg.norm(u) if np.linalg.norm(u) > 1e-9 else np.array([1.0, 0.0, 0.0])
+        T_B = np.array([u, np.cross(n_B, u)])
     events = []
     slip[ks[0]] = 0.0
     for a, b in zip(ks[:-1], ks[1:]):
         if b == a + 1:
-            side = 1.0 if p_B[a, 0] >= 0.0 else -1.0
-            n = side * R_B[a][:, 0]                       # the face's outward normal
-            c = -(abs(p_B[a, 0]) - half_width) * n        # pad centre → contact point
+            if face is None:
+                side = 1.0 if p_B[a, 0] >= 0.0 else -1.0
+                n = side * R_B[a][:, 0]                   # the face's outward normal
+                c = -(abs(p_B[a, 0]) - half_width) * n    # pad centre → contact point
+            else:
+                n = R_B[a] @ n_B
+                c = -(float(n_B @ p_B[a]) - d_B) * n
             pad_point = E[b] + R_P[b] @ (R_P[a].T @ c)    # the pad's material point, moved
             box_point = p[b] + R_B[b] @ (R_B[a].T @ (E[a] + c - p[a]))   # the box's point
-            total = total + (R_B[b].T @ (pad_point - box_point))[1:]     # along the face
+            d = R_B[b].T @ (pad_point - box_point)
+            total = total + (d[1:] if face is None else T_B @ d)          # along the face
             while np.linalg.norm(total - ref) >= SLIP_DISTANCE:
                 ref = ref + SLIP_DISTANCE * (total - ref) / np.linalg.norm(total - ref)
                 events.append(b)
@@ -338,8 +379,8 @@ def slip_between(logs: dict[str, dict[str, np.ndarray]], meta: dict, t0: float, 
     R_B = quaternion_rotations(pose[:, :4])
     half = 0.5 * float(meta["object_size"][0])
     out = {}
-    for r in robots:
-        slip, _ = _slip(logs[r], R_B, pose, window, half)
+    for r, face in zip(robots, pad_faces(meta, robots)):
+        slip, _ = _slip(logs[r], R_B, pose, window, half, face)
         out[r] = float(slip[np.flatnonzero(window)[-1]]) if window.any() else 0.0
     return out
 

@@ -357,7 +357,10 @@ class PlantSettings:
     time_step : float
         Discrete step of the MultibodyPlant (s); must divide the control period.
     object_mode : str
-        ``planes`` (the paper's model), ``rigid``, ``contact`` or ``none``.
+        ``planes`` (the paper's model), ``rigid``, ``contact`` or ``none``. ``rigid`` and
+        ``contact`` hold one object between two robots facing along x (a box); ``contact``
+        also between three or more robots with horizontal normals (a prism with one face per
+        pad, :func:`~drake_coop.plant.grasp.prism_section`).
     object_mass : float
         Mass of the carried object in ``rigid`` and ``contact`` modes (kg).
     friction : float

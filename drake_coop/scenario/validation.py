@@ -6,6 +6,8 @@ cross-field rules, reachability and the model files (the last two import the pla
 kinematics late, so that this package imports nothing outside it at import time).
 """
 
+import math
+
 from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
@@ -336,18 +338,44 @@ def reach_inputs(scenario: Scenario) -> str:
 
 
 def _validate_two_sided(scenario: Scenario) -> None:
-    """``rigid`` and ``contact`` hold one object between two arms facing along x."""
+    """``rigid`` and ``contact`` hold one object between two arms facing along x; ``contact``
+    also between ``l ≥ 3`` arms with one horizontal normal each (the prism of
+    :func:`~drake_coop.plant.grasp.prism_section`, which checks that they enclose it)."""
     mode = scenario.plant.object_mode
     if mode not in ("rigid", "contact"):
         return
     robots = scenario.robots
     signs = [r.normals[0][0] if len(r.normals) == 1 and len(r.normals[0]) == 3 else 0.0
              for r in robots]
-    if len(robots) != 2 or sorted(signs) != [-1.0, 1.0] or any(
+    horizontal = all(len(r.normals) == 1 and len(r.normals[0]) == 3
+                     and float(r.normals[0][2]) == 0.0
+                     and math.hypot(float(r.normals[0][0]), float(r.normals[0][1])) > 0.0
+                     for r in robots)
+    if mode == "contact" and len(robots) >= 3:
+        if not horizontal:
+            raise ScenarioError("plant.object_mode contact with 3 or more robots needs one "
+                                "horizontal normal [x, y, 0] per robot (the prism's faces)")
+        # The squeezes lambda w_i along the inward normals must be an internal force (no net
+        # force, no net moment), or the squeeze alone would push the object off its path.
+        w = [float(r.force_weights[0]) for r in robots]
+        n = [[float(v) / math.hypot(*map(float, r.normals[0][:2])) for v in r.normals[0][:2]]
+             for r in robots]
+        fx = sum(wi * ni[0] for wi, ni in zip(w, n))
+        fy = sum(wi * ni[1] for wi, ni in zip(w, n))
+        mz = sum(wi * (float(r.contact_xy[0]) * ni[1] - float(r.contact_xy[1]) * ni[0])
+                 for wi, ni, r in zip(w, n, robots))
+        reach = max(math.hypot(*map(float, r.contact_xy)) for r in robots) or 1.0
+        if max(abs(fx), abs(fy), abs(mz) / reach) > 1e-6 * sum(abs(wi) for wi in w):
+            raise ScenarioError("robots[*].normals, force_weights: with 3 or more robots in "
+                                "plant.object_mode contact the squeezes force_weights[0] N_i "
+                                "must balance (sum of w_i N_i = 0 and no moment about z)")
+    elif len(robots) != 2 or sorted(signs) != [-1.0, 1.0] or any(
             list(map(float, r.normals[0][1:])) != [0.0, 0.0] for r in robots):
         raise ScenarioError(f"plant.object_mode {mode} holds one object between exactly 2 "
-                            "robots with normals [-1, 0, 0] and [1, 0, 0]; use planes for "
-                            "other grasps")
+                            "robots with normals [-1, 0, 0] and [1, 0, 0]"
+                            + (" or 3 or more robots with horizontal normals"
+                               if mode == "contact" else "")
+                            + "; use planes for other grasps")
     if mode == "contact" and any(r.model not in ("crs_a465", "crs_a255") and r.tool is None
                                  for r in robots):
         raise ScenarioError("plant.object_mode contact needs the shipped arms crs_a465 / "
