@@ -360,7 +360,7 @@ class PlantSettings:
         ``planes`` (the paper's model), ``rigid``, ``contact`` or ``none``. ``rigid`` and
         ``contact`` hold one object between two robots facing along x (a box); ``contact``
         also between three or more robots with horizontal normals (a prism with one face per
-        pad, :func:`~drake_coop.plant.grasp.prism_section`).
+        pad, :func:`~drake_coop.plant.prism.prism_section`).
     object_mass : float
         Mass of the carried object in ``rigid`` and ``contact`` modes (kg).
     friction : float

@@ -340,7 +340,7 @@ def reach_inputs(scenario: Scenario) -> str:
 def _validate_two_sided(scenario: Scenario) -> None:
     """``rigid`` and ``contact`` hold one object between two arms facing along x; ``contact``
     also between ``l ≥ 3`` arms with one horizontal normal each (the prism of
-    :func:`~drake_coop.plant.grasp.prism_section`, which checks that they enclose it)."""
+    :func:`~drake_coop.plant.prism.prism_section`, which checks that they enclose it)."""
     mode = scenario.plant.object_mode
     if mode not in ("rigid", "contact"):
         return

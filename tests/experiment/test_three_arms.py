@@ -5,7 +5,7 @@
   is zero, and what is added to them by the squeeze lies in the null space of a grasp matrix
   built here from the cross products; for three pads 120° apart the split is the closed form
   ``m (a − g) / 3`` per pad.
-* The prism of :func:`~drake_coop.plant.grasp.prism_section` against the equilateral triangle's
+* The prism of :func:`~drake_coop.plant.prism.prism_section` against the equilateral triangle's
   closed form, its inertia against the solid prism's, and the refusals.
 * The prism's pad forces (:meth:`~drake_coop.plant.grasp.ContactObject.pad_forces`, from the
   plant's contact results) against the plant's generalized contact forces on the object (the
@@ -29,7 +29,7 @@ from drake_coop.control.object import (
 )
 from drake_coop.experiment.plan import grasp_object, time_grid
 from drake_coop.kinematics.rotations import pad_contact_components
-from drake_coop.plant.grasp import prism_section
+from drake_coop.plant.prism import prism_section
 from drake_coop.results.object_metrics import SLIP_DISTANCE, object_signals
 from drake_coop.scenario import load_scenario, validate
 from drake_coop.scenario.resources import scenarios_dir
