@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import csv
+import os
 import re
 import sys
 from pathlib import Path
@@ -24,6 +25,10 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 sys.path.insert(0, str(DOCS / "_ext"))
 
+# The role is a Sphinx extension (docutils): without the docs extra these tests skip, unless
+# DRAKE_COOP_REQUIRE_DOCS=1 (CI's docs environment), where a missing docutils fails them.
+if os.environ.get("DRAKE_COOP_REQUIRE_DOCS") != "1":
+    pytest.importorskip("docutils", reason="the docs extra is not installed")
 import results_role  # noqa: E402
 
 #: The pages that must hold no hand-typed measured number.
