@@ -59,18 +59,16 @@ from pydrake.systems.primitives import (
 
 from drake_coop.control.block import AddCooperativeController
 from drake_coop.control.controller import Controller
-from drake_coop.control.finger import FingerLaw, ReferenceLayout
-from drake_coop.control.object import CompressedReference, ObjectStateEstimator
+from drake_coop.control.finger import FingerLaw
+from drake_coop.control.object import ObjectStateEstimator
 from drake_coop.control.interfaces import ForceSource, VelocitySource
 from drake_coop.control.params import checked_period
 from drake_coop.control.registry import source
 from drake_coop.experiment.object_blocks import (
     ESTIMATOR_TICKS,
+    ArmSignals,
     ObjectBlocks,
-    add_object_blocks,
-    add_object_state_estimator,
-    connect_object_state_estimator,
-    couple_samples,
+    add_object_layer,
 )
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import (
@@ -297,26 +295,19 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
     if (not live_ground_truth and coop.mode == "contact"
             and (log or any(reads_sensor(r) for r in scenario.robots))):
         pads = add_pad_force_log(b, coop, h, models, log=log)
-    robots = []
-    actuation = []           # each arm's actuation input (for the offline ground truth)
-    arm_models = [r.controller_model for r in plan.robots]
-    # object_model.shared: the one block between the arms (the planned references pass
-    # through it, their λ_d replaced by the squeeze chosen online from the shared estimate).
-    shared = (add_object_state_estimator(b, plan, [ReferenceLayout(m.n, m.m)
-                                                   for m in arm_models], h)
-              if plan.shared else None)
     trajectories = (list(references) if references is not None
                     else [reference_trajectory(scenario, i, plan=plan)
                           for i in range(len(coop.arms))])
+    # First every arm's sensors and control block, then the object layer between the control
+    # blocks and the actuators (nothing without an object model), then actuators and logs.
+    parts, arms = [], []
     for i, handles in enumerate(coop.arms):
         name = handles.arm.name
         robot = scenario.robots[i]
-        resolved = plan.robots[i]
-        model = arm_models[i]
-        n = model.n
+        model = plan.robots[i].controller_model
         state = plant.get_state_output_port(handles.instance)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
-        encoder, q_port = add_encoders(b, name, n, h, robot.encoders, i, state)
+        encoder, q_port = add_encoders(b, name, model.n, h, robot.encoders, i, state)
         ft = lambda_sensor = None
         if pads is not None and reads_sensor(robot):
             last_step = pads.add_lambda_last_step(b, i, name)
@@ -336,40 +327,24 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
             q=q_port,
             lambda_sensor=lambda_sensor if reads_sensor(robot) else None,
             connect_actuation=False,
-            contact_stiffness=resolved.stiffness,
+            contact_stiffness=plan.robots[i].stiffness,
             prediction_horizon=robot.timing.prediction_horizon,
             name=name)
+        ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectories[i]))
+        parts.append((name, robot, state, encoder, q_port, ft, lambda_sensor, block))
+        arms.append(ArmSignals(q=q_port, reference=ref.get_output_port(), control=block.system,
+                               trajectory=trajectories[i]))
+    # The object-aware blocks (object_model: known / estimated; with shared: true the one
+    # object_state_estimator between the arms): none in the paper's diagram.
+    layer = add_object_layer(b, plan, h, arms, estimator_period=estimator_h)
+    robots = []
+    actuation = []           # each arm's actuation input (for the offline ground truth)
+    for i, (name, robot, state, encoder, q_port, ft, lambda_sensor, block) in enumerate(parts):
+        n = plan.robots[i].controller_model.n
         law, control = block.law, block.system
         vel, force, ctrl = block.velocity_source, block.force_source, block.controller
-        trajectory = trajectories[i]
-        ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectory))
-        reference = ref.get_output_port()
-        if shared is not None:
-            b.Connect(reference, shared.get_reference_input_port(i))
-            reference = shared.get_reference_output_port(i)
-            stiffness = resolved.stiffness
-            if stiffness is not None and not getattr(handles.arm.kinematics, "redundant",
-                                                     False):
-                # The compliant contact's compression of the online λ_d, in q_d.
-                point = resolved.control_point
-                press = b.AddNamedSystem(f"{name}_compressed_reference", CompressedReference(
-                    model, stiffness, -np.asarray(robot.normals[0], dtype=float),
-                    point_offset=None if point is None else point.offset))
-                b.Connect(reference, press.get_reference_input_port())
-                reference = press.get_compressed_reference_output_port()
+        reference, tau_port, objects = layer.references[i], layer.taus[i], layer.blocks[i]
         b.Connect(reference, block.reference_input)
-        # The object-aware blocks (object_model: known / estimated): the load feedforward
-        # added to the controller's torque; none in the paper's diagram.
-        objects = None
-        tau_port = control.GetOutputPort("tau")
-        if plan.object is not None:
-            t_ref = np.asarray(trajectory.get_segment_times())
-            # The squeeze's couple from both arms' references (fixed before the run).
-            couple = (couple_samples(plan, i, trajectories, t_ref) if plan.uses_couple
-                      else None)
-            objects = add_object_blocks(b, resolved, h, q_port, reference, control, t_ref,
-                                        couple, estimator_period=estimator_h)
-            tau_port = objects.tau
         # Actuators: control block → saturation (+ joint friction) → plant.
         actuators, applied = add_actuators(b, name, n, robot.actuators.torque_limits,
                                            robot.model_error.coulomb_friction, state)
@@ -383,7 +358,7 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
             b.Connect(latency.get_tau_output_port(), actuators.get_input_port())
         else:
             b.Connect(tau_port, actuators.get_input_port())
-        b.Connect(applied, plant.get_actuation_input_port(handles.instance))
+        b.Connect(applied, plant.get_actuation_input_port(coop.arms[i].instance))
         actuation.append(applied)
         rs = RobotSystems(name=name, law=law, control=control, velocity_observer=vel,
                           force_observer=force, controller=ctrl, force_sensor=sensors[i],
@@ -424,9 +399,6 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
             rs.log = RobotLog(logger, {k: slice(int(starts[j]), int(starts[j + 1]))
                                        for j, k in enumerate(sources)}, dict(sources))
         robots.append(rs)
-    if shared is not None:
-        connect_object_state_estimator(b, shared, [r.object_blocks for r in robots],
-                                       robots[0].object_blocks.acceleration_d)
     ground_truth = pads if log else None
     if not live_ground_truth and log and coop.mode != "contact":
         ground_truth = add_ground_truth(
@@ -437,4 +409,5 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
     diagram = b.Build()
     diagram.set_name("drake_coop_experiment")
     return Experiment(scenario=scenario, diagram=diagram, coop=coop, robots=robots,
-                      ground_truth=ground_truth, object_state_estimator=shared, plan=plan)
+                      ground_truth=ground_truth, object_state_estimator=layer.shared,
+                      plan=plan)

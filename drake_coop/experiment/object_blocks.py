@@ -1,5 +1,7 @@
 """The object-aware blocks of a run (``object_model:`` of a scenario), built from the library's
-:mod:`drake_coop.control.object`.
+:mod:`drake_coop.control.object`: one entry, :func:`add_object_layer`, called once by
+:func:`~drake_coop.experiment.diagram.build_experiment` between the arms' control blocks and
+their actuators.
 
 Per robot, with ``object_model.mode`` ``known`` or ``estimated`` (``none``, the default, adds
 nothing: the paper's diagram)::
@@ -39,7 +41,12 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control.couple import face_distance, squeeze_couple
 from drake_coop.control.finger import ReferenceLayout
-from drake_coop.control.object import LoadFeedforward, MassEstimator, ObjectStateEstimator
+from drake_coop.control.object import (
+    CompressedReference,
+    LoadFeedforward,
+    MassEstimator,
+    ObjectStateEstimator,
+)
 from drake_coop.experiment.plan import RobotPlan, RunPlan
 from drake_coop.scenario.task_path import cartesian_reference
 
@@ -58,6 +65,34 @@ class ObjectBlocks:
     mass_share: OutputPort
     estimator: MassEstimator | None = None
     acceleration_d: OutputPort | None = None
+
+
+@dataclass
+class ArmSignals:
+    """What the object layer reads of one arm's part of the diagram.
+
+    ``q``: the encoders' joint positions; ``reference``: the planned reference (the arm's
+    ``TrajectorySource``, rows of :class:`~drake_coop.control.finger.ReferenceLayout`);
+    ``control``: the arm's control block (its ``tau``, ``qdot_o`` and ``qddot_r_hat`` outputs);
+    ``trajectory``: the planned reference as a trajectory (for the couple's samples)."""
+
+    q: OutputPort
+    reference: OutputPort
+    control: object
+    trajectory: object
+
+
+@dataclass
+class ObjectLayer:
+    """The object layer's outputs, one entry per arm: ``references[i]`` feeds arm i's control
+    block (and its log), ``taus[i]`` its actuators; ``blocks[i]`` its object-aware systems
+    (None without an object model); ``shared`` the one ``object_state_estimator``
+    (``object_model.shared``), else None."""
+
+    references: list[OutputPort]
+    taus: list[OutputPort]
+    blocks: list[ObjectBlocks | None]
+    shared: ObjectStateEstimator | None = None
 
 
 def acceleration_samples(robot: RobotPlan, t: np.ndarray) -> np.ndarray:
@@ -196,3 +231,79 @@ def connect_object_state_estimator(b: DiagramBuilder, estimator: ObjectStateEsti
     for i, blk in enumerate(blocks):
         b.Connect(blk.mass_share, estimator.get_mass_share_input_port(i))
     b.Connect(acceleration, estimator.get_acceleration_d_input_port())
+
+
+def add_object_layer(b: DiagramBuilder, plan: RunPlan, period: float,
+                     arms: list[ArmSignals], estimator_period: float | None = None
+                     ) -> ObjectLayer:
+    """Every object-aware block of a run, between the arms' control blocks and actuators.
+
+    Without an object model (``object_model.mode: none``, the paper's diagram) nothing is
+    added: each arm's planned reference feeds its control block and the block's ``tau`` its
+    actuators. Otherwise, per robot, the load feedforward ``τ_ff`` (and, ``estimated``, the
+    mass estimator) of :func:`add_object_blocks`, its torque summed with the controller's;
+    with ``object_model.shared`` first the one ``object_state_estimator``
+    (:func:`add_object_state_estimator`) through which the planned references pass (their
+    ``λ_d`` replaced by the squeeze chosen online), each non-redundant compliant arm's
+    :class:`~drake_coop.control.object.CompressedReference` after it (the contact's
+    compression ``δ(λ_d)`` of the online ``λ_d`` in ``q_d``), and every arm's mass share and the
+    object's ``a_d`` connected into it (:func:`connect_object_state_estimator`).
+
+    Parameters
+    ----------
+    b : DiagramBuilder
+        The experiment's builder.
+    plan : RunPlan
+        The run's plan: its object section (:class:`~drake_coop.experiment.plan.ObjectPlan`),
+        each robot's section (:class:`~drake_coop.experiment.plan.RobotPlan`: controller's
+        model, stiffness, control point, mass share) and whether the couple is used.
+    period : float
+        The control period ``h`` (s), already checked against the plant step.
+    arms : list of ArmSignals
+        Each robot's ports, in the plan's order.
+    estimator_period : float, optional
+        The mass estimator's period (s), checked once for all arms by the caller; default
+        :data:`ESTIMATOR_TICKS` periods.
+
+    Returns
+    -------
+    ObjectLayer
+        Each arm's reference and torque ports, its blocks and the shared block.
+    """
+    references = [arm.reference for arm in arms]
+    taus = [arm.control.GetOutputPort("tau") for arm in arms]
+    if plan.object is None:
+        return ObjectLayer(references=references, taus=taus, blocks=[None] * len(arms))
+    shared = None
+    if plan.shared:
+        shared = add_object_state_estimator(
+            b, plan, [ReferenceLayout(r.controller_model.n, r.controller_model.m)
+                      for r in plan.robots], period)
+    trajectories = [arm.trajectory for arm in arms]
+    blocks = []
+    for i, (arm, robot) in enumerate(zip(arms, plan.robots)):
+        reference = arm.reference
+        if shared is not None:
+            b.Connect(reference, shared.get_reference_input_port(i))
+            reference = shared.get_reference_output_port(i)
+            if robot.stiffness is not None and not getattr(robot.arm.kinematics,
+                                                           "redundant", False):
+                point = robot.control_point
+                press = b.AddNamedSystem(f"{robot.name}_compressed_reference",
+                                         CompressedReference(
+                    robot.controller_model, robot.stiffness,
+                    -np.asarray(robot.robot.normals[0], dtype=float),
+                    point_offset=None if point is None else point.offset))
+                b.Connect(reference, press.get_reference_input_port())
+                reference = press.get_compressed_reference_output_port()
+        references[i] = reference
+        t_ref = np.asarray(arm.trajectory.get_segment_times())
+        # The squeeze's couple from both arms' references (fixed before the run).
+        couple = couple_samples(plan, i, trajectories, t_ref) if plan.uses_couple else None
+        blk = add_object_blocks(b, robot, period, arm.q, reference, arm.control, t_ref,
+                                couple, estimator_period=estimator_period)
+        taus[i] = blk.tau
+        blocks.append(blk)
+    if shared is not None:
+        connect_object_state_estimator(b, shared, blocks, blocks[0].acceleration_d)
+    return ObjectLayer(references=references, taus=taus, blocks=blocks, shared=shared)

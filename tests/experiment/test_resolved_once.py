@@ -92,3 +92,44 @@ def test_the_counters_see_a_second_resolution(counted, scenario):
             resolved.stiffness
     assert set(counted["pad"].values()) == {2}
     assert set(counted["arm"].values()) == {2}
+
+
+def _object_block_calls(path) -> list[str]:
+    """The names of :mod:`drake_coop.experiment.object_blocks`'s functions called in a file
+    (read from its syntax tree, not run)."""
+    import ast
+
+    import drake_coop.experiment.object_blocks as object_blocks
+
+    tree = ast.parse(path.read_text())
+    imported = {alias.asname or alias.name
+                for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom)
+                and node.module == "drake_coop.experiment.object_blocks"
+                for alias in node.names}
+    functions = {name for name in imported
+                 if callable(getattr(object_blocks, name, None))
+                 and not isinstance(getattr(object_blocks, name), type)}
+    return [node.func.id for node in ast.walk(tree)
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+            and node.func.id in functions]
+
+
+def test_the_diagram_enters_the_object_blocks_once():
+    """``build_experiment`` calls one function of the object blocks, once
+    (:func:`~drake_coop.experiment.object_blocks.add_object_layer`): the run's plan enters
+    ``object_blocks.py`` once and never comes back (it used to enter three times: the shared
+    estimator, each arm's blocks, the shared estimator's inputs)."""
+    import drake_coop.experiment.diagram as diagram
+    from pathlib import Path
+
+    assert _object_block_calls(Path(diagram.__file__)) == ["add_object_layer"]
+
+
+def test_the_object_block_call_counter_sees_more_calls(tmp_path):
+    """The counter above sees every call of an imported object-blocks function."""
+    source = tmp_path / "two_calls.py"
+    source.write_text("from drake_coop.experiment.object_blocks import (add_object_blocks,\n"
+                      "    couple_samples, ObjectBlocks)\n"
+                      "couple_samples(1, 2, 3, 4)\nadd_object_blocks()\nObjectBlocks()\n")
+    assert sorted(_object_block_calls(source)) == ["add_object_blocks", "couple_samples"]
