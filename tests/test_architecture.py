@@ -235,3 +235,16 @@ def test_no_public_name_of_the_control_layer_is_shadowed_by_a_submodule():
         shadowed += [f"{name}.{export}" for export in package.__all__
                      if inspect.ismodule(getattr(package, export))]
     assert shadowed == []
+
+
+#: The largest a module of the package may grow (lines): one concept a module.
+MODULE_LINES_MAX = 600
+
+
+def test_no_module_is_longer_than_the_limit():
+    """Every module of ``drake_coop/`` holds at most :data:`MODULE_LINES_MAX` lines (the
+    architecture page's "one concept a module"; ``control/object.py`` had 1 195)."""
+    long = {name: n for name, path in package_modules().items()
+            if (n := len(path.read_text().splitlines())) > MODULE_LINES_MAX}
+    assert not long, f"modules over {MODULE_LINES_MAX} lines: {long}"
+    assert len(package_modules()) > 50      # the reader found the package
