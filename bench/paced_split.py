@@ -1,0 +1,343 @@
+"""The paced split run, end to end: one ``serve`` per arm, the simulated driver and LCM's
+tcpq hub, as four processes on 127.0.0.1, at real time; one results JSON.
+
+Per case (a tick mode and a scheduling) it starts ``drake-coop tcpq-hub --port 0`` (on
+127.0.0.1 only), then ``drake-coop serve SCENARIO --robot NAME`` for each arm (each waits for
+its status), then ``drake-coop sim-driver SCENARIO`` (its first statuses release both serves
+within the same millisecond), all on the hub's ``tcpq://127.0.0.1:PORT`` — never
+``udpm://``. The scenario is the shipped one with delay compensation switched on
+(``robots[].timing.prediction_horizon``, default 3 ms; ``--horizon 0`` leaves it as shipped),
+written beside the runs. ``--sched fifo`` runs every process under ``chrt -f`` (the hub
+highest, then the serves, then the driver) with each ``serve`` pinned to a CPU of its own
+(``taskset -c``, round robin over the online CPUs) and started with ``--require-rt`` (so its
+memory is locked and ``run.json`` says what it got); ``--sched default`` runs them at the
+default priority, unpinned. Every process runs under ``timeout`` (a FIFO process that never
+sleeps would freeze the machine).
+
+Per arm the results give what the arm's ``run.json`` and ``pacing.csv`` say: the outcome, the
+computation time, the status age, the lateness and the loop delay (status age + lateness +
+one driver cycle, what the stability map calls the computation delay ``d``; p50, p99, max),
+the missed deadlines and the real-time settings read back; per case the load average
+(``/proc/loadavg``, sampled every second) and the driver's last line; and the bars of
+issue 34: computation p99 ≤ ``--compute-bar`` (0.5 ms), loop delay p99 within the margin
+with half to spare (≤ ``--margin`` / 2), no missed deadline, the whole run completed::
+
+    python -m bench.paced_split --t-end 90 --tick grid arrival --sched fifo default \\
+        --out runs/paced --results docs/results/paced_split.json
+
+Each case is written into ``--results`` as soon as it ends (the file keeps the cases of other
+calls; a case's key is ``<sched>_<tick>``, or ``--case`` with one case). Exit 0 once every
+case ran (whatever its outcome: a stopped run is a result), 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+#: The margin the bars use by default (s): the delay up to which docs/stability.md's map
+#: (continuous arm, p = 3 ms) gives ρ < 1 with every model it computed (exact: 8 ms; 30 %
+#: light, 30 % heavy, identified: 6 ms, the largest delay computed for them).
+MARGIN = 0.006
+#: Computation bar (s) per tick and arm (issue 34).
+COMPUTE_BAR = 0.0005
+#: FIFO priorities: the hub relays every message, the serves' ticks are short and
+#: latency-critical, the driver's plant steps are the long work.
+PRIORITY = {"hub": 70, "serve": 60, "driver": 50}
+CLI = [sys.executable, "-m", "drake_coop"]
+
+
+def compensated_scenario(name: str, horizon: float, out: Path) -> Path:
+    """``name`` (shipped scenario or YAML) with ``prediction_horizon = horizon`` on every arm
+    (0: unchanged), written to ``out`` (checked by :func:`drake_coop.scenario.validate`)."""
+    from drake_coop.scenario import validate
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+    from drake_coop.scenario.resources import find_scenario
+
+    scenario = load_scenario(find_scenario(name))
+    if horizon > 0:
+        for robot in scenario.robots:
+            robot.timing.prediction_horizon = float(horizon)
+    validate(scenario)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(dump_scenario(scenario))
+    return out
+
+
+def fifo_allowed() -> bool:
+    """``chrt -f`` grants SCHED_FIFO to a child here (root, or CAP_SYS_NICE)."""
+    if shutil.which("chrt") is None:
+        return False
+    return subprocess.run(["chrt", "-f", "1", "true"], capture_output=True).returncode == 0
+
+
+def _wait_for_line(path: Path, text: str, proc: subprocess.Popen, timeout: float) -> str:
+    """The first line of ``path`` containing ``text`` (``proc`` writes it), or raise."""
+    end = time.perf_counter() + timeout
+    while time.perf_counter() < end:
+        lines = path.read_text(errors="replace").splitlines() if path.exists() else []
+        for line in lines:
+            if text in line:
+                return line
+        if proc.poll() is not None:
+            raise RuntimeError(f"{proc.args[-1] if proc.args else 'process'} exited "
+                               f"({proc.returncode}) before saying {text!r}: "
+                               + " | ".join(lines[-3:]))
+        time.sleep(0.05)
+    raise RuntimeError(f"no {text!r} from {path.name} within {timeout:g} s")
+
+
+class LoadSampler(threading.Thread):
+    """``/proc/loadavg``'s 1-minute average every ``period`` seconds until stopped."""
+
+    def __init__(self, period: float = 1.0):
+        super().__init__(daemon=True)
+        self.period, self.samples = period, []
+        self._halt = threading.Event()
+
+    @staticmethod
+    def read() -> list[float]:
+        try:
+            return [float(v) for v in Path("/proc/loadavg").read_text().split()[:3]]
+        except (OSError, ValueError):
+            return [math.nan] * 3
+
+    def run(self) -> None:
+        while not self._halt.wait(self.period):
+            self.samples.append(self.read()[0])
+
+    def stop(self) -> None:
+        self._halt.set()
+        self.join(5)
+
+
+def _q(x, q: float) -> float:
+    x = np.asarray(x, dtype=float)
+    return float(np.percentile(x, q)) if x.size else math.nan
+
+
+def arm_figures(folder: Path) -> dict:
+    """One arm's outcome and pacing figures from its run folder (``run.json``,
+    ``pacing.csv``)."""
+    meta = json.loads((folder / "run.json").read_text())
+    rows = np.genfromtxt(folder / "pacing.csv", delimiter=",", names=True, ndmin=1)
+    pacing = meta["pacing"]
+    cycle = float(pacing["driver_period_s"])
+    out = {"status": meta["status"], "message": meta["message"], "ticks": int(pacing["ticks"]),
+           "t_reached_s": float(rows["t"][-1]) if rows.size else 0.0,
+           "missed_deadlines": int(pacing["missed_deadlines"]),
+           "realtime": meta.get("realtime"), "realtime_missing": meta.get("realtime_missing"),
+           "tick": meta.get("tick"), "lcm_url": meta.get("lcm_url")}
+    if rows.size:
+        delay = rows["status_age_s"] + rows["lateness_s"] + cycle
+        for key, values in (("compute", rows["compute_s"]), ("lateness", rows["lateness_s"]),
+                            ("status_age", rows["status_age_s"]), ("loop_delay", delay),
+                            ("wait", rows["wait_s"])):
+            out[f"{key}_p50_s"] = _q(values, 50)
+            out[f"{key}_p99_s"] = _q(values, 99)
+            out[f"{key}_max_s"] = float(np.max(values))
+    return out
+
+
+def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
+             margin: float = MARGIN, compute_bar: float = COMPUTE_BAR,
+             robots: list[str] | None = None, quiet: bool = True) -> dict:
+    """One paced split run (hub, one ``serve`` per arm, sim-driver); its figures and bars.
+
+    ``out`` gets ``<robot>/`` (each serve's run folder) and the processes' stderr
+    (``*.log``). ``sched``: ``fifo`` or ``default``.
+    """
+    from drake_coop.scenario.loading import load_scenario
+
+    if sched not in ("fifo", "default"):
+        raise ValueError(f"sched: 'fifo' or 'default', got {sched!r}")
+    if tick not in ("grid", "arrival"):
+        raise ValueError(f"tick: 'grid' or 'arrival', got {tick!r}")
+    if not (0 < t_end < math.inf):
+        raise ValueError(f"t_end must be a finite number > 0, got {t_end}")
+    if robots is None:
+        robots = [r.name for r in load_scenario(scenario).robots]
+    if sched == "fifo" and not fifo_allowed():
+        raise ValueError("sched: fifo needs chrt -f to be granted (root or CAP_SYS_NICE)")
+    out.mkdir(parents=True, exist_ok=True)
+    cpus = sorted(os.sched_getaffinity(0))
+    limit = t_end + 120.0          # every process is stopped by then, whatever happens
+
+    def prefix(role: str, cpu: int | None = None) -> list[str]:
+        cmd = ["timeout", "-s", "TERM", "-k", "10", f"{limit:g}"]
+        if sched == "fifo":
+            cmd += ["chrt", "-f", str(PRIORITY[role])]
+            if cpu is not None:
+                cmd += ["taskset", "-c", str(cpu)]
+        return cmd
+
+    procs: list[subprocess.Popen] = []
+    logs = []
+
+    def start(name: str, cmd: list[str]) -> tuple[subprocess.Popen, Path]:
+        log = out / f"{name}.log"
+        f = open(log, "w")
+        logs.append(f)
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=f, text=True)
+        procs.append(proc)
+        return proc, log
+
+    load = LoadSampler()
+    load_before = LoadSampler.read()
+    result: dict = {"t_end": t_end, "tick": tick, "sched": sched, "scenario": scenario.name,
+                    "margin_s": margin, "compute_bar_s": compute_bar,
+                    "load_before": load_before}
+    try:
+        hub, hub_log = start("hub", prefix("hub") + CLI + ["tcpq-hub", "--port", "0"])
+        url = _wait_for_line(hub_log, "--lcm-url ", hub, 60).split("--lcm-url ")[1].rstrip(")")
+        if not url.startswith("tcpq://127.0.0.1:"):
+            raise RuntimeError(f"the hub is not on 127.0.0.1: {url}")
+        serves = {}
+        for i, robot in enumerate(robots):
+            cmd = prefix("serve", cpus[i % len(cpus)]) + CLI + [
+                "serve", str(scenario), "--robot", robot, "--lcm-url", url,
+                "--out", str(out / robot), "--force", "--t-end", f"{t_end:g}",
+                "--delay-margin", f"{margin:g}", "--status-wait", "120", "--tick", tick]
+            if sched == "fifo":
+                cmd.append("--require-rt")
+            serves[robot] = start(f"serve_{robot}", cmd)
+        for robot, (proc, log) in serves.items():
+            _wait_for_line(log, "waiting for the status", proc, 300)
+        driver, driver_log = start("driver", prefix("driver") + CLI + [
+            "sim-driver", str(scenario), "--lcm-url", url, "--t-end", f"{t_end + 2.0:g}",
+            "--command-wait", "120"])
+        load.start()
+        started = time.perf_counter()
+        codes = {robot: proc.wait(limit + 30) for robot, (proc, _) in serves.items()}
+        result["wall_s"] = time.perf_counter() - started
+        try:
+            driver.wait(30)
+        except subprocess.TimeoutExpired:
+            driver.terminate()
+            driver.wait(15)
+    finally:
+        load.stop()
+        for proc in reversed(procs):
+            if proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(15)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait()
+        for f in logs:
+            f.close()
+    result["lcm_url"] = url
+    result["load_during"] = {"min": min(load.samples, default=math.nan),
+                             "max": max(load.samples, default=math.nan),
+                             "mean": float(np.mean(load.samples)) if load.samples else math.nan}
+    driver_lines = [x for x in driver_log.read_text(errors="replace").splitlines()
+                    if x.startswith("drake-coop:")]
+    result["driver"] = {"returncode": driver.returncode,
+                        "last_line": driver_lines[-1] if driver_lines else ""}
+    result["robots"] = {}
+    for robot in robots:
+        folder = out / robot
+        if (folder / "run.json").exists():
+            fig = arm_figures(folder)
+        else:
+            lines = (out / f"serve_{robot}.log").read_text(errors="replace").splitlines()
+            fig = {"status": "no run", "message": lines[-1] if lines else ""}
+        fig["returncode"] = codes[robot]
+        result["robots"][robot] = fig
+    arms = result["robots"].values()
+    done = all(a.get("status") == "ok" for a in arms)
+    result["bars"] = {
+        "completed": done,
+        "compute_p99": all(a.get("compute_p99_s", math.inf) <= compute_bar for a in arms),
+        "loop_delay_p99_half_margin": all(a.get("loop_delay_p99_s", math.inf) <= margin / 2
+                                          for a in arms),
+        "loop_delay_p99_margin": all(a.get("loop_delay_p99_s", math.inf) <= margin
+                                     for a in arms),
+        "no_missed_deadline": all(a.get("missed_deadlines", 1) == 0 for a in arms),
+    }
+    result["bars"]["all"] = all(result["bars"][k] for k in (
+        "completed", "compute_p99", "loop_delay_p99_half_margin", "no_missed_deadline"))
+    return result
+
+
+def _cpu_name() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def write_case(path: Path, key: str, case: dict) -> None:
+    """``case`` under ``cases.<key>`` of the JSON file ``path`` (read again just before: the
+    file keeps the other cases), written whole."""
+    data = json.loads(path.read_text()) if path.exists() else {"cases": {}}
+    data["cases"][key] = case
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True, default=float) + "\n")
+    tmp.replace(path)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", default="paper", help="shipped scenario or YAML")
+    parser.add_argument("--horizon", type=float, default=0.003,
+                        help="robots[].timing.prediction_horizon (s; 0: as the scenario says)")
+    parser.add_argument("--t-end", type=float, default=90.0)
+    parser.add_argument("--tick", nargs="+", choices=("grid", "arrival"), default=["grid"])
+    parser.add_argument("--sched", nargs="+", choices=("fifo", "default"), default=["fifo"])
+    parser.add_argument("--margin", type=float, default=MARGIN,
+                        help=f"the loop's delay margin for the bars (s, default {MARGIN:g})")
+    parser.add_argument("--compute-bar", type=float, default=COMPUTE_BAR)
+    parser.add_argument("--out", required=True, help="folder for the runs")
+    parser.add_argument("--results", required=True, help="results JSON (cases added)")
+    parser.add_argument("--case", help="the case's key (one tick and one sched only)")
+    args = parser.parse_args(argv)
+    if not (0 < args.t_end < math.inf):
+        parser.error(f"--t-end must be a finite number > 0, got {args.t_end}")
+    if not (0 <= args.horizon <= 1):
+        parser.error(f"--horizon must be in [0, 1] s, got {args.horizon}")
+    if not (0 < args.margin < 1):
+        parser.error(f"--margin must be in (0, 1) s, got {args.margin}")
+    if args.case is not None and len(args.tick) * len(args.sched) != 1:
+        parser.error("--case names one case: give one --tick and one --sched with it")
+    if "fifo" in args.sched and not fifo_allowed():
+        parser.error("--sched fifo: chrt -f is not granted here (root or CAP_SYS_NICE)")
+    from importlib.metadata import version
+
+    out = Path(args.out)
+    scenario = compensated_scenario(args.scenario, args.horizon, out / "scenario.yaml")
+    for sched in args.sched:
+        for tick in args.tick:
+            key = args.case or f"{sched}_{tick}"
+            case = run_case(scenario, out / key, t_end=args.t_end, tick=tick, sched=sched,
+                            margin=args.margin, compute_bar=args.compute_bar)
+            case.update(horizon_s=args.horizon, drake=version("drake"), cpu=_cpu_name(),
+                        cpus=os.cpu_count(), date=time.strftime("%Y-%m-%d", time.gmtime()),
+                        command=("python -m bench.paced_split " + " ".join(sys.argv[1:])
+                                 if argv is None else ""))
+            write_case(Path(args.results), key, case)
+            print(key, json.dumps({"bars": case["bars"], "robots": {
+                r: {k: v for k, v in a.items() if k.endswith(("p50_s", "p99_s"))
+                    or k in ("status", "missed_deadlines")}
+                for r, a in case["robots"].items()}}, default=float), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
