@@ -152,11 +152,12 @@ def arm_figures(folder: Path) -> dict:
 
 def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
              margin: float = MARGIN, compute_bar: float = COMPUTE_BAR,
-             robots: list[str] | None = None, quiet: bool = True) -> dict:
+             robots: list[str] | None = None, priority: dict | None = None) -> dict:
     """One paced split run (hub, one ``serve`` per arm, sim-driver); its figures and bars.
 
     ``out`` gets ``<robot>/`` (each serve's run folder) and the processes' stderr
-    (``*.log``). ``sched``: ``fifo`` or ``default``.
+    (``*.log``). ``sched``: ``fifo`` or ``default``; ``priority``: the FIFO priority of
+    ``hub``, ``serve`` and ``driver`` (default :data:`PRIORITY`).
     """
     from drake_coop.scenario.loading import load_scenario
 
@@ -170,6 +171,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
         robots = [r.name for r in load_scenario(scenario).robots]
     if sched == "fifo" and not fifo_allowed():
         raise ValueError("sched: fifo needs chrt -f to be granted (root or CAP_SYS_NICE)")
+    priority = dict(PRIORITY if priority is None else priority)
     out.mkdir(parents=True, exist_ok=True)
     cpus = sorted(os.sched_getaffinity(0))
     limit = t_end + 120.0          # every process is stopped by then, whatever happens
@@ -177,7 +179,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     def prefix(role: str, cpu: int | None = None) -> list[str]:
         cmd = ["timeout", "-s", "TERM", "-k", "10", f"{limit:g}"]
         if sched == "fifo":
-            cmd += ["chrt", "-f", str(PRIORITY[role])]
+            cmd += ["chrt", "-f", str(priority[role])]
             if cpu is not None:
                 cmd += ["taskset", "-c", str(cpu)]
         return cmd
@@ -197,7 +199,8 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     load_before = LoadSampler.read()
     result: dict = {"t_end": t_end, "tick": tick, "sched": sched, "scenario": scenario.name,
                     "margin_s": margin, "compute_bar_s": compute_bar,
-                    "load_before": load_before}
+                    "load_before": load_before,
+                    "priority": priority if sched == "fifo" else None}
     try:
         hub, hub_log = start("hub", prefix("hub") + CLI + ["tcpq-hub", "--port", "0"])
         url = _wait_for_line(hub_log, "--lcm-url ", hub, 60).split("--lcm-url ")[1].rstrip(")")
@@ -304,6 +307,9 @@ def main(argv=None) -> int:
     parser.add_argument("--margin", type=float, default=MARGIN,
                         help=f"the loop's delay margin for the bars (s, default {MARGIN:g})")
     parser.add_argument("--compute-bar", type=float, default=COMPUTE_BAR)
+    parser.add_argument("--priorities", type=int, nargs=3, metavar=("HUB", "SERVE", "DRIVER"),
+                        default=[PRIORITY[k] for k in ("hub", "serve", "driver")],
+                        help="FIFO priorities (1-99) of the hub, the serves and the driver")
     parser.add_argument("--out", required=True, help="folder for the runs")
     parser.add_argument("--results", required=True, help="results JSON (cases added)")
     parser.add_argument("--case", help="the case's key (one tick and one sched only)")
@@ -314,6 +320,8 @@ def main(argv=None) -> int:
         parser.error(f"--horizon must be in [0, 1] s, got {args.horizon}")
     if not (0 < args.margin < 1):
         parser.error(f"--margin must be in (0, 1) s, got {args.margin}")
+    if not all(1 <= p <= 99 for p in args.priorities):
+        parser.error(f"--priorities must be in 1-99, got {args.priorities}")
     if args.case is not None and len(args.tick) * len(args.sched) != 1:
         parser.error("--case names one case: give one --tick and one --sched with it")
     if "fifo" in args.sched and not fifo_allowed():
@@ -326,7 +334,8 @@ def main(argv=None) -> int:
         for tick in args.tick:
             key = args.case or f"{sched}_{tick}"
             case = run_case(scenario, out / key, t_end=args.t_end, tick=tick, sched=sched,
-                            margin=args.margin, compute_bar=args.compute_bar)
+                            margin=args.margin, compute_bar=args.compute_bar,
+                            priority=dict(zip(("hub", "serve", "driver"), args.priorities)))
             case.update(horizon_s=args.horizon, drake=version("drake"), cpu=_cpu_name(),
                         cpus=os.cpu_count(), date=time.strftime("%Y-%m-%d", time.gmtime()),
                         command=("python -m bench.paced_split " + " ".join(sys.argv[1:])
