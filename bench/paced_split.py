@@ -275,6 +275,71 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     return result
 
 
+def tick_cost(scenario_name: str, horizons=(None, 0.003), *, robot: str = "robot2",
+              ticks: int = 200, rounds: int = 3, idle: float = 0.008) -> dict:
+    """Why a paced tick costs more than the same tick back to back: one arm's
+    :class:`~drake_coop.robot.serve_loop.ServeLoop` on ``memq://`` in this process, fed the
+    reference's statuses (nine per tick, as a 1 kHz driver's), timed (wall clock, the feed,
+    the Simulator step and the command, as ``serve``'s ``compute``) back to back and with
+    ``idle`` seconds of sleep before each tick (as in a paced run), alternated ``rounds``
+    times, with and without compensation (``horizons``). Run it under the scheduling to
+    measure (``chrt -f 60 taskset -c 1 python -m bench.paced_split --tick-cost ...``)."""
+    from pydrake.lcm import DrakeLcm
+
+    from bench.serve_tick import _readings, _status_bytes
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.robot.drivers import driver_specs
+    from drake_coop.robot.serve_loop import ServeLoop, status_arrivals
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.model_check import check_models
+    from drake_coop.scenario.resources import find_scenario
+
+    cycles = 9
+    out: dict = {"robot": robot, "ticks": ticks, "rounds": rounds, "idle_s": idle,
+                 "realtime": None, "cases": {}}
+    from drake_coop.robot.pacing import realtime_settings
+
+    out["realtime"] = realtime_settings()
+    loops = {}
+    for horizon in horizons:
+        scenario = load_scenario(find_scenario(scenario_name))
+        for r in scenario.robots:
+            r.timing.prediction_horizon = horizon
+        plan = plan_run(scenario)
+        specs = driver_specs(scenario, check_models(scenario))
+        lcm = DrakeLcm("memq://")
+        loop = ServeLoop(scenario, plan, lcm, specs, robots=[robot])
+        i = [s.robot for s in specs].index(robot)
+        q = _readings(scenario, plan, 2 * rounds * ticks + 10, cycles)[i]
+        data = [_status_bytes(q[j], j * 1000) for j in range(len(q))]
+        arrivals = status_arrivals(lcm, loop.specs)
+        loop.start([q[0]])
+        loops[horizon] = (loop, lcm, arrivals, data)
+    k = 0
+    times: dict = {(h, w): [] for h in horizons for w in (0.0, idle)}
+    for _ in range(rounds):
+        for wait in (0.0, idle):
+            for horizon in horizons:
+                loop, lcm, arrivals, data = loops[horizon]
+                channel = loop.specs[0].status_channel
+                for kk in range(k, k + ticks):
+                    for j in range(kk * cycles, (kk + 1) * cycles):
+                        lcm.Publish(channel, data[j])
+                    lcm.HandleSubscriptions(0)
+                    if wait:
+                        time.sleep(wait)
+                    start = time.perf_counter()
+                    loop.feed(0, arrivals.take_parsed(channel))
+                    loop.tick()
+                    times[(horizon, wait)].append(time.perf_counter() - start)
+            k += ticks
+    for (horizon, wait), t in times.items():
+        key = ("compensated" if horizon else "paper") + ("_idle" if wait else "_back_to_back")
+        out["cases"][key] = {"horizon_s": horizon, "idle_s": wait, "p50_s": _q(t, 50),
+                             "p99_s": _q(t, 99), "max_s": float(np.max(t))}
+    return out
+
+
 def _cpu_name() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -310,8 +375,11 @@ def main(argv=None) -> int:
     parser.add_argument("--priorities", type=int, nargs=3, metavar=("HUB", "SERVE", "DRIVER"),
                         default=[PRIORITY[k] for k in ("hub", "serve", "driver")],
                         help="FIFO priorities (1-99) of the hub, the serves and the driver")
-    parser.add_argument("--out", required=True, help="folder for the runs")
+    parser.add_argument("--out", help="folder for the runs")
     parser.add_argument("--results", required=True, help="results JSON (cases added)")
+    parser.add_argument("--tick-cost", action="store_true",
+                        help="instead of the runs: one arm's tick in this process, back to "
+                             "back and after sleeping (tick_cost), as case 'tick_cost'")
     parser.add_argument("--case", help="the case's key (one tick and one sched only)")
     args = parser.parse_args(argv)
     if not (0 < args.t_end < math.inf):
@@ -328,6 +396,18 @@ def main(argv=None) -> int:
         parser.error("--sched fifo: chrt -f is not granted here (root or CAP_SYS_NICE)")
     from importlib.metadata import version
 
+    if args.tick_cost:
+        case = tick_cost(args.scenario, (None, args.horizon or 0.003))
+        case.update(drake=version("drake"), cpu=_cpu_name(), cpus=os.cpu_count(),
+                    date=time.strftime("%Y-%m-%d", time.gmtime()),
+                    load_before=LoadSampler.read(),
+                    command="python -m bench.paced_split " + " ".join(sys.argv[1:])
+                    if argv is None else "")
+        write_case(Path(args.results), args.case or "tick_cost", case)
+        print(json.dumps(case["cases"], default=float))
+        return 0
+    if args.out is None:
+        parser.error("--out: required (the folder for the runs)")
     out = Path(args.out)
     scenario = compensated_scenario(args.scenario, args.horizon, out / "scenario.yaml")
     for sched in args.sched:
