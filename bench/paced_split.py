@@ -152,12 +152,14 @@ def arm_figures(folder: Path) -> dict:
 
 def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
              margin: float = MARGIN, compute_bar: float = COMPUTE_BAR,
-             robots: list[str] | None = None, priority: dict | None = None) -> dict:
+             robots: list[str] | None = None, priority: dict | None = None,
+             driver_log: Path | None = None) -> dict:
     """One paced split run (hub, one ``serve`` per arm, sim-driver); its figures and bars.
 
     ``out`` gets ``<robot>/`` (each serve's run folder) and the processes' stderr
     (``*.log``). ``sched``: ``fifo`` or ``default``; ``priority``: the FIFO priority of
-    ``hub``, ``serve`` and ``driver`` (default :data:`PRIORITY`).
+    ``hub``, ``serve`` and ``driver`` (default :data:`PRIORITY`); ``driver_log``: the
+    sim-driver's ground truth file (``sim-driver --log``).
     """
     from drake_coop.scenario.loading import load_scenario
 
@@ -219,7 +221,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
             _wait_for_line(log, "waiting for the status", proc, 300)
         driver, driver_log = start("driver", prefix("driver") + CLI + [
             "sim-driver", str(scenario), "--lcm-url", url, "--t-end", f"{t_end + 2.0:g}",
-            "--command-wait", "120"])
+            "--command-wait", "120"] + ([] if driver_log is None else ["--log", str(driver_log)]))
         load.start()
         started = time.perf_counter()
         codes = {robot: proc.wait(limit + 30) for robot, (proc, _) in serves.items()}
@@ -340,6 +342,114 @@ def tick_cost(scenario_name: str, horizons=(None, 0.003), *, robot: str = "robot
     return out
 
 
+def contact_errors(t: np.ndarray, lam: np.ndarray, pose: np.ndarray, sim_logs: dict,
+                   phases: list, t_end: float) -> dict:
+    """Squeeze and box errors of a contact run, per phase (RMS, to ``t_end``), with the
+    inputs a run does not change taken from the simulated run's logs on the same ticks
+    (``lambda_d``, the arms' desired positions ``x_d``): per arm ``λ − λ_d``; the box's
+    position error as :func:`drake_coop.results.object_metrics.object_signals` defines it
+    (the box against the arms' desired midpoint plus their offset at the grasp tick, while
+    held). ``t``: tick times; ``lam``: ticks × arms; ``pose``: ticks × 7 (quaternion, xyz)."""
+    from drake_coop.results.metrics import phase_masks
+    from drake_coop.results.object_metrics import _held_window
+
+    robots = list(sim_logs)
+    t_sim = np.asarray(sim_logs[robots[0]]["t"], dtype=float)
+    h = float(t_sim[1] - t_sim[0])
+    k_run = np.rint(np.asarray(t) / h).astype(int)
+    k_sim = np.rint(t_sim / h).astype(int)
+    common, i_run, i_sim = np.intersect1d(k_run, k_sim, return_indices=True)
+    keep = common * h <= t_end + 1e-9
+    i_run, i_sim, tt = i_run[keep], i_sim[keep], common[keep] * h
+    mid_d = np.mean([np.asarray(sim_logs[r]["x_d"], dtype=float)[i_sim] for r in robots],
+                    axis=0)
+    p = np.asarray(pose, dtype=float)[i_run, 4:7]
+    t_grasp, t_release = _held_window(tt, phases)
+    k0 = int(np.searchsorted(tt, t_grasp - 1e-9))
+    box = (np.linalg.norm(p - mid_d - (p[k0] - mid_d[k0]), axis=1) if k0 < tt.size
+           else np.full(tt.size, np.nan))
+    held = (tt >= t_grasp) & (tt < t_release)
+    out: dict = {"t_end": float(tt[-1]), "ticks": int(tt.size)}
+    masks = phase_masks(tt, phases)
+    for phase in ("lift", "circle"):
+        m = masks.get(phase)
+        if m is None or not m.any():
+            continue
+        entry = {"from_s": float(tt[m][0]), "to_s": float(tt[m][-1])}
+        for j, r in enumerate(robots):
+            e = np.asarray(lam, dtype=float)[i_run, j] - np.asarray(
+                sim_logs[r]["lambda_d"], dtype=float)[i_sim]
+            entry[f"{r}_squeeze_error_rms_N"] = float(np.sqrt(np.nanmean(e[m] ** 2)))
+        b = box[m & held]
+        if b.size and np.isfinite(b).any():
+            entry["box_position_error_rms_m"] = float(np.sqrt(np.nanmean(b ** 2)))
+            entry["box_position_error_max_m"] = float(np.nanmax(b))
+        out[phase] = entry
+    return out
+
+
+def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
+                 horizon: float = 0.003, margin: float = MARGIN,
+                 priority: dict | None = None) -> dict:
+    """Item 8 of issue 34: the lab-arm contact scenario ``name``
+    (:func:`bench.lab_arms_object.contact_scenario`: contact.yaml's plant, an estimated
+    object model; compensation ``horizon``) over the cable (:func:`run_case`, the
+    sim-driver logging its ground truth), against the simulated run
+    (:func:`~drake_coop.experiment.simulate.simulate`) with ``timing.computation_delay`` = the
+    measured loop delay (the arms' median of the per-arm medians, at most ``h``): squeeze and
+    box errors per phase to ``t_end`` (:func:`contact_errors`) and their ratios."""
+    import copy
+
+    from bench.lab_arms_object import contact_scenario
+    from drake_coop.experiment.simulate import phases, simulate
+    from drake_coop.scenario.loading import dump_scenario
+
+    scenario = contact_scenario(name)
+    if horizon > 0:
+        for robot in scenario.robots:
+            robot.timing.prediction_horizon = float(horizon)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "scenario.yaml"
+    path.write_text(dump_scenario(scenario))
+    log = out / "truth.npz"
+    if log.exists():
+        log.unlink()
+    case = run_case(path, out / "cable", t_end=t_end, tick=tick, sched=sched, margin=margin,
+                    priority=priority, driver_log=log)
+    result = {"scenario": name, "horizon_s": horizon, "cable": case}
+    if not log.exists():
+        result["comparison"] = None
+        return result
+    truth = np.load(log)
+    delays = [a["loop_delay_p50_s"] for a in case["robots"].values()
+              if "loop_delay_p50_s" in a]
+    delay = float(min(np.median(delays), scenario.control_period))
+    sim = copy.deepcopy(scenario)
+    for robot in sim.robots:
+        robot.timing.computation_delay = delay
+    start = time.process_time()
+    run = simulate(sim, t_end=t_end)
+    result["simulated"] = {"computation_delay_s": delay, "status": run.meta["status"],
+                           "cpu_s": time.process_time() - start}
+    ph = phases(scenario)
+    cable = contact_errors(truth["t"], truth["lambda"][:, :, 0], truth["box_state"][:, :7],
+                           run.logs, ph, t_end)
+    simulated = contact_errors(run.logs[next(iter(run.logs))]["t"],
+                               np.column_stack([run.logs[r]["lambda_meas"] for r in run.logs]),
+                               run.logs[next(iter(run.logs))]["object_pose"], run.logs, ph,
+                               t_end)
+    ratios = {}
+    for phase in ("lift", "circle"):
+        if phase in cable and phase in simulated:
+            ratios[phase] = {k: cable[phase][k] / simulated[phase][k]
+                             for k in cable[phase] if k.endswith(("_N", "_m"))
+                             and simulated[phase][k] > 0}
+    result["comparison"] = {"cable": cable, "simulated": simulated, "ratio": ratios,
+                            "within_10_percent": bool(ratios) and all(
+                                abs(v - 1) <= 0.1 for r in ratios.values() for v in r.values())}
+    return result
+
+
 def _cpu_name() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -377,6 +487,10 @@ def main(argv=None) -> int:
                         help="FIFO priorities (1-99) of the hub, the serves and the driver")
     parser.add_argument("--out", help="folder for the runs")
     parser.add_argument("--results", required=True, help="results JSON (cases added)")
+    parser.add_argument("--contact", metavar="NAME",
+                        help="instead of the paper's runs: the lab-arm contact scenario NAME "
+                             "(e.g. two_pandas) over the cable against the simulated run "
+                             "with the measured delay (contact_case), as case contact_<NAME>")
     parser.add_argument("--tick-cost", action="store_true",
                         help="instead of the runs: one arm's tick in this process, back to "
                              "back and after sleeping (tick_cost), as case 'tick_cost'")
@@ -408,6 +522,19 @@ def main(argv=None) -> int:
         return 0
     if args.out is None:
         parser.error("--out: required (the folder for the runs)")
+    if args.contact is not None:
+        if len(args.tick) * len(args.sched) != 1:
+            parser.error("--contact: give one --tick and one --sched")
+        case = contact_case(args.contact, Path(args.out), t_end=args.t_end, tick=args.tick[0],
+                            sched=args.sched[0], horizon=args.horizon, margin=args.margin,
+                            priority=dict(zip(("hub", "serve", "driver"), args.priorities)))
+        case.update(drake=version("drake"), cpu=_cpu_name(), cpus=os.cpu_count(),
+                    date=time.strftime("%Y-%m-%d", time.gmtime()),
+                    command="python -m bench.paced_split " + " ".join(sys.argv[1:])
+                    if argv is None else "")
+        write_case(Path(args.results), args.case or f"contact_{args.contact}", case)
+        print(json.dumps(case.get("comparison"), default=float))
+        return 0
     out = Path(args.out)
     scenario = compensated_scenario(args.scenario, args.horizon, out / "scenario.yaml")
     for sched in args.sched:
