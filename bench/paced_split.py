@@ -122,6 +122,15 @@ class LoadSampler(threading.Thread):
         self.join(5)
 
 
+def driver_lag(line: str) -> float:
+    """How far the sim-driver's simulated time fell behind the wall clock at worst (s), from
+    its last line (``... (at most 10.4 ms behind the wall clock)``); None if it does not say."""
+    import re
+
+    m = re.search(r"at most ([0-9.]+) ms behind", line)
+    return float(m.group(1)) * 1e-3 if m else None
+
+
 def _q(x, q: float) -> float:
     x = np.asarray(x, dtype=float)
     return float(np.percentile(x, q)) if x.size else math.nan
@@ -153,13 +162,16 @@ def arm_figures(folder: Path) -> dict:
 def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
              margin: float = MARGIN, compute_bar: float = COMPUTE_BAR,
              robots: list[str] | None = None, priority: dict | None = None,
-             driver_log: Path | None = None) -> dict:
+             driver_log: Path | None = None, serve_cpus: list[int] | None = None,
+             driver_cpu: int | None = None) -> dict:
     """One paced split run (hub, one ``serve`` per arm, sim-driver); its figures and bars.
 
     ``out`` gets ``<robot>/`` (each serve's run folder) and the processes' stderr
     (``*.log``). ``sched``: ``fifo`` or ``default``; ``priority``: the FIFO priority of
     ``hub``, ``serve`` and ``driver`` (default :data:`PRIORITY`); ``driver_log``: the
-    sim-driver's ground truth file (``sim-driver --log``).
+    sim-driver's ground truth file (``sim-driver --log``); ``serve_cpus``: the CPUs the
+    serves are pinned to in turn (default: every CPU, round robin); ``driver_cpu``: pin the
+    driver too (FIFO only; default unpinned).
     """
     from drake_coop.scenario.loading import load_scenario
 
@@ -175,7 +187,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
         raise ValueError("sched: fifo needs chrt -f to be granted (root or CAP_SYS_NICE)")
     priority = dict(PRIORITY if priority is None else priority)
     out.mkdir(parents=True, exist_ok=True)
-    cpus = sorted(os.sched_getaffinity(0))
+    cpus = sorted(os.sched_getaffinity(0)) if not serve_cpus else list(serve_cpus)
     limit = t_end + 120.0          # every process is stopped by then, whatever happens
 
     def prefix(role: str, cpu: int | None = None) -> list[str]:
@@ -202,7 +214,9 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     result: dict = {"t_end": t_end, "tick": tick, "sched": sched, "scenario": scenario.name,
                     "margin_s": margin, "compute_bar_s": compute_bar,
                     "load_before": load_before,
-                    "priority": priority if sched == "fifo" else None}
+                    "priority": priority if sched == "fifo" else None,
+                    "serve_cpus": cpus if sched == "fifo" else None,
+                    "driver_cpu": driver_cpu if sched == "fifo" else None}
     try:
         hub, hub_log = start("hub", prefix("hub") + CLI + ["tcpq-hub", "--port", "0"])
         url = _wait_for_line(hub_log, "--lcm-url ", hub, 60).split("--lcm-url ")[1].rstrip(")")
@@ -219,7 +233,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
             serves[robot] = start(f"serve_{robot}", cmd)
         for robot, (proc, log) in serves.items():
             _wait_for_line(log, "waiting for the status", proc, 300)
-        driver, driver_log = start("driver", prefix("driver") + CLI + [
+        driver, driver_log = start("driver", prefix("driver", driver_cpu) + CLI + [
             "sim-driver", str(scenario), "--lcm-url", url, "--t-end", f"{t_end + 2.0:g}",
             "--command-wait", "120"] + ([] if driver_log is None else ["--log", str(driver_log)]))
         load.start()
@@ -251,6 +265,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
                     if x.startswith("drake-coop:")]
     result["driver"] = {"returncode": driver.returncode,
                         "last_line": driver_lines[-1] if driver_lines else ""}
+    result["driver"]["behind_max_s"] = driver_lag(result["driver"]["last_line"])
     result["robots"] = {}
     for robot in robots:
         folder = out / robot
@@ -390,7 +405,8 @@ def contact_errors(t: np.ndarray, lam: np.ndarray, pose: np.ndarray, sim_logs: d
 
 def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
                  horizon: float = 0.003, margin: float = MARGIN,
-                 priority: dict | None = None) -> dict:
+                 priority: dict | None = None, serve_cpus: list[int] | None = None,
+                 driver_cpu: int | None = None) -> dict:
     """Item 8 of issue 34: the lab-arm contact scenario ``name``
     (:func:`bench.lab_arms_object.contact_scenario`: contact.yaml's plant, an estimated
     object model; compensation ``horizon``) over the cable (:func:`run_case`, the
@@ -415,7 +431,8 @@ def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
     if log.exists():
         log.unlink()
     case = run_case(path, out / "cable", t_end=t_end, tick=tick, sched=sched, margin=margin,
-                    priority=priority, driver_log=log)
+                    priority=priority, driver_log=log, serve_cpus=serve_cpus,
+                    driver_cpu=driver_cpu)
     result = {"scenario": name, "horizon_s": horizon, "cable": case}
     if not log.exists():
         result["comparison"] = None
@@ -482,6 +499,10 @@ def main(argv=None) -> int:
     parser.add_argument("--margin", type=float, default=MARGIN,
                         help=f"the loop's delay margin for the bars (s, default {MARGIN:g})")
     parser.add_argument("--compute-bar", type=float, default=COMPUTE_BAR)
+    parser.add_argument("--serve-cpus", type=int, nargs="+", metavar="CPU",
+                        help="FIFO: the CPUs the serves are pinned to in turn (default all)")
+    parser.add_argument("--driver-cpu", type=int, metavar="CPU",
+                        help="FIFO: pin the sim-driver to this CPU (default unpinned)")
     parser.add_argument("--priorities", type=int, nargs=3, metavar=("HUB", "SERVE", "DRIVER"),
                         default=[PRIORITY[k] for k in ("hub", "serve", "driver")],
                         help="FIFO priorities (1-99) of the hub, the serves and the driver")
@@ -527,7 +548,8 @@ def main(argv=None) -> int:
             parser.error("--contact: give one --tick and one --sched")
         case = contact_case(args.contact, Path(args.out), t_end=args.t_end, tick=args.tick[0],
                             sched=args.sched[0], horizon=args.horizon, margin=args.margin,
-                            priority=dict(zip(("hub", "serve", "driver"), args.priorities)))
+                            priority=dict(zip(("hub", "serve", "driver"), args.priorities)),
+                            serve_cpus=args.serve_cpus, driver_cpu=args.driver_cpu)
         case.update(drake=version("drake"), cpu=_cpu_name(), cpus=os.cpu_count(),
                     date=time.strftime("%Y-%m-%d", time.gmtime()),
                     command="python -m bench.paced_split " + " ".join(sys.argv[1:])
@@ -542,7 +564,8 @@ def main(argv=None) -> int:
             key = args.case or f"{sched}_{tick}"
             case = run_case(scenario, out / key, t_end=args.t_end, tick=tick, sched=sched,
                             margin=args.margin, compute_bar=args.compute_bar,
-                            priority=dict(zip(("hub", "serve", "driver"), args.priorities)))
+                            priority=dict(zip(("hub", "serve", "driver"), args.priorities)),
+                            serve_cpus=args.serve_cpus, driver_cpu=args.driver_cpu)
             case.update(horizon_s=args.horizon, drake=version("drake"), cpu=_cpu_name(),
                         cpus=os.cpu_count(), date=time.strftime("%Y-%m-%d", time.gmtime()),
                         command=("python -m bench.paced_split " + " ".join(sys.argv[1:])
