@@ -406,14 +406,15 @@ def contact_errors(t: np.ndarray, lam: np.ndarray, pose: np.ndarray, sim_logs: d
 def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
                  horizon: float = 0.003, margin: float = MARGIN,
                  priority: dict | None = None, serve_cpus: list[int] | None = None,
-                 driver_cpu: int | None = None) -> dict:
+                 driver_cpu: int | None = None, object_mode: str = "estimated") -> dict:
     """Item 8 of issue 34: the lab-arm contact scenario ``name``
     (:func:`bench.lab_arms_object.contact_scenario`: contact.yaml's plant, an estimated
     object model; compensation ``horizon``) over the cable (:func:`run_case`, the
     sim-driver logging its ground truth), against the simulated run
     (:func:`~drake_coop.experiment.simulate.simulate`) with ``timing.computation_delay`` = the
     measured loop delay (the arms' median of the per-arm medians, at most ``h``): squeeze and
-    box errors per phase to ``t_end`` (:func:`contact_errors`) and their ratios."""
+    box errors per phase to ``t_end`` (:func:`contact_errors`) and their ratios.
+    ``object_mode``: the object model's mode (``estimated``, or ``known``)."""
     import copy
 
     from bench.lab_arms_object import contact_scenario
@@ -421,6 +422,9 @@ def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
     from drake_coop.scenario.loading import dump_scenario
 
     scenario = contact_scenario(name)
+    if object_mode not in ("estimated", "known"):
+        raise ValueError(f"object_mode: 'estimated' or 'known', got {object_mode!r}")
+    scenario.object_model.mode = object_mode
     if horizon > 0:
         for robot in scenario.robots:
             robot.timing.prediction_horizon = float(horizon)
@@ -433,7 +437,8 @@ def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
     case = run_case(path, out / "cable", t_end=t_end, tick=tick, sched=sched, margin=margin,
                     priority=priority, driver_log=log, serve_cpus=serve_cpus,
                     driver_cpu=driver_cpu)
-    result = {"scenario": name, "horizon_s": horizon, "cable": case}
+    result = {"scenario": name, "object_model": object_mode, "horizon_s": horizon,
+              "cable": case}
     if not log.exists():
         result["comparison"] = None
         return result
@@ -512,6 +517,8 @@ def main(argv=None) -> int:
                         help="instead of the paper's runs: the lab-arm contact scenario NAME "
                              "(e.g. two_pandas) over the cable against the simulated run "
                              "with the measured delay (contact_case), as case contact_<NAME>")
+    parser.add_argument("--object-model", choices=("estimated", "known"), default="estimated",
+                        help="--contact: the object model's mode (default estimated)")
     parser.add_argument("--tick-cost", action="store_true",
                         help="instead of the runs: one arm's tick in this process, back to "
                              "back and after sleeping (tick_cost), as case 'tick_cost'")
@@ -549,12 +556,14 @@ def main(argv=None) -> int:
         case = contact_case(args.contact, Path(args.out), t_end=args.t_end, tick=args.tick[0],
                             sched=args.sched[0], horizon=args.horizon, margin=args.margin,
                             priority=dict(zip(("hub", "serve", "driver"), args.priorities)),
-                            serve_cpus=args.serve_cpus, driver_cpu=args.driver_cpu)
+                            serve_cpus=args.serve_cpus, driver_cpu=args.driver_cpu,
+                            object_mode=args.object_model)
         case.update(drake=version("drake"), cpu=_cpu_name(), cpus=os.cpu_count(),
                     date=time.strftime("%Y-%m-%d", time.gmtime()),
                     command="python -m bench.paced_split " + " ".join(sys.argv[1:])
                     if argv is None else "")
-        write_case(Path(args.results), args.case or f"contact_{args.contact}", case)
+        write_case(Path(args.results), args.case or f"contact_{args.contact}"
+                   + ("" if args.object_model == "estimated" else f"_{args.object_model}"), case)
         print(json.dumps(case.get("comparison"), default=float))
         return 0
     out = Path(args.out)

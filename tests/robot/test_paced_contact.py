@@ -74,3 +74,18 @@ def test_serve_refuses_the_shared_object_block_naming_the_field():
     plan = plan_run(s, 1.0)
     with pytest.raises(ScenarioError, match=r"^object_model\.shared: "):
         ServeLoop(s, plan, DrakeLcm("memq://"), driver_specs(s, check_models(s)))
+
+
+@pytest.mark.parametrize("name, existing", [("truth.txt", False), ("truth.npz", True),
+                                            ("missing/truth.npz", False)])
+def test_sim_driver_log_is_refused_naming_it(tmp_path, capsys, name, existing):
+    from drake_coop.cli import main
+
+    path = tmp_path / name
+    if existing:
+        path.write_bytes(b"not ours")
+    assert main(["sim-driver", "paper", "--lcm-url", "memq://", "--command-wait", "0.1",
+                 "--log", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "--log" in err and len([x for x in err.splitlines() if x.strip()]) == 1
+    assert path.read_bytes() == b"not ours" if existing else not path.exists()
