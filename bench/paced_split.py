@@ -25,6 +25,13 @@ with half to spare (≤ ``--margin`` / 2), no missed deadline, the whole run com
     python -m bench.paced_split --t-end 90 --tick grid arrival --sched fifo default \\
         --out runs/paced --results docs/results/paced_split.json
 
+``--tick-cost`` measures instead one arm's tick in this process, back to back and after a
+paced sleep (:func:`tick_cost`; run it under the scheduling to measure). ``--contact NAME``
+runs a lab-arm contact scenario over the cable, the sim-driver logging the plant's ground
+truth, against the simulated run with the measured delay (:func:`contact_case`).
+``--serve-cpus`` and ``--driver-cpu`` change the CPU layout (FIFO), ``--priorities`` the
+FIFO priorities.
+
 Each case is written into ``--results`` as soon as it ends (the file keeps the cases of other
 calls; a case's key is ``<sched>_<tick>``, or ``--case`` with one case). Exit 0 once every
 case ran (whatever its outcome: a stopped run is a result), 2 on bad input.
