@@ -59,8 +59,12 @@ def test_arm_figures_reads_the_loop_delay_from_the_pacing_record(tmp_path):
 @pytest.mark.slow
 def test_a_paced_split_run_over_tcpq_completes_and_records_both_arms(tmp_path):
     """Hub, two serves (one per arm) and the sim-driver on 127.0.0.1, 3 s paced, compensation
-    on: both serves complete (the loop within its margin, whatever the machine's load does to
-    the percentiles) and each keeps its pacing record; the results name the transport."""
+    on: under SCHED_FIFO both serves complete (the loop within its margin, whatever the
+    machine's load does to the percentiles) and each keeps its pacing record; the results name
+    the transport. At the default priority (no chrt granted) completion depends on the
+    machine's load (measured in docs/guide/real_robot.md: on this 2-core machine at load 12
+    the loop stopped within 4 s): a stop must then be the watchdog's or the other serve's,
+    with both records kept."""
     sched = "fifo" if fifo_allowed() else "default"
     results = tmp_path / "results.json"
     assert main(["--t-end", "3", "--tick", "grid", "--sched", sched, "--out",
@@ -70,13 +74,21 @@ def test_a_paced_split_run_over_tcpq_completes_and_records_both_arms(tmp_path):
     assert set(case["robots"]) == {"robot1", "robot2"}
     ticks = int(round(3 / 0.009)) + 1
     for robot, arm in case["robots"].items():
-        assert arm["status"] == "ok" and arm["returncode"] == 0, (robot, arm["message"])
-        assert arm["ticks"] == ticks and arm["lcm_url"] == case["lcm_url"]
+        if sched == "fifo" or arm["status"] == "ok":
+            assert arm["status"] == "ok" and arm["returncode"] == 0, (robot, arm["message"])
+            assert arm["ticks"] == ticks
+        else:
+            assert arm["status"] == "stopped" and arm["returncode"] == 1, arm
+            assert arm["message"].startswith(("watchdog at t = ", "stopped at t = ")), arm
+        assert arm["lcm_url"] == case["lcm_url"]
         rows = (tmp_path / "runs" / f"{sched}_grid" / robot / "pacing.csv").read_text()
-        assert len(rows.splitlines()) == ticks + 1
-        assert 0 < arm["compute_p50_s"] <= arm["compute_p99_s"] < 0.009
+        assert len(rows.splitlines()) == arm["ticks"] + 1
+        assert 0 < arm["compute_p50_s"] <= arm["compute_p99_s"]
+        if sched == "fifo":
+            assert arm["compute_p99_s"] < 0.009             # within the tick
         assert arm["loop_delay_p99_s"] >= arm["status_age_p99_s"]
         if sched == "fifo":
             assert arm["realtime"]["policy"] == "SCHED_FIFO"
             assert arm["realtime"]["mlockall"] == "ok" and not arm["realtime_missing"]
-    assert case["bars"]["completed"] is True
+    assert case["bars"]["completed"] is (sched == "fifo" or all(
+        a["status"] == "ok" for a in case["robots"].values()))
