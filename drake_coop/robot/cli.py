@@ -83,6 +83,10 @@ def add_robot_parsers(sub) -> None:
     drv.add_argument("--t-end", type=float, default=None, help="stop earlier (s)")
     drv.add_argument("--command-wait", type=float, default=60.0,
                      help="wait for the first command (s, default 60)")
+    drv.add_argument("--log", default=None, metavar="FILE",
+                     help="write the plant's ground truth at every tick to FILE (.npz): "
+                          "t, each arm's squeeze λ (contact mode: from the pads' contact "
+                          "forces) and the box's pose")
     drv.add_argument("--quiet", action="store_true", help="no progress messages")
     drv.set_defaults(func=cmd_sim_driver)
 
@@ -356,9 +360,18 @@ def cmd_sim_driver(args) -> int:
     from drake_coop.robot.pacing import pump_until
 
     plan = plan_run(scenario, args.t_end)
+    log = getattr(args, "log", None)
+    if log is not None:
+        from pathlib import Path
+
+        if not str(log).endswith(".npz") or not Path(log).resolve().parent.is_dir():
+            return _error(f"--log must name a .npz file in an existing folder, got {log!r}")
+        if Path(log).exists():
+            return _error(f"--log {log!r} exists; not replaced")
     builder = DiagramBuilder()
     add_lcm_interface(builder, lcm)
     side = add_driver_side(builder, scenario, lcm, specs)
+    truth = add_truth_log(builder, side, plan.h) if log is not None else None
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
@@ -392,8 +405,58 @@ def cmd_sim_driver(args) -> int:
         worst = max(worst, time.perf_counter() - start - context.get_time())
         if k_stop in plan.switches:
             side.coop.set_held(plant_context, plan.switches[k_stop])
+    if truth is not None:
+        write_truth_log(log, truth, context)
     if not args.quiet:
         print(f"drake-coop: sim-driver done at t = {context.get_time():.3f} s after "
               f"{time.perf_counter() - start:.3f} s of wall time (at most {worst * 1e3:.1f} ms "
               "behind the wall clock)", file=sys.stderr)
     return 0
+
+
+def add_truth_log(builder, side, h: float) -> dict:
+    """Loggers of the driver's plant's ground truth at every tick ``h`` (``sim-driver
+    --log``): in contact mode each arm's pad contact force (the C++ hold of
+    :func:`~drake_coop.plant.ground_truth.add_pad_force_log`: the force of the plant step
+    before the tick) and the box's state; in the other modes the arms' state only."""
+    import numpy as np
+    from pydrake.systems.primitives import LogVectorOutput
+
+    coop = side.coop
+    out: dict = {"normals": [np.asarray(a.arm.N, dtype=float) for a in coop.arms]}
+    if coop.mode == "contact":
+        from drake_coop.plant.ground_truth import add_pad_force_log
+
+        pads = add_pad_force_log(builder, coop, h, [], log=False)
+        out["pads"] = LogVectorOutput(pads.hold, builder, publish_period=h)
+        out["box"] = LogVectorOutput(coop.plant.get_state_output_port(
+            coop.grasp.box.model_instance()), builder, publish_period=h)
+    out["arms"] = [LogVectorOutput(coop.plant.get_state_output_port(a.instance), builder,
+                                   publish_period=h) for a in coop.arms]
+    return out
+
+
+def write_truth_log(path, truth: dict, context) -> None:
+    """``sim-driver --log``'s file (written whole): ``t``; ``lambda`` (ticks × arms × m:
+    ``N_i F_i``, NaN outside contact mode); ``box_state`` (the box's positions and
+    velocities, contact mode); ``arm<i>_state``."""
+    import io
+
+    import numpy as np
+
+    from drake_coop.results.io import atomic_write_bytes
+
+    arms = [log.FindLog(context) for log in truth["arms"]]
+    t = arms[0].sample_times()
+    data = {"t": t}
+    normals = truth["normals"]
+    if "pads" in truth:
+        F = truth["pads"].FindLog(context).data().T          # ticks × 3·arms
+        lam = [np.atleast_2d(N) @ F[:, 3 * i:3 * i + 3].T for i, N in enumerate(normals)]
+        data["lambda"] = np.stack([x.T for x in lam], axis=1)
+        data["box_state"] = truth["box"].FindLog(context).data().T
+    for i, log in enumerate(arms):
+        data[f"arm{i}_state"] = log.data().T
+    buffer = io.BytesIO()
+    np.savez(buffer, **data)
+    atomic_write_bytes(path, buffer.getvalue())

@@ -61,6 +61,8 @@ from pydrake.systems.primitives import Demultiplexer, PassThrough, TrajectorySou
 from drake import lcmt_panda_command, lcmt_panda_status
 from drake_coop.control.block import AddCooperativeController, ControllerHandles
 from drake_coop.control.watchdog import Watchdog
+from drake_coop.control.params import checked_period
+from drake_coop.experiment.object_blocks import ESTIMATOR_TICKS, add_object_blocks, couple_samples
 from drake_coop.experiment.plan import RunPlan, time_grid
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import CoopPlant, build_plant
@@ -343,10 +345,20 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
         raise ValueError(f"status_input: 'subscriber' or 'loop' (got {status_input!r})")
     guards = scenario.guards
     margin = math.radians(guards.joint_limit_margin_deg)
+    if plan.shared:
+        raise ScenarioError("object_model.shared: the shared object-state block needs every "
+                            "arm's reading in one diagram; not served over the cable")
+    # The object model's blocks (object_model: known / estimated), as in the simulated
+    # diagram: each arm's load feedforward (and mass estimator) on its own reading.
+    trajectories = [reference_trajectory(scenario, i, plan.t_end, plan)
+                    for i in range(len(coop.arms))]
+    estimator_h = (checked_period(ESTIMATOR_TICKS * plan.h)
+                   if scenario.object_model.mode == "estimated" else None)
     arms = []
     for i, (handles, robot, spec) in enumerate(zip(coop.arms, scenario.robots, specs)):
         if robots is not None and robot.name not in robots:
             continue
+        resolved = plan.robots[i]
         name, n = robot.name, spec.n
         receiver = status_sub = position = None
         if status_input == "loop":
@@ -384,11 +396,19 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
             controller_model=model, velocity_source=robot.velocity_source,
             force_source=robot.force_source, difference_cutoff_hz=robot.difference_cutoff_hz,
             prediction_horizon=robot.timing.prediction_horizon,
+            contact_stiffness=resolved.stiffness,
             q=q, connect_actuation=False, name=name)
-        ref = builder.AddNamedSystem(f"{name}_reference", TrajectorySource(
-            reference_trajectory(scenario, i, plan.t_end, plan)))
+        ref = builder.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectories[i]))
         builder.Connect(ref.get_output_port(), block.reference_input)
-        builder.Connect(block.tau_output, watchdog.get_tau_input_port())
+        tau = block.tau_output
+        if plan.object is not None:
+            t_ref = np.asarray(trajectories[i].get_segment_times())
+            couple = (couple_samples(plan, i, trajectories, t_ref) if plan.uses_couple
+                      else None)
+            tau = add_object_blocks(builder, resolved, plan.h, q, ref.get_output_port(),
+                                    block.system, t_ref, couple,
+                                    estimator_period=estimator_h).tau
+        builder.Connect(tau, watchdog.get_tau_input_port())
         builder.Connect(block.lambda_hat_output, watchdog.get_lambda_hat_input_port())
         sender = builder.AddNamedSystem(f"{name}_command_sender",
                                         PandaCommandSender(n, PandaControlMode.kTorque))
