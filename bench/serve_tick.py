@@ -40,6 +40,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the checkout: bench.*
 
+#: The timed parts of a serve tick (``driver``: the scripted driver's publishing, not counted).
+PARTS = ("driver", "receive", "feed", "step", "watchdog", "command")
+
 
 def _readings(scenario, plan, ticks: int, cycles: int) -> list[np.ndarray]:
     """Each arm's ``q_d`` at every driver cycle of ``ticks`` ticks (``cycles`` per tick)."""
@@ -71,31 +74,33 @@ def _status_bytes(q, utime: int) -> bytes:
 class _Serve:
     """serve's side, built; :meth:`run` times ``ticks`` ticks."""
 
-    def __init__(self, scenario, plan, specs, data, cycles):
+    def __init__(self, scenario, plan, specs, data, cycles, robots=None):
         from pydrake.lcm import DrakeLcm
 
         from drake_coop.robot.serve_loop import ServeLoop, status_arrivals
 
         self.lcm = DrakeLcm("memq://")
-        self.loop = ServeLoop(scenario, plan, self.lcm, specs)
+        self.loop = ServeLoop(scenario, plan, self.lcm, specs, robots=robots)
         self.channels = [s.status_channel for s in self.loop.specs]
         self.arrivals = status_arrivals(self.lcm, self.loop.specs)
-        self.data, self.cycles = data, cycles
+        index = [[s.robot for s in specs].index(s.robot) for s in self.loop.specs]
+        self.data, self.cycles = [data[i] for i in index], cycles
         self.next = 0                # the next tick's readings (runs continue the stream)
-        self.loop.start([data[i][0][1] for i in range(len(self.channels))])
+        self.loop.start([self.data[i][0][1] for i in range(len(self.channels))])
 
     def run(self, ticks: int) -> dict[str, float]:
         """CPU seconds of ``ticks`` ticks by part: ``driver`` (the scripted driver's
         publishing: the driver's process in reality), ``receive`` (LCM's dispatch of every
-        status and its check), ``feed`` (the newest read and set), ``step`` (the Simulator
-        step: blocks and watchdog), ``command`` (each arm's command encoded and published)."""
+        status to its handler, which keeps the bytes), ``feed`` (the tick's statuses checked,
+        the newest read and set), ``step`` (``λ̂(k)`` and the Simulator step: the blocks),
+        ``watchdog`` (each arm's checks on floats), ``command`` (each arm's command encoded
+        and published)."""
         lcm, loop, arrivals, channels = self.lcm, self.loop, self.arrivals, self.channels
         data, cycles = self.data, self.cycles
         first = self.next
         self.next += ticks
         clock = time.process_time
-        parts = dict.fromkeys(("driver", "receive", "feed", "step", "command"), 0.0)
-        arms = list(zip(loop.side.arms, loop._pub))
+        parts = dict.fromkeys(PARTS, 0.0)
         for k in range(first, first + ticks):
             a = clock()
             for j in range(k * cycles, (k + 1) * cycles):
@@ -107,17 +112,18 @@ class _Serve:
             for i, c in enumerate(channels):
                 loop.feed(i, arrivals.take_parsed(c))
             d = clock()
-            loop.k += 1                      # ServeLoop.tick, in its two parts
-            loop.simulator.AdvanceTo(loop.k * loop.h)
+            loop.step()                      # ServeLoop.tick, in its three parts
             e = clock()
-            for arm, context in arms:
-                arm.command_publisher.ForcedPublish(context)
+            loop.check()
             f = clock()
+            loop.send()
+            g = clock()
             parts["driver"] += b - a
             parts["receive"] += c_ - b
             parts["feed"] += d - c_
             parts["step"] += e - d
-            parts["command"] += f - e
+            parts["watchdog"] += f - e
+            parts["command"] += g - f
         if loop.tripped() is not None:
             raise RuntimeError(f"benchmark serve run tripped: {loop.tripped()}")
         return parts
@@ -126,7 +132,7 @@ class _Serve:
 class _Batch:
     """The same blocks with ``q`` from a C++ TrajectorySource; :meth:`run` times them."""
 
-    def __init__(self, scenario, plan, readings, cycles):
+    def __init__(self, scenario, plan, readings, cycles, robots=None):
         from pydrake.systems.analysis import Simulator
         from pydrake.systems.framework import DiagramBuilder
         from pydrake.systems.primitives import TrajectorySource
@@ -142,7 +148,11 @@ class _Batch:
         builder = DiagramBuilder()
         self.blocks = []
         for i, (handles, robot) in enumerate(zip(coop.arms, scenario.robots)):
-            q = readings[i][::cycles]                   # the reading each tick uses
+            if robots is not None and robot.name not in robots:
+                continue
+            # the reading each serve tick uses: the newest of its statuses (the tick's last
+            # driver cycle); the observers start at the stream's first reading, as serve's
+            q = readings[i][cycles - 1::cycles]
             t = np.arange(len(q) + 1) * plan.h
             pp = PiecewisePolynomial.ZeroOrderHold(t, np.vstack([q, q[-1:]]).T)
             src = builder.AddSystem(TrajectorySource(pp))
@@ -150,12 +160,13 @@ class _Batch:
                 builder, coop.plant, handles.instance, gains=robot.gains, period=plan.h,
                 controller_model=controller_arm_model(handles.arm, robot.model_error),
                 velocity_source=robot.velocity_source, force_source=robot.force_source,
-                difference_cutoff_hz=robot.difference_cutoff_hz, q=src.get_output_port(),
+                difference_cutoff_hz=robot.difference_cutoff_hz,
+                prediction_horizon=robot.timing.prediction_horizon, q=src.get_output_port(),
                 connect_actuation=False, name=robot.name)
             ref = builder.AddSystem(TrajectorySource(
                 reference_trajectory(scenario, i, plan.t_end, plan)))
             builder.Connect(ref.get_output_port(), block.reference_input)
-            self.blocks.append((block, q[0]))
+            self.blocks.append((block, readings[i][0]))
         self._keep = (model_builder, coop)
         self.diagram = builder.Build()
         self.simulator = Simulator(self.diagram)
@@ -199,7 +210,41 @@ def _steps_per_tick(serve: _Serve, ticks: int) -> float:
     return (serve.loop.simulator.get_num_steps_taken() - before) / ticks
 
 
-def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5) -> dict:
+def _alternated(make_serve, make_batch, ticks: int, pairs: int, chunk: int) -> dict:
+    """``pairs`` pairs, each a fresh serve and batch built outside the timing, then run in
+    alternated chunks of ``chunk`` ticks up to ``ticks`` each (on a shared machine the load
+    changes within seconds: the finer alternation cancels more of it)."""
+    ratios, step_ratios, serve_cpu, batch_cpu, parts_us = [], [], [], [], []
+    for _ in range(pairs):
+        batch, serve = make_batch(), make_serve()
+        b, parts = 0.0, dict.fromkeys(PARTS, 0.0)
+        done = 0
+        while done < ticks:
+            n = min(chunk, ticks - done)
+            b += batch.run(n)
+            for key, value in serve.run(n).items():
+                parts[key] += value
+            done += n
+        del batch, serve
+        s = sum(v for key, v in parts.items() if key != "driver")
+        ratios.append(s / b)
+        step_ratios.append((parts["step"] + parts["watchdog"] + parts["command"]) / b)
+        serve_cpu.append(s / ticks)
+        batch_cpu.append(b / ticks)
+        parts_us.append({k: 1e6 * v / ticks for k, v in parts.items()})
+    return {
+        "ratio_cpu": ratios, "ratio_cpu_median": statistics.median(ratios),
+        "ratio_cpu_step_and_command": step_ratios,
+        "ratio_cpu_step_and_command_median": statistics.median(step_ratios),
+        "serve_tick_cpu_us_median": 1e6 * statistics.median(serve_cpu),
+        "batch_tick_cpu_us_median": 1e6 * statistics.median(batch_cpu),
+        "serve_parts_us_median": {k: statistics.median(p[k] for p in parts_us)
+                                  for k in PARTS},
+    }
+
+
+def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5, chunk: int = 100,
+                         per_arm: bool = True) -> dict:
     """The figures of the module's docstring."""
     from drake_coop.experiment.plan import plan_run
     from drake_coop.robot.drivers import driver_specs
@@ -214,47 +259,41 @@ def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5) -> dict:
     plan = plan_run(scenario, min(total * scenario.control_period, 90.0))
     readings = _readings(scenario, plan, total, cycles)
     data = [[(_status_bytes(q, j * 1000), q) for j, q in enumerate(r)] for r in readings]
-    ratios, step_ratios, serve_cpu, batch_cpu = [], [], [], []
-    parts_us = []
-    for _ in range(pairs):
-        batch = _Batch(scenario, plan, readings, cycles)
-        b = batch.run(ticks)
-        del batch
-        serve = _Serve(scenario, plan, specs, data, cycles)
-        parts = serve.run(ticks)
-        del serve
-        s = parts["receive"] + parts["feed"] + parts["step"] + parts["command"]
-        ratios.append(s / b)
-        step_ratios.append((parts["step"] + parts["command"]) / b)
-        serve_cpu.append(s / ticks)
-        batch_cpu.append(b / ticks)
-        parts_us.append({k: 1e6 * v / ticks for k, v in parts.items()})
+    result = {"ticks": ticks, "pairs": pairs, "chunk": chunk,
+              "machine": platform.processor() or platform.machine()}
+    result.update(_alternated(lambda: _Serve(scenario, plan, specs, data, cycles),
+                              lambda: _Batch(scenario, plan, readings, cycles),
+                              ticks, pairs, chunk))
+    if per_arm:                  # serve --robot NAME against the batch of that arm's blocks
+        result["per_arm"] = {
+            s.robot: _alternated(
+                lambda r=s.robot: _Serve(scenario, plan, specs, data, cycles, robots=[r]),
+                lambda r=s.robot: _Batch(scenario, plan, readings, cycles, robots=[r]),
+                ticks, pairs, chunk)
+            for s in specs}
     serve = _Serve(scenario, plan, specs, data, cycles)
     serve.run(ticks)
     steps = _steps_per_tick(serve, 50)
     callbacks = _callbacks_per_tick(serve, 100)
-    return {
-        "ticks": ticks, "pairs": pairs, "machine": platform.processor() or platform.machine(),
-        "ratio_cpu": ratios, "ratio_cpu_median": statistics.median(ratios),
-        "ratio_cpu_step_and_command": step_ratios,
-        "ratio_cpu_step_and_command_median": statistics.median(step_ratios),
-        "serve_tick_cpu_us_median": 1e6 * statistics.median(serve_cpu),
-        "batch_tick_cpu_us_median": 1e6 * statistics.median(batch_cpu),
-        "serve_parts_us_median": {k: statistics.median(p[k] for p in parts_us)
-                                  for k in parts_us[0]},
+    result.update({
         "simulator_steps_per_tick": steps,
         "python_callbacks_per_tick": callbacks["per_tick"],
         "callbacks_by_function": callbacks["by_function"],
-    }
+    })
+    return result
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ticks", type=int, default=2000)
     parser.add_argument("--pairs", type=int, default=5)
+    parser.add_argument("--chunk", type=int, default=100,
+                        help="ticks per alternated chunk within a pair")
+    parser.add_argument("--no-per-arm", action="store_true",
+                        help="skip the one-arm (serve --robot) pairs")
     parser.add_argument("--out", default=None, help="write the numbers as JSON")
     args = parser.parse_args()
-    result = serve_tick_benchmark(args.ticks, args.pairs)
+    result = serve_tick_benchmark(args.ticks, args.pairs, args.chunk, not args.no_per_arm)
     text = json.dumps(result, indent=1)
     print(text)
     if args.out:

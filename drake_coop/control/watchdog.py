@@ -161,12 +161,18 @@ class Watchdog(LeafSystem):
         ``τ_safe``.
     hold_torque : callable, optional
         ``g(q)`` for ``hold`` (required then): the gravity torque of the controller's model.
+    periodic : bool
+        Whether the tick's checks are a periodic discrete update (default). ``False``: the
+        watchdog has no event; whoever runs the loop calls :meth:`tick` once per tick with
+        the tick's inputs as plain floats (``drake-coop serve``'s loop: no Python event, no
+        ``Eval`` of the inputs), with the same checks, state and outputs.
     """
 
     def __init__(self, n: int, m: int, period: float, *, max_status_age: float, q_min,
                  q_max, max_force: float, torque_limits, velocity_limits=None,
                  safe_command: str = "zero_torque",
-                 hold_torque: Callable[[np.ndarray], np.ndarray] | None = None):
+                 hold_torque: Callable[[np.ndarray], np.ndarray] | None = None,
+                 periodic: bool = True):
         super().__init__()
         for name, value in (("n", n), ("m", m)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -219,7 +225,8 @@ class Watchdog(LeafSystem):
         self._q_min_l, self._q_max_l = self._q_min.tolist(), self._q_max.tolist()
         self._tau_max_l = self._tau_max.tolist()
         self._v_max_l = None if self._v_max is None else self._v_max.tolist()
-        self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
+        if periodic:
+            self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
         self.DeclareVectorOutputPort(
             "q_checked", n, self._calc_q,
             prerequisites_of_calc={self.xd_ticket(), self._q.ticket(), self._status.ticket()})
@@ -298,10 +305,12 @@ class Watchdog(LeafSystem):
         tau = np.where(np.isfinite(tau), tau, 0.0)
         return np.clip(tau, -self._tau_max, self._tau_max)
 
-    def _check(self, context: Context, flags: list, t: float, q_good: list):
+    def _check(self, status, q_in, lam, flags: list, t: float, q_good: list):
         """``(code, details, q)`` of this tick (``q`` the new valid reading, else None);
-        updates ``flags``' stamp. Plain floats throughout."""
-        stamp, fault, value = self._status.Eval(context).tolist()
+        updates ``flags``' stamp. ``status`` the ``[s, f, v]`` floats; ``q_in()`` and
+        ``lam()`` give the reading and ``λ̂`` as lists of floats (called only when needed).
+        Plain floats throughout."""
+        stamp, fault, value = status
         if fault != STATUS_OK and fault != STATUS_NONE:
             return 7, (fault, value, 0.0), None
         valid = fault == STATUS_OK
@@ -314,7 +323,7 @@ class Watchdog(LeafSystem):
             return 1, _NONE, None
         q = None
         if valid:
-            q = self._q.Eval(context).tolist()
+            q = q_in()
             isfinite = math.isfinite
             for qj in q:
                 if not isfinite(qj):
@@ -332,7 +341,7 @@ class Watchdog(LeafSystem):
                 if j_worst >= 0:
                     return 8, (float(j_worst), abs(q[j_worst] - q_good[j_worst]), dt), None
         biggest = 0.0
-        for lj in self._lambda.Eval(context).tolist():
+        for lj in lam():
             if not math.isfinite(lj):
                 return 4, _NONE, None
             biggest = max(biggest, abs(lj))
@@ -345,27 +354,59 @@ class Watchdog(LeafSystem):
         if flags[0] != 0.0:
             return
         q_good = context.get_discrete_state(self._q_good).get_value().tolist()
-        code, details, q = self._check(context, flags, context.get_time(), q_good)
+        new = self._step(
+            flags, q_good, context.get_time(), self._status.Eval(context).tolist(),
+            lambda: self._q.Eval(context).tolist(),
+            lambda: self._lambda.Eval(context).tolist(),
+            lambda: self._tau.Eval(context).tolist())
+        for group, value in zip((self._flags, self._q_good, self._safe, self._latched,
+                                 self._code), new):
+            if value is not None:
+                discrete.set_value(group, value)
+
+    def tick(self, context: Context, t: float, status, q, lambda_hat, tau) -> bool:
+        """The checks of the tick at ``t = t_k``, for a watchdog built with
+        ``periodic=False``: what its periodic update at ``t_k`` does, on the given inputs,
+        written into ``context``'s state (the outputs follow: ``tau_latched`` is the command
+        to send).
+
+        ``status`` the ``[s, f, v]`` floats; ``q`` the reading (floats; read only when ``f``
+        is :data:`STATUS_OK`); ``lambda_hat`` ``λ̂(k)``; ``tau`` ``τ(k)``: the values the
+        ``q``, ``lambda_hat`` and ``tau`` inputs would have at the update. Returns whether
+        the watchdog is tripped.
+        """
+        flags = context.get_discrete_state(self._flags).get_value().tolist()
+        if flags[0] != 0.0:
+            return True
+        q_good = context.get_discrete_state(self._q_good).get_value().tolist()
+        new = self._step(flags, q_good, t, status, lambda: list(q),
+                         lambda: list(lambda_hat), lambda: list(tau))
+        for group, value in zip((self._flags, self._q_good, self._safe, self._latched,
+                                 self._code), new):
+            if value is not None:
+                context.SetDiscreteState(group, np.array(value, dtype=float))
+        return new[0][0] != 0.0
+
+    def _step(self, flags: list, q_good: list, t: float, status, q_in, lam, tau_in):
+        """The tick's new ``(flags, q_g, τ_safe, tau_latched, code)`` (None: unchanged)."""
+        code, details, q = self._check(status, q_in, lam, flags, t, q_good)
         tau = None
         if code == 0:
-            tau = self._tau.Eval(context).tolist()
+            tau = tau_in()
             if not all(map(math.isfinite, tau)):
                 code, tau = 5, None
         flags[0] = float(code)
         flags[5:8] = details
+        new_q_good = safe = latched = code_out = None
         if q is not None:
             flags[3], flags[4] = 1.0, flags[1]
-            discrete.set_value(self._q_good, q)
-            q_good = q
+            new_q_good = q_good = q
         if code != 0:
-            safe = self._safe_torque(np.array(q_good))
-            discrete.set_value(self._safe, safe)
-            discrete.set_value(self._latched, safe)
-            discrete.set_value(self._code, [float(code)])
+            safe = latched = self._safe_torque(np.array(q_good))
+            code_out = [float(code)]
         elif flags[3] != 0.0:
-            discrete.set_value(self._latched, [min(max(tj, -mj), mj) for tj, mj in
-                                               zip(tau, self._tau_max_l)])
-        discrete.set_value(self._flags, flags)
+            latched = [min(max(tj, -mj), mj) for tj, mj in zip(tau, self._tau_max_l)]
+        return flags, new_q_good, safe, latched, code_out
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
         q = self._q.Eval(context)
