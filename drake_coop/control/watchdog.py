@@ -54,6 +54,9 @@ TRIP_REASONS = {
     8: "joint position jumped faster than the velocity limits allow",
 }
 
+#: Entries of the watchdog's flags before ``q_g`` in its memory state.
+_FLAGS = 8
+
 #: No details (a trip's reason quotes none).
 _NONE = (0.0, 0.0, 0.0)
 
@@ -212,12 +215,12 @@ class Watchdog(LeafSystem):
         self._status = self.DeclareVectorInputPort("status", 3)
         self._tau = self.DeclareVectorInputPort("tau", n)
         self._lambda = self.DeclareVectorInputPort("lambda_hat", m)
-        # _flags: [reason, last stamp, tick at which it was first seen, a valid status seen,
-        #          s_g, detail 0, detail 1, detail 2]; the last good reading q_g; τ_safe;
-        # the reason code alone (the tripped port); tau_latched.
-        self._flags = self.DeclareDiscreteState(
-            np.array([0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, 0.0]))
-        self._q_good = self.DeclareDiscreteState(n)
+        # _memory: [reason, last stamp, tick at which it was first seen, a valid status seen,
+        #           s_g, detail 0, detail 1, detail 2, q_g (the last good reading, n)] (one
+        #           group: read and written once a tick); τ_safe; the reason code alone (the
+        #           tripped port); tau_latched.
+        self._memory = self.DeclareDiscreteState(np.concatenate(
+            [[0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, 0.0], np.zeros(n)]))
         self._safe = self.DeclareDiscreteState(n)
         self._code = self.DeclareDiscreteState(1)
         self._latched = self.DeclareDiscreteState(n)
@@ -269,9 +272,8 @@ class Watchdog(LeafSystem):
         """Start untripped, no status seen yet, with ``q_g = q`` (the arm's expected reading
         at the start: what ``q_checked`` gives and ``hold`` holds until the first status)."""
         q = _vector(q, self._n, "q")
-        context.SetDiscreteState(self._flags, np.array(
-            [0.0, math.nan, context.get_time(), 0.0, math.nan, 0.0, 0.0, 0.0]))
-        context.SetDiscreteState(self._q_good, q)
+        context.SetDiscreteState(self._memory, np.concatenate(
+            [[0.0, math.nan, context.get_time(), 0.0, math.nan, 0.0, 0.0, 0.0], q]))
         safe = self._safe_torque(q)
         context.SetDiscreteState(self._safe, safe)
         context.SetDiscreteState(self._code, np.zeros(1))
@@ -279,7 +281,7 @@ class Watchdog(LeafSystem):
 
     def reason(self, context: Context) -> str:
         """The one-line reason of a trip ('' if not tripped)."""
-        flags = context.get_discrete_state(self._flags).get_value()
+        flags = context.get_discrete_state(self._memory).get_value()
         code = int(flags[0])
         if code == 7:
             fault, value = int(flags[5]), flags[6]
@@ -292,11 +294,11 @@ class Watchdog(LeafSystem):
         return TRIP_REASONS[code]
 
     def is_tripped(self, context: Context) -> bool:
-        return context.get_discrete_state(self._flags).get_value()[0] != 0.0
+        return context.get_discrete_state(self._memory).get_value()[0] != 0.0
 
     def last_good_position(self, context: Context) -> np.ndarray:
         """``q_g``: the last reading that passed the checks (the start's before the first)."""
-        return context.get_discrete_state(self._q_good).get_value().copy()
+        return context.get_discrete_state(self._memory).get_value()[_FLAGS:].copy()
 
     def _safe_torque(self, q: np.ndarray) -> np.ndarray:
         if self._safe_command == "zero_torque":
@@ -350,17 +352,15 @@ class Watchdog(LeafSystem):
         return 0, _NONE, q
 
     def _update(self, context: Context, discrete: DiscreteValues) -> None:
-        flags = context.get_discrete_state(self._flags).get_value().tolist()
-        if flags[0] != 0.0:
+        memory = context.get_discrete_state(self._memory).get_value().tolist()
+        if memory[0] != 0.0:
             return
-        q_good = context.get_discrete_state(self._q_good).get_value().tolist()
         new = self._step(
-            flags, q_good, context.get_time(), self._status.Eval(context).tolist(),
+            memory, context.get_time(), self._status.Eval(context).tolist(),
             lambda: self._q.Eval(context).tolist(),
             lambda: self._lambda.Eval(context).tolist(),
             lambda: self._tau.Eval(context).tolist())
-        for group, value in zip((self._flags, self._q_good, self._safe, self._latched,
-                                 self._code), new):
+        for group, value in zip((self._memory, self._safe, self._latched, self._code), new):
             if value is not None:
                 discrete.set_value(group, value)
 
@@ -375,20 +375,20 @@ class Watchdog(LeafSystem):
         ``q``, ``lambda_hat`` and ``tau`` inputs would have at the update. Returns whether
         the watchdog is tripped.
         """
-        flags = context.get_discrete_state(self._flags).get_value().tolist()
-        if flags[0] != 0.0:
+        memory = context.get_discrete_state(self._memory).get_value().tolist()
+        if memory[0] != 0.0:
             return True
-        q_good = context.get_discrete_state(self._q_good).get_value().tolist()
-        new = self._step(flags, q_good, t, status, lambda: list(q),
-                         lambda: list(lambda_hat), lambda: list(tau))
-        for group, value in zip((self._flags, self._q_good, self._safe, self._latched,
-                                 self._code), new):
+        new = self._step(memory, t, status, lambda: list(q), lambda: list(lambda_hat),
+                         lambda: list(tau))
+        for group, value in zip((self._memory, self._safe, self._latched, self._code), new):
             if value is not None:
                 context.SetDiscreteState(group, np.array(value, dtype=float))
         return new[0][0] != 0.0
 
-    def _step(self, flags: list, q_good: list, t: float, status, q_in, lam, tau_in):
-        """The tick's new ``(flags, q_g, τ_safe, tau_latched, code)`` (None: unchanged)."""
+    def _step(self, memory: list, t: float, status, q_in, lam, tau_in):
+        """The tick's new ``(memory, τ_safe, tau_latched, code)`` (None: unchanged) from
+        ``memory`` (flags and ``q_g``, as a list)."""
+        flags, q_good = memory[:_FLAGS], memory[_FLAGS:]
         code, details, q = self._check(status, q_in, lam, flags, t, q_good)
         tau = None
         if code == 0:
@@ -397,26 +397,26 @@ class Watchdog(LeafSystem):
                 code, tau = 5, None
         flags[0] = float(code)
         flags[5:8] = details
-        new_q_good = safe = latched = code_out = None
+        safe = latched = code_out = None
         if q is not None:
             flags[3], flags[4] = 1.0, flags[1]
-            new_q_good = q_good = q
+            q_good = q
         if code != 0:
             safe = latched = self._safe_torque(np.array(q_good))
             code_out = [float(code)]
         elif flags[3] != 0.0:
             latched = [min(max(tj, -mj), mj) for tj, mj in zip(tau, self._tau_max_l)]
-        return flags, new_q_good, safe, latched, code_out
+        return flags + q_good, safe, latched, code_out
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
         q = self._q.Eval(context)
         if self._status.Eval(context)[1] == STATUS_OK and np.all(np.isfinite(q)):
             output.SetFromVector(q)
         else:
-            output.SetFromVector(context.get_discrete_state(self._q_good).get_value())
+            output.SetFromVector(context.get_discrete_state(self._memory).get_value()[_FLAGS:])
 
     def _calc_tau(self, context: Context, output: BasicVector) -> None:
-        flags = context.get_discrete_state(self._flags).get_value()
+        flags = context.get_discrete_state(self._memory).get_value()
         tau = self._tau.Eval(context)
         if flags[0] != 0.0 or flags[3] == 0.0 or not np.all(np.isfinite(tau)):
             output.SetFromVector(context.get_discrete_state(self._safe).get_value())

@@ -70,25 +70,24 @@ def check_panda_status(data: bytes, n: int) -> tuple[np.ndarray, float, int, flo
     the stamp is readable); ``fault`` and ``value`` as the watchdog's ``status`` input
     (:data:`~drake_coop.control.watchdog.STATUS_FAULTS`). Never raises.
     """
-    bad = _nan(n)
     size = len(data)
     if size == 0:
-        return bad, math.nan, STATUS_NONE, 0.0
+        return _nan(n), math.nan, STATUS_NONE, 0.0
     if size < 8 or data[:8] != PANDA_STATUS_FINGERPRINT:
-        return bad, math.nan, 2, float(size)
+        return _nan(n), math.nan, 2, float(size)
     if size < _HEAD:
-        return bad, math.nan, 3, float(size)
+        return _nan(n), math.nan, 3, float(size)
     utime, joints = struct.unpack_from(">qi", data, 8)
     stamp = utime * 1e-6
     if joints != n:
-        return bad, stamp, 4, float(joints)
+        return _nan(n), stamp, 4, float(joints)
     if size < panda_status_size(n):
-        return bad, stamp, 3, float(size)
+        return _nan(n), stamp, 3, float(size)
     if size > panda_status_size(n):
-        return bad, stamp, 5, float(size)
+        return _nan(n), stamp, 5, float(size)
     q = struct.unpack_from(f">{n}d", data, _HEAD)
     if not all(map(math.isfinite, q)):
-        return bad, stamp, 6, 0.0
+        return _nan(n), stamp, 6, 0.0
     return np.array(q), stamp, STATUS_OK, 0.0
 
 
