@@ -1,27 +1,35 @@
 """The cost of ``drake-coop serve``'s tick against the batch cost of the same blocks:
-``python bench/serve_tick.py [--ticks 2000] [--pairs 5] [--out serve_tick.json]``.
+``python bench/serve_tick.py [--ticks 2000] [--pairs 5] [--chunk 100] [--out FILE]``.
 
-In one process, on ``memq://``, the paper's scenario, both arms:
+In one process, on ``memq://``, the paper's scenario, both arms, then each arm alone
+(``serve --robot NAME`` against the batch of that arm's blocks, ``per_arm``):
 
 * **serve**: :class:`~drake_coop.robot.serve_loop.ServeLoop` as ``serve`` runs it, fed by a
   scripted 1 kHz driver: per tick, nine statuses per arm published (pre-encoded bytes of the
-  reference's ``q_d`` at the driver's cycles) and received (each one's bytes read as it
-  arrives, :class:`~drake_coop.robot.pacing.StatusArrivals`), the newest fed, one tick (the
-  blocks, the watchdog, one Simulator step), each arm's command encoded and published;
-  unpaced: no waiting. Each part is timed (``serve_parts_us_median``); the scripted driver's
-  own publishing (``driver``: the driver's process in reality) is left out of the ratio.
-* **batch**: the same blocks (``AddCooperativeController`` per arm, the same references) in a
-  Diagram whose ``q`` comes from a C++ ``TrajectorySource`` holding the same readings
-  (zero-order hold), advanced over the same ticks in one ``AdvanceTo``.
+  reference's ``q_d`` at the driver's cycles) and received (each one's bytes kept as it
+  arrives, :class:`~drake_coop.robot.pacing.StatusArrivals`), all of them checked at once,
+  the newest read and fed, the Simulator step (the blocks), each arm's watchdog on floats,
+  each arm's command encoded and published; unpaced: no waiting. Each part is timed
+  (``serve_parts_us_median``: ``receive``, ``check``, ``feed``, ``step``, ``watchdog``,
+  ``command``); the scripted driver's own publishing (``driver``: the driver's process in
+  reality) is left out of the ratio.
+* **serve without the reception** (``without_reception_*``): the same loop with no LCM at
+  all, each tick's newest status handed to it already read (outside the timing): what the
+  1 kHz reception costs in all, its own time and its effect on the rest of the tick.
+* **batch**: the same blocks (``AddCooperativeController`` per arm, the same references and
+  prediction horizon) in a Diagram whose ``q`` comes from a C++ ``TrajectorySource`` holding
+  the readings each serve tick uses (the newest status of the tick, zero-order hold; the
+  observers start at the same reading), advanced in one ``AdvanceTo`` per chunk.
 
-Each is built outside the timing; the two are alternated ``pairs`` times; the figure is the
-ratio of CPU times (``time.process_time``) of each pair, its median and range (on a shared
-machine the alternated pairs cancel most of the other processes' load): the whole serve tick
-(``ratio_cpu``), and its Simulator step and commands alone (``ratio_cpu_step_and_command``:
-the same blocks plus the watchdog, without the 1 kHz reception). Also reported: the
-Python callbacks per serve tick (every ``drake_coop`` function called from C++, the LCM
-handlers included: :func:`bench.callbacks._calls_from_builtins`), and the Simulator steps
-per tick.
+Each pair builds a fresh serve and batch outside the timing, then runs them in alternated
+chunks of ``chunk`` ticks up to ``ticks`` each (on a shared machine the load changes within
+seconds; the finer alternation cancels more of it); the figure is the ratio of CPU times
+(``time.process_time``) of each pair, its median and range: the whole serve tick
+(``ratio_cpu``), and its step, watchdog and commands alone (``ratio_cpu_step_and_command``:
+the same blocks plus the watchdog, without the 1 kHz reception). Also reported: the Python
+callbacks per serve tick (every ``drake_coop`` function called from C++, the LCM handlers
+included: :func:`bench.callbacks._calls_from_builtins`; the watchdog, called by the loop,
+is not one), and the Simulator steps per tick.
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import os
 import platform
 import statistics
 import sys
@@ -41,7 +50,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the checkout: bench.*
 
 #: The timed parts of a serve tick (``driver``: the scripted driver's publishing, not counted).
-PARTS = ("driver", "receive", "feed", "step", "watchdog", "command")
+PARTS = ("driver", "receive", "check", "feed", "step", "watchdog", "command")
 
 
 def _readings(scenario, plan, ticks: int, cycles: int) -> list[np.ndarray]:
@@ -74,10 +83,11 @@ def _status_bytes(q, utime: int) -> bytes:
 class _Serve:
     """serve's side, built; :meth:`run` times ``ticks`` ticks."""
 
-    def __init__(self, scenario, plan, specs, data, cycles, robots=None):
+    def __init__(self, scenario, plan, specs, data, cycles, robots=None, fed=False):
         from pydrake.lcm import DrakeLcm
 
         from drake_coop.robot.serve_loop import ServeLoop, status_arrivals
+        from drake_coop.robot.status import check_panda_status
 
         self.lcm = DrakeLcm("memq://")
         self.loop = ServeLoop(scenario, plan, self.lcm, specs, robots=robots)
@@ -87,12 +97,18 @@ class _Serve:
         self.data, self.cycles = [data[i] for i in index], cycles
         self.next = 0                # the next tick's readings (runs continue the stream)
         self.loop.start([self.data[i][0][1] for i in range(len(self.channels))])
+        # fed: no LCM at all, each tick's newest status handed over already read (outside
+        # the timing): the tick without the 1 kHz reception
+        self.fed = None if not fed else [
+            [check_panda_status(arm[j][0], s.n) for j in range(cycles - 1, len(arm), cycles)]
+            for arm, s in zip(self.data, self.loop.specs)]
 
     def run(self, ticks: int) -> dict[str, float]:
         """CPU seconds of ``ticks`` ticks by part: ``driver`` (the scripted driver's
         publishing: the driver's process in reality), ``receive`` (LCM's dispatch of every
-        status to its handler, which keeps the bytes), ``feed`` (the tick's statuses checked,
-        the newest read and set), ``step`` (``λ̂(k)`` and the Simulator step: the blocks),
+        status to its handler, which keeps the bytes), ``check`` (every status of the tick
+        checked at once), ``feed`` (the newest read and set), ``step`` (``λ̂(k)`` and the
+        Simulator step: the blocks),
         ``watchdog`` (each arm's checks on floats), ``command`` (each arm's command encoded
         and published)."""
         lcm, loop, arrivals, channels = self.lcm, self.loop, self.arrivals, self.channels
@@ -101,6 +117,8 @@ class _Serve:
         self.next += ticks
         clock = time.process_time
         parts = dict.fromkeys(PARTS, 0.0)
+        if self.fed is not None:
+            return self._run_fed(first, ticks)
         for k in range(first, first + ticks):
             a = clock()
             for j in range(k * cycles, (k + 1) * cycles):
@@ -109,6 +127,8 @@ class _Serve:
             b = clock()
             lcm.HandleSubscriptions(0)
             c_ = clock()
+            arrivals.faulty                  # every status of the tick checked
+            c2 = clock()
             for i, c in enumerate(channels):
                 loop.feed(i, arrivals.take_parsed(c))
             d = clock()
@@ -120,6 +140,29 @@ class _Serve:
             g = clock()
             parts["driver"] += b - a
             parts["receive"] += c_ - b
+            parts["check"] += c2 - c_
+            parts["feed"] += d - c2
+            parts["step"] += e - d
+            parts["watchdog"] += f - e
+            parts["command"] += g - f
+        if loop.tripped() is not None:
+            raise RuntimeError(f"benchmark serve run tripped: {loop.tripped()}")
+        return parts
+
+    def _run_fed(self, first: int, ticks: int) -> dict[str, float]:
+        loop, fed, clock = self.loop, self.fed, time.process_time
+        parts = dict.fromkeys(PARTS, 0.0)
+        for k in range(first, first + ticks):
+            c_ = clock()
+            for i, statuses in enumerate(fed):
+                loop.feed(i, statuses[k])
+            d = clock()
+            loop.step()
+            e = clock()
+            loop.check()
+            f = clock()
+            loop.send()
+            g = clock()
             parts["feed"] += d - c_
             parts["step"] += e - d
             parts["watchdog"] += f - e
@@ -210,37 +253,50 @@ def _steps_per_tick(serve: _Serve, ticks: int) -> float:
     return (serve.loop.simulator.get_num_steps_taken() - before) / ticks
 
 
-def _alternated(make_serve, make_batch, ticks: int, pairs: int, chunk: int) -> dict:
-    """``pairs`` pairs, each a fresh serve and batch built outside the timing, then run in
-    alternated chunks of ``chunk`` ticks up to ``ticks`` each (on a shared machine the load
-    changes within seconds: the finer alternation cancels more of it)."""
-    ratios, step_ratios, serve_cpu, batch_cpu, parts_us = [], [], [], [], []
+def _alternated(make_serve, make_batch, ticks: int, pairs: int, chunk: int,
+                make_fed=None) -> dict:
+    """``pairs`` pairs, each a fresh serve and batch (and ``make_fed``'s serve without the
+    reception, if given) built outside the timing, then run in alternated chunks of
+    ``chunk`` ticks up to ``ticks`` each (on a shared machine the load changes within
+    seconds: the finer alternation cancels more of it)."""
+    runs: dict[str, list] = {"serve": [], "fed": []}
+    batch_cpu = []
     for _ in range(pairs):
         batch, serve = make_batch(), make_serve()
-        b, parts = 0.0, dict.fromkeys(PARTS, 0.0)
+        fed = make_fed() if make_fed is not None else None
+        b = 0.0
+        parts = {"serve": dict.fromkeys(PARTS, 0.0), "fed": dict.fromkeys(PARTS, 0.0)}
         done = 0
         while done < ticks:
             n = min(chunk, ticks - done)
             b += batch.run(n)
-            for key, value in serve.run(n).items():
-                parts[key] += value
+            for name, runner in (("serve", serve), ("fed", fed)):
+                if runner is not None:
+                    for key, value in runner.run(n).items():
+                        parts[name][key] += value
             done += n
-        del batch, serve
-        s = sum(v for key, v in parts.items() if key != "driver")
-        ratios.append(s / b)
-        step_ratios.append((parts["step"] + parts["watchdog"] + parts["command"]) / b)
-        serve_cpu.append(s / ticks)
+        del batch, serve, fed
         batch_cpu.append(b / ticks)
-        parts_us.append({k: 1e6 * v / ticks for k, v in parts.items()})
-    return {
-        "ratio_cpu": ratios, "ratio_cpu_median": statistics.median(ratios),
-        "ratio_cpu_step_and_command": step_ratios,
-        "ratio_cpu_step_and_command_median": statistics.median(step_ratios),
-        "serve_tick_cpu_us_median": 1e6 * statistics.median(serve_cpu),
-        "batch_tick_cpu_us_median": 1e6 * statistics.median(batch_cpu),
-        "serve_parts_us_median": {k: statistics.median(p[k] for p in parts_us)
-                                  for k in PARTS},
-    }
+        for name in runs:
+            runs[name].append((b, parts[name]))
+    out = {}
+    for name, prefix in (("serve", ""), ("fed", "without_reception_")):
+        if not runs[name] or make_fed is None and name == "fed":
+            continue
+        ratios = [sum(v for k, v in p.items() if k != "driver") / b for b, p in runs[name]]
+        out[prefix + "ratio_cpu"] = ratios
+        out[prefix + "ratio_cpu_median"] = statistics.median(ratios)
+        out[prefix + "serve_parts_us_median"] = {
+            k: statistics.median(1e6 * p[k] / ticks for _, p in runs[name]) for k in PARTS}
+        if name == "serve":
+            step = [(p["step"] + p["watchdog"] + p["command"]) / b for b, p in runs[name]]
+            out["ratio_cpu_step_and_command"] = step
+            out["ratio_cpu_step_and_command_median"] = statistics.median(step)
+            out["serve_tick_cpu_us_median"] = statistics.median(
+                1e6 * sum(v for k, v in p.items() if k != "driver") / ticks
+                for _, p in runs[name])
+    out["batch_tick_cpu_us_median"] = 1e6 * statistics.median(batch_cpu)
+    return out
 
 
 def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5, chunk: int = 100,
@@ -260,10 +316,12 @@ def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5, chunk: int = 100,
     readings = _readings(scenario, plan, total, cycles)
     data = [[(_status_bytes(q, j * 1000), q) for j, q in enumerate(r)] for r in readings]
     result = {"ticks": ticks, "pairs": pairs, "chunk": chunk,
-              "machine": platform.processor() or platform.machine()}
+              "machine": platform.processor() or platform.machine(),
+              "cpus": os.cpu_count(), "load_average_start": os.getloadavg()[0]}
     result.update(_alternated(lambda: _Serve(scenario, plan, specs, data, cycles),
                               lambda: _Batch(scenario, plan, readings, cycles),
-                              ticks, pairs, chunk))
+                              ticks, pairs, chunk,
+                              lambda: _Serve(scenario, plan, specs, data, cycles, fed=True)))
     if per_arm:                  # serve --robot NAME against the batch of that arm's blocks
         result["per_arm"] = {
             s.robot: _alternated(
@@ -276,6 +334,7 @@ def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5, chunk: int = 100,
     steps = _steps_per_tick(serve, 50)
     callbacks = _callbacks_per_tick(serve, 100)
     result.update({
+        "load_average_end": os.getloadavg()[0],
         "simulator_steps_per_tick": steps,
         "python_callbacks_per_tick": callbacks["per_tick"],
         "callbacks_by_function": callbacks["by_function"],
