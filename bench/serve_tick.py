@@ -35,7 +35,6 @@ is not one), and the Simulator steps per tick.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import platform

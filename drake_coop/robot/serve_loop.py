@@ -2,15 +2,18 @@
 loops that tick it: on the wall-clock grid, or on each status's arrival
 (:func:`run_on_arrival`).
 
-One tick of :class:`ServeLoop` is: each arm's newest status, read from its bytes once as it
-arrived (:func:`~drake_coop.robot.status.check_panda_status`), set on the watchdog's
-``status`` input and, as the checked reading (the reading itself when the status is valid,
-else the last valid one: never a NaN), on the C++ ``PassThrough`` that feeds the watchdog and
-the control blocks (``add_controller_side(..., status_input="loop")``); **one** Simulator step
-(``AdvanceTo`` to :math:`t_{k+1}` from ``t_k`` runs the updates at ``t_k``: the controller's latch, the
-observers, the watchdog); then each arm's command is published at once (``ForcedPublish`` of
-its C++ publisher, reading the watchdog's latched ``tau_latched``). The Python callbacks of a
-tick are the paper's blocks' and one per arm for the watchdog.
+One tick of :class:`ServeLoop` is: each arm's newest status (every status of the tick checked
+on its bytes first, :func:`status_arrivals`), read once
+(:func:`~drake_coop.robot.status.check_panda_status`) and, as the checked reading (the
+reading itself when the status is valid, else the last valid one: never a NaN), set on the
+C++ ``PassThrough`` that feeds the control blocks (``add_controller_side(...,
+status_input="loop")``); ``λ̂(k)`` read, then **one** Simulator step (``AdvanceTo`` to
+:math:`t_{k+1}` from ``t_k`` runs the updates at ``t_k``: the controller's latch, the
+observers); each arm's watchdog, which has no event in this Diagram, run on floats
+(:meth:`~drake_coop.control.watchdog.Watchdog.tick`: the status's stamp and fault, the
+reading, ``λ̂(k)``, the latched ``τ(k)``); then each arm's command published at once
+(``ForcedPublish`` of its C++ publisher, reading the watchdog's latched ``tau_latched``). The
+Python callbacks of a step are the paper's blocks' only.
 
 A stop shared by several ``serve`` processes (``serve --robot NAME``, one per arm): every
 ``serve`` subscribes to :data:`STOP_CHANNEL`; the one whose watchdog trips publishes

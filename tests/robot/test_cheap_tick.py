@@ -77,6 +77,24 @@ def test_a_bad_status_among_good_ones_is_the_one_the_tick_takes():
     assert arrivals.take("S") == good
 
 
+def test_statuses_nobody_looks_at_are_checked_in_bounded_batches():
+    """While the loop waits (before the first tick) nobody looks: the kept messages are checked
+    every 1000, so memory stays bounded and a bad one among thousands is still found."""
+    from drake_coop.robot import pacing
+
+    lcm = DrakeLcm("memq://")
+    arrivals = StatusArrivals(lcm, ["S"], check_many={"S": lambda m: first_bad_panda_status(m, 3)})
+    good, bad = status([0.1, 0.2, 0.3]), status([0.1, 0.2, math.nan])
+    for j in range(2500):
+        lcm.Publish("S", bad if j == 1500 else good)
+        if j % 100 == 99:
+            lcm.HandleSubscriptions(0)
+    lcm.HandleSubscriptions(0)
+    assert len(arrivals._pending["S"]) < pacing._MAX_PENDING
+    assert arrivals.faulty["S"] == bad and arrivals.take("S") == bad
+    assert arrivals.take("S") == good
+
+
 H, N = 0.009, 3
 
 
