@@ -116,7 +116,9 @@ class Watchdog(LeafSystem):
     doubles): in a Diagram where ``τ`` changes only at the ticks (a controller that latches
     ``τ(k)`` before the watchdog's update at ``t_k``) it equals ``tau_safe`` from the tick on,
     and reading it costs no Python call. ``tripped`` is a state output too: the watchdog's one
-    Python callback per tick is its update, computed on plain floats.
+    Python callback per tick is its update, computed on plain floats. Built with
+    ``periodic=False`` it has no event: whoever runs the loop calls :meth:`tick` after the
+    tick's step with the inputs' values (the same checks and state; ``drake-coop serve``).
 
     The controller reads its positions through ``q_checked``: the reading itself (the same
     doubles) when the status is valid and finite, else the last good reading, so that no
