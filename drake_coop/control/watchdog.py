@@ -54,6 +54,9 @@ TRIP_REASONS = {
     8: "joint position jumped faster than the velocity limits allow",
 }
 
+#: Entries of the watchdog's flags before ``q_g`` in its memory state.
+_FLAGS = 8
+
 #: No details (a trip's reason quotes none).
 _NONE = (0.0, 0.0, 0.0)
 
@@ -113,7 +116,9 @@ class Watchdog(LeafSystem):
     doubles): in a Diagram where ``τ`` changes only at the ticks (a controller that latches
     ``τ(k)`` before the watchdog's update at ``t_k``) it equals ``tau_safe`` from the tick on,
     and reading it costs no Python call. ``tripped`` is a state output too: the watchdog's one
-    Python callback per tick is its update, computed on plain floats.
+    Python callback per tick is its update, computed on plain floats. Built with
+    ``periodic=False`` it has no event: whoever runs the loop calls :meth:`tick` after the
+    tick's step with the inputs' values (the same checks and state; ``drake-coop serve``).
 
     The controller reads its positions through ``q_checked``: the reading itself (the same
     doubles) when the status is valid and finite, else the last good reading, so that no
@@ -161,12 +166,18 @@ class Watchdog(LeafSystem):
         ``τ_safe``.
     hold_torque : callable, optional
         ``g(q)`` for ``hold`` (required then): the gravity torque of the controller's model.
+    periodic : bool
+        Whether the tick's checks are a periodic discrete update (default). ``False``: the
+        watchdog has no event; whoever runs the loop calls :meth:`tick` once per tick with
+        the tick's inputs as plain floats (``drake-coop serve``'s loop: no Python event, no
+        ``Eval`` of the inputs), with the same checks, state and outputs.
     """
 
     def __init__(self, n: int, m: int, period: float, *, max_status_age: float, q_min,
                  q_max, max_force: float, torque_limits, velocity_limits=None,
                  safe_command: str = "zero_torque",
-                 hold_torque: Callable[[np.ndarray], np.ndarray] | None = None):
+                 hold_torque: Callable[[np.ndarray], np.ndarray] | None = None,
+                 periodic: bool = True):
         super().__init__()
         for name, value in (("n", n), ("m", m)):
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
@@ -206,12 +217,12 @@ class Watchdog(LeafSystem):
         self._status = self.DeclareVectorInputPort("status", 3)
         self._tau = self.DeclareVectorInputPort("tau", n)
         self._lambda = self.DeclareVectorInputPort("lambda_hat", m)
-        # _flags: [reason, last stamp, tick at which it was first seen, a valid status seen,
-        #          s_g, detail 0, detail 1, detail 2]; the last good reading q_g; τ_safe;
-        # the reason code alone (the tripped port); tau_latched.
-        self._flags = self.DeclareDiscreteState(
-            np.array([0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, 0.0]))
-        self._q_good = self.DeclareDiscreteState(n)
+        # _memory: [reason, last stamp, tick at which it was first seen, a valid status seen,
+        #           s_g, detail 0, detail 1, detail 2, q_g (the last good reading, n)] (one
+        #           group: read and written once a tick); τ_safe; the reason code alone (the
+        #           tripped port); tau_latched.
+        self._memory = self.DeclareDiscreteState(np.concatenate(
+            [[0.0, math.nan, 0.0, 0.0, math.nan, 0.0, 0.0, 0.0], np.zeros(n)]))
         self._safe = self.DeclareDiscreteState(n)
         self._code = self.DeclareDiscreteState(1)
         self._latched = self.DeclareDiscreteState(n)
@@ -219,7 +230,8 @@ class Watchdog(LeafSystem):
         self._q_min_l, self._q_max_l = self._q_min.tolist(), self._q_max.tolist()
         self._tau_max_l = self._tau_max.tolist()
         self._v_max_l = None if self._v_max is None else self._v_max.tolist()
-        self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
+        if periodic:
+            self.DeclarePeriodicDiscreteUpdateEvent(self._h, 0.0, self._update)
         self.DeclareVectorOutputPort(
             "q_checked", n, self._calc_q,
             prerequisites_of_calc={self.xd_ticket(), self._q.ticket(), self._status.ticket()})
@@ -262,9 +274,8 @@ class Watchdog(LeafSystem):
         """Start untripped, no status seen yet, with ``q_g = q`` (the arm's expected reading
         at the start: what ``q_checked`` gives and ``hold`` holds until the first status)."""
         q = _vector(q, self._n, "q")
-        context.SetDiscreteState(self._flags, np.array(
-            [0.0, math.nan, context.get_time(), 0.0, math.nan, 0.0, 0.0, 0.0]))
-        context.SetDiscreteState(self._q_good, q)
+        context.SetDiscreteState(self._memory, np.concatenate(
+            [[0.0, math.nan, context.get_time(), 0.0, math.nan, 0.0, 0.0, 0.0], q]))
         safe = self._safe_torque(q)
         context.SetDiscreteState(self._safe, safe)
         context.SetDiscreteState(self._code, np.zeros(1))
@@ -272,7 +283,7 @@ class Watchdog(LeafSystem):
 
     def reason(self, context: Context) -> str:
         """The one-line reason of a trip ('' if not tripped)."""
-        flags = context.get_discrete_state(self._flags).get_value()
+        flags = context.get_discrete_state(self._memory).get_value()
         code = int(flags[0])
         if code == 7:
             fault, value = int(flags[5]), flags[6]
@@ -285,11 +296,11 @@ class Watchdog(LeafSystem):
         return TRIP_REASONS[code]
 
     def is_tripped(self, context: Context) -> bool:
-        return context.get_discrete_state(self._flags).get_value()[0] != 0.0
+        return context.get_discrete_state(self._memory).get_value()[0] != 0.0
 
     def last_good_position(self, context: Context) -> np.ndarray:
         """``q_g``: the last reading that passed the checks (the start's before the first)."""
-        return context.get_discrete_state(self._q_good).get_value().copy()
+        return context.get_discrete_state(self._memory).get_value()[_FLAGS:].copy()
 
     def _safe_torque(self, q: np.ndarray) -> np.ndarray:
         if self._safe_command == "zero_torque":
@@ -298,10 +309,12 @@ class Watchdog(LeafSystem):
         tau = np.where(np.isfinite(tau), tau, 0.0)
         return np.clip(tau, -self._tau_max, self._tau_max)
 
-    def _check(self, context: Context, flags: list, t: float, q_good: list):
+    def _check(self, status, q_in, lam, flags: list, t: float, q_good: list):
         """``(code, details, q)`` of this tick (``q`` the new valid reading, else None);
-        updates ``flags``' stamp. Plain floats throughout."""
-        stamp, fault, value = self._status.Eval(context).tolist()
+        updates ``flags``' stamp. ``status`` the ``[s, f, v]`` floats; ``q_in()`` and
+        ``lam()`` give the reading and ``λ̂`` as lists of floats (called only when needed).
+        Plain floats throughout."""
+        stamp, fault, value = status
         if fault != STATUS_OK and fault != STATUS_NONE:
             return 7, (fault, value, 0.0), None
         valid = fault == STATUS_OK
@@ -314,7 +327,7 @@ class Watchdog(LeafSystem):
             return 1, _NONE, None
         q = None
         if valid:
-            q = self._q.Eval(context).tolist()
+            q = q_in()
             isfinite = math.isfinite
             for qj in q:
                 if not isfinite(qj):
@@ -332,7 +345,7 @@ class Watchdog(LeafSystem):
                 if j_worst >= 0:
                     return 8, (float(j_worst), abs(q[j_worst] - q_good[j_worst]), dt), None
         biggest = 0.0
-        for lj in self._lambda.Eval(context).tolist():
+        for lj in lam():
             if not math.isfinite(lj):
                 return 4, _NONE, None
             biggest = max(biggest, abs(lj))
@@ -341,41 +354,71 @@ class Watchdog(LeafSystem):
         return 0, _NONE, q
 
     def _update(self, context: Context, discrete: DiscreteValues) -> None:
-        flags = context.get_discrete_state(self._flags).get_value().tolist()
-        if flags[0] != 0.0:
+        memory = context.get_discrete_state(self._memory).get_value().tolist()
+        if memory[0] != 0.0:
             return
-        q_good = context.get_discrete_state(self._q_good).get_value().tolist()
-        code, details, q = self._check(context, flags, context.get_time(), q_good)
+        new = self._step(
+            memory, context.get_time(), self._status.Eval(context).tolist(),
+            lambda: self._q.Eval(context).tolist(),
+            lambda: self._lambda.Eval(context).tolist(),
+            lambda: self._tau.Eval(context).tolist())
+        for group, value in zip((self._memory, self._safe, self._latched, self._code), new):
+            if value is not None:
+                discrete.set_value(group, value)
+
+    def tick(self, context: Context, t: float, status, q, lambda_hat, tau) -> bool:
+        """The checks of the tick at ``t = t_k``, for a watchdog built with
+        ``periodic=False``: what its periodic update at ``t_k`` does, on the given inputs,
+        written into ``context``'s state (the outputs follow: ``tau_latched`` is the command
+        to send).
+
+        ``status`` the ``[s, f, v]`` floats; ``q`` the reading (floats; read only when ``f``
+        is :data:`STATUS_OK`); ``lambda_hat`` ``λ̂(k)``; ``tau`` ``τ(k)``: the values the
+        ``q``, ``lambda_hat`` and ``tau`` inputs would have at the update. Returns whether
+        the watchdog is tripped.
+        """
+        memory = context.get_discrete_state(self._memory).get_value().tolist()
+        if memory[0] != 0.0:
+            return True
+        new = self._step(memory, t, status, lambda: list(q), lambda: list(lambda_hat),
+                         lambda: list(tau))
+        for group, value in zip((self._memory, self._safe, self._latched, self._code), new):
+            if value is not None:
+                context.SetDiscreteState(group, np.array(value, dtype=float))
+        return new[0][0] != 0.0
+
+    def _step(self, memory: list, t: float, status, q_in, lam, tau_in):
+        """The tick's new ``(memory, τ_safe, tau_latched, code)`` (None: unchanged) from
+        ``memory`` (flags and ``q_g``, as a list)."""
+        flags, q_good = memory[:_FLAGS], memory[_FLAGS:]
+        code, details, q = self._check(status, q_in, lam, flags, t, q_good)
         tau = None
         if code == 0:
-            tau = self._tau.Eval(context).tolist()
+            tau = tau_in()
             if not all(map(math.isfinite, tau)):
                 code, tau = 5, None
         flags[0] = float(code)
         flags[5:8] = details
+        safe = latched = code_out = None
         if q is not None:
             flags[3], flags[4] = 1.0, flags[1]
-            discrete.set_value(self._q_good, q)
             q_good = q
         if code != 0:
-            safe = self._safe_torque(np.array(q_good))
-            discrete.set_value(self._safe, safe)
-            discrete.set_value(self._latched, safe)
-            discrete.set_value(self._code, [float(code)])
+            safe = latched = self._safe_torque(np.array(q_good))
+            code_out = [float(code)]
         elif flags[3] != 0.0:
-            discrete.set_value(self._latched, [min(max(tj, -mj), mj) for tj, mj in
-                                               zip(tau, self._tau_max_l)])
-        discrete.set_value(self._flags, flags)
+            latched = [min(max(tj, -mj), mj) for tj, mj in zip(tau, self._tau_max_l)]
+        return flags + q_good, safe, latched, code_out
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
         q = self._q.Eval(context)
         if self._status.Eval(context)[1] == STATUS_OK and np.all(np.isfinite(q)):
             output.SetFromVector(q)
         else:
-            output.SetFromVector(context.get_discrete_state(self._q_good).get_value())
+            output.SetFromVector(context.get_discrete_state(self._memory).get_value()[_FLAGS:])
 
     def _calc_tau(self, context: Context, output: BasicVector) -> None:
-        flags = context.get_discrete_state(self._flags).get_value()
+        flags = context.get_discrete_state(self._memory).get_value()
         tau = self._tau.Eval(context)
         if flags[0] != 0.0 or flags[3] == 0.0 or not np.all(np.isfinite(tau)):
             output.SetFromVector(context.get_discrete_state(self._safe).get_value())

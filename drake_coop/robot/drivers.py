@@ -312,11 +312,13 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     command is published periodically, :data:`COMMAND_OFFSET` after each tick.
     ``"loop"``: no subscriber and no receiver system; the caller reads each status's bytes
     (:func:`~drake_coop.robot.status.check_panda_status`, as
-    :class:`~drake_coop.robot.serve_loop.ServeLoop` does), fixes the watchdog's ``status``
-    input and the checked reading on ``position_input`` (a C++ ``PassThrough`` feeding the
-    watchdog's ``q`` and the blocks' ``q``) before the tick, and publishes the command itself
-    (``ForcedPublish`` of the ``command_publisher``, which has no periodic event) as soon as
-    the tick's updates are done: no Python callback for the status, one for the watchdog.
+    :class:`~drake_coop.robot.serve_loop.ServeLoop` does) and fixes the checked reading on
+    ``position_input`` (a C++ ``PassThrough`` feeding the blocks' ``q``) before the tick; the
+    watchdog has no event (``Watchdog(..., periodic=False)``): the caller runs its checks
+    after the tick's step (:meth:`~drake_coop.control.watchdog.Watchdog.tick`, on the
+    status's floats, ``λ̂(k)`` and ``τ(k)``) and publishes the command itself
+    (``ForcedPublish`` of the ``command_publisher``, which has no periodic event): no Python
+    event for the status or the watchdog in the Simulator's step.
 
     ``robots``: the names of the arms to add (default all; ``serve --robot``), in the
     scenario's order.
@@ -382,7 +384,8 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
             n, arm.m, plan.h, max_status_age=spec.max_status_age,
             q_min=arm.q_min - margin, q_max=arm.q_max + margin, max_force=guards.max_force,
             torque_limits=spec.torque_limits, velocity_limits=velocity,
-            safe_command=spec.safe_command, hold_torque=model.g))
+            safe_command=spec.safe_command, hold_torque=model.g,
+            periodic=status_input != "loop"))
         if position is not None:
             builder.Connect(position.get_output_port(), watchdog.get_q_input_port())
             q = position.get_output_port()

@@ -68,38 +68,79 @@ class PacingRecord:
                 "wait_s": np.asarray(self.wait, dtype=float)}
 
 
+#: Messages of a channel kept unchecked at most (then checked as they arrive).
+_MAX_PENDING = 1000
+
+
 class StatusArrivals:
     """Wall time at which the newest message of each channel arrived in this process, and
     that message (a plain ``DrakeLcm`` subscription; pump it outside ``AdvanceTo`` only, see
     :func:`~drake_coop.robot.drivers.add_lcm_interface`).
 
-    ``check``, optional, maps a channel to ``check(data) -> bool`` (False: a faulty message);
-    every message is checked as it arrives, and :meth:`take` gives the first faulty one since
-    the last :meth:`take` in preference to the newest, so that a bad message followed by good
-    ones between two ticks is still seen by the next tick.
+    Each message's handler only stamps and keeps its bytes (the LCM dispatch of a message to
+    Python is most of its cost at the driver's rate). The messages are checked when the
+    caller looks (:attr:`faulty`, :meth:`take`): ``check``, optional, maps a channel to
+    ``check(data) -> bool`` (False: a faulty message), ``check_many`` to
+    ``check_many(messages) -> int`` (the index of the first faulty one, -1 if none: the same
+    check on all the messages that arrived since the last look, at once). :meth:`take`
+    gives the first faulty message since the last :meth:`take` in preference to the newest,
+    so that a bad message followed by good ones between two ticks is still seen by the next
+    tick.
     """
 
     def __init__(self, lcm, channels: list[str], check: dict | None = None,
-                 parse: dict | None = None):
+                 parse: dict | None = None, check_many: dict | None = None):
         self.last = {c: math.nan for c in channels}
         self.count = {c: 0 for c in channels}
         self.message = {c: None for c in channels}
-        self.faulty = {c: None for c in channels}
+        self._faulty = {c: None for c in channels}
+        self._pending = {c: [] for c in channels}
         self._check = dict(check or {})
+        self._check_many = dict(check_many or {})
         self._parse = dict(parse or {})
         for c in channels:
             lcm.Subscribe(c, self._handler(c))
 
     def _handler(self, channel: str):
-        check = self._check.get(channel)
+        last, count, message = self.last, self.count, self.message
+        pending = self._pending[channel]
+        keep = pending.append
+        if channel not in self._check and channel not in self._check_many:
+            keep = None
+        clock = time.perf_counter
 
         def handle(data: bytes) -> None:
-            self.last[channel] = time.perf_counter()
-            self.count[channel] += 1
-            self.message[channel] = data
-            if check is not None and self.faulty[channel] is None and not check(data):
-                self.faulty[channel] = data
+            last[channel] = clock()
+            count[channel] += 1
+            message[channel] = data
+            if keep is not None:
+                keep(data)
+                if len(pending) >= _MAX_PENDING:      # nobody looked for a while
+                    self._settle(channel)
         return handle
+
+    def _settle(self, channel: str) -> None:
+        """Check the messages that arrived since the last look (the first faulty one kept)."""
+        pending = self._pending[channel]
+        if not pending:
+            return
+        if self._faulty[channel] is None:
+            many = self._check_many.get(channel)
+            if many is not None:
+                i = many(pending)
+            else:
+                check = self._check[channel]
+                i = next((j for j, data in enumerate(pending) if not check(data)), -1)
+            if i >= 0:
+                self._faulty[channel] = pending[i]
+        pending.clear()
+
+    @property
+    def faulty(self) -> dict:
+        """Each channel's first faulty message since the last :meth:`take` (None: none)."""
+        for c in self._pending:
+            self._settle(c)
+        return self._faulty
 
     def parsed(self, channel: str):
         """``parse`` (given for the channel) of the newest message."""
@@ -113,10 +154,11 @@ class StatusArrivals:
     def take(self, channel: str) -> bytes | None:
         """The first faulty message since the last call if any (then forgotten), else the
         newest."""
-        data = self.faulty[channel]
+        self._settle(channel)
+        data = self._faulty[channel]
         if data is None:
             return self.message[channel]
-        self.faulty[channel] = None
+        self._faulty[channel] = None
         return data
 
     def all_arrived(self) -> bool:

@@ -2,15 +2,18 @@
 loops that tick it: on the wall-clock grid, or on each status's arrival
 (:func:`run_on_arrival`).
 
-One tick of :class:`ServeLoop` is: each arm's newest status, read from its bytes once as it
-arrived (:func:`~drake_coop.robot.status.check_panda_status`), set on the watchdog's
-``status`` input and, as the checked reading (the reading itself when the status is valid,
-else the last valid one: never a NaN), on the C++ ``PassThrough`` that feeds the watchdog and
-the control blocks (``add_controller_side(..., status_input="loop")``); **one** Simulator step
-(``AdvanceTo`` to :math:`t_{k+1}` from ``t_k`` runs the updates at ``t_k``: the controller's latch, the
-observers, the watchdog); then each arm's command is published at once (``ForcedPublish`` of
-its C++ publisher, reading the watchdog's latched ``tau_latched``). The Python callbacks of a
-tick are the paper's blocks' and one per arm for the watchdog.
+One tick of :class:`ServeLoop` is: each arm's newest status (every status of the tick checked
+on its bytes first, :func:`status_arrivals`), read once
+(:func:`~drake_coop.robot.status.check_panda_status`) and, as the checked reading (the
+reading itself when the status is valid, else the last valid one: never a NaN), set on the
+C++ ``PassThrough`` that feeds the control blocks (``add_controller_side(...,
+status_input="loop")``); ``λ̂(k)`` read, then **one** Simulator step (``AdvanceTo`` to
+:math:`t_{k+1}` from ``t_k`` runs the updates at ``t_k``: the controller's latch, the
+observers); each arm's watchdog, which has no event in this Diagram, run on floats
+(:meth:`~drake_coop.control.watchdog.Watchdog.tick`: the status's stamp and fault, the
+reading, ``λ̂(k)``, the latched ``τ(k)``); then each arm's command published at once
+(``ForcedPublish`` of its C++ publisher, reading the watchdog's latched ``tau_latched``). The
+Python callbacks of a step are the paper's blocks' only.
 
 A stop shared by several ``serve`` processes (``serve --robot NAME``, one per arm): every
 ``serve`` subscribes to :data:`STOP_CHANNEL`; the one whose watchdog trips publishes
@@ -38,15 +41,17 @@ STOP_CHANNEL = "DRAKE_COOP_STOP"
 
 def status_arrivals(lcm, specs):
     """The arms' status channels subscribed (:class:`~drake_coop.robot.pacing.StatusArrivals`):
-    every message's bytes checked as it arrives
-    (:func:`~drake_coop.robot.status.panda_status_ok`), the one a tick takes read
+    every message's bytes kept as it arrives and checked, all those of a tick at once, when
+    the loop looks (:func:`~drake_coop.robot.status.first_bad_panda_status`: the checks of
+    :func:`~drake_coop.robot.status.panda_status_ok`), the one a tick takes read
     (:func:`check_panda_status`)."""
     from drake_coop.robot.pacing import StatusArrivals
-    from drake_coop.robot.status import panda_status_ok
+    from drake_coop.robot.status import first_bad_panda_status
 
     return StatusArrivals(
         lcm, [s.status_channel for s in specs],
-        check={s.status_channel: (lambda data, n=s.n: panda_status_ok(data, n)) for s in specs},
+        check_many={s.status_channel: (lambda messages, n=s.n:
+                                       first_bad_panda_status(messages, n)) for s in specs},
         parse={s.status_channel: (lambda data, n=s.n: check_panda_status(data, n))
                for s in specs})
 
@@ -98,7 +103,10 @@ class ServeLoop:
         self.h = plan.h
         self._scenario, self._plan, self._lcm = scenario, plan, lcm
         self._fixed_q: list = []
-        self._fixed_status: list = []
+        self._status: list[tuple[float, float, float]] = []   # each arm's [s, f, v]
+        self._q: list[list[float]] = []                       # and its last valid reading
+        self._wd: list = []
+        self._lam: list = []
         self._good: list[np.ndarray] = []
         self._pub: list = []
         self.k = 0
@@ -114,9 +122,12 @@ class ServeLoop:
             self._good.append(q)
             self._fixed_q.append(arm.position_input.get_input_port().FixValue(
                 arm.position_input.GetMyMutableContextFromRoot(self.context), q))
-            self._fixed_status.append(arm.watchdog.get_status_input_port().FixValue(
-                arm.watchdog.GetMyMutableContextFromRoot(self.context),
-                np.array([math.nan, float(STATUS_NONE), 0.0])))
+            self._status.append((math.nan, float(STATUS_NONE), 0.0))
+            self._q.append(q.tolist())
+            block = arm.block
+            self._wd.append((arm.watchdog, arm.watchdog.GetMyMutableContextFromRoot(
+                self.context), block.system.GetMyContextFromRoot(self.context),
+                block.lambda_hat_output, block.tau_output))
             self._pub.append(arm.command_publisher.GetMyContextFromRoot(self.context))
         self.simulator.Initialize()
 
@@ -126,10 +137,10 @@ class ServeLoop:
         if parsed is None:
             return
         q, stamp, fault, value = parsed
-        self._fixed_status[i].GetMutableData().set_value(
-            np.array([stamp, float(fault), value]))
+        self._status[i] = (stamp, float(fault), value)
         if fault == STATUS_OK:
             self._good[i] = q
+            self._q[i] = q.tolist()
             self._fixed_q[i].GetMutableData().set_value(q)
 
     def feed_bytes(self, i: int, data: bytes) -> None:
@@ -137,11 +148,31 @@ class ServeLoop:
         self.feed(i, check_panda_status(data, self.specs[i].n))
 
     def tick(self) -> None:
-        """Tick ``k`` (the updates at ``t_k``, one Simulator step), then each arm's command."""
+        """Tick ``k``: :meth:`step`, :meth:`check`, :meth:`send`."""
+        self.step()
+        self.check()
+        self.send()
+
+    def step(self) -> None:
+        """The updates at ``t_k`` (one Simulator step), ``λ̂(k)`` read first: the value the
+        step's updates then use (computed once, cached by Drake) and the watchdog checks."""
+        self._lam = [port.Eval(block).tolist() for _, _, block, port, _ in self._wd]
         self.k += 1
         self.simulator.AdvanceTo(self.k * self.h)
-        for arm, context in zip(self.side.arms, self._pub):
-            arm.command_publisher.ForcedPublish(context)
+
+    def check(self) -> None:
+        """Each arm's watchdog for tick ``k``
+        (:meth:`~drake_coop.control.watchdog.Watchdog.tick`, at ``t_k``, on the fed status,
+        ``λ̂(k)`` and the latched ``τ(k)``)."""
+        t = (self.k - 1) * self.h
+        for (wd, wd_context, block, _, tau), status, q, lam in zip(self._wd, self._status,
+                                                                     self._q, self._lam):
+            wd.tick(wd_context, t, status, q, lam, tau.Eval(block).tolist())
+
+    def send(self) -> None:
+        """Each arm's command (the watchdog's ``tau_latched``) encoded and published."""
+        for arm, pub_context in zip(self.side.arms, self._pub):
+            arm.command_publisher.ForcedPublish(pub_context)
 
     def time(self) -> float:
         """``t_k`` of the last tick (s; 0 before the first)."""
