@@ -32,6 +32,11 @@ def error(message: object, prog: str = "drake-coop") -> int:
         What went wrong (its ``str``, folded onto one line).
     prog : str
         The command's name that starts the line.
+
+    Returns
+    -------
+    int
+        2.
     """
     print(f"{prog}: error: {one_line(message)}", file=sys.stderr)
     return 2

@@ -284,16 +284,6 @@ def test_the_body_column_is_widened_by_the_sites_css():
     assert 'html_css_files = ["wide.css"]' in conf and '"_static"' in conf
 
 
-#: Modules whose docstrings still hold TeX in ``code`` spans, to be converted to ``:math:``
-#: roles (their files are being edited on other branches). The list only shrinks: an entry
-#: whose file has no such span any more fails below, and is removed.
-DOCSTRING_TEX_PENDING: dict[str, str] = {
-    "identification/collect.py": "converted after the identification branches merge",
-    "identification/estimate.py": "converted after the identification branches merge",
-    "robot/pacing.py": "converted after the robot-path branch merges",
-    "scenario/schema.py": "converted after the scenario branches merge",
-    "stability/period_map.py": "converted after the stability branch merges",
-}
 _DOC_SPAN = re.compile(r"(?<!`)``(?!`)((?:(?!\n[ \t]*\n).)+?)``(?!`)", re.S)
 _DOC_TEX = re.compile(r"[_^]\{|\\|\^T(?![A-Za-z])")
 _DOC_COMMENT = re.compile(r"^[ \t]*#:(.*)$", re.M)
@@ -344,27 +334,65 @@ def _package_tex_spans() -> dict[str, list[tuple[int, str]]]:
     return found
 
 
-def tex_span_problems(found: dict[str, list[tuple[int, str]]],
-                      pending: dict[str, str]) -> list[str]:
-    """The TeX spans of files not in ``pending``, and the ``pending`` entries with none left."""
-    bad = [f"drake_coop/{f}:{line}: ``{s}`` (use :math:)" for f, spans in found.items()
-           if f not in pending for line, s in spans]
-    return bad + [f"{f}: listed as pending, but has no TeX code span left: remove it"
-                  for f in sorted(set(pending) - set(found))]
+def tex_span_problems(found: dict[str, list[tuple[int, str]]]) -> list[str]:
+    """One line per TeX span found, naming the file and the line."""
+    return [f"drake_coop/{f}:{line}: ``{s}`` (use :math:)" for f, spans in found.items()
+            for line, s in spans]
 
 
 def test_no_tex_inside_code_spans_in_the_docstrings():
-    """The API pages show math as math (``:math:`t_{k+1}```), never raw TeX in a code span."""
-    problems = tex_span_problems(_package_tex_spans(), DOCSTRING_TEX_PENDING)
+    """The API pages show math as math (``:math:`t_{k+1}```), never raw TeX in a code span;
+    no module is exempt."""
+    problems = tex_span_problems(_package_tex_spans())
     assert not problems, "\n".join(problems)
 
 
-def test_a_tex_span_outside_the_list_and_a_stale_entry_are_both_reported():
+def test_a_tex_span_is_reported_with_its_file_and_line():
     found = {"a.py": [(3, "t_{k+1}")], "b.py": [(5, "J^T")]}
-    assert tex_span_problems(found, {"a.py": "", "b.py": ""}) == []
-    assert tex_span_problems(found, {"a.py": ""}) == ["drake_coop/b.py:5: ``J^T`` (use :math:)"]
-    assert tex_span_problems(found, {"a.py": "", "b.py": "", "c.py": ""}) == [
-        "c.py: listed as pending, but has no TeX code span left: remove it"]
+    assert tex_span_problems(found) == ["drake_coop/a.py:3: ``t_{k+1}`` (use :math:)",
+                                        "drake_coop/b.py:5: ``J^T`` (use :math:)"]
+    assert tex_span_problems({}) == []
+
+
+def escaped_docstrings(source: str) -> list[int]:
+    r"""Lines of the module, class and function docstrings written with a backslash that are
+    not raw strings: math is written as the docs show it (a raw docstring holding
+    ``\dot q``), never with doubled backslashes nor with an escape Python would take
+    (``"\theta"`` holds a tab)."""
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) \
+                and node.body and isinstance(node.body[0], ast.Expr) \
+                and isinstance(node.body[0].value, ast.Constant) \
+                and isinstance(node.body[0].value.value, str):
+            text = ast.get_source_segment(source, node.body[0])
+            if "\\" in text and text[:1] not in "rR":
+                out.append(node.body[0].lineno)
+    return sorted(out)
+
+
+def test_every_docstring_with_a_backslash_is_raw():
+    found = [f"drake_coop/{path.relative_to(PKG).as_posix()}:{line}"
+             for path in sorted(PKG.rglob("*.py"))
+             for line in escaped_docstrings(path.read_text(encoding="utf-8"))]
+    assert not found, "docstrings with a backslash that are not raw:\n" + "\n".join(found)
+
+
+def test_the_escape_detector_finds_a_non_raw_docstring_with_a_backslash():
+    source = '''"""Module: ``\\\\dot q``."""
+
+
+def f():
+    r"""Raw: :math:`\\dot q`."""
+
+
+class C:
+    """Plain, no backslash."""
+
+    def g(self):
+        """Tab: \\theta."""
+'''
+    assert escaped_docstrings(source) == [1, 12]
 
 
 def test_the_docstring_tex_detector_finds_tex_spans_and_skips_math_and_plain_code():

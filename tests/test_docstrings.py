@@ -1,18 +1,37 @@
-"""Every parameter of the public API is documented, and nothing else is (python-control's
-``docstrings_test`` is the model).
+"""Every public callable of the package is documented, every parameter of it, and nothing else
+(python-control's ``docstrings_test`` is the model).
 
-The public API is what ``from drake_coop.<subpackage> import ...`` gives: each subpackage's
-``__all__`` (a package inside one, ``control/object/``, included), the command line's
-(``drake_coop.cli``, ``drake_coop.console``), and every module's public classes and functions
-in the library, ``drake_coop.control`` (the layer a user's own diagram imports). For a function, its signature; for a class, its
-constructor's (documented in the class docstring, numpydoc's convention, or the
-``__init__``'s; a dataclass's or named tuple's fields in ``Parameters`` or ``Attributes``; a
-class whose constructor is inherited from outside the package, an exception's, has nothing to
-check). Its numpydoc ``Parameters`` section (``name : type`` lines, ``a, b : float`` for
-several, ``*args``/``**kwargs`` by their names) must name each parameter (``self``/``cls``
-aside) and no other; a callable without parameters needs no section. An unindented line inside
-the section is read as a parameter, as numpydoc reads it (prose after the parameters belongs
-in a ``Notes`` section).
+Public is what a reader can reach without an underscore: every module of ``drake_coop`` whose
+dotted name has no part starting with ``_`` (``__main__`` modules are private; a package's
+``__init__`` is the package), and in it every class and function defined at module level whose
+name does not start with ``_``, and every method of such a class whose name does not (static,
+class methods and properties included). Each subpackage's ``__all__`` (a package inside one,
+``control/object/``, included) is checked too, whatever module its names come from.
+
+Each public callable has a docstring with a summary line. For a function or a method, its
+signature; for a class, its constructor's (documented in the class docstring, numpydoc's
+convention, or the ``__init__``'s; a dataclass's or named tuple's fields in ``Parameters`` or
+``Attributes``; a class whose constructor is inherited from outside the package, an
+exception's, has nothing to check). Its numpydoc ``Parameters`` section (``name : type``
+lines, ``a, b : float`` for several, ``*args``/``**kwargs`` by their names) must name each
+parameter (``self``/``cls`` aside) and no other; a callable without parameters needs no
+section. An unindented line inside the section is read as a parameter, as numpydoc reads it
+(prose after the parameters belongs in a ``Notes`` section). Every entry of the
+``Parameters``, ``Attributes``, ``Returns`` and ``Yields`` sections has a description (an
+indented line under it: what it means, with its unit). A function or method that returns
+a value (a ``return`` with a value in its own body, or a return annotation other than
+``None``) has a ``Returns`` section; a generator a ``Yields`` section. A property needs its
+docstring only (it describes the value).
+
+Two rules exempt a method, and no list of names does:
+
+- an *override*: a method whose name a base class already defines (Drake's
+  ``LeafSystem.DoCalcTimeDerivatives``, ``DoPublish``, a package base's method, which is
+  checked where it is defined) is documented by its base;
+- a *port getter* of a Drake system, ``get_<port>_input_port()`` or
+  ``get_<port>_output_port()`` without parameters, is documented by its own docstring (no
+  ``Returns`` section: the port) or else by its class's ``.. pydrake_system::`` block, which
+  must name the port (checked).
 """
 
 from __future__ import annotations
@@ -23,19 +42,18 @@ import importlib
 import inspect
 import re
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "drake_coop"
-#: Top-level modules of the command line.
-TOP_LEVEL = ("cli", "console")
-#: The library (``drake_coop.control``): every module's public names are its API.
-LIBRARY = PKG / "control"
 
 #: A numpydoc section header: a title line followed by a line of dashes.
 _HEADER = re.compile(r"^\s*([A-Z][A-Za-z ]*)\n\s*-{3,}\s*$", re.M)
+#: A Drake system's port getter (documented by its class's ``.. pydrake_system::`` block).
+_PORT_GETTER = re.compile(r"^get_(\w+)_(?:input|output)_port$")
 
 
 def _dunder_all(path: Path) -> list[str] | None:
@@ -49,38 +67,71 @@ def _dunder_all(path: Path) -> list[str] | None:
     return None
 
 
-def _module_public(path: Path) -> list[str]:
-    """Module-level public classes and functions of one source file."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    names = [n.name for n in tree.body
-             if isinstance(n, (ast.FunctionDef, ast.ClassDef)) and not n.name.startswith("_")]
-    listed = _dunder_all(path)
-    return names if listed is None else [n for n in names if n in listed]
-
-
 def _dotted(path: Path) -> str:
     parts = path.relative_to(ROOT).with_suffix("").parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+def _source(module: str) -> Path:
+    """The source file of a dotted module name."""
+    path = ROOT.joinpath(*module.split("."))
+    return path / "__init__.py" if path.is_dir() else path.with_suffix(".py")
+
+
+def public_modules() -> list[Path]:
+    """The source file of every public module: no part of its dotted name starts with ``_``."""
+    return [p for p in sorted(PKG.rglob("*.py"))
+            if not any(part.startswith("_") for part in _dotted(p).split("."))]
+
+
+_DEFINITION = (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)
+
+
+def _definitions(path: Path) -> dict[str, ast.AST]:
+    """Qualified name -> node of a module's public module-level definitions and of the public
+    methods of its public classes."""
+    out = {}
+    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        if isinstance(node, _DEFINITION) and not node.name.startswith("_"):
+            out[node.name] = node
+            if isinstance(node, ast.ClassDef):
+                for m in node.body:      # a property's setter keeps its getter's node
+                    if isinstance(m, _DEFINITION[:2]) and not m.name.startswith("_"):
+                        out.setdefault(f"{node.name}.{m.name}", m)
+    return out
+
+
 def public_api() -> list[tuple[str, str]]:
-    """``(module, name)`` of every public class and function of the package's API."""
+    """``(module, name)`` of every public class and function of the package: the
+    subpackages' exports and every public module's own definitions."""
     out = []
-    folders = [p.parent for p in PKG.glob("*/__init__.py") if p.parent.name != "data"]
-    folders += [p.parent for f in list(folders) for p in f.glob("*/__init__.py")]
-    for folder in sorted(folders):
-        exported = _dunder_all(folder / "__init__.py") or []
-        out += [(_dotted(folder), name) for name in exported]
-        if folder == LIBRARY or LIBRARY in folder.parents:     # the library: every module
-            for module in sorted(folder.glob("*.py")):
-                if not module.name.startswith("_"):
-                    out += [(_dotted(module), name) for name in _module_public(module)
-                            if name not in exported]
-    for module in TOP_LEVEL:
-        if (PKG / f"{module}.py").exists():
-            out += [(f"drake_coop.{module}", name)
-                    for name in _module_public(PKG / f"{module}.py")]
+    for folder in sorted(p.parent for p in PKG.rglob("__init__.py")):
+        out += [(_dotted(folder), name) for name in _dunder_all(folder / "__init__.py") or []]
+    for module in public_modules():
+        out += [(_dotted(module), name) for name in _definitions(module) if "." not in name]
     return sorted(set(out))
+
+
+def public_methods() -> list[tuple[str, str]]:
+    """``(module, Class.method)`` of every public method of a public class."""
+    return sorted((_dotted(module), name) for module in public_modules()
+                  for name in _definitions(module) if "." in name)
+
+
+def exemption(cls: type, name: str) -> str | None:
+    """Why method ``name`` of ``cls`` is documented elsewhere (the module's two rules), or
+    None."""
+    if any(name in vars(base) for base in cls.__mro__[1:]):
+        return "override"
+    if _PORT_GETTER.match(name) and not _signature_parameters(getattr(cls, name)):
+        return "port getter"
+    return None
+
+
+def _system_ports(doc: str | None) -> set[str]:
+    """The port names of a ``.. pydrake_system::`` block."""
+    match = re.search(r"\.\. pydrake_system::\n((?:[ \t]*\n|[ \t]+\S.*\n)+)", doc or "")
+    return set(re.findall(r"^\s*-\s*(\S+)\s*$", match.group(1), re.M)) if match else set()
 
 
 def documented_parameters(doc: str | None, sections=("Parameters",)) -> list[str] | None:
@@ -102,6 +153,27 @@ def documented_parameters(doc: str | None, sections=("Parameters",)) -> list[str
             head = line.split(" : ", 1)[0].rstrip(":").strip()
             names += [n.strip().lstrip("*") for n in head.split(",") if n.strip()]
     return names if found else None
+
+
+def undescribed_entries(doc: str | None) -> list[str]:
+    """The entries (``name : type`` lines, or a bare type under ``Returns``) of ``doc``'s
+    ``Parameters``, ``Attributes``, ``Returns`` and ``Yields`` sections with no description
+    under them: each parameter, field and result says what it means (and its unit)."""
+    if not doc:
+        return []
+    doc = inspect.cleandoc(doc)
+    headers = list(_HEADER.finditer(doc))
+    out = []
+    for i, header in enumerate(headers):
+        if header.group(1).strip() not in ("Parameters", "Attributes", "Returns", "Yields"):
+            continue
+        end = headers[i + 1].start() if i + 1 < len(headers) else len(doc)
+        lines = doc[header.end():end].strip("\n").splitlines()
+        for j, line in enumerate(lines):
+            following = lines[j + 1] if j + 1 < len(lines) else ""
+            if line.strip() and not line[0].isspace() and not following[:1].isspace():
+                out.append(line.strip())
+    return out
 
 
 def _is_record(cls) -> bool:
@@ -148,6 +220,74 @@ def parameter_problems(obj, label: str) -> list[str]:
     return problems
 
 
+def _return_kind(node: ast.AST) -> str | None:
+    """``"Yields"`` for a generator, ``"Returns"`` for a function that returns a value (a
+    ``return`` with a value in its own body, or a return annotation other than ``None``), else
+    None."""
+    kind, stack = None, list(node.body)
+    while stack:
+        n = stack.pop()
+        if isinstance(n, (*_DEFINITION, ast.Lambda)):
+            continue                  # a nested function's returns are not this one's
+        if isinstance(n, (ast.Yield, ast.YieldFrom)):
+            return "Yields"
+        if isinstance(n, ast.Return) and n.value is not None and not (
+                isinstance(n.value, ast.Constant) and n.value.value is None):
+            kind = "Returns"
+        stack.extend(ast.iter_child_nodes(n))
+    annotation = node.returns
+    if annotation is not None and not (
+            isinstance(annotation, ast.Constant) and annotation.value in (None, "None")) \
+            and not (isinstance(annotation, ast.Name) and annotation.id in ("NoReturn", "Never")):
+        kind = "Returns"
+    return kind
+
+
+def member_problems(owner, name: str, node: ast.AST, label: str) -> list[str]:
+    """What the docstring of ``owner``'s member ``name`` (a module's class or function, a
+    class's method; ``node`` its definition) gets wrong: no summary, its parameters, no
+    ``Returns``/``Yields``; nothing for an exempt method (the module's two rules)."""
+    obj = inspect.getattr_static(owner, name)
+    if inspect.isclass(owner):
+        reason = exemption(owner, name)
+        if reason == "override":
+            return []
+        if reason == "port getter":
+            port = _PORT_GETTER.match(name).group(1)
+            documented = ast.get_docstring(node) or port in _system_ports(owner.__doc__)
+            return [] if documented else [
+                f"{label}: a port getter without a docstring whose port {port!r} its class's "
+                "pydrake_system block does not name"]
+    doc = ast.get_docstring(node)
+    if not doc or not doc.strip():
+        return [f"{label}: no docstring"]
+    if not inspect.isclass(obj) and not isinstance(obj, (staticmethod, classmethod)) \
+            and not inspect.isfunction(obj):
+        return []                     # a property: its docstring describes the value
+    target = obj if inspect.isclass(obj) else getattr(obj, "__func__", obj)
+    problems = parameter_problems(target, label)
+    docs = [doc] + ([ast.get_docstring(m) or "" for m in node.body
+                     if isinstance(m, ast.FunctionDef) and m.name == "__init__"]
+                    if isinstance(node, ast.ClassDef) else [])
+    problems += [f"{label}: {entry!r} has no description" for d in docs
+                 for entry in undescribed_entries(d)]
+    kind = None if inspect.isclass(obj) else _return_kind(node)
+    if kind and documented_parameters(doc, (kind,)) is None:
+        problems.append(f"{label}: {kind.lower()} a value but has no {kind} section")
+    return problems
+
+
+def definition_problems(module: str, qualname: str) -> list[str]:
+    """:func:`member_problems` of one public definition, ``Class.method`` or a module's
+    ``name``."""
+    node = _definitions(_source(module))[qualname]
+    owner = importlib.import_module(module)
+    *path, name = qualname.split(".")
+    for part in path:
+        owner = getattr(owner, part)
+    return member_problems(owner, name, node, f"{module}.{qualname}")
+
+
 def test_the_public_api_is_found():
     api = public_api()
     names = {name for _, name in api}
@@ -155,7 +295,13 @@ def test_the_public_api_is_found():
     # command line's.
     assert {"AddCooperativeController", "Scenario", "grasp_matrix", "main", "error",
             "check_period"} <= names
-    assert len(api) > 100
+    assert len(api) > 400
+    methods = {name for _, name in public_methods()}
+    assert {"VelocitySource.get_q_input_port", "Arm.J_phi", "CoopPlant.set_held"} <= methods
+    assert not any(name.split(".")[-1].startswith("_") for name in methods)
+    modules = {_dotted(p) for p in public_modules()}
+    assert {"drake_coop.cli.run", "drake_coop.control.object", "drake_coop"} <= modules
+    assert not any("__main__" in m for m in modules)
 
 
 def public_callables() -> list[tuple[str, str]]:
@@ -169,6 +315,12 @@ def public_callables() -> list[tuple[str, str]]:
 def test_every_parameter_is_documented_and_nothing_else(module, name):
     obj = getattr(importlib.import_module(module), name)
     assert parameter_problems(obj, f"{module}.{name}") == []
+
+
+@pytest.mark.parametrize("module, name", sorted(set(public_methods()) | {
+    (m, n) for m, n in public_callables() if n in _definitions(_source(m))}))
+def test_every_public_definition_has_a_summary_its_parameters_and_its_returns(module, name):
+    assert definition_problems(module, name) == []
 
 
 # ------------------------------------------------------------- the check itself can fail
@@ -278,3 +430,157 @@ def _prose_after(a):
 ])
 def test_records_exceptions_and_stray_prose(obj, problems):
     assert parameter_problems(obj, "f") == problems
+
+
+
+# ------------------------------------------------- summaries, returns and the two exemptions
+
+def _node(obj) -> ast.AST:
+    return ast.parse(textwrap.dedent(inspect.getsource(obj))).body[0]
+
+
+def _returns(a):
+    """Something.
+
+    Parameters
+    ----------
+    a : int
+        A.
+    """
+    return a
+
+
+def _returns_in_a_nested_function_only(a) -> None:
+    """Something.
+
+    Parameters
+    ----------
+    a : int
+        A.
+    """
+    def inner():
+        return a
+    inner()
+
+
+def _annotated(a) -> int:
+    """Something.
+
+    Parameters
+    ----------
+    a : int
+        A.
+    """
+    raise ValueError(a)
+
+
+def _generator(a):
+    """Something.
+
+    Parameters
+    ----------
+    a : int
+        A.
+
+    Returns
+    -------
+    int
+        Not what a generator documents.
+    """
+    yield a
+
+
+def _no_docstring():
+    return None
+
+
+def _undescribed(a, b):
+    """Something.
+
+    Parameters
+    ----------
+    a : int
+    b : int
+        B.
+
+    Returns
+    -------
+    int
+    """
+    return a + b
+
+
+@pytest.mark.parametrize("obj, problems", [
+    (_returns, ["f: returns a value but has no Returns section"]),
+    (_returns_in_a_nested_function_only, []),
+    (_annotated, ["f: returns a value but has no Returns section"]),
+    (_generator, ["f: yields a value but has no Yields section"]),
+    (_no_docstring, ["f: no docstring"]),
+    (_one_missing, ["f: parameter 'b' is not documented"]),
+    (_undescribed, ["f: 'a : int' has no description", "f: 'int' has no description"]),
+])
+def test_a_function_without_summary_returns_or_yields_is_reported(obj, problems):
+    assert member_problems(sys.modules[__name__], obj.__name__, _node(obj), "f") == problems
+
+
+class _Base:
+    def shared(self, x):
+        """The base's documentation.
+
+        Parameters
+        ----------
+        x : int
+            X.
+        """
+
+
+class _System(_Base):
+    """A system.
+
+    .. pydrake_system::
+
+        name: System
+        input_ports:
+        - q
+        output_ports:
+        - tau
+    """
+
+    def shared(self, x):
+        return x
+
+    def get_q_input_port(self):
+        return None
+
+    def get_lambda_input_port(self):
+        return None
+
+    def get_tau_output_port(self):
+        """The torque."""
+
+    def get_gain_output_port(self, i):
+        """A getter with a parameter is a method like any other."""
+
+    @property
+    def value(self):
+        """A property: its docstring describes the value."""
+        return 1
+
+    @property
+    def silent(self):
+        return 1
+
+
+@pytest.mark.parametrize("name, problems", [
+    ("shared", []),                               # an override: its base documents it
+    ("get_q_input_port", []),                     # its port is in the block
+    ("get_lambda_input_port", ["f: a port getter without a docstring whose port 'lambda' its "
+                               "class's pydrake_system block does not name"]),
+    ("get_tau_output_port", []),                  # its own docstring
+    ("get_gain_output_port", ["f: no Parameters section (parameters i)"]),
+    ("value", []),
+    ("silent", ["f: no docstring"]),
+])
+def test_the_two_exemptions_are_rules_that_can_fail(name, problems):
+    node = next(n for n in _node(_System).body if getattr(n, "name", None) == name)
+    assert member_problems(_System, name, node, "f") == problems

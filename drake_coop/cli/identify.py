@@ -15,6 +15,11 @@ def cmd_identify(args: argparse.Namespace) -> int:
     ----------
     args : argparse.Namespace
         The parsed command line (:func:`build_parser`).
+
+    Returns
+    -------
+    int
+        The exit code: 0 done, 1 an identification failed, 2 bad input.
     """
     import math
 

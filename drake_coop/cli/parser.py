@@ -21,7 +21,13 @@ IDENTIFY_ESTIMATORS = ("map_sdp", "idim_iv", "didim")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of ``drake-coop``."""
+    """The argument parser of ``drake-coop``.
+
+    Returns
+    -------
+    OneLineParser
+        The parser.
+    """
     from drake_coop.console import OneLineParser
 
     parser = OneLineParser(
@@ -106,6 +112,11 @@ def main(argv: list[str] | None = None) -> int:
     ----------
     argv : list of str, optional
         The arguments after the program's name (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code.
     """
     SIGNALS = _signals.SIGNALS = Signals()
     previous = {}

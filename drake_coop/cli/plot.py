@@ -16,6 +16,11 @@ def cmd_plot(args: argparse.Namespace) -> int:
     ----------
     args : argparse.Namespace
         The parsed command line (:func:`build_parser`).
+
+    Returns
+    -------
+    int
+        The exit code: 0 done, 2 bad input.
     """
     from drake_coop.results import replot
 

@@ -67,6 +67,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     ----------
     args : argparse.Namespace
         The parsed command line (:func:`build_parser`).
+
+    Returns
+    -------
+    int
+        The exit code: 0 completed, 1 diverged, 2 bad input or outputs not written, 130/143
+        interrupted.
     """
     with _signals.SIGNALS.deferred():
         from drake_coop.experiment.simulate import simulate

@@ -24,7 +24,15 @@ class Signals:
         self._defer = 0
 
     def handler(self, signum, frame) -> None:
-        """The signal handler: record, then raise unless deferred."""
+        """The signal handler: record, then raise unless deferred.
+
+        Parameters
+        ----------
+        signum : int
+            The signal's number.
+        frame : frame or None
+            The interrupted frame (unused).
+        """
         self.count += 1
         if self.received is None:
             self.received = signum
@@ -33,7 +41,13 @@ class Signals:
 
     @contextlib.contextmanager
     def deferred(self):
-        """Signals inside the block are recorded only (see :attr:`received`)."""
+        """Signals inside the block are recorded only (see :attr:`received`).
+
+        Yields
+        ------
+        Signals
+            This object.
+        """
         self._defer += 1
         try:
             yield self
@@ -41,13 +55,25 @@ class Signals:
             self._defer -= 1
 
     def exit_code(self, exc: BaseException | None = None) -> int:
-        """130 for SIGINT, 143 for SIGTERM."""
+        """130 for SIGINT, 143 for SIGTERM.
+
+        Parameters
+        ----------
+        exc : BaseException or None
+            The exception that ended the command, if any.
+
+        Returns
+        -------
+        int
+            130 or 143.
+        """
         if isinstance(exc, Terminated):
             return 143
         return self.EXIT_CODES.get(self.received, 130)
 
     @property
     def name(self) -> str:
+        """``SIGTERM`` or ``Ctrl-C``: the signal received, as a message names it."""
         return "SIGTERM" if self.received == signal.SIGTERM else "Ctrl-C"
 
 

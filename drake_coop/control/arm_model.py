@@ -1,4 +1,4 @@
-"""The controller's own model of one arm: H, C(q,v)v, D, g, φ and J_φ of (1)–(2).
+r"""The controller's own model of one arm: H, C(q,v)v, D, g, φ and J_φ of (1)–(2).
 
 The controller (13) and the observers (15)–(16), (22) are model based. Their model is a
 single-arm :class:`~pydrake.multibody.plant.MultibodyPlant` parsed from the controller's URDF
@@ -33,11 +33,11 @@ from one ``CalcJacobianSpatialVelocity``), kept while ``q`` is unchanged and sha
 ``J̇_φ`` along a direction ``d`` on a serial chain of revolute and prismatic joints is the
 closed-form derivative of the geometric Jacobian's columns (no AutoDiff): with ``a_k`` the
 angular column of joint ``k`` (its world axis, 0 for a prismatic joint), ``J_k`` its
-translational column, :math:`\\omega_k = \\sum_{j<k} a_j d_j` the angular velocity of the body
-that carries joint ``k`` and :math:`s_k = \\sum_{j \\ge k} J_j d_j` the pad's velocity relative
+translational column, :math:`\omega_k = \sum_{j<k} a_j d_j` the angular velocity of the body
+that carries joint ``k`` and :math:`s_k = \sum_{j \ge k} J_j d_j` the pad's velocity relative
 to that body,
 
-.. math:: \\dot J_k = \\omega_k \\times J_k + a_k \\times s_k
+.. math:: \dot J_k = \omega_k \times J_k + a_k \times s_k
 
 (``J_k = a_k × (x − p_k)``: ``ȧ_k = ω_k × a_k``, ``d/dt (x − p_k) = ω_k × (x − p_k) + s_k``,
 and the Jacobi identity). Exact, to the roundings of a few cross products; checked against
@@ -163,7 +163,24 @@ class ArmModel:
     def from_plant(cls, plant: MultibodyPlant, ee_frame: str, normals, contact_point
                    ) -> "ArmModel":
         """The model of an arm given as its own single-arm plant, with Drake's kinematics
-        (the constructor without ``closed_form``)."""
+        (the constructor without ``closed_form``).
+
+        Parameters
+        ----------
+        plant : MultibodyPlant
+            The arm's own finalized single-arm plant.
+        ee_frame : str
+            The name of the end-effector (pad) frame.
+        normals : array_like
+            The constraint normals (m, 3) or (3,).
+        contact_point : array_like
+            The contact point ``c`` (3,), m, world frame.
+
+        Returns
+        -------
+        ArmModel
+            The model.
+        """
         return cls(plant, ee_frame, normals, contact_point)
 
     def _setup(self, plant: MultibodyPlant, ee_frame: str, N: np.ndarray, c: np.ndarray
@@ -210,6 +227,18 @@ class ArmModel:
         rotated into the base frame: ``φ = (R_bᵀ n)·x_local(q) + n·(p_b − c)``,
         ``J_φ = (R_bᵀ n)ᵀ J_local(q)``. Cached for the last ``q``: the force observer and the
         controller evaluate it at the same sample of a tick.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        phi : float
+            ``φ(q)``, m.
+        J_phi : list of float
+            The row ``J_φ(q)`` (n numbers), m/rad.
         """
         key = q.tobytes()
         if key == self._row_key:
@@ -245,7 +274,20 @@ class ArmModel:
     def constraint_row_dot(self, q: np.ndarray, v: np.ndarray) -> list[float]:
         """``J̇_φ`` along ``v`` of a one-constraint arm in closed form (plain floats); with
         Drake's kinematics the first normal times :meth:`J_x_dot` (a serial chain), else
-        AutoDiff."""
+        AutoDiff.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        v : numpy.ndarray
+            The direction (joint velocities) (n,), rad/s.
+
+        Returns
+        -------
+        list of float
+            The row ``J̇_φ`` (n numbers), m/(rad·s).
+        """
         if not self.closed_form:
             if self.serial_chain:
                 return (self._N[0] @ self.J_x_dot(q, v)).tolist()
@@ -295,29 +337,90 @@ class ArmModel:
 
     # ------------------------------------------------------------------------- dynamics
     def H(self, q: np.ndarray) -> np.ndarray:
-        """Inertia matrix ``H(q)`` (n×n)."""
+        """Inertia matrix ``H(q)`` (n×n).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``H(q)`` (n, n), kg·m².
+        """
         self._set_q(q)
         return self.plant.CalcMassMatrix(self.context)
 
     def Cv(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``C(q, v) v`` (n,)."""
+        """``C(q, v) v`` (n,).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        v : numpy.ndarray
+            Joint velocities (n,), rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``C(q, v) v`` (n,), N·m.
+        """
         self._set(q, v)
         return self.plant.CalcBiasTerm(self.context)
 
     def g(self, q: np.ndarray) -> np.ndarray:
-        """Gravity vector ``g(q)`` of (1) (left-hand side), n-vector."""
+        """Gravity vector ``g(q)`` of (1) (left-hand side), n-vector.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``g(q)`` (n,), N·m.
+        """
         self._set_q(q)
         return -self.plant.CalcGravityGeneralizedForces(self.context)
 
     def friction_torque(self, v: np.ndarray) -> np.ndarray:
-        """``F_c ⊙ tanh(v / v_c)``, the compensated Coulomb friction (zeros without it)."""
+        """``F_c ⊙ tanh(v / v_c)``, the compensated Coulomb friction (zeros without it).
+
+        Parameters
+        ----------
+        v : numpy.ndarray
+            Joint velocities (n,), rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            The friction torque (n,), N·m.
+        """
         if self.coulomb is None:
             return np.zeros(self.n)
         return self.coulomb * np.tanh(np.asarray(v, dtype=float) / self.coulomb_velocity)
 
     def inverse_dynamics_terms(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """``H(q) a + C(q, v) v + D v + g(q)``: the model part of (13) and (21); plus
-        :meth:`friction_torque` when the model has Coulomb friction (``coulomb``)."""
+        :meth:`friction_torque` when the model has Coulomb friction (``coulomb``).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        v : numpy.ndarray
+            Joint velocities (n,), rad/s.
+        a : numpy.ndarray
+            Joint accelerations (n,), rad/s².
+
+        Returns
+        -------
+        numpy.ndarray
+            The torque (n,), N·m.
+        """
         self._set(q, v)
         # Drake's inverse dynamics is M a + C v − τ_app; the force elements give
         # τ_app = τ_g − D v (gravity, and the joints' damping).
@@ -333,7 +436,22 @@ class ArmModel:
         """The controlled point's position ``x`` (3,), the angular ``J_ω`` (3×n) and the
         point's translational ``J_x`` (3×n) Jacobians, world frame, from one Drake evaluation
         (``p_BoBp_B`` = ``point_offset``); kept for the last ``q`` (the blocks of a tick share
-        it). Read-only arrays: the caller must not modify them."""
+        it). Read-only arrays: the caller must not modify them.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        x : numpy.ndarray
+            The controlled point (3,), m.
+        J_omega : numpy.ndarray
+            ``J_ω`` (3, n), rad/rad.
+        J_x : numpy.ndarray
+            ``J_x`` (3, n), m/rad.
+        """
         q = np.asarray(q, dtype=float)
         key = q.tobytes()
         if key != self._kin_key:
@@ -350,35 +468,90 @@ class ArmModel:
 
     def ee_position(self, q: np.ndarray) -> np.ndarray:
         """The controlled point (the pad's centre E, or the ``point_offset`` point) in the
-        palm frame."""
+        palm frame.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            The point (3,), m.
+        """
         if self.closed_form:
             return self.kinematics.fk(q)
         return self.ee_kinematics(q)[0]
 
     def J_x(self, q: np.ndarray) -> np.ndarray:
         """Translational Jacobian ``J_x = ∂x/∂q`` of the controlled point (3×n), world frame
-        (``J_φ = N J_x``); closed form when the arm has it."""
+        (``J_φ = N J_x``); closed form when the arm has it.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``J_x`` (3, n), m/rad.
+        """
         if self.closed_form:
             return self.kinematics.jacobian(q)
         return self.ee_kinematics(q)[2]
 
     def J_omega(self, q: np.ndarray) -> np.ndarray:
         """Rotational Jacobian ``J_ω`` of the end-effector frame (3×n), world frame: its
-        angular velocity is ``J_ω q̇``."""
+        angular velocity is ``J_ω q̇``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``J_ω`` (3, n), rad/rad.
+        """
         self._set_q(q)
         return self.plant.CalcJacobianSpatialVelocity(
             self.context, JacobianWrtVariable.kV, self.ee_frame, np.zeros(3),
             self.plant.world_frame(), self.plant.world_frame())[:3]
 
     def phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint (2), ``φ = N (x − c)`` (m), an m-vector."""
+        """Constraint (2), ``φ = N (x − c)`` (m), an m-vector.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``φ(q)`` (m,), m.
+        """
         return self._N @ (self.ee_position(q) - self._c)
 
     def J_phi(self, q: np.ndarray) -> np.ndarray:
         """Constraint Jacobian ``J_φ = ∂φ/∂q = N J_x`` (m×n).
 
         Closed form: cached for the last ``q`` (the force observer and the controller evaluate
-        it at the same sample of a tick); the caller must not modify the array."""
+        it at the same sample of a tick); the caller must not modify the array.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``J_φ`` (m, n), m/rad.
+        """
         if self.closed_form:
             key = np.asarray(q, dtype=float).tobytes()
             if key != self._J_phi_key:
@@ -389,7 +562,20 @@ class ArmModel:
     def J_x_dot(self, q: np.ndarray, direction: np.ndarray) -> np.ndarray:
         """``J̇_x`` along ``direction`` (3×n) from the cached geometric Jacobian, in closed
         form (module docstring: ``J̇_k = ω_k × J_k + a_k × s_k``); a serial chain only
-        (:attr:`serial_chain`)."""
+        (:attr:`serial_chain`).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        direction : numpy.ndarray
+            The joint velocities along which to differentiate (n,), rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``J̇_x`` (3, n), m/(rad·s).
+        """
         _, Jw, Jx = self.ee_kinematics(q)
         d = np.asarray(direction, dtype=float)
         wd = Jw * d                                     # a_j d_j
@@ -406,6 +592,20 @@ class ArmModel:
         serial chain, the closed-form derivative of the cached geometric Jacobian
         (:meth:`J_x_dot`); else forward-mode AutoDiff
         (:meth:`J_phi_and_derivative_autodiff`).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        direction : numpy.ndarray
+            The joint velocities along which to differentiate (n,), rad/s (``q̇_o`` in (7)).
+
+        Returns
+        -------
+        J_phi : numpy.ndarray
+            ``J_φ`` (m, n), m/rad.
+        J_phi_dot : numpy.ndarray
+            Its directional derivative (m, n), m/(rad·s).
         """
         if self.closed_form:
             return (self.J_phi(q),
@@ -418,7 +618,22 @@ class ArmModel:
                                       ) -> tuple[np.ndarray, np.ndarray]:
         """``J_φ(q)`` and its directional derivative by forward-mode AutoDiff of Drake's
         translational Jacobian, one derivative component seeded with ``direction`` (any
-        tree; the reference the closed form is checked against)."""
+        tree; the reference the closed form is checked against).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        direction : numpy.ndarray
+            The joint velocities along which to differentiate (n,), rad/s.
+
+        Returns
+        -------
+        J_phi : numpy.ndarray
+            ``J_φ`` (m, n), m/rad.
+        J_phi_dot : numpy.ndarray
+            Its directional derivative (m, n), m/(rad·s).
+        """
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))
         Jv = self.plant_ad.CalcJacobianTranslationalVelocity(
@@ -441,7 +656,13 @@ DESCRIPTION_PACKAGES = {"example-robot-data": "cmeel.prefix/share/example-robot-
 
 def description_packages() -> dict[str, Path]:
     """The installed description packages by the name their URDFs use (folders holding a
-    ``package.xml`` under an entry of ``sys.path``); empty when none is installed."""
+    ``package.xml`` under an entry of ``sys.path``); empty when none is installed.
+
+    Returns
+    -------
+    dict of str to Path
+        Package name → its folder.
+    """
     import sys
 
     found = {}
@@ -511,6 +732,11 @@ def normalized_normals(normals) -> np.ndarray:
     normals : array_like, shape (m, 3) or (3,)
         The constraint normals.
 
+    Returns
+    -------
+    numpy.ndarray
+        The unit normals (m, 3).
+
     Raises
     ------
     ValueError
@@ -539,6 +765,11 @@ def contact_vector(contact_point) -> np.ndarray:
     ----------
     contact_point : array_like, shape (3,)
         The contact point ``c`` (m).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``c`` (3,), m.
     """
     c = as_array(contact_point, "contact_point")
     if c.shape != (3,) or not np.all(np.isfinite(c)):

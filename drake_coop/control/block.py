@@ -273,6 +273,15 @@ class ControllerHandles:
 
         Optional: without it ``Simulator.Initialize`` starts the observer at the first
         measured ``q``. Call it after setting the plant's positions and before ``Initialize``.
+
+        Parameters
+        ----------
+        root_context : Context
+            The root (whole diagram's) context.
+        q_hat : numpy.ndarray or None
+            ``q̂(0)`` (n,), rad; None for the plant's positions of the arm.
+        qdot_hat_o : numpy.ndarray or None
+            ``q̇̂_o(0)`` (n,), rad/s; None for zero.
         """
         if q_hat is None:
             plant_context = self.plant.GetMyContextFromRoot(root_context)

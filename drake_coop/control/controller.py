@@ -1,9 +1,9 @@
-"""The decentralized position/force controller (13) of one robot as a Drake LeafSystem.
+r"""The decentralized position/force controller (13) of one robot as a Drake LeafSystem.
 
 .. math::
-    \\tau = H(q)\\ddot{\\hat q}_r + C(q,\\dot q_r)\\dot q_r + D\\dot q_r + g(q)
-            - K_R(\\dot q_o - \\dot q_r)
-            - J_\\varphi^T(q)\\big(\\lambda_d - k_F\\Delta\\tilde F - \\zeta\\Delta\\tilde\\lambda\\big)
+    \tau = H(q)\ddot{\hat q}_r + C(q,\dot q_r)\dot q_r + D\dot q_r + g(q)
+            - K_R(\dot q_o - \dot q_r)
+            - J_\varphi^T(q)\big(\lambda_d - k_F\Delta\tilde F - \zeta\Delta\tilde\lambda\big)
 
 with ``q̇_r`` of (4), ``q̈̂_r`` of (11) and the exact directional derivatives ``Q̂̇``, ``Ĵ⁺̇``
 of (7) along ``q̇_o``; in free motion (before the grasp, after the release) the same law with
@@ -163,7 +163,18 @@ class Controller(LeafSystem):
 
     # ------------------------------------------------------------------ helpers
     def tick_of(self, context: Context) -> int | None:
-        """The tick index if the context's time is a sampling instant, else None."""
+        """The tick index if the context's time is a sampling instant, else None.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        int or None
+            ``k`` with ``t = k h``, or None between ticks.
+        """
         return tick_of(context.get_time(), self._h)
 
     def terms(self, context: Context) -> dict[str, np.ndarray]:
@@ -171,7 +182,18 @@ class Controller(LeafSystem):
         at a tick, what the tick's update latches.
 
         Computed on each call (no cache entry: in a simulation the latch is its one caller
-        per tick)."""
+        per tick).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            ``tau`` (N·m), ``qdot_r`` (rad/s), ``qddot_r_hat`` (rad/s²), ``Delta_lambda_tilde`` (N).
+        """
         return self._law.control(
             self._q.Eval(context), self._q_hat.Eval(context), self._qdot_hat.Eval(context),
             self._qdot_o.Eval(context), self._lambda_hat.Eval(context),
@@ -179,11 +201,33 @@ class Controller(LeafSystem):
 
     def next_tau(self, context: Context) -> np.ndarray:
         """``τ(k)`` of (13) at the current inputs: at tick ``k`` before its events, the torque
-        the tick's update latches and the plant then applies on :math:`[t_k, t_{k+1})`."""
+        the tick's update latches and the plant then applies on :math:`[t_k, t_{k+1})`.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``τ(k)`` (n,), N·m.
+        """
         return self.terms(context)["tau"]
 
     def latched_tick(self, context: Context) -> int:
-        """The last tick whose torque was latched (-1 before the first)."""
+        """The last tick whose torque was latched (-1 before the first).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        int
+            The tick index, or -1.
+        """
         return int(context.get_discrete_state(self._tick_state).value()[0])
 
     # ------------------------------------------------------------------ update

@@ -1,4 +1,4 @@
-"""The squeeze's couple in the load split of two opposing pads.
+r"""The squeeze's couple in the load split of two opposing pads.
 
 Two pads squeeze an object along the unit normal ``n`` (inward at pad 1, ``−n`` at pad 2).
 A spherical pad's normal force passes through its centre ``E_i`` (the pressure is normal to
@@ -7,7 +7,7 @@ squeeze pair ``λ n`` at ``E_1``, ``−λ n`` at ``E_2`` acts along two parallel
 centres are offset across the normal, ``d = T (E_1 − E_2)`` (``T = I − n nᵀ``; e.g. the pads
 at different heights ``Δz``), the pair has the moment
 
-.. math:: M = (E_1 - E_2) \\times \\lambda n = \\lambda\\, d \\times n
+.. math:: M = (E_1 - E_2) \times \lambda n = \lambda\, d \times n
 
 (the part of ``E_1 − E_2`` along ``n`` gives none), which no motion of the object asks for:
 the pads' tangential (friction) forces must cancel it. They act on the faces, at
@@ -17,14 +17,14 @@ object's width between the faces). The least such pair (no internal part, equal 
 opposite, across the normal) solves ``(p_1 − p_2) × f_1 = −M`` with ``f_2 = −f_1``:
 
 .. math::
-    f_{c,1} = -\\frac{\\lambda}{w}\\, T (E_1 - E_2), \\qquad f_{c,2} = -f_{c,1}
+    f_{c,1} = -\frac{\lambda}{w}\, T (E_1 - E_2), \qquad f_{c,2} = -f_{c,1}
 
-(check: :math:`(p_1 - p_2) \\times f_{c,1} = (-w n) \\times (-\\lambda d/w) = \\lambda\\, n \\times
+(check: :math:`(p_1 - p_2) \times f_{c,1} = (-w n) \times (-\lambda d/w) = \lambda\, n \times
 d = -M`). Along a vertical offset ``Δz = z_1 − z_2`` this is the moment balance of the object about
 its centre of mass under the two pads' forces: each pad's vertical force is its share of the weight
 and inertial load ``m_i (g + a_z)`` and ``∓ λ Δz / w``,
 
-.. math:: f_{1,z} - f_{2,z} = -\\frac{2 \\lambda \\Delta z}{w}
+.. math:: f_{1,z} - f_{2,z} = -\frac{2 \lambda \Delta z}{w}
 
 (the higher pad carries less). The forces are the ones *the arms apply to the object*, as
 :class:`~drake_coop.control.object.LoadFeedforward`'s ``f_i``: add :math:`f_{c,i}` to arm ``i``'s
@@ -54,7 +54,7 @@ def _unit(normal) -> np.ndarray:
 
 
 def squeeze_couple(centres, normal, lam, lever) -> np.ndarray:
-    """The two pads' forces on the object that carry the squeeze's couple.
+    r"""The two pads' forces on the object that carry the squeeze's couple.
 
     Parameters
     ----------
@@ -74,7 +74,7 @@ def squeeze_couple(centres, normal, lam, lever) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 2, 3)
-        :math:`f_{c,1} = -(\\lambda/w)\\, T (E_1 - E_2)` and :math:`f_{c,2} = -f_{c,1}` (N).
+        :math:`f_{c,1} = -(\lambda/w)\, T (E_1 - E_2)` and :math:`f_{c,2} = -f_{c,1}` (N).
 
     Raises
     ------
@@ -112,6 +112,11 @@ def face_distance(centres, normal, radii=(0.0, 0.0), compressions=(0.0, 0.0)) ->
         ``ρ_i`` (m), >= 0 (0 for pads held at their centres).
     compressions : array_like, shape (2,) or (..., 2)
         ``δ_i`` (m), >= 0, each pad's compression.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``w`` (...,), m.
     """
     E = np.asarray(centres, dtype=float)
     if E.ndim < 2 or E.shape[-2:] != (2, 3):

@@ -1,4 +1,4 @@
-"""Delay compensation: the controller's inputs predicted over a horizon ``p`` with its own model.
+r"""Delay compensation: the controller's inputs predicted over a horizon ``p`` with its own model.
 
 A computation (and transport) delay ``d`` puts ``τ(k)`` on the arm at ``t_k + d``; until then
 ``τ(k−1)`` acts. The paper's controller (13) computes ``τ(k)`` from the state at ``t_k``, so its
@@ -8,12 +8,12 @@ controller (13) and force observer (22): it advances what they read over a horiz
 the controller's own arm model, driven by the torque that is actually on the arm,
 
 .. math::
-    a = H(q)^{-1}\\big(\\tau(k-1) + J_\\varphi^T(q)\\hat\\lambda(k-1)
-        - C(q,\\dot{\\hat q})\\dot{\\hat q} - D\\dot{\\hat q} - g(q)\\big)
+    a = H(q)^{-1}\big(\tau(k-1) + J_\varphi^T(q)\hat\lambda(k-1)
+        - C(q,\dot{\hat q})\dot{\hat q} - D\dot{\hat q} - g(q)\big)
 
-    q_p = q + p\\,\\dot{\\hat q} + \\tfrac{p^2}{2} a, \\qquad
-    \\hat q_p = \\hat q + p\\,\\dot{\\hat q} + \\tfrac{p^2}{2} a, \\qquad
-    \\dot{\\hat q}_p = \\dot{\\hat q} + p\\,a, \\qquad \\dot q_{o,p} = \\dot q_o + p\\,a,
+    q_p = q + p\,\dot{\hat q} + \tfrac{p^2}{2} a, \qquad
+    \hat q_p = \hat q + p\,\dot{\hat q} + \tfrac{p^2}{2} a, \qquad
+    \dot{\hat q}_p = \dot{\hat q} + p\,a, \qquad \dot q_{o,p} = \dot q_o + p\,a,
 
 (``z = q − q̂`` is left as it is: the whole estimate is shifted by the predicted motion), and
 feeds the velocity observer (16), which runs on the measured ``q`` in real time, the
@@ -21,7 +21,7 @@ acceleration as it acts over the coming period: ``τ(k−1)``'s for the first ``
 ``q̈̂_r(k)`` for the rest,
 
 .. math::
-    \\ddot{\\hat q}_{r,\\mathrm{fed}} = \\frac{p}{h}\\,a + \\Big(1 - \\frac{p}{h}\\Big)\\ddot{\\hat q}_r(k).
+    \ddot{\hat q}_{r,\mathrm{fed}} = \frac{p}{h}\,a + \Big(1 - \frac{p}{h}\Big)\ddot{\hat q}_r(k).
 
 ``λ̂(k−1)`` is the force source's estimate of the previous tick (zero in free motion): in the
 held phase the constraint force carries the arm's load, and a prediction without it would
@@ -174,7 +174,24 @@ class DelayPredictor(LeafSystem):
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray,
                      lambda_hat: np.ndarray) -> np.ndarray:
-        """``a = H⁻¹(τ + J_φᵀ λ̂ − C v − D v − g)`` on the controller's model."""
+        """``a = H⁻¹(τ + J_φᵀ λ̂ − C v − D v − g)`` on the controller's model.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        v : numpy.ndarray
+            Joint velocities (n,), rad/s.
+        tau : numpy.ndarray
+            The applied torque (n,), N·m.
+        lambda_hat : numpy.ndarray
+            The force estimate ``λ̂`` (m,), N.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``a`` (n,), rad/s².
+        """
         model = self._model
         rhs = np.asarray(tau, dtype=float) - model.inverse_dynamics_terms(q, v, np.zeros(self._n))
         if np.any(lambda_hat):

@@ -74,7 +74,20 @@ class ReferenceLayout:
 
     @staticmethod
     def check(layout, name: str = "layout") -> "ReferenceLayout":
-        """``layout`` if it is a :class:`ReferenceLayout` (``TypeError`` naming ``name``)."""
+        """``layout`` if it is a :class:`ReferenceLayout` (``TypeError`` naming ``name``).
+
+        Parameters
+        ----------
+        layout : object
+            The value to check.
+        name : str
+            The argument's name, for the message.
+
+        Returns
+        -------
+        ReferenceLayout
+            ``layout``.
+        """
         if not isinstance(layout, ReferenceLayout):
             raise TypeError(f"{name}: a drake_coop.control.ReferenceLayout is required "
                             f"(got {type(layout).__name__})")
@@ -86,29 +99,85 @@ class ReferenceLayout:
         return 3 * self.n + self.m + 1
 
     def slices(self) -> dict[str, slice]:
-        """Where each row of :data:`REFERENCE_ROWS` sits in the vector."""
+        """Where each row of :data:`REFERENCE_ROWS` sits in the vector.
+
+        Returns
+        -------
+        dict of str to slice
+            Row name → its slice.
+        """
         n, m = self.n, self.m
         return {"q_d": slice(0, n), "qdot_d": slice(n, 2 * n), "qddot_d": slice(2 * n, 3 * n),
                 "lambda_d": slice(3 * n, 3 * n + m), "held": slice(3 * n + m, 3 * n + m + 1)}
 
     def held(self, r: np.ndarray) -> bool:
-        """Whether the sample ``r`` holds the object (its ``held`` row above 1/2)."""
+        """Whether the sample ``r`` holds the object (its ``held`` row above 1/2).
+
+        Parameters
+        ----------
+        r : numpy.ndarray
+            One reference sample (size,).
+
+        Returns
+        -------
+        bool
+            True when held.
+        """
         return bool(r[3 * self.n + self.m] > 0.5)
 
     def unpack(self, r: np.ndarray) -> Reference:
-        """One sample from the vector."""
+        """One sample from the vector.
+
+        Parameters
+        ----------
+        r : numpy.ndarray
+            One reference sample (size,).
+
+        Returns
+        -------
+        Reference
+            Its rows: ``q_d`` (rad), ``q̇_d`` (rad/s), ``q̈_d`` (rad/s²), ``λ_d`` (N), ``held``.
+        """
         n, m = self.n, self.m
         return Reference(r[0:n], r[n:2 * n], r[2 * n:3 * n], r[3 * n:3 * n + m], self.held(r))
 
     def pack(self, q_d: np.ndarray, qdot_d: np.ndarray, qddot_d: np.ndarray,
              lambda_d: np.ndarray, held: np.ndarray) -> np.ndarray:
         """Samples ``(K, size)`` from ``(K, n)`` references, ``(K, m)`` forces and ``(K,)``
-        held flags."""
+        held flags.
+
+        Parameters
+        ----------
+        q_d, qdot_d, qddot_d : numpy.ndarray
+            The joint reference (K, n): rad, rad/s, rad/s².
+        lambda_d : numpy.ndarray
+            The desired force (K, m), N.
+        held : numpy.ndarray
+            The held flags (K,).
+
+        Returns
+        -------
+        numpy.ndarray
+            The samples (K, size).
+        """
         return np.hstack([q_d, qdot_d, qddot_d, np.reshape(lambda_d, (-1, self.m)),
                           np.reshape(held, (-1, 1)).astype(float)])
 
     def column(self, samples: np.ndarray, row: str) -> np.ndarray:
-        """One row of :data:`REFERENCE_ROWS` from samples ``(K, size)``: ``(K, width)``."""
+        """One row of :data:`REFERENCE_ROWS` from samples ``(K, size)``: ``(K, width)``.
+
+        Parameters
+        ----------
+        samples : numpy.ndarray
+            Reference samples (K, size).
+        row : str
+            A row of :data:`REFERENCE_ROWS`.
+
+        Returns
+        -------
+        numpy.ndarray
+            That row (K, width).
+        """
         return samples[:, self.slices()[row]]
 
 
@@ -124,6 +193,11 @@ def observer_qdot_hat(q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray,
         The observer's ``q̇̂_o``.
     Lambda_plus_k_d : float
         ``Λ + k_d`` (1/s).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``d/dt q̂`` (n,), rad/s.
     """
     return qdot_hat_o + Lambda_plus_k_d * (q - q_hat)
 
@@ -140,6 +214,11 @@ def observer_qdot_o(q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray, k_
         The observer's ``q̇̂_o``.
     k_d : float
         ``k_d`` (1/s).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``q̇_o`` (n,), rad/s.
     """
     return qdot_hat_o + k_d * (q - q_hat)
 
@@ -156,6 +235,11 @@ def observer_acceleration(q: np.ndarray, q_hat: np.ndarray, qddot_r_hat: np.ndar
         ``q̈̂_r`` (11).
     k_d_Lambda : float
         ``k_d Λ`` (1/s²).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``d/dt q̇̂_o`` (n,), rad/s².
     """
     return qddot_r_hat + k_d_Lambda * (q - q_hat)
 
@@ -263,13 +347,45 @@ class FingerLaw:
     # ------------------------------------------------------------------ observer (15), (8)
     def observer_derivative(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray
                             ) -> tuple[np.ndarray, np.ndarray]:
-        """``d/dt q̂`` of (15) and ``q̇_o`` of (8) with this law's ``Λ``, ``k_d``."""
+        """``d/dt q̂`` of (15) and ``q̇_o`` of (8) with this law's ``Λ``, ``k_d``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Measured joint positions (n,), rad.
+        q_hat : numpy.ndarray
+            The observer's ``q̂`` (n,), rad.
+        qdot_hat_o : numpy.ndarray
+            The observer's ``q̇̂_o`` (n,), rad/s.
+
+        Returns
+        -------
+        qdot_hat : numpy.ndarray
+            ``d/dt q̂`` (n,), rad/s.
+        qdot_o : numpy.ndarray
+            ``q̇_o`` (n,), rad/s.
+        """
         return (observer_qdot_hat(q, q_hat, qdot_hat_o, self._Lambda_plus_k_d),
                 observer_qdot_o(q, q_hat, qdot_hat_o, self.k_d))
 
     def observer_acceleration(self, q: np.ndarray, q_hat: np.ndarray,
                               qddot_r_hat: np.ndarray) -> np.ndarray:
-        """``d/dt q̇̂_o`` of (16) with this law's ``Λ``, ``k_d``."""
+        """``d/dt q̇̂_o`` of (16) with this law's ``Λ``, ``k_d``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Measured joint positions (n,), rad.
+        q_hat : numpy.ndarray
+            The observer's ``q̂`` (n,), rad.
+        qddot_r_hat : numpy.ndarray
+            ``q̈̂_r`` of (11) (n,), rad/s².
+
+        Returns
+        -------
+        numpy.ndarray
+            ``d/dt q̇̂_o`` (n,), rad/s².
+        """
         return observer_acceleration(q, q_hat, qddot_r_hat, self.k_d * self.Lambda)
 
     # ------------------------------------------------------------------ constraint
@@ -280,6 +396,20 @@ class FingerLaw:
         ``J_phi`` may be passed when already computed at ``q``. Held, the result is kept for
         the last ``q``: the force observer and the controller of a tick share it (the caller
         must not modify its arrays).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        held : bool
+            Whether the object is held (else the free-motion form).
+        J_phi : numpy.ndarray or None
+            ``J_φ(q)`` (m, n) if already computed.
+
+        Returns
+        -------
+        Constraint
+            ``J_φ``, ``J⁺``, ``Q`` and ``Δp = φ(q)`` (m).
         """
         if not held:
             J_pinv, Q = orthogonal.free_motion_projections(self.n, self.m)
@@ -303,7 +433,18 @@ class FingerLaw:
 
     def xi_at(self, ref: Reference):
         """``ξ`` of (4) at a sample: the gains' ``ξ``, plus ``ξ_c = β c(λ_d)/T_i`` on a
-        compliant contact (see ``contact_stiffness``)."""
+        compliant contact (see ``contact_stiffness``).
+
+        Parameters
+        ----------
+        ref : Reference
+            The reference sample (its ``λ_d``, N).
+
+        Returns
+        -------
+        float or numpy.ndarray
+            ``ξ``: a scalar for ``ξ I`` or (m, m).
+        """
         if self.contact_stiffness is None:
             return self.xi
         xi_c = self.beta * self.contact_stiffness.integral_gain(float(np.max(ref.lambda_d)))
@@ -311,7 +452,24 @@ class FingerLaw:
 
     def reference_velocity(self, c: Constraint, q_hat: np.ndarray, ref: Reference,
                            Delta_F_tilde: np.ndarray) -> np.ndarray:
-        """``q̇_r`` of (4)."""
+        """``q̇_r`` of (4).
+
+        Parameters
+        ----------
+        c : Constraint
+            The projections at ``q`` (:meth:`constraint`).
+        q_hat : numpy.ndarray
+            ``q̂`` (n,), rad.
+        ref : Reference
+            The reference sample.
+        Delta_F_tilde : numpy.ndarray
+            ``ΔF̃`` of (6) (m,), N·s.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``q̇_r`` (n,), rad/s.
+        """
         return orthogonal.reference_velocity(
             c.Q, c.J_pinv, q_hat=q_hat, q_d=ref.q_d, qdot_d=ref.qdot_d, Lambda=self.Lambda,
             Delta_p=c.Delta_p, beta=self.beta, xi=self.xi_at(ref), Delta_F_tilde=Delta_F_tilde)
@@ -397,7 +555,26 @@ class FingerLaw:
     # ------------------------------------------------------------------ force observer (22)
     def force_estimate(self, q: np.ndarray, q_hat: np.ndarray, qdot_o: np.ndarray,
                        ref: Reference, Delta_F_tilde: np.ndarray) -> np.ndarray:
-        """``λ̂`` of (22): ``[J⁺ᵀ K_R (q̇_o − q̇_r) − k_F ΔF̃]/(1 + ζ) + λ_d``; 0 when free."""
+        """``λ̂`` of (22): ``[J⁺ᵀ K_R (q̇_o − q̇_r) − k_F ΔF̃]/(1 + ζ) + λ_d``; 0 when free.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Measured joint positions (n,), rad.
+        q_hat : numpy.ndarray
+            ``q̂`` (n,), rad.
+        qdot_o : numpy.ndarray
+            ``q̇_o`` of (8) (n,), rad/s.
+        ref : Reference
+            The reference sample.
+        Delta_F_tilde : numpy.ndarray
+            ``ΔF̃`` of (6) (m,), N·s.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``λ̂`` (m,), N.
+        """
         if not ref.held:
             return self._zero_m
         if self.fast:
@@ -409,7 +586,26 @@ class FingerLaw:
 
     def force_estimate_21(self, q: np.ndarray, qdot_r: np.ndarray, qddot_r_hat: np.ndarray,
                           tau: np.ndarray, held: bool) -> np.ndarray:
-        """``λ̂`` of (21): ``J⁺ᵀ {H q̈̂_r + C(q, q̇_r) q̇_r + D q̇_r + g − τ}`` (for checks)."""
+        """``λ̂`` of (21): ``J⁺ᵀ {H q̈̂_r + C(q, q̇_r) q̇_r + D q̇_r + g − τ}`` (for checks).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Measured joint positions (n,), rad.
+        qdot_r : numpy.ndarray
+            ``q̇_r`` of (4) (n,), rad/s.
+        qddot_r_hat : numpy.ndarray
+            ``q̈̂_r`` of (11) (n,), rad/s².
+        tau : numpy.ndarray
+            The torque (n,), N·m.
+        held : bool
+            Whether the object is held (else 0).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``λ̂`` (m,), N.
+        """
         if not held:
             return self._zero_m
         c = self.constraint(q, True)
@@ -420,18 +616,38 @@ class FingerLaw:
     def control(self, q: np.ndarray, q_hat: np.ndarray, qdot_hat: np.ndarray,
                 qdot_o: np.ndarray, lambda_hat: np.ndarray, Delta_F_tilde: np.ndarray,
                 ref: Reference) -> dict[str, np.ndarray]:
-        """Torque (13) and the intermediate signals of one sample.
+        r"""Torque (13) and the intermediate signals of one sample.
 
         .. math::
-            \\tau = H\\ddot{\\hat q}_r + C(q,\\dot q_r)\\dot q_r + D\\dot q_r + g
-                    - K_R(\\dot q_o - \\dot q_r)
-                    - J_\\varphi^T(\\lambda_d - k_F\\Delta\\tilde F - \\zeta\\Delta\\tilde\\lambda)
+            \tau = H\ddot{\hat q}_r + C(q,\dot q_r)\dot q_r + D\dot q_r + g
+                    - K_R(\dot q_o - \dot q_r)
+                    - J_\varphi^T(\lambda_d - k_F\Delta\tilde F - \zeta\Delta\tilde\lambda)
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Measured joint positions (n,), rad.
+        q_hat : numpy.ndarray
+            ``q̂`` (n,), rad.
+        qdot_hat : numpy.ndarray
+            ``d/dt q̂`` of (15) (n,), rad/s.
+        qdot_o : numpy.ndarray
+            ``q̇_o`` of (8) (n,), rad/s.
+        lambda_hat : numpy.ndarray
+            ``λ̂`` (m,), N.
+        Delta_F_tilde : numpy.ndarray
+            ``ΔF̃`` of (6) (m,), N·s.
+        ref : Reference
+            The reference sample.
 
         Returns
         -------
         dict
-            ``tau``, ``qdot_r`` (4), ``qddot_r_hat`` (11), ``Delta_lambda_tilde`` (m).
+            ``tau`` (N·m), ``qdot_r`` (4) (rad/s), ``qddot_r_hat`` (11) (rad/s²),
+            ``Delta_lambda_tilde`` (m,) (N).
 
+        Notes
+        -----
         One constraint and a scalar ξ (:attr:`fast`: the paper's case, and any arm at
         ``m = 1``) runs on plain floats (:meth:`_control_m1`); the same equations, other roundings.
         Free motion, for any arm, takes :meth:`_control_free` (the same equations with

@@ -1,25 +1,25 @@
-"""The generalized-momentum observer of the external joint torque, a force source at ``h``.
+r"""The generalized-momentum observer of the external joint torque, a force source at ``h``.
 
 From the model (1), ``H q̈ + C q̇ + D q̇ + g = τ + τ_ext`` with ``τ_ext = J_φᵀ λ``, and
 ``Ḣ = C + Cᵀ``, the generalized momentum ``p = H(q) q̇`` obeys
 
 .. math::
-    \\dot p = \\tau - \\beta(q, \\dot q) + \\tau_{ext}, \\qquad
-    \\beta = g(q) + D\\dot q - C^T(q, \\dot q)\\dot q ,
+    \dot p = \tau - \beta(q, \dot q) + \tau_{ext}, \qquad
+    \beta = g(q) + D\dot q - C^T(q, \dot q)\dot q ,
 
 which needs no acceleration. The observer (De Luca & Mattone 2005; Haddadin, De Luca,
 Albu-Schäffer, IEEE T-RO 2017) integrates the known part and feeds back the residual
 
 .. math::
-    r(t) = K_O\\Big(p(t) - p(0) - \\int_0^t (\\tau - \\beta + r)\\,ds\\Big), \\qquad
-    \\dot r = K_O(\\tau_{ext} - r),
+    r(t) = K_O\Big(p(t) - p(0) - \int_0^t (\tau - \beta + r)\,ds\Big), \qquad
+    \dot r = K_O(\tau_{ext} - r),
 
 a first-order filter of the external torque with the gain ``K_O`` (1/s). Sampled at ``h``
 (forward Euler, as the paper's observers): with the state ``σ`` (``σ(0) = p(0)``),
 
 .. math::
-    r(k) = K_O\\big(\\hat H(q_k)\\hat{\\dot q}_k - \\sigma(k)\\big), \\qquad
-    \\sigma(k+1) = \\sigma(k) + h\\big(\\tau(k) - \\hat\\beta(q_k, \\hat{\\dot q}_k) + r(k)\\big),
+    r(k) = K_O\big(\hat H(q_k)\hat{\dot q}_k - \sigma(k)\big), \qquad
+    \sigma(k+1) = \sigma(k) + h\big(\tau(k) - \hat\beta(q_k, \hat{\dot q}_k) + r(k)\big),
 
 so that for a constant ``τ_ext`` on an arm at rest ``r(k) = (1 − (1 − h K_O)^k) τ_ext``
 (stable and monotone for ``0 < h K_O ≤ 1``). ``τ(k)`` is the *commanded* torque (what a
@@ -173,24 +173,71 @@ class MomentumObserver(ForceSource):
 
     def set_initial_state(self, context: Context, q0: np.ndarray,
                           v0: np.ndarray | None = None) -> None:
-        """``σ(0) = Ĥ(q_0) v_0`` (zero momentum at rest by default) and ``ΔF̃(0) = 0``."""
+        """``σ(0) = Ĥ(q_0) v_0`` (zero momentum at rest by default) and ``ΔF̃(0) = 0``.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        q0 : numpy.ndarray
+            The initial joint positions (n,), rad.
+        v0 : numpy.ndarray or None
+            The initial joint velocities (n,), rad/s; None for rest.
+        """
         v0 = np.zeros(self._n) if v0 is None else np.asarray(v0, float)
         context.SetDiscreteState(self._sigma, self._model.H(q0) @ v0)
         context.SetDiscreteState(self._DF, np.zeros(self._m))
 
     def applied_torque(self, tau: np.ndarray) -> np.ndarray:
-        """The torque the observer integrates: ``τ`` clipped at ``torque_limits`` if given."""
+        """The torque the observer integrates: ``τ`` clipped at ``torque_limits`` if given.
+
+        Parameters
+        ----------
+        tau : numpy.ndarray
+            The commanded torque (n,), N·m.
+
+        Returns
+        -------
+        numpy.ndarray
+            The torque integrated (n,), N·m.
+        """
         if self._limits is None:
             return tau
         return np.clip(tau, -self._limits, self._limits)
 
     # ------------------------------------------------------------------ the model's terms
     def momentum(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``p = Ĥ(q) v``."""
+        """``p = Ĥ(q) v``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        v : numpy.ndarray
+            Joint velocities (n,), rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``p`` (n,), kg·m²/s.
+        """
         return self._model.H(q) @ v
 
     def beta(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``β = ĝ(q) + D̂ v − Ĉ(q, v)ᵀ v`` with ``Ĉᵀ v = Ḣ v − C v``."""
+        """``β = ĝ(q) + D̂ v − Ĉ(q, v)ᵀ v`` with ``Ĉᵀ v = Ḣ v − C v``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        v : numpy.ndarray
+            Joint velocities (n,), rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``β`` (n,), N·m.
+        """
         model = self._model
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(v, float).reshape(-1, 1))
         model.plant_ad.SetPositions(model.context_ad, q_ad.reshape(-1))

@@ -32,7 +32,7 @@ from drake_coop.control.params import check_count, check_period, check_positive
 
 
 class VelocityObserver(VelocitySource):
-    """Model-based joint-velocity observer (15)–(16) of one robot.
+    r"""Model-based joint-velocity observer (15)–(16) of one robot.
 
     .. pydrake_system::
 
@@ -48,9 +48,9 @@ class VelocityObserver(VelocitySource):
     State ``q̂`` (group 0, n) and ``q̇̂_o`` (group 1, n). With ``z = q − q̂``:
 
     .. math::
-        \\frac{d}{dt}\\hat q = \\dot{\\hat q}_o + \\Lambda z + k_d z \\qquad (15)
+        \frac{d}{dt}\hat q = \dot{\hat q}_o + \Lambda z + k_d z \qquad (15)
 
-        \\frac{d}{dt}\\dot{\\hat q}_o = \\ddot{\\hat q}_r + k_d \\Lambda z \\qquad (16)
+        \frac{d}{dt}\dot{\hat q}_o = \ddot{\hat q}_r + k_d \Lambda z \qquad (16)
 
     discretized as ``x(k+1) = x(k) + h f(x(k), q(k), q̈̂_r(k))`` by a periodic discrete update
     every ``h`` (offset 0); the same update is declared as a forced discrete update, so
@@ -144,7 +144,17 @@ class VelocityObserver(VelocitySource):
     def set_initial_state(self, context: Context, q_hat: np.ndarray,
                           qdot_hat_o: np.ndarray | None = None) -> None:
         """``q̂(0)`` and ``q̇̂_o(0)`` (default zero) in this system's context; the
-        initialization event then keeps them."""
+        initialization event then keeps them.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        q_hat : numpy.ndarray
+            ``q̂(0)`` (n,), rad.
+        qdot_hat_o : numpy.ndarray or None
+            ``q̇̂_o(0)`` (n,), rad/s; None for zero.
+        """
         context.SetDiscreteState(self._q_hat_state, q_hat)
         context.SetDiscreteState(self._qdot_hat_o_state,
                                  np.zeros(self._n) if qdot_hat_o is None else qdot_hat_o)
@@ -184,7 +194,7 @@ class VelocityObserver(VelocitySource):
 
 
 class ForceObserver(ForceSource):
-    """Contact-force observer (22) of one robot, with the force integral ΔF̃ (6) as state.
+    r"""Contact-force observer (22) of one robot, with the force integral ΔF̃ (6) as state.
 
     .. pydrake_system::
 
@@ -199,8 +209,8 @@ class ForceObserver(ForceSource):
         - Delta_F_tilde
 
     .. math::
-        \\hat\\lambda = \\frac{1}{1+\\zeta}\\Big[J^{+T}(q) K_R(\\dot q_o - \\dot q_r)
-                        - k_F \\Delta\\tilde F\\Big] + \\lambda_d \\qquad (22)
+        \hat\lambda = \frac{1}{1+\zeta}\Big[J^{+T}(q) K_R(\dot q_o - \dot q_r)
+                        - k_F \Delta\tilde F\Big] + \lambda_d \qquad (22)
 
     (22) is (21) with the controller (13) substituted and solved for ``λ̂``: it needs no torque,
     so observer and controller form no algebraic loop. ``ΔF̃(k+1) = ΔF̃(k) + h (λ̂(k) − λ_d(k))``

@@ -52,9 +52,9 @@ def _inverse(A: np.ndarray) -> np.ndarray:
 
 
 def projections(J_phi: np.ndarray, damping: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """``J⁺`` and ``Q`` of Property 1.
+    r"""``J⁺`` and ``Q`` of Property 1.
 
-    .. math:: J^+ = J_\\varphi^T (J_\\varphi J_\\varphi^T + \\mu^2 I)^{-1}, \\qquad Q = I - J^+ J_\\varphi
+    .. math:: J^+ = J_\varphi^T (J_\varphi J_\varphi^T + \mu^2 I)^{-1}, \qquad Q = I - J^+ J_\varphi
 
     ``μ = 0`` (the paper's, the default) is the exact right pseudo-inverse. ``μ > 0`` is the
     damped least-squares inverse (opt-in, for postures near a singularity of ``J_φ``): with
@@ -73,7 +73,9 @@ def projections(J_phi: np.ndarray, damping: float = 0.0) -> tuple[np.ndarray, np
     Returns
     -------
     J_pinv : ndarray, shape (n, m)
+        ``J⁺ = J_φᵀ (J_φ J_φᵀ)⁻¹``, rad/m.
     Q : ndarray, shape (n, n)
+        ``Q = I − J⁺ J_φ``.
     """
     J_phi = np.atleast_2d(J_phi)
     A = J_phi @ J_phi.T
@@ -93,6 +95,13 @@ def free_motion_projections(n: int, m: int = 1) -> tuple[np.ndarray, np.ndarray]
         Joints.
     m : int
         Constraints.
+
+    Returns
+    -------
+    J_pinv : numpy.ndarray
+        ``J⁺ = 0`` (n, m).
+    Q : numpy.ndarray
+        ``Q = I`` (n, n).
     """
     return np.zeros((n, m)), _identity(n)
 
@@ -100,14 +109,14 @@ def free_motion_projections(n: int, m: int = 1) -> tuple[np.ndarray, np.ndarray]
 def projection_derivatives(
     J_phi: np.ndarray, J_phi_dot: np.ndarray, damping: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Directional derivatives ``Ĵ⁺̇`` and ``Q̂̇`` of (7) from ``J_φ`` and its derivative.
+    r"""Directional derivatives ``Ĵ⁺̇`` and ``Q̂̇`` of (7) from ``J_φ`` and its derivative.
 
     With ``A = J_φ J_φᵀ + μ² I`` (``μ`` the constant ``damping`` of :func:`projections`, 0 by
     default) and ``Ȧ = J̇_φ J_φᵀ + J_φ J̇_φᵀ``:
 
     .. math::
-        \\dot J^+ = \\dot J_\\varphi^T A^{-1} - J_\\varphi^T A^{-1} \\dot A A^{-1},
-        \\qquad \\dot Q = -(\\dot J^+ J_\\varphi + J^+ \\dot J_\\varphi)
+        \dot J^+ = \dot J_\varphi^T A^{-1} - J_\varphi^T A^{-1} \dot A A^{-1},
+        \qquad \dot Q = -(\dot J^+ J_\varphi + J^+ \dot J_\varphi)
 
     Parameters
     ----------
@@ -121,7 +130,9 @@ def projection_derivatives(
     Returns
     -------
     J_pinv_dot : ndarray, shape (n, m)
+        The directional derivative of ``J⁺``, rad/(m·s).
     Q_dot : ndarray, shape (n, n)
+        The directional derivative of ``Q``, 1/s.
     """
     J_phi = np.atleast_2d(J_phi)
     J_phi_dot = np.atleast_2d(J_phi_dot)
@@ -148,6 +159,11 @@ def xi_times(xi: float | np.ndarray, x: np.ndarray | float) -> np.ndarray:
         ``ξ``.
     x : ndarray, shape (m,), or float
         The vector it multiplies.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``ξ x`` (m,).
     """
     if np.ndim(xi) == 0:
         return xi * np.asarray(x)
@@ -170,11 +186,11 @@ def reference_velocity(
     Delta_F_tilde: np.ndarray,
     pdot_d: np.ndarray | float = 0.0,
 ) -> np.ndarray:
-    """The reference velocity ``q̇_r`` of (4).
+    r"""The reference velocity ``q̇_r`` of (4).
 
     .. math::
-        \\dot q_r = Q\\big(\\dot q_d - \\Lambda(\\hat q - q_d)\\big)
-                  + J^+\\big(\\dot p_d - \\beta\\,\\Delta p + \\xi\\,\\Delta\\tilde F\\big)
+        \dot q_r = Q\big(\dot q_d - \Lambda(\hat q - q_d)\big)
+                  + J^+\big(\dot p_d - \beta\,\Delta p + \xi\,\Delta\tilde F\big)
 
     ``Delta_p = φ(q) − p_d`` with ``p_d = 0``; ``Delta_F_tilde`` is the integral (6) of
     ``Δλ̃ = λ̂ − λ_d``. ``Lambda`` is the scalar of ``Λ = k I``; ``xi`` is ``ξ`` (m×m) or a
@@ -198,6 +214,11 @@ def reference_velocity(
         ``ΔF̃``, the integral (6).
     pdot_d : ndarray, shape (m,), or float
         ``ṗ_d`` (0 in the paper).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``q̇_r`` (n,), rad/s.
     """
     motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
     force = pdot_d - beta * np.asarray(Delta_p) + xi_times(xi, Delta_F_tilde)
@@ -225,13 +246,13 @@ def reference_acceleration(
     pdot_d: np.ndarray | float = 0.0,
     pddot_d: np.ndarray | float = 0.0,
 ) -> np.ndarray:
-    """The estimated reference acceleration ``q̈̂_r`` of (11).
+    r"""The estimated reference acceleration ``q̈̂_r`` of (11).
 
     .. math::
-        \\ddot{\\hat q}_r = Q\\big(\\ddot q_d - \\Lambda(\\dot{\\hat q} - \\dot q_d)\\big)
-          + J^+\\big(\\ddot p_d - \\beta(\\dot p - \\dot p_d) + \\xi\\Delta\\tilde\\lambda\\big)
-          + \\dot{\\hat Q}\\big(\\dot q_d - \\Lambda(\\hat q - q_d)\\big)
-          + \\dot{\\hat J}^+\\big(\\dot p_d - \\beta\\Delta p + \\xi\\Delta\\tilde F\\big)
+        \ddot{\hat q}_r = Q\big(\ddot q_d - \Lambda(\dot{\hat q} - \dot q_d)\big)
+          + J^+\big(\ddot p_d - \beta(\dot p - \dot p_d) + \xi\Delta\tilde\lambda\big)
+          + \dot{\hat Q}\big(\dot q_d - \Lambda(\hat q - q_d)\big)
+          + \dot{\hat J}^+\big(\dot p_d - \beta\Delta p + \xi\Delta\tilde F\big)
 
     The paper sets ``ṗ = ṗ_d = p̈_d = 0`` (``ṗ`` is not measured); they are arguments so that a
     test can check (11) against the exact derivative of (4). ``qdot_hat`` is the observer's
@@ -259,6 +280,11 @@ def reference_acceleration(
         ``ΔF̃`` (6) and ``Δλ̃ = λ̂ − λ_d``.
     pdot, pdot_d, pddot_d : ndarray, shape (m,), or float
         ``ṗ``, ``ṗ_d`` and ``p̈_d`` (0 in the paper).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``q̈̂_r`` (n,), rad/s².
     """
     motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
     motion_dot = np.asarray(qddot_d) - Lambda * (np.asarray(qdot_hat) - np.asarray(qdot_d))

@@ -89,6 +89,11 @@ def as_number(value, name: str) -> float:
         The argument's value.
     name : str
         The argument's name, for the message.
+
+    Returns
+    -------
+    float
+        The value.
     """
     if isinstance(value, bool) or not isinstance(value, (Real, np.floating, np.integer)):
         raise TypeError(f"{name}: a number is required (got {type(value).__name__} {value!r})")
@@ -104,6 +109,11 @@ def as_array(value, name: str) -> np.ndarray:
         The argument's value.
     name : str
         The argument's name, for the message.
+
+    Returns
+    -------
+    numpy.ndarray
+        The value as floats.
     """
     if isinstance(value, (str, bytes, dict)):
         raise TypeError(f"{name}: a list of numbers is required (got {type(value).__name__} "
@@ -124,6 +134,11 @@ def check_positive(value, name: str) -> float:
         The argument's value.
     name : str
         The argument's name, for the message.
+
+    Returns
+    -------
+    float
+        The value.
     """
     x = as_number(value, name)
     if not math.isfinite(x) or x <= 0.0:
@@ -141,6 +156,11 @@ def check_optional_positive(value, name: str) -> float | None:
         The argument's value.
     name : str
         The argument's name, for the message.
+
+    Returns
+    -------
+    float or None
+        The value.
     """
     return None if value is None else check_positive(value, name)
 
@@ -155,6 +175,11 @@ def check_count(value, name: str) -> int:
         The argument's value.
     name : str
         The argument's name, for the message.
+
+    Returns
+    -------
+    int
+        The value.
     """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name}: a positive integer is required (got {type(value).__name__} "
@@ -175,6 +200,11 @@ def check_choice(value, name: str, allowed: tuple[str, ...]) -> str:
         The argument's name, for the message.
     allowed : tuple of str
         The allowed values.
+
+    Returns
+    -------
+    str
+        The value.
     """
     if not isinstance(value, str) or value not in allowed:
         raise ValueError(f"{name}: one of {', '.join(allowed)} (got {value!r})")
@@ -249,6 +279,11 @@ def check_momentum_gain(momentum_gain: float, period: float) -> float:
     period : float
         The sampling time ``h`` (s).
 
+    Returns
+    -------
+    float
+        ``K_O`` (1/s).
+
     Raises
     ------
     TypeError, ValueError
@@ -270,7 +305,18 @@ class CheckedPeriod(float):
     __slots__ = ("time_step",)
 
     def covers(self, time_step: float | None) -> bool:
-        """Whether this period was checked against ``time_step`` (or none is asked)."""
+        """Whether this period was checked against ``time_step`` (or none is asked).
+
+        Parameters
+        ----------
+        time_step : float or None
+            The plant's time step (s); None or ≤ 0 for a continuous plant.
+
+        Returns
+        -------
+        bool
+            True when covered.
+        """
         return time_step is None or time_step <= 0.0 or time_step == self.time_step
 
 

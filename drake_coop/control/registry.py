@@ -52,6 +52,7 @@ class Source:
     name : str
         The value of ``velocity_source`` / ``force_source`` that selects it.
     kind : {"velocity", "force"}
+        What the source estimates: the joint velocity or the contact force.
     system : str
         ``"<module>.<Class>"`` of its LeafSystem in :mod:`drake_coop.control`.
     suffix : str
@@ -91,12 +92,33 @@ class Source:
         return self.system.rsplit(".", 1)[0]
 
     def system_class(self) -> type:
-        """The system's class (imports its module)."""
+        """The system's class (imports its module).
+
+        Returns
+        -------
+        type
+            The LeafSystem subclass.
+        """
         return getattr(importlib.import_module(f"drake_coop.control.{self.module}"),
                        self.class_name)
 
     def make(self, law, period: float, options: dict):
-        """The system for one robot's ``law`` at the period ``h``."""
+        """The system for one robot's ``law`` at the period ``h``.
+
+        Parameters
+        ----------
+        law : FingerLaw
+            The robot's law (gains and model).
+        period : float
+            The sampling time ``h`` (s).
+        options : dict
+            The source's own options (its gains, filters).
+
+        Returns
+        -------
+        LeafSystem
+            The source.
+        """
         return self.build(self.system_class(), law, period, options)
 
 
@@ -134,6 +156,11 @@ def names(kind: str) -> tuple[str, ...]:
     ----------
     kind : str
         ``"velocity"`` or ``"force"``.
+
+    Returns
+    -------
+    tuple of str
+        The names.
     """
     return tuple(s.name for s in SOURCES if s.kind == kind)
 
@@ -147,6 +174,11 @@ def source(kind: str, name: str) -> Source:
         ``"velocity"`` or ``"force"``.
     name : str
         The source's name, as a scenario spells it.
+
+    Returns
+    -------
+    Source
+        The registry entry.
 
     Raises
     ------

@@ -89,7 +89,17 @@ class MeasuredVelocity(VelocitySource):
 
     def set_initial_state(self, context: Context, q_hat: np.ndarray,
                           qdot_hat_o: np.ndarray | None = None) -> None:
-        """Nothing to initialize (stateless); kept for the same interface as the observer."""
+        """Nothing to initialize (stateless); kept for the same interface as the observer.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        q_hat : numpy.ndarray
+            Ignored (n,), rad.
+        qdot_hat_o : numpy.ndarray or None
+            Ignored.
+        """
 
     def _calc_q(self, context: Context, output: BasicVector) -> None:
         if self._q.HasValue(context):
@@ -102,7 +112,7 @@ class MeasuredVelocity(VelocitySource):
 
 
 class DifferenceVelocity(VelocitySource):
-    """Backward difference of the encoder signal, with an optional first-order low-pass.
+    r"""Backward difference of the encoder signal, with an optional first-order low-pass.
 
     .. pydrake_system::
 
@@ -115,8 +125,8 @@ class DifferenceVelocity(VelocitySource):
         - qdot_o
 
     .. math::
-        u(k) = \\frac{q(k) - q(k-1)}{h}, \\qquad
-        \\dot{\\hat q}(k) = \\dot{\\hat q}(k-1) + \\alpha\\,(u(k) - \\dot{\\hat q}(k-1))
+        u(k) = \frac{q(k) - q(k-1)}{h}, \qquad
+        \dot{\hat q}(k) = \dot{\hat q}(k-1) + \alpha\,(u(k) - \dot{\hat q}(k-1))
 
     with ``α = 1 − exp(−2π f_c h)`` (``α = 1``, the raw difference, without a cutoff). State
     ``[q(k−1), q̇̂(k−1)]``; at tick ``k`` the outputs use the current input ``q(k)`` (no sample
@@ -171,7 +181,17 @@ class DifferenceVelocity(VelocitySource):
 
     def set_initial_state(self, context: Context, q_hat: np.ndarray,
                           qdot_hat_o: np.ndarray | None = None) -> None:
-        """``q(−1) = q_hat`` (the initial reading) and ``q̇̂(−1)`` (default zero)."""
+        """``q(−1) = q_hat`` (the initial reading) and ``q̇̂(−1)`` (default zero).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        q_hat : numpy.ndarray
+            The initial reading ``q(−1)`` (n,), rad.
+        qdot_hat_o : numpy.ndarray or None
+            ``q̇̂(−1)`` (n,), rad/s; None for zero.
+        """
         v = np.zeros(self._n) if qdot_hat_o is None else qdot_hat_o
         context.SetDiscreteState(self._state, np.concatenate([q_hat, v]))
         context.SetAbstractState(self._given, True)
@@ -261,7 +281,15 @@ class SensedForce(ForceSource):
 
     def set_initial_state(self, context: Context, Delta_F_tilde: np.ndarray | None = None
                           ) -> None:
-        """``ΔF̃(0)`` (default zero)."""
+        """``ΔF̃(0)`` (default zero).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        Delta_F_tilde : numpy.ndarray or None
+            ``ΔF̃(0)`` (m,), N·s; None for zero.
+        """
         context.SetDiscreteState(self._state, self._zero if Delta_F_tilde is None
                                  else Delta_F_tilde)
 

@@ -1,19 +1,19 @@
-"""The squeeze an arm can apply within its torque limits, along its path.
+r"""The squeeze an arm can apply within its torque limits, along its path.
 
 An arm holding the object by friction applies at its contact point the force
 
 .. math::
-    F_i = f_i + \\lambda\\,\\nu_i
+    F_i = f_i + \lambda\,\nu_i
 
 (its load ``f_i``, the minimum-norm split of the object's wrench,
 :func:`~drake_coop.control.object.load_distribution`, plus the squeeze ``λ`` along the inward
 normal ``ν_i``). Along the reference ``(q_d, q̇_d, q̈_d)`` its joints must then deliver
 
 .. math::
-    \\tau(\\lambda) = \\underbrace{H\\ddot q_d + C\\dot q_d + D\\dot q_d + g
-        + J_c^\\top f_i}_{\\tau_0}
-        + \\lambda\\,\\underbrace{J_c^\\top \\nu_i}_{c},\\qquad
-    J_c^\\top F = J_x^\\top F + J_\\omega^\\top (r \\times F)
+    \tau(\lambda) = \underbrace{H\ddot q_d + C\dot q_d + D\dot q_d + g
+        + J_c^\top f_i}_{\tau_0}
+        + \lambda\,\underbrace{J_c^\top \nu_i}_{c},\qquad
+    J_c^\top F = J_x^\top F + J_\omega^\top (r \times F)
 
 (``J_c`` the translational Jacobian of the contact point, ``r`` its offset from the controlled
 point: the pad's radius along ``ν_i``). Each joint's limit ``|τ_j| ≤ τ_max,j`` bounds ``λ`` to
@@ -49,6 +49,11 @@ def effort_limits(plant: MultibodyPlant) -> np.ndarray:
     ----------
     plant : MultibodyPlant
         The arm's plant (finalized), as parsed from its URDF.
+
+    Returns
+    -------
+    numpy.ndarray
+        The limits (n,).
     """
     limits = np.full(plant.num_velocities(), np.inf)
     for index in plant.GetJointActuatorIndices():
@@ -76,6 +81,13 @@ def squeeze_torques(model: ArmModel, q, v, a, load, inward_normal, offset=None
         ``ν_i`` (normalized here).
     offset : array_like, shape (3,), optional
         ``r``: the contact point from the controlled point (world); default zero.
+
+    Returns
+    -------
+    tau0 : numpy.ndarray
+        ``τ_0`` (n,), N·m.
+    c : numpy.ndarray
+        ``c`` (n,), N·m per N.
     """
     nu = np.asarray(inward_normal, dtype=float)
     nu = nu / np.linalg.norm(nu)

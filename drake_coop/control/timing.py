@@ -57,6 +57,11 @@ def tick_of(t: float, h: float) -> int | None:
         A time (s).
     h : float
         The sampling time (s).
+
+    Returns
+    -------
+    int or None
+        ``k``, or None.
     """
     k = round(t / h)
     return k if abs(t - k * h) <= 1e-9 * max(1.0, t) else None
@@ -75,6 +80,11 @@ def lowpass_alpha(cutoff_hz: float | None, h: float) -> float:
         The cutoff ``f_c`` (Hz); None: no filter.
     h : float
         The sampling time (s).
+
+    Returns
+    -------
+    float
+        ``α`` in (0, 1].
     """
     if cutoff_hz is None:
         return 1.0

@@ -272,7 +272,15 @@ class Watchdog(LeafSystem):
 
     def set_initial_state(self, context: Context, q: np.ndarray) -> None:
         """Start untripped, no status seen yet, with ``q_g = q`` (the arm's expected reading
-        at the start: what ``q_checked`` gives and ``hold`` holds until the first status)."""
+        at the start: what ``q_checked`` gives and ``hold`` holds until the first status).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        q : numpy.ndarray
+            The arm's expected reading at the start (n,), rad.
+        """
         q = _vector(q, self._n, "q")
         context.SetDiscreteState(self._memory, np.concatenate(
             [[0.0, math.nan, context.get_time(), 0.0, math.nan, 0.0, 0.0, 0.0], q]))
@@ -282,7 +290,18 @@ class Watchdog(LeafSystem):
         context.SetDiscreteState(self._latched, safe)
 
     def reason(self, context: Context) -> str:
-        """The one-line reason of a trip ('' if not tripped)."""
+        """The one-line reason of a trip ('' if not tripped).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        str
+            The reason, or ``''``.
+        """
         flags = context.get_discrete_state(self._memory).get_value()
         code = int(flags[0])
         if code == 7:
@@ -296,10 +315,33 @@ class Watchdog(LeafSystem):
         return TRIP_REASONS[code]
 
     def is_tripped(self, context: Context) -> bool:
+        """Whether the watchdog has tripped (it then commands the safe torque until reset).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        bool
+            True once tripped.
+        """
         return context.get_discrete_state(self._memory).get_value()[0] != 0.0
 
     def last_good_position(self, context: Context) -> np.ndarray:
-        """``q_g``: the last reading that passed the checks (the start's before the first)."""
+        """``q_g``: the last reading that passed the checks (the start's before the first).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``q_g`` (n,), rad.
+        """
         return context.get_discrete_state(self._memory).get_value()[_FLAGS:].copy()
 
     def _safe_torque(self, q: np.ndarray) -> np.ndarray:

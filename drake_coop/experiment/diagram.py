@@ -112,6 +112,15 @@ class RobotLog:
     :class:`VectorLogSink` publishing at every tick (one logger per robot, not one per signal).
 
     ``slices[key]`` is where a signal sits in the logged vector, ``ports[key]`` its source.
+
+    Attributes
+    ----------
+    logger : VectorLogSink
+        The robot's logger.
+    slices : dict of str to slice
+        Signal → its rows in the logged vector.
+    ports : dict of str to OutputPort
+        Signal → its source port.
     """
 
     logger: VectorLogSink
@@ -119,13 +128,39 @@ class RobotLog:
     ports: dict[str, OutputPort]
 
     def raw(self, context: Context) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-        """Sample times ``(K,)`` and each signal's samples ``(width, K)``, as published."""
+        """Sample times ``(K,)`` and each signal's samples ``(width, K)``, as published.
+
+        Parameters
+        ----------
+        context : Context
+            The root context.
+
+        Returns
+        -------
+        t : numpy.ndarray
+            The sample times (K,), s.
+        signals : dict of str to numpy.ndarray
+            Signal → its samples (width, K).
+        """
         log = self.logger.FindLog(context)
         data = log.data()
         return log.sample_times(), {k: data[s] for k, s in self.slices.items()}
 
     def now(self, context: Context, key: str) -> np.ndarray:
-        """The current value of a logged signal's source port."""
+        """The current value of a logged signal's source port.
+
+        Parameters
+        ----------
+        context : Context
+            The root context.
+        key : str
+            The signal.
+
+        Returns
+        -------
+        numpy.ndarray
+            Its source port's value.
+        """
         port = self.ports[key]
         return port.Eval(port.get_system().GetMyContextFromRoot(context))
 
@@ -136,6 +171,35 @@ class RobotSystems:
 
     ``force_sensor`` and ``ft_sensor`` are None with the offline ground truth
     (:attr:`Experiment.ground_truth`): no system computes the wrist force during the run.
+
+    Attributes
+    ----------
+    name : str
+        The robot's name.
+    law : FingerLaw
+        Its control law (gains, model).
+    control : Diagram
+        Its control block (:func:`~drake_coop.control.block.AddCooperativeController`).
+    velocity_observer : VelocitySource
+        Its velocity source.
+    force_observer : ForceSource
+        Its force source.
+    controller : Controller
+        Its controller (13).
+    force_sensor : ForceSensor or None
+        The live ground truth of its wrist force.
+    encoders : Encoders or Demultiplexer or None
+        Its encoders (a Demultiplexer when ideal).
+    ft_sensor : FTSensor or ZeroOrderHold or None
+        Its F/T sensor model.
+    actuators : Saturation or None
+        Its torque limits.
+    latency : ActuationDelay or None
+        Its computation delay.
+    log : RobotLog or None
+        Its logger.
+    object_blocks : ObjectBlocks or None
+        Its object-aware systems.
     """
 
     name: str
@@ -159,7 +223,25 @@ class Experiment:
 
     ``ground_truth`` is the offline ground truth's holds and log (in ``contact`` mode the
     pads' forces, :class:`~drake_coop.plant.ground_truth.PadForceLog`; None on the live path
-    or without logging)."""
+    or without logging).
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The scenario.
+    diagram : Diagram
+        The built diagram.
+    coop : CoopPlant
+        The plant and its handles.
+    robots : list of RobotSystems
+        Each robot's systems.
+    ground_truth : GroundTruthLog or PadForceLog or None
+        The offline ground truth.
+    object_state_estimator : ObjectStateEstimator or None
+        The shared object state estimator (``object_model.mode: estimated``).
+    plan : RunPlan or None
+        The run's plan.
+    """
 
     scenario: Scenario
     diagram: Diagram
@@ -184,12 +266,34 @@ class Experiment:
 
 def reads_sensor(robot) -> bool:
     """Whether the robot's force source reads its F/T sensor (``lambda_sensor``: its registry
-    entry, :data:`drake_coop.control.registry.SOURCES`; ``force_source: sensor``)."""
+    entry, :data:`drake_coop.control.registry.SOURCES`; ``force_source: sensor``).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot's entry.
+
+    Returns
+    -------
+    bool
+        True for a source that reads ``lambda_sensor``.
+    """
     return "lambda_sensor" in source("force", robot.force_source).inputs
 
 
 def is_ideal(settings) -> bool:
-    """Encoders that pass the exact ``q(t_k)``: no quantization, no noise, no delay."""
+    """Encoders that pass the exact ``q(t_k)``: no quantization, no noise, no delay.
+
+    Parameters
+    ----------
+    settings : Encoders
+        The robot's encoder settings (:class:`~drake_coop.scenario.schema.Encoders`).
+
+    Returns
+    -------
+    bool
+        True when ideal.
+    """
     return (settings.counts_per_rev is None and settings.noise_std == 0.0
             and settings.delay_samples == 0)
 
@@ -201,6 +305,30 @@ def add_encoders(builder: DiagramBuilder, name: str, n: int, period: float, sett
     Ideal encoders are Drake's :class:`~pydrake.systems.primitives.Demultiplexer` (C++) taking
     ``q`` out of ``[q, q̇]``: what the controller reads at ``t_k`` is the plant's ``q(t_k)``, as
     :class:`~drake_coop.sensing.encoders.Encoders` would give bit for bit, without a Python call.
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The experiment's builder.
+    name : str
+        The robot's name.
+    n : int
+        Its joints.
+    period : float
+        The control period, s.
+    settings : Encoders
+        Its encoder settings.
+    robot_index : int
+        Its index (seeds the noise).
+    state : OutputPort
+        The arm's ``[q, q̇]`` from the plant.
+
+    Returns
+    -------
+    encoder : LeafSystem
+        The encoders.
+    q : OutputPort
+        Their reading (n,), rad.
     """
     if is_ideal(settings):
         encoder = builder.AddNamedSystem(f"{name}_encoders", Demultiplexer([n, n]))
@@ -219,7 +347,18 @@ def uses_live_ground_truth(scenario: Scenario) -> bool:
     (``force_source: sensor``). Otherwise it is computed after the run from held plant data
     (:mod:`drake_coop.plant.ground_truth`; in ``contact`` mode the pads' contact forces of
     every plant step, :class:`~drake_coop.plant.ground_truth.PadForceLog`, which also feeds a
-    controller that reads its sensor)."""
+    controller that reads its sensor).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    bool
+        True when the ground truth runs in the loop.
+    """
     mode = scenario.plant.object_mode
     return mode == "none" or (mode != "contact"
                               and any(reads_sensor(r) for r in scenario.robots))
@@ -263,6 +402,11 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
         its F/T sensor needs), allowed only when :func:`uses_live_ground_truth` is False. None
         (default): that function decides. Both give the same logs (to rounding, ~1e-12 N;
         ``contact``: to Newton's law's agreement with the contact results, ~1e-3).
+
+    Returns
+    -------
+    Experiment
+        The built experiment.
 
     Raises
     ------

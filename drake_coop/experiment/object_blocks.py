@@ -57,7 +57,23 @@ ESTIMATOR_TICKS = 5
 
 @dataclass
 class ObjectBlocks:
-    """One robot's object-aware systems (None where the mode has none)."""
+    """One robot's object-aware systems (None where the mode has none).
+
+    Attributes
+    ----------
+    feedforward : LoadFeedforward
+        The load's feed-forward torque.
+    tau_sum : Adder
+        The controller's torque plus the feed-forward.
+    tau : OutputPort
+        The summed torque, to the actuators (n,), N·m.
+    mass_share : OutputPort
+        The arm's mass share (1,), kg.
+    estimator : MassEstimator or None
+        The mass estimator (``estimated``).
+    acceleration_d : OutputPort or None
+        The object's desired acceleration (3,), m/s².
+    """
 
     feedforward: LoadFeedforward
     tau_sum: Adder
@@ -97,7 +113,20 @@ class ObjectLayer:
 
 def acceleration_samples(robot: RobotPlan, t: np.ndarray) -> np.ndarray:
     """The object's desired acceleration along the robot's path (N, 3): the pad's ``ẍ_d``
-    (the path translates the object)."""
+    (the path translates the object).
+
+    Parameters
+    ----------
+    robot : RobotPlan
+        The robot's section of the plan.
+    t : numpy.ndarray
+        The times (N,), s.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``ẍ_d`` (N, 3), m/s².
+    """
     return cartesian_reference(robot.task, robot.robot, t)[2]
 
 
@@ -116,6 +145,15 @@ def couple_samples(plan: RunPlan, index: int, trajectories, t: np.ndarray) -> np
     trajectories : sequence of PiecewisePolynomial
         Both robots' reference trajectories (:func:`~drake_coop.experiment.references.
         reference_trajectory`).
+    index : int
+        The robot's index.
+    t : numpy.ndarray
+        The times (K,), s.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``f_c,i`` (K, 3), N.
     """
     t = np.asarray(t, dtype=float)
     centres, lam, held, rho, delta = [], [], [], [], []
@@ -147,7 +185,34 @@ def add_object_blocks(b: DiagramBuilder, robot: RobotPlan, period: float, q: Out
     plan (controller's model, mass share, contact offset, the object's friction);
     ``couple``: the arm's part of the squeeze's couple at ``t_samples``
     (:func:`couple_samples`), fed to both; ``estimator_period``: the mass estimator's period
-    (default ``ESTIMATOR_TICKS`` periods; the diagram passes it checked once for all arms)."""
+    (default ``ESTIMATOR_TICKS`` periods; the diagram passes it checked once for all arms).
+
+    Parameters
+    ----------
+    b : DiagramBuilder
+        The experiment's builder.
+    robot : RobotPlan
+        The robot's section of the plan.
+    period : float
+        The control period, s.
+    q : OutputPort
+        The encoders' reading (n,), rad.
+    reference : OutputPort
+        The robot's reference.
+    control : Diagram
+        The robot's control block (its ``tau``, ``qdot_o`` and ``qddot_r_hat`` outputs).
+    t_samples : numpy.ndarray
+        The ticks' times (K,), s.
+    couple : numpy.ndarray or None
+        The arm's part of the squeeze's couple (K, 3), N.
+    estimator_period : float or None
+        The mass estimator's period, s.
+
+    Returns
+    -------
+    ObjectBlocks
+        The systems added.
+    """
     om = robot.object_settings
     name, model = robot.name, robot.controller_model
     a = acceleration_samples(robot, t_samples)
@@ -214,7 +279,24 @@ def add_object_state_estimator(b: DiagramBuilder, plan: RunPlan,
     ``margin``, ``squeeze_min``, the grasp window and ramp of
     :func:`~drake_coop.experiment.plan.friction_squeeze`, ``squeeze_rate`` and each robot's
     force weights. Its inputs (mass shares, ``a_d``) are connected by
-    :func:`connect_object_state_estimator`, the references by the caller."""
+    :func:`connect_object_state_estimator`, the references by the caller.
+
+    Parameters
+    ----------
+    b : DiagramBuilder
+        The experiment's builder.
+    plan : RunPlan
+        The run's plan.
+    layouts : list of ReferenceLayout
+        Each robot's reference layout.
+    period : float
+        The control period, s.
+
+    Returns
+    -------
+    ObjectStateEstimator
+        The system added.
+    """
     scenario = plan.scenario
     om, task = scenario.object_model, scenario.task
     obj = plan.object
@@ -227,7 +309,19 @@ def add_object_state_estimator(b: DiagramBuilder, plan: RunPlan,
 
 def connect_object_state_estimator(b: DiagramBuilder, estimator: ObjectStateEstimator,
                                    blocks: list[ObjectBlocks], acceleration: OutputPort) -> None:
-    """Every arm's mass share and the object's desired acceleration into the shared block."""
+    """Every arm's mass share and the object's desired acceleration into the shared block.
+
+    Parameters
+    ----------
+    b : DiagramBuilder
+        The experiment's builder.
+    estimator : ObjectStateEstimator
+        The shared block.
+    blocks : list of ObjectBlocks
+        Each arm's object blocks.
+    acceleration : OutputPort
+        The object's desired acceleration (3,), m/s².
+    """
     for i, blk in enumerate(blocks):
         b.Connect(blk.mass_share, estimator.get_mass_share_input_port(i))
     b.Connect(acceleration, estimator.get_acceleration_d_input_port())

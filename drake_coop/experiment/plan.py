@@ -46,7 +46,18 @@ MAX_PLANT_STEPS = 20_000_000
 
 def time_grid(scenario: Scenario) -> tuple[float, float]:
     """``(h, dt)``: the scenario's control period and plant step on one exact grid
-    (``h = N dt``, :func:`~drake_coop.control.timing.aligned_periods`)."""
+    (``h = N dt``, :func:`~drake_coop.control.timing.aligned_periods`).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    h, dt : float
+        The control period and the plant step, s.
+    """
     return aligned_periods(scenario.control_period, scenario.plant.time_step)
 
 
@@ -55,7 +66,20 @@ def _run_end(scenario: Scenario, t_end: float | None) -> float:
 
 
 def run_size(scenario: Scenario, t_end: float | None = None) -> tuple[int, int]:
-    """Control ticks and plant steps of a run to ``min(t_end, task.t_end)``."""
+    """Control ticks and plant steps of a run to ``min(t_end, task.t_end)``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    t_end : float or None
+        The run's end, s; None for the task's.
+
+    Returns
+    -------
+    ticks, steps : int
+        The control ticks and plant steps.
+    """
     h, dt = time_grid(scenario)
     T = _run_end(scenario, t_end)
     return int(T / h) + 1, int(T / dt)
@@ -64,6 +88,13 @@ def run_size(scenario: Scenario, t_end: float | None = None) -> tuple[int, int]:
 def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
     """Refuse a run shorter than one control period, or whose work (ticks, plant steps)
     exceeds :data:`MAX_TICKS` or :data:`MAX_PLANT_STEPS`, before anything is built.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    t_end : float or None
+        The run's end, s; None for the task's.
 
     Raises
     ------
@@ -88,12 +119,38 @@ def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
 
 
 def grasp_ticks(task: Task, h: float) -> tuple[int, int]:
-    """First held tick and first released tick: ``(⌈t_grasp/h⌉, ⌈t_release/h⌉)``."""
+    """First held tick and first released tick: ``(⌈t_grasp/h⌉, ⌈t_release/h⌉)``.
+
+    Parameters
+    ----------
+    task : Task
+        The task.
+    h : float
+        The control period, s.
+
+    Returns
+    -------
+    k_grasp, k_release : int
+        The ticks.
+    """
     return (int(math.ceil(task.t_grasp / h - 1e-6)), int(math.ceil(task.t_release / h - 1e-6)))
 
 
 def num_ticks_until(t: float, h: float) -> int:
-    """Index of the last control tick at or before ``t``."""
+    """Index of the last control tick at or before ``t``.
+
+    Parameters
+    ----------
+    t : float
+        The time, s.
+    h : float
+        The control period, s.
+
+    Returns
+    -------
+    int
+        The tick.
+    """
     return int(math.floor(t / h + 1e-6))
 
 
@@ -101,7 +158,15 @@ def num_ticks_until(t: float, h: float) -> int:
 class Pad:
     """A pad's collision geometry in its arm's model file (the end-effector link's first
     collision geometry): its sphere's ``radius`` (m) and its ``drake:hydroelastic_modulus``
-    (Pa), each None when the model has none."""
+    (Pa), each None when the model has none.
+
+    Attributes
+    ----------
+    radius : float or None
+        The sphere's radius, m.
+    modulus : float or None
+        The hydroelastic modulus, Pa.
+    """
 
     radius: float | None
     modulus: float | None
@@ -110,7 +175,20 @@ class Pad:
 def read_pad(urdf: str | Path, ee_frame: str) -> Pad:
     """The :class:`Pad` of the link ``ee_frame`` of the model ``urdf``, parsed by Drake.
 
-    Only a link's own geometry counts (an ``ee_frame`` that is a frame on a link has none)."""
+    Only a link's own geometry counts (an ``ee_frame`` that is a frame on a link has none).
+
+    Parameters
+    ----------
+    urdf : str or Path
+        The model file.
+    ee_frame : str
+        The end-effector link.
+
+    Returns
+    -------
+    Pad
+        Its pad.
+    """
     from pydrake.geometry import SceneGraph, Sphere
     from pydrake.multibody.parsing import Parser
     from pydrake.multibody.plant import MultibodyPlant
@@ -163,7 +241,20 @@ def grasp_object(scenario: Scenario, mass: float):
     """The object as the grasp sees it, with ``mass`` (kg): grasp points at the robots'
     contact points (``contact_xy``, at a common height), inward normals ``−N_i`` (first row),
     centre of mass at the points' midpoint (an
-    :class:`~drake_coop.control.object.ObjectModel`)."""
+    :class:`~drake_coop.control.object.ObjectModel`).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario (its robots' contact points and normals).
+    mass : float
+        The object's mass, kg.
+
+    Returns
+    -------
+    ObjectModel
+        The object.
+    """
     from drake_coop.control.object import ObjectModel
 
     points = np.array([[r.contact_xy[0], r.contact_xy[1], 0.0] for r in scenario.robots])
@@ -174,6 +265,11 @@ def grasp_object(scenario: Scenario, mass: float):
 
 class ObjectPlan:
     """The controllers' object model (``object_model.mode`` known or estimated).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario (its ``object_model``, robots and plant).
 
     Attributes
     ----------
@@ -206,11 +302,23 @@ class ObjectPlan:
 class RobotPlan:
     """What one robot's run is, decided from the scenario (see the module's docstring).
 
+    Parameters
+    ----------
+    run : RunPlan
+        The run's plan this robot belongs to.
+    index : int
+        The robot's index.
+    arm : Arm
+        Its resolved arm.
+
     Attributes
     ----------
     index : int
+        The robot's index in the scenario.
     robot : Robot
+        The robot's scenario entry.
     arm : Arm
+        Its resolved arm (kinematics, base pose, constraint).
     """
 
     def __init__(self, run: "RunPlan", index: int, arm: Arm):
@@ -351,14 +459,45 @@ class RobotPlan:
 
     def lambda_d(self, t: np.ndarray) -> np.ndarray:
         """``λ_d`` at the times ``t`` (K, m): the force weights times the squeeze (29), or the
-        friction squeeze (``object_model.squeeze: friction``)."""
+        friction squeeze (``object_model.squeeze: friction``).
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            The times (K,), s.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``λ_d`` (K, m), N.
+        """
         return (self._run.squeeze(t)[:, None]
                 * np.asarray(self.robot.force_weights, dtype=float))
 
 
 @dataclass(frozen=True)
 class RunPlan:
-    """The resolved numbers of one run (see the module's docstring)."""
+    """The resolved numbers of one run (see the module's docstring).
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The scenario.
+    h : float
+        The control period, s.
+    dt : float
+        The plant step, s.
+    t_end : float
+        The run's end, s.
+    k_end : int
+        The last tick.
+    k_grasp, k_release : int
+        The first held and the first released tick.
+    z_grasp : float
+        The grasp height, m.
+    arms : tuple of Arm
+        One resolved arm per robot.
+    """
 
     scenario: Scenario
     h: float
@@ -405,7 +544,18 @@ class RunPlan:
     def squeeze(self, t: np.ndarray) -> np.ndarray:
         """The squeeze at the times ``t`` (K,): the task's profile (29), or with an object
         model and ``object_model.squeeze: friction`` the friction squeeze
-        (:func:`friction_squeeze`)."""
+        (:func:`friction_squeeze`).
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            The times (K,), s.
+
+        Returns
+        -------
+        numpy.ndarray
+            The squeeze (K,), N.
+        """
         from drake_coop.scenario.task_path import force_reference
 
         if self.object is not None and self.scenario.object_model.squeeze == "friction":
@@ -425,7 +575,20 @@ class RunPlan:
 
 
 def plan_run(scenario: Scenario, t_end: float | None = None) -> RunPlan:
-    """The plan of a run of ``scenario`` to ``min(t_end, task.t_end)``."""
+    """The plan of a run of ``scenario`` to ``min(t_end, task.t_end)``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated scenario.
+    t_end : float or None
+        The run's end, s; None for the task's.
+
+    Returns
+    -------
+    RunPlan
+        The plan.
+    """
     h, dt = time_grid(scenario)
     task = scenario.task
     T = _run_end(scenario, t_end)
@@ -443,7 +606,24 @@ def friction_squeeze(scenario: Scenario, obj: ObjectPlan, t: np.ndarray,
     on the loads of :func:`~drake_coop.control.object.load_distribution`, the controllers'
     object ``obj``, its ``mu``, ``margin``, ``squeeze_min``), between the grasp and the
     release, ramped linearly over ``ramp`` seconds after the grasp and before the release (N,
-    one per time)."""
+    one per time).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    obj : ObjectPlan
+        The controllers' object.
+    t : numpy.ndarray
+        The times (K,), s.
+    ramp : float
+        The ramps' length, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        The squeeze (K,), N.
+    """
     from drake_coop.control.object import load_distribution, squeeze_for_grasp
     from drake_coop.scenario.task_path import cartesian_reference
 

@@ -53,7 +53,20 @@ __all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", 
 def joint_reference(arm: Arm, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``q_d``, ``q̇_d``, ``q̈_d`` from a Cartesian reference through the arm's IK (an arm
-    with as many joints as task coordinates)."""
+    with as many joints as task coordinates).
+
+    Parameters
+    ----------
+    arm : Arm
+        The arm.
+    x, xd, xdd : numpy.ndarray
+        The Cartesian reference (K, 3): m, m/s, m/s².
+
+    Returns
+    -------
+    q_d, qdot_d, qddot_d : numpy.ndarray
+        (K, n): rad, rad/s, rad/s².
+    """
     return arm.kinematics.joint_reference(x, xd, xdd)
 
 
@@ -61,7 +74,22 @@ def start_posture(arm: Arm, task, point=None) -> np.ndarray:
     """``q_d(0)``: the reference's posture at ``t = 0`` (the run's rest posture), for either
     kind of arm (the same doubles as the first sample of :func:`reference_samples`);
     ``point`` (:class:`~drake_coop.experiment.plan.ControlPoint`) when the arm
-    controls its pad's material contact point."""
+    controls its pad's material contact point.
+
+    Parameters
+    ----------
+    arm : Arm
+        The arm.
+    task : Task
+        The task.
+    point : ControlPoint or None
+        The controlled material point; None for the pad's centre.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``q_d(0)`` (n,), rad.
+    """
     x, xd, xdd = cartesian_reference(task, arm.robot, [0.0])
     kin = arm.kinematics
     if getattr(kin, "redundant", False):
@@ -78,6 +106,22 @@ def redundant_joint_reference(arm: Arm, task, t: np.ndarray, path=None
     (:meth:`~drake_coop.kinematics.drake_arm.DrakeArmKinematics.redundant_reference`, the
     robot's ``q_nominal`` and ``nullspace_gain``) along ``path(times) -> (x, ẋ, ẍ)``
     (default: the task's path of the robot, :func:`cartesian_reference`).
+
+    Parameters
+    ----------
+    arm : Arm
+        The arm.
+    task : Task
+        The task.
+    t : numpy.ndarray
+        The times (K,), s.
+    path : Callable or None
+        ``path(times) -> (x, ẋ, ẍ)``; None for the task's.
+
+    Returns
+    -------
+    q_d, qdot_d, qddot_d : numpy.ndarray
+        (K, n): rad, rad/s, rad/s².
 
     Raises
     ------
@@ -111,6 +155,10 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     plan : RunPlan, optional
         The run's plan when the caller has it (else computed from ``scenario``): its arm,
         ``λ_d``, control point and contact stiffness of the robot.
+    scenario : Scenario
+        The scenario.
+    index : int
+        The robot's index.
 
     Returns
     -------
@@ -198,6 +246,13 @@ def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,
         :attr:`~drake_coop.experiment.plan.RobotPlan.control_point`.
     x, xd, xdd : ndarray, shape (K, 3)
         The centre's desired path (compressed, :func:`compressed_path`).
+    tolerance : float
+        Newton's tolerance, m.
+
+    Returns
+    -------
+    q_d, qdot_d, qddot_d : numpy.ndarray
+        (K, 3): rad, rad/s, rad/s².
 
     Raises
     ------
@@ -233,7 +288,7 @@ def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,
 
 def rolling_correction(kinematics, point, q: np.ndarray, qd: np.ndarray, delta: np.ndarray,
                        h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The correction ``c(t)`` of the path across the normal for a pad pressed in by ``δ``.
+    r"""The correction ``c(t)`` of the path across the normal for a pad pressed in by ``δ``.
 
     A pad pressed ``δ`` into the box carries it by its material point *on the box's face*,
     ``ρ − δ`` from its centre along the inward normal ``n``, not by the point at ``ρ`` (the
@@ -242,15 +297,29 @@ def rolling_correction(kinematics, point, q: np.ndarray, qd: np.ndarray, delta: 
     the grasp; ``T = I − n nᵀ``, ``ω`` the pad's angular velocity), so the box moves with
     ``T P − c``,
 
-    .. math:: c(t) = T \\int_0^t \\delta(s)\\, \\omega(s) \\times n \\, ds
+    .. math:: c(t) = T \int_0^t \delta(s)\, \omega(s) \times n \, ds
 
     and the path of ``T P`` is ``x + c`` (``ċ``, ``c̈`` with it). ``ω`` along the reference
     ``q``, ``q̇`` (:func:`contact_point_reference` without the correction; the correction
     changes ``ω`` by a second-order amount), ``δ`` the compression ``δ(λ_d)`` of each tick.
 
+    Parameters
+    ----------
+    kinematics : CrsKinematics
+        The arm's kinematics of its pad's centre.
+    point : ControlPoint
+        The controlled material point.
+    q, qd : numpy.ndarray
+        The reference (K, 3): rad, rad/s.
+    delta : numpy.ndarray
+        The compression per tick (K,), m.
+    h : float
+        The tick grid's step, s.
+
     Returns
     -------
     c, c_dot, c_ddot : ndarray, shape (K, 3)
+        ``c`` (m), ``ċ`` (m/s), ``c̈`` (m/s²) per tick.
     """
     n = -np.asarray(point.normal, dtype=float)           # inward
     T = np.eye(3) - np.outer(n, n)
@@ -268,7 +337,22 @@ def rolling_correction(kinematics, point, q: np.ndarray, qd: np.ndarray, delta: 
 def followed_point(kinematics, point, q: np.ndarray) -> np.ndarray:
     """The point :func:`contact_point_reference` puts on the path, at the postures ``q``
     (..., 3): the pad's material contact point across the normal, its centre along it; the
-    pad's centre itself when ``point`` is None."""
+    pad's centre itself when ``point`` is None.
+
+    Parameters
+    ----------
+    kinematics : CrsKinematics or DrakeArmKinematics
+        The arm's kinematics of its pad's centre.
+    point : ControlPoint or None
+        The controlled material point.
+    q : numpy.ndarray
+        Postures (..., n), rad.
+
+    Returns
+    -------
+    numpy.ndarray
+        The point (..., 3), m.
+    """
     if point is None:
         return kinematics.fk(q)
     n = np.asarray(point.normal, dtype=float)
@@ -286,7 +370,26 @@ def compressed_path(stiffness, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray,
                     lam: np.ndarray, h: float, inward: np.ndarray
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The path pressed in by the contact's compression: ``x_d + δ(λ_d) n``, ``n`` the unit
-    inward normal, with ``δ̇``, ``δ̈`` by central differences on the tick grid ``h``."""
+    inward normal, with ``δ̇``, ``δ̈`` by central differences on the tick grid ``h``.
+
+    Parameters
+    ----------
+    stiffness : ContactStiffness
+        The contact's stiffness (``δ(λ)``).
+    x, xd, xdd : numpy.ndarray
+        The path (K, 3): m, m/s, m/s².
+    lam : numpy.ndarray
+        ``λ_d`` per tick (K,), N.
+    h : float
+        The tick grid's step, s.
+    inward : numpy.ndarray
+        The inward normal (3,).
+
+    Returns
+    -------
+    x, xd, xdd : numpy.ndarray
+        The pressed path (K, 3): m, m/s, m/s².
+    """
     n = inward / np.linalg.norm(inward)
     delta = stiffness.compression(lam)
     d1 = np.gradient(delta, h) if delta.size > 1 else np.zeros_like(delta)
@@ -299,7 +402,28 @@ def pressed_path(stiffness, path, lam, times: np.ndarray, h: float, inward: np.n
     """:func:`compressed_path` at any times: ``x_d + δ(λ_d) n`` with ``δ̇``, ``δ̈`` by central
     differences of step ``h`` (the tick grid's, so that at a tick it is
     :func:`compressed_path`'s first difference); ``path(times) -> (x, ẋ, ẍ)``,
-    ``lam(times)`` the squeeze (N)."""
+    ``lam(times)`` the squeeze (N).
+
+    Parameters
+    ----------
+    stiffness : ContactStiffness
+        The contact's stiffness.
+    path : Callable
+        ``path(times) -> (x, ẋ, ẍ)``.
+    lam : Callable
+        ``lam(times)``, N.
+    times : numpy.ndarray
+        The times (K,), s.
+    h : float
+        The differences' step, s.
+    inward : numpy.ndarray
+        The inward normal (3,).
+
+    Returns
+    -------
+    x, xd, xdd : numpy.ndarray
+        The pressed path (K, 3): m, m/s, m/s².
+    """
     n = inward / np.linalg.norm(inward)
     x, xd, xdd = path(times)
     d0, dp, dm = (stiffness.compression(lam(times + s)) for s in (0.0, h, -h))
@@ -315,6 +439,22 @@ def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = N
     Evaluated at a tick time it returns that tick's sample exactly; the controller and the
     observers only read it at their ticks. ``t_end`` limits it to a shorter run (see
     :func:`reference_samples`).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    index : int
+        The robot's index.
+    t_end : float or None
+        The run's end, s.
+    plan : RunPlan or None
+        The run's plan; None plans it here.
+
+    Returns
+    -------
+    PiecewisePolynomial
+        The trajectory of the rows ``[q_d, q̇_d, q̈_d, λ_d, held]``.
     """
     t, r = reference_samples(scenario, index, t_end, plan)
     return PiecewisePolynomial.FirstOrderHold(t, r.T)

@@ -54,7 +54,19 @@ LATCHED_SIGNALS = ("tau", "tau_cmd", "F_meas", "lambda_meas", "tau_ff", "f_load"
 
 @dataclass
 class RunResult:
-    """Logs of a run (schema of :mod:`drake_coop.results.logs`) and its metadata."""
+    """Logs of a run (schema of :mod:`drake_coop.results.logs`) and its metadata.
+
+    Attributes
+    ----------
+    logs : dict of str to dict of str to numpy.ndarray
+        ``logs[robot][array]``.
+    meta : dict
+        The run's metadata (``run.json``).
+    wall_time : float
+        The simulation's wall time, s.
+    experiment : Experiment or None
+        The built experiment.
+    """
 
     logs: dict[str, dict[str, np.ndarray]]
     meta: dict
@@ -63,11 +75,23 @@ class RunResult:
 
     @property
     def ok(self) -> bool:
+        """Whether the run completed (``meta["status"] == "ok"``)."""
         return self.meta["status"] == "ok"
 
 
 def phases(scenario: Scenario) -> list[list]:
-    """``[name, t_start, t_end]`` of the five phases of Section IV."""
+    """``[name, t_start, t_end]`` of the five phases of Section IV.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    list of list
+        ``[name, t_start, t_end]`` (s) per phase.
+    """
     t = scenario.task
     return [["free", 0.0, t.t_grasp], ["lift", t.t_grasp, t.t_circle_start],
             ["circle", t.t_circle_start, t.t_circle_end],
@@ -78,7 +102,15 @@ def initialize(exp: Experiment, context) -> None:
     """Arms at rest at ``q_d(0)``, observers at ``q̂(0) = q(0)``, ``q̇̂_o(0) = 0``, no grasp.
 
     ``q(0)`` as the encoders read it at rest (quantized, no noise; the exact ``q(0)`` with
-    ideal encoders)."""
+    ideal encoders).
+
+    Parameters
+    ----------
+    exp : Experiment
+        The experiment.
+    context : Context
+        The root context.
+    """
     set_rest_state(exp, context, *rest_posture(
         exp.plan if exp.plan is not None else exp.scenario, [h.arm for h in exp.coop.arms]))
 
@@ -88,7 +120,22 @@ def rest_posture(plan: RunPlan | Scenario, arms: list | None = None
     """The run's start: each arm's ``q_d(0)`` (one posture per robot, with the plan's control
     points) and the height of the object's sliders at the grasp
     (``circle_top_z − lift_height``). ``arms``: the arms to pose (default: the plan's); a
-    scenario is planned here."""
+    scenario is planned here.
+
+    Parameters
+    ----------
+    plan : RunPlan or Scenario
+        The run's plan, or a scenario to plan.
+    arms : list of Arm or None
+        The arms to pose; None for the plan's.
+
+    Returns
+    -------
+    q0 : list of numpy.ndarray
+        Each arm's ``q_d(0)`` (n,), rad.
+    z_grasp : float
+        The sliders' height, m.
+    """
     if not isinstance(plan, RunPlan):
         plan = plan_run(plan)
     task = plan.scenario.task
@@ -101,7 +148,19 @@ def rest_posture(plan: RunPlan | Scenario, arms: list | None = None
 def set_rest_state(exp: Experiment, context, q0: list[np.ndarray], z_grasp: float) -> None:
     """Arms at rest at ``q0`` (one posture per robot), the object's sliders at the grasp
     height ``z_grasp``, encoders' delay lines holding the reading at rest and the velocity
-    observers at ``q̂ = `` that reading, ``q̇̂_o = 0``."""
+    observers at ``q̂ = `` that reading, ``q̇̂_o = 0``.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The experiment.
+    context : Context
+        The root context.
+    q0 : list of numpy.ndarray
+        Each arm's posture (n,), rad.
+    z_grasp : float
+        The sliders' height, m.
+    """
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
     initialize_plant_context(exp.coop, plant_context, q0, z_grasp)
     for rs, q in zip(exp.robots, q0):
@@ -155,7 +214,20 @@ def _check_guards(exp: Experiment, context) -> str | None:
 
 def guard_chunks(plan: RunPlan, check_period: float) -> list[int]:
     """The ticks where the run stops: every ``check_period`` (whole ticks, at least one) and at
-    the plan's stops (grasp, release, end), in increasing order."""
+    the plan's stops (grasp, release, end), in increasing order.
+
+    Parameters
+    ----------
+    plan : RunPlan
+        The run's plan.
+    check_period : float
+        The guards' period, s.
+
+    Returns
+    -------
+    list of int
+        The ticks.
+    """
     chunk = max(1, int(round(check_period / plan.h)))
     return sorted({*range(chunk, plan.k_end, chunk), *plan.stops})
 
@@ -170,6 +242,15 @@ def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
     the reported end stays ``t_k``). A run that stopped
     inside a step (an exception, Ctrl-C) is left as it is; :func:`collect_logs` then keeps only
     the ticks whose signals were latched.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The experiment.
+    simulator : Simulator
+        The run's simulator.
+    status : str
+        The run's status (``ok``, ``diverged``, …).
     """
     context = simulator.get_context()
     if status not in ("ok", "diverged") or not exp.robots:
@@ -201,6 +282,18 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
     (:meth:`~drake_coop.plant.ground_truth.GroundTruthLog.evaluate`), under the same rules:
     the holds of tick ``k`` are published at :math:`t_{k+1}`, the last tick's are the holds'
     current values, and the rows end where the torque's do.
+
+    Parameters
+    ----------
+    exp : Experiment
+        The experiment.
+    context : Context
+        The root context after the run.
+
+    Returns
+    -------
+    dict of str to dict of str to numpy.ndarray
+        ``logs[robot][array]``.
     """
     logs = {}
     task = exp.scenario.task

@@ -24,7 +24,22 @@ __all__ = ["check_squeeze_limits", "torque_limits"]
 
 def torque_limits(scenario: Scenario, index: int, plan=None) -> np.ndarray:
     """Robot ``index``'s ``τ_max``: ``actuators.torque_limits``, else its simulated URDF's
-    effort limits (Drake's reading; ``inf`` where none)."""
+    effort limits (Drake's reading; ``inf`` where none).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    index : int
+        The robot's index.
+    plan : RunPlan or None
+        The run's plan; None plans it here.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``τ_max`` (n,), N·m.
+    """
     from drake_coop.control.arm_model import make_arm_controller_plant
     from drake_coop.control.squeeze_limits import effort_limits
     from drake_coop.experiment.plan import plan_run
@@ -44,6 +59,17 @@ def check_squeeze_limits(scenario: Scenario, plan=None, t_end: float | None = No
     ``references``: the run's reference trajectories when the caller has them
     (:func:`~drake_coop.experiment.references.reference_trajectory`, one per robot: their
     breaks are the ticks and their values the samples), else computed here.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    plan : RunPlan or None
+        The run's plan; None plans it here.
+    t_end : float or None
+        The run's end, s.
+    references : list of PiecewisePolynomial or None
+        The run's reference trajectories.
 
     Raises
     ------

@@ -38,17 +38,17 @@ from drake_coop.plant.model_error import add_payload
 
 
 class JointTracker(LeafSystem):
-    """Joint-space tracking for the identification experiment, at ``h``.
+    r"""Joint-space tracking for the identification experiment, at ``h``.
 
     .. math::
-        \\tau(k) = \\hat H(q_d)\\ddot q_d + \\hat C(q_d,\\dot q_d)\\dot q_d + \\hat D\\dot q_d
-                   + \\hat g(q_d) + K_p (q_d - q_m(k)) + K_v\\big(\\dot q_d
-                   - (q_m(k) - q_m(k-1))/h\\big)
+        \tau(k) = \hat H(q_d)\ddot q_d + \hat C(q_d,\dot q_d)\dot q_d + \hat D\dot q_d
+                   + \hat g(q_d) + K_p (q_d - q_m(k)) + K_v\big(\dot q_d
+                   - (q_m(k) - q_m(k-1))/h\big)
 
     with the nominal model ``Ĥ, Ĉ, D̂, ĝ`` and the reference ``q_d`` of tick ``k``: a
     feedforward plus PD on the encoder and its backward difference. Sampling as
     :class:`~drake_coop.control.controller.Controller`: the torque of tick ``k`` is computed
-    from ``q_m(k)`` and held on ``[t_k, t_{k+1})`` (state ``[τ(k), q_m(k), k]``).
+    from ``q_m(k)`` and held on :math:`[t_k, t_{k+1})` (state ``[τ(k), q_m(k), k]``).
 
     .. pydrake_system::
 
@@ -57,6 +57,17 @@ class JointTracker(LeafSystem):
         - q
         output_ports:
         - tau
+
+    Parameters
+    ----------
+    model : ArmModel
+        The nominal model of the feedforward.
+    excitation : FourierExcitation
+        The reference ``q_d(t)``.
+    period : float
+        The control period ``h``, s.
+    kp, kv : numpy.ndarray
+        The PD gains ``K_p`` (N·m/rad) and ``K_v`` (N·m·s/rad), one per joint.
 
     Input ports
     -----------
@@ -125,8 +136,9 @@ class ExcitationData:
     q : ndarray (N, n)
         Encoder readings ``q_m(k)``.
     tau : ndarray (N, n)
-        Commanded torques ``τ(k)`` (held on ``[t_k, t_{k+1})``).
+        Commanded torques ``τ(k)`` (held on :math:`[t_k, t_{k+1})`).
     h : float
+        The control period, s.
     torque_limits : ndarray (n,)
         The actuators' limits (``inf`` without): samples at a limit are not used.
     q_true, v_true : ndarray (N, n)
@@ -152,7 +164,22 @@ def tracking_gains(model: ArmModel, q0: np.ndarray, bandwidth: float = 20.0
     Panda's light wrist under its heavy shoulder) the diagonal overstates what a joint moves,
     and gains from ``H_jj`` made the sampled PD loop oscillate (commanded torques of 10³ N·m,
     a torque prediction error of 170 % on the Panda); on a weakly coupled arm the two are
-    close (``J_j ≤ H_jj``)."""
+    close (``J_j ≤ H_jj``).
+
+    Parameters
+    ----------
+    model : ArmModel
+        The nominal model.
+    q0 : numpy.ndarray
+        The posture the inertias are taken at (n,), rad.
+    bandwidth : float
+        ``ω``, rad/s.
+
+    Returns
+    -------
+    kp, kv : numpy.ndarray
+        ``K_p`` (N·m/rad) and ``K_v`` (N·m·s/rad), (n,).
+    """
     J = 1.0 / np.diag(np.linalg.inv(model.H(q0)))
     return J * bandwidth ** 2, 2.0 * J * bandwidth
 
@@ -167,8 +194,16 @@ def simulate_excitation(scenario: Scenario, robot_index: int, excitation: Fourie
         The scenario whose robot ``robot_index`` is the truth (URDF, pose, payload, friction,
         encoders, torque limits; ``plant.time_step``, ``control_period``).
     excitation : FourierExcitation
+        The joint trajectory to track.
     nominal : ArmModel
         The model the tracking law's feedforward uses (the user's nominal model).
+    robot_index : int
+        The robot's index (0-based).
+
+    Returns
+    -------
+    ExcitationData
+        The recorded experiment.
     """
     robot = scenario.robots[robot_index]
     arm = Arm(robot, scenario.task)

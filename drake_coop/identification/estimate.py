@@ -1,9 +1,9 @@
-"""Estimating the parameters: offline smoothing, least squares, physical consistency.
+r"""Estimating the parameters: offline smoothing, least squares, physical consistency.
 
 **Velocities and accelerations** come from offline, non-causal filtering of the encoder
 readings: a Savitzky–Golay filter (a local least-squares polynomial of degree ``order`` over
 ``window`` samples, evaluated with its first two derivatives at the window's centre;
-zero-phase). The commanded torque is held on ``[t_k, t_{k+1})``, so the torque acting around
+zero-phase). The commanded torque is held on :math:`[t_k, t_{k+1})`, so the torque acting around
 ``t_k`` is ``(τ(k−1) + τ(k)) / 2``; that average goes through the same smoothing filter, so
 that torques and motion see the same filter. Samples whose window touches a torque limit (the
 applied torque is then not the commanded one) or the ends of the record are dropped.
@@ -12,10 +12,10 @@ applied torque is then not the commanded one) or the ends of the record are drop
 program solved by a solver the drake wheel ships (Clarabel):
 
 .. math::
-    \\min_\\theta \\; \\frac{\\|Y\\theta - \\tau\\|^2}{\\sigma^2}
-      + \\sum_i \\Big(\\frac{\\theta_i - \\theta_{0,i}}{s_i}\\Big)^2
-    \\quad \\text{s.t.} \\quad J_b(\\theta_b) \\succeq 0 \\;\\forall b,
-    \\quad I_{a,j},\\, D_j,\\, f_{c,j} \\ge 0,
+    \min_\theta \; \frac{\|Y\theta - \tau\|^2}{\sigma^2}
+      + \sum_i \Big(\frac{\theta_i - \theta_{0,i}}{s_i}\Big)^2
+    \quad \text{s.t.} \quad J_b(\theta_b) \succeq 0 \;\forall b,
+    \quad I_{a,j},\, D_j,\, f_{c,j} \ge 0,
 
 with ``J_b`` the 4×4 pseudo-inertia of each composite body
 (:func:`~drake_coop.identification.regressor.pseudo_inertia`; PSD exactly when the parameters
@@ -51,6 +51,13 @@ PRIOR_FLOORS = {"m": 0.5, "h": 0.1, "I": 0.05, "rotor_inertia": 0.05, "viscous":
 def savgol_kernels(window: int, order: int) -> np.ndarray:
     """Savitzky–Golay kernels for value, first and second derivative (per sample, ``h = 1``).
 
+    Parameters
+    ----------
+    window : int
+        The window's samples (odd).
+    order : int
+        The polynomial's order (< window).
+
     Returns
     -------
     ndarray, shape (3, window)
@@ -72,6 +79,22 @@ def smooth_and_differentiate(y: np.ndarray, h: float, window: int, order: int
 
     Returns three arrays of shape (N − window + 1, n): the samples ``window // 2`` to
     ``N − window // 2 − 1``.
+
+    Parameters
+    ----------
+    y : numpy.ndarray
+        The samples (N, n).
+    h : float
+        The sampling time, s.
+    window : int
+        The window's samples (odd).
+    order : int
+        The polynomial's order.
+
+    Returns
+    -------
+    value, derivative, second_derivative : numpy.ndarray
+        Each (N − window + 1, n), per s and s².
     """
     K = savgol_kernels(window, order)
     y = np.asarray(y, float)
@@ -85,7 +108,19 @@ def smooth_and_differentiate(y: np.ndarray, h: float, window: int, order: int
 
 @dataclass
 class PreparedData:
-    """Samples ready for the regressor: ``q, q̇, q̈`` and the torque, with kept-sample times."""
+    """Samples ready for the regressor: ``q, q̇, q̈`` and the torque, with kept-sample times.
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        The kept samples' times (N,), s.
+    q, v, a : numpy.ndarray
+        Positions (rad), velocities (rad/s), accelerations (rad/s²), (N, n).
+    tau : numpy.ndarray
+        The torques (N, n), N·m.
+    index : numpy.ndarray or None
+        The tick ``k`` of each kept sample.
+    """
 
     t: np.ndarray
     q: np.ndarray
@@ -97,7 +132,30 @@ class PreparedData:
 
 def prepare(t: np.ndarray, q_m: np.ndarray, tau_cmd: np.ndarray, h: float,
             torque_limits: np.ndarray, window: int = 15, order: int = 3) -> PreparedData:
-    """Smooth, differentiate and select the samples (module docstring)."""
+    """Smooth, differentiate and select the samples (module docstring).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        The ticks' times (N,), s.
+    q_m : numpy.ndarray
+        The encoder readings (N, n), rad.
+    tau_cmd : numpy.ndarray
+        The commanded torques (N, n), N·m.
+    h : float
+        The sampling time, s.
+    torque_limits : numpy.ndarray
+        ``|τ_j|`` bounds (n,), N·m; samples near them are dropped.
+    window : int
+        The Savitzky–Golay window (odd).
+    order : int
+        Its polynomial's order.
+
+    Returns
+    -------
+    PreparedData
+        The kept samples.
+    """
     tau_mid = np.vstack([tau_cmd[:1], 0.5 * (tau_cmd[1:] + tau_cmd[:-1])])
     q, v, a = smooth_and_differentiate(q_m, h, window, order)
     tau, _, _ = smooth_and_differentiate(tau_mid, h, window, order)
@@ -113,7 +171,20 @@ def prepare(t: np.ndarray, q_m: np.ndarray, tau_cmd: np.ndarray, h: float,
 
 
 def prior_spread(structure: ArmStructure, theta0: np.ndarray) -> np.ndarray:
-    """The prior's 1-sigma per parameter: ``PRIOR_SPREAD |θ_0|`` with ``PRIOR_FLOORS``."""
+    """The prior's 1-sigma per parameter: ``PRIOR_SPREAD |θ_0|`` with ``PRIOR_FLOORS``.
+
+    Parameters
+    ----------
+    structure : ArmStructure
+        The arm's parameter layout.
+    theta0 : numpy.ndarray
+        The prior's centre (p,).
+
+    Returns
+    -------
+    numpy.ndarray
+        The 1-sigma per parameter (p,), in each parameter's unit.
+    """
     floors = []
     for _ in structure.links:
         floors += [PRIOR_FLOORS["m"]] + [PRIOR_FLOORS["h"]] * 3 + [PRIOR_FLOORS["I"]] * 6
@@ -141,6 +212,7 @@ class Estimate:
     samples : int
         Samples used.
     solver : str
+        The SDP solver that found ``theta``.
     """
 
     theta: np.ndarray
@@ -165,8 +237,11 @@ def physically_consistent_map(structure: ArmStructure, A: np.ndarray, b: np.ndar
     Parameters
     ----------
     structure : ArmStructure
+        The arm's parameter layout (its composite bodies and joints).
     A : ndarray, shape (M, p)
+        The data term's matrix (``Y`` or ``U_rᵀ Y``).
     b : ndarray, shape (M,)
+        Its right-hand side (``τ`` or ``U_rᵀ τ``), N·m.
     sigma2 : float
         The data term's variance (> 0).
     theta0 : ndarray, shape (p,)
@@ -175,6 +250,7 @@ def physically_consistent_map(structure: ArmStructure, A: np.ndarray, b: np.ndar
     Returns
     -------
     (theta, solver_name)
+        The estimate (p,) and the solver's name.
 
     Raises
     ------
@@ -214,9 +290,16 @@ def estimate_parameters(regressor: Regressor, data: PreparedData, theta0: np.nda
     Parameters
     ----------
     regressor : Regressor
+        The arm's regressor ``Y(q, q̇, q̈)``.
     data : PreparedData
+        The prepared samples.
     theta0 : ndarray
         The nominal parameters (the prior's centre), e.g. of the controller's model.
+
+    Returns
+    -------
+    Estimate
+        The estimate.
     """
     from drake_coop.identification.regressor import column_scale, condition_number
 

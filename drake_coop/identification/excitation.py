@@ -1,10 +1,10 @@
-"""The exciting trajectory: a windowed finite Fourier series, inside the arm's limits.
+r"""The exciting trajectory: a windowed finite Fourier series, inside the arm's limits.
 
 Each joint follows
 
 .. math::
-    q_j(t) = q_{0,j} + w(t) \\sum_{l=1}^{L} \\big(a_{jl} \\sin(l\\omega_f t)
-             + b_{jl} \\cos(l\\omega_f t)\\big), \\qquad \\omega_f = 2\\pi / T,
+    q_j(t) = q_{0,j} + w(t) \sum_{l=1}^{L} \big(a_{jl} \sin(l\omega_f t)
+             + b_{jl} \cos(l\omega_f t)\big), \qquad \omega_f = 2\pi / T,
 
 a periodic series (period ``T``) multiplied by a window ``w`` that rises from 0 to 1 over
 ``T_r`` at the start and falls back at the end with a quintic (zero velocity and acceleration
@@ -68,14 +68,36 @@ class FourierExcitation:
         return f, df, ddf
 
     def evaluate(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``q, q̇, q̈`` at the times ``t`` (shape (N,)), each of shape (N, n)."""
+        """``q, q̇, q̈`` at the times ``t`` (shape (N,)), each of shape (N, n).
+
+        Parameters
+        ----------
+        t : array_like
+            The times (N,), s.
+
+        Returns
+        -------
+        q, qdot, qddot : numpy.ndarray
+            (N, n): rad, rad/s, rad/s².
+        """
         t = np.atleast_1d(np.asarray(t, float))
         w, dw, ddw = (x[:, None] for x in self._window(t))
         f, df, ddf = self._series(t)
         return (self.q0 + w * f, dw * f + w * df, ddw * f + 2.0 * dw * df + w * ddf)
 
     def scaled(self, factor: float) -> "FourierExcitation":
-        """The same trajectory with its excursion from ``q_0`` multiplied by ``factor``."""
+        """The same trajectory with its excursion from ``q_0`` multiplied by ``factor``.
+
+        Parameters
+        ----------
+        factor : float
+            The excursion's factor.
+
+        Returns
+        -------
+        FourierExcitation
+            The scaled trajectory.
+        """
         return FourierExcitation(self.q0, self.a * factor, self.b * factor, self.period,
                                  self.duration, self.ramp)
 
@@ -98,6 +120,10 @@ class ExcitationLimits:
         the unknown friction and payload).
     velocity_limits : ndarray
         ``|q̇_j|`` bound (rad/s).
+    margin : float
+        How far inside the joint limits the trajectory stays, rad.
+    torque_fraction : float
+        The fraction of ``torque_limits`` the nominal torque may use.
     """
 
     q_min: np.ndarray
@@ -108,7 +134,22 @@ class ExcitationLimits:
     torque_fraction: float = 0.6
 
     def violation(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> float:
-        """The largest ratio of use to allowance (``<= 1`` inside every limit)."""
+        """The largest ratio of use to allowance (``<= 1`` inside every limit).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Positions (N, n), rad.
+        v : numpy.ndarray
+            Velocities (N, n), rad/s.
+        tau : numpy.ndarray
+            The nominal torques (N, n), N·m.
+
+        Returns
+        -------
+        float
+            The largest ratio.
+        """
         centre = 0.5 * (self.q_max + self.q_min)
         half = 0.5 * (self.q_max - self.q_min) - self.margin
         ratios = [np.max(np.abs(q - centre) / half),
@@ -119,7 +160,18 @@ class ExcitationLimits:
 
 def default_period(duration: float) -> float:
     """The series' period for an excitation of ``duration`` s: the whole trajectory up to
-    10 s, 10 s beyond (repeated periods average the noise)."""
+    10 s, 10 s beyond (repeated periods average the noise).
+
+    Parameters
+    ----------
+    duration : float
+        The excitation's length, s.
+
+    Returns
+    -------
+    float
+        The period, s.
+    """
     return float(min(duration, 10.0))
 
 
@@ -136,6 +188,7 @@ def design_excitation(duration: float, q0: np.ndarray, limits: ExcitationLimits,
     q0 : ndarray
         Centre posture (must itself be inside the limits, with the nominal gravity torque).
     limits : ExcitationLimits
+        The joint, velocity and torque limits to respect.
     nominal_torque : callable
         ``(q, v, a) -> τ`` (arrays (N, n)) of the nominal model (the one the user has).
     regressor_of : callable
@@ -148,6 +201,8 @@ def design_excitation(duration: float, q0: np.ndarray, limits: ExcitationLimits,
         Initial excursion of each joint (rad) before scaling to the limits.
     samples : int
         Time samples used to score a candidate.
+    seed : int
+        Seeds the random candidates.
 
     Returns
     -------

@@ -54,11 +54,11 @@ from drake_coop.identification.regressor import (
 
 
 class ModelDynamics:
-    """The forward dynamics of the arm with parameters ``θ``.
+    r"""The forward dynamics of the arm with parameters ``θ``.
 
     .. math::
-        (M_\\theta(q) + \\mathrm{diag}(I_a))\\,\\ddot q = \\tau - C_\\theta(q,\\dot q)\\dot q
-            + g_\\theta(q) - D\\dot q - f_c \\tanh(\\dot q / v_c)
+        (M_\theta(q) + \mathrm{diag}(I_a))\,\ddot q = \tau - C_\theta(q,\dot q)\dot q
+            + g_\theta(q) - D\dot q - f_c \tanh(\dot q / v_c)
 
     from a context of the structure's plant in which each composite body carries its ten
     parameters (all other bodies none) and the rotors none (their reflected inertia ``I_a``,
@@ -67,6 +67,7 @@ class ModelDynamics:
     Parameters
     ----------
     structure : ArmStructure
+        The arm's parameter layout.
     theta : ndarray
         Physically consistent parameters (each pseudo-inertia PSD).
     coulomb_velocity : float
@@ -98,7 +99,22 @@ class ModelDynamics:
         self.coulomb_velocity = float(coulomb_velocity)
 
     def terms(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(M + diag(I_a), C v − g + D v + f_c tanh(v / v_c))`` at ``(q, v)``."""
+        """``(M + diag(I_a), C v − g + D v + f_c tanh(v / v_c))`` at ``(q, v)``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Positions (n,), rad.
+        v : numpy.ndarray
+            Velocities (n,), rad/s.
+
+        Returns
+        -------
+        M : numpy.ndarray
+            The inertia with the rotors' (n, n), kg·m².
+        bias : numpy.ndarray
+            The velocity and gravity terms (n,), N·m.
+        """
         plant, context = self._plant, self._context
         plant.SetPositions(context, q)
         plant.SetVelocities(context, v)
@@ -111,7 +127,24 @@ class ModelDynamics:
              ) -> tuple[np.ndarray, np.ndarray]:
         """One semi-implicit Euler step of ``dt`` (friction linearly implicit, so the steep
         ``tanh`` near rest stays stable): ``(M + dt F'(v)) Δv = dt (τ − bias)``,
-        ``q⁺ = q + dt v⁺``."""
+        ``q⁺ = q + dt v⁺``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Positions (n,), rad.
+        v : numpy.ndarray
+            Velocities (n,), rad/s.
+        tau : numpy.ndarray
+            The torque (n,), N·m.
+        dt : float
+            The step, s.
+
+        Returns
+        -------
+        q_next, v_next : numpy.ndarray
+            ``q⁺`` (rad), ``v⁺`` (rad/s).
+        """
         M, bias = self.terms(q, v)
         slope = (self.viscous + self.coulomb / self.coulomb_velocity
                  / np.cosh(np.clip(v / self.coulomb_velocity, -300, 300)) ** 2)
@@ -137,6 +170,18 @@ def simulate_tracking(dynamics: ModelDynamics, q_d: np.ndarray, v_d: np.ndarray,
     ----------
     q_d, v_d, feedforward : ndarray, shape (N, n)
         The reference and the tracking law's feedforward at the ticks.
+    dynamics : ModelDynamics
+        The model simulated.
+    kp, kv : numpy.ndarray
+        The PD gains (n,): N·m/rad, N·m·s/rad.
+    h : float
+        The control period, s.
+    substeps : int
+        Integration steps per tick (>= 1).
+    torque_limits : numpy.ndarray or None
+        ``|τ_j|`` bounds (n,), N·m; None for none.
+    encoder_delay : int
+        ``d``, ticks.
 
     Returns
     -------
@@ -169,7 +214,17 @@ def simulate_tracking(dynamics: ModelDynamics, q_d: np.ndarray, v_d: np.ndarray,
 
 @dataclass
 class Simulated:
-    """A simulated closed loop at the ticks (:func:`simulate_tracking`), arrays (N, n)."""
+    """A simulated closed loop at the ticks (:func:`simulate_tracking`), arrays (N, n).
+
+    Attributes
+    ----------
+    q, v, a : numpy.ndarray
+        Positions (rad), velocities (rad/s), accelerations just after the ticks (rad/s²).
+    tau : numpy.ndarray
+        The commanded torques, N·m.
+    applied : numpy.ndarray
+        The applied (clipped) torques, N·m.
+    """
 
     q: np.ndarray
     v: np.ndarray
@@ -182,7 +237,26 @@ def projected_equations(Y: np.ndarray, Z: np.ndarray, tau: np.ndarray,
                         rtol: float = RANK_RTOL) -> tuple[np.ndarray, np.ndarray]:
     """``(U_rᵀ Y, U_rᵀ τ)`` with ``U_r`` the identifiable left singular vectors of ``Z``
     (columns scaled, relative rank ``rtol``): the instrumental-variable equations in
-    least-squares form (module docstring)."""
+    least-squares form (module docstring).
+
+    Parameters
+    ----------
+    Y : numpy.ndarray
+        The regressor (N n, p).
+    Z : numpy.ndarray
+        The instruments (N n, p).
+    tau : numpy.ndarray
+        The torques (N n,), N·m.
+    rtol : float
+        The relative rank tolerance.
+
+    Returns
+    -------
+    A : numpy.ndarray
+        ``U_rᵀ Y`` (r, p).
+    b : numpy.ndarray
+        ``U_rᵀ τ`` (r,).
+    """
     U, sv, _ = np.linalg.svd(Z / column_scale(Z), full_matrices=False)
     U = U[:, :base_rank(sv, rtol)]
     return U.T @ Y, U.T @ tau
@@ -190,7 +264,22 @@ def projected_equations(Y: np.ndarray, Z: np.ndarray, tau: np.ndarray,
 
 def iv_solution(Y: np.ndarray, Z: np.ndarray, tau: np.ndarray) -> np.ndarray:
     """The unconstrained (minimum-norm) instrumental-variable solution, ``(ZᵀY)⁻¹Zᵀτ`` when
-    ``ZᵀY`` is square and invertible."""
+    ``ZᵀY`` is square and invertible.
+
+    Parameters
+    ----------
+    Y : numpy.ndarray
+        The regressor (N n, p).
+    Z : numpy.ndarray
+        The instruments (N n, p).
+    tau : numpy.ndarray
+        The torques (N n,), N·m.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``θ`` (p,).
+    """
     A, b = projected_equations(Y, Z, tau)
     scale = column_scale(Y)
     return np.linalg.lstsq(A / scale, b, rcond=1e-8)[0] / scale
@@ -211,7 +300,9 @@ class ClosedLoop:
     substeps : int
         Integration steps per tick.
     torque_limits : ndarray (n,) or None
+        ``|τ_j|`` bounds, N·m; None for none.
     encoder_delay : int
+        The encoders' delay, ticks.
     window, order : int
         The Savitzky–Golay filter of :func:`~drake_coop.identification.estimate.prepare`.
     """
@@ -232,7 +323,26 @@ class ClosedLoop:
 def instruments(regressor: Regressor, theta: np.ndarray, loop: ClosedLoop,
                 index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``Z = Y(q_s, q̇_s, q̈_s)`` of the closed loop simulated with ``θ`` on the ticks
-    ``index`` (the measured data's kept samples), and the simulated commanded torques."""
+    ``index`` (the measured data's kept samples), and the simulated commanded torques.
+
+    Parameters
+    ----------
+    regressor : Regressor
+        The regressor.
+    theta : numpy.ndarray
+        The parameters simulated (p,).
+    loop : ClosedLoop
+        The experiment's closed loop.
+    index : numpy.ndarray
+        The kept samples' ticks.
+
+    Returns
+    -------
+    Z : numpy.ndarray
+        The instruments (N n, p).
+    tau : numpy.ndarray
+        The simulated commanded torques (N, n), N·m.
+    """
     dyn = ModelDynamics(regressor.structure, theta, regressor.coulomb_velocity)
     sim = simulate_tracking(dyn, loop.q_d, loop.v_d, loop.feedforward, loop.kp,
                                        loop.kv, loop.h, loop.substeps, loop.torque_limits,
@@ -248,7 +358,19 @@ class IVEstimate(Estimate):
     iterations: ``history`` the parameters after each (first: the MAP start), ``changes`` the
     relative change of the simulated torques between iterations, ``stopped`` why the iterations
     ended before converging (empty when they converged or used every iteration): the solver
-    failed on an iteration's program, whose iterate is then not taken."""
+    failed on an iteration's program, whose iterate is then not taken.
+
+    Attributes
+    ----------
+    theta, theta_ls, residual_rms, condition_number, rank, samples, solver
+        As :class:`~drake_coop.identification.estimate.Estimate`.
+    history : list of numpy.ndarray
+        The parameters after each iteration (first: the MAP start).
+    changes : list of float
+        The relative change of the simulated torques between iterations.
+    stopped : str
+        Why the iterations ended early, or ``''``.
+    """
 
     history: list = field(default_factory=list)
     changes: list = field(default_factory=list)
@@ -263,17 +385,24 @@ def estimate_parameters_iv(regressor: Regressor, data: PreparedData, theta0: np.
     Parameters
     ----------
     regressor : Regressor
+        The arm's regressor ``Y(q, q̇, q̈)``.
     data : PreparedData
         With ``index`` (the tick of each kept sample).
     theta0 : ndarray
         The prior's centre (the nominal model).
     loop : ClosedLoop
+        The experiment's closed loop (reference, feedforward, gains, limits).
     iterations : int
         At most this many instrument simulations (>= 1).
     tol : float
         Stop when the simulated commanded torques change by less than ``tol`` of their RMS.
     start : Estimate, optional
         The MAP estimate to start from (computed when None).
+
+    Returns
+    -------
+    IVEstimate
+        The estimate and its iterations.
     """
     if data.index is None:
         raise ValueError("data: PreparedData with the kept samples' index is required")
@@ -317,7 +446,7 @@ def estimate_parameters_iv(regressor: Regressor, data: PreparedData, theta0: np.
 def estimate_parameters_didim(regressor: Regressor, tau: np.ndarray, theta0: np.ndarray,
                               loop: ClosedLoop, iterations: int = 8, tol: float = 1e-3,
                               start: Estimate | None = None) -> IVEstimate:
-    """The direct-and-inverse-dynamics estimate (DIDIM), physically consistent.
+    r"""The direct-and-inverse-dynamics estimate (DIDIM), physically consistent.
 
     DIDIM (Gautier, Janot, Vandanjon, "A new closed-loop output error method for parameter
     identification of robot dynamics", IEEE T-CST 2013; BIRDy's ``DIDIM``) fits the *commanded
@@ -327,8 +456,8 @@ def estimate_parameters_didim(regressor: Regressor, tau: np.ndarray, theta0: np.
     exact positions, velocities and accelerations ``q̈(t_k⁺)`` at the ticks, and
 
     .. math::
-        \\theta_{i+1} = \\arg\\min_\\theta \\frac{\\|Y(q_s, \\dot q_s, \\ddot q_s)\\,\\theta
-            - \\tau_a\\|^2}{\\sigma^2} + \\text{prior} \\quad \\text{s.t. the constraints of the
+        \theta_{i+1} = \arg\min_\theta \frac{\|Y(q_s, \dot q_s, \ddot q_s)\,\theta
+            - \tau_a\|^2}{\sigma^2} + \text{prior} \quad \text{s.t. the constraints of the
             MAP estimate},
 
     ``τ_a(k)`` the measured commanded torque clipped at the limits (the applied one; ticks at
@@ -340,16 +469,24 @@ def estimate_parameters_didim(regressor: Regressor, tau: np.ndarray, theta0: np.
     Parameters
     ----------
     regressor : Regressor
+        The arm's regressor ``Y(q, q̇, q̈)``.
     tau : ndarray, shape (N, n)
         The recorded commanded torques at the loop's N ticks.
     theta0 : ndarray
         The prior's centre (the nominal model).
     loop : ClosedLoop
+        The experiment's closed loop (reference, feedforward, gains, limits).
     iterations : int
         At most this many simulations (>= 1).
     tol : float
+        Stop when the simulated torques change by less than this fraction of their RMS.
     start : Estimate
         The estimate to start from (the MAP estimate).
+
+    Returns
+    -------
+    IVEstimate
+        The estimate and its iterations.
     """
     if iterations < 1:
         raise ValueError(f"iterations: an integer >= 1 is required (got {iterations})")

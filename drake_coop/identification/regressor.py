@@ -1,10 +1,10 @@
-"""The inverse-dynamics regressor of one arm, built numerically from Drake's inverse dynamics.
+r"""The inverse-dynamics regressor of one arm, built numerically from Drake's inverse dynamics.
 
 The joint torques of a rigid arm are linear in its dynamic parameters:
 
 .. math::
-    \\tau = H(q)\\ddot q + C(q,\\dot q)\\dot q + D\\dot q + g(q) + f_c\\,\\mathrm{sign}(\\dot q)
-          = Y(q, \\dot q, \\ddot q)\\,\\theta .
+    \tau = H(q)\ddot q + C(q,\dot q)\dot q + D\dot q + g(q) + f_c\,\mathrm{sign}(\dot q)
+          = Y(q, \dot q, \ddot q)\,\theta .
 
 Per moving body ``b`` (a link with every body welded to it: force sensor, pad, payload form
 one composite) ten inertial parameters, in the body frame ``B`` about its origin ``Bo``:
@@ -46,6 +46,16 @@ def spatial_inertia_from_theta(theta: np.ndarray) -> SpatialInertia:
 
     A zero mass gives the zero spatial inertia (the first moment and inertia must then be
     zero too for the result to mean anything; the regressor never uses it otherwise).
+
+    Parameters
+    ----------
+    theta : numpy.ndarray
+        ``[m, h, I_Bo]`` (10,): kg, kg·m, kg·m².
+
+    Returns
+    -------
+    SpatialInertia
+        ``M_BBo_B``.
     """
     m = float(theta[0])
     Ixx, Iyy, Izz, Ixy, Ixz, Iyz = (float(x) for x in theta[4:10])
@@ -58,7 +68,18 @@ def spatial_inertia_from_theta(theta: np.ndarray) -> SpatialInertia:
 
 
 def theta_from_spatial_inertia(M: SpatialInertia) -> np.ndarray:
-    """The ten parameters ``[m, h, I_Bo]`` of a spatial inertia about a body's origin."""
+    """The ten parameters ``[m, h, I_Bo]`` of a spatial inertia about a body's origin.
+
+    Parameters
+    ----------
+    M : SpatialInertia
+        About the body's origin.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[m, h, I_Bo]`` (10,): kg, kg·m, kg·m².
+    """
     m = M.get_mass()
     h = m * M.get_com()
     I = M.CalcRotationalInertia().CopyToFullMatrix3()
@@ -70,6 +91,16 @@ def pseudo_inertia(theta: np.ndarray) -> np.ndarray:
 
     ``J ⪰ 0`` exactly when the parameters are those of some nonnegative mass distribution
     (Wensing, Kim, Slotine, IEEE RA-L 2018): the physical-consistency condition.
+
+    Parameters
+    ----------
+    theta : array_like
+        ``[m, h, I_Bo]`` (10,), numbers or symbolic expressions.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``J`` (4, 4).
     """
     m, hx, hy, hz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz = theta
     # Σ = ½ tr(I) 1 − I written out (also for symbolic entries: no products with 0 or 1).
@@ -106,20 +137,39 @@ class ArmStructure:
 
     @property
     def n(self) -> int:
+        """The number of joints."""
         return len(self.joints)
 
     @property
     def num_parameters(self) -> int:
+        """The number of parameters ``p``: ten per composite link, three per joint."""
         return 10 * len(self.links) + 3 * self.n
 
     def parameter_names(self) -> list[str]:
-        """``link.m``, ``link.hx``, … then ``joint.rotor_inertia``, ``joint.viscous``, …"""
+        """``link.m``, ``link.hx``, … then ``joint.rotor_inertia``, ``joint.viscous``, …
+
+        Returns
+        -------
+        list of str
+            The names, in θ's order.
+        """
         names = [f"{link}.{p}" for link in self.links for p in BODY_PARAMETERS]
         names += [f"{j}.{p}" for p in JOINT_PARAMETERS for j in self.joints]
         return names
 
     def joint_slice(self, kind: str) -> slice:
-        """Where a joint parameter (``rotor_inertia``, ``viscous``, ``coulomb``) sits in θ."""
+        """Where a joint parameter (``rotor_inertia``, ``viscous``, ``coulomb``) sits in θ.
+
+        Parameters
+        ----------
+        kind : str
+            ``rotor_inertia``, ``viscous`` or ``coulomb``.
+
+        Returns
+        -------
+        slice
+            Its entries in θ.
+        """
         k = JOINT_PARAMETERS.index(kind)
         start = 10 * len(self.links) + k * self.n
         return slice(start, start + self.n)
@@ -139,6 +189,15 @@ def load_structure(urdf: str | Path, base_frame: str, X_WB: RigidTransform | Non
     payload_mass : float
         A payload (:func:`drake_coop.plant.model_error.add_payload`) welded to the flange; it
         joins the last link's composite.
+    X_WB : RigidTransform or None
+        The base frame's pose in the world; None for the identity.
+    sensor_joint : str
+        The force sensor's weld joint (the payload's place).
+
+    Returns
+    -------
+    ArmStructure
+        The arm's plant and composite bodies.
     """
     from drake_coop.plant.model_error import add_payload
 
@@ -185,10 +244,16 @@ def true_parameters(structure: ArmStructure, plant: MultibodyPlant | None = None
     Parameters
     ----------
     structure : ArmStructure
+        The arm's parameter layout (its plant).
     plant : MultibodyPlant, optional
         Another finalized plant of the same arm (same body and joint names, e.g. the
         controller's :class:`~drake_coop.control.arm_model.ArmModel` plant); default the
         structure's own. Bodies it lacks (a payload) are skipped.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``θ`` (p,).
     """
     plant = structure.plant if plant is None else plant
     context = plant.CreateDefaultContext()
@@ -214,6 +279,7 @@ class Regressor:
     Parameters
     ----------
     structure : ArmStructure
+        The arm's parameter layout (its plant).
     coulomb_velocity : float
         ``sign(q̇)`` is smoothed as ``tanh(q̇ / v)`` with this ``v`` (rad/s) so that samples
         near rest do not flip the friction column on noise; a modelling choice of the
@@ -250,6 +316,11 @@ class Regressor:
         ----------
         q, v, a : ndarray, shape (N, n)
             Positions, velocities and accelerations of the samples.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``Y`` (N n, p).
         """
         q, v, a = (np.atleast_2d(np.asarray(x, float)) for x in (q, v, a))
         N, n = q.shape
@@ -290,6 +361,18 @@ def column_scale(Y: np.ndarray, column_rtol: float = COLUMN_RTOL) -> np.ndarray:
     ``Y / column_scale(Y)`` has unit columns, and zero columns where ``Y``'s column is zero or
     below ``column_rtol`` times the largest column norm (see :data:`COLUMN_RTOL`); dividing a
     parameter vector by the scale gives 0 for those parameters.
+
+    Parameters
+    ----------
+    Y : numpy.ndarray
+        The regressor (N n, p).
+    column_rtol : float
+        The relative norm below which a column is round-off.
+
+    Returns
+    -------
+    numpy.ndarray
+        The scale (p,).
     """
     scale = np.linalg.norm(Y, axis=0)
     largest = float(scale.max()) if scale.size else 0.0
@@ -299,7 +382,20 @@ def column_scale(Y: np.ndarray, column_rtol: float = COLUMN_RTOL) -> np.ndarray:
 
 
 def base_rank(singular_values: np.ndarray, rtol: float = RANK_RTOL) -> int:
-    """The numerical rank: singular values above ``rtol`` times the largest (relative)."""
+    """The numerical rank: singular values above ``rtol`` times the largest (relative).
+
+    Parameters
+    ----------
+    singular_values : numpy.ndarray
+        Decreasing singular values.
+    rtol : float
+        The relative tolerance.
+
+    Returns
+    -------
+    int
+        The rank.
+    """
     sv = np.asarray(singular_values, dtype=float)
     if sv.size == 0 or sv[0] <= 0.0:
         return 0
@@ -311,6 +407,13 @@ def identifiable_basis(Y: np.ndarray, rtol: float = RANK_RTOL) -> tuple[np.ndarr
 
     Columns are scaled to unit norm first (so that units do not decide the rank); round-off
     columns are zeroed (:func:`column_scale`), and the rank is relative (:func:`base_rank`).
+
+    Parameters
+    ----------
+    Y : numpy.ndarray
+        The regressor (N n, p).
+    rtol : float
+        The relative rank tolerance.
 
     Returns
     -------
@@ -332,6 +435,20 @@ def condition_number(Y: np.ndarray, rtol: float = RANK_RTOL) -> tuple[float, int
     ``σ_1 / σ_r`` with ``r`` the number of singular values above ``rtol σ_1`` (round-off
     columns zeroed first: :func:`column_scale`): the sensitivity of the identifiable
     combinations to torque errors (the criterion the excitation is chosen by).
+
+    Parameters
+    ----------
+    Y : numpy.ndarray
+        The regressor (N n, p).
+    rtol : float
+        The relative rank tolerance.
+
+    Returns
+    -------
+    cond : float
+        ``σ_1 / σ_r``.
+    rank : int
+        ``r``.
     """
     sv = np.linalg.svd(Y / column_scale(Y), compute_uv=False)
     r = base_rank(sv, rtol)

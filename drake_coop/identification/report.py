@@ -70,7 +70,38 @@ class IdentifyInputError(ValueError):
 
 @dataclass
 class RobotIdentification:
-    """One robot's identification: its data, estimate and the reference values."""
+    """One robot's identification: its data, estimate and the reference values.
+
+    Attributes
+    ----------
+    name : str
+        The robot's name.
+    structure : ArmStructure
+        Its parameter layout.
+    excitation : FourierExcitation
+        The excitation run.
+    data : ExcitationData
+        The recorded experiment.
+    estimate : Estimate
+        The estimate.
+    theta_true : numpy.ndarray
+        The simulated arm's parameters (p,).
+    theta_nominal : numpy.ndarray
+        The nominal model's (p,).
+    identifiable : numpy.ndarray
+        Per parameter, the norm of its direction's projection on the identifiable subspace
+        (0 to 1).
+    validation : dict
+        The torque prediction on a second excitation: the RMS errors of the identified and
+        the nominal model's torques and the true torques' RMS (N·m).
+    fit : dict
+        The data used (``t``, ``tau``) and the identified and nominal models' torques on it
+        (N·m).
+    urdf_text : str
+        The identified URDF.
+    estimator : str
+        One of :data:`ESTIMATORS`.
+    """
 
     name: str
     structure: ArmStructure
@@ -100,6 +131,7 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     Parameters
     ----------
     scenario : Scenario
+        The scenario whose robot is identified (the simulated truth).
     index : int
         The robot (0-based).
     duration : float
@@ -108,6 +140,11 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
         The excitation's random candidates.
     estimator : str
         One of :data:`ESTIMATORS`.
+
+    Returns
+    -------
+    RobotIdentification
+        The identification.
 
     Raises
     ------
@@ -204,13 +241,20 @@ def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, n
     Parameters
     ----------
     scenario : Scenario
+        The scenario (the robot's torque limits and encoders).
     index : int
         The robot (0-based).
     excitation : FourierExcitation
+        The excitation run.
     nominal : ArmModel
         The model of the tracking law's feedforward.
     data : ExcitationData
         The recorded experiment (its ticks and torque limits).
+
+    Returns
+    -------
+    ClosedLoop
+        The loop.
     """
     from drake_coop.experiment.plan import time_grid
     from drake_coop.identification.collect import tracking_gains
@@ -226,7 +270,18 @@ def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, n
 
 
 def masses(ident: RobotIdentification) -> dict:
-    """Each composite body's mass: identified, nominal, true, relative error, identifiable."""
+    """Each composite body's mass: identified, nominal, true, relative error, identifiable.
+
+    Parameters
+    ----------
+    ident : RobotIdentification
+        One robot's identification.
+
+    Returns
+    -------
+    dict
+        Link → its masses (kg) and relative error.
+    """
     out = {}
     for i, link in enumerate(ident.structure.links):
         k = 10 * i
@@ -240,7 +295,20 @@ def masses(ident: RobotIdentification) -> dict:
 
 
 def summary(ident: RobotIdentification, duration: float) -> dict:
-    """The ``identify.json`` entry of one robot."""
+    """The ``identify.json`` entry of one robot.
+
+    Parameters
+    ----------
+    ident : RobotIdentification
+        One robot's identification.
+    duration : float
+        The excitation's length, s.
+
+    Returns
+    -------
+    dict
+        The entry.
+    """
     s = ident.structure
     e = ident.estimate
     params = {}
@@ -267,7 +335,15 @@ def summary(ident: RobotIdentification, duration: float) -> dict:
 
 
 def fit_figure(idents: list[RobotIdentification], path: Path) -> None:
-    """Measured (filtered) torques against the identified and nominal models' predictions."""
+    """Measured (filtered) torques against the identified and nominal models' predictions.
+
+    Parameters
+    ----------
+    idents : list of RobotIdentification
+        The robots.
+    path : Path
+        The figure's file.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -296,7 +372,20 @@ def fit_figure(idents: list[RobotIdentification], path: Path) -> None:
 
 def identified_scenario(scenario: Scenario, idents: dict[int, RobotIdentification]
                         ) -> Scenario:
-    """``identified.yaml``'s scenario (module docstring)."""
+    """``identified.yaml``'s scenario (module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario identified.
+    idents : dict of int to RobotIdentification
+        Robot index → its identification.
+
+    Returns
+    -------
+    Scenario
+        The scenario with the identified controller models.
+    """
     import copy
 
     out = copy.deepcopy(scenario)
@@ -325,7 +414,20 @@ def _check_out(out: Path) -> None:
 
 
 def parse_robots(text: str | None, count: int) -> list[int]:
-    """``--robots 1,2`` as 0-based indices (all robots when None)."""
+    """``--robots 1,2`` as 0-based indices (all robots when None).
+
+    Parameters
+    ----------
+    text : str or None
+        ``--robots``' value (1-based, comma-separated).
+    count : int
+        The scenario's robots.
+
+    Returns
+    -------
+    list of int
+        0-based indices.
+    """
     if text is None:
         return list(range(count))
     try:
@@ -342,6 +444,23 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
                  duration: float = 10.0, seed: int = 0, log=print,
                  estimator: str = "map_sdp") -> dict:
     """Identify ``robots`` of ``scenario`` and write ``out`` whole (module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    out : str or Path
+        The output folder (new, or one of ours).
+    robots : list of int
+        The robots (0-based).
+    duration : float
+        The excitation's length, s.
+    seed : int
+        Seeds the excitation's candidates.
+    log : Callable[[str], None]
+        Receives progress lines.
+    estimator : str
+        One of :data:`ESTIMATORS`.
 
     Returns
     -------

@@ -21,7 +21,22 @@ from drake_coop.plant.model_error import DRAKE_NS
 
 
 def central_inertia(theta_b: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Mass, centre of mass and rotational inertia about it (3×3) of ten parameters."""
+    """Mass, centre of mass and rotational inertia about it (3×3) of ten parameters.
+
+    Parameters
+    ----------
+    theta_b : numpy.ndarray
+        ``[m, h, I_Bo]`` (10,).
+
+    Returns
+    -------
+    m : float
+        The mass, kg.
+    c : numpy.ndarray
+        The centre of mass (3,), m.
+    I_c : numpy.ndarray
+        The inertia about it (3, 3), kg·m².
+    """
     m, hx, hy, hz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz = (float(x) for x in theta_b)
     c = np.array([hx, hy, hz]) / m
     I_o = np.array([[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]])
@@ -42,7 +57,24 @@ def _set_inertial(link: ET.Element, m: float, c: np.ndarray, I: np.ndarray) -> N
 
 def identified_urdf_text(nominal_text: str, structure: ArmStructure, theta: np.ndarray,
                          note: str = "") -> str:
-    """The nominal URDF text with the identified parameters ``theta`` (module docstring)."""
+    """The nominal URDF text with the identified parameters ``theta`` (module docstring).
+
+    Parameters
+    ----------
+    nominal_text : str
+        The nominal URDF.
+    structure : ArmStructure
+        The parameter layout.
+    theta : numpy.ndarray
+        The identified parameters (p,).
+    note : str
+        A comment written into the file.
+
+    Returns
+    -------
+    str
+        The URDF text.
+    """
     ET.register_namespace("drake", DRAKE_NS)
     root = ET.fromstring(nominal_text)
     links = {link.get("name"): link for link in root.iter("link")}

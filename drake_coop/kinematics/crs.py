@@ -1,4 +1,4 @@
-"""Closed-form kinematics of the paper's two arms (CRS A465 and A255, 3 joints).
+r"""Closed-form kinematics of the paper's two arms (CRS A465 and A255, 3 joints).
 
 Both arms are reduced to waist yaw (joint 1, about z), shoulder pitch (joint 2, about y) and
 elbow pitch (joint 3, about y), with the wrist locked straight and lumped into the last link.
@@ -19,11 +19,11 @@ in the base frame, the wrist locked straight). With ``o = (o_x, o_y, o_z)`` the 
 ``P = E + R o``; in the base frame, with ``θ = q2 + q3``, ``A = L3 + o_z``,
 
 .. math::
-    e = A \\sin\\theta + o_x \\cos\\theta, \\quad b = A \\cos\\theta - o_x \\sin\\theta,
-    \\quad r = L_2 \\sin q_2 + e,
+    e = A \sin\theta + o_x \cos\theta, \quad b = A \cos\theta - o_x \sin\theta,
+    \quad r = L_2 \sin q_2 + e,
 
-    P_{local} = (r \\cos q_1 - o_y \\sin q_1,\\ r \\sin q_1 + o_y \\cos q_1,\\
-                 h_1 + L_2 \\cos q_2 + b)
+    P_{local} = (r \cos q_1 - o_y \sin q_1,\ r \sin q_1 + o_y \cos q_1,\
+                 h_1 + L_2 \cos q_2 + b)
 
 (``∂e/∂θ = b``, ``∂b/∂θ = −e``, as with ``o = 0``), and the inverse kinematics is the
 centre's with the forearm ``L' = √(A² + o_x²)`` turned by ``γ = atan2(o_x, A)`` and the waist
@@ -89,7 +89,18 @@ def _rot_z(yaw: float) -> np.ndarray:
 
 def urdf_joint_limits(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper limits of the URDF's one-degree-of-freedom joints, in file order (the
-    order of Drake's joint positions); a continuous joint or a missing bound is unlimited."""
+    order of Drake's joint positions); a continuous joint or a missing bound is unlimited.
+
+    Parameters
+    ----------
+    path : Path
+        The URDF file.
+
+    Returns
+    -------
+    lower, upper : numpy.ndarray
+        The limits, one per revolute (rad), continuous (±inf) or prismatic (m) joint.
+    """
     lo, hi = [], []
     for joint in ET.parse(path).getroot().findall("joint"):
         if joint.get("type") not in ("revolute", "continuous", "prismatic"):
@@ -144,13 +155,37 @@ class CrsKinematics:
         self.n = 3
 
     def with_offset(self, offset) -> "CrsKinematics":
-        """The same arm controlling the pad-body point ``offset`` (pad frame, m)."""
+        """The same arm controlling the pad-body point ``offset`` (pad frame, m).
+
+        Parameters
+        ----------
+        offset : array_like
+            The controlled point in the pad body's frame (3,), m.
+
+        Returns
+        -------
+        CrsKinematics
+            A new kinematics with the same geometry, base pose, limits and name.
+        """
         return CrsKinematics(self.geometry, self.p_base, self.yaw, self.q_min, self.q_max,
                              self.name, offset)
 
     def angular_velocity(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """The pad's angular velocity in the palm frame, ``R_base (q̇1 e_z + (q̇2 + q̇3)
-        R_z(q1) e_y)``, for q, v of shape (..., 3)."""
+        R_z(q1) e_y)``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., 3), rad.
+        v : numpy.ndarray
+            Joint velocities (..., 3), rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            The angular velocity (..., 3), rad/s, palm frame.
+        """
         q = np.asarray(q, dtype=float)
         v = np.asarray(v, dtype=float)
         w23 = v[..., 1] + v[..., 2]
@@ -159,8 +194,18 @@ class CrsKinematics:
         return local @ self.R_base.T
 
     def pad_rotation(self, q: np.ndarray) -> np.ndarray:
-        """The pad frame's orientation in the palm frame, ``R_base R_z(q1) R_y(q2 + q3)``
-        (one sample, 3×3)."""
+        """The pad frame's orientation in the palm frame, ``R_base R_z(q1) R_y(q2 + q3)``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (3,) of one sample, rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            The rotation matrix (3, 3).
+        """
         q1, q2, q3 = np.asarray(q, dtype=float).tolist()
         c1, s1 = math.cos(q1), math.sin(q1)
         ct, st = math.cos(q2 + q3), math.sin(q2 + q3)
@@ -169,7 +214,18 @@ class CrsKinematics:
 
     # ------------------------------------------------------------------ forward kinematics
     def fk(self, q: np.ndarray) -> np.ndarray:
-        """End-effector point E in the palm frame, for q of shape (..., n)."""
+        """End-effector point E in the palm frame.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., n), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            The point E (..., 3), m, palm frame.
+        """
         g = self.geometry
         A, ox, oy = self._A, self._ox, self._oy
         q = np.asarray(q, dtype=float)
@@ -211,7 +267,18 @@ class CrsKinematics:
         return np.sin(q1), np.cos(q1), r, a, b, e
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """Translational Jacobian ∂E/∂q in the palm frame, shape (..., 3, 3)."""
+        """Translational Jacobian ∂E/∂q in the palm frame.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., 3), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            The Jacobian (..., 3, 3), m/rad.
+        """
         s1, c1, r, a, b, e = self._terms(q)
         oy = self._oy
         if np.ndim(q) == 1:
@@ -227,7 +294,20 @@ class CrsKinematics:
         return self.R_base @ J
 
     def jacobian_dot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Time derivative of :meth:`jacobian` along joint velocity v, shape (..., 3, 3)."""
+        """Time derivative of :meth:`jacobian` along joint velocity v.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., 3), rad.
+        v : numpy.ndarray
+            Joint velocities (..., 3), rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            J̇ (..., 3, 3), m/(rad·s).
+        """
         s1, c1, r, a, b, e = self._terms(q)
         oy = self._oy
         v = np.asarray(v, dtype=float)
@@ -261,11 +341,33 @@ class CrsKinematics:
 
     # ------------------------------------------------------------------ inverse kinematics
     def local_point(self, p: np.ndarray) -> np.ndarray:
-        """A palm-frame point expressed in the base frame."""
+        """A palm-frame point expressed in the base frame.
+
+        Parameters
+        ----------
+        p : numpy.ndarray
+            Points (..., 3) in the palm frame, m.
+
+        Returns
+        -------
+        numpy.ndarray
+            The same points (..., 3) in the arm's base frame, m.
+        """
         return (np.asarray(p, dtype=float) - self.p_base) @ self.R_base
 
     def reach_ratio(self, p: np.ndarray) -> np.ndarray:
-        """Shoulder-to-point distance over the arm's full reach ``L2 + L3``."""
+        """Shoulder-to-point distance over the arm's full reach ``L2 + L3``.
+
+        Parameters
+        ----------
+        p : numpy.ndarray
+            Points (..., 3) in the palm frame, m.
+
+        Returns
+        -------
+        numpy.ndarray
+            The ratio (...,), dimensionless: 1 at full stretch.
+        """
         g = self.geometry
         lp = self.local_point(p)
         r = np.sqrt(np.maximum(lp[..., 0] ** 2 + lp[..., 1] ** 2 - self._oy ** 2, 0.0))
@@ -310,7 +412,19 @@ class CrsKinematics:
 
     def joint_reference(self, x: np.ndarray, xd: np.ndarray, xdd: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)``."""
+        """``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)``.
+
+        Parameters
+        ----------
+        x, xd, xdd : numpy.ndarray
+            The Cartesian reference of E (..., 3) in the palm frame: position (m), velocity (m/s),
+            acceleration (m/s²).
+
+        Returns
+        -------
+        q_d, qdot_d, qddot_d : numpy.ndarray
+            The joint reference (..., 3): rad, rad/s, rad/s².
+        """
         q = self.ik(x)
         J = self.jacobian(q)
         qd = np.linalg.solve(J, xd[..., None])[..., 0]
@@ -320,9 +434,23 @@ class CrsKinematics:
 
     def check_path(self, x: np.ndarray, t: np.ndarray | None = None, margin: float = 0.97
                    ) -> str:
-        """'' or why the Cartesian points ``x`` (K, 3) (at times ``t``) are not all
-        reachable: within ``margin`` of the full reach, away from the inner singularity,
-        joints within limits."""
+        """Why the Cartesian points ``x`` are not all reachable, or ``''``: within ``margin`` of the
+        full reach, away from the inner singularity, joints within limits.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            Points of E (K, 3) in the palm frame, m.
+        t : numpy.ndarray or None
+            Their times (K,), s, for the message; None numbers the samples.
+        margin : float
+            The largest allowed distance/reach ratio.
+
+        Returns
+        -------
+        str
+            ``''`` if every point is reachable, else one line naming the first point that is not.
+        """
         g = self.geometry
         t = np.arange(len(x), dtype=float) if t is None else t
         ratio = self.reach_ratio(x)

@@ -141,11 +141,33 @@ class DrakeArmKinematics(RedundantReference):
         return out
 
     def fk(self, q: np.ndarray) -> np.ndarray:
-        """End-effector point ``x(q)`` in the world: (3,) for q (n,), (K, 3) for q (K, n)."""
+        """End-effector point ``x(q)`` in the world: (3,) for q (n,), (K, 3) for q (K, n).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,) or (K, n), rad (m for a prismatic joint).
+
+        Returns
+        -------
+        numpy.ndarray
+            E in the world frame, m.
+        """
         return self._map(q, lambda qk: self._pose(qk).translation(), (3,))
 
     def rotation(self, q: np.ndarray) -> np.ndarray:
-        """Orientation ``R(q)`` of ``ee_frame`` in the world: (3, 3) or (K, 3, 3)."""
+        """Orientation ``R(q)`` of ``ee_frame`` in the world: (3, 3) or (K, 3, 3).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,) or (K, n).
+
+        Returns
+        -------
+        numpy.ndarray
+            The rotation matrices.
+        """
         return self._map(q, lambda qk: self._pose(qk).rotation().matrix(), (3, 3))
 
     def _jacobian_here(self) -> np.ndarray:
@@ -160,6 +182,16 @@ class DrakeArmKinematics(RedundantReference):
 
         Rows 0–2: ``∂x/∂q`` (E's translational velocity per unit q̇); rows 3–5 when
         ``task_dim == 6``: the angular velocity of ``ee_frame`` per unit q̇; world frame.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,) or (K, n).
+
+        Returns
+        -------
+        numpy.ndarray
+            The Jacobian: m per unit q in rows 0–2, rad per unit q in rows 3–5.
         """
         def one(qk):
             self.plant.SetPositions(self.context, qk)
@@ -168,7 +200,20 @@ class DrakeArmKinematics(RedundantReference):
 
     def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """``J̇(q, v) v`` (task_dim,): the task acceleration at ``q̈ = 0`` (Drake's bias
-        acceleration of E, ``[translational; rotational]``, world frame)."""
+        acceleration of E, ``[translational; rotational]``, world frame).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,).
+        v : numpy.ndarray
+            Joint velocities (n,).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``J̇ v``: m/s² (rows 0–2), rad/s² (rows 3–5).
+        """
         self.plant.SetPositions(self.context, np.asarray(q, dtype=float))
         self.plant.SetVelocities(self.context, np.asarray(v, dtype=float))
         return self._bias_here()
@@ -182,7 +227,20 @@ class DrakeArmKinematics(RedundantReference):
         return np.concatenate([A.translational(), A.rotational()])
 
     def task_error(self, p: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """``e(q) = [p − x(q); vee(R_d R(q)ᵀ)]`` (task_dim,), the Newton residual."""
+        """``e(q) = [p − x(q); vee(R_d R(q)ᵀ)]`` (task_dim,), the Newton residual.
+
+        Parameters
+        ----------
+        p : numpy.ndarray
+            The target point of E (3,), m, world frame.
+        q : numpy.ndarray
+            Joint positions (n,).
+
+        Returns
+        -------
+        numpy.ndarray
+            The residual: m (rows 0–2), rad (rows 3–5).
+        """
         X = self._pose(np.asarray(q, dtype=float))
         e = np.asarray(p, dtype=float) - X.translation()
         if self.task_dim == 3:
@@ -213,6 +271,18 @@ class DrakeArmKinematics(RedundantReference):
         program is solved again from the position-only solution and from
         ``_IK_RESTARTS`` fixed pseudo-random postures within 80 % of the limits. The result
         is polished by :meth:`newton` to :data:`NEWTON_TOL` when that stays within the limits.
+
+        Parameters
+        ----------
+        p : numpy.ndarray
+            The target point of E (3,), m, world frame.
+        q_guess : numpy.ndarray
+            The start posture (n,), clipped to the limits; the solution stays on its branch.
+
+        Returns
+        -------
+        numpy.ndarray
+            The posture (n,).
 
         Raises
         ------
@@ -253,6 +323,18 @@ class DrakeArmKinematics(RedundantReference):
         ``J⁺ e`` is the least-squares step (``J⁻¹ e`` for a square J). Joint limits are not
         enforced (see :meth:`check_path`).
 
+        Parameters
+        ----------
+        p : numpy.ndarray
+            The target point of E (3,), m, world frame.
+        q_guess : numpy.ndarray
+            The start posture (n,).
+
+        Returns
+        -------
+        numpy.ndarray
+            The posture (n,).
+
         Raises
         ------
         ValueError
@@ -281,6 +363,11 @@ class DrakeArmKinematics(RedundantReference):
         joints move E in fewer than ``task_dim`` directions everywhere — a planar arm, say —
         has ``generic_rank() < task_dim`` even with ``n == task_dim``: no posture reaches a
         point off its plane, and its Jacobian is singular everywhere.
+
+        Returns
+        -------
+        int
+            The generic rank, at most ``task_dim``.
         """
         if self._generic_rank is None:
             rng = np.random.default_rng(1)
@@ -310,6 +397,16 @@ class DrakeArmKinematics(RedundantReference):
     def joint_positions(self, x: np.ndarray) -> np.ndarray:
         """Postures along a Cartesian path x (K, 3): IK at ``x[0]`` from ``q_seed``, then Newton
         from the linear extrapolation of the two previous postures (IK as a fallback).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            The path of E (K, 3), m, world frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            The postures (K, n).
 
         Raises
         ------
@@ -377,6 +474,18 @@ class DrakeArmKinematics(RedundantReference):
         limits, sample index); a singular posture (``σ_min(J)/σ_max(J) <`` :data:`SINGULAR_RATIO`,
         the first sample). With the samples' times ``t``, the message gives the time instead of
         the index.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            The path of E (K, 3), m, world frame.
+        t : numpy.ndarray or None
+            The samples' times (K,), s, for the message; None names the sample index.
+
+        Returns
+        -------
+        str
+            ``''`` or the reason.
         """
         if t is not None:
             message = self.check_path(x)

@@ -54,6 +54,16 @@ def pad_control(kinematics) -> str:
     pad's orientation then follows from its position, and the reference follows the pad's
     material point instead of its centre); ``centre`` otherwise (a redundant arm with a
     position-only task: give it ``ee_rpy_deg`` to hold the orientation).
+
+    Parameters
+    ----------
+    kinematics : CrsKinematics or DrakeArmKinematics
+        The arm's kinematics (its ``n`` and ``task_dim``).
+
+    Returns
+    -------
+    str
+        ``"pose"``, ``"contact"`` or ``"centre"``.
     """
     task_dim = int(getattr(kinematics, "task_dim", 3))
     n = int(kinematics.n)
@@ -66,7 +76,20 @@ def pad_control(kinematics) -> str:
 
 def point_kinematics(kinematics, offset=None):
     """The kinematics of the pad-body point ``offset`` (pad frame, m; None: the centre):
-    ``kinematics.with_offset`` for the closed form, :class:`DrakePadPoint` for Drake's."""
+    ``kinematics.with_offset`` for the closed form, :class:`DrakePadPoint` for Drake's.
+
+    Parameters
+    ----------
+    kinematics : CrsKinematics or DrakeArmKinematics
+        The arm's kinematics of its pad centre.
+    offset : array_like or None
+        The point in the pad body's frame (3,), m; None for the centre.
+
+    Returns
+    -------
+    CrsKinematics or DrakePadPoint
+        The kinematics of that point.
+    """
     if hasattr(kinematics, "with_offset"):
         return kinematics if offset is None else kinematics.with_offset(offset)
     return DrakePadPoint(kinematics, offset)
@@ -107,7 +130,18 @@ class DrakePadPoint:
                                                        self._frame.model_instance())
 
     def with_offset(self, offset) -> "DrakePadPoint":
-        """The same arm's pad-body point ``offset``."""
+        """The same arm's pad-body point ``offset``.
+
+        Parameters
+        ----------
+        offset : array_like
+            The point in the pad body's frame (3,), m.
+
+        Returns
+        -------
+        DrakePadPoint
+            The kinematics of that point.
+        """
         return DrakePadPoint(self.kinematics, offset)
 
     def _each(self, q, f, shape, *more):
@@ -127,11 +161,33 @@ class DrakePadPoint:
         return self._frame.CalcPoseInWorld(self._context)
 
     def fk(self, q: np.ndarray) -> np.ndarray:
-        """The point in the world, ``E(q) + R(q) o``: (3,) or (..., 3)."""
+        """The point in the world, ``E(q) + R(q) o``: (3,) or (..., 3).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,) or (..., n).
+
+        Returns
+        -------
+        numpy.ndarray
+            The point in the world, m.
+        """
         return self._each(q, lambda qk: self._pose(qk) @ self.offset, (3,))
 
     def pad_rotation(self, q: np.ndarray) -> np.ndarray:
-        """The pad frame's orientation ``R(q)`` (one posture, 3×3)."""
+        """The pad frame's orientation ``R(q)`` (one posture, 3×3).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``R(q)`` (3, 3).
+        """
         return self._pose(np.asarray(q, dtype=float)).rotation().matrix()
 
     def _jacobian_ad(self, q, v):
@@ -146,7 +202,18 @@ class DrakePadPoint:
         return value, grad
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """``∂P/∂q`` (3 × n, or (..., 3, n)): the point's translational velocity per unit q̇."""
+        """``∂P/∂q`` (3 × n, or (..., 3, n)): the point's translational velocity per unit q̇.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,) or (..., n).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``∂P/∂q``, m per unit q.
+        """
         def one(qk):
             self._plant.SetPositions(self._context, qk)
             J = self._plant.CalcJacobianTranslationalVelocity(
@@ -156,11 +223,37 @@ class DrakePadPoint:
         return self._each(q, one, (3, self.n))
 
     def jacobian_dot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``J̇ = Σ_k ∂J/∂q_k v_k`` of :meth:`jacobian` (forward-mode AutoDiff)."""
+        """``J̇ = Σ_k ∂J/∂q_k v_k`` of :meth:`jacobian` (forward-mode AutoDiff).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,) or (..., n).
+        v : numpy.ndarray
+            Joint velocities, same shape, per s.
+
+        Returns
+        -------
+        numpy.ndarray
+            J̇, m per unit q per s.
+        """
         return self._each(q, lambda qk, vk: self._jacobian_ad(qk, vk)[1][3:], (3, self.n), v)
 
     def angular_velocity(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """The pad's angular velocity in the world, ``J_ω(q) v``: (3,) or (..., 3)."""
+        """The pad's angular velocity in the world, ``J_ω(q) v``: (3,) or (..., 3).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (n,) or (..., n).
+        v : numpy.ndarray
+            Joint velocities, same shape.
+
+        Returns
+        -------
+        numpy.ndarray
+            The angular velocity, rad/s, world frame.
+        """
         def one(qk, vk):
             self._plant.SetPositions(self._context, qk)
             J = self._plant.CalcJacobianSpatialVelocity(
@@ -173,6 +266,16 @@ class DrakePadPoint:
         """Postures putting the point at ``p`` ((3,) or (K, 3)): the arm's own inverse
         kinematics of its centre at ``p`` (a start on the arm's branch), then Newton's
         method on ``P(q) − p`` (square arms, ``n == 3``).
+
+        Parameters
+        ----------
+        p : numpy.ndarray
+            The target points (3,) or (K, 3), m, world frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            The postures, (n,) or (K, n), rad.
 
         Raises
         ------

@@ -71,8 +71,19 @@ class RedundantReference:
         return self.n > self.task_dim
 
     def nominal_posture(self, q_nominal: np.ndarray | None = None) -> np.ndarray:
-        """``q_nom``: the given posture, else the middle of the joint limits (0 where a joint
-        has none)."""
+        """``q_nom``: the given posture, else the middle of the joint limits (0 where a joint has
+        none).
+
+        Parameters
+        ----------
+        q_nominal : numpy.ndarray or None
+            The posture (n,), rad, or None for the middle of the limits.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``q_nom`` (n,), rad.
+        """
         if q_nominal is not None:
             return np.asarray(q_nominal, dtype=float)
         mid = 0.5 * (self.q_min + self.q_max)
@@ -136,7 +147,20 @@ class RedundantReference:
     def start_posture(self, x0: np.ndarray, q_nom: np.ndarray) -> np.ndarray:
         """The posture with E at ``x0`` (and ``R_d``) nearest ``q_nom``: Drake's IK (cost
         ``|q − q_nom|²``), then projected Newton steps ``q ← q + J⁺ e + (I − J⁺J)(q_nom − q)``
-        until both parts are below 1e-12 (at most 200 steps)."""
+        until both parts are below 1e-12 (at most 200 steps).
+
+        Parameters
+        ----------
+        x0 : numpy.ndarray
+            The control point's start position (3,), m, palm frame.
+        q_nom : numpy.ndarray
+            The nominal posture (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            The start posture (n,), rad.
+        """
         q = self.solve_ik(x0, q_nom)
         for _ in range(200):
             e = self.task_error(x0, q)
@@ -173,6 +197,7 @@ class RedundantReference:
         Returns
         -------
         q, qd, qdd : ndarray, shape (K, n)
+            The joint reference: rad, rad/s, rad/s².
 
         Raises
         ------
@@ -221,7 +246,24 @@ class RedundantReference:
                              nullspace_gain: float = 1.0) -> str:
         """``''`` if the redundant reference along ``path`` stays within the joint limits and
         away from singular postures at every time of ``t``, else one line saying why (the
-        joint, its value and limits, the time)."""
+        joint, its value and limits, the time).
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            The times (K,) to check, s.
+        path : Callable
+            ``path(t) -> (x, ẋ, ẍ)``, the control point's Cartesian path (m, m/s, m/s²).
+        q_nominal : numpy.ndarray or None
+            The nominal posture (n,), rad; None for the middle of the joint limits.
+        nullspace_gain : float
+            The null-space gain pulling the posture towards ``q_nom``, 1/s.
+
+        Returns
+        -------
+        str
+            ``''`` or the reason.
+        """
         try:
             q, _, _ = self.redundant_reference(t, path, q_nominal, nullspace_gain)
         except (ValueError, np.linalg.LinAlgError) as error:

@@ -14,8 +14,19 @@ __all__ = ["pad_contact_components", "quaternion_rotations"]
 
 
 def quaternion_rotations(quaternions: np.ndarray) -> np.ndarray:
-    """Rotation matrices ``(K, 3, 3)`` of unit quaternions ``(K, 4)`` ``[w, x, y, z]`` (the
-    order of a free body's positions in the plant's state), normalized first."""
+    """Rotation matrices of unit quaternions ``[w, x, y, z]`` (the order of a free body's
+    positions in the plant's state), normalized first.
+
+    Parameters
+    ----------
+    quaternions : numpy.ndarray
+        Quaternions (K, 4) or (4,).
+
+    Returns
+    -------
+    numpy.ndarray
+        The rotation matrices (K, 3, 3).
+    """
     q = np.asarray(quaternions, dtype=float).reshape(-1, 4)
     q = q / np.linalg.norm(q, axis=1, keepdims=True)
     w, x, y, z = q.T
@@ -52,6 +63,7 @@ def pad_contact_components(F: np.ndarray, p_pad: np.ndarray, pose: np.ndarray,
     Returns
     -------
     f_n, f_t : ndarray, shape (K,)
+        The normal and tangential components, N.
     p_B : ndarray, shape (K, 3)
         The pad's centre in the box's frame (where on the box it sits).
     """

@@ -39,7 +39,13 @@ __all__ = ["GEOMETRY", "Arm", "ArmGeometry", "CrsKinematics", "arm_model", "urdf
 
 def urdf_dir() -> Path:
     """Folder of the robot models: ``$DRAKE_COOP_URDF_DIR``, else the shipped ``urdf/``
-    (installed package data or the checkout's folder, see :mod:`drake_coop.scenario.resources`)."""
+    (installed package data or the checkout's folder, see :mod:`drake_coop.scenario.resources`).
+
+    Returns
+    -------
+    Path
+        The folder.
+    """
     from drake_coop.scenario.resources import urdf_dir as _urdf_dir
 
     return _urdf_dir()
@@ -133,23 +139,80 @@ class Arm:
 
     # ------------------------------------------------------------------ kinematics
     def fk(self, q: np.ndarray) -> np.ndarray:
-        """End-effector point E in the palm frame, for q of shape (..., n)."""
+        """End-effector point E in the palm frame, for q of shape (..., n).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., n), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            E (..., 3), m, palm frame.
+        """
         return self.kinematics.fk(q)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
-        """Translational Jacobian ∂E/∂q (closed form of the paper's arms), shape (..., 3, 3)."""
+        """Translational Jacobian ∂E/∂q (closed form of the paper's arms), shape (..., 3, 3).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., 3), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ∂E/∂q (..., 3, 3), m/rad.
+        """
         return self._crs.jacobian(q)
 
     def jacobian_dot(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Time derivative of :meth:`jacobian` along v (closed form), shape (..., 3, 3)."""
+        """Time derivative of :meth:`jacobian` along v (closed form), shape (..., 3, 3).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., 3), rad.
+        v : numpy.ndarray
+            Joint velocities (..., 3), rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            J̇ (..., 3, 3), m/(rad·s).
+        """
         return self._crs.jacobian_dot(q, v)
 
     def ik(self, p: np.ndarray) -> np.ndarray:
-        """Closed-form inverse kinematics of the paper's arms (the elbow-up branch)."""
+        """Closed-form inverse kinematics of the paper's arms (the elbow-up branch).
+
+        Parameters
+        ----------
+        p : numpy.ndarray
+            Points of E (..., 3), m, palm frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            Joint positions (..., 3), rad.
+        """
         return self._crs.ik(p)
 
     def reach_ratio(self, p: np.ndarray) -> np.ndarray:
-        """Shoulder-to-point distance over the full reach (closed form)."""
+        """Shoulder-to-point distance over the full reach (closed form).
+
+        Parameters
+        ----------
+        p : numpy.ndarray
+            Points (..., 3), m, palm frame.
+
+        Returns
+        -------
+        numpy.ndarray
+            The ratio (...,), 1 at full stretch.
+        """
         return self._crs.reach_ratio(p)
 
     @property
@@ -161,11 +224,33 @@ class Arm:
 
     # ------------------------------------------------------------------ constraint (2)
     def phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint (2): ``φ = N (x(q) − c)`` (m), shape (..., m)."""
+        """Constraint (2): ``φ = N (x(q) − c)`` (m), shape (..., m).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., n), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``φ`` (..., m), m.
+        """
         return (self.fk(q) - self.c) @ self.N.T
 
     def J_phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint Jacobian ``J_φ = N ∂x/∂q`` (closed form), shape (..., m, 3)."""
+        """Constraint Jacobian ``J_φ = N ∂x/∂q`` (closed form), shape (..., m, 3).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Joint positions (..., 3), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``J_φ`` (..., m, 3), m/rad.
+        """
         return self.N @ self.jacobian(q)
 
 
@@ -183,6 +268,11 @@ def arm_model(arm: Arm, urdf: str | Path | None = None, closed_form: bool | None
         Use the closed-form kinematics of :mod:`drake_coop.kinematics.crs` for ``φ``, ``J_φ`` and
         ``J̇_φ``; default: when the arm has them and the controller's URDF is the simulated
         model (``controller_model`` unset; scaled masses and inertias keep the geometry).
+
+    Returns
+    -------
+    ArmModel
+        The controller's model.
     """
     path = Path(urdf) if urdf is not None else arm.controller_urdf_path
     X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)

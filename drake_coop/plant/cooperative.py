@@ -66,7 +66,21 @@ LIGHT_MASS = 1e-3
 
 @dataclass
 class ArmHandles:
-    """One arm inside the cooperative plant."""
+    """One arm inside the cooperative plant.
+
+    Attributes
+    ----------
+    arm : Arm
+        The robot's resolved description.
+    instance : ModelInstanceIndex
+        Its model instance in the plant.
+    ee_body : RigidBody
+        The end-effector (pad) body.
+    sensor_weld : Joint
+        The weld joint of the wrist force sensor (its reaction is the measured force).
+    sensor_bodies : list of RigidBody
+        The bodies the sensor carries (outboard of the weld).
+    """
 
     arm: Arm
     instance: ModelInstanceIndex
@@ -84,6 +98,7 @@ class CoopPlant:
     plant, scene_graph
         The MultibodyPlant (discrete, SAP) and its SceneGraph.
     arms : list[ArmHandles]
+        One per robot, in the scenario's order.
     mode : str
         The object mode.
     constraint_ids : list
@@ -97,6 +112,8 @@ class CoopPlant:
         The bodies the end effectors are tied to (planes: one per arm; rigid: the object).
     object_body : RigidBody or None
         The carried object (``rigid`` and ``contact``).
+    grasp : ContactObject or None
+        The ``contact`` mode's box and stand (None in the other modes).
     """
 
     plant: MultibodyPlant
@@ -112,27 +129,89 @@ class CoopPlant:
 
     # ------------------------------------------------------------------ state helpers
     def arm_positions(self, context: Context, i: int) -> np.ndarray:
-        """Joint positions of arm i from a plant context."""
+        """Joint positions of arm i from a plant context.
+
+        Parameters
+        ----------
+        context : Context
+            The plant's context.
+        i : int
+            The arm's index.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``q`` (n,), rad.
+        """
         return self.plant.GetPositions(context, self.arms[i].instance)
 
     def set_arm_state(self, context: Context, i: int, q: np.ndarray,
                       v: np.ndarray | None = None) -> None:
-        """Set joint positions (and velocities, default zero) of arm i."""
+        """Set joint positions (and velocities, default zero) of arm i.
+
+        Parameters
+        ----------
+        context : Context
+            The plant's context.
+        i : int
+            The arm's index.
+        q : numpy.ndarray
+            Joint positions (n,), rad.
+        v : numpy.ndarray or None
+            Joint velocities (n,), rad/s; None for zero.
+        """
         inst = self.arms[i].instance
         self.plant.SetPositions(context, inst, q)
         self.plant.SetVelocities(context, inst, np.zeros(len(q)) if v is None else v)
 
     def ee_position(self, context: Context, i: int) -> np.ndarray:
-        """End-effector point of arm i in the palm frame."""
+        """End-effector point of arm i in the palm frame.
+
+        Parameters
+        ----------
+        context : Context
+            The plant's context.
+        i : int
+            The arm's index.
+
+        Returns
+        -------
+        numpy.ndarray
+            The point (3,), m.
+        """
         return self.plant.EvalBodyPoseInWorld(context, self.arms[i].ee_body).translation()
 
     def ee_velocity(self, context: Context, i: int) -> np.ndarray:
-        """Translational velocity of the end-effector point of arm i."""
+        """Translational velocity of the end-effector point of arm i.
+
+        Parameters
+        ----------
+        context : Context
+            The plant's context.
+        i : int
+            The arm's index.
+
+        Returns
+        -------
+        numpy.ndarray
+            The velocity (3,), m/s, palm frame.
+        """
         return self.plant.EvalBodySpatialVelocityInWorld(
             context, self.arms[i].ee_body).translational()
 
     def is_held(self, context: Context) -> bool:
-        """Whether the grasp constraints are active."""
+        """Whether the grasp constraints are active.
+
+        Parameters
+        ----------
+        context : Context
+            The plant's context.
+
+        Returns
+        -------
+        bool
+            True while held.
+        """
         return bool(self.constraint_ids) and self.plant.GetConstraintActiveStatus(
             context, self.constraint_ids[0])
 
@@ -142,6 +221,13 @@ class CoopPlant:
         In ``planes`` and ``rigid`` modes this activates/deactivates the ball constraints and
         unlocks/locks the slider joints; in ``contact`` and ``none`` modes it does nothing (the
         grasp is physical or absent).
+
+        Parameters
+        ----------
+        context : Context
+            The plant's context.
+        held : bool
+            On or off.
         """
         if not self.constraint_ids:
             return
@@ -176,6 +262,16 @@ def tangent_basis(N: np.ndarray) -> np.ndarray:
 
     Gram–Schmidt over ``e_x, e_y, e_z`` in that order, so that for ``N = ±e_x`` the basis is
     exactly ``e_y, e_z`` (the paper's slider joints).
+
+    Parameters
+    ----------
+    N : numpy.ndarray
+        The constraint normals (m, 3) or (3,).
+
+    Returns
+    -------
+    numpy.ndarray
+        The tangent directions (3 − m, 3), unit rows.
     """
     N = np.atleast_2d(np.asarray(N, dtype=float))
     normals = list(np.linalg.qr(N.T)[0].T)       # orthonormal rows spanning the normals
@@ -215,7 +311,24 @@ def _add_slider(plant: MultibodyPlant, name: str, p_anchor: np.ndarray, axes: np
 def add_arms(plant: MultibodyPlant, scene_graph: SceneGraph | None,
              scenario: Scenario, arms: Sequence[Arm] | None = None) -> list[ArmHandles]:
     """Parse every arm, weld its base frame at its pose in the palm frame (``arms``: the
-    run's resolved arms, one per robot; default: made here from the scenario)."""
+    run's resolved arms, one per robot; default: made here from the scenario).
+
+    Parameters
+    ----------
+    plant : MultibodyPlant
+        The plant (not finalized).
+    scene_graph : SceneGraph or None
+        Its scene graph, for the arms' geometry.
+    scenario : Scenario
+        The run's scenario (its robots and task).
+    arms : sequence of Arm or None
+        The resolved arms, one per robot; None builds them from ``scenario``.
+
+    Returns
+    -------
+    list of ArmHandles
+        One per robot, in the scenario's order.
+    """
     if arms is None:
         arms = [Arm(robot, scenario.task) for robot in scenario.robots]
     handles = []
@@ -259,6 +372,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario,
     Parameters
     ----------
     builder : DiagramBuilder
+        The builder the plant and its scene graph are added to.
     scenario : Scenario
         Uses ``scenario.plant`` (time step, object mode, object mass, friction) and the robots.
     time_step : float, optional
@@ -358,7 +472,19 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario,
 def initialize_plant_context(coop: CoopPlant, context: Context, q0: list[np.ndarray],
                              z_grasp: float) -> None:
     """Arms at rest at ``q0``, constraints off, sliders/object locked at the contact points
-    (the paper: y = 0 at the grasp height)."""
+    (the paper: y = 0 at the grasp height).
+
+    Parameters
+    ----------
+    coop : CoopPlant
+        The plant.
+    context : Context
+        The plant's context.
+    q0 : list of numpy.ndarray
+        Each arm's initial joint positions (n,), rad.
+    z_grasp : float
+        The grasp height, m (palm frame).
+    """
     plant = coop.plant
     for i, q in enumerate(q0):
         coop.set_arm_state(context, i, q)

@@ -147,6 +147,10 @@ class ContactObject:
     face_offsets : ndarray, shape (l,) or None
         Each face's distance from the object's frame origin along its normal (m); None for
         the box (``size[0] / 2``).
+    stand_slide : PrismaticJoint or None
+        The stand's vertical slide, locked; :meth:`set_stand_lowered` moves it.
+    stand_drop : float
+        How far the stand is lowered, m.
     """
 
     box: RigidBody
@@ -166,7 +170,15 @@ class ContactObject:
 
     def set_stand_lowered(self, context: Context, lowered: bool) -> None:
         """Put the stand :attr:`stand_drop` below its place (``lowered``) or back; its slide
-        stays locked (between two ``AdvanceTo`` calls, as the grasp is switched)."""
+        stays locked (between two ``AdvanceTo`` calls, as the grasp is switched).
+
+        Parameters
+        ----------
+        context : Context
+            The plant's context.
+        lowered : bool
+            Lowered or back in place.
+        """
         if self.stand_slide is not None:
             self.stand_slide.set_translation(context, -self.stand_drop if lowered else 0.0)
             self.stand_slide.set_translation_rate(context, 0.0)
@@ -201,6 +213,11 @@ class ContactObject:
             The plant's ``contact_results`` output.
         pad : GeometryId
             The pad's collision geometry (an entry of :attr:`pad_geometries`).
+
+        Returns
+        -------
+        numpy.ndarray
+            The force (3,), N, world frame.
         """
         total = np.zeros(3)
         pair = {pad, self.box_geometry}
@@ -222,11 +239,33 @@ class ContactObject:
 
     def pad_forces(self, results: ContactResults) -> list[np.ndarray]:
         """:meth:`pad_force` of every pad (in :attr:`pad_geometries`' order), in one pass
-        over the contacts."""
+        over the contacts.
+
+        Parameters
+        ----------
+        results : ContactResults
+            The plant's ``contact_results`` output.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            One force (3,) per pad, N, world frame.
+        """
         return [np.array(t) for t in self._pad_totals(results)]
 
     def pad_forces_vector(self, results: ContactResults) -> np.ndarray:
-        """:meth:`pad_forces` as one vector ``[F_1, …, F_l]``."""
+        """:meth:`pad_forces` as one vector ``[F_1, …, F_l]``.
+
+        Parameters
+        ----------
+        results : ContactResults
+            The plant's ``contact_results`` output.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``[F_1, …, F_l]`` (3 l,), N.
+        """
         return np.array([x for t in self._pad_totals(results) for x in t])
 
     def _pad_totals(self, results: ContactResults) -> list[list[float]]:
@@ -317,6 +356,18 @@ def _pad_geometries(plant: MultibodyPlant, scenario: Scenario) -> list[GeometryI
 def pad_radius(scene_graph: SceneGraph, pad: GeometryId) -> float:
     """The radius of a pad's sphere (the shipped arms' 15 mm, or a ``tool``'s ``pad_radius``).
 
+    Parameters
+    ----------
+    scene_graph : SceneGraph
+        The plant's scene graph.
+    pad : GeometryId
+        The pad's collision geometry.
+
+    Returns
+    -------
+    float
+        The radius, m.
+
     Raises
     ------
     ValueError
@@ -341,6 +392,7 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
     plant : MultibodyPlant
         The unfinalized cooperative plant, registered with ``scene_graph``.
     scene_graph : SceneGraph
+        The plant's scene graph.
     scenario : Scenario
         Uses the robots' contact x (``contact_xy[0]``) and pad radius, ``task.circle_top_z``,
         ``task.lift_height``, ``plant.object_mass``, ``plant.friction``,
@@ -349,6 +401,7 @@ def add_contact_object(plant: MultibodyPlant, scene_graph: SceneGraph,
     Returns
     -------
     ContactObject
+        The box, its stand and the pads' geometries.
     """
     if len(scenario.robots) >= 3:
         return _add_prism(plant, scene_graph, scenario)

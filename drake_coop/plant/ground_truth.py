@@ -118,6 +118,20 @@ class GroundTruthLog:
         ``t_K``), else that row is NaN. ``lambda_sensor`` of tick ``k ≥ 1`` is the model's
         reading of ``λ`` of the step ``[t_k − Δt, t_k)``; tick 0's is the model's initial
         reading.
+
+        Parameters
+        ----------
+        context : Context
+            The root context after the run.
+        n : int
+            The number of ticks.
+        complete : bool
+            Whether the last published tick's updates ran.
+
+        Returns
+        -------
+        list of dict
+            Per robot: ``F_meas`` (n, 3), ``lambda_meas`` and ``lambda_sensor`` (n, m), N.
         """
         eq = self.equation
         nx, nq = eq.nx, eq.nq
@@ -151,7 +165,18 @@ class GroundTruthLog:
     def force_before_tick(self, context: Context) -> list[np.ndarray]:
         """Every arm's ``F`` of the plant step ``[t_k − Δt, t_k)`` at a tick ``t_k ≥ t_1``
         before its updates: the step held at ``t_k − 3Δt/2`` (the previous tick's hold when
-        ``h = Δt``) and the current state ``x(t_k)``, without a plant solve."""
+        ``h = Δt``) and the current state ``x(t_k)``, without a plant solve.
+
+        Parameters
+        ----------
+        context : Context
+            The root context at a tick.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            Per arm ``F`` (3,), N, palm frame.
+        """
         eq = self.equation
         held = self._now(context, self.before_tick if self.before_tick is not None
                          else self.tick)
@@ -280,6 +305,11 @@ def add_ground_truth(builder: DiagramBuilder, coop: CoopPlant, period: float,
     tick_forces : bool
         Also add :class:`TickForces` (``wrist_forces_at_tick``) for readers during the run;
         without it the diagram has one system less, whose per-step cost every run would pay.
+
+    Returns
+    -------
+    GroundTruthLog
+        The log, read after the run.
     """
     if coop.mode not in ("planes", "rigid"):
         raise ValueError(f"the offline ground truth needs planes or rigid mode, not "
@@ -388,7 +418,18 @@ class PadForceLog:
 
     def force_before_tick(self, context: Context) -> list[np.ndarray]:
         """Every pad's ``F`` of the plant step ``[t_k − Δt, t_k)`` at a tick ``t_k`` before its
-        updates (the hold's value: no plant solve)."""
+        updates (the hold's value: no plant solve).
+
+        Parameters
+        ----------
+        context : Context
+            The root context at a tick.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            Per pad ``F`` (3,), N, world frame.
+        """
         F = self._held(context)
         return [F[3 * i:3 * i + 3].copy() for i in range(len(self.normals))]
 
@@ -396,7 +437,22 @@ class PadForceLog:
                              ) -> OutputPort:
         """``N_i F_i`` of robot ``index``'s pad from the hold (a C++ ``MatrixGain``,
         ``<name>_lambda_last_step``): read at ``t_k − Δt/2`` it is ``λ`` of the step
-        ``[t_k − Δt, t_k)``, the live F/T sensor model's input."""
+        ``[t_k − Δt, t_k)``, the live F/T sensor model's input.
+
+        Parameters
+        ----------
+        builder : DiagramBuilder
+            The experiment's builder.
+        index : int
+            The robot's index.
+        name : str
+            The robot's name (the system's prefix).
+
+        Returns
+        -------
+        OutputPort
+            The gain's output (m,), N.
+        """
         N = np.atleast_2d(self.normals[index])
         D = np.zeros((N.shape[0], 3 * len(self.normals)))
         D[:, 3 * index:3 * index + 3] = N
@@ -413,6 +469,20 @@ class PadForceLog:
         sampled that tick (the context's time is past ``t_k``), else that row is NaN (so is
         any row whose sample is missing). ``lambda_sensor`` of tick ``k ≥ 1`` is the model's
         reading of ``λ`` of the step ``[t_k − Δt, t_k)``, published at ``t_k``.
+
+        Parameters
+        ----------
+        context : Context
+            The root context after the run.
+        n : int
+            The number of ticks.
+        complete : bool
+            Whether the last published tick's updates ran.
+
+        Returns
+        -------
+        list of dict
+            Per robot: ``F_meas`` (n, 3), ``lambda_meas`` and ``lambda_sensor`` (n, m), N.
         """
         width = 3 * len(self.normals)
         steps = int(round(self.period / self.time_step))
@@ -458,6 +528,11 @@ def add_pad_force_log(builder: DiagramBuilder, coop: CoopPlant, period: float,
         Each robot's F/T sensor model (for ``lambda_sensor``).
     log : bool
         Add the logger (without it only the hold, for the guards and live F/T models).
+
+    Returns
+    -------
+    PadForceLog
+        The log.
     """
     if coop.mode != "contact":
         raise ValueError(f"the pads' ground truth needs contact mode, not {coop.mode!r}")

@@ -71,7 +71,18 @@ def scaled_urdf_text(text: str, error: ModelError) -> str:
 
 
 def has_scaling(error: ModelError) -> bool:
-    """Whether any of the controller-model scales differs from 1."""
+    """Whether any of the controller-model scales differs from 1.
+
+    Parameters
+    ----------
+    error : ModelError
+        The scenario's model error.
+
+    Returns
+    -------
+    bool
+        True if a scale differs from 1.
+    """
     return any(s != 1.0 for s in (error.mass_scale, error.inertia_scale, error.damping_scale))
 
 
@@ -79,6 +90,18 @@ def controller_arm_model(arm: Arm, error: ModelError | None = None) -> ArmModel:
     """The controller's model of ``arm``: its controller URDF with ``error``'s scales.
 
     Without scaling (all scales 1) this is ``arm_model(arm)`` itself, parsed from the file.
+
+    Parameters
+    ----------
+    arm : Arm
+        The robot.
+    error : ModelError or None
+        The scales of the controller's model; None for none.
+
+    Returns
+    -------
+    ArmModel
+        The controller's model.
     """
     if error is None or not has_scaling(error):
         return arm_model(arm)
@@ -97,6 +120,22 @@ def add_payload(plant: MultibodyPlant, instance, mass: float,
     of ``sensor_joint``), fixed to the last link (its parent): it sits on the arm's side of the
     wrist sensor, so the ground-truth force (the reaction of ``sensor_joint``) does not weigh
     it. Nothing is added for ``mass == 0``. Call before ``plant.Finalize()``.
+
+    Parameters
+    ----------
+    plant : MultibodyPlant
+        The plant (not finalized).
+    instance : ModelInstanceIndex
+        The arm's model instance.
+    mass : float
+        The payload's mass, kg.
+    sensor_joint : str
+        The force sensor's weld joint.
+
+    Returns
+    -------
+    RigidBody or None
+        The payload's body, or None for ``mass == 0``.
     """
     if mass <= 0.0:
         return None

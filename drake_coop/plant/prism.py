@@ -45,6 +45,11 @@ def prism_section(points: np.ndarray, normals: np.ndarray, r_pad: float) -> Pris
     r_pad : float
         The pads' radius (m).
 
+    Returns
+    -------
+    PrismSection
+        The polygon.
+
     Raises
     ------
     ValueError

@@ -64,6 +64,13 @@ def _wrist_size(handles: ArmHandles) -> int:
 class WristKinematics(LeafSystem):
     """What every arm's wrist sensor needs from the plant, from one read of its ports.
 
+    Parameters
+    ----------
+    plant : MultibodyPlant
+        The finalized plant.
+    arms : list of ArmHandles
+        The arms.
+
     Input ports
     -----------
     reaction_forces, body_poses, body_spatial_velocities, body_spatial_accelerations
@@ -122,11 +129,11 @@ class WristKinematics(LeafSystem):
 
 
 class ArmForces:
-    """The equation of :class:`WristDynamics` without a system: every arm's wrist force ``F``
+    r"""The equation of :class:`WristDynamics` without a system: every arm's wrist force ``F``
     of one plant step, from the step's start state, acceleration and actuation.
 
     .. math::
-        J_x(q_j)^T F = M(q_j)\\,a + C(q_j, v_j) v_j - \\tau_g(q_j) + D (v_j + \\Delta t\\, a)
+        J_x(q_j)^T F = M(q_j)\,a + C(q_j, v_j) v_j - \tau_g(q_j) + D (v_j + \Delta t\, a)
                        - B u
 
     (SAP's momentum balance with the joints' damping taken implicitly; ``J_x`` the
@@ -197,12 +204,26 @@ class ArmForces:
         return out
 
     def steps(self, x: np.ndarray, a: np.ndarray, u: np.ndarray) -> list[np.ndarray]:
-        """``F`` of every arm for ``K`` plant steps at once: step ``i`` starts at ``x[i]``
+        r"""``F`` of every arm for ``K`` plant steps at once: step ``i`` starts at ``x[i]``
         (plant state ``[q, v]``) with the acceleration ``a[i]`` (the plant's
-        generalized-acceleration port, :math:`(v_{j+1} - v_j)/\\Delta t`) under ``u[i]``.
+        generalized-acceleration port, :math:`(v_{j+1} - v_j)/\Delta t`) under ``u[i]``.
 
         Returns one ``(K, 3)`` array per arm; the square solves are batched (NumPy's LU), the
         plant's calls are one inverse dynamics and one Jacobian per arm and step.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            Plant states ``[q, v]`` (K, n_x).
+        a : numpy.ndarray
+            Generalized accelerations (K, n_v).
+        u : numpy.ndarray
+            Actuation (K, n_u), N·m.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            Per arm ``F`` (K, 3), N, palm frame.
         """
         x = np.asarray(x, dtype=float).reshape(-1, self.nx)
         a = np.asarray(a, dtype=float).reshape(-1, self.nx - self.nq)
@@ -235,15 +256,15 @@ class ArmForces:
 
 
 class WristDynamics(LeafSystem):
-    """Every arm's ground-truth wrist force from the arm's own equations of motion, for the
+    r"""Every arm's ground-truth wrist force from the arm's own equations of motion, for the
     modes where the object's pull on the end-effector point is the only external force on an
     arm (``planes``, ``rigid``: a ball constraint at the end-effector body's origin).
 
-    For the plant step from ``(q_j, v_j)`` to :math:`v_{j+1} = v_j + \\Delta t\\, a` under the
+    For the plant step from ``(q_j, v_j)`` to :math:`v_{j+1} = v_j + \Delta t\, a` under the
     actuation ``u``, SAP's momentum balance with the joints' damping taken implicitly is
 
     .. math::
-        J_x(q_j)^T F = M(q_j)\\,a + C(q_j, v_j) v_j - \\tau_g(q_j) + D (v_j + \\Delta t\\, a)
+        J_x(q_j)^T F = M(q_j)\,a + C(q_j, v_j) v_j - \tau_g(q_j) + D (v_j + \Delta t\, a)
                        - B u,
 
     ``J_x`` the translational Jacobian of the end-effector point (columns of the arm's
@@ -263,11 +284,22 @@ class WristDynamics(LeafSystem):
     * with a control ``period`` of at least two plant steps, ``<robot>_lambda_last_step``,
       ``N_i F`` of the step that *ended* at the context's state: ``(q_j, v_j, u)`` held by a
       C++ hold at ``t_k − 3Δt/2`` (input ``held``, see :func:`add_force_sensors`) and
-      :math:`a = (v_{j+1} - v_j)/\\Delta t` from the live state (the acceleration port's own
+      :math:`a = (v_{j+1} - v_j)/\Delta t` from the live state (the acceleration port's own
       formula, bit for bit). Read in ``(t_k − Δt, t_k]`` it is the step ``[t_k − Δt, t_k)``:
       the F/T sensor model's reading of tick ``k``. The plant's solve is not repeated: reading
       the acceleration port between two plant updates would solve that step a second time
       (a change of time invalidates the solve; measured in ``docs/benchmark.md``).
+
+    Parameters
+    ----------
+    plant : MultibodyPlant
+        The finalized plant.
+    arms : list of ArmHandles
+        The arms.
+    time_step : float
+        The plant's step ``Δt``, s.
+    period : float or None
+        The control period ``h``, s; None for no latched outputs.
 
     Input ports
     -----------
@@ -388,6 +420,17 @@ def _holds_last_step(period: float, time_step: float) -> bool:
 class ForceSensor(LeafSystem):
     """Ground-truth wrist force of one arm (see the module's docstring).
 
+    Parameters
+    ----------
+    plant : MultibodyPlant
+        The finalized plant.
+    handles : ArmHandles
+        The arm.
+    period : float or None
+        The control period ``h``, s; None for no latched outputs.
+    direct : bool
+        Whether the input is :class:`WristDynamics`'s force (else :class:`WristKinematics`'s).
+
     Input ports
     -----------
     wrist : (3 + 12 k)-vector
@@ -438,7 +481,18 @@ class ForceSensor(LeafSystem):
             self.lambda_step = self.DeclareStateOutputPort("lambda_step", self._lambda_step)
 
     def force(self, context: Context) -> np.ndarray:
-        """The measured force vector (palm frame)."""
+        """The measured force vector (palm frame).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``F`` (3,), N.
+        """
         return self._force_cache.Eval(context)
 
     def _calc_force_cache(self, context: Context, value: AbstractValue) -> None:
@@ -494,7 +548,22 @@ def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | 
     ``None`` (the models read the live ``lambda_meas`` at ``t_k − 3Δt/2``).
 
     (In ``contact`` mode an experiment takes its ground truth from the pads' contact
-    forces instead, off the loop: :func:`~drake_coop.plant.ground_truth.add_pad_force_log`.)"""
+    forces instead, off the loop: :func:`~drake_coop.plant.ground_truth.add_pad_force_log`.)
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The experiment's builder (the plant is in it).
+    coop : CoopPlant
+        The plant.
+    period : float or None
+        The control period ``h``, s.
+
+    Returns
+    -------
+    list of ForceSensor
+        One per arm.
+    """
     plant = coop.plant
     direct = coop.mode in ("planes", "rigid")
     last_step = {}

@@ -100,6 +100,16 @@ TIME_LABEL = """
 def with_time_label(html: str) -> str:
     """Meshcat's static HTML with :data:`TIME_LABEL` added before ``</body>``.
 
+    Parameters
+    ----------
+    html : str
+        Meshcat's static HTML.
+
+    Returns
+    -------
+    str
+        The HTML with the label.
+
     Raises
     ------
     ValueError
@@ -114,6 +124,11 @@ def with_time_label(html: str) -> str:
 def draw_missing_svgs(out_dir: str | Path) -> list[Path]:
     """Draw the ``.svg`` of every ``.dot`` in ``out_dir`` that has none (a run written before
     graphviz was installed), when graphviz's ``dot`` is installed now.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        A run's folder.
 
     Returns
     -------
@@ -324,6 +339,7 @@ class MeshcatReplay:
         Returns
         -------
         MeshcatReplay
+            The recorder, to save after the run.
         """
         return cls(*_add_visualizer(builder, scene_graph, publish_period), live=live)
 

@@ -420,6 +420,20 @@ def path_plane(logs: dict[str, Log], robots: list[str], tol: float = 1e-9) -> tu
     within ``tol`` (m) of each other counted equal and ties broken in the order y, z, x. The
     paper's path (a circle in the y–z plane, lift and put-down along z) gives ``(1, 2)``, the
     y–z plane; a path along z only gives the y–z plane too.
+
+    Parameters
+    ----------
+    logs : dict of str to Log
+        The robots' logs.
+    robots : list of str
+        The robots drawn.
+    tol : float
+        Extents within this of each other are equal, m.
+
+    Returns
+    -------
+    tuple of int
+        The two axes (0 x, 1 y, 2 z).
     """
     extent = np.zeros(3)
     for r in robots:

@@ -113,6 +113,7 @@ def connected_graphviz(diagram: Diagram) -> str:
     Parameters
     ----------
     diagram : pydrake.systems.framework.Diagram
+        The built diagram.
 
     Returns
     -------

@@ -116,6 +116,20 @@ def check_output_folder(out: str | Path, option: str = "--out",
     ``out`` (or, when it does not exist yet, its nearest existing ancestor) must be a folder
     that accepts a new file and has ``need_bytes`` free; nothing is left behind.
 
+    Parameters
+    ----------
+    out : str or Path
+        The folder.
+    option : str
+        The option naming it, for messages.
+    need_bytes : int
+        The free space required, bytes.
+
+    Returns
+    -------
+    Path
+        ``out``.
+
     Raises
     ------
     OutputError
@@ -156,6 +170,16 @@ def staged_folder(out: str | Path) -> Iterator[Path]:
 
     If the block raises (a full disk, a signal), the staging folder is removed, ``out`` is
     left as it was and the exception propagates.
+
+    Parameters
+    ----------
+    out : str or Path
+        The folder to replace.
+
+    Yields
+    ------
+    Path
+        The staging folder.
     """
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -172,7 +196,15 @@ def staged_folder(out: str | Path) -> Iterator[Path]:
 def replace_folder(staging: Path, out: Path) -> None:
     """Rename the folder ``staging`` onto ``out``; a previous ``out`` is renamed aside to
     ``staging`` with the suffix ``.old`` first and removed after (put back if the rename
-    fails). Between the two renames ``out`` is briefly absent: call with signals deferred."""
+    fails). Between the two renames ``out`` is briefly absent: call with signals deferred.
+
+    Parameters
+    ----------
+    staging : Path
+        The finished folder.
+    out : Path
+        The target.
+    """
     old = None
     if out.is_dir():
         old = staging.with_suffix(".old")
@@ -188,14 +220,26 @@ def replace_folder(staging: Path, out: Path) -> None:
 
 
 class Locked(Exception):
-    """The lock file is held by another process (``holder``: its pid as text, or "")."""
+    """The lock file is held by another process (``holder``: its pid as text, or "").
+
+    Parameters
+    ----------
+    holder : str
+        The holder's pid as text, or ``""``.
+    """
 
     def __init__(self, holder: str):
         super().__init__(holder)
         self.holder = holder
 
     def by(self) -> str:
-        """`` (pid N)`` when the holder is known, else an empty string."""
+        """`` (pid N)`` when the holder is known, else an empty string.
+
+        Returns
+        -------
+        str
+            The text.
+        """
         return f" (pid {self.holder})" if self.holder.isdigit() else ""
 
 
@@ -203,6 +247,16 @@ def lock_file(path: str | Path) -> int:
     """Take an exclusive ``fcntl.flock`` on ``path`` (created if needed) without waiting, write
     this process's pid into it, and return its descriptor (closing it releases the lock; the
     kernel releases it when the process ends, however it ends).
+
+    Parameters
+    ----------
+    path : str or Path
+        The lock file.
+
+    Returns
+    -------
+    int
+        The file descriptor.
 
     Raises
     ------
@@ -233,6 +287,16 @@ def lock_file(path: str | Path) -> int:
 def lock_folder(path: str | Path) -> int:
     """Take an exclusive ``fcntl.flock`` on the folder ``path`` itself without waiting (the lock
     of :func:`lock_file`, with no file to leave behind) and return its descriptor.
+
+    Parameters
+    ----------
+    path : str or Path
+        The folder.
+
+    Returns
+    -------
+    int
+        The file descriptor.
 
     Raises
     ------

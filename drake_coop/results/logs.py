@@ -138,7 +138,18 @@ OPTIONAL_COLUMNS: dict[str, list[str]] = schema(3, 1, optional=True)
 
 def log_sizes(log: dict[str, np.ndarray]) -> tuple[int, int]:
     """``(n, m)`` of a log: joints from ``q`` (N, n), constraints from ``lambda_d``
-    ((N,): 1, (N, m): m). Shapes are checked by :func:`_check_log`."""
+    ((N,): 1, (N, m): m). Shapes are checked by :func:`_check_log`.
+
+    Parameters
+    ----------
+    log : dict of str to numpy.ndarray
+        One robot's log.
+
+    Returns
+    -------
+    n, m : int
+        Joints and constraints.
+    """
     n = np.shape(log["q"])[1] if np.ndim(log["q"]) == 2 else 0
     m = 1 if np.ndim(log["lambda_d"]) == 1 else int(np.shape(log["lambda_d"])[-1])
     return n, m
@@ -146,7 +157,18 @@ def log_sizes(log: dict[str, np.ndarray]) -> tuple[int, int]:
 
 def log_columns(log: dict[str, np.ndarray]) -> dict[str, list[str]]:
     """The CSV columns of ``log``: its schema's, plus the optional ones when it has all of
-    them."""
+    them.
+
+    Parameters
+    ----------
+    log : dict of str to numpy.ndarray
+        One robot's log.
+
+    Returns
+    -------
+    dict of str to list of str
+        Array name → its CSV columns.
+    """
     n, m = log_sizes(log)
     columns = schema(n, m)
     optional = schema(n, m, optional=True)
@@ -157,7 +179,18 @@ def log_columns(log: dict[str, np.ndarray]) -> dict[str, list[str]]:
 
 def csv_header(log: dict[str, np.ndarray] | None = None) -> str:
     """The CSV header line (without newline): the columns of :func:`log_columns` of ``log``,
-    or those of :data:`COLUMNS` (the paper's robots, no optional arrays) without a log."""
+    or those of :data:`COLUMNS` (the paper's robots, no optional arrays) without a log.
+
+    Parameters
+    ----------
+    log : dict of str to numpy.ndarray or None
+        One robot's log; None for the paper's robots.
+
+    Returns
+    -------
+    str
+        The header.
+    """
     columns = COLUMNS if log is None else log_columns(log)
     return ",".join(c for names in columns.values() for c in names)
 
@@ -226,7 +259,20 @@ def _meta_text(meta: dict) -> str:
 
 
 def write_meta(out_dir: str | Path, meta: dict) -> Path:
-    """(Re)write ``run.json`` alone, atomically (e.g. to mark outputs cut short)."""
+    """(Re)write ``run.json`` alone, atomically (e.g. to mark outputs cut short).
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The run's folder.
+    meta : dict
+        The run's metadata.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     return atomic_write_text(Path(out_dir) / "run.json", _meta_text(meta))
 
 

@@ -110,7 +110,20 @@ EVENT_METRICS = {"slips": ("count", False), "drops": ("count", False),
 def creep_floor(time_step: float, duration: float) -> float:
     """The creep floor (m): how far a box held still by friction slides on the pads in
     ``duration`` seconds at plant step ``time_step`` (s), from :data:`CREEP_RATE` scaled in
-    proportion to the step."""
+    proportion to the step.
+
+    Parameters
+    ----------
+    time_step : float
+        The plant's step, s.
+    duration : float
+        The time held still, s.
+
+    Returns
+    -------
+    float
+        The floor, m.
+    """
     return CREEP_RATE * (float(time_step) / 3e-3) * float(duration)
 
 
@@ -170,7 +183,20 @@ def turn_and_tilt(quaternions: np.ndarray, k0: int, axis: np.ndarray
 def pad_faces(meta: dict, robots: list[str]) -> list[tuple[np.ndarray, float] | None]:
     """Each robot's face ``(outward normal in the object's frame, offset)`` from the run's
     ``object_faces`` (the prism of three or more pads), or None per robot for the two-pad box
-    (its ``±x`` face on the pad's side, at ``object_size[0] / 2``)."""
+    (its ``±x`` face on the pad's side, at ``object_size[0] / 2``).
+
+    Parameters
+    ----------
+    meta : dict
+        The run's metadata.
+    robots : list of str
+        The robots, in order.
+
+    Returns
+    -------
+    list
+        Per robot ``(normal (3,), offset in m)`` or None.
+    """
     faces = meta.get("object_faces")
     if faces is None:
         return [None] * len(robots)
@@ -191,7 +217,22 @@ def grasp_axis(pads_in_object: list[np.ndarray], half_width: float,
     """The grasp line's unit direction in the box's frame from the pads' centres in it (each
     projected on its face: the ``±x`` face of the box, or the pad's own face ``faces[i]``,
     :func:`pad_faces`: the contact point): through the two contact points, or with three or
-    more the normal of the plane through them (the smallest singular vector)."""
+    more the normal of the plane through them (the smallest singular vector).
+
+    Parameters
+    ----------
+    pads_in_object : list of numpy.ndarray
+        The pads' centres in the object's frame (3,), m.
+    half_width : float
+        The box's half x size, m.
+    faces : list or None
+        :func:`pad_faces`' faces; None for the box's.
+
+    Returns
+    -------
+    numpy.ndarray
+        The unit direction (3,).
+    """
     faces = [None] * len(pads_in_object) if faces is None else faces
     points = np.array([_on_face(np.asarray(c, dtype=float), f, half_width)
                        for c, f in zip(pads_in_object, faces)])
@@ -243,6 +284,11 @@ def object_signals(logs: dict[str, dict[str, np.ndarray]], meta: dict
     meta : dict
         Run metadata: ``phases``, ``friction`` (``μ``) and ``object_size`` (the box's x, y,
         z size, m).
+
+    Returns
+    -------
+    dict or None
+        ``signals[robot][name]``, or None.
     """
     robots = [r for r, log in logs.items() if "object_pose" in log]
     if not robots or len(robots) != len(logs):
@@ -370,7 +416,22 @@ def slip_between(logs: dict[str, dict[str, np.ndarray]], meta: dict, t0: float, 
                  ) -> dict[str, float]:
     """Each pad's sliding on the box from ``t0`` to ``t1`` (m): the ``slip`` of the module
     summed over the samples in ``[t0, t1]`` only (from the plant's logged poses, net of
-    rolling). With the path held still, this is the box's creep against the pads."""
+    rolling). With the path held still, this is the box's creep against the pads.
+
+    Parameters
+    ----------
+    logs : dict
+        ``logs[robot][array]`` of a ``contact`` run.
+    meta : dict
+        The run's metadata.
+    t0, t1 : float
+        The interval, s.
+
+    Returns
+    -------
+    dict of str to float
+        Robot → its pad's sliding, m.
+    """
     robots = list(logs)
     first = logs[robots[0]]
     t = np.asarray(first["t"], dtype=float)
@@ -398,6 +459,11 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
         ``phases``, ``friction``, ``object_size``.
     masks : dict
         ``phase -> mask`` of the samples (:func:`~drake_coop.results.metrics.phase_masks`).
+
+    Returns
+    -------
+    dict
+        ``metrics[robot][phase][name]``.
     """
     signals = object_signals(logs, meta)
     if signals is None:

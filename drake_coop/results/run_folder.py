@@ -51,7 +51,18 @@ MAX_RUN_JSON_BYTES = 16_000_000
 def previous_run(path: Path) -> str | None:
     """The message of the run held in ``path`` if it is a result (completed, diverged, or
     stopped by a robot's watchdog: ``drake-coop serve``), else None (no run, an interrupted
-    one, or an unreadable ``run.json``)."""
+    one, or an unreadable ``run.json``).
+
+    Parameters
+    ----------
+    path : Path
+        The target folder.
+
+    Returns
+    -------
+    str or None
+        The message, or None.
+    """
     meta_path = path / "run.json"
     try:
         if meta_path.is_symlink() or meta_path.stat().st_size > MAX_RUN_JSON_BYTES:
@@ -130,6 +141,11 @@ class RunFolder:
         replace : bool
             Replace a previous run that completed or diverged (see :func:`previous_run`).
 
+        Returns
+        -------
+        Path
+            The staging folder.
+
         Raises
         ------
         OutputFolderError
@@ -202,6 +218,11 @@ class RunFolder:
 
         Call with SIGINT/SIGTERM deferred: between the two renames the target is briefly
         absent (the previous run is in ``.<name>.drake-coop-…old``, removed right after).
+
+        Returns
+        -------
+        Path
+            The target.
         """
         assert self.staging is not None, "prepare() first"
         replace_folder(self.staging, self.out)

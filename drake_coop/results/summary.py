@@ -39,7 +39,18 @@ _COLUMNS = (
 
 
 def summary_phase(metrics: dict) -> str:
-    """``circle`` when every robot has it (a run that reached the circle), else ``all``."""
+    """``circle`` when every robot has it (a run that reached the circle), else ``all``.
+
+    Parameters
+    ----------
+    metrics : dict
+        ``metrics[robot][phase]``.
+
+    Returns
+    -------
+    str
+        ``circle`` or ``all``.
+    """
     return "circle" if metrics and all("circle" in m for m in metrics.values()) else "all"
 
 

@@ -106,9 +106,17 @@ def held_box_pose(p_E1: np.ndarray, p_E2: np.ndarray, r_pad: float
     its centre is the midpoint of the two end-effector points (``planes`` mode: the pads'
     centres lie on the planes ``x = b_i``).
 
+    Parameters
+    ----------
+    p_E1, p_E2 : numpy.ndarray
+        The two end-effector points (3,), m, palm frame.
+    r_pad : float
+        The pads' radius, m.
+
     Returns
     -------
     (centre, size) : (ndarray, ndarray), each shape (3,)
+        The box's centre and size, m.
     """
     p1, p2 = np.asarray(p_E1, dtype=float), np.asarray(p_E2, dtype=float)
     width = max(abs(p2[0] - p1[0]) - 2 * r_pad, 1e-3)
@@ -122,9 +130,17 @@ def held_disc_pose(points: list[np.ndarray], r_pad: float) -> tuple[np.ndarray, 
     distance from it minus the pad radius, so that the disc's rim touches each pad's surface
     when the pads stand on a circle (the three-arm scenario).
 
+    Parameters
+    ----------
+    points : list of numpy.ndarray
+        The end-effector points (3,), m, palm frame.
+    r_pad : float
+        The pads' radius, m.
+
     Returns
     -------
     (centre, radius) : (ndarray shape (3,), float)
+        The disc's centre and radius, m.
     """
     p = np.asarray(points, dtype=float)
     centre = p.mean(axis=0)
@@ -141,9 +157,17 @@ def workspace_camera(arms: list[Arm], z_target: float) -> tuple[np.ndarray, np.n
     paper) give ``d`` = the distance between their bases. Three or more arms stand around the
     target, one of them between it and the camera: the distance is ``1.6 d`` then.
 
+    Parameters
+    ----------
+    arms : list of Arm
+        The arms.
+    z_target : float
+        The target's height, m.
+
     Returns
     -------
     (camera_in_world, target_in_world) : (ndarray, ndarray)
+        The camera's position and target (3,), m.
     """
     bases = np.array([a.p_base for a in arms])
     target = bases.mean(axis=0)
@@ -171,6 +195,7 @@ class ForceArrows(LeafSystem):
     Parameters
     ----------
     meshcat : pydrake.geometry.Meshcat
+        The viewer.
     arms : list[Arm]
         The robots; ``m`` of each is its number of normals (``arm.N`` rows).
     n_joints : list[int], optional
@@ -235,7 +260,20 @@ class ForceArrows(LeafSystem):
     # ------------------------------------------------------------------ publishing
     def forces(self, context: Context, i: int) -> dict[str, np.ndarray]:
         """Robot i's force on the object (N, palm frame): desired ``−N_iᵀ λ_d``, measured
-        ``−F_meas``, estimated ``−N_iᵀ λ̂``."""
+        ``−F_meas``, estimated ``−N_iᵀ λ̂``.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        i : int
+            The robot's index.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            ``desired``, ``measured``, ``estimated`` (3,), N.
+        """
         ports = self._ports[i]
         N = self._arms[i].N
         rows = self._layouts[i].slices()
@@ -246,11 +284,35 @@ class ForceArrows(LeafSystem):
                 "estimated": -(N.T @ lambda_hat)}
 
     def held(self, context: Context) -> bool:
-        """Whether the first robot's reference says the object is held."""
+        """Whether the first robot's reference says the object is held.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        bool
+            True while held.
+        """
         return self._layouts[0].held(self._ports[0]["reference"].Eval(context))
 
     def ee_point(self, context: Context, i: int) -> np.ndarray:
-        """End-effector point ``fk(q)`` of robot i (palm frame)."""
+        """End-effector point ``fk(q)`` of robot i (palm frame).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        i : int
+            The robot's index.
+
+        Returns
+        -------
+        numpy.ndarray
+            The point (3,), m.
+        """
         n = self._layouts[i].n
         return self._arms[i].fk(self._ports[i]["state"].Eval(context)[:n])
 
@@ -332,10 +394,16 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
     coop : CoopPlant
         The cooperative plant (arms, object mode).
     meshcat : pydrake.geometry.Meshcat
+        The viewer.
     scale : float
         Metres of arrow per newton.
     publish_period : float
         Seconds between drawings.
+
+    Returns
+    -------
+    ForceArrows
+        The system added.
     """
     arms = [h.arm for h in coop.arms]
     arrows = builder.AddNamedSystem("force_arrows", ForceArrows(
@@ -368,6 +436,16 @@ def add_force_arrows(builder: DiagramBuilder, coop: CoopPlant, meshcat: Meshcat,
 
 def frame_workspace(meshcat: Meshcat, arms: list[Arm], z_target: float) -> None:
     """Point Meshcat's camera at every arm and the space between them
-    (:func:`workspace_camera`); the HTML replay opens with this view."""
+    (:func:`workspace_camera`); the HTML replay opens with this view.
+
+    Parameters
+    ----------
+    meshcat : Meshcat
+        The viewer.
+    arms : list of Arm
+        The arms.
+    z_target : float
+        The target's height, m.
+    """
     camera, target = workspace_camera(arms, z_target)
     meshcat.SetCameraPose(camera, target)

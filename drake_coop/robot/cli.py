@@ -48,7 +48,13 @@ MEMQ_NOTE = ("memq:// is in-process only: a driver in another process cannot rea
 
 
 def add_robot_parsers(sub) -> None:
-    """Register ``serve`` and ``sim-driver`` on the ``drake-coop`` subparsers."""
+    """Register ``serve`` and ``sim-driver`` on the ``drake-coop`` subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``drake-coop`` subparsers.
+    """
     serve = sub.add_parser("serve", help="run the control blocks against the wall clock over "
                                          "the arms' LCM drivers")
     serve.add_argument("scenario", help="scenario YAML or shipped scenario name")
@@ -137,7 +143,13 @@ def _load(args, wait_option: str, wait: float):
 
 def check_lcm_url(url) -> None:
     """Raise ``ValueError`` (one line naming ``--lcm-url``) unless ``url`` is None or a URL of
-    one of :data:`LCM_PROVIDERS`."""
+    one of :data:`LCM_PROVIDERS`.
+
+    Parameters
+    ----------
+    url : str or None
+        ``--lcm-url``'s value.
+    """
     if url is None:
         return
     if not isinstance(url, str) or "://" not in url:
@@ -160,7 +172,18 @@ def _make_lcm(url):
 
 
 def cmd_serve(args) -> int:
-    """``drake-coop serve``: see the module's docstring."""
+    """``drake-coop serve``: see the module's docstring.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit code: 0 done, 1 stopped by the watchdog (or no status), 2 bad input.
+    """
     if args.delay_margin is not None and not (0 <= args.delay_margin < 1):
         return _error(f"--delay-margin must be a number in [0, 1) s, got {args.delay_margin}")
     loaded = _load(args, "--status-wait", args.status_wait)
@@ -345,7 +368,18 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
 
 
 def cmd_sim_driver(args) -> int:
-    """``drake-coop sim-driver``: see the module's docstring."""
+    """``drake-coop sim-driver``: see the module's docstring.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit code: 0 done, 1 no command within ``--command-wait``, 2 bad input.
+    """
     loaded = _load(args, "--command-wait", args.command_wait)
     if isinstance(loaded, int):
         return loaded

@@ -82,7 +82,18 @@ def shared_message_type(lcm_type):
     of its eight arrays several times per message, most of the split run's time).
 
     Safe because a decoded message is never modified: its arrays are tuples and nothing here
-    writes its fields."""
+    writes its fields.
+
+    Parameters
+    ----------
+    lcm_type : type
+        A generated LCM message class.
+
+    Returns
+    -------
+    type
+        Its subclass whose ``__deepcopy__`` returns the message itself.
+    """
 
     class Shared(lcm_type):
         __slots__ = []
@@ -110,7 +121,33 @@ SharedPandaCommand = shared_message_type(lcmt_panda_command)
 
 @dataclass(frozen=True)
 class DriverSpec:
-    """One arm's driver, resolved from ``robots[i].driver`` (defaults filled in)."""
+    """One arm's driver, resolved from ``robots[i].driver`` (defaults filled in).
+
+    Attributes
+    ----------
+    robot : str
+        The robot's name.
+    kind : str
+        The driver's messages (``panda``).
+    status_channel, command_channel : str
+        The LCM channels.
+    n : int
+        The arm's joints.
+    period : float
+        The driver's cycle, s.
+    torque_limits : numpy.ndarray or None
+        The commanded torque's limits (n,), N·m; None: none given.
+    max_status_age : float
+        The watchdog's largest status age, s.
+    command_timeout : float
+        The driver's largest command age, s.
+    safe_command : str
+        ``zero_torque`` or ``hold``.
+    clock_phase : float
+        The simulated driver's clock phase, s.
+    clock_drift : float
+        The simulated driver's relative clock-rate error.
+    """
 
     robot: str
     kind: str
@@ -129,6 +166,18 @@ class DriverSpec:
 
 def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
     """Each robot's :class:`DriverSpec` (``joints``: each arm's ``n``).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    joints : list of int
+        Each arm's ``n``.
+
+    Returns
+    -------
+    list of DriverSpec
+        One per robot.
 
     Raises
     ------
@@ -233,7 +282,30 @@ class CommandHold(LeafSystem):
 
 @dataclass
 class ArmController:
-    """One arm's controller-side systems."""
+    """One arm's controller-side systems.
+
+    Attributes
+    ----------
+    spec : DriverSpec
+        Its driver.
+    block : ControllerHandles
+        Its control block.
+    watchdog : Watchdog
+        Its watchdog.
+    status_subscriber : LcmSubscriberSystem or None
+        The status subscriber (None with ``status_input="loop"``).
+    status_receiver : CheckedStatusReceiver or None
+        The status decoder (None with ``status_input="loop"``).
+    command_sender : PandaCommandSender
+        The command encoder.
+    command_publisher : LcmPublisherSystem
+        The command publisher.
+    hold_torque : object
+        The ``hold`` safe command's torque: the controller model's gravity ``g(q)`` (a
+        callable of the last good position).
+    position_input : PassThrough or None
+        The checked reading's entry with ``status_input="loop"``.
+    """
 
     spec: DriverSpec
     block: ControllerHandles
@@ -250,7 +322,23 @@ class ArmController:
 
 @dataclass
 class ArmDriver:
-    """One arm's simulated-driver systems."""
+    """One arm's simulated-driver systems.
+
+    Attributes
+    ----------
+    spec : DriverSpec
+        Its driver.
+    command_subscriber : LcmSubscriberSystem
+        The command subscriber.
+    command_receiver : PandaCommandReceiver
+        The command decoder.
+    hold : CommandHold
+        The command's hold (zero torque past ``command_timeout``).
+    status_sender : PandaStatusSender
+        The status encoder.
+    status_publisher : LcmPublisherSystem
+        The status publisher (every driver cycle).
+    """
 
     spec: DriverSpec
     command_subscriber: LcmSubscriberSystem
@@ -263,7 +351,17 @@ class ArmDriver:
 @dataclass
 class ControllerSide:
     """The controller side's systems in a builder (``model_plant``: the plant the control
-    blocks take their models and checks from; it is not part of the Diagram)."""
+    blocks take their models and checks from; it is not part of the Diagram).
+
+    Attributes
+    ----------
+    arms : list of ArmController
+        One per arm.
+    model_plant : CoopPlant
+        The plant the blocks' models come from.
+    keep : list
+        Objects kept alive with the systems.
+    """
 
     arms: list[ArmController]
     model_plant: CoopPlant
@@ -272,7 +370,15 @@ class ControllerSide:
 
 @dataclass
 class DriverSide:
-    """The simulated driver's plant and per-arm systems in a builder."""
+    """The simulated driver's plant and per-arm systems in a builder.
+
+    Attributes
+    ----------
+    coop : CoopPlant
+        The plant.
+    arms : list of ArmDriver
+        One per arm.
+    """
 
     coop: CoopPlant
     arms: list[ArmDriver]
@@ -286,6 +392,18 @@ def add_lcm_interface(builder: DiagramBuilder, lcm: DrakeLcm) -> LcmInterfaceSys
     (``lcm.HandleSubscriptions``) between ``AdvanceTo`` calls, as ``drake-coop serve`` does.
     Plain Python handlers (``lcm.Subscribe``) must not be pumped inside ``AdvanceTo``: drake
     1.58 releases the GIL there and such a handler crashes the process (drake 1.51 does not).
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The builder.
+    lcm : DrakeLcm
+        The LCM connection.
+
+    Returns
+    -------
+    LcmInterfaceSystem
+        The system added.
     """
     return builder.AddNamedSystem("lcm_interface", LcmInterfaceSystem(lcm))
 
@@ -293,7 +411,22 @@ def add_lcm_interface(builder: DiagramBuilder, lcm: DrakeLcm) -> LcmInterfaceSys
 def urdf_limits(plant, instance) -> tuple[np.ndarray, np.ndarray]:
     """``(effort, velocity)``: the URDF's limits of a model instance's joints, read through
     the plant (its joint actuators' effort limits, in the order of the instance's velocities;
-    ``inf`` where none is given)."""
+    ``inf`` where none is given).
+
+    Parameters
+    ----------
+    plant : MultibodyPlant
+        A finalized plant.
+    instance : ModelInstanceIndex
+        The arm's model instance.
+
+    Returns
+    -------
+    effort : numpy.ndarray
+        N·m (N for a prismatic joint), (n,).
+    velocity : numpy.ndarray
+        rad/s (m/s), (n,).
+    """
     effort = plant.GetVelocitiesFromArray(
         instance, plant.MakeActuationMatrix() @ plant.GetEffortUpperLimits())
     velocity = plant.GetVelocitiesFromArray(instance, plant.GetVelocityUpperLimits())
@@ -333,6 +466,28 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     watchdog's limits: each arm's ``spec.torque_limits`` (in the returned
     :class:`ArmController`) is the driver's or the actuators' torque limits, else the URDF's
     effort limits (:func:`urdf_limits`), and its velocity limits the URDF's.
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The controller's builder.
+    scenario : Scenario
+        The scenario.
+    lcm : DrakeLcm
+        The LCM connection.
+    plan : RunPlan
+        The run's plan.
+    specs : list of DriverSpec or None
+        The drivers; None resolves them here.
+    status_input : str
+        ``subscriber`` or ``loop``.
+    robots : list of str or None
+        The arms to add; None for all.
+
+    Returns
+    -------
+    ControllerSide
+        The systems added.
 
     Raises
     ------
@@ -437,7 +592,24 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
 def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
                     specs: list[DriverSpec] | None = None) -> DriverSide:
     """Add the scenario's cooperative plant (on the run's time grid) and each arm's simulated
-    driver to ``builder``."""
+    driver to ``builder``.
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The driver's builder.
+    scenario : Scenario
+        The scenario.
+    lcm : DrakeLcm
+        The LCM connection.
+    specs : list of DriverSpec or None
+        The drivers; None resolves them here.
+
+    Returns
+    -------
+    DriverSide
+        The systems added.
+    """
     coop = build_plant(builder, scenario, time_grid(scenario)[1])
     plant = coop.plant
     joints = [plant.num_positions(a.instance) for a in coop.arms]
@@ -482,7 +654,22 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
 
 
 def safe_command_message(spec: DriverSpec, tau: np.ndarray, utime: int) -> lcmt_panda_command:
-    """A torque-mode ``lcmt_panda_command`` carrying ``tau`` (non-finite entries sent as 0)."""
+    """A torque-mode ``lcmt_panda_command`` carrying ``tau`` (non-finite entries sent as 0).
+
+    Parameters
+    ----------
+    spec : DriverSpec
+        The arm's driver.
+    tau : numpy.ndarray
+        The torque (n,), N·m.
+    utime : int
+        The message's time stamp, µs.
+
+    Returns
+    -------
+    lcmt_panda_command
+        The message.
+    """
     msg = lcmt_panda_command()
     msg.utime = int(utime)
     msg.control_mode_expected = lcmt_panda_status.CONTROL_MODE_TORQUE

@@ -42,7 +42,20 @@ class LoopbackResult:
     """Per robot ``t``, ``lambda_meas`` (the plant's squeeze), ``lambda_d`` and
     ``tau_commanded`` (the newest command the driver had received at ``t``: the wire's; zero
     before the first); the status (``ok`` or ``stopped``, with the watchdog's one-line
-    reason) and the wall time."""
+    reason) and the wall time.
+
+    Attributes
+    ----------
+    logs : dict of str to dict of str to numpy.ndarray
+        ``logs[robot][array]``: ``t`` (s), ``lambda_meas``, ``lambda_d`` (N),
+        ``tau_commanded`` (N·m).
+    status : str
+        ``ok`` or ``stopped``.
+    message : str
+        The watchdog's reason, or ``''``.
+    wall_time : float
+        The run's wall time, s.
+    """
 
     logs: dict[str, dict[str, np.ndarray]]
     status: str
@@ -55,7 +68,28 @@ def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
                      q0: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """The run's start: the driver's arms at rest at ``q_d(0)`` (sliders at the grasp
     height), the controller's observers at ``q̂ = q0`` and its watchdogs untripped with
-    ``q0`` as their last good reading (default ``q0``: ``q_d(0)``, the arms' rest)."""
+    ``q0`` as their last good reading (default ``q0``: ``q_d(0)``, the arms' rest).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    plan : RunPlan
+        The run's plan.
+    context : Context
+        The root context.
+    driver : DriverSide or None
+        The driver's side, if in this Diagram.
+    controller : ControllerSide or None
+        The controller's side, if in this Diagram.
+    q0 : list of numpy.ndarray or None
+        Each arm's start reading (n,), rad; None for ``q_d(0)``.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        The start readings ``q0`` used (n,), rad.
+    """
     rest, z_grasp = rest_posture(scenario, list(plan.arms))
     if driver is not None:
         initialize_plant_context(driver.coop,
@@ -73,7 +107,20 @@ def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
 
 
 def tripped(controller: ControllerSide, context: Context) -> str | None:
-    """``"<robot>: <reason> on <status channel>"`` of the first tripped watchdog, else None."""
+    """``"<robot>: <reason> on <status channel>"`` of the first tripped watchdog, else None.
+
+    Parameters
+    ----------
+    controller : ControllerSide
+        The controller's side.
+    context : Context
+        The root context.
+
+    Returns
+    -------
+    str or None
+        The line, or None.
+    """
     for arm in controller.arms:
         wd = arm.watchdog
         wd_context = wd.GetMyContextFromRoot(context)
@@ -85,6 +132,20 @@ def tripped(controller: ControllerSide, context: Context) -> str | None:
 def run_loopback(scenario: Scenario, t_end: float | None = None, *,
                  lcm_url: str = "memq://") -> LoopbackResult:
     """Run the experiment with the controller and the simulated driver joined by LCM only.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario (``planes`` or ``rigid``).
+    t_end : float or None
+        The run's end, s; None for the task's.
+    lcm_url : str
+        The LCM URL (``memq://``: in-process).
+
+    Returns
+    -------
+    LoopbackResult
+        The logs and the status.
 
     Raises
     ------
@@ -146,7 +207,22 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
 
 def squeeze_error(logs: dict[str, dict[str, np.ndarray]], scenario: Scenario,
                   phase: str = "circle") -> dict[str, float]:
-    """RMS of ``λ − λ_d`` over a phase, per robot (the norm per sample for ``m >= 2``)."""
+    """RMS of ``λ − λ_d`` over a phase, per robot (the norm per sample for ``m >= 2``).
+
+    Parameters
+    ----------
+    logs : dict
+        ``logs[robot][array]`` of :class:`LoopbackResult`.
+    scenario : Scenario
+        The scenario (its phases).
+    phase : str
+        The phase.
+
+    Returns
+    -------
+    dict of str to float
+        Robot → the RMS, N.
+    """
     out = {}
     for name, log in logs.items():
         e = np.asarray(log["lambda_meas"], dtype=float) - np.asarray(log["lambda_d"], dtype=float)

@@ -11,7 +11,7 @@ publication (``t_k + COMMAND_OFFSET``). Per tick it records:
 * ``lateness`` — when the command left, against ``t0 + t_k``;
 * ``status_age`` — age of the newest status the tick used (the oldest over the arms), from
   its arrival in this process;
-* ``missed`` — the command left after ``t_{k+1}`` (the next tick's deadline);
+* ``missed`` — the command left after :math:`t_{k+1}` (the next tick's deadline);
 * ``wait`` — how long the tick waited past ``t0 + t_k`` for a fresh status of every arm
   (ticking on the status's arrival, :func:`~drake_coop.robot.serve_loop.run_on_arrival`;
   0 on the wall-clock grid).
@@ -40,7 +40,25 @@ PACING_COLUMNS = ("k", "t", "compute_s", "lateness_s", "status_age_s", "missed",
 
 @dataclass
 class PacingRecord:
-    """Per-tick figures of a paced run (see the module's docstring)."""
+    """Per-tick figures of a paced run (see the module's docstring).
+
+    Attributes
+    ----------
+    period : float
+        The control period ``h``, s.
+    driver_period : float
+        The driver's cycle, s.
+    k : list of int
+        The ticks.
+    compute : list of float
+        Each tick's computation, s.
+    lateness : list of float
+        Each tick's start after its deadline, s.
+    status_age : list of float
+        The oldest status's age at the tick, s.
+    wait : list of float
+        The wait for a fresh status past the grid time, s.
+    """
 
     period: float
     driver_period: float
@@ -52,6 +70,21 @@ class PacingRecord:
 
     def add(self, k: int, compute: float, lateness: float, status_age: float,
             wait: float = 0.0) -> None:
+        """Record one tick's figures.
+
+        Parameters
+        ----------
+        k : int
+            The tick.
+        compute : float
+            Its computation, s.
+        lateness : float
+            Its lateness, s.
+        status_age : float
+            The oldest status's age, s.
+        wait : float
+            The wait past the grid time, s.
+        """
         self.k.append(k)
         self.compute.append(compute)
         self.lateness.append(lateness)
@@ -59,6 +92,13 @@ class PacingRecord:
         self.wait.append(wait)
 
     def arrays(self) -> dict[str, np.ndarray]:
+        """The figures as arrays (the columns of :data:`PACING_COLUMNS`).
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            Column → values (times in s).
+        """
         k = np.asarray(self.k, dtype=int)
         lateness = np.asarray(self.lateness, dtype=float)
         return {"k": k, "t": k * self.period, "compute_s": np.asarray(self.compute, dtype=float),
@@ -86,6 +126,19 @@ class StatusArrivals:
     gives the first faulty message since the last :meth:`take` in preference to the newest,
     so that a bad message followed by good ones between two ticks is still seen by the next
     tick.
+
+    Parameters
+    ----------
+    lcm : DrakeLcm
+        The LCM connection.
+    channels : list of str
+        The status channels.
+    check : dict or None
+        Channel → ``check(data) -> bool``.
+    parse : dict or None
+        Channel → ``parse(data)``.
+    check_many : dict or None
+        Channel → ``check_many(messages) -> int``.
     """
 
     def __init__(self, lcm, channels: list[str], check: dict | None = None,
@@ -143,17 +196,50 @@ class StatusArrivals:
         return self._faulty
 
     def parsed(self, channel: str):
-        """``parse`` (given for the channel) of the newest message."""
+        """``parse`` (given for the channel) of the newest message.
+
+        Parameters
+        ----------
+        channel : str
+            The channel.
+
+        Returns
+        -------
+        object
+            The parsed message.
+        """
         return self._parse[channel](self.message[channel])
 
     def take_parsed(self, channel: str):
-        """``parse`` of what :meth:`take` gives (None before the first message)."""
+        """``parse`` of what :meth:`take` gives (None before the first message).
+
+        Parameters
+        ----------
+        channel : str
+            The channel.
+
+        Returns
+        -------
+        object or None
+            The parsed message.
+        """
         data = self.take(channel)
         return None if data is None else self._parse[channel](data)
 
     def take(self, channel: str) -> bytes | None:
         """The first faulty message since the last call if any (then forgotten), else the
-        newest."""
+        newest.
+
+        Parameters
+        ----------
+        channel : str
+            The channel.
+
+        Returns
+        -------
+        bytes or None
+            The message's bytes.
+        """
         self._settle(channel)
         data = self._faulty[channel]
         if data is None:
@@ -162,16 +248,42 @@ class StatusArrivals:
         return data
 
     def all_arrived(self) -> bool:
+        """Whether every channel has had a message.
+
+        Returns
+        -------
+        bool
+            True once each has.
+        """
         return all(n > 0 for n in self.count.values())
 
     def age(self, now: float) -> float:
-        """The oldest newest-status age over the channels (s)."""
+        """The oldest newest-status age over the channels (s).
+
+        Parameters
+        ----------
+        now : float
+            The wall time (``time.perf_counter``), s.
+
+        Returns
+        -------
+        float
+            The age, s.
+        """
         return max(now - t for t in self.last.values())
 
 
 def pump_until(lcm, deadline: float) -> None:
     """Handle LCM messages as they arrive until the wall clock reaches ``deadline``
-    (``time.perf_counter`` seconds); the last fraction of a millisecond is slept."""
+    (``time.perf_counter`` seconds); the last fraction of a millisecond is slept.
+
+    Parameters
+    ----------
+    lcm : DrakeLcm
+        The LCM connection.
+    deadline : float
+        The wall time, s.
+    """
     while True:
         remaining = deadline - time.perf_counter()
         if remaining <= 0:
@@ -193,6 +305,34 @@ def run_paced(simulator, lcm, arrivals: StatusArrivals, h: float, k_end: int, of
     to ``record`` (its computation includes ``before_tick``). ``after_tick(k)`` returning a
     string stops the loop (the watchdog's reason); it is returned. ``t0`` is ``lead`` seconds
     after the call.
+
+    Parameters
+    ----------
+    simulator : Simulator
+        The controller's simulator.
+    lcm : DrakeLcm
+        The LCM connection.
+    arrivals : StatusArrivals
+        The statuses.
+    h : float
+        The control period, s.
+    k_end : int
+        The last tick.
+    offset : float
+        How far past ``k h`` each ``AdvanceTo`` goes, s.
+    record : PacingRecord
+        Receives the figures.
+    after_tick : Callable[[int], str or None] or None
+        Called after each tick.
+    lead : float
+        The wait before tick 0, s.
+    before_tick : Callable[[int], None] or None
+        Called before each tick.
+
+    Returns
+    -------
+    str
+        ``after_tick``'s reason, or ``''`` after ``k_end``.
     """
     t0 = time.perf_counter() + lead
     for k in range(k_end + 1):
@@ -212,6 +352,20 @@ def run_paced(simulator, lcm, arrivals: StatusArrivals, h: float, k_end: int, of
 
 
 def percentile(x: np.ndarray, q: float) -> float:
+    """The ``q``-th percentile of ``x`` (NaN when empty).
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The values.
+    q : float
+        The percentile, 0 to 100.
+
+    Returns
+    -------
+    float
+        The percentile.
+    """
     x = np.asarray(x, dtype=float)
     return float(np.percentile(x, q)) if x.size else math.nan
 
@@ -221,6 +375,18 @@ def pacing_summary(record: PacingRecord, margin: float | None) -> dict:
 
     ``met`` is True when no deadline was missed and the 99th percentile of the loop's delay
     (``status_age + lateness + driver cycle``) is within the margin.
+
+    Parameters
+    ----------
+    record : PacingRecord
+        The run's figures.
+    margin : float or None
+        The delay margin, s.
+
+    Returns
+    -------
+    dict
+        The summary (times in s).
     """
     a = record.arrays()
     delay = a["status_age_s"] + a["lateness_s"] + record.driver_period
@@ -245,7 +411,18 @@ def pacing_summary(record: PacingRecord, margin: float | None) -> dict:
 
 
 def summary_line(summary: dict) -> str:
-    """One line for the terminal."""
+    """One line for the terminal.
+
+    Parameters
+    ----------
+    summary : dict
+        :func:`pacing_summary`'s.
+
+    Returns
+    -------
+    str
+        The line (times in ms).
+    """
     ms = 1e3
     margin = summary["delay_margin_s"]
     verdict = ("margin unknown" if summary["met_margin"] is None else
@@ -261,7 +438,20 @@ def summary_line(summary: dict) -> str:
 def delay_margin(scenario, *, epsilon: float = 1e-5) -> float:
     """The largest computation delay ``d`` (whole plant steps, up to ``h``) for which the
     stability map (:mod:`drake_coop.stability`, free operating point) gives ``ρ < 1`` at every
-    delay from 0 to ``d``; 0 if only the undelayed loop is stable, NaN if not even that."""
+    delay from 0 to ``d``; 0 if only the undelayed loop is stable, NaN if not even that.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    epsilon : float
+        The central differences' step.
+
+    Returns
+    -------
+    float
+        ``d``, s.
+    """
     import copy
 
     from drake_coop.scenario.loading import dump_scenario
@@ -282,7 +472,15 @@ def delay_margin(scenario, *, epsilon: float = 1e-5) -> float:
 
 
 def write_pacing_csv(path: Path, record: PacingRecord) -> None:
-    """``pacing.csv``: one row per tick (:data:`PACING_COLUMNS`), written whole."""
+    """``pacing.csv``: one row per tick (:data:`PACING_COLUMNS`), written whole.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    record : PacingRecord
+        The figures.
+    """
     from drake_coop.results.io import atomic_write_text
 
     a = record.arrays()
@@ -296,7 +494,17 @@ def write_pacing_csv(path: Path, record: PacingRecord) -> None:
 
 def plot_pacing(path: Path, record: PacingRecord, summary: dict) -> None:
     """``pacing.png``: histograms of computation time and lateness, their time series and the
-    status age, with the delay margin drawn."""
+    status age, with the delay margin drawn.
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    record : PacingRecord
+        The figures.
+    summary : dict
+        :func:`pacing_summary`'s.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -397,6 +605,16 @@ def realtime_settings(lock_memory: bool = False) -> dict:
     ``cpu_affinity`` (``os.sched_getaffinity``) against ``cpus_online``, ``locked_kib``
     (``VmLck``), and ``mlockall``: ``"not requested"``, ``"ok"`` or the error of
     ``mlockall(MCL_CURRENT | MCL_FUTURE)``, called only when ``lock_memory``.
+
+    Parameters
+    ----------
+    lock_memory : bool
+        Call ``mlockall``.
+
+    Returns
+    -------
+    dict
+        The settings.
     """
     import errno
     import os
@@ -425,7 +643,20 @@ def realtime_settings(lock_memory: bool = False) -> dict:
 def missing_realtime(settings: dict, memory: bool = True) -> list[str]:
     """What :func:`realtime_settings` shows is missing for a real-time loop, one phrase each
     (empty: all granted): a real-time policy with a priority > 0, the process pinned to fewer
-    CPUs than are online, and (``memory``) memory locked."""
+    CPUs than are online, and (``memory``) memory locked.
+
+    Parameters
+    ----------
+    settings : dict
+        :func:`realtime_settings`'.
+    memory : bool
+        Whether locked memory is required.
+
+    Returns
+    -------
+    list of str
+        The phrases.
+    """
     missing = []
     if settings.get("policy") not in REALTIME_POLICIES or not settings.get("priority"):
         missing.append(f"real-time scheduling (got {settings.get('policy')} priority "

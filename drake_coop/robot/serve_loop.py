@@ -44,7 +44,20 @@ def status_arrivals(lcm, specs):
     every message's bytes kept as it arrives and checked, all those of a tick at once, when
     the loop looks (:func:`~drake_coop.robot.status.first_bad_panda_status`: the checks of
     :func:`~drake_coop.robot.status.panda_status_ok`), the one a tick takes read
-    (:func:`check_panda_status`)."""
+    (:func:`check_panda_status`).
+
+    Parameters
+    ----------
+    lcm : DrakeLcm
+        The LCM connection.
+    specs : list of DriverSpec
+        The arms' drivers.
+
+    Returns
+    -------
+    StatusArrivals
+        The subscription.
+    """
     from drake_coop.robot.pacing import StatusArrivals
     from drake_coop.robot.status import first_bad_panda_status
 
@@ -58,7 +71,17 @@ def status_arrivals(lcm, specs):
 
 class StopListener:
     """The stop messages of the other ``serve`` processes (:data:`STOP_CHANNEL`), ignoring
-    this process's own (``robots``: the arms this process serves)."""
+    this process's own (``robots``: the arms this process serves).
+
+    Parameters
+    ----------
+    lcm : DrakeLcm
+        The LCM connection.
+    robots : list of str
+        This process's arms.
+    channel : str
+        The stop channel.
+    """
 
     def __init__(self, lcm, robots: list[str], channel: str = STOP_CHANNEL):
         self.channel = channel
@@ -74,6 +97,19 @@ class StopListener:
 
     @staticmethod
     def publish(lcm, robot: str, reason: str, channel: str = STOP_CHANNEL) -> None:
+        """Publish ``"<robot>: <reason>"`` on the stop channel (the other processes stop).
+
+        Parameters
+        ----------
+        lcm : DrakeLcm
+            The LCM connection.
+        robot : str
+            The robot whose watchdog tripped.
+        reason : str
+            Its reason.
+        channel : str
+            The stop channel.
+        """
         lcm.Publish(channel, f"{robot}: {reason}".encode("utf-8"))
 
 
@@ -113,7 +149,13 @@ class ServeLoop:
 
     def start(self, q0: list[np.ndarray]) -> None:
         """Observers at ``q̂ = q0``, watchdogs untripped with ``q0`` as their last good
-        reading, no status yet; ``Initialize``."""
+        reading, no status yet; ``Initialize``.
+
+        Parameters
+        ----------
+        q0 : list of numpy.ndarray
+            Each arm's first reading (n,), rad.
+        """
         from drake_coop.robot.loopback import initialize_sides
 
         initialize_sides(self._scenario, self._plan, self.context, None, self.side, q0)
@@ -133,7 +175,15 @@ class ServeLoop:
 
     def feed(self, i: int, parsed) -> None:
         """Arm ``i``'s newest status, as :func:`check_panda_status` read it
-        (``(q, stamp, fault, value)``); None: no new status (nothing changes, it ages)."""
+        (``(q, stamp, fault, value)``); None: no new status (nothing changes, it ages).
+
+        Parameters
+        ----------
+        i : int
+            The arm's index.
+        parsed : tuple or None
+            ``(q, stamp, fault, value)``, or None.
+        """
         if parsed is None:
             return
         q, stamp, fault, value = parsed
@@ -144,7 +194,15 @@ class ServeLoop:
             self._fixed_q[i].GetMutableData().set_value(q)
 
     def feed_bytes(self, i: int, data: bytes) -> None:
-        """:meth:`feed` of a status's bytes."""
+        """:meth:`feed` of a status's bytes.
+
+        Parameters
+        ----------
+        i : int
+            The arm's index.
+        data : bytes
+            The status's bytes.
+        """
         self.feed(i, check_panda_status(data, self.specs[i].n))
 
     def tick(self) -> None:
@@ -175,11 +233,23 @@ class ServeLoop:
             arm.command_publisher.ForcedPublish(pub_context)
 
     def time(self) -> float:
-        """``t_k`` of the last tick (s; 0 before the first)."""
+        """``t_k`` of the last tick (s; 0 before the first).
+
+        Returns
+        -------
+        float
+            ``t_k``, s.
+        """
         return max(self.k - 1, 0) * self.h
 
     def tripped(self) -> dict | None:
-        """The first tripped arm's robot, status channel and reason, else None."""
+        """The first tripped arm's robot, status channel and reason, else None.
+
+        Returns
+        -------
+        dict or None
+            ``robot``, ``channel``, ``reason``, or None.
+        """
         for arm in self.side.arms:
             wd = arm.watchdog
             wd_context = wd.GetMyContextFromRoot(self.context)
@@ -219,6 +289,34 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
     ``serve`` (``stop``) stops it before the next tick (``"stop: <its reason>"`` returned).
     Per tick, ``record`` gets the computation, the lateness (from ``g_k`` on the grid; from the
     tick's release on arrival), the oldest status's age at the start and the wait past ``g_k``.
+
+    Parameters
+    ----------
+    loop : ServeLoop
+        The controller.
+    lcm : DrakeLcm
+        The LCM connection.
+    arrivals : StatusArrivals
+        The statuses.
+    k_end : int
+        The last tick.
+    record : PacingRecord
+        Receives the figures.
+    after_tick : Callable[[int], str or None] or None
+        Called after each tick.
+    lead : float
+        The wait before tick 0, s.
+    timeout : float or None
+        The longest wait past ``g_k``, s; None for a driver cycle and a half.
+    stop : StopListener or None
+        The other processes' stops.
+    on_arrival : bool
+        Tick on each fresh status (else on the wall-clock grid).
+
+    Returns
+    -------
+    str
+        Why the loop stopped, or ``''`` at ``k_end``.
     """
     from drake_coop.robot import pacing
 

@@ -34,7 +34,18 @@ _HEAD, _TAIL = 20, 18
 
 
 def panda_status_size(n: int) -> int:
-    """Bytes of an encoded ``lcmt_panda_status`` of ``n`` joints."""
+    """Bytes of an encoded ``lcmt_panda_status`` of ``n`` joints.
+
+    Parameters
+    ----------
+    n : int
+        The arm's joints.
+
+    Returns
+    -------
+    int
+        The size, bytes.
+    """
     return _HEAD + 64 * n + _TAIL
 
 
@@ -42,7 +53,13 @@ class RawMessage:
     """An LCM message's bytes as received: the value of a subscriber that decodes nothing
     (``LcmSubscriberSystem.Make(channel, RawMessage, lcm)``; ``data`` empty before the first
     message). Shared, not copied, when Drake copies the subscriber's state: it is never
-    modified."""
+    modified.
+
+    Parameters
+    ----------
+    data : bytes
+        The message's bytes.
+    """
 
     __slots__ = ("data",)
 
@@ -51,9 +68,28 @@ class RawMessage:
 
     @staticmethod
     def decode(data) -> "RawMessage":
+        """The message of ``data`` (LCM's decoding protocol: the bytes kept as they are).
+
+        Parameters
+        ----------
+        data : bytes-like
+            The bytes received.
+
+        Returns
+        -------
+        RawMessage
+            The message.
+        """
         return RawMessage(bytes(data))
 
     def encode(self) -> bytes:
+        """The message's bytes (LCM's encoding protocol).
+
+        Returns
+        -------
+        bytes
+            ``data``.
+        """
         return self.data
 
     def __copy__(self):
@@ -69,6 +105,24 @@ def check_panda_status(data: bytes, n: int) -> tuple[np.ndarray, float, int, flo
     ``q`` is NaN unless ``fault`` is ``STATUS_OK``; ``stamp`` is ``utime · 1e-6`` (NaN before
     the stamp is readable); ``fault`` and ``value`` as the watchdog's ``status`` input
     (:data:`~drake_coop.control.watchdog.STATUS_FAULTS`). Never raises.
+
+    Parameters
+    ----------
+    data : bytes
+        The status's bytes.
+    n : int
+        The arm's joints.
+
+    Returns
+    -------
+    q : numpy.ndarray
+        Joint positions (n,), rad.
+    stamp : float
+        The status's time, s.
+    fault : int
+        The fault code.
+    value : float
+        The fault's value.
     """
     size = len(data)
     if size == 0:
@@ -98,7 +152,20 @@ def _nan(n: int) -> np.ndarray:
 def panda_status_ok(data: bytes, n: int) -> bool:
     """Whether :func:`check_panda_status` would find the bytes a valid status of an
     ``n``-joint arm (the same checks, on plain bytes and floats: cheap enough for every
-    message at the driver's rate)."""
+    message at the driver's rate).
+
+    Parameters
+    ----------
+    data : bytes
+        The status's bytes.
+    n : int
+        The arm's joints.
+
+    Returns
+    -------
+    bool
+        True for a valid status.
+    """
     if len(data) != _HEAD + 64 * n + _TAIL or data[:8] != PANDA_STATUS_FINGERPRINT:
         return False
     if struct.unpack_from(">i", data, 16)[0] != n:

@@ -51,6 +51,11 @@ class TcpqHub:
     """The hub, listening on ``127.0.0.1:port`` (0: any free port, see :attr:`port`).
 
     :meth:`serve_forever` runs it (until :meth:`stop`); :meth:`start` runs it in a thread.
+
+    Parameters
+    ----------
+    port : int
+        The TCP port (0: any free one).
     """
 
     def __init__(self, port: int = 7700):
@@ -77,20 +82,31 @@ class TcpqHub:
 
     @property
     def url(self) -> str:
+        """The hub's LCM URL, ``tcpq://127.0.0.1:<port>``."""
         return f"tcpq://127.0.0.1:{self.port}"
 
     def start(self) -> "TcpqHub":
+        """Run :meth:`serve_forever` in a daemon thread.
+
+        Returns
+        -------
+        TcpqHub
+            The hub.
+        """
         self._thread = threading.Thread(target=self.serve_forever, daemon=True,
                                         name="tcpq-hub")
         self._thread.start()
         return self
 
     def stop(self) -> None:
+        """Stop the hub (and wait up to 5 s for its thread)."""
         self._stop_w.send(b"x")
         if self._thread is not None:
             self._thread.join(5)
 
     def serve_forever(self) -> None:
+        """Relay every published message to every client subscribed to its channel (the sender
+        too) until :meth:`stop`; then close every connection."""
         try:
             while True:
                 for key, _ in self._selector.select():
@@ -188,7 +204,18 @@ class TcpqHub:
 
 
 def cmd_tcpq_hub(args) -> int:
-    """``drake-coop tcpq-hub``: run the hub until Ctrl-C / SIGTERM."""
+    """``drake-coop tcpq-hub``: run the hub until Ctrl-C / SIGTERM.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit code: 0 stopped, 2 bad input.
+    """
     import sys
 
     try:

@@ -30,7 +30,19 @@ def _unit_rows(rows: list[list[float]], name: str) -> np.ndarray:
 
 def check_axes(scenario: Scenario) -> None:
     """The circle's axes (unit and orthogonal, or one of them zero) and the object's motion
-    against every robot's constraint planes."""
+    against every robot's constraint planes.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``task.circle_axes``, or the normal of ``robots[i].normals`` the object's
+        motion is not orthogonal to.
+    """
     t = scenario.task
     axes = np.asarray(t.circle_axes, dtype=float)
     norms = np.linalg.norm(axes, axis=1)
@@ -56,6 +68,15 @@ def check_axes(scenario: Scenario) -> None:
 
 def check_dimensions(robot: Robot, n: int, where: str) -> None:
     """Lists sized by the arm's ``n`` joints and ``m`` constraints, and Assumption 1.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot's entry.
+    n : int
+        Its arm's joints.
+    where : str
+        The entry's path for messages (``robots[i]``).
 
     Raises
     ------

@@ -17,7 +17,13 @@ __all__ = ["add_arms_parser", "cmd_arms"]
 
 
 def add_arms_parser(sub) -> None:
-    """Register ``arms`` on the ``drake-coop`` subparsers."""
+    """Register ``arms`` on the ``drake-coop`` subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``drake-coop`` subparsers.
+    """
     p = sub.add_parser("arms", help="list the arms of example-robot-data that load, with the "
                                     "fields a scenario needs")
     p.add_argument("--yaml", metavar="NAME", help="print the robot entry of arm NAME")
@@ -64,7 +70,18 @@ def _yaml(name: str) -> str:
 
 
 def cmd_arms(args) -> int:
-    """List the arms (see the module's docstring for the exit codes)."""
+    """List the arms (see the module's docstring for the exit codes).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
     from drake_coop.control.arm_model import description_packages
     from drake_coop.scenario.description import ROBOTS_EXTRA
     from drake_coop.scenario.lab_arms import LAB_ARMS, arm_facts

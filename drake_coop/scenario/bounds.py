@@ -34,7 +34,20 @@ _repr.maxlevel, _repr.maxlist, _repr.maxdict, _repr.maxstring, _repr.maxother = 
 
 
 def show(value: object, limit: int = 60) -> str:
-    """A short one-line rendering of a user-given value (YAML spelling for null/booleans)."""
+    """A short one-line rendering of a user-given value (YAML spelling for null/booleans).
+
+    Parameters
+    ----------
+    value : object
+        The value.
+    limit : int
+        The longest rendering, characters.
+
+    Returns
+    -------
+    str
+        The rendering.
+    """
     if value is None:
         return "null"
     if isinstance(value, bool):
@@ -49,14 +62,37 @@ def show(value: object, limit: int = 60) -> str:
 
 
 def one_line(text: object, limit: int = MAX_MESSAGE) -> str:
-    """``text`` on one line (whitespace runs collapsed), cut to ``limit`` characters."""
+    """``text`` on one line (whitespace runs collapsed), cut to ``limit`` characters.
+
+    Parameters
+    ----------
+    text : object
+        The text (its ``str``).
+    limit : int
+        The longest result, characters.
+
+    Returns
+    -------
+    str
+        The line.
+    """
     text = " ".join(str(text).split())
     return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
 @dataclass(frozen=True)
 class Bound:
-    """A closed or half-open interval ``[lo, hi]`` with its unit."""
+    """A closed or half-open interval ``[lo, hi]`` with its unit.
+
+    Attributes
+    ----------
+    lo, hi : float
+        The ends, in ``unit``.
+    unit : str
+        The unit, for messages.
+    lo_open, hi_open : bool
+        Whether an end is excluded.
+    """
 
     lo: float
     hi: float
@@ -109,6 +145,10 @@ def check_numbers(obj: object, bounds: dict[str, Bound], lengths: dict[str, int]
         ``pattern -> length`` of list fields.
     error : type
         Exception raised with the one-line message.
+    path : str
+        The tree's path for messages (``""`` at the root).
+    pattern : str
+        The tree's bounds pattern (``""`` at the root).
 
     Raises
     ------
@@ -148,7 +188,18 @@ def check_numbers(obj: object, bounds: dict[str, Bound], lengths: dict[str, int]
 
 
 def optional_of(schema):
-    """``X`` for ``X | None`` (``Optional[X]``), else ``schema`` itself."""
+    """``X`` for ``X | None`` (``Optional[X]``), else ``schema`` itself.
+
+    Parameters
+    ----------
+    schema : type
+        A type hint.
+
+    Returns
+    -------
+    type
+        ``X`` or ``schema``.
+    """
     args = typing.get_args(schema)
     if type(None) in args and len(args) == 2:
         return next(a for a in args if a is not type(None))
@@ -157,7 +208,20 @@ def optional_of(schema):
 
 def numeric_fields(schema: type, pattern: str = "") -> list[str]:
     """Patterns of every number (``float``, ``int``, optional or in lists) of a dataclass
-    schema: the keys its bounds table should have."""
+    schema: the keys its bounds table should have.
+
+    Parameters
+    ----------
+    schema : type
+        The dataclass.
+    pattern : str
+        The prefix of its patterns.
+
+    Returns
+    -------
+    list of str
+        The patterns.
+    """
     out = []
     hints = _type_hints(schema)
     for f in dataclasses.fields(schema):

@@ -69,7 +69,13 @@ _VERSION = "5"
 
 
 def cache_dir() -> Path:
-    """Where prepared URDFs are written (see the module's docstring)."""
+    """Where prepared URDFs are written (see the module's docstring).
+
+    Returns
+    -------
+    Path
+        The folder.
+    """
     env = os.environ.get("DRAKE_COOP_CACHE_DIR")
     if env:
         return Path(env)
@@ -81,7 +87,20 @@ def cache_dir() -> Path:
 def needs_preparation(robot: Robot, value: str) -> bool:
     """Whether the model file ``value`` of ``robot`` is loaded through :func:`prepared_urdf`:
     a URL of a description package (:data:`~drake_coop.control.arm_model.DESCRIPTION_PACKAGES`),
-    locked joints or a tool. Another package's file (on ``ROS_PACKAGE_PATH``) is used as it is."""
+    locked joints or a tool. Another package's file (on ``ROS_PACKAGE_PATH``) is used as it is.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    value : str
+        Its model file (path or ``package://`` URL).
+
+    Returns
+    -------
+    bool
+        True when prepared.
+    """
     from drake_coop.control.arm_model import DESCRIPTION_PACKAGES
 
     package = value[len("package://"):].split("/", 1)[0] if value.startswith("package://") else ""
@@ -292,6 +311,11 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
     from_package : bool
         The source is a description package's file: its collision geometry, ``world`` link and
         ignored joint tags are removed (see the module's docstring).
+
+    Returns
+    -------
+    Path
+        The prepared URDF, in :func:`cache_dir` (written once per content).
 
     Raises
     ------

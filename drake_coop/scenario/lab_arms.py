@@ -24,7 +24,21 @@ _ROBOTS = "package://example-robot-data/robots/"
 
 @dataclass(frozen=True)
 class LabArm:
-    """The fields of one arm of ``example-robot-data`` (see the module's docstring)."""
+    """The fields of one arm of ``example-robot-data`` (see the module's docstring).
+
+    Attributes
+    ----------
+    title : str
+        The arm's maker and name (``Franka Emika Panda``).
+    model : str
+        Its ``package://`` URL.
+    base_frame : str
+        The link welded to the palm frame.
+    flange : str
+        The link the tool is mounted on.
+    locked_joints : dict
+        Joint name → locked position (rad or m).
+    """
 
     title: str
     model: str
@@ -61,6 +75,16 @@ def lab_arm_robot(name: str) -> Robot:
     """A :class:`~drake_coop.scenario.schema.Robot` with the fields of :data:`LAB_ARMS`
     ``[name]`` (tool with its defaults, ``ee_frame: pad``, ``sensor_joint:
     flange_sensor_weld``); the task's fields (normals, gains, ...) keep their defaults.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`LAB_ARMS`.
+
+    Returns
+    -------
+    Robot
+        The robot entry.
 
     Raises
     ------
@@ -104,6 +128,16 @@ class ArmFacts:
 
 def arm_facts(name: str) -> ArmFacts:
     """Prepare arm ``name`` of :data:`LAB_ARMS` as a run does and load it with a ``SceneGraph``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`LAB_ARMS`.
+
+    Returns
+    -------
+    ArmFacts
+        What Drake read.
 
     Raises
     ------

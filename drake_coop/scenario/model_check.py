@@ -36,6 +36,11 @@ MIN_JOINTS, MAX_JOINTS = 1, 12
 def check_models(scenario: Scenario) -> list[int]:
     """Check the simulated and the controller's model file of every robot.
 
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
     Returns
     -------
     list[int]
@@ -73,6 +78,17 @@ def check_model_file(path: str | Path, field: str, robot: Robot | None = None,
 
     ``shown`` names the file in messages (default: its path), e.g. the ``package://`` URL a
     prepared copy comes from.
+
+    Parameters
+    ----------
+    path : str or Path
+        The URDF.
+    field : str
+        The scenario field naming it (``robots[i].model``).
+    robot : Robot or None
+        The robot's entry (its frames, joints); None for the defaults.
+    shown : str or None
+        How messages name the file; None for its path.
 
     Returns
     -------

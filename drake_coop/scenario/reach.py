@@ -20,7 +20,18 @@ from drake_coop.scenario.task_path import cartesian_reference
 
 
 def has_closed_form(robot: Robot) -> bool:
-    """Whether the robot is one of the paper's arms, used as the paper uses it."""
+    """Whether the robot is one of the paper's arms, used as the paper uses it.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+
+    Returns
+    -------
+    bool
+        True for the paper's arms at their base frame.
+    """
     from drake_coop.kinematics.crs import GEOMETRY
 
     return (robot.model in GEOMETRY and robot.base_frame == "base_link"
@@ -30,7 +41,18 @@ def has_closed_form(robot: Robot) -> bool:
 
 def robot_kinematics(robot: Robot):
     """The kinematics of ``robot`` at its base pose (``n``, ``q_min``, ``q_max``, ``fk``,
-    ``joint_reference``, ``check_path``): closed form or Drake's, see the module's docstring."""
+    ``joint_reference``, ``check_path``): closed form or Drake's, see the module's docstring.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+
+    Returns
+    -------
+    CrsKinematics or DrakeArmKinematics
+        Its kinematics.
+    """
     p_base = np.asarray(robot.base_xyz, dtype=float)
     yaw = math.radians(robot.base_yaw_deg)
     urdf = model_urdf_path(robot)
@@ -64,6 +86,11 @@ def check_reachable(scenario: Scenario) -> None:
     their limits, away from singular postures (Assumption 1), see the kinematics'
     ``check_path``; a redundant arm's reference (integrated on that grid) must stay within
     the limits, ``check_redundant_path``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
     """
     task = scenario.task
     t = np.arange(0.0, task.t_end + 1e-9, 0.05)

@@ -64,7 +64,13 @@ def data_dir(kind: str) -> Path:
 
 
 def urdf_dir() -> Path:
-    """Folder of the robot models: ``$DRAKE_COOP_URDF_DIR`` if set, else the shipped one."""
+    """Folder of the robot models: ``$DRAKE_COOP_URDF_DIR`` if set, else the shipped one.
+
+    Returns
+    -------
+    Path
+        The folder.
+    """
     env = os.environ.get("DRAKE_COOP_URDF_DIR")
     return Path(env) if env else data_dir("urdf")
 
@@ -80,6 +86,18 @@ def resolve_package_url(url: str, field: str = "model") -> Path:
     The map knows Drake's own packages and every package on ``ROS_PACKAGE_PATH``. A package
     that Drake downloads on first use (``drake_models``) is fetched then, and fails on a machine
     without network access.
+
+    Parameters
+    ----------
+    url : str
+        The ``package://`` URL.
+    field : str
+        The scenario field naming it, for messages.
+
+    Returns
+    -------
+    Path
+        The file.
 
     Raises
     ------
@@ -150,7 +168,20 @@ def model_urdf_path(robot: Robot, field: str = "model") -> Path:
     """The simulated arm's URDF: a shipped model by name, else the ``.urdf`` path (absolute or
     relative to :func:`urdf_dir`) or ``package://`` URL (:func:`resolve_package_url`).
 
-    ``field`` names the scenario field in error messages."""
+    ``field`` names the scenario field in error messages.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    field : str
+        The scenario field, for messages.
+
+    Returns
+    -------
+    Path
+        The URDF.
+    """
     if robot.model in SHIPPED_ARMS:
         return _model_path(SHIPPED_ARMS[robot.model], field, robot)
     return _model_path(robot.model, field, robot)
@@ -158,30 +189,72 @@ def model_urdf_path(robot: Robot, field: str = "model") -> Path:
 
 def controller_urdf_path(robot: Robot, field: str = "controller_model") -> Path:
     """The controller's own model of the arm (defaults to the simulated one); a path or a
-    ``package://`` URL as for :func:`model_urdf_path`."""
+    ``package://`` URL as for :func:`model_urdf_path`.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+    field : str
+        The scenario field, for messages.
+
+    Returns
+    -------
+    Path
+        The URDF.
+    """
     if not robot.controller_model:
         return model_urdf_path(robot)
     return _model_path(robot.controller_model, field, robot)
 
 
 def scenarios_dir() -> Path:
-    """Folder of the shipped scenarios (``paper.yaml`` and its variants)."""
+    """Folder of the shipped scenarios (``paper.yaml`` and its variants).
+
+    Returns
+    -------
+    Path
+        The folder.
+    """
     return data_dir("scenarios")
 
 
 def default_scenario_path() -> Path:
-    """The shipped ``paper.yaml``: the default scenario of ``drake-coop run``."""
+    """The shipped ``paper.yaml``: the default scenario of ``drake-coop run``.
+
+    Returns
+    -------
+    Path
+        The file.
+    """
     return scenarios_dir() / "paper.yaml"
 
 
 def shipped_scenarios() -> dict[str, Path]:
-    """Shipped scenarios by name (file stem), sorted by name."""
+    """Shipped scenarios by name (file stem), sorted by name.
+
+    Returns
+    -------
+    dict of str to Path
+        Name → file.
+    """
     return {p.stem: p for p in sorted(scenarios_dir().glob("*.yaml"))}
 
 
 def scenario_summary(path: Path) -> str:
     """The first sentence of a scenario file's leading comment block, whole (it may span
-    several ``#`` lines; empty if the file starts with no comment)."""
+    several ``#`` lines; empty if the file starts with no comment).
+
+    Parameters
+    ----------
+    path : Path
+        The scenario file.
+
+    Returns
+    -------
+    str
+        The sentence.
+    """
     words: list[str] = []
     for line in Path(path).read_text(encoding="utf-8").splitlines():
         if not line.startswith("#") or not line.lstrip("#").strip():
@@ -199,6 +272,16 @@ def find_scenario(name_or_path: str | Path) -> Path:
     """A scenario file from a path, or from the name of a shipped scenario.
 
     An existing file wins; otherwise ``paper`` or ``paper.yaml`` names a shipped scenario.
+
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A path or a shipped scenario's name.
+
+    Returns
+    -------
+    Path
+        The file.
 
     Raises
     ------
@@ -224,6 +307,13 @@ def resolve_models(scenario: Scenario, base_dir: Path | None = None) -> None:
     beside the scenario file (``base_dir``) wins and is rewritten as an absolute path, so that
     a run's saved ``scenario.yaml`` still finds it. The files themselves are checked by
     :func:`drake_coop.scenario.model_check.check_models` when the scenario is validated.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario (changed in place).
+    base_dir : Path or None
+        The scenario file's folder; None changes nothing.
     """
     if base_dir is None:
         return
@@ -242,7 +332,20 @@ def model_beside(value, base_dir: Path) -> str | None:
     """The absolute path of a robot's relative ``model`` / ``controller_model`` URDF when it
     lies in ``base_dir`` (the scenario file's folder), else None (not a relative ``.urdf``
     path, a ``package://`` URL, or no such file there): the rule of :func:`resolve_models`,
-    also for a scenario's untyped data (a study's base file)."""
+    also for a scenario's untyped data (a study's base file).
+
+    Parameters
+    ----------
+    value : object
+        A robot's ``model`` or ``controller_model`` value.
+    base_dir : Path
+        The scenario file's folder.
+
+    Returns
+    -------
+    str or None
+        The absolute path, or None.
+    """
     if not (isinstance(value, str) and value and value.lower().endswith(".urdf")
             and not value.startswith(PACKAGE_SCHEME)
             and not Path(value).expanduser().is_absolute()):

@@ -22,7 +22,18 @@ CONTACT_RADIUS, BASE_RADIUS = 0.1, 0.44
 
 def ring_scenario(l: int) -> Scenario:
     """``l`` A255 arms ``360°/l`` apart around the palm origin, each pushing on its own plane
-    towards the centre; the object dips along z instead of the circle (as three_arms.yaml)."""
+    towards the centre; the object dips along z instead of the circle (as three_arms.yaml).
+
+    Parameters
+    ----------
+    l : int
+        The number of arms.
+
+    Returns
+    -------
+    Scenario
+        The scenario.
+    """
 
     s = load_scenario(scenarios_dir() / "three_arms.yaml")
     template = s.robots[0]

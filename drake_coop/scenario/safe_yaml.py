@@ -42,6 +42,18 @@ class YamlInputError(ValueError):
 def read_text_file(path: str | Path, what: str = "scenario file") -> str:
     """Read a UTF-8 text file of at most :data:`MAX_BYTES` bytes.
 
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    what : str
+        What the file is, for messages.
+
+    Returns
+    -------
+    str
+        Its text.
+
     Raises
     ------
     YamlInputError
@@ -144,6 +156,11 @@ def load_untrusted(text: str):
 
     Root-level keys starting with ``_`` are dropped, as :func:`pydrake.common.yaml.yaml_load`
     does (they hold anchors for templates).
+
+    Parameters
+    ----------
+    text : str
+        The YAML document.
 
     Returns
     -------

@@ -54,11 +54,11 @@ class ScenarioError(ValueError):
 
 @dataclass
 class Encoders:
-    """Joint-position sensors of one robot (:class:`drake_coop.sensing.encoders.Encoders`).
+    r"""Joint-position sensors of one robot (:class:`drake_coop.sensing.encoders.Encoders`).
 
-    The reading at tick ``k`` is ``δ round((q(t_{k-d}) + w_{k-d}) / δ)`` with ``δ = 2π /
-    counts_per_rev`` (no rounding when ``counts_per_rev`` is null), ``w`` white Gaussian noise
-    and ``d = delay_samples``. Defaults: an ideal sensor (the exact ``q(t_k)``).
+    The reading at tick ``k`` is :math:`δ · \operatorname{round}((q(t_{k-d}) + w_{k-d}) / δ)`
+    with ``δ = 2π / counts_per_rev`` (no rounding when ``counts_per_rev`` is null), ``w`` white
+    Gaussian noise and ``d = delay_samples``. Defaults: an ideal sensor (the exact ``q(t_k)``).
 
     Attributes
     ----------
@@ -544,10 +544,13 @@ class Scenario:
     control_period : float
         Sampling time h of the controllers and observers (s), 9 ms in the paper.
     plant : PlantSettings
+        The simulated plant (time step, contact, object mode).
     robots : list[Robot]
         ``l >= 2`` robots (the paper: robot 1 on the left, normal −x; robot 2 on the right).
     task : Task
+        The task: its phases, path and desired force (28)–(29).
     guards : Guards
+        The run's divergence guards.
     object_model : ObjectModelSettings
         What the controllers know of the held object (default: nothing, the paper's).
     """

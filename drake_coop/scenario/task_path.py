@@ -43,7 +43,18 @@ from drake_coop.scenario.schema import Robot, Task
 
 
 def quintic(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Quintic time scaling σ(τ) and its first two derivatives, τ clipped to [0, 1]."""
+    """Quintic time scaling σ(τ) and its first two derivatives, τ clipped to [0, 1].
+
+    Parameters
+    ----------
+    tau : numpy.ndarray
+        The normalized time τ.
+
+    Returns
+    -------
+    s, ds, dds : numpy.ndarray
+        σ(τ), dσ/dτ, d²σ/dτ².
+    """
     tau = np.clip(tau, 0.0, 1.0)
     s = tau ** 3 * (10 - 15 * tau + 6 * tau ** 2)
     ds = 30 * tau ** 2 * (1 - tau) ** 2
@@ -52,13 +63,37 @@ def quintic(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def first_normal(robot: Robot) -> np.ndarray:
-    """The object's first outward unit normal at the robot's contact (the squeeze direction)."""
+    """The object's first outward unit normal at the robot's contact (the squeeze direction).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+
+    Returns
+    -------
+    numpy.ndarray
+        The normal (3,).
+    """
     n = np.asarray(robot.normals[0], dtype=float)
     return n / np.linalg.norm(n)
 
 
 def waypoints(task: Task, robot: Robot) -> dict[str, np.ndarray]:
-    """Home, pre-grasp, grasp and circle-start points of one robot (palm frame, m)."""
+    """Home, pre-grasp, grasp and circle-start points of one robot (palm frame, m).
+
+    Parameters
+    ----------
+    task : Task
+        The task.
+    robot : Robot
+        The robot.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Name → point (3,), m.
+    """
     z_top = task.circle_top_z
     x, y = (float(v) for v in robot.contact_xy)
     grasp = np.array([x, y, z_top - task.lift_height])
@@ -72,7 +107,15 @@ def waypoints(task: Task, robot: Robot) -> dict[str, np.ndarray]:
 
 @dataclass(frozen=True)
 class Segment:
-    """A rest-to-rest straight line from ``a`` to ``b`` during ``[t0, t1]``."""
+    """A rest-to-rest straight line from ``a`` to ``b`` during ``[t0, t1]``.
+
+    Attributes
+    ----------
+    t0, t1 : float
+        Its start and end, s.
+    a, b : numpy.ndarray
+        Its start and end points (3,), m, palm frame.
+    """
 
     t0: float
     t1: float
@@ -81,7 +124,20 @@ class Segment:
 
 
 def segments(task: Task, robot: Robot) -> list[Segment]:
-    """The straight-line segments of the path (the circle is handled apart)."""
+    """The straight-line segments of the path (the circle is handled apart).
+
+    Parameters
+    ----------
+    task : Task
+        The task.
+    robot : Robot
+        The robot.
+
+    Returns
+    -------
+    list of Segment
+        The segments, in time order.
+    """
     w = waypoints(task, robot)
     back = task.t_release + (task.t_grasp - task.t_pregrasp)
     return [
@@ -98,9 +154,19 @@ def cartesian_reference(task: Task, robot: Robot, t: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Desired end-effector position, velocity and acceleration at times ``t``.
 
+    Parameters
+    ----------
+    task : Task
+        The task.
+    robot : Robot
+        The robot.
+    t : numpy.ndarray
+        The times, s.
+
     Returns
     -------
     x_d, xdot_d, xddot_d : ndarray, shape (N, 3)
+        m, m/s, m/s², palm frame.
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     x = np.zeros((t.size, 3))
@@ -133,7 +199,20 @@ def cartesian_reference(task: Task, robot: Robot, t: np.ndarray
 
 
 def force_reference(task: Task, t: np.ndarray) -> np.ndarray:
-    """Desired squeeze force λ_d of (29) (N) at times ``t``."""
+    """Desired squeeze force λ_d of (29) (N) at times ``t``.
+
+    Parameters
+    ----------
+    task : Task
+        The task (its phase times and force profile).
+    t : numpy.ndarray
+        The times, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        λ_d (N,), N.
+    """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     f = np.zeros_like(t)
     up = (t >= task.t_grasp) & (t < task.t_circle_start)

@@ -145,6 +145,7 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
     Parameters
     ----------
     scenario : Scenario
+        The scenario (its relative model paths are resolved in place).
     cache : dict, optional
         Results of the reachability check (the costly part: every target of the path through
         each arm's kinematics) by :func:`reach_inputs`, shared between calls on scenarios that
@@ -274,7 +275,18 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
 
 
 def driver_channels(robot: Robot) -> tuple[str, str]:
-    """``(status, command)`` channels of a robot's driver (the defaults for an empty name)."""
+    """``(status, command)`` channels of a robot's driver (the defaults for an empty name).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot.
+
+    Returns
+    -------
+    status, command : str
+        The LCM channels.
+    """
     d = robot.driver
     status = d.status_channel if d is not None and d.status_channel else f"PANDA_STATUS_{robot.name}"
     command = (d.command_channel if d is not None and d.command_channel
@@ -327,7 +339,18 @@ def _validate_driver_joints(robot: Robot, n: int, where: str) -> None:
 def reach_inputs(scenario: Scenario) -> str:
     """Everything the reachability check reads, as text: the task and each robot's model,
     frames, base pose, contact point, normals, orientation reference, IK seed and home
-    (:mod:`drake_coop.scenario.reach`, :mod:`drake_coop.scenario.task_path`)."""
+    (:mod:`drake_coop.scenario.reach`, :mod:`drake_coop.scenario.task_path`).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    str
+        The text (a cache key).
+    """
     import dataclasses
 
     return repr((dataclasses.asdict(scenario.task), [

@@ -28,6 +28,13 @@ FRICTION_VELOCITY = 0.01
 class CoulombFriction(LeafSystem):
     """Joint Coulomb friction ``τ_f = −f_c tanh(q̇ / v_s)`` of one simulated arm.
 
+    Parameters
+    ----------
+    f_c : numpy.ndarray
+        The Coulomb friction torques ``f_c`` (n,), N·m.
+    v_s : float
+        The smoothing velocity ``v_s``, rad/s.
+
     Input ports
     -----------
     state : 2n-vector
@@ -61,6 +68,7 @@ def add_actuators(builder: DiagramBuilder, name: str, n: int,
     Parameters
     ----------
     builder : DiagramBuilder
+        The experiment's builder.
     name : str
         Robot name (prefix of the systems).
     n : int

@@ -1,11 +1,11 @@
-"""Joint-position encoders of one robot: quantization, white noise, a delay of whole samples.
+r"""Joint-position encoders of one robot: quantization, white noise, a delay of whole samples.
 
 The reading of tick ``k`` is
 
 .. math::
-    q_m(k) = r(k - d), \\qquad
-    r(j) = \\delta \\,\\mathrm{round}\\big((q(t_j) + w_j)/\\delta\\big), \\qquad
-    \\delta = 2\\pi / c
+    q_m(k) = r(k - d), \qquad
+    r(j) = \delta \,\mathrm{round}\big((q(t_j) + w_j)/\delta\big), \qquad
+    \delta = 2\pi / c
 
 (``c`` counts per joint revolution; without ``c`` no rounding: ``r(j) = q(t_j) + w_j``),
 ``w_j`` seeded white Gaussian noise (:func:`~drake_coop.sensing.sampling.white_noise`) and
@@ -31,7 +31,20 @@ from drake_coop.sensing.sampling import ENCODER_STREAM, white_noise
 
 
 def quantize(q: np.ndarray, counts_per_rev: int | None) -> np.ndarray:
-    """``δ round(q/δ)`` with ``δ = 2π/counts_per_rev`` (``q`` unchanged when None)."""
+    """``δ round(q/δ)`` with ``δ = 2π/counts_per_rev`` (``q`` unchanged when None).
+
+    Parameters
+    ----------
+    q : numpy.ndarray
+        Joint positions, rad.
+    counts_per_rev : int or None
+        Encoder counts per joint revolution; None for no quantization.
+
+    Returns
+    -------
+    numpy.ndarray
+        The quantized positions, rad.
+    """
     if counts_per_rev is None:
         return np.asarray(q, dtype=float)
     delta = 2.0 * math.pi / counts_per_rev
@@ -85,19 +98,52 @@ class Encoders(LeafSystem):
 
     @property
     def delay_samples(self) -> int:
+        """The delay ``d`` of the readings, in ticks."""
         return self._d
 
     def reading(self, q: np.ndarray, k: int) -> np.ndarray:
-        """``r(k)`` for the true position ``q`` at tick ``k``."""
+        """``r(k)`` for the true position ``q`` at tick ``k``.
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            The true joint positions (n,), rad.
+        k : int
+            The tick index (seeds the noise).
+
+        Returns
+        -------
+        numpy.ndarray
+            The reading (n,), rad.
+        """
         noise = white_noise(self._seed, self._robot, ENCODER_STREAM, k, self._std, self._n)
         return quantize(np.asarray(q, dtype=float) + noise, self._counts)
 
     def initial_reading(self, q0: np.ndarray) -> np.ndarray:
-        """The noiseless reading of the posture at rest ``q0`` (``q0`` itself when ideal)."""
+        """The noiseless reading of the posture at rest ``q0`` (``q0`` itself when ideal).
+
+        Parameters
+        ----------
+        q0 : numpy.ndarray
+            The posture at rest (n,), rad.
+
+        Returns
+        -------
+        numpy.ndarray
+            The reading (n,), rad.
+        """
         return quantize(q0, self._counts)
 
     def set_initial_state(self, context: Context, q0: np.ndarray) -> None:
-        """Fill the delay line with :meth:`initial_reading` of the initial posture ``q0``."""
+        """Fill the delay line with :meth:`initial_reading` of the initial posture ``q0``.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        q0 : numpy.ndarray
+            The initial posture (n,), rad.
+        """
         r0 = self.initial_reading(q0)
         context.SetDiscreteState(self._state, np.concatenate([[-1.0], np.tile(r0, self._d + 1)]))
 

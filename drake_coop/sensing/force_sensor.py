@@ -1,8 +1,8 @@
-"""A wrist force/torque sensor's measurement of the squeeze λ: low-pass, bias, noise, sampled.
+r"""A wrist force/torque sensor's measurement of the squeeze λ: low-pass, bias, noise, sampled.
 
 .. math::
-    y(k) = y(k-1) + \\alpha\\,(\\lambda(t_k^-) - y(k-1)), \\qquad
-    \\lambda_s(k) = y(k) + b + v_k,
+    y(k) = y(k-1) + \alpha\,(\lambda(t_k^-) - y(k-1)), \qquad
+    \lambda_s(k) = y(k) + b + v_k,
 
 with ``α = 1 − exp(−2π f_c h)`` (:func:`~drake_coop.sensing.sampling.lowpass_alpha`;
 ``α = 1`` without a cutoff), ``b`` the bias and ``v_k`` seeded white Gaussian noise.
@@ -94,7 +94,24 @@ class FTModel:
     @classmethod
     def from_settings(cls, settings: ForceSensorModel | None, period: float,
                       robot_index: int, m: int) -> FTModel:
-        """The model of a scenario's ``force_sensor`` settings at the sampling time ``h``."""
+        """The model of a scenario's ``force_sensor`` settings at the sampling time ``h``.
+
+        Parameters
+        ----------
+        settings : ForceSensorModel or None
+            The scenario's settings; None for an ideal sensor.
+        period : float
+            The sampling time ``h``, s.
+        robot_index : int
+            The robot's index (seeds its noise).
+        m : int
+            The number of constraints (the reading's size).
+
+        Returns
+        -------
+        FTModel
+            The model.
+        """
         s = settings or ForceSensorModel()
         return cls(alpha=lowpass_alpha(s.cutoff_hz, period), bias=float(s.bias),
                    noise_std=float(s.noise_std), seed=int(s.seed), robot=int(robot_index),
@@ -107,13 +124,36 @@ class FTModel:
         return self.alpha == 1.0 and self.bias == 0.0 and self.noise_std == 0.0
 
     def initial_reading(self) -> np.ndarray:
-        """``λ_s(0)``: the reading before any read (``y(0) = 0``): the bias."""
+        """``λ_s(0)``: the reading before any read (``y(0) = 0``): the bias.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``λ_s(0)`` (m,), N.
+        """
         return np.full(self.m, self.bias)
 
     def step(self, y_prev: np.ndarray, lambda_true: np.ndarray, k: int
              ) -> tuple[np.ndarray, np.ndarray]:
         """``y(k) = y(k−1) + α (λ − y(k−1))`` and the reading ``y(k) + b + v_k`` of tick ``k``
-        (``y(k) = λ`` exactly when ``α = 1``)."""
+        (``y(k) = λ`` exactly when ``α = 1``).
+
+        Parameters
+        ----------
+        y_prev : numpy.ndarray
+            ``y(k−1)`` (m,), N.
+        lambda_true : numpy.ndarray
+            The true ``λ`` of the step before tick ``k`` (m,), N.
+        k : int
+            The tick index (seeds the noise).
+
+        Returns
+        -------
+        y : numpy.ndarray
+            ``y(k)`` (m,), N.
+        reading : numpy.ndarray
+            The reading (m,), N.
+        """
         y = (np.array(lambda_true, dtype=float) if self.alpha == 1.0
              else y_prev + self.alpha * (lambda_true - y_prev))
         noise = white_noise(self.seed, self.robot, FORCE_SENSOR_STREAM, k, self.noise_std,
@@ -124,7 +164,18 @@ class FTModel:
         """The readings ``λ_s(0), …, λ_s(K−1)`` of a run, from ``lambdas[k]``, the true ``λ``
         of the plant step before tick ``k`` (row 0 unused: no step precedes ``t_0``), by
         :meth:`step` from ``y(0) = 0``; an ideal model's readings are ``λ`` itself (the C++
-        hold's initial value 0 at tick 0)."""
+        hold's initial value 0 at tick 0).
+
+        Parameters
+        ----------
+        lambdas : numpy.ndarray
+            The true ``λ`` per tick (K, m), N.
+
+        Returns
+        -------
+        numpy.ndarray
+            The readings (K, m), N.
+        """
         lambdas = np.asarray(lambdas, dtype=float).reshape(-1, self.m)
         out = np.empty_like(lambdas)
         if out.shape[0] == 0:
@@ -229,6 +280,34 @@ def add_ft_sensor(builder: DiagramBuilder, name: str, period: float, plant_step:
     docstring) the model reads it at ``t_k − Δt/2``; an ideal model is then a C++
     ``ZeroOrderHold`` (period ``h``, offset ``h − Δt/2``, initial value 0: no Python at all).
     Otherwise an :class:`FTSensor` reads the live ``lambda_live`` at ``t_k − 3Δt/2``.
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The experiment's builder.
+    name : str
+        The robot's name (the system's prefix).
+    period : float
+        The control period ``h``, s.
+    plant_step : float
+        The plant's step ``Δt``, s.
+    settings : ForceSensorModel or None
+        The scenario's settings; None for an ideal sensor.
+    robot_index : int
+        The robot's index (seeds its noise).
+    m : int
+        The number of constraints.
+    lambda_live : OutputPort
+        The ground truth's live ``λ`` (m,), N.
+    lambda_last_step : OutputPort or None
+        The ground truth's ``λ`` of the step before the tick, if any.
+
+    Returns
+    -------
+    system : LeafSystem
+        The sensor model.
+    lambda_sensor : OutputPort
+        Its reading (m,), N.
     """
     if lambda_last_step is not None:
         if FTModel.from_settings(settings, period, robot_index, m).ideal:

@@ -1,11 +1,11 @@
-"""Computation delay and sampling jitter of one robot's digital controller, between its torque
+r"""Computation delay and sampling jitter of one robot's digital controller, between its torque
 command and the actuators.
 
 The controller (13) computes ``τ(k)`` from ``q(t_k)``; a real controller needs time ``d`` to do
 so and wakes up late by ``ℓ_k`` on some ticks. Here ``τ(k)`` reaches the actuators at
 
 .. math::
-    t_k + D_k, \\qquad D_k = d + \\ell_k, \\qquad 0 \\le D_k \\le h,
+    t_k + D_k, \qquad D_k = d + \ell_k, \qquad 0 \le D_k \le h,
 
 and until then ``τ(k−1)`` stays on. ``ℓ_k = 0`` without jitter; otherwise a seeded draw
 (``U(0, s)`` or exponential with mean ``s``, cut at ``h − d``) that depends only on
@@ -44,7 +44,24 @@ JITTER_STREAM = 2
 
 
 def lateness(timing: Timing, robot: int, k: int, h: float) -> float:
-    """``ℓ_k`` (s) of tick ``k`` (0 without jitter)."""
+    """``ℓ_k`` (s) of tick ``k`` (0 without jitter).
+
+    Parameters
+    ----------
+    timing : Timing
+        The scenario's timing settings (jitter, seed).
+    robot : int
+        The robot's index (seeds its jitter).
+    k : int
+        The tick index.
+    h : float
+        The control period, s.
+
+    Returns
+    -------
+    float
+        ``ℓ_k``, s.
+    """
     if timing.jitter == "none":
         return 0.0
     rng = np.random.default_rng([int(timing.seed), int(robot), JITTER_STREAM, int(k)])
@@ -55,7 +72,22 @@ def lateness(timing: Timing, robot: int, k: int, h: float) -> float:
 
 
 def switch_step(delay: float, dt: float, steps: int) -> int:
-    """``s = ⌈delay / Δt⌉`` (to 1e-9 of a step), clipped to ``[0, steps]``."""
+    """``s = ⌈delay / Δt⌉`` (to 1e-9 of a step), clipped to ``[0, steps]``.
+
+    Parameters
+    ----------
+    delay : float
+        The delay after the tick, s.
+    dt : float
+        The plant's step ``Δt``, s.
+    steps : int
+        The plant steps per tick.
+
+    Returns
+    -------
+    int
+        ``s``.
+    """
     return int(min(steps, max(0, math.ceil(delay / dt - 1e-9))))
 
 
@@ -105,7 +137,18 @@ class ActuationDelay(LeafSystem):
         return self.get_output_port(0)
 
     def switch(self, k: int) -> int:
-        """``s_k``: the plant step of tick ``k`` from which ``τ(k)`` is applied."""
+        """``s_k``: the plant step of tick ``k`` from which ``τ(k)`` is applied.
+
+        Parameters
+        ----------
+        k : int
+            The tick index.
+
+        Returns
+        -------
+        int
+            ``s_k``.
+        """
         delay = self._timing.computation_delay + lateness(self._timing, self._robot, k, self._h)
         return switch_step(delay, self._dt, self._N)
 

@@ -26,6 +26,26 @@ def white_noise(seed: int, robot: int, stream: int, k: int, std: float, size: in
     Drawn from a generator seeded with ``[seed, robot, stream, k]`` (NumPy's ``SeedSequence``
     mixes them), so the value depends on nothing else: reproducible, independent across
     ticks, robots and sensors.
+
+    Parameters
+    ----------
+    seed : int
+        The scenario's seed.
+    robot : int
+        The robot's index.
+    stream : int
+        The sensor's stream number.
+    k : int
+        The tick index.
+    std : float
+        The standard deviation (the signal's unit).
+    size : int
+        The number of samples.
+
+    Returns
+    -------
+    numpy.ndarray
+        The samples (size,).
     """
     if std == 0.0:
         return np.zeros(size)

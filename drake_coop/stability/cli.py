@@ -32,7 +32,18 @@ def _value(text: str):
 
 
 def parse_grid(items: list[str]) -> dict[str, list]:
-    """``["control_period=0.009,0.02", …]`` -> ``{"control_period": [0.009, 0.02], …}``."""
+    """``["control_period=0.009,0.02", …]`` -> ``{"control_period": [0.009, 0.02], …}``.
+
+    Parameters
+    ----------
+    items : list of str
+        ``path=v1,v2,…`` items of the command line.
+
+    Returns
+    -------
+    dict of str to list
+        Each path's values (numbers where they parse, else text).
+    """
     grid: dict[str, list] = {}
     for item in items:
         path, sep, values = item.partition("=")
@@ -45,7 +56,13 @@ def parse_grid(items: list[str]) -> dict[str, list]:
 
 
 def add_stability_parser(sub) -> None:
-    """Register ``stability`` on the ``drake-coop`` subparsers."""
+    """Register ``stability`` on the ``drake-coop`` subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``drake-coop`` subparsers.
+    """
     p = sub.add_parser("stability", help="spectral radius of the one-period map over a grid")
     p.add_argument("scenario", help="scenario YAML or shipped scenario name")
     p.add_argument("--out", required=True, help="output folder (new, or one of ours)")
@@ -82,6 +99,19 @@ def _check_out(out: Path) -> None:
 
 
 def cmd_stability(args) -> int:
+    """Run ``drake-coop stability``: ρ of the one-period map over the grid, written to ``--out``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit code: 0 done, 1 the outputs could not be written or a point has no
+        step-independent ρ, 2 bad input.
+    """
     from drake_coop.console import error as _error
     from drake_coop.results.io import staged_folder
     from drake_coop.scenario.resources import find_scenario

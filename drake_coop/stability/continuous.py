@@ -28,7 +28,20 @@ TIME_STEP_PATH = "plant.time_step"
 
 
 def continuous_rho(rho_dt: float, rho_half: float) -> float:
-    """``2 ρ(Δt/2) − ρ(Δt)``: ρ with the plant step's first-order bias removed."""
+    """``2 ρ(Δt/2) − ρ(Δt)``: ρ with the plant step's first-order bias removed.
+
+    Parameters
+    ----------
+    rho_dt : float
+        ρ at the plant step ``Δt``.
+    rho_half : float
+        ρ at ``Δt/2``.
+
+    Returns
+    -------
+    float
+        The extrapolated ρ.
+    """
     return 2.0 * float(rho_half) - float(rho_dt)
 
 
@@ -36,6 +49,18 @@ def continuous_rows(rows: list[dict], swept: list[str]) -> list[dict]:
     """Pair each row at plant step ``Δt`` with the row at ``Δt/2`` of the same other swept
     values and operating point; return one row per pair with ``rho_dt``, ``rho_half``,
     ``rho_continuous``, ``time_step``, both statuses, and the other swept values.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The grid's rows (``stability.csv``'s).
+    swept : list of str
+        The grid's swept paths (``plant.time_step`` among them).
+
+    Returns
+    -------
+    list of dict
+        One row per pair.
 
     Raises
     ------

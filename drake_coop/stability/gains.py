@@ -67,7 +67,24 @@ MAX_ATTEMPTS = 4
 
 @dataclass
 class DerivedGains:
-    """One robot's derived gains and what they were derived from."""
+    """One robot's derived gains and what they were derived from.
+
+    Attributes
+    ----------
+    name : str
+        The robot's name.
+    gains : Gains
+        The derived gains.
+    inertia : list of float
+        ``J_j``, each joint's least effective inertia over the postures, kg·m² (kg for a
+        prismatic joint).
+    kappa : float
+        ``κ`` of ``K_R,j = κ J_j / h`` (dimensionless) the gains were derived with.
+    observer_h_pf : float
+        ``h p_f`` of the observer's fast pole (stable below 2).
+    postures : int
+        The number of postures the inertia was taken over.
+    """
 
     name: str
     gains: Gains
@@ -79,7 +96,23 @@ class DerivedGains:
 
 @dataclass
 class GainsReport:
-    """The derived gains of every robot and the map's check."""
+    """The derived gains of every robot and the map's check.
+
+    Attributes
+    ----------
+    robots : list of DerivedGains
+        One per robot.
+    rho : dict of str to float
+        ρ of the map per check (``free``, ``held``, ``free_margin``, …).
+    attempts : int
+        The attempts made (``κ`` backed off after each failure).
+    stable : bool
+        Whether every check gave ρ < 1.
+    checked_on : str
+        The object mode the map was computed in.
+    messages : list of str
+        What each attempt found.
+    """
 
     robots: list[DerivedGains]
     rho: dict[str, float] = field(default_factory=dict)     # "free", "held", "free_margin", …
@@ -92,7 +125,26 @@ class GainsReport:
 def task_postures(scenario: Scenario, index: int, plan=None, step: float = POSTURE_STEP
                   ) -> tuple[np.ndarray, np.ndarray]:
     """The joint reference ``q_d`` of robot ``index`` every ``step`` seconds of the task
-    (home, free path, held path), and the first held posture (the grasp)."""
+    (home, free path, held path), and the first held posture (the grasp).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The run's scenario.
+    index : int
+        The robot's index.
+    plan : RunPlan or None
+        The run's plan; None plans it here.
+    step : float
+        The sampling of the task, s.
+
+    Returns
+    -------
+    postures : numpy.ndarray
+        ``q_d`` (K, n), rad.
+    grasp : numpy.ndarray
+        The grasp posture (n,), rad.
+    """
     from drake_coop.experiment.plan import plan_run
     from drake_coop.experiment.references import reference_samples
 
@@ -123,7 +175,28 @@ def derive_robot_gains(model, postures: np.ndarray, grasp: np.ndarray, h: float,
                        kappa: float = KAPPA, name: str = "robot") -> DerivedGains:
     """One robot's gains from its controller model (an
     :class:`~drake_coop.control.arm_model.ArmModel`) at ``postures`` (rows of ``q``), the
-    grasp posture and the control period ``h`` (module docstring)."""
+    grasp posture and the control period ``h`` (module docstring).
+
+    Parameters
+    ----------
+    model : ArmModel
+        The controller's model of the arm.
+    postures : numpy.ndarray
+        The task's postures (K, n), rad.
+    grasp : numpy.ndarray
+        The grasp posture (n,), rad.
+    h : float
+        The control period, s.
+    kappa : float
+        ``κ``, the fraction of the sampling limit.
+    name : str
+        The robot's name.
+
+    Returns
+    -------
+    DerivedGains
+        The gains.
+    """
     inv_diag = np.array([np.diag(np.linalg.inv(model.H(q))) for q in postures])
     inertia = 1.0 / inv_diag.max(axis=0)           # min over postures of 1/(H⁻¹)_jj
     K_R = kappa * inertia / h
@@ -142,7 +215,22 @@ def derive_robot_gains(model, postures: np.ndarray, grasp: np.ndarray, h: float,
 def gains_for_scenario(scenario: Scenario, derived: list[DerivedGains], K_R_factor: float = 1.0
                        ) -> Scenario:
     """A copy of ``scenario`` with each robot's gains replaced by the derived ones (``K_R``
-    times ``K_R_factor``); a ``xi_matrix`` is dropped (the derived ``ξ`` is scalar)."""
+    times ``K_R_factor``); a ``xi_matrix`` is dropped (the derived ``ξ`` is scalar).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    derived : list of DerivedGains
+        One per robot.
+    K_R_factor : float
+        The factor on ``K_R`` (the margin check uses :data:`GAIN_MARGIN`).
+
+    Returns
+    -------
+    Scenario
+        The copy.
+    """
     s = copy.deepcopy(scenario)
     for robot, d in zip(s.robots, derived):
         g = copy.deepcopy(d.gains)
@@ -153,7 +241,22 @@ def gains_for_scenario(scenario: Scenario, derived: list[DerivedGains], K_R_fact
 
 def derive_gains(scenario: Scenario, kappa: float = KAPPA,
                  progress: Callable[[str], None] = lambda m: None) -> list[DerivedGains]:
-    """Every robot's gains (:func:`derive_robot_gains`) at its task's postures."""
+    """Every robot's gains (:func:`derive_robot_gains`) at its task's postures.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    kappa : float
+        ``κ``.
+    progress : Callable[[str], None]
+        Receives one line per step.
+
+    Returns
+    -------
+    list of DerivedGains
+        One per robot.
+    """
     from drake_coop.experiment.plan import plan_run
     from drake_coop.plant.arms import arm_model
 
@@ -172,7 +275,22 @@ def derive_gains(scenario: Scenario, kappa: float = KAPPA,
 
 def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
                     progress: Callable[[str], None] = lambda m: None) -> dict[str, float]:
-    """ρ of the one-period map of ``scenario`` at the free and held operating points."""
+    """ρ of the one-period map of ``scenario`` at the free and held operating points.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario with the gains to check.
+    epsilon : float
+        The central differences' step.
+    progress : Callable[[str], None]
+        Receives one line per step.
+
+    Returns
+    -------
+    dict of str to float
+        ρ per operating point.
+    """
     from drake_coop.stability.operating import operating_point
     from drake_coop.stability.period_map import analyse
 
@@ -186,7 +304,20 @@ def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
 
 
 def map_copy(scenario: Scenario) -> tuple[Scenario, str]:
-    """The scenario the map is computed on: itself, or its ``planes`` copy in contact mode."""
+    """The scenario the map is computed on: itself, or its ``planes`` copy in contact mode.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    scenario : Scenario
+        The scenario the map is computed on.
+    mode : str
+        Its object mode.
+    """
     if scenario.plant.object_mode != "contact":
         return scenario, scenario.plant.object_mode
     s = copy.deepcopy(scenario)
@@ -196,7 +327,24 @@ def map_copy(scenario: Scenario) -> tuple[Scenario, str]:
 
 def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 1e-5,
                      progress: Callable[[str], None] = lambda m: None) -> GainsReport:
-    """Derive, check at the gains and at ``GAIN_MARGIN × K_R``; back off ``κ`` on failure."""
+    """Derive, check at the gains and at ``GAIN_MARGIN × K_R``; back off ``κ`` on failure.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    kappa : float
+        The first ``κ``.
+    epsilon : float
+        The central differences' step.
+    progress : Callable[[str], None]
+        Receives one line per step.
+
+    Returns
+    -------
+    GainsReport
+        The gains and the checks.
+    """
     target, mode = map_copy(scenario)
     report = GainsReport(robots=[], checked_on=mode)
     for attempt in range(1, MAX_ATTEMPTS + 1):

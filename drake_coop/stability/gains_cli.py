@@ -25,7 +25,13 @@ __all__ = ["add_gains_parser", "cmd_gains", "load_for_gains"]
 
 
 def add_gains_parser(sub) -> None:
-    """Register ``gains`` on the ``drake-coop`` subparsers."""
+    """Register ``gains`` on the ``drake-coop`` subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``drake-coop`` subparsers.
+    """
     p = sub.add_parser("gains", help="derive each robot's gains from its model and check them "
                                      "with the stability map")
     p.add_argument("scenario", help="scenario YAML or shipped scenario name")
@@ -121,6 +127,16 @@ def load_for_gains(name_or_path):
     loads it, except that each robot's ``K_R`` may be absent or of any length (deriving it is
     the command's job).
 
+    Parameters
+    ----------
+    name_or_path : str or Path
+        A scenario file or a shipped scenario's name.
+
+    Returns
+    -------
+    Scenario
+        The scenario.
+
     Raises
     ------
     ScenarioError
@@ -133,7 +149,18 @@ def load_for_gains(name_or_path):
 
 
 def cmd_gains(args) -> int:
-    """Derive, check, write (see the module docstring for the exit codes)."""
+    """Derive, check, write (see the module docstring for the exit codes).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit code.
+    """
     from drake_coop.console import error as _error
     from drake_coop.results.run_folder import OutputFolderError, RunFolder
     from drake_coop.scenario.schema import ScenarioError

@@ -35,7 +35,20 @@ EQUILIBRIUM_TOL = 1e-6
 
 def status_of(rho: float, residual: float) -> str:
     """``stable`` (ρ < 1), ``unstable`` (ρ ≥ 1) or ``no_equilibrium`` (Newton did not
-    converge: ρ is that of the last iterate)."""
+    converge: ρ is that of the last iterate).
+
+    Parameters
+    ----------
+    rho : float
+        ρ(Φ).
+    residual : float
+        Newton's last residual.
+
+    Returns
+    -------
+    str
+        The status.
+    """
     if not math.isfinite(rho):
         return "unstable"
     if residual > EQUILIBRIUM_TOL:
@@ -45,6 +58,18 @@ def status_of(rho: float, residual: float) -> str:
 
 def grid_cases(base_yaml: str | None, grid: dict[str, list]) -> list[Case]:
     """The grid's points as validated cases (:func:`drake_coop.studies.expand.expand`).
+
+    Parameters
+    ----------
+    base_yaml : str or None
+        The base scenario's YAML text; None for the defaults.
+    grid : dict of str to list
+        Each swept path's values.
+
+    Returns
+    -------
+    list of Case
+        The cases.
 
     Raises
     ------
@@ -56,7 +81,22 @@ def grid_cases(base_yaml: str | None, grid: dict[str, list]) -> list[Case]:
 
 
 def point_rows(scenario_yaml: str, points: list[str], epsilon: float = 1e-3) -> list[dict]:
-    """ρ(Φ) of one scenario at each operating point (never raises: ``status = error``)."""
+    """ρ(Φ) of one scenario at each operating point (never raises: ``status = error``).
+
+    Parameters
+    ----------
+    scenario_yaml : str
+        The case's scenario, YAML text.
+    points : list of str
+        The operating points (``free``, ``held``).
+    epsilon : float
+        The central differences' step.
+
+    Returns
+    -------
+    list of dict
+        One row per point.
+    """
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.stability.operating import operating_point
     from drake_coop.stability.period_map import analyse
@@ -96,7 +136,25 @@ def run_grid(cases: list[Case], points: list[str], on_result: Callable[[Case, li
              workers: int = 2, engine: str = "local", address: str | None = None,
              epsilon: float = 1e-3) -> None:
     """Compute every case's rows in fresh processes (``local``) or Ray tasks (``ray``),
-    handing each case's rows to ``on_result`` as they arrive."""
+    handing each case's rows to ``on_result`` as they arrive.
+
+    Parameters
+    ----------
+    cases : list of Case
+        The grid's cases.
+    points : list of str
+        The operating points.
+    on_result : Callable[[Case, list], None]
+        Receives each case and its rows.
+    workers : int
+        Processes (``local``).
+    engine : str
+        ``local`` or ``ray``.
+    address : str or None
+        The Ray cluster's address; None starts a local one.
+    epsilon : float
+        The central differences' step.
+    """
     if engine == "ray":
         import ray
 

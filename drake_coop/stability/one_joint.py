@@ -1,4 +1,4 @@
-"""The one-period map of one joint under the paper's law, in closed form: why the loop's
+r"""The one-period map of one joint under the paper's law, in closed form: why the loop's
 sampling limit is where it is.
 
 One joint of inertia ``J`` and viscous friction ``D`` (no gravity, exact model), regulated to
@@ -6,26 +6,26 @@ One joint of inertia ``J`` and viscous friction ``D`` (no gravity, exact model),
 every ``Δt`` (``h = N Δt``) as Drake's discrete plant does with its implicit joint damping:
 
 .. math::
-    (J + \\Delta t D)\\, v^+ = J v + \\Delta t\\, \\tau, \\qquad q^+ = q + \\Delta t\\, v^+ .
+    (J + \Delta t D)\, v^+ = J v + \Delta t\, \tau, \qquad q^+ = q + \Delta t\, v^+ .
 
 With the observer (15)–(16) (forward Euler, state ``q̂, q̇̂_o``), ``z = q − q̂``:
 
 .. math::
-    \\dot{\\hat q} = \\dot{\\hat q}_o + (\\Lambda + k_d) z, \\quad
-    \\dot q_o = \\dot{\\hat q}_o + k_d z, \\quad
-    \\dot q_r = -\\Lambda \\hat q, \\quad \\ddot{\\hat q}_r = -\\Lambda \\dot{\\hat q},
+    \dot{\hat q} = \dot{\hat q}_o + (\Lambda + k_d) z, \quad
+    \dot q_o = \dot{\hat q}_o + k_d z, \quad
+    \dot q_r = -\Lambda \hat q, \quad \ddot{\hat q}_r = -\Lambda \dot{\hat q},
 
 .. math::
-    \\tau = J \\ddot{\\hat q}_r + D \\dot q_r - K_R(\\dot q_o - \\dot q_r), \\qquad
-    \\hat q^+ = \\hat q + h \\dot{\\hat q}, \\quad
-    \\dot{\\hat q}_o^+ = \\dot{\\hat q}_o + h(\\ddot{\\hat q}_r + k_d \\Lambda z).
+    \tau = J \ddot{\hat q}_r + D \dot q_r - K_R(\dot q_o - \dot q_r), \qquad
+    \hat q^+ = \hat q + h \dot{\hat q}, \quad
+    \dot{\hat q}_o^+ = \dot{\hat q}_o + h(\ddot{\hat q}_r + k_d \Lambda z).
 
 With measured velocities (``q̂ = q``, ``q̇̂ = q̇_o = v``) the state is ``[q, v]`` and
 ``τ = −JΛv − DΛq − K_R(v + Λq)``. Either way ``τ(k) = c·x(k)`` is linear and held, so
 
 .. math::
-    \\Phi = \\begin{bmatrix} A^N + B_N c \\\\ \\text{observer rows} \\end{bmatrix}, \\qquad
-    B_N = \\sum_{i<N} A^i B .
+    \Phi = \begin{bmatrix} A^N + B_N c \\ \text{observer rows} \end{bmatrix}, \qquad
+    B_N = \sum_{i<N} A^i B .
 """
 
 from __future__ import annotations
@@ -43,6 +43,32 @@ def one_joint_phi(J: float, D: float, Lambda: float, k_d: float, K_R: float, h: 
     ``delay_steps = s > 0`` applies ``τ(k)`` from the ``s``-th plant step of the period on
     (a computation delay, :mod:`drake_coop.sensing.latency`): the first ``s`` steps still get
     ``τ(k−1)``, which joins the state as its last entry.
+
+    Parameters
+    ----------
+    J : float
+        The joint's inertia, kg·m².
+    D : float
+        Its viscous friction, N·m·s/rad.
+    Lambda : float
+        ``Λ``, 1/s.
+    k_d : float
+        ``k_d``, 1/s.
+    K_R : float
+        ``K_R``, N·m·s/rad.
+    h : float
+        The control period, s.
+    dt : float
+        The plant's step, s.
+    velocity : str
+        ``observer`` or ``measured``.
+    delay_steps : int
+        ``s``, the plant steps of computation delay.
+
+    Returns
+    -------
+    numpy.ndarray
+        Φ, square.
     """
     N = int(round(h / dt))
     s = int(delay_steps)
@@ -82,13 +108,49 @@ def one_joint_phi(J: float, D: float, Lambda: float, k_d: float, K_R: float, h: 
 
 
 def one_joint_rho(*args, **kwargs) -> float:
-    """``ρ(Φ)`` of :func:`one_joint_phi` (same arguments)."""
+    """``ρ(Φ)`` of :func:`one_joint_phi` (same arguments).
+
+    Parameters
+    ----------
+    *args, **kwargs
+        Those of :func:`one_joint_phi`.
+
+    Returns
+    -------
+    float
+        ρ(Φ).
+    """
     return float(np.max(np.abs(np.linalg.eigvals(one_joint_phi(*args, **kwargs)))))
 
 
 def crossing_period(J: float, D: float, Lambda: float, k_d: float, K_R: float, dt: float,
                     velocity: str = "observer", max_steps: int = 200) -> float | None:
-    """The smallest ``h = N Δt`` at which ``ρ ≥ 1`` (None up to ``max_steps`` steps)."""
+    """The smallest ``h = N Δt`` at which ``ρ ≥ 1`` (None up to ``max_steps`` steps).
+
+    Parameters
+    ----------
+    J : float
+        The joint's inertia, kg·m².
+    D : float
+        Its viscous friction, N·m·s/rad.
+    Lambda : float
+        ``Λ``, 1/s.
+    k_d : float
+        ``k_d``, 1/s.
+    K_R : float
+        ``K_R``, N·m·s/rad.
+    dt : float
+        The plant's step, s.
+    velocity : str
+        ``observer`` or ``measured``.
+    max_steps : int
+        The largest ``N`` tried.
+
+    Returns
+    -------
+    float or None
+        ``h``, s, or None.
+    """
     for N in range(1, max_steps + 1):
         if one_joint_rho(J, D, Lambda, k_d, K_R, N * dt, dt, velocity) >= 1.0:
             return N * dt
@@ -104,6 +166,18 @@ def observer_period_limit(Lambda: float, k_d: float) -> float:
     ``s² + (2Λ + k_d) s + Λ k_d``; forward Euler maps a real pole ``−p`` to ``1 − h p``, stable
     iff ``h < 2/p``, and the fast pole
     ``p_f = ((2Λ + k_d) + √((2Λ + k_d)² − 4Λk_d)) / 2`` binds first.
+
+    Parameters
+    ----------
+    Lambda : float
+        ``Λ``, 1/s.
+    k_d : float
+        ``k_d``, 1/s.
+
+    Returns
+    -------
+    float
+        ``2/p_f``, s.
     """
     b = 2.0 * Lambda + k_d
     p_fast = 0.5 * (b + np.sqrt(b * b - 4.0 * Lambda * k_d))
@@ -162,6 +236,36 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
     the law ``q_p = q + p q̇̂ + p² a/2`` (likewise ``q̂``), ``q̇̂ + p a``, ``q̇_o + p a``; the
     observer (16) is fed ``w a + (1 − w) q̈̂_r`` with ``w = p/h`` (``feed = "horizon"``) or
     ``w = delay/h`` (``feed = "delay"``).
+
+    Parameters
+    ----------
+    J : float
+        The joint's inertia, kg·m².
+    D : float
+        Its viscous friction, N·m·s/rad.
+    Lambda : float
+        ``Λ``, 1/s.
+    k_d : float
+        ``k_d``, 1/s.
+    K_R : float
+        ``K_R``, N·m·s/rad.
+    h : float
+        The control period, s.
+    delay : float
+        The computation delay, s.
+    horizon : float or None
+        The predictor's horizon ``p``, s; None: no predictor.
+    dt : float or None
+        The plant's step, s; None for the continuous arm.
+    model_scale : float
+        The controller model's scale of ``J`` and ``D``.
+    feed : str
+        ``horizon`` or ``delay``: the observer's weight ``w``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Φ (5, 5).
     """
     Jm, Dm = model_scale * J, model_scale * D
     e = np.eye(5)
@@ -201,5 +305,16 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
 
 
 def one_joint_predicted_rho(*args, **kwargs) -> float:
-    """``ρ(Φ)`` of :func:`one_joint_predicted_phi` (same arguments)."""
+    """``ρ(Φ)`` of :func:`one_joint_predicted_phi` (same arguments).
+
+    Parameters
+    ----------
+    *args, **kwargs
+        Those of :func:`one_joint_predicted_phi`.
+
+    Returns
+    -------
+    float
+        ρ(Φ).
+    """
     return float(np.max(np.abs(np.linalg.eigvals(one_joint_predicted_phi(*args, **kwargs)))))

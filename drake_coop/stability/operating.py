@@ -40,7 +40,19 @@ POINTS = ("free", "held")
 
 @dataclass
 class OperatingPoint:
-    """A built loop at an operating point: the experiment, its map and where it is."""
+    """A built loop at an operating point: the experiment, its map and where it is.
+
+    Attributes
+    ----------
+    name : str
+        ``free`` or ``held``.
+    experiment : Experiment
+        The built loop.
+    map : PeriodMap
+        Its one-period map.
+    t_star : float
+        The time of the operating point, s.
+    """
 
     name: str
     experiment: Experiment
@@ -49,7 +61,18 @@ class OperatingPoint:
 
 
 def linearizable(scenario: Scenario) -> Scenario:
-    """A copy of ``scenario`` without encoder quantization, sensor noise and jitter."""
+    """A copy of ``scenario`` without encoder quantization, sensor noise and jitter.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    Scenario
+        The copy.
+    """
     s = copy.deepcopy(scenario)
     for robot in s.robots:
         robot.encoders.counts_per_rev = None
@@ -79,6 +102,20 @@ def operating_point(scenario: Scenario, point: str = "free", t_star: float | Non
     The state is the designed equilibrium guess (arms at ``q_d``, at rest, observers at
     ``q̂ = q``, ``q̇̂_o = 0``, ``ΔF̃ = 0``); :func:`~drake_coop.stability.period_map.analyse`
     then solves for the map's fixed point.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    point : str
+        ``free`` or ``held``.
+    t_star : float or None
+        The time of the point, s; None for the point's default.
+
+    Returns
+    -------
+    OperatingPoint
+        The loop and its map.
 
     Raises
     ------

@@ -33,7 +33,17 @@ def _cell(value) -> str:
 
 
 def write_csv(path: Path, swept: list[str], rows: list[dict]) -> None:
-    """``stability.csv``: ``swept… , COLUMNS…`` (rows as given)."""
+    """``stability.csv``: ``swept… , COLUMNS…`` (rows as given).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    swept : list of str
+        The swept paths (the first columns).
+    rows : list of dict
+        The rows.
+    """
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(swept + COLUMNS)
@@ -52,7 +62,20 @@ def _num(v):
 def read_outcomes(path: str | Path, swept: list[str]) -> dict[tuple, str]:
     """``values of the swept paths (as text) -> status`` from a study's ``results.csv``.
 
-    The study's swept columns must include ours; extra ones (fixed there) are ignored."""
+    The study's swept columns must include ours; extra ones (fixed there) are ignored.
+
+    Parameters
+    ----------
+    path : str or Path
+        The study's ``results.csv``.
+    swept : list of str
+        The swept paths.
+
+    Returns
+    -------
+    dict of tuple to str
+        Swept values → the run's status.
+    """
     out = {}
     with open(path, newline="") as f:
         for r in csv.DictReader(f):
@@ -65,7 +88,20 @@ def read_outcomes(path: str | Path, swept: list[str]) -> dict[tuple, str]:
 
 def outcome_key(values, swept: list[str]) -> tuple[str, ...]:
     """The key of :func:`read_outcomes` for a grid point's ``values`` (a mapping of each swept
-    path to its value: a study's row or a stability case's parameters)."""
+    path to its value: a study's row or a stability case's parameters).
+
+    Parameters
+    ----------
+    values : Mapping
+        Each swept path's value.
+    swept : list of str
+        The swept paths.
+
+    Returns
+    -------
+    tuple of str
+        The key.
+    """
     return tuple(_key(values[p]) for p in swept)
 
 
@@ -100,7 +136,24 @@ def _rho_axis(ax, rho: list[float]) -> None:
 def plot_maps(out: Path, swept: list[str], rows: list[dict],
               outcomes: dict[tuple, str] | None = None) -> list[Path]:
     """Heat maps (two numeric paths) or curves (one) of ρ; returns the files written. Axes
-    are labelled with their unit (:func:`drake_coop.studies.plots.param_label`: a period in ms)."""
+    are labelled with their unit (:func:`drake_coop.studies.plots.param_label`: a period in ms).
+
+    Parameters
+    ----------
+    out : Path
+        The output folder.
+    swept : list of str
+        The swept paths.
+    rows : list of dict
+        The rows.
+    outcomes : dict of tuple to str or None
+        A study's outcomes to mark on the maps.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
     from drake_coop.studies.plots import param_label
 
     import matplotlib

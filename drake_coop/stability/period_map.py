@@ -1,10 +1,10 @@
-"""The one-period map of a sampled closed loop, its equilibrium and its monodromy matrix Φ.
+r"""The one-period map of a sampled closed loop, its equilibrium and its monodromy matrix Φ.
 
 A closed loop whose controllers tick every ``h`` and whose plant steps every ``Δt`` (``h = N Δt``)
 is, between two ticks, a map of its whole state
 
 .. math::
-    x_{k+1} = F(x_k), \\qquad x_k = x(t_k^-),
+    x_{k+1} = F(x_k), \qquad x_k = x(t_k^-),
 
 ``x(t_k^-)`` the state at the tick time ``t_k`` *before* that tick's updates (what
 ``Simulator.AdvanceTo(t_k)`` leaves: Drake handles the events at ``t_k`` at the start of the
@@ -20,7 +20,7 @@ Drake's ``Linearize`` cannot do this here (Python LeafSystems do not convert to 
 this diagram drake 1.51 aborts the process), so ``Φ`` comes from central differences,
 
 .. math::
-    \\Phi_{:,j} \\approx \\frac{F(x^* + \\varepsilon_j e_j) - F(x^* - \\varepsilon_j e_j)}{2\\varepsilon_j},
+    \Phi_{:,j} \approx \frac{F(x^* + \varepsilon_j e_j) - F(x^* - \varepsilon_j e_j)}{2\varepsilon_j},
 
 error ``O(ε²)`` from truncation plus ``O(η/ε)`` from the map's own noise ``η`` (rounding, the
 plant's iterative contact solver). :func:`step_sensitivity` measures it by repeating the
@@ -55,7 +55,7 @@ __all__ = ["MapReport", "Mode", "PeriodMap", "analyse", "find_equilibrium", "jac
 
 
 class PeriodMap:
-    """``x_{k+1} = F(x_k)`` over one control period ``h``, evaluated with the Simulator.
+    """:math:`x_{k+1} = F(x_k)` over one control period ``h``, evaluated with the Simulator.
 
     Parameters
     ----------
@@ -83,7 +83,13 @@ class PeriodMap:
         return self.state.get(self.nominal)
 
     def set_nominal_state(self, x: np.ndarray) -> None:
-        """Make ``x`` the state of the operating point (e.g. the equilibrium found)."""
+        """Make ``x`` the state of the operating point (e.g. the equilibrium found).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            The loop's state vector.
+        """
         self.state.set(self.nominal, x)
 
     def __call__(self, x: np.ndarray, periods: int = 1) -> np.ndarray:
@@ -100,7 +106,21 @@ class PeriodMap:
 @dataclass
 class Mode:
     """One eigenvalue ``μ`` of ``Φ``: ``|μ|``, time constant ``−h/ln|μ|`` (s), frequency
-    ``arg μ / (2π h)`` (Hz) and the state entries that dominate its eigenvector."""
+    ``arg μ / (2π h)`` (Hz) and the state entries that dominate its eigenvector.
+
+    Attributes
+    ----------
+    mu : complex
+        ``μ``.
+    magnitude : float
+        ``|μ|``.
+    time_constant : float
+        ``−h/ln|μ|``, s.
+    frequency_hz : float
+        ``arg μ / (2π h)``, Hz.
+    dominant : list of str
+        The dominant state entries' labels.
+    """
 
     mu: complex
     magnitude: float
@@ -169,6 +189,13 @@ class MapReport:
         return math.isnan(self.epsilon_check) or _agree(self.rho, self.rho_check)
 
     def dynamic_labels(self) -> list[str]:
+        """The labels of the dynamic entries (those Φ is taken on).
+
+        Returns
+        -------
+        list of str
+            The labels.
+        """
         return [self.labels[i] for i in self.dynamic]
 
 
@@ -197,7 +224,18 @@ def check_step(epsilon: float) -> float:
     default 1e-3 is checked at 3e-3; when they disagree :func:`analyse` also tries ``ε/3`` and
     accepts ε if either neighbour agrees: ε then lies on a plateau — the delayed held loop's
     starts at 1e-3, the encoder-delayed held loop's ends there), else 1e-5, or 1e-4 when ``ε``
-    is within a factor √10 of 1e-5."""
+    is within a factor √10 of 1e-5.
+
+    Parameters
+    ----------
+    epsilon : float
+        The first step.
+
+    Returns
+    -------
+    float
+        The second step.
+    """
     if epsilon >= 3e-4:
         return 3.0 * epsilon
     return 1e-4 if abs(math.log10(epsilon / 1e-5)) < 0.5 else 1e-5
@@ -212,7 +250,24 @@ def _counters(F: PeriodMap, x: np.ndarray, fx: np.ndarray) -> list[int]:
 def jacobian(F: PeriodMap, x: np.ndarray, columns: list[int], epsilon: float | np.ndarray
              ) -> np.ndarray:
     """Central differences ``(F(x + ε e_j) − F(x − ε e_j)) / 2ε`` for ``j`` in ``columns``
-    (full rows, shape ``(len(x), len(columns))``)."""
+    (full rows, shape ``(len(x), len(columns))``).
+
+    Parameters
+    ----------
+    F : PeriodMap
+        The map.
+    x : numpy.ndarray
+        The state.
+    columns : list of int
+        The entries to perturb.
+    epsilon : float or numpy.ndarray
+        The step, one or per entry.
+
+    Returns
+    -------
+    numpy.ndarray
+        The columns (len(x), len(columns)).
+    """
     eps = np.broadcast_to(np.asarray(epsilon, dtype=float), (len(x),))
     J = np.zeros((len(x), len(columns)))
     for c, j in enumerate(columns):
@@ -232,6 +287,30 @@ def find_equilibrium(F: PeriodMap, x: np.ndarray, free: list[int], *, epsilon: f
     be unstable, so settling by simulation is no option). Returns ``(x*, residual, Φ_free)``
     with ``residual = max |F(x*) − x*|`` over the free entries and the last Jacobian's
     free-by-free block (None if no iteration ran).
+
+    Parameters
+    ----------
+    F : PeriodMap
+        The map.
+    x : numpy.ndarray
+        The start.
+    free : list of int
+        The entries solved for.
+    epsilon : float
+        The central differences' step.
+    tol : float
+        The stopping residual.
+    max_iter : int
+        The largest number of iterations.
+
+    Returns
+    -------
+    x_star : numpy.ndarray
+        The equilibrium.
+    residual : float
+        ``max |F(x*) − x*|`` over the free entries.
+    Phi_free : numpy.ndarray or None
+        The last Jacobian's free block.
     """
     x = np.asarray(x, dtype=float).copy()
     free = list(free)
@@ -257,7 +336,26 @@ def find_equilibrium(F: PeriodMap, x: np.ndarray, free: list[int], *, epsilon: f
 def modes(Phi: np.ndarray, labels: list[str], period: float, top: int = 3
           ) -> tuple[np.ndarray, Mode | None, Mode | None]:
     """Eigenvalues of ``Φ`` (by decreasing ``|μ|``), its slowest mode (largest ``|μ|``) and its
-    fastest (smallest nonzero ``|μ|``), each with the ``top`` dominant state entries."""
+    fastest (smallest nonzero ``|μ|``), each with the ``top`` dominant state entries.
+
+    Parameters
+    ----------
+    Phi : numpy.ndarray
+        Φ, square.
+    labels : list of str
+        Its entries' labels.
+    period : float
+        ``h``, s.
+    top : int
+        The dominant entries kept per mode.
+
+    Returns
+    -------
+    mu : numpy.ndarray
+        The eigenvalues.
+    slowest, fastest : Mode or None
+        The two modes.
+    """
     if Phi.size == 0:
         return np.zeros(0), None, None
     mu, V = np.linalg.eig(Phi)
@@ -310,6 +408,11 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *,
         one, ``ε/3``, when the second disagrees) and report the agreeing one, or the second
         (``rho_check``; :attr:`MapReport.step_agrees`): a ρ that depends on the step is not
         the map's.
+
+    Returns
+    -------
+    MapReport
+        The report.
     """
     x = F.x0 if x_guess is None else np.asarray(x_guess, dtype=float).copy()
     fx = F(x)
@@ -359,7 +462,24 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *,
 
 def step_sensitivity(F: PeriodMap, x: np.ndarray, dynamic: list[int],
                      epsilons=(1e-4, 1e-5, 1e-6, 1e-7, 1e-8)) -> list[tuple[float, float, float]]:
-    """``(ε, ρ(Φ_ε), max|Φ_ε − Φ_ref|)`` for each ``ε``, ``Φ_ref`` the first ``ε``'s."""
+    """``(ε, ρ(Φ_ε), max|Φ_ε − Φ_ref|)`` for each ``ε``, ``Φ_ref`` the first ``ε``'s.
+
+    Parameters
+    ----------
+    F : PeriodMap
+        The map.
+    x : numpy.ndarray
+        The state.
+    dynamic : list of int
+        The dynamic entries.
+    epsilons : sequence of float
+        The steps.
+
+    Returns
+    -------
+    list of tuple
+        ``(ε, ρ, max|Φ_ε − Φ_ref|)`` per step.
+    """
     out = []
     ref = None
     for eps in epsilons:

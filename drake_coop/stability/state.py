@@ -36,7 +36,18 @@ __all__ = ["LoopState", "StateBlock", "leaf_systems"]
 
 
 def leaf_systems(diagram: Diagram) -> list[System]:
-    """Every leaf system of ``diagram``, depth first, in the diagram's own order."""
+    """Every leaf system of ``diagram``, depth first, in the diagram's own order.
+
+    Parameters
+    ----------
+    diagram : Diagram
+        The diagram.
+
+    Returns
+    -------
+    list of System
+        The leaf systems.
+    """
     out: list[System] = []
     for system in diagram.GetSystems():
         if isinstance(system, Diagram):
@@ -48,7 +59,19 @@ def leaf_systems(diagram: Diagram) -> list[System]:
 
 @dataclass
 class StateBlock:
-    """One discrete state group of one leaf system (``group = -1``: its continuous state)."""
+    """One discrete state group of one leaf system (``group = -1``: its continuous state).
+
+    Attributes
+    ----------
+    system : System
+        The leaf system.
+    group : int
+        The discrete state group, or -1.
+    size : int
+        Its entries.
+    labels : list of str
+        One label per entry.
+    """
 
     system: System
     group: int
@@ -57,6 +80,7 @@ class StateBlock:
 
     @property
     def name(self) -> str:
+        """The system's name."""
         return self.system.get_name()
 
 
@@ -92,7 +116,18 @@ class LoopState:
         self.num_abstract_states = context.num_abstract_states()
 
     def get(self, context: Context) -> np.ndarray:
-        """``x`` from a root context (a copy)."""
+        """``x`` from a root context (a copy).
+
+        Parameters
+        ----------
+        context : Context
+            The root context.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``x``.
+        """
         parts = []
         for b in self.blocks:
             sub = b.system.GetMyContextFromRoot(context)
@@ -103,7 +138,15 @@ class LoopState:
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def set(self, context: Context, x: np.ndarray) -> None:
-        """Write ``x`` into a root context (the abstract state is left as it is)."""
+        """Write ``x`` into a root context (the abstract state is left as it is).
+
+        Parameters
+        ----------
+        context : Context
+            The root context.
+        x : numpy.ndarray
+            The state (size,).
+        """
         x = np.asarray(x, dtype=float)
         if x.shape != (self.size,):
             raise ValueError(f"state of size {self.size} expected, got {x.shape}")
@@ -118,7 +161,13 @@ class LoopState:
             i += b.size
 
     def offsets(self) -> dict[str, tuple[int, int]]:
-        """``label of the block -> (start, stop)`` in ``x``."""
+        """``label of the block -> (start, stop)`` in ``x``.
+
+        Returns
+        -------
+        dict of str to tuple
+            ``(start, stop)`` per block.
+        """
         out, i = {}, 0
         for b in self.blocks:
             out[f"{b.name}[{b.group}]"] = (i, i + b.size)
@@ -131,6 +180,16 @@ class LoopState:
         A locked joint's velocity is held at zero and its position stays wherever it is: these
         entries give eigenvalues 0 and 1 that belong to no motion of the loop, so the map leaves
         them out.
+
+        Parameters
+        ----------
+        context : Context
+            The root context.
+
+        Returns
+        -------
+        list of int
+            The indices.
         """
         out: list[int] = []
         i = 0

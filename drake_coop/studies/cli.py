@@ -45,7 +45,19 @@ class Terminated(KeyboardInterrupt):
 
 
 class CaseProgress:
-    """Progress over cases on stderr: a bar with counts and ETA (a line per case off a tty)."""
+    """Progress over cases on stderr: a bar with counts and ETA (a line per case off a tty).
+
+    Parameters
+    ----------
+    total : int
+        The study's cases.
+    already : int
+        Those finished in an earlier run.
+    stream : file or None
+        Where to draw; None for stderr.
+    width : int
+        The bar's width, characters.
+    """
 
     def __init__(self, total: int, already: int, stream=None, width: int = 30):
         self.stream = stream or sys.stderr
@@ -55,7 +67,15 @@ class CaseProgress:
         self.start = time.perf_counter()
 
     def update(self, case: Case, record: dict) -> None:
-        """Count one finished case and redraw."""
+        """Count one finished case and redraw.
+
+        Parameters
+        ----------
+        case : Case
+            The case finished.
+        record : dict
+            Its record (its ``status``).
+        """
         self.done += 1
         self.diverged += record["status"] != "ok"
         finished = self.already + self.done
@@ -152,7 +172,19 @@ def _plot_only(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
-    """Run (or resume) a study, or redraw its figures with ``--plot``."""
+    """Run (or resume) a study, or redraw its figures with ``--plot``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    int
+        The exit code (see the module's docstring): 0 done, 1 a case died or writing failed,
+        2 bad input, 130/143 interrupted.
+    """
     from drake_coop.studies.folder import StudyFolder, StudyFolderError
 
     if args.plot is not None:
@@ -361,7 +393,13 @@ def _robot_names(case: Case) -> list[str]:
 
 
 def add_study_parser(sub) -> None:
-    """Register ``study`` on the ``drake-coop`` subparsers."""
+    """Register ``study`` on the ``drake-coop`` subparsers.
+
+    Parameters
+    ----------
+    sub : argparse._SubParsersAction
+        The ``drake-coop`` subparsers.
+    """
     p = sub.add_parser("study", help="run a parameter study / Monte Carlo (or --plot DIR)")
     p.add_argument("study", nargs="?", default=None, help="study YAML (see studies/)")
     p.add_argument("--out", default=None, help="study folder: new or empty, or this study's "

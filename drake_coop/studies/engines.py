@@ -45,6 +45,13 @@ OnResult = Callable[[Case, dict], None]
 def run_case(scenario_yaml: str, t_end: float | None) -> dict:
     """Simulate one case and return its record (never raises).
 
+    Parameters
+    ----------
+    scenario_yaml : str
+        The case's scenario, YAML text.
+    t_end : float or None
+        The run's end, s; None for the task's.
+
     Returns
     -------
     dict
@@ -70,7 +77,18 @@ def run_case(scenario_yaml: str, t_end: float | None) -> dict:
 
 
 def died(message: str) -> dict:
-    """The record of a case that did not finish (not a result: it runs again)."""
+    """The record of a case that did not finish (not a result: it runs again).
+
+    Parameters
+    ----------
+    message : str
+        Why it did not finish.
+
+    Returns
+    -------
+    dict
+        The record (status ``died``).
+    """
     return {"status": "died", "message": message, "t_reached": 0.0, "wall_time_s": 0.0,
             "metrics": {}}
 
@@ -94,6 +112,11 @@ def die_with_parent(parent: int) -> None:
     On Linux the kernel sends SIGKILL when the parent dies (``prctl(PR_SET_PDEATHSIG)``);
     a daemon thread also checks the parent pid every 0.5 s (other systems, and the case
     where the parent died before the ``prctl``).
+
+    Parameters
+    ----------
+    parent : int
+        The parent's pid.
     """
     if sys.platform.startswith("linux"):
         try:
@@ -177,6 +200,21 @@ def run_in_processes(cases: list[Case], work: Callable, args_of: Callable[[Case]
     exception in the parent (Ctrl-C, SIGTERM, ``on_result`` failing) terminates the running
     children and propagates; queued cases are not started. :func:`run_local` (studies) and the
     stability map's grid share this loop.
+
+    Parameters
+    ----------
+    cases : list of Case
+        The cases.
+    work : Callable
+        A module-level function.
+    args_of : Callable[[Case], tuple]
+        A case's arguments of ``work``.
+    on_result : Callable
+        ``on_result(case, result)``.
+    on_death : Callable[[str], object]
+        The result of a child that died, from its message.
+    workers : int
+        The parallel processes.
     """
     context = multiprocessing.get_context("spawn")
     queue = list(cases)
@@ -218,6 +256,17 @@ def run_local(cases: list[Case], t_end: float | None, on_result: OnResult, *,
 
     An exception in the parent (Ctrl-C, SIGTERM, ``on_result`` failing) terminates the running
     cases and propagates; queued cases are not started.
+
+    Parameters
+    ----------
+    cases : list of Case
+        The cases.
+    t_end : float or None
+        The runs' end, s; None for each task's.
+    on_result : Callable
+        ``on_result(case, record)``.
+    workers : int
+        The parallel processes.
     """
     run_in_processes(cases, run_case, lambda case: (case.scenario_yaml, t_end), on_result,
                      died, workers=workers)
@@ -227,6 +276,19 @@ def run_ray(cases: list[Case], t_end: float | None, on_result: OnResult, *,
             address: str | None = None, workers: int = 2) -> None:
     """Run ``cases`` as Ray tasks; ``address=None`` starts a local instance of ``workers``
     CPUs (shut down afterwards), otherwise connects to the cluster at ``address``.
+
+    Parameters
+    ----------
+    cases : list of Case
+        The cases.
+    t_end : float or None
+        The runs' end, s; None for each task's.
+    on_result : Callable
+        ``on_result(case, record)``.
+    address : str or None
+        The Ray cluster's address; None starts a local one.
+    workers : int
+        The local instance's CPUs.
 
     Raises
     ------

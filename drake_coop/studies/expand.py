@@ -128,6 +128,7 @@ class Case:
 
     @property
     def scenario_yaml(self) -> str:
+        """The case's validated scenario as YAML text (dumped once, on first use)."""
         if self._yaml is None:
             self._yaml = dump_scenario(self._scenario)
             self._scenario = None
@@ -156,6 +157,20 @@ def resolve(data: dict, path: str, where: str) -> list[KeyPath]:
 
     Fields are checked against the :class:`~drake_coop.scenario.Scenario` dataclasses (a field
     missing from ``data`` but known to the schema is allowed: it will be created).
+
+    Parameters
+    ----------
+    data : dict
+        The scenario's untyped data.
+    path : str
+        A dotted path (``*`` for every element).
+    where : str
+        The study field naming it, for messages.
+
+    Returns
+    -------
+    list of tuple
+        The concrete key paths.
 
     Raises
     ------
@@ -203,7 +218,20 @@ def resolve(data: dict, path: str, where: str) -> list[KeyPath]:
 
 
 def get_value(data: dict, keys: KeyPath):
-    """The value at a concrete key path (None when absent)."""
+    """The value at a concrete key path (None when absent).
+
+    Parameters
+    ----------
+    data : dict
+        The scenario's untyped data.
+    keys : tuple
+        A concrete key path.
+
+    Returns
+    -------
+    object
+        The value, or None.
+    """
     node = data
     for k in keys:
         if isinstance(k, int):
@@ -220,6 +248,15 @@ def set_value(data: dict, keys: KeyPath, value) -> None:
 
     A number at a list of numbers sets every element (broadcast); a mapping at a mapping
     updates the fields it names and keeps the others (a *variant*, see :func:`expand`).
+
+    Parameters
+    ----------
+    data : dict
+        The scenario's untyped data (changed in place).
+    keys : tuple
+        A concrete key path.
+    value : object
+        The value.
     """
     node = data
     for k in keys[:-1]:
@@ -239,7 +276,20 @@ def set_value(data: dict, keys: KeyPath, value) -> None:
 
 def case_hash(scenario: Scenario | str, t_end: float | None) -> str:
     """16 hex digits of SHA-256 over the validated scenario (every field, canonical JSON) and
-    the study's ``t_end``; ``scenario`` may also be its YAML text (loaded and validated)."""
+    the study's ``t_end``; ``scenario`` may also be its YAML text (loaded and validated).
+
+    Parameters
+    ----------
+    scenario : Scenario or str
+        The scenario, or its YAML text.
+    t_end : float or None
+        The study's ``t_end``, s.
+
+    Returns
+    -------
+    str
+        The hash.
+    """
     if isinstance(scenario, str):
         scenario = load_scenario(data=scenario)
     text = json.dumps(dataclasses.asdict(scenario), sort_keys=True, separators=(",", ":"))
@@ -249,7 +299,22 @@ def case_hash(scenario: Scenario | str, t_end: float | None) -> str:
 
 def draw(p: Perturbation, base, rng: np.random.Generator):
     """One Monte Carlo value of ``p``: uniform ``U(a, b)``, normal ``N(a, b²)``, or
-    ``base * U(a, b)`` for ``scale_uniform`` (element-wise on a list base, one factor)."""
+    ``base * U(a, b)`` for ``scale_uniform`` (element-wise on a list base, one factor).
+
+    Parameters
+    ----------
+    p : Perturbation
+        The perturbation.
+    base : float or list of float
+        The base scenario's value.
+    rng : numpy.random.Generator
+        The study's generator.
+
+    Returns
+    -------
+    float or list of float
+        The value.
+    """
     if p.distribution == "uniform":
         return float(rng.uniform(p.a, p.b))
     if p.distribution == "normal":
@@ -272,7 +337,18 @@ def _numeric(value) -> bool:
 
 
 def study_size(study: Study) -> tuple[int, int, int]:
-    """``(cases, grid points, samples)`` of a study, computed without expanding it."""
+    """``(cases, grid points, samples)`` of a study, computed without expanding it.
+
+    Parameters
+    ----------
+    study : Study
+        The study.
+
+    Returns
+    -------
+    cases, points, samples : int
+        The counts.
+    """
     points = math.prod(len(v) for v in study.grid.values())
     samples = study.monte_carlo.n if study.monte_carlo is not None else 1
     return points * samples, points, samples
@@ -487,6 +563,7 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
     Parameters
     ----------
     study : Study
+        The study.
     max_cases : int
         Refuse a study of more cases (computed before expanding it).
     max_cases_option : str or None
@@ -494,6 +571,11 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
         without one, such as ``stability``).
     first : int or None
         Only the first ``first`` cases (``study --cases N``); None: all of them.
+
+    Returns
+    -------
+    list of Case
+        The cases.
 
     Raises
     ------

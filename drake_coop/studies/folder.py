@@ -59,7 +59,13 @@ class StudyFolder:
 
     # --- reading what is there -----------------------------------------------------------
     def owner(self) -> str | None:
-        """The name of the study that owns the folder, or None (no marker, no study.json)."""
+        """The name of the study that owns the folder, or None (no marker, no study.json).
+
+        Returns
+        -------
+        str or None
+            The study's name.
+        """
         for name, key in ((MARKER, "name"), ("study.json", "name")):
             path = self.out / name
             try:
@@ -76,7 +82,13 @@ class StudyFolder:
     def recorded_size(self) -> dict | None:
         """The size the folder's study was run at (:mod:`drake_coop.studies.size`): the
         marker's ``size``; ``{}`` (the file's own size) for a folder written before sizes
-        were recorded; None for a folder that holds no study yet."""
+        were recorded; None for a folder that holds no study yet.
+
+        Returns
+        -------
+        dict or None
+            The size.
+        """
         path = self.out / MARKER
         try:
             if not path.is_symlink() and path.is_file() and path.stat().st_size < 1_000_000:
@@ -88,7 +100,15 @@ class StudyFolder:
         return {} if (self.out / "study.json").is_file() else None
 
     def record_size(self, name: str, size: dict) -> None:
-        """Write study ``name``'s size into the marker (atomically)."""
+        """Write study ``name``'s size into the marker (atomically).
+
+        Parameters
+        ----------
+        name : str
+            The study's name.
+        size : dict
+            Its size (:mod:`drake_coop.studies.size`).
+        """
         atomic_write_text(self.out / MARKER, json.dumps({"name": name, "size": size}) + "\n")
 
     def _check(self, name: str) -> bool:
@@ -117,6 +137,16 @@ class StudyFolder:
     def claim(self, name: str) -> StudyFolder:
         """Check the folder, create it if needed, lock it and mark it as study ``name``'s.
 
+        Parameters
+        ----------
+        name : str
+            The study's name.
+
+        Returns
+        -------
+        StudyFolder
+            This folder, locked.
+
         Raises
         ------
         StudyFolderError
@@ -141,6 +171,11 @@ class StudyFolder:
 
     def lock_existing(self) -> StudyFolder:
         """Lock a folder that already holds a study (for ``study --plot``).
+
+        Returns
+        -------
+        StudyFolder
+            This folder, locked.
 
         Raises
         ------

@@ -74,7 +74,20 @@ def _metric_unit(metric: str, values) -> tuple[float, str]:
 
 
 def metric_label(metric: str, unit: str) -> str:
-    """``worst.force_error.rms`` → ``λ − λ_d, RMS, worst robot [N]``."""
+    """``worst.force_error.rms`` → ``λ − λ_d, RMS, worst robot [N]``.
+
+    Parameters
+    ----------
+    metric : str
+        A summary column's name.
+    unit : str
+        Its unit.
+
+    Returns
+    -------
+    str
+        The label.
+    """
     robot, error, stat = _metric_parts(metric)
     name = ERROR_NAMES.get(error, f"z of joint {error[1:]}" if error[:1] == "z" else error)
     who = "worst robot" if robot == "worst" else robot
@@ -85,7 +98,20 @@ def metric_label(metric: str, unit: str) -> str:
 def param_label(param: str) -> tuple[str, float]:
     """A grid parameter's axis label and the factor its values are drawn with:
     ``control_period`` → (``control period h [ms]``, 1000); ``robots.*.gains.k_d`` →
-    (``k_d, every robot [1/s]``, 1) with the unit of the scenario's bounds table."""
+    (``k_d, every robot [1/s]``, 1) with the unit of the scenario's bounds table.
+
+    Parameters
+    ----------
+    param : str
+        A grid parameter's path.
+
+    Returns
+    -------
+    label : str
+        The label.
+    factor : float
+        The values' factor.
+    """
     if param in _PARAMS:
         name, factor, unit = _PARAMS[param]
         return (f"{name} [{unit}]" if unit else name), factor
@@ -359,6 +385,16 @@ def plot_study(out_dir: str | Path) -> list[Path]:
 
     The figures are written only into ``out_dir``, named from :func:`file_stem` of the
     study's name (whatever ``study.json`` holds).
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The study's folder.
+
+    Returns
+    -------
+    list of Path
+        The files written.
 
     Raises
     ------

@@ -71,7 +71,20 @@ def _descendants(roots: set[int]) -> set[int]:
 
 
 def watch(driver: int, pipe) -> int:
-    """The watcher's loop (see the module's docstring); returns its exit code."""
+    """The watcher's loop (see the module's docstring); returns its exit code.
+
+    Parameters
+    ----------
+    driver : int
+        The driver's pid.
+    pipe : file
+        The reading end of the driver's pipe (``done`` written on a clean shutdown).
+
+    Returns
+    -------
+    int
+        0.
+    """
     me = os.getpid()
     seen: dict[int, str] = {}
     data = b""
@@ -125,7 +138,13 @@ def _session_members(session: re.Pattern) -> set[int]:
 
 
 class Reaper:
-    """The driver's handle on its watcher: :meth:`done` after a clean ``ray.shutdown()``."""
+    """The driver's handle on its watcher: :meth:`done` after a clean ``ray.shutdown()``.
+
+    Parameters
+    ----------
+    process : subprocess.Popen
+        The watcher's process.
+    """
 
     def __init__(self, process: subprocess.Popen):
         self.process = process
@@ -145,7 +164,13 @@ class Reaper:
 
 
 def start() -> Reaper | None:
-    """Start the watcher of this process (None where ``/proc`` is missing)."""
+    """Start the watcher of this process (None where ``/proc`` is missing).
+
+    Returns
+    -------
+    Reaper or None
+        The handle.
+    """
     if not sys.platform.startswith("linux") or not os.path.isdir("/proc"):
         return None
     process = subprocess.Popen(

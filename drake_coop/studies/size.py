@@ -34,12 +34,34 @@ OPTIONS = {"t_end": "--t-end", "draws": "--draws", "cases": "--cases"}
 
 
 def given_size(args) -> dict:
-    """The size options given on the command line (``{}`` for none)."""
+    """The size options given on the command line (``{}`` for none).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line.
+
+    Returns
+    -------
+    dict
+        Option key → value.
+    """
     return {key: getattr(args, key) for key in OPTIONS if getattr(args, key, None) is not None}
 
 
 def size_text(size: dict) -> str:
-    """A size as the options that give it (``the study file's size`` for ``{}``)."""
+    """A size as the options that give it (``the study file's size`` for ``{}``).
+
+    Parameters
+    ----------
+    size : dict
+        Option key → value.
+
+    Returns
+    -------
+    str
+        The text.
+    """
     if not size:
         return "the study file's own size (no " + ", ".join(OPTIONS.values()) + ")"
     return " ".join(f"{OPTIONS[k]} {size[k]:g}" if isinstance(size[k], float)
@@ -48,6 +70,20 @@ def size_text(size: dict) -> str:
 
 def apply_size(study: Study, size: dict) -> tuple[Study, int | None]:
     """``study`` with ``size``'s ``t_end`` and ``draws`` set, and the ``cases`` bound.
+
+    Parameters
+    ----------
+    study : Study
+        The study.
+    size : dict
+        Option key → value.
+
+    Returns
+    -------
+    study : Study
+        The sized study.
+    cases : int or None
+        The bound on the cases, or None.
 
     Raises
     ------

@@ -73,7 +73,17 @@ class Perturbation:
 
 @dataclass
 class MonteCarlo:
-    """``n`` samples drawn with ``numpy.random.default_rng(seed)``."""
+    """``n`` samples drawn with ``numpy.random.default_rng(seed)``.
+
+    Attributes
+    ----------
+    n : int
+        The samples per grid point.
+    seed : int
+        The generator's seed.
+    perturb : list of Perturbation
+        The perturbations.
+    """
 
     n: int
     seed: int
@@ -82,7 +92,17 @@ class MonteCarlo:
 
 @dataclass
 class Guide:
-    """A line ``y = slope x + intercept`` drawn on every 2-D map (e.g. condition (26))."""
+    """A line ``y = slope x + intercept`` drawn on every 2-D map (e.g. condition (26)).
+
+    Attributes
+    ----------
+    label : str
+        Its legend.
+    slope : float
+        In the map's axes' units.
+    intercept : float
+        In the vertical axis's unit.
+    """
 
     label: str
     slope: float
@@ -96,7 +116,9 @@ class Study:
     Attributes
     ----------
     name : str
+        The study's name (its figures' file names).
     description : str
+        What the study shows, one paragraph.
     base_yaml : str or None
         The base scenario as YAML text; None means the paper's scenario.
     t_end : float or None
@@ -104,11 +126,13 @@ class Study:
     grid : dict[str, list]
         Dotted path -> values, in file order.
     monte_carlo : MonteCarlo or None
+        The samples per grid point; None for one (the base scenario's values).
     phase : str
         Phase of the summary metrics (``circle`` by default).
     metrics : list[str]
         Summary columns to plot.
     guides : list[Guide]
+        Lines drawn on every 2-D map.
     """
 
     name: str
@@ -246,7 +270,18 @@ def _name(value, where: str = "name") -> str:
 def file_stem(name: str) -> str:
     """A study name as a file name part: letters, digits, ``-``, ``_`` and ``.`` kept, any
     other run of characters one ``_``, no leading dot, at most :data:`MAX_NAME` characters
-    (``study`` when nothing is left). Never a path: ``../x`` gives ``x``."""
+    (``study`` when nothing is left). Never a path: ``../x`` gives ``x``.
+
+    Parameters
+    ----------
+    name : str
+        The study's name.
+
+    Returns
+    -------
+    str
+        The stem.
+    """
     import re
 
     stem = re.sub(r"[^A-Za-z0-9_.-]+", "_", str(name)).strip("._")[:MAX_NAME].rstrip("._")
@@ -266,6 +301,11 @@ def load_study(path: str | Path | None = None, *, data: str | None = None,
     folder : str or Path
         Where the relative paths of ``data`` are taken from (default: the working
         folder).
+
+    Returns
+    -------
+    Study
+        The study.
 
     Raises
     ------

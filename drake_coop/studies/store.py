@@ -89,7 +89,20 @@ def _robot_summary(phase_metrics: dict) -> dict[str, float]:
 
 
 def summary_columns(metrics: dict, phase: str) -> dict[str, float]:
-    """Summary metrics of one case for ``phase`` (missing when the run never reached it)."""
+    """Summary metrics of one case for ``phase`` (missing when the run never reached it).
+
+    Parameters
+    ----------
+    metrics : dict
+        ``metrics[robot][phase]``.
+    phase : str
+        The phase.
+
+    Returns
+    -------
+    dict of str to float
+        Column → value.
+    """
     out: dict[str, float] = {}
     worst: dict[str, float] = {}
     for robot, phases in metrics.items():
@@ -103,13 +116,37 @@ def summary_columns(metrics: dict, phase: str) -> dict[str, float]:
 
 
 def metric_names(robots: list[str]) -> list[str]:
-    """Every summary column name for the given robot names."""
+    """Every summary column name for the given robot names.
+
+    Parameters
+    ----------
+    robots : list of str
+        The robots' names.
+
+    Returns
+    -------
+    list of str
+        The names.
+    """
     return [f"{r}.{e}.{s}" for r in [*robots, "worst"] for e in ERRORS for s in STATS] + [
         f"{r}.{e}.{s}" for r in [*robots, "worst"] for e, s in EVENTS.items()]
 
 
 def check_metric_names(names: list[str], robots: list[str]) -> str | None:
-    """The first unknown metric name as an error message, or None."""
+    """The first unknown metric name as an error message, or None.
+
+    Parameters
+    ----------
+    names : list of str
+        The names.
+    robots : list of str
+        The robots' names.
+
+    Returns
+    -------
+    str or None
+        The message, or None.
+    """
     known = metric_names(robots)
     for name in names:
         if name not in known:
@@ -119,7 +156,13 @@ def check_metric_names(names: list[str], robots: list[str]) -> str | None:
 
 
 class ResultStore:
-    """The case files of a study directory (see the module docstring)."""
+    """The case files of a study directory (see the module docstring).
+
+    Parameters
+    ----------
+    out : str or Path
+        The study's folder.
+    """
 
     def __init__(self, out: str | Path):
         self.out = Path(out)
@@ -130,6 +173,11 @@ class ResultStore:
 
         A file that cannot be read, is not UTF-8 JSON, or misses a field of a record is
         skipped (its case runs again); :attr:`skipped` lists them as one-line warnings.
+
+        Returns
+        -------
+        dict of str to dict
+            Hash → record.
 
         Raises
         ------
@@ -163,7 +211,13 @@ class ResultStore:
         return records
 
     def died(self) -> dict[str, str]:
-        """Cases whose process died in an earlier run: hash -> message."""
+        """Cases whose process died in an earlier run: hash -> message.
+
+        Returns
+        -------
+        dict of str to str
+            Hash → message.
+        """
         notes = {}
         if self.cases_dir.is_dir():
             for path in sorted(self.cases_dir.glob("*.died")):
@@ -176,7 +230,22 @@ class ResultStore:
 
     def save(self, case: Case, result: dict, t_end: float | None) -> dict:
         """Write one finished case's record atomically and return it (and drop its
-        ``.died`` note, if any)."""
+        ``.died`` note, if any).
+
+        Parameters
+        ----------
+        case : Case
+            The case.
+        result : dict
+            Its result (a finished status).
+        t_end : float or None
+            The study's ``t_end``, s.
+
+        Returns
+        -------
+        dict
+            The record.
+        """
         if result["status"] not in FINISHED:
             raise ValueError(f"case {case.index}: status {result['status']!r} is not a result")
         record = {"hash": case.hash, "index": case.index, "params": case.params,
@@ -188,13 +257,35 @@ class ResultStore:
         return record
 
     def mark_died(self, case: Case, message: str) -> None:
-        """Note that ``case``'s process died (not a result: the case runs again)."""
+        """Note that ``case``'s process died (not a result: the case runs again).
+
+        Parameters
+        ----------
+        case : Case
+            The case.
+        message : str
+            Why it died.
+        """
         atomic_write_text(self.cases_dir / f"{case.hash}.died", message + "\n")
 
     def write_tables(self, study: Study, cases: list[Case], records: dict[str, dict],
                      engine: str, died: dict[str, str] | None = None) -> None:
         """Rewrite ``results.csv`` and ``study.json`` (atomically) from the records so far
-        (a case without a record is ``pending``, or ``died`` when ``died`` names it)."""
+        (a case without a record is ``pending``, or ``died`` when ``died`` names it).
+
+        Parameters
+        ----------
+        study : Study
+            The study.
+        cases : list of Case
+            Its cases.
+        records : dict of str to dict
+            Hash → record.
+        engine : str
+            ``local`` or ``ray``.
+        died : dict of str to str or None
+            Hash → message of the died cases.
+        """
         died = died or {}
         param_keys: list[str] = []
         for case in cases:

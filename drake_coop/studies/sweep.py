@@ -25,7 +25,20 @@ from drake_coop.scenario.schema import Scenario
 
 
 def run_one(scenario_yaml: str, t_end: float | None = None) -> dict:
-    """Simulate one scenario (given as YAML) and return its metadata and metrics."""
+    """Simulate one scenario (given as YAML) and return its metadata and metrics.
+
+    Parameters
+    ----------
+    scenario_yaml : str
+        The scenario, YAML text.
+    t_end : float or None
+        The run's end, s; None for the task's.
+
+    Returns
+    -------
+    dict
+        ``scenario_yaml``, ``meta`` and ``metrics``.
+    """
     from drake_coop.experiment.simulate import simulate
     from drake_coop.results.metrics import compute_metrics
 

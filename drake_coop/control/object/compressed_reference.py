@@ -17,7 +17,7 @@ from drake_coop.control.object.stiffness import ContactStiffness
 
 
 class CompressedReference(LeafSystem):
-    """One arm's joint reference pressed into a compliant contact by the compression its
+    r"""One arm's joint reference pressed into a compliant contact by the compression its
     current ``λ_d`` asks for, online (for a ``λ_d`` chosen during the run, e.g. by
     :class:`ObjectStateEstimator`).
 
@@ -29,7 +29,7 @@ class CompressedReference(LeafSystem):
     its first order at each tick,
 
     .. math::
-        q_d \\leftarrow q_d + J_x(q_d)^+\\, n\\, \\delta(\\lambda_{d,1})\\ \\text{while held},
+        q_d \leftarrow q_d + J_x(q_d)^+\, n\, \delta(\lambda_{d,1})\ \text{while held},
 
     with ``J_x⁺`` the least-squares inverse (the inverse for a 3-joint arm) and ``λ_d,1`` the
     first constraint row. When the reference follows the pad's material contact point ``P``
@@ -105,7 +105,18 @@ class CompressedReference(LeafSystem):
         return self._out
 
     def compressed(self, r) -> np.ndarray:
-        """``r`` with ``q_d + J_x(q_d)⁺ n δ(λ_d,1)`` while held (``r`` otherwise)."""
+        """``r`` with ``q_d + J_x(q_d)⁺ n δ(λ_d,1)`` while held (``r`` otherwise).
+
+        Parameters
+        ----------
+        r : array_like
+            One reference sample ``[q_d, q̇_d, q̈_d, λ_d, held]`` (rad, rad/s, rad/s², N).
+
+        Returns
+        -------
+        numpy.ndarray
+            The compressed sample.
+        """
         r = np.array(r, dtype=float)
         lay = self._layout
         if not lay.held(r):

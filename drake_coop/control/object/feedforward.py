@@ -20,11 +20,11 @@ from drake_coop.control.params import check_period, check_positive
 
 
 class LoadFeedforward(LeafSystem):
-    """One arm's share of the object's load, fed forward as joint torques.
+    r"""One arm's share of the object's load, fed forward as joint torques.
 
     .. math::
-        \\tau_{ff} = J_x(q)^T f_i, \\qquad f_i = m_i\\,(a_d - g) \\quad\\text{while held,}
-        \\qquad \\tau_{ff} = 0 \\text{ otherwise}
+        \tau_{ff} = J_x(q)^T f_i, \qquad f_i = m_i\,(a_d - g) \quad\text{while held,}
+        \qquad \tau_{ff} = 0 \text{ otherwise}
 
     with ``m_i`` the arm's share of the object's mass (:func:`mass_shares`, or
     :class:`MassEstimator`'s estimate), ``a_d`` the object's desired acceleration along the
@@ -65,8 +65,8 @@ class LoadFeedforward(LeafSystem):
         the constraint normals ``N`` is limited to ``μ ‖λ_d‖``,
 
         .. math::
-            f_t = (I - N^+ N) f_i, \\qquad f_i \\leftarrow f_i - f_t
-            + \\min\\!\\big(1, \\mu\\,\\|\\lambda_d\\| / \\|f_t\\|\\big)\\, f_t .
+            f_t = (I - N^+ N) f_i, \qquad f_i \leftarrow f_i - f_t
+            + \min\!\big(1, \mu\,\|\lambda_d\| / \|f_t\|\big)\, f_t .
 
         While the squeeze ramps up at the grasp the feedforward follows it (the rest of the
         weight stays on whatever supports the object) instead of sliding the pad up the
@@ -154,7 +154,20 @@ class LoadFeedforward(LeafSystem):
         return self._f_out
 
     def load(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
-        """``(τ_ff, f_i)`` at the current inputs (what a tick latches)."""
+        """``(τ_ff, f_i)`` at the current inputs (what a tick latches).
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        tau_ff : numpy.ndarray
+            The feed-forward torque (n,), N·m.
+        f : numpy.ndarray
+            The load ``f_i`` the arm applies to the object (3,), N, world frame.
+        """
         reference = self._reference.Eval(context)
         if not self._layout.held(reference):
             return np.zeros(self._model.n), np.zeros(3)
@@ -168,7 +181,20 @@ class LoadFeedforward(LeafSystem):
 
     def friction_limited(self, f: np.ndarray, lambda_d: np.ndarray) -> np.ndarray:
         """``f`` with its part across the constraint normals limited to ``μ ‖λ_d‖`` (the
-        ``friction`` parameter; ``f`` unchanged without it)."""
+        ``friction`` parameter; ``f`` unchanged without it).
+
+        Parameters
+        ----------
+        f : numpy.ndarray
+            The load (3,), N, world frame.
+        lambda_d : numpy.ndarray
+            The desired squeeze ``λ_d`` (m,), N.
+
+        Returns
+        -------
+        numpy.ndarray
+            The limited load (3,), N.
+        """
         f = np.asarray(f, dtype=float)
         if self._mu is None:
             return f

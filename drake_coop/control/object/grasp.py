@@ -30,6 +30,11 @@ def contact_jacobian(model: ArmModel, q: np.ndarray, contact_offset: np.ndarray 
         Joint positions.
     contact_offset : array_like, shape (3,), optional
         ``r`` (m, world frame); None: ``J_x``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``J_c`` (3, n), m/rad.
     """
     J = model.J_x(q)
     if contact_offset is None:
@@ -38,11 +43,11 @@ def contact_jacobian(model: ArmModel, q: np.ndarray, contact_offset: np.ndarray 
 
 
 def grasp_matrix(points: np.ndarray, reference_point=(0.0, 0.0, 0.0)) -> np.ndarray:
-    """The grasp matrix ``G`` (6 × 3k) of point contacts: ``w = G [f_1; …; f_k]``.
+    r"""The grasp matrix ``G`` (6 × 3k) of point contacts: ``w = G [f_1; …; f_k]``.
 
     .. math::
-        G = \\begin{bmatrix} I & \\cdots & I \\\\ [r_1]_\\times & \\cdots & [r_k]_\\times
-            \\end{bmatrix}, \\qquad r_i = p_i - p_\\mathrm{ref}
+        G = \begin{bmatrix} I & \cdots & I \\ [r_1]_\times & \cdots & [r_k]_\times
+            \end{bmatrix}, \qquad r_i = p_i - p_\mathrm{ref}
 
     maps the contact forces ``f_i`` (applied to the object at ``p_i``) to their resultant
     force and moment about ``reference_point``.
@@ -54,6 +59,11 @@ def grasp_matrix(points: np.ndarray, reference_point=(0.0, 0.0, 0.0)) -> np.ndar
     reference_point : array_like, shape (3,)
         ``p_ref``, the point the moments are taken about (m; default the
         origin).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``G`` (6, 3k): rows 0–2 dimensionless, rows 3–5 m.
     """
     points = np.asarray(points, dtype=float)
     ref = _vector(reference_point, "reference_point")
@@ -79,6 +89,11 @@ def object_wrench(model: ObjectModel, acceleration, angular_velocity=(0.0, 0.0, 
         ``α`` (rad/s²); default zero.
     gravity : float
         ``g`` (m/s²).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``w`` (6,): force (N) then moment (N·m), world frame.
     """
     a = _vector(acceleration, "acceleration")
     w = _vector(angular_velocity, "angular_velocity")
@@ -111,6 +126,11 @@ def load_distribution(model: ObjectModel, acceleration, angular_velocity=(0.0, 0
         ``α`` (rad/s²); default zero.
     gravity : float
         ``g`` (m/s²).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``f_L`` (k, 3), N.
     """
     G = grasp_matrix(model.grasp_points, model.com)
     w = object_wrench(model, acceleration, angular_velocity, angular_acceleration, gravity)
@@ -128,6 +148,11 @@ def internal_part(model: ObjectModel, forces) -> np.ndarray:
         The held object.
     forces : array_like, shape (k, 3)
         Contact forces ``f`` (N), one row per contact.
+
+    Returns
+    -------
+    numpy.ndarray
+        The internal forces (k, 3), N.
     """
     G = grasp_matrix(model.grasp_points, model.com)
     f = np.asarray(forces, dtype=float).reshape(-1)
@@ -147,6 +172,11 @@ def mass_shares(model: ObjectModel) -> np.ndarray:
     ----------
     model : ObjectModel
         The held object (its mass, centre of mass and grasp points).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``m_i`` (k,), kg.
     """
     f = load_distribution(model, np.zeros(3))
     return f[:, 2] / GRAVITY

@@ -20,7 +20,7 @@ from drake_coop.control.params import check_period
 
 
 class MassEstimator(LeafSystem):
-    """Recursive least squares of one arm's share ``m_i`` of the object's mass, from the
+    r"""Recursive least squares of one arm's share ``m_i`` of the object's mass, from the
     arm's model, its measured ``q``, the commanded ``τ`` and the velocity observer — no F/T
     sensor.
 
@@ -28,8 +28,8 @@ class MassEstimator(LeafSystem):
     reference acceleration and the observer's velocity (the loop tracks ``q̈̂_r``):
 
     .. math::
-        \\hat F = J_x(q)^{+T}\\big(H(q)\\ddot{\\hat q}_r + C(q,\\dot q_o)\\dot q_o
-                  + D\\dot q_o + g(q) - \\tau\\big)
+        \hat F = J_x(q)^{+T}\big(H(q)\ddot{\hat q}_r + C(q,\dot q_o)\dot q_o
+                  + D\dot q_o + g(q) - \tau\big)
 
     (:math:`J_x^{+T}` the least-squares inverse of :math:`J_x^T`; the inverse for a 3-joint arm).
     The arm applies ``−F̂`` to the object, whose vertical part is ``m_i (g + a_d,z)``: a linear
@@ -37,15 +37,15 @@ class MassEstimator(LeafSystem):
     forgetting factor ``ρ`` and measurement variance ``R``:
 
     .. math::
-        K = \\frac{P\\varphi}{\\rho R + \\varphi^2 P},\\quad
-        \\hat\\theta \\leftarrow \\hat\\theta + K(y - \\varphi\\hat\\theta),\\quad
-        P \\leftarrow (P - K\\varphi P)/\\rho
+        K = \frac{P\varphi}{\rho R + \varphi^2 P},\quad
+        \hat\theta \leftarrow \hat\theta + K(y - \varphi\hat\theta),\quad
+        P \leftarrow (P - K\varphi P)/\rho
 
     updated at every tick while the object is held (``held`` row of the reference), frozen
     otherwise. The squeeze (along the grasp line, horizontal here) does not enter ``F̂_z``.
 
-    Persistence of excitation: the regressor must satisfy :math:`\\sum_{\\text{window}} \\varphi^2
-    \\ge \\alpha > 0` over every window of the forgetting horizon ``1/(1 − ρ)`` samples; with
+    Persistence of excitation: the regressor must satisfy :math:`\sum_{\text{window}} \varphi^2
+    \ge \alpha > 0` over every window of the forgetting horizon ``1/(1 − ρ)`` samples; with
     ``φ = g + a_d,z`` this holds whenever the desired vertical acceleration stays away from free
     fall (``a_d,z > −g``), i.e. always in a carrying task: gravity itself excites the mass. A
     centre-of-mass offset along the grasp line is identifiable only from both arms' shares together
@@ -194,9 +194,26 @@ class MassEstimator(LeafSystem):
         return self._F_out
 
     def pad_force(self, q, qdot_o, qddot_r_hat, tau) -> np.ndarray:
-        """The object's force on the pad, from the arm's model (N):
-        :math:`\\hat F = J_x^{+T} (H \\ddot{\\hat q}_r + C(q, \\dot q_o)\\, \\dot q_o
-        + D \\dot q_o + g - \\tau)` (``J_c`` with a ``contact_offset``)."""
+        r"""The object's force on the pad, from the arm's model (N):
+        :math:`\hat F = J_x^{+T} (H \ddot{\hat q}_r + C(q, \dot q_o)\, \dot q_o
+        + D \dot q_o + g - \tau)` (``J_c`` with a ``contact_offset``).
+
+        Parameters
+        ----------
+        q : numpy.ndarray
+            Measured joint positions (n,), rad.
+        qdot_o : numpy.ndarray
+            ``q̇_o`` of (8) (n,), rad/s.
+        qddot_r_hat : numpy.ndarray
+            ``q̈̂_r`` of (11) (n,), rad/s².
+        tau : numpy.ndarray
+            The torque applied (n,), N·m.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``F̂`` (3,), N, world frame.
+        """
         rhs = self._model.inverse_dynamics_terms(q, qdot_o, qddot_r_hat) - tau
         J = contact_jacobian(self._model, q, self._r)
         if J.shape[1] == 3:

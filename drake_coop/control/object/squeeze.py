@@ -9,7 +9,7 @@ import numpy as np
 def squeeze_for_grasp(loads, normals, mu: float, margin: float = 1.5,
                       lambda_max: float | None = None, lambda_min: float = 0.0
                       ) -> tuple[float, bool]:
-    """The least squeeze that holds every contact in its friction cone, times a margin.
+    r"""The least squeeze that holds every contact in its friction cone, times a margin.
 
     Contact ``i`` carries its load ``f_i`` (the force the arm applies to the object for the
     object's motion, :func:`load_distribution`) plus the squeeze ``λ`` along its inward
@@ -17,8 +17,8 @@ def squeeze_for_grasp(loads, normals, mu: float, margin: float = 1.5,
     ``t_i = |f_i − (n_i·f_i) n_i|``; Coulomb's cone asks ``t_i ≤ μ (λ + n_i·f_i)``, so
 
     .. math::
-        \\lambda = \\max\\Big(\\lambda_\\min,\\ \\mathrm{margin}\\cdot
-                   \\max_i\\big(t_i/\\mu - n_i\\cdot f_i\\big)\\Big)
+        \lambda = \max\Big(\lambda_\min,\ \mathrm{margin}\cdot
+                   \max_i\big(t_i/\mu - n_i\cdot f_i\big)\Big)
 
     (``margin >= 1`` scales the least squeeze: ``t_i ≤ μ (λ + n_i·f_i)/margin`` when
     ``n_i·f_i = 0``). With ``lambda_max`` (the torque limits', :func:`max_squeeze`) the result
@@ -83,6 +83,11 @@ def max_squeeze(J_phi, tau_limits, tau_other) -> float:
         ``τ_max`` per joint (N·m).
     tau_other : array_like, shape (n,)
         The other torques at the posture (gravity, load) (N·m).
+
+    Returns
+    -------
+    float
+        The largest squeeze, N (``inf`` when no joint limits it).
     """
     j = np.asarray(J_phi, dtype=float).reshape(-1)
     lim = np.asarray(tau_limits, dtype=float).reshape(-1)

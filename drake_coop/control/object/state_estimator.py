@@ -20,7 +20,7 @@ from drake_coop.control.params import check_period, check_positive
 
 
 class ObjectStateEstimator(LeafSystem):
-    """The one *shared* object-state block: the arms' local mass estimates combined into the
+    r"""The one *shared* object-state block: the arms' local mass estimates combined into the
     object's total mass and centre of mass, and the squeeze chosen online from that load, fed
     to every arm's reference.
 
@@ -30,17 +30,17 @@ class ObjectStateEstimator(LeafSystem):
     and gives
 
     .. math::
-        \\hat m = \\sum_i \\hat m_i, \\qquad
-        \\hat c = \\frac{\\sum_i \\hat m_i\\, p_i}{\\hat m}
+        \hat m = \sum_i \hat m_i, \qquad
+        \hat c = \frac{\sum_i \hat m_i\, p_i}{\hat m}
 
     (``p_i`` the grasp points; for two opposing pads ``ĉ`` lies on the grasp line and is the
     centre of mass the lever rule of :func:`mass_shares` gives back the shares from: the
     line's only identifiable offset, from the vertical forces alone), and the squeeze
 
     .. math::
-        \\lambda^*_k = \\texttt{squeeze\\_for\\_grasp}\\big(G^+ w(\\hat m, \\hat c, a_d(t_k)),
-            n, \\mu, \\mathrm{margin}\\big), \\qquad
-        \\lambda^0_k = \\texttt{squeeze\\_for\\_grasp}(\\dots, \\mathrm{margin}=1)
+        \lambda^*_k = \texttt{squeeze\_for\_grasp}\big(G^+ w(\hat m, \hat c, a_d(t_k)),
+            n, \mu, \mathrm{margin}\big), \qquad
+        \lambda^0_k = \texttt{squeeze\_for\_grasp}(\dots, \mathrm{margin}=1)
 
     (:func:`load_distribution` of the estimated object along the desired acceleration
     ``a_d``: the least squeeze in every friction cone, times the margin, clipped to
@@ -49,9 +49,9 @@ class ObjectStateEstimator(LeafSystem):
     what holds the estimated load,
 
     .. math::
-        \\lambda_k = \\max\\Big(\\lambda^0_k,\\
-            \\min\\big(\\lambda_{k-1} + r_\\uparrow h,\\
-            \\max(\\lambda_{k-1} - r_\\downarrow h,\\ \\lambda^*_k)\\big)\\Big),
+        \lambda_k = \max\Big(\lambda^0_k,\
+            \min\big(\lambda_{k-1} + r_\uparrow h,\
+            \max(\lambda_{k-1} - r_\downarrow h,\ \lambda^*_k)\big)\Big),
 
     and follows ``λ*`` freely otherwise (before the grasp: ``λ*`` of the shares the arms
     start from, their prior). The slow fall keeps the prior's squeeze while the stand still
@@ -61,7 +61,7 @@ class ObjectStateEstimator(LeafSystem):
     grasp's envelope: ``clip(min(t − t_grasp, t_release − t)/ramp, 0, 1)``, the same linear
     ramps as the decentralized friction squeeze (``object_model.squeeze: friction``), so the
     squeeze never jumps. ``λ_k`` is state updated at ``t_k``: the arms' controllers, which
-    latch ``τ(k)`` before the tick's discrete updates, read :math:`\\lambda_{k-1}` (one tick of
+    latch ``τ(k)`` before the tick's discrete updates, read :math:`\lambda_{k-1}` (one tick of
     delay).
 
     Each arm's feedforward share from the shared estimate would be the lever rule of
@@ -218,11 +218,33 @@ class ObjectStateEstimator(LeafSystem):
 
     # ----------------------------------------------------------------- ports
     def get_mass_share_input_port(self, i: int) -> InputPort:
-        """Arm ``i``'s share ``m̂_i``."""
+        """Arm ``i``'s share ``m̂_i``.
+
+        Parameters
+        ----------
+        i : int
+            The arm's index.
+
+        Returns
+        -------
+        InputPort
+            The port (1,), kg.
+        """
         return self._mass_in[i]
 
     def get_reference_input_port(self, i: int) -> InputPort:
-        """Arm ``i``'s planned reference."""
+        """Arm ``i``'s planned reference.
+
+        Parameters
+        ----------
+        i : int
+            The arm's index.
+
+        Returns
+        -------
+        InputPort
+            The port.
+        """
         return self._ref_in[i]
 
     def get_acceleration_d_input_port(self) -> InputPort:
@@ -242,18 +264,55 @@ class ObjectStateEstimator(LeafSystem):
         return self._squeeze_out
 
     def get_reference_output_port(self, i: int) -> OutputPort:
-        """Arm ``i``'s reference with the shared squeeze."""
+        """Arm ``i``'s reference with the shared squeeze.
+
+        Parameters
+        ----------
+        i : int
+            The arm's index.
+
+        Returns
+        -------
+        OutputPort
+            The port.
+        """
         return self._ref_out[i]
 
     # ----------------------------------------------------------------- math
     def estimate(self, context: Context) -> tuple[float, np.ndarray]:
-        """``(m̂, ĉ)`` from the shares at the current inputs."""
+        """``(m̂, ĉ)`` from the shares at the current inputs.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        m_hat : float
+            ``m̂``, kg.
+        c_hat : numpy.ndarray
+            ``ĉ`` (3,), m, world frame.
+        """
         shares = np.array([float(p.Eval(context)[0]) for p in self._mass_in])
         return self.combine(shares)
 
     def combine(self, shares) -> tuple[float, np.ndarray]:
         """``(m̂, ĉ)`` of given shares: ``Σ m̂_i`` and ``Σ m̂_i p_i / Σ m̂_i`` (the points'
-        mean while the sum is not positive)."""
+        mean while the sum is not positive).
+
+        Parameters
+        ----------
+        shares : array_like
+            ``m̂_i`` (k,), kg.
+
+        Returns
+        -------
+        m_hat : float
+            ``m̂``, kg.
+        c_hat : numpy.ndarray
+            ``ĉ`` (3,), m, world frame.
+        """
         shares = np.asarray(shares, dtype=float).reshape(-1)
         m = float(shares.sum())
         points = self._object.grasp_points
@@ -264,7 +323,22 @@ class ObjectStateEstimator(LeafSystem):
     def target(self, shares, acceleration) -> tuple[float, float]:
         """``(λ*, λ⁰)``: the squeeze with the margin and the least one that holds the
         estimated load (margin 1), both at least ``lambda_min`` and clipped to
-        ``lambda_max``."""
+        ``lambda_max``.
+
+        Parameters
+        ----------
+        shares : array_like
+            ``m̂_i`` (k,), kg.
+        acceleration : array_like
+            The object's planned acceleration (3,), m/s², world frame.
+
+        Returns
+        -------
+        lambda_star : float
+            ``λ*``, N.
+        lambda_0 : float
+            ``λ⁰``, N.
+        """
         m, c = self.combine(shares)
         if m <= 1e-9:
             return self._lambda_min, self._lambda_min
@@ -287,8 +361,25 @@ class ObjectStateEstimator(LeafSystem):
         return lam, hold
 
     def step(self, previous: float, shares, acceleration, held: bool) -> float:
-        """:math:`\\lambda_k` from :math:`\\lambda_{k-1}` (the rate limit and the floor while
-        held)."""
+        r""":math:`\lambda_k` from :math:`\lambda_{k-1}` (the rate limit and the floor while
+        held).
+
+        Parameters
+        ----------
+        previous : float
+            :math:`\lambda_{k-1}`, N.
+        shares : array_like
+            ``m̂_i`` (k,), kg.
+        acceleration : array_like
+            The object's planned acceleration (3,), m/s², world frame.
+        held : bool
+            Whether the object is held.
+
+        Returns
+        -------
+        float
+            :math:`\lambda_k`, N.
+        """
         lam, hold = self.target(shares, acceleration)
         if not held:
             return lam
@@ -296,12 +387,36 @@ class ObjectStateEstimator(LeafSystem):
                              max(previous - self._rate * self._h, lam)))
 
     def envelope(self, t: float) -> float:
-        """``s(t)``: the grasp's linear ramps."""
+        """``s(t)``: the grasp's linear ramps.
+
+        Parameters
+        ----------
+        t : float
+            The time, s.
+
+        Returns
+        -------
+        float
+            ``s(t)`` in [0, 1].
+        """
         t0, t1 = self._window
         return min(1.0, max(0.0, min(t - t0, t1 - t) / self._ramp))
 
     def reference(self, context: Context, i: int) -> np.ndarray:
-        """Arm ``i``'s reference with ``λ_d,i = s(t) λ_k w_i``."""
+        """Arm ``i``'s reference with ``λ_d,i = s(t) λ_k w_i``.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+        i : int
+            The arm's index.
+
+        Returns
+        -------
+        numpy.ndarray
+            The reference sample.
+        """
         r = np.array(self._ref_in[i].Eval(context), dtype=float)
         lam = float(context.get_discrete_state(self._lam).value()[0])
         r[self._layouts[i].slices()["lambda_d"]] = (

@@ -10,7 +10,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class ContactStiffness:
-    """A compliant contact's force–compression law ``λ = a δᵖ`` along its normal.
+    r"""A compliant contact's force–compression law ``λ = a δᵖ`` along its normal.
 
     The remedy of the ``−β Δp`` lag on a compliant contact: the controller's reference for the
     constrained position becomes ``p_d = −δ(λ_d)`` (:class:`~drake_coop.control.finger.FingerLaw`'s
@@ -32,8 +32,8 @@ class ContactStiffness:
         2): Drake's linear pressure field ``p = E (1 − ρ/r)`` (``ρ`` the distance from the
         sphere's centre) integrated over the contact disc gives, exactly,
 
-        .. math:: \\lambda = a\\,\\Big(\\delta^2 - \\frac{2\\,\\delta^3}{3 r}\\Big),
-                  \\qquad a = \\pi E
+        .. math:: \lambda = a\,\Big(\delta^2 - \frac{2\,\delta^3}{3 r}\Big),
+                  \qquad a = \pi E
 
         (``δ ≤ r``): the ``δ³/r`` term makes the pad softer than ``a δ²`` by
         ``2δ/(3r)`` (7 % at 1.6 mm on a 15 mm pad). Default: ``λ = a δᵖ``.
@@ -59,7 +59,18 @@ class ContactStiffness:
 
     def compliance(self, lam: float) -> float:
         """``c = dδ/dλ = δ/(p λ)`` (m/N) at ``max(λ, 1 N)`` (a Hertz-like contact is
-        infinitely compliant at zero force)."""
+        infinitely compliant at zero force).
+
+        Parameters
+        ----------
+        lam : float
+            The force ``λ``, N.
+
+        Returns
+        -------
+        float
+            ``c``, m/N.
+        """
         lam = max(float(lam), 1.0)
         if self.radius is not None:         # 1 / (dλ/dδ)
             d = float(self.compression(lam))
@@ -70,11 +81,22 @@ class ContactStiffness:
         """``c(λ)/T_i`` (m/(N·s)): times ``β``, the force integral's gain ``ξ_c`` that
         :class:`~drake_coop.control.finger.FingerLaw` adds to ``ξ`` on this contact, so that
         ``β Δp = ξ_c ΔF̃`` moves the pad by the compression a force error asks for within
-        ``T_i``."""
+        ``T_i``.
+
+        Parameters
+        ----------
+        lam : float
+            The force ``λ``, N.
+
+        Returns
+        -------
+        float
+            ``c(λ)/T_i``, m/(N·s).
+        """
         return self.compliance(lam) / self.integral_time
 
     def compression(self, lam) -> np.ndarray:
-        """:math:`\\delta(\\lambda) = (\\max(\\lambda, 0)/a)^{1/p}` (m), elementwise; with
+        r""":math:`\delta(\lambda) = (\max(\lambda, 0)/a)^{1/p}` (m), elementwise; with
         ``radius`` the root of the sphere's law ``λ/a = δ² − 2δ³/(3r)`` in ``[0, r]``; a force
         at or beyond the whole hemisphere's ``a r²/3`` gives exactly ``r``.
 
@@ -86,7 +108,18 @@ class ContactStiffness:
         ``δ = r (1 − u)``. Each iterate stops once its step is within 1e-15 of it. The
         arithmetic is additions, products, quotients and square roots only (IEEE 754 rounds
         each correctly on every CPU), in the same order for one force (Python floats, the
-        controller's every tick) as for an array, so both give the same bits."""
+        controller's every tick) as for an array, so both give the same bits.
+
+        Parameters
+        ----------
+        lam : float or array_like
+            The force ``λ``, N.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``δ``, m.
+        """
         lam = np.maximum(np.asarray(lam, dtype=float), 0.0)
         if self.radius is None:
             return (lam / self.a) ** (1.0 / self.exponent)
@@ -148,7 +181,18 @@ class ContactStiffness:
 
     def force(self, delta) -> np.ndarray:
         """``λ(δ) = a max(δ, 0)ᵖ`` (N), elementwise; with ``radius``,
-        ``a (δ² − 2δ³/(3r))`` for ``δ`` in ``[0, r]``."""
+        ``a (δ² − 2δ³/(3r))`` for ``δ`` in ``[0, r]``.
+
+        Parameters
+        ----------
+        delta : float or array_like
+            The compression ``δ``, m.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``λ``, N.
+        """
         d = np.maximum(np.asarray(delta, dtype=float), 0.0)
         if self.radius is None:
             return self.a * d ** self.exponent
