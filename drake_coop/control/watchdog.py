@@ -416,8 +416,27 @@ class Watchdog(LeafSystem):
 
         ``status`` the ``[s, f, v]`` floats; ``q`` the reading (floats; read only when ``f``
         is :data:`STATUS_OK`); ``lambda_hat`` ``λ̂(k)``; ``tau`` ``τ(k)``: the values the
-        ``q``, ``lambda_hat`` and ``tau`` inputs would have at the update. Returns whether
-        the watchdog is tripped.
+        ``q``, ``lambda_hat`` and ``tau`` inputs would have at the update.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context (its state is updated).
+        t : float
+            The tick's time ``t_k``, s.
+        status : sequence of float
+            ``[s, f, v]``: the status's stamp (s), its fault code and the fault's value.
+        q : sequence of float
+            The arm's reading (n,), rad.
+        lambda_hat : sequence of float
+            ``λ̂(k)`` (m,), N.
+        tau : sequence of float
+            The controller's ``τ(k)`` (n,), N·m.
+
+        Returns
+        -------
+        bool
+            Whether the watchdog is tripped after the tick.
         """
         memory = context.get_discrete_state(self._memory).get_value().tolist()
         if memory[0] != 0.0:

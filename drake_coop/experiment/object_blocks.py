@@ -90,7 +90,19 @@ class ArmSignals:
     ``q``: the encoders' joint positions; ``reference``: the planned reference (the arm's
     ``TrajectorySource``, rows of :class:`~drake_coop.control.finger.ReferenceLayout`);
     ``control``: the arm's control block (its ``tau``, ``qdot_o`` and ``qddot_r_hat`` outputs);
-    ``trajectory``: the planned reference as a trajectory (for the couple's samples)."""
+    ``trajectory``: the planned reference as a trajectory (for the couple's samples).
+
+    Attributes
+    ----------
+    q : OutputPort
+        The encoders' joint positions (n,), rad.
+    reference : OutputPort
+        The planned reference (rows of ``ReferenceLayout``).
+    control : Diagram
+        The arm's control block.
+    trajectory : Trajectory
+        The planned reference as a trajectory.
+    """
 
     q: OutputPort
     reference: OutputPort
@@ -103,7 +115,19 @@ class ObjectLayer:
     """The object layer's outputs, one entry per arm: ``references[i]`` feeds arm i's control
     block (and its log), ``taus[i]`` its actuators; ``blocks[i]`` its object-aware systems
     (None without an object model); ``shared`` the one ``object_state_estimator``
-    (``object_model.shared``), else None."""
+    (``object_model.shared``), else None.
+
+    Attributes
+    ----------
+    references : list of OutputPort
+        Each arm's reference for its control block and its log.
+    taus : list of OutputPort
+        Each arm's torque to its actuators (n,), N·m.
+    blocks : list of ObjectBlocks or None
+        Each arm's object-aware systems.
+    shared : ObjectStateEstimator or None
+        The shared object-state block.
+    """
 
     references: list[OutputPort]
     taus: list[OutputPort]

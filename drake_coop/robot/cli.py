@@ -452,7 +452,23 @@ def add_truth_log(builder, side, h: float) -> dict:
     """Loggers of the driver's plant's ground truth at every tick ``h`` (``sim-driver
     --log``): in contact mode each arm's pad contact force (the C++ hold of
     :func:`~drake_coop.plant.ground_truth.add_pad_force_log`: the force of the plant step
-    before the tick) and the box's state; in the other modes the arms' state only."""
+    before the tick) and the box's state; in the other modes the arms' state only.
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The driver side's builder (before ``Build``).
+    side : object
+        The simulated driver's side (its ``coop`` plant handles).
+    h : float
+        The control period, s: the loggers publish every tick.
+
+    Returns
+    -------
+    dict
+        ``normals`` (each arm's constraint normals), ``arms`` (each arm's state logger) and,
+        in contact mode, ``pads`` (the pads' forces) and ``box`` (the box's state logger).
+    """
     import numpy as np
     from pydrake.systems.primitives import LogVectorOutput
 
@@ -473,7 +489,17 @@ def add_truth_log(builder, side, h: float) -> dict:
 def write_truth_log(path, truth: dict, context) -> None:
     """``sim-driver --log``'s file (written whole): ``t``; ``lambda`` (ticks × arms × m:
     ``N_i F_i``, NaN outside contact mode); ``box_state`` (the box's positions and
-    velocities, contact mode); ``arm<i>_state``."""
+    velocities, contact mode); ``arm<i>_state``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.npz`` file to write (whole, or not at all).
+    truth : dict
+        The loggers of :func:`add_truth_log`.
+    context : Context
+        The driver's root context at the end of the run.
+    """
     import io
 
     import numpy as np

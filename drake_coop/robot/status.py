@@ -180,7 +180,20 @@ def first_bad_panda_status(messages: list[bytes], n: int) -> int:
     joint count compared as bytes, and the first byte of every position (sign and high
     exponent bits) of all of them at once: a double is finite unless that byte is ``0x7f``
     or ``0xff`` (then, as on any other doubt, the messages are checked one by one with
-    :func:`panda_status_ok`)."""
+    :func:`panda_status_ok`).
+
+    Parameters
+    ----------
+    messages : list of bytes
+        The raw ``lcmt_panda_status`` messages, in their order of arrival.
+    n : int
+        The arm's joint count.
+
+    Returns
+    -------
+    int
+        The index of the first rejected message, -1 when every one passes.
+    """
     size, end = panda_status_size(n), _HEAD + 8 * n
     fingerprint, joints = PANDA_STATUS_FINGERPRINT, struct.pack(">i", n)
     if all(len(d) == size and d[:8] == fingerprint and d[16:_HEAD] == joints
