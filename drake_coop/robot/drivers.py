@@ -52,6 +52,7 @@ from pydrake.systems.framework import (
     Context,
     DiagramBuilder,
     LeafSystem,
+    OutputPort,
     State,
     TriggerType,
 )
@@ -305,6 +306,9 @@ class ArmController:
         callable of the last good position).
     position_input : PassThrough or None
         The checked reading's entry with ``status_input="loop"``.
+    tau : OutputPort or None
+        The torque the watchdog checks and latches: the control block's ``tau``, plus the
+        load feedforward's ``τ_ff`` with an object model.
     """
 
     spec: DriverSpec
@@ -318,6 +322,9 @@ class ArmController:
     #: ``status_input="loop"``: the C++ pass-through whose input the caller sets to the
     #: checked reading (it feeds the watchdog's ``q`` and the control blocks' ``q``).
     position_input: PassThrough | None = None
+    #: The torque the watchdog checks and latches (the control block's ``tau``, plus the
+    #: load feedforward with an object model).
+    tau: OutputPort | None = None
 
 
 @dataclass
@@ -585,7 +592,7 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
                                   status_subscriber=status_sub,
                                   status_receiver=receiver, command_sender=sender,
                                   command_publisher=publisher, hold_torque=model.g,
-                                  position_input=position))
+                                  position_input=position, tau=tau))
     return ControllerSide(arms=arms, model_plant=coop, keep=[model_builder])
 
 

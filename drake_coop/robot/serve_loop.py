@@ -167,9 +167,13 @@ class ServeLoop:
             self._status.append((math.nan, float(STATUS_NONE), 0.0))
             self._q.append(q.tolist())
             block = arm.block
+            # The torque the watchdog latches: the control block's, plus the load
+            # feedforward's with an object model (what the simulated diagram applies).
+            tau = arm.tau if arm.tau is not None else block.tau_output
             self._wd.append((arm.watchdog, arm.watchdog.GetMyMutableContextFromRoot(
                 self.context), block.system.GetMyContextFromRoot(self.context),
-                block.lambda_hat_output, block.tau_output))
+                block.lambda_hat_output, (tau, tau.get_system().GetMyContextFromRoot(
+                    self.context))))
             self._pub.append(arm.command_publisher.GetMyContextFromRoot(self.context))
         self.simulator.Initialize()
 
@@ -223,9 +227,9 @@ class ServeLoop:
         (:meth:`~drake_coop.control.watchdog.Watchdog.tick`, at ``t_k``, on the fed status,
         ``λ̂(k)`` and the latched ``τ(k)``)."""
         t = (self.k - 1) * self.h
-        for (wd, wd_context, block, _, tau), status, q, lam in zip(self._wd, self._status,
-                                                                     self._q, self._lam):
-            wd.tick(wd_context, t, status, q, lam, tau.Eval(block).tolist())
+        for (wd, wd_context, _, _, (tau, tau_context)), status, q, lam in zip(
+                self._wd, self._status, self._q, self._lam):
+            wd.tick(wd_context, t, status, q, lam, tau.Eval(tau_context).tolist())
 
     def send(self) -> None:
         """Each arm's command (the watchdog's ``tau_latched``) encoded and published."""
