@@ -1,0 +1,115 @@
+"""Arms and boxes the project does not ship, set up from the docs alone: issue 33's goals.
+
+Each name is a scenario file written as the how-to of the lab-arms guide says (a robot entry of
+``drake-coop arms --yaml NAME`` per arm, placed and oriented, ``contact.yaml``'s plant with the
+box, ``object_model: {mode: estimated}``, **no gains**). The script does what a user does next:
+derives the gains as ``drake-coop gains`` does (:func:`drake_coop.stability.gains.derive_and_check`,
+the same rules and stability check), then runs the scenario with them to the circle's end
+(+1 s) and measures it with :func:`bench.lab_arms_object.measure` (the same code as the shipped
+lab arms' numbers), and checks issue 33's bars on the circle phase::
+
+    python -m bench.unseen_arms docs/guide/lab_arms_howto/two_xarm7_box.yaml \\
+        --out docs/results/unseen_arms.json
+
+The case's key is the file's stem (``--case`` names it otherwise); each case is written as soon
+as it ends, with its command, the derived gains and their ρ, the drake version and the CPU (the
+file keeps the cases of other calls). Exit 1 when the derived gains fail their check (the case
+is written, without a run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+#: Issue 33's bars on the circle phase: squeeze error RMS (N, worst arm), the box's position
+#: error RMS (m), its turn about the grasp line RMS (rad), slips, drops, and the mass estimate's
+#: relative error at the lift's end.
+BARS = {"squeeze_error_rms_N": 0.3, "object_position_error_rms_m": 0.5e-3,
+        "object_turn_rms_rad": math.radians(0.3), "slips": 0, "drops": 0,
+        "mass_error_at_lift_end": 0.05}
+
+
+def verdicts(case: dict) -> dict:
+    """Each bar of :data:`BARS`: the measured value (worst arm) and whether it passes."""
+    robots = case["robots"].values()
+    measured = {
+        "squeeze_error_rms_N": max(r["squeeze_error_rms_N"] for r in robots),
+        "object_position_error_rms_m": max(r["object_position_error_rms"] for r in robots),
+        "object_turn_rms_rad": max(abs(r["object_turn_rms"]) for r in robots),
+        "slips": sum(r["slips"] or 0 for r in robots),
+        "drops": sum(r["drops"] or 0 for r in robots),
+        "mass_error_at_lift_end": abs(case.get("mass_error_at_lift_end", math.inf)),
+    }
+    return {k: {"value": v, "bar": BARS[k], "passes": bool(v <= BARS[k])}
+            for k, v in measured.items()}
+
+
+def derived_scenario(path: Path):
+    """The scenario of ``path`` with the gains ``drake-coop gains`` derives for it, and the
+    derivation's report (``report.stable`` False: no gains passed the check)."""
+    from drake_coop.stability.gains import derive_and_check, gains_for_scenario
+    from drake_coop.stability.gains_cli import load_for_gains
+
+    scenario = load_for_gains(str(path))
+    report = derive_and_check(scenario)
+    return gains_for_scenario(scenario, report.robots), report
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("files", nargs="+", help="scenario files without gains (.yaml)")
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--case", help="the case's key in the file (one file only)")
+    args = parser.parse_args(argv)
+    if args.case is not None and len(args.files) != 1:
+        parser.error("--case: names one case; give one scenario file with it")
+    from importlib.metadata import version
+
+    from bench.lab_arms_object import _cpu_name, contact_scenario, measure
+    from drake_coop.scenario.loading import dump_scenario
+
+    out = Path(args.out)
+    status = 0
+    for name in args.files:
+        start = time.process_time()
+        scenario, report = derived_scenario(Path(name))
+        gains = {"rho": report.rho, "stable": report.stable, "attempts": report.attempts,
+                 "cpu_seconds": round(time.process_time() - start, 1),
+                 "robots": {d.name: {"K_R": [float(k) for k in d.gains.K_R],
+                                     "Lambda": d.gains.Lambda, "k_d": d.gains.k_d,
+                                     "xi": d.gains.xi} for d in report.robots}}
+        case: dict = {"scenario": name, "gains": gains}
+        if report.stable:
+            tmp = out.parent / f".{Path(name).stem}.derived.yaml"
+            out.parent.mkdir(parents=True, exist_ok=True)
+            tmp.write_text(dump_scenario(scenario))
+            try:
+                scenario = contact_scenario(str(tmp))    # as bench.lab_arms_object sets it up
+            finally:
+                tmp.unlink()
+            case.update(measure(scenario))
+            case["bars"] = verdicts(case)
+            case["passes"] = all(v["passes"] for v in case["bars"].values())
+        else:
+            status = 1
+        case["command"] = ("python -m bench.unseen_arms " + " ".join(sys.argv[1:])
+                           if argv is None else "")
+        case["drake"] = version("drake")
+        case["cpu"] = _cpu_name()
+        data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
+        data["cases"][args.case or Path(name).stem] = case
+        out.parent.mkdir(parents=True, exist_ok=True)
+        part = out.with_suffix(".tmp")
+        part.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+        part.replace(out)
+        print(name, json.dumps(case), flush=True)
+    return status
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
