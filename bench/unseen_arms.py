@@ -6,12 +6,14 @@ box, ``object_model: {mode: estimated}``, **no gains**). The script does what a 
 derives the gains as ``drake-coop gains`` does (:func:`drake_coop.stability.gains.derive_and_check`,
 the same rules and stability check), then runs the scenario with them to the circle's end
 (+1 s) and measures it with :func:`bench.lab_arms_object.measure` (the same code as the shipped
-lab arms' numbers), and checks issue 33's bars on the circle phase::
+lab arms' numbers; the lift phase's slips and friction use are added from the same metrics),
+and checks issue 33's bars on the circle phase::
 
     python -m bench.unseen_arms docs/guide/lab_arms_howto/two_xarm7_box.yaml \\
         --out docs/results/unseen_arms.json
 
-The case's key is the file's stem (``--case`` names it otherwise); each case is written as soon
+The case's key is the file's stem (``--case`` names it otherwise; ``--squeeze friction`` runs
+it with ``object_model.squeeze: friction`` instead, under ``STEM@sqfriction``); each case is written as soon
 as it ends, with its command, the derived gains and their ρ, the drake version and the CPU (the
 file keeps the cases of other calls). Exit 1 when the derived gains fail their check (the case
 is written, without a run).
@@ -49,6 +51,37 @@ def verdicts(case: dict) -> dict:
             for k, v in measured.items()}
 
 
+def measure_with_lift(scenario) -> dict:
+    """:func:`bench.lab_arms_object.measure` (the circle phase), and the same run's lift phase
+    per robot (``lift``: the squeeze error's RMS, the friction use's max, the pad's slip on
+    the box at the lift's end, slips and drops), read from the metrics that ``measure``
+    computes (``compute_metrics`` wrapped while it runs: one run, one measuring code)."""
+    import drake_coop.results.metrics as metrics_module
+    from bench.lab_arms_object import measure
+
+    captured = {}
+    compute = metrics_module.compute_metrics
+
+    def capture(logs, meta, *args, **kwargs):
+        captured["metrics"] = compute(logs, meta, *args, **kwargs)
+        return captured["metrics"]
+
+    metrics_module.compute_metrics = capture
+    try:
+        case = measure(scenario)
+    finally:
+        metrics_module.compute_metrics = compute
+    for robot, entry in case["robots"].items():
+        lift = captured["metrics"][robot].get("lift", {})
+        entry["lift"] = {
+            "squeeze_error_rms_N": lift.get("force_error", {}).get("rms"),
+            "friction_use_max": lift.get("friction_use", {}).get("max"),
+            "slip_max": lift.get("slip", {}).get("max"),
+            "slips": lift.get("slips", {}).get("count"),
+            "drops": lift.get("drops", {}).get("count")}
+    return case
+
+
 def derived_scenario(path: Path):
     """The scenario of ``path`` with the gains ``drake-coop gains`` derives for it, and the
     derivation's report (``report.stable`` False: no gains passed the check)."""
@@ -65,12 +98,15 @@ def main(argv=None) -> int:
     parser.add_argument("files", nargs="+", help="scenario files without gains (.yaml)")
     parser.add_argument("--out", required=True)
     parser.add_argument("--case", help="the case's key in the file (one file only)")
+    parser.add_argument("--squeeze", choices=("profile", "friction"),
+                        help="the object model's squeeze source (a diagnosis: the key gets "
+                             "@sq<squeeze>)")
     args = parser.parse_args(argv)
     if args.case is not None and len(args.files) != 1:
         parser.error("--case: names one case; give one scenario file with it")
     from importlib.metadata import version
 
-    from bench.lab_arms_object import _cpu_name, contact_scenario, measure
+    from bench.lab_arms_object import _cpu_name, contact_scenario
     from drake_coop.scenario.loading import dump_scenario
 
     out = Path(args.out)
@@ -88,11 +124,11 @@ def main(argv=None) -> int:
             tmp = out.parent / f".{Path(name).stem}.derived.yaml"
             out.parent.mkdir(parents=True, exist_ok=True)
             tmp.write_text(dump_scenario(scenario))
-            try:
-                scenario = contact_scenario(str(tmp))    # as bench.lab_arms_object sets it up
+            try:                                          # as bench.lab_arms_object sets it up
+                scenario = contact_scenario(str(tmp), squeeze=args.squeeze)
             finally:
                 tmp.unlink()
-            case.update(measure(scenario))
+            case.update(measure_with_lift(scenario))
             case["bars"] = verdicts(case)
             case["passes"] = all(v["passes"] for v in case["bars"].values())
         else:
@@ -102,7 +138,8 @@ def main(argv=None) -> int:
         case["drake"] = version("drake")
         case["cpu"] = _cpu_name()
         data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
-        data["cases"][args.case or Path(name).stem] = case
+        key = Path(name).stem + (f"@sq{args.squeeze}" if args.squeeze else "")
+        data["cases"][args.case or key] = case
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_suffix(".tmp")
         part.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")

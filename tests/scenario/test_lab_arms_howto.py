@@ -119,7 +119,6 @@ def test_the_gains_map_is_computed_without_the_object_model():
     validate(checked)                                # the copy is a valid scenario
 
 
-@pytest.mark.slow
 def test_an_estimated_mass_is_a_marginal_mode_of_the_map_whatever_the_gains():
     """Why the map is computed without the object model: at the free point the mass
     estimator does not update, so its estimate is an eigenvalue 1 of the map (ρ = 1 for the
@@ -138,3 +137,32 @@ def test_an_estimated_mass_is_a_marginal_mode_of_the_map_whatever_the_gains():
     assert any("mass_estimator" in d for d in report.slowest.dominant)
     checked, _ = rules.map_copy(s)
     assert analyse(operating_point(checked, "free").map, epsilon=1e-5).rho < 0.99
+
+
+@robots_extra
+def test_drake_warns_once_per_message_about_a_prepared_arm(caplog):
+    """The xArm7's URDF has joint friction and gear reductions Drake ignores, with a warning
+    at every load: a run loads the prepared file many times; each warning reaches the log
+    once (the file loaded here twice: the second load adds no record)."""
+    import logging
+
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+
+    from drake_coop.scenario.resources import model_urdf_path
+
+    robot = lab_arm_robot("xarm7")
+    robot.tool = Tool(flange=robot.tool.flange, pad_radius=0.0151)   # a file of this test's own
+    path = model_urdf_path(robot)
+
+    def load() -> list[str]:
+        caplog.clear()
+        plant = MultibodyPlant(0.0)
+        with caplog.at_level(logging.WARNING, logger="drake"):
+            Parser(plant).AddModels(str(path))
+        return [r.getMessage() for r in caplog.records if str(path) in r.getMessage()]
+
+    first, second = load(), load()
+    assert any("mechanicalReduction" in m for m in first)
+    assert len(first) == len(set(first))
+    assert second == []
