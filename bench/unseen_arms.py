@@ -28,6 +28,8 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 #: Issue 33's bars on the circle phase: squeeze error RMS (N, worst arm), the box's position
 #: error RMS (m), its turn about the grasp line RMS (rad), slips, drops, and the mass estimate's
 #: relative error at the lift's end.
@@ -82,6 +84,46 @@ def measure_with_lift(scenario) -> dict:
     return case
 
 
+def lift_timeline(scenario, t_end: float, step: float = 0.25) -> dict:
+    """The grasp and the lift's first seconds, every ``step`` s to ``t_end``, from the plant's
+    truth: per robot ``λ_d``, the pad's normal and tangential force on the box (N), the pad's
+    rise since the run's start and its slide on the box (mm; :func:`~drake_coop.results.
+    object_metrics.object_signals`), and the box's rise (mm). Beside it, the squeeze at which
+    friction carries the box, ``m g / (2 μ)`` per pad (two pads), and the first sample where
+    ``μ f_n`` reaches it."""
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.results.object_metrics import object_signals
+
+    result = simulate(scenario, t_end=t_end)
+    logs, meta = result.logs, result.meta
+    signals = object_signals(logs, meta)
+    robots = list(logs)
+    t = np.asarray(logs[robots[0]]["t"])
+    pose = np.asarray(logs[robots[0]]["object_pose"])
+    m, mu = float(scenario.plant.object_mass), float(scenario.plant.friction)
+    needed = m * 9.81 / (2.0 * mu)
+    rows = []
+    for tt in np.arange(scenario.task.t_grasp - 0.5, t_end, step):
+        k = int(np.searchsorted(t, tt - 1e-9))
+        if k >= len(t):
+            break
+        row = {"t": float(t[k]), "box_rise_mm": 1e3 * float(pose[k, 6] - pose[0, 6])}
+        for r in robots:
+            log = logs[r]
+            slip = float(signals[r]["slip"][k])
+            row[r] = {"lambda_d_N": float(np.ravel(log["lambda_d"][k])[0]),
+                      "pad_normal_N": float(log["pad_normal_force"][k]),
+                      "pad_tangential_N": float(log["pad_tangential_force"][k]),
+                      "pad_rise_mm": 1e3 * float(log["x"][k, 2] - log["x"][0, 2]),
+                      "slide_mm": 1e3 * slip if np.isfinite(slip) else None}
+        rows.append(row)
+    f_n = np.min([np.asarray(logs[r]["pad_normal_force"]) for r in robots], axis=0)
+    after = np.flatnonzero((t >= scenario.task.t_grasp) & (mu * f_n >= needed))
+    return {"t_end": t_end, "needed_squeeze_per_pad_N": needed,
+            "friction_carries_from_s": float(t[after[0]]) if after.size else None,
+            "rows": rows}
+
+
 def derived_scenario(path: Path):
     """The scenario of ``path`` with the gains ``drake-coop gains`` derives for it, and the
     derivation's report (``report.stable`` False: no gains passed the check)."""
@@ -98,6 +140,9 @@ def main(argv=None) -> int:
     parser.add_argument("files", nargs="+", help="scenario files without gains (.yaml)")
     parser.add_argument("--out", required=True)
     parser.add_argument("--case", help="the case's key in the file (one file only)")
+    parser.add_argument("--lift-timeline", type=float, metavar="T_END",
+                        help="instead of the measurement: the grasp and the lift to T_END s, "
+                             "every 0.25 s (:func:`lift_timeline`), under STEM@lift")
     parser.add_argument("--squeeze", choices=("profile", "friction"),
                         help="the object model's squeeze source (a diagnosis: the key gets "
                              "@sq<squeeze>)")
@@ -128,9 +173,12 @@ def main(argv=None) -> int:
                 scenario = contact_scenario(str(tmp), squeeze=args.squeeze)
             finally:
                 tmp.unlink()
-            case.update(measure_with_lift(scenario))
-            case["bars"] = verdicts(case)
-            case["passes"] = all(v["passes"] for v in case["bars"].values())
+            if args.lift_timeline is not None:
+                case["lift_timeline"] = lift_timeline(scenario, args.lift_timeline)
+            else:
+                case.update(measure_with_lift(scenario))
+                case["bars"] = verdicts(case)
+                case["passes"] = all(v["passes"] for v in case["bars"].values())
         else:
             status = 1
         case["command"] = ("python -m bench.unseen_arms " + " ".join(sys.argv[1:])
@@ -138,7 +186,8 @@ def main(argv=None) -> int:
         case["drake"] = version("drake")
         case["cpu"] = _cpu_name()
         data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
-        key = Path(name).stem + (f"@sq{args.squeeze}" if args.squeeze else "")
+        key = (Path(name).stem + (f"@sq{args.squeeze}" if args.squeeze else "")
+               + ("@lift" if args.lift_timeline is not None else ""))
         data["cases"][args.case or key] = case
         out.parent.mkdir(parents=True, exist_ok=True)
         part = out.with_suffix(".tmp")
