@@ -89,8 +89,8 @@ def lift_timeline(scenario, t_end: float, step: float = 0.25) -> dict:
     truth: per robot ``λ_d``, the pad's normal and tangential force on the box (N), the pad's
     rise since the run's start and its slide on the box (mm; :func:`~drake_coop.results.
     object_metrics.object_signals`), and the box's rise (mm). Beside it, the squeeze at which
-    friction carries the box, ``m g / (2 μ)`` per pad (two pads), and the first sample where
-    ``μ f_n`` reaches it."""
+    friction carries the box, ``m g / (2 μ)`` per pad (two pads), and the first tick where
+    both pads' normal force ``f_n`` reaches it."""
     from drake_coop.experiment.simulate import simulate
     from drake_coop.results.object_metrics import object_signals
 
@@ -118,7 +118,7 @@ def lift_timeline(scenario, t_end: float, step: float = 0.25) -> dict:
                       "slide_mm": 1e3 * slip if np.isfinite(slip) else None}
         rows.append(row)
     f_n = np.min([np.asarray(logs[r]["pad_normal_force"]) for r in robots], axis=0)
-    after = np.flatnonzero((t >= scenario.task.t_grasp) & (mu * f_n >= needed))
+    after = np.flatnonzero((t >= scenario.task.t_grasp) & (f_n >= needed))
     return {"t_end": t_end, "needed_squeeze_per_pad_N": needed,
             "friction_carries_from_s": float(t[after[0]]) if after.size else None,
             "rows": rows}
