@@ -71,8 +71,7 @@ def test_the_howto_scenario_builds_and_places_each_pad_where_the_guide_says(path
 
 
 @robots_extra
-@pytest.mark.parametrize("name", [n for n in LAB_ARMS if len(arm_facts(n).joints) >= 6]
-                         if "example-robot-data" in description_packages() else [])
+@pytest.mark.parametrize("name", sorted(LAB_ARMS))
 def test_the_tool_axis_of_arms_is_the_flange_axis_its_last_joint_turns_about(name):
     """The pad mounted as ``drake-coop arms --yaml`` says (the sensor turned onto the tool
     axis, the pad 45 mm out along the sensor's z) lies on the last joint's axis line — turning
@@ -83,6 +82,9 @@ def test_the_tool_axis_of_arms_is_the_flange_axis_its_last_joint_turns_about(nam
     from drake_coop.scenario.resources import model_urdf_path
 
     facts = arm_facts(name)
+    if len(facts.joints) < 6:
+        pytest.skip("a 5-joint arm holds a position task: its pad's orientation is free (the "
+                    "SO-ARM101's gripper frame is off its wrist-roll axis)")
     robot = lab_arm_robot(name)
     robot.tool = Tool(flange=robot.tool.flange,
                       sensor_rpy_deg=SENSOR_RPY_FOR_AXIS[facts.tool_axis])
@@ -93,7 +95,14 @@ def test_the_tool_axis_of_arms_is_the_flange_axis_its_last_joint_turns_about(nam
     context = plant.CreateDefaultContext()
     q = 0.5 * (np.asarray(facts.lower) + np.asarray(facts.upper))
     pad, flange = plant.GetBodyByName("pad"), plant.GetBodyByName(robot.tool.flange)
-    last = plant.GetJointByName(facts.joints[-1])
+    body = flange                                   # the last moving joint before the flange
+    while True:
+        joint = next(plant.get_joint(j) for j in plant.GetJointIndices()
+                     if plant.get_joint(j).child_body().index() == body.index())
+        if joint.num_velocities() == 1:
+            break
+        body = joint.parent_body()
+    last = joint
     plant.SetPositions(context, q)
     p0 = plant.EvalBodyPoseInWorld(context, pad).translation()
     f0 = plant.EvalBodyPoseInWorld(context, flange).translation()
