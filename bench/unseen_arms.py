@@ -13,7 +13,9 @@ and checks issue 33's bars on the circle phase::
         --out docs/results/unseen_arms.json
 
 The case's key is the file's stem (``--case`` names it otherwise; ``--squeeze friction`` runs
-it with ``object_model.squeeze: friction`` instead, under ``STEM@sqfriction``); each case is written as soon
+it with ``object_model.squeeze: friction`` instead, under ``STEM@sqfriction``; ``--lift-timeline
+T_END`` runs to ``T_END`` only and stores the grasp's and the lift's forces, rises and slide every
+0.25 s, :func:`lift_timeline`, under ``STEM@lift``); each case is written as soon
 as it ends, with its command, the derived gains and their ρ, the drake version and the CPU (the
 file keeps the cases of other calls). Exit 1 when the derived gains fail their check (the case
 is written, without a run).

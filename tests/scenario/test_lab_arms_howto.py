@@ -175,3 +175,25 @@ def test_drake_warns_once_per_message_about_a_prepared_arm(caplog):
     assert any("mechanicalReduction" in m for m in first)
     assert len(first) == len(set(first))
     assert second == []
+
+
+@robots_extra
+@pytest.mark.parametrize("name", ["xarm7", "z1"])
+def test_the_printed_entry_is_a_robot_with_its_tool_on_the_tool_axis(name):
+    """``drake-coop arms --yaml NAME`` prints a robot entry the schema reads, its sensor turned
+    onto the arm's tool axis (the Z1's +x, the xArm7's +z: none) and its pad approaching along
+    +x (the pad's z, world frame, from Drake's roll-pitch-yaw)."""
+    import yaml
+    from pydrake.common.yaml import yaml_load_typed
+    from pydrake.math import RollPitchYaw
+
+    from drake_coop.scenario.arms_cli import _yaml
+    from drake_coop.scenario.schema import Robot
+
+    entry = yaml.safe_load(_yaml(name))[0]
+    robot = yaml_load_typed(schema=Robot, data=yaml.safe_dump(entry))
+    assert robot.tool.sensor_rpy_deg == SENSOR_RPY_FOR_AXIS[arm_facts(name).tool_axis]
+    assert robot.tool.sensor_rpy_deg == ([0.0, 90.0, 0.0] if name == "z1" else [0.0, 0.0, 0.0])
+    R = RollPitchYaw(np.radians(robot.ee_rpy_deg)).ToRotationMatrix().matrix()
+    assert np.allclose(R[:, 2], [1.0, 0.0, 0.0], atol=1e-12)
+    assert robot.normals == [[-1.0, 0.0, 0.0]]
