@@ -45,6 +45,7 @@ The prepared file is written once per source file and fields, atomically, under
 from __future__ import annotations
 
 import hashlib
+import logging
 import math
 import os
 import tempfile
@@ -293,6 +294,41 @@ def _absolute_meshes(root: ET.Element, resolve, base_dir: Path) -> None:
             mesh.set("filename", str((base_dir / name).resolve()))
 
 
+class _OncePerPreparedFile(logging.Filter):
+    """Passes each distinct Drake log message about a prepared file once per process.
+
+    Every part of a run loads the prepared file again (the plant, the controller's model, the
+    kinematics, each posture of ``drake-coop gains``), and Drake's parser warns again at each
+    load of what it ignores (the xArm7's joint friction and gear reductions: 14 lines a load,
+    420 lines for one ``gains``). The first occurrence of each still reaches the log."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.files: set[str] = set()
+        self.seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        text = record.getMessage()
+        if not any(f in text for f in self.files):
+            return True
+        if text in self.seen:
+            return False
+        self.seen.add(text)
+        return True
+
+
+_ONCE = _OncePerPreparedFile()
+
+
+def _log_once(path: Path) -> Path:
+    """Register ``path`` with the ``drake`` logger's once-per-message filter; returns it."""
+    logger = logging.getLogger("drake")
+    if _ONCE not in logger.filters:
+        logger.addFilter(_ONCE)
+    _ONCE.files.add(str(path))
+    return path
+
+
 def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None,
                   from_package: bool = False) -> Path:
     """The URDF a run loads for ``robot`` (see the module's docstring).
@@ -336,7 +372,7 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
                                robot.tool, from_package)).encode()).hexdigest()[:24]
     out = cache_dir() / f"{Path(source).stem}_{key}.urdf"
     if out.is_file():
-        return out
+        return _log_once(out)
     ET.register_namespace("drake", "http://drake.mit.edu")
     try:
         root = ET.fromstring(raw)
@@ -365,4 +401,4 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return out
+    return _log_once(out)

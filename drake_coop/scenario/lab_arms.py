@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 
 from drake_coop.scenario.schema import Robot, ScenarioError, Tool
 
-__all__ = ["ArmFacts", "LAB_ARMS", "LabArm", "arm_facts", "lab_arm_robot"]
+__all__ = ["ArmFacts", "LAB_ARMS", "LabArm", "SENSOR_RPY_FOR_AXIS", "arm_facts", "lab_arm_robot",
+           "tool_axis"]
 
 _ROBOTS = "package://example-robot-data/robots/"
 
@@ -116,6 +117,12 @@ class ArmFacts:
         Drake ignores.
     path : str
         The prepared URDF.
+    tool_axis : str
+        The flange's axis the tool points along (``+z``, ``+x``, ``-y``, ...): the axis of the
+        last moving joint before the flange, in the flange's frame, signed outwards (from that
+        joint's parent body towards the flange). The pad sits along the sensor's z
+        (``tool.pad_xyz``), so an arm whose tool axis is not ``+z`` needs the sensor turned
+        onto it (:data:`SENSOR_RPY_FOR_AXIS`).
     """
 
     joints: list[str]
@@ -124,6 +131,43 @@ class ArmFacts:
     upper: list[float]
     reductions: list[float | None]
     path: str
+    tool_axis: str = "+z"
+
+
+#: ``tool.sensor_rpy_deg`` that turns the sensor's (and the pad's) z onto a flange axis.
+SENSOR_RPY_FOR_AXIS = {"+z": [0.0, 0.0, 0.0], "-z": [180.0, 0.0, 0.0],
+                       "+x": [0.0, 90.0, 0.0], "-x": [0.0, -90.0, 0.0],
+                       "+y": [-90.0, 0.0, 0.0], "-y": [90.0, 0.0, 0.0]}
+
+
+def tool_axis(plant, flange_body) -> str:
+    """The flange's axis the tool points along (see :attr:`ArmFacts.tool_axis`) in a finalized
+    ``plant``: the axis of the first moving joint found walking from ``flange_body`` towards
+    the base, in the flange's frame, rounded to the nearest coordinate axis and signed from
+    that joint's parent body's origin towards the flange's origin (``+`` when they coincide
+    along it)."""
+    import numpy as np
+
+    body, joint = flange_body, None
+    while joint is None and body.index() != plant.world_body().index():
+        inboard = [plant.get_joint(j) for j in plant.GetJointIndices()
+                   if plant.get_joint(j).child_body().index() == body.index()]
+        if not inboard:
+            break
+        if inboard[0].num_velocities() == 1 and hasattr(inboard[0], "revolute_axis"):
+            joint = inboard[0]
+        body = inboard[0].parent_body()
+    if joint is None:
+        return "+z"
+    context = plant.CreateDefaultContext()
+    F = flange_body.body_frame()
+    axis = plant.CalcRelativeTransform(context, F, joint.frame_on_child()).rotation().multiply(
+        joint.revolute_axis())
+    k = int(np.argmax(np.abs(axis)))
+    parent = plant.CalcRelativeTransform(context, F, joint.parent_body().body_frame())
+    outward = -parent.translation()[k]          # from the parent's origin to the flange's
+    sign = axis[k] if abs(outward) < 1e-9 else outward
+    return ("+" if sign >= 0 else "-") + "xyz"[k]
 
 
 def arm_facts(name: str) -> ArmFacts:
@@ -185,4 +229,5 @@ def arm_facts(name: str) -> ArmFacts:
     return ArmFacts(joints=joints, effort_limits=effort,
                     lower=[float(v) for v in plant.GetPositionLowerLimits()],
                     upper=[float(v) for v in plant.GetPositionUpperLimits()],
-                    reductions=[reduction.get(j) for j in joints], path=str(path))
+                    reductions=[reduction.get(j) for j in joints], path=str(path),
+                    tool_axis=tool_axis(plant, plant.GetBodyByName(robot.tool.flange)))

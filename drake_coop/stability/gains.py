@@ -30,7 +30,7 @@ The check: ρ of the one-period map (:func:`~drake_coop.stability.period_map.ana
 ``K_R`` multiplied by :data:`GAIN_MARGIN` (a stated gain margin). When it fails, ``κ`` is
 scaled by :data:`BACKOFF` and the derivation repeated (at most :data:`MAX_ATTEMPTS` times).
 A scenario in ``contact`` mode is checked on its ``planes`` copy (the map does not take a
-floating box).
+floating box), and a scenario with an object model on a copy without it (:func:`map_copy`).
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from typing import Callable
 
 import numpy as np
 
-from drake_coop.scenario.schema import Gains, Scenario
+from drake_coop.scenario.schema import Gains, ObjectModelSettings, Scenario
 
 __all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_and_check", "derive_gains",
            "derive_robot_gains", "gains_for_scenario", "map_copy", "task_postures"]
@@ -304,7 +304,13 @@ def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
 
 
 def map_copy(scenario: Scenario) -> tuple[Scenario, str]:
-    """The scenario the map is computed on: itself, or its ``planes`` copy in contact mode.
+    """The scenario the map is computed on: itself, or a copy in ``planes`` mode (for a
+    ``contact`` scenario) and without its object model (``object_model.mode: none``).
+
+    The gains are the paper's loop's, (13)–(16) and (22). An object model adds blocks outside
+    it, and an ``estimated`` one a parameter estimate that does not move while nothing excites
+    it (its mass estimator updates only while the object is held): an eigenvalue 1 of the map
+    at the free point whatever the gains, so every gain would be refused.
 
     Parameters
     ----------
@@ -318,11 +324,13 @@ def map_copy(scenario: Scenario) -> tuple[Scenario, str]:
     mode : str
         Its object mode.
     """
-    if scenario.plant.object_mode != "contact":
+    if scenario.plant.object_mode != "contact" and scenario.object_model.mode == "none":
         return scenario, scenario.plant.object_mode
     s = copy.deepcopy(scenario)
-    s.plant.object_mode = "planes"
-    return s, "planes"
+    if s.plant.object_mode == "contact":
+        s.plant.object_mode = "planes"
+    s.object_model = ObjectModelSettings()          # mode none, the schema's defaults
+    return s, s.plant.object_mode
 
 
 def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 1e-5,
