@@ -145,7 +145,20 @@ def tool_axis(plant, flange_body) -> str:
     ``plant``: the axis of the first moving joint found walking from ``flange_body`` towards
     the base, in the flange's frame, rounded to the nearest coordinate axis and signed from
     that joint's parent body's origin towards the flange's origin (``+`` when they coincide
-    along it)."""
+    along it).
+
+    Parameters
+    ----------
+    plant : MultibodyPlant
+        The arm's finalized plant.
+    flange_body : Body
+        The flange's body.
+
+    Returns
+    -------
+    str
+        The signed axis, e.g. ``"+z"`` or ``"+x"``.
+    """
     import numpy as np
 
     body, joint = flange_body, None
