@@ -321,7 +321,7 @@ def tick_cost(scenario_name: str, horizons=(None, 0.003), *, robot: str = "robot
     cycles = 9
     out: dict = {"robot": robot, "ticks": ticks, "rounds": rounds, "idle_s": idle,
                  "realtime": None, "cases": {}}
-    from drake_coop.robot.pacing import realtime_settings
+    from drake_coop.robot.realtime import realtime_settings
 
     out["realtime"] = realtime_settings()
     loops = {}
