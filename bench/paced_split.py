@@ -312,7 +312,7 @@ def tick_cost(scenario_name: str, horizons=(None, 0.003), *, robot: str = "robot
 
     from bench.serve_tick import _readings, _status_bytes
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.robot.drivers import driver_specs
+    from drake_coop.robot.driver_spec import driver_specs
     from drake_coop.robot.serve_loop import ServeLoop, status_arrivals
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.model_check import check_models

@@ -113,7 +113,7 @@ def _load(args, wait_option: str, wait: float):
     """The scenario, its driver specs and the LCM connection, or an exit code (2) after one
     line: the preamble ``serve`` and ``sim-driver`` share (``wait_option`` names the command's
     own waiting time, ``wait`` its value, checked with the rest before anything starts)."""
-    from drake_coop.robot.drivers import driver_specs
+    from drake_coop.robot.driver_spec import driver_specs
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.model_check import check_models
     from drake_coop.scenario.resources import find_scenario
