@@ -12,7 +12,7 @@ diagram (see ``docs/api_usage.md``); the systems it holds — :class:`VelocityOb
 gains (:class:`Gains`).
 
 Modules: the parameters (params), the time grid (timing), the model (arm_model), Property 1
-(orthogonal), the law at one sample (finger), its Drake systems (observers, controller, sources,
+(orthogonal), the reference signal's layout (reference_layout), the law at one sample (finger), its Drake systems (observers, controller, sources,
 momentum), the sources' registry (registry: each velocity and force source declared once,
 :data:`SOURCES`; the block, the accepted names and these exports read it) and the wiring
 (block).
@@ -36,8 +36,8 @@ _EXPORTS = {
     "Controller": "controller",
     "DelayPredictor": "delay",
     "FingerLaw": "finger",
-    "Reference": "finger",
-    "ReferenceLayout": "finger",
+    "Reference": "reference_layout",
+    "ReferenceLayout": "reference_layout",
     "FORCE_SOURCES": "params",
     "VELOCITY_SOURCES": "params",
     "Gains": "params",

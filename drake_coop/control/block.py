@@ -228,7 +228,7 @@ class ControllerHandles:
     velocity_source, force_source, controller : LeafSystem
         The block's three systems.
     reference_input : InputPort
-        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.finger.ReferenceLayout`):
+        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.reference_layout.ReferenceLayout`):
         the one input the user must connect.
     q_input : InputPort
         The measured ``q`` (already connected).

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.sources import (
     DifferenceVelocity,
     MeasuredVelocity,
