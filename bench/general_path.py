@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.arm_plant import make_arm_controller_plant
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.reference_layout import Reference
 from drake_coop.control.params import Gains

@@ -40,7 +40,8 @@ from pydrake.systems.framework import (
 )
 from pydrake.systems.primitives import Demultiplexer
 
-from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.arm_plant import make_arm_controller_plant
 from drake_coop.control.controller import Controller
 from drake_coop.control.delay import DelayPredictor
 from drake_coop.control.finger import FingerLaw

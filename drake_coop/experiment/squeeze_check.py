@@ -40,7 +40,7 @@ def torque_limits(scenario: Scenario, index: int, plan=None) -> np.ndarray:
     numpy.ndarray
         ``τ_max`` (n,), N·m.
     """
-    from drake_coop.control.arm_model import make_arm_controller_plant
+    from drake_coop.control.arm_plant import make_arm_controller_plant
     from drake_coop.control.squeeze_limits import effort_limits
     from drake_coop.experiment.plan import plan_run
 

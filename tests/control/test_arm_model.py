@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from bench.seven_joint import write_seven_joint_urdf
-from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.arm_plant import make_arm_controller_plant
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.reference_layout import Reference
 from drake_coop.control.params import Gains
