@@ -22,7 +22,7 @@ _TIMED = {
     "F/T sensor model": ("drake_coop.sensing.force_sensor", "FTSensor", ("_update_reading",)),
     "wrist kinematics (all arms)": ("drake_coop.plant.wrist", "WristKinematics",
                                     ("_calc_signals",)),
-    "wrist dynamics (all arms)": ("drake_coop.plant.wrist", "WristDynamics",
+    "wrist dynamics (all arms)": ("drake_coop.plant.wrist_dynamics", "WristDynamics",
                                   ("_calc_signals", "_calc_last_step", "_update_step")),
     "pad forces (contact ground truth, all arms)": ("drake_coop.plant.grasp", "PadForces",
                                                     ("_calc_forces",)),

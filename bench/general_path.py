@@ -25,8 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
-from drake_coop.control.finger import FingerLaw, Reference
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.arm_plant import make_arm_controller_plant
+from drake_coop.control.finger import FingerLaw
+from drake_coop.control.reference_layout import Reference
 from drake_coop.control.params import Gains
 from drake_coop.plant.arms import Arm, arm_model
 from drake_coop.scenario import load_scenario

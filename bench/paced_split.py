@@ -312,7 +312,7 @@ def tick_cost(scenario_name: str, horizons=(None, 0.003), *, robot: str = "robot
 
     from bench.serve_tick import _readings, _status_bytes
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.robot.drivers import driver_specs
+    from drake_coop.robot.driver_spec import driver_specs
     from drake_coop.robot.serve_loop import ServeLoop, status_arrivals
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.model_check import check_models
@@ -321,7 +321,7 @@ def tick_cost(scenario_name: str, horizons=(None, 0.003), *, robot: str = "robot
     cycles = 9
     out: dict = {"robot": robot, "ticks": ticks, "rounds": rounds, "idle_s": idle,
                  "realtime": None, "cases": {}}
-    from drake_coop.robot.pacing import realtime_settings
+    from drake_coop.robot.realtime import realtime_settings
 
     out["realtime"] = realtime_settings()
     loops = {}

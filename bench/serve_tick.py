@@ -302,7 +302,7 @@ def serve_tick_benchmark(ticks: int = 2000, pairs: int = 5, chunk: int = 100,
                          per_arm: bool = True) -> dict:
     """The figures of the module's docstring."""
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.robot.drivers import driver_specs
+    from drake_coop.robot.driver_spec import driver_specs
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.model_check import check_models
 

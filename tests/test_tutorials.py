@@ -62,7 +62,7 @@ def test_tutorial_05_runs_the_control_on_a_users_own_plant():
 
 
 def _have_robots() -> bool:
-    from drake_coop.control.arm_model import description_packages
+    from drake_coop.control.arm_plant import description_packages
 
     return "example-robot-data" in description_packages()
 

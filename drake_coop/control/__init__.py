@@ -11,9 +11,10 @@ diagram (see ``docs/api_usage.md``); the systems it holds — :class:`VelocityOb
 :func:`squeeze_couple`, :func:`face_distance`), the reference layout (:class:`ReferenceLayout`, :class:`Reference`) and the
 gains (:class:`Gains`).
 
-Modules: the parameters (params), the time grid (timing), the model (arm_model), Property 1
-(orthogonal), the law at one sample (finger), its Drake systems (observers, controller, sources,
-momentum), the sources' registry (registry: each velocity and force source declared once,
+Modules: the parameters (params), the time grid (timing), the model (arm_model; its plant,
+arm_plant; its closed forms, arm_closed_form), Property 1 (orthogonal), the reference signal's
+layout (reference_layout), the law at one sample (finger), its Drake systems (observers,
+controller, sources, momentum), the sources' registry (registry: each velocity and force source declared once,
 :data:`SOURCES`; the block, the accepted names and these exports read it) and the wiring
 (block).
 
@@ -36,8 +37,8 @@ _EXPORTS = {
     "Controller": "controller",
     "DelayPredictor": "delay",
     "FingerLaw": "finger",
-    "Reference": "finger",
-    "ReferenceLayout": "finger",
+    "Reference": "reference_layout",
+    "ReferenceLayout": "reference_layout",
     "FORCE_SOURCES": "params",
     "VELOCITY_SOURCES": "params",
     "Gains": "params",

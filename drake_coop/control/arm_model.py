@@ -30,20 +30,11 @@ arm's geometry); otherwise Drake's. Drake's kinematics of a tick are **one evalu
 from one ``CalcJacobianSpatialVelocity``), kept while ``q`` is unchanged and shared by ``φ``,
 ``J_φ`` and ``J̇_φ``, so the force observer and the controller of a tick evaluate it once.
 
-``J̇_φ`` along a direction ``d`` on a serial chain of revolute and prismatic joints is the
-closed-form derivative of the geometric Jacobian's columns (no AutoDiff): with ``a_k`` the
-angular column of joint ``k`` (its world axis, 0 for a prismatic joint), ``J_k`` its
-translational column, :math:`\omega_k = \sum_{j<k} a_j d_j` the angular velocity of the body
-that carries joint ``k`` and :math:`s_k = \sum_{j \ge k} J_j d_j` the pad's velocity relative
-to that body,
+``J̇_φ`` on a serial chain of revolute and prismatic joints: the closed-form derivative of the
+geometric Jacobian's columns (:mod:`drake_coop.control.arm_closed_form`, with the paper's arm's
+one constraint row); forward-mode AutoDiff (:meth:`ArmModel.J_phi_and_derivative_autodiff`) is
+the reference and the fallback for a model that is not such a chain (exact both, up to roundings).
 
-.. math:: \dot J_k = \omega_k \times J_k + a_k \times s_k
-
-(``J_k = a_k × (x − p_k)``: ``ȧ_k = ω_k × a_k``, ``d/dt (x − p_k) = ω_k × (x − p_k) + s_k``,
-and the Jacobi identity). Exact, to the roundings of a few cross products; checked against
-forward-mode AutoDiff (:meth:`ArmModel.J_phi_and_derivative_autodiff`, kept as the reference
-and as the fallback for a model that is not such a chain) and finite differences.
-Both paths are exact; they differ by roundings.
 Dynamics: ``H a + C v + D v + g`` is one inverse-dynamics call
 (``CalcForceElementsContribution`` — gravity and joint damping — then
 ``CalcInverseDynamics``).
@@ -52,17 +43,27 @@ Dynamics: ``H a + C v + D v + g`` is one inverse-dynamics call
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
-from pydrake.math import RigidTransform
-from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import MultibodyForces
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_coop.control.params import as_array
+from drake_coop.control.arm_closed_form import (
+    is_serial_chain,
+    jacobian_dot,
+    paper_arm_row,
+    paper_arm_row_dot,
+    paper_arm_row_setup,
+)
+from drake_coop.control.arm_plant import (  # noqa: F401 (re-exported)
+    DESCRIPTION_PACKAGES,
+    add_description_packages,
+    description_packages,
+    make_arm_controller_plant,
+)
+from drake_coop.control.params import contact_vector, normalized_normals  # noqa: F401
 
 
 class ArmModel:
@@ -150,14 +151,8 @@ class ArmModel:
         self._row_key = b""
         self._J_phi_key = b""
         if self.closed_form:
-            geometry = closed_form.geometry
-            # (h1, L2, A = L3 + o_z, o_x, o_y): the centre's formulas with the forearm to P.
-            self._lengths = (geometry.h1, geometry.L2, geometry.L3 + float(offset[2]),
-                             float(offset[0]), float(offset[1]))
-            n = self._N[0]
-            nl = closed_form.R_base.T @ n            # the first normal in the base frame
-            self._row_constants = (float(nl[0]), float(nl[1]), float(nl[2]),
-                                   float(n @ (closed_form.p_base - self._c)))
+            self._row_constants, self._lengths = paper_arm_row_setup(closed_form, self._N[0],
+                                                                     self._c, offset)
 
     @classmethod
     def from_plant(cls, plant: MultibodyPlant, ee_frame: str, normals, contact_point
@@ -204,7 +199,7 @@ class ArmModel:
         self._forces = MultibodyForces(plant)
         self._kin_key = b""
         self._kin = None
-        self.serial_chain = _serial_chain(plant, self.ee_frame)
+        self.serial_chain = is_serial_chain(plant, self.ee_frame)
 
     @property
     def N(self) -> np.ndarray:
@@ -221,12 +216,9 @@ class ArmModel:
         """``φ(q)`` and ``J_φ(q)`` (as a list) of the first constraint row.
 
         With Drake's kinematics: from the tick's one evaluation (:meth:`ee_kinematics`).
-        In closed form: plain floats (a 3-vector per NumPy call costs more than the
-        arithmetic), the same
-        formulas as :class:`~drake_coop.kinematics.crs.CrsKinematics` with the normal ``n``
-        rotated into the base frame: ``φ = (R_bᵀ n)·x_local(q) + n·(p_b − c)``,
-        ``J_φ = (R_bᵀ n)ᵀ J_local(q)``. Cached for the last ``q``: the force observer and the
-        controller evaluate it at the same sample of a tick.
+        In closed form: plain floats (:func:`~drake_coop.control.arm_closed_form.paper_arm_row`).
+        Cached for the last ``q``: the force observer and the controller evaluate it at the same
+        sample of a tick.
 
         Parameters
         ----------
@@ -248,27 +240,9 @@ class ArmModel:
             n0 = self._N[0]
             self._row_key, self._row = key, (float(n0 @ (x - self._c)), (n0 @ Jx).tolist())
             return self._row
-        nx, ny, nz, off = self._row_constants
-        h1, L2, L3, ox, oy = self._lengths
-        q1, q2, q3 = q.tolist()
-        s1, c1 = math.sin(q1), math.cos(q1)
-        s2, c2 = math.sin(q2), math.cos(q2)
-        s23, c23 = math.sin(q2 + q3), math.cos(q2 + q3)
-        if ox or oy:                      # a point off the forearm's axis (point_offset)
-            b, e = L3 * c23 - ox * s23, L3 * s23 + ox * c23
-            r, a = L2 * s2 + e, L2 * c2 + b
-            phi = (nx * (r * c1 - oy * s1) + ny * (r * s1 + oy * c1)
-                   + nz * (h1 + L2 * c2 + b) + off)
-            j = [-nx * (r * s1 + oy * c1) + ny * (r * c1 - oy * s1),
-                 nx * a * c1 + ny * a * s1 - nz * r, nx * b * c1 + ny * b * s1 - nz * e]
-        else:
-            b, e = L3 * c23, L3 * s23
-            r, a = L2 * s2 + e, L2 * c2 + b
-            phi = nx * r * c1 + ny * r * s1 + nz * (h1 + L2 * c2 + b) + off
-            j = [-nx * r * s1 + ny * r * c1, nx * a * c1 + ny * a * s1 - nz * r,
-                 nx * b * c1 + ny * b * s1 - nz * e]
+        phi, j, self._row_terms = paper_arm_row(self._row_constants, self._lengths,
+                                                q.tolist())
         self._row_key, self._row = key, (phi, j)
-        self._row_terms = (s1, c1, s2, r, a, b, e)
         return phi, j
 
     def constraint_row_dot(self, q: np.ndarray, v: np.ndarray) -> list[float]:
@@ -293,24 +267,8 @@ class ArmModel:
                 return (self._N[0] @ self.J_x_dot(q, v)).tolist()
             return self.J_phi_and_derivative_autodiff(q, v)[1][0].tolist()
         self.constraint_row(q)
-        s1, c1, s2, r, a, b, e = self._row_terms
-        nx, ny, nz, _ = self._row_constants
-        L2 = self._lengths[1]
-        oy = self._lengths[4]
-        v1, v2, v3 = v.tolist()
-        w = v2 + v3
-        rd = a * v2 + b * v3
-        ad = -L2 * s2 * v2 - e * w
-        bd = -e * w
-        ed = b * w
-        if oy:
-            return [nx * (-rd * s1 - r * c1 * v1 + oy * s1 * v1)
-                    + ny * (rd * c1 - r * s1 * v1 - oy * c1 * v1),
-                    nx * (ad * c1 - a * s1 * v1) + ny * (ad * s1 + a * c1 * v1) - nz * rd,
-                    nx * (bd * c1 - b * s1 * v1) + ny * (bd * s1 + b * c1 * v1) - nz * ed]
-        return [nx * (-rd * s1 - r * c1 * v1) + ny * (rd * c1 - r * s1 * v1),
-                nx * (ad * c1 - a * s1 * v1) + ny * (ad * s1 + a * c1 * v1) - nz * rd,
-                nx * (bd * c1 - b * s1 * v1) + ny * (bd * s1 + b * c1 * v1) - nz * ed]
+        return paper_arm_row_dot(self._row_constants, self._lengths, self._row_terms,
+                                 v.tolist())
 
     # -------------------------------------------------------------------------- helpers
     def _set_q(self, q: np.ndarray) -> None:
@@ -577,12 +535,7 @@ class ArmModel:
             ``J̇_x`` (3, n), m/(rad·s).
         """
         _, Jw, Jx = self.ee_kinematics(q)
-        d = np.asarray(direction, dtype=float)
-        wd = Jw * d                                     # a_j d_j
-        vd = Jx * d                                     # J_j d_j
-        w = np.cumsum(wd, axis=1) - wd                  # ω_k = Σ_{j<k} a_j d_j
-        sk = np.cumsum(vd[:, ::-1], axis=1)[:, ::-1]    # s_k = Σ_{j≥k} J_j d_j
-        return _cross_columns(w, Jx) + _cross_columns(Jw, sk)
+        return jacobian_dot(Jw, Jx, direction)
 
     def J_phi_and_derivative(self, q: np.ndarray, direction: np.ndarray
                              ) -> tuple[np.ndarray, np.ndarray]:
@@ -645,163 +598,3 @@ class ArmModel:
         deriv = (deriv.reshape(3, self.n) if deriv.size == 3 * self.n
                  else np.zeros((3, self.n)))
         return self._N @ value, self._N @ deriv
-
-
-#: Description packages found in the Python environment: the package name the URDFs use,
-#: and the data folder under ``site-packages`` (``example-robot-data``'s wheel holds no Python
-#: module; its ``package.xml`` names it ``example_robot_descriptions``, its URDFs say
-#: ``package://example-robot-data/...``).
-DESCRIPTION_PACKAGES = {"example-robot-data": "cmeel.prefix/share/example-robot-data"}
-
-
-def description_packages() -> dict[str, Path]:
-    """The installed description packages by the name their URDFs use (folders holding a
-    ``package.xml`` under an entry of ``sys.path``); empty when none is installed.
-
-    Returns
-    -------
-    dict of str to Path
-        Package name → its folder.
-    """
-    import sys
-
-    found = {}
-    for name, sub in DESCRIPTION_PACKAGES.items():
-        for entry in sys.path:
-            folder = Path(entry or ".") / sub
-            if (folder / "package.xml").is_file():
-                found[name] = folder.resolve()
-                break
-    return found
-
-
-def add_description_packages(package_map) -> None:
-    """Add :func:`description_packages` to a :class:`~pydrake.multibody.parsing.PackageMap`
-    (those it does not know yet), so a parser reads ``package://example-robot-data/...``.
-
-    Parameters
-    ----------
-    package_map : PackageMap
-        The parser's package map.
-    """
-    for name, folder in description_packages().items():
-        if not package_map.Contains(name):
-            package_map.Add(name, str(folder))
-
-
-def make_arm_controller_plant(model_file: str | Path, base_frame: str,
-                              X_WB: RigidTransform | None = None) -> MultibodyPlant:
-    """The controller's own single-arm plant, as Drake's ``InverseDynamicsController`` wants.
-
-    Parameters
-    ----------
-    model_file : str or Path
-        The arm's URDF or SDFormat file (``package://`` URLs resolved by Drake's parser, which
-        also knows the installed description packages, :func:`add_description_packages`).
-    base_frame : str
-        The frame welded to the world.
-    X_WB : RigidTransform, optional
-        The base frame's pose in the world of the simulated plant (identity by default).
-
-    Returns
-    -------
-    MultibodyPlant
-        Finalized, continuous (time step 0), the base welded at ``X_WB``.
-    """
-    plant = MultibodyPlant(0.0)
-    parser = Parser(plant)
-    add_description_packages(parser.package_map())
-    text = str(model_file)
-    if "://" in text:
-        parser.AddModelsFromUrl(text)
-    else:
-        parser.AddModels(text)
-    if not plant.HasFrameNamed(base_frame):
-        raise ValueError(f"base_frame: {model_file} has no frame named {base_frame!r}")
-    plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_frame),
-                     RigidTransform() if X_WB is None else X_WB)
-    plant.Finalize()
-    return plant
-
-
-def normalized_normals(normals) -> np.ndarray:
-    """``normals`` as unit rows ``(m, 3)``, ``m = 1..3``, checked to be independent.
-
-    Parameters
-    ----------
-    normals : array_like, shape (m, 3) or (3,)
-        The constraint normals.
-
-    Returns
-    -------
-    numpy.ndarray
-        The unit normals (m, 3).
-
-    Raises
-    ------
-    ValueError
-        Naming ``normals``: wrong shape, a zero or non-finite row, or dependent rows.
-    """
-    N = np.atleast_2d(as_array(normals, "normals"))
-    if N.ndim != 2 or N.shape[1] != 3 or not 1 <= N.shape[0] <= 3:
-        raise ValueError(f"normals: 1 to 3 rows of 3 numbers are required (got shape "
-                         f"{np.shape(normals)})")
-    if not np.all(np.isfinite(N)):
-        raise ValueError("normals: every entry must be finite")
-    norms = np.linalg.norm(N, axis=1, keepdims=True)
-    if np.any(norms < 1e-9):
-        raise ValueError("normals: a row is zero (each row is a direction)")
-    N = N / norms
-    if np.linalg.matrix_rank(N, tol=1e-6) < N.shape[0]:
-        raise ValueError(f"normals: the {N.shape[0]} rows must be linearly independent "
-                         "(rank-deficient constraints)")
-    return N
-
-
-def contact_vector(contact_point) -> np.ndarray:
-    """``contact_point`` as a finite 3-vector (``ValueError`` naming it otherwise).
-
-    Parameters
-    ----------
-    contact_point : array_like, shape (3,)
-        The contact point ``c`` (m).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``c`` (3,), m.
-    """
-    c = as_array(contact_point, "contact_point")
-    if c.shape != (3,) or not np.all(np.isfinite(c)):
-        raise ValueError(f"contact_point: 3 finite numbers are required (got "
-                         f"{np.shape(contact_point)})")
-    return c
-
-
-def _cross_columns(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Column-wise cross products of two 3×n arrays (``np.cross`` without its overhead)."""
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                     a[0] * b[1] - a[1] * b[0]])
-
-
-def _serial_chain(plant: MultibodyPlant, frame) -> bool:
-    """Whether the joints moving ``frame`` form a chain of revolute and prismatic joints of
-    one velocity each, numbered from the base outwards (what :meth:`ArmModel.J_x_dot`
-    assumes); joints off the chain have zero Jacobian columns and do not matter."""
-    parent_joint = {}
-    for j in plant.GetJointIndices():
-        joint = plant.get_joint(j)
-        parent_joint[joint.child_body().index()] = joint
-    body = frame.body()
-    starts = []
-    while body.index() in parent_joint:
-        joint = parent_joint[body.index()]
-        if joint.num_velocities() == 1:
-            if joint.type_name() not in ("revolute", "prismatic"):
-                return False
-            starts.append(joint.velocity_start())
-        elif joint.num_velocities() != 0:
-            return False
-        body = joint.parent_body()
-    starts.reverse()
-    return all(a < b for a, b in zip(starts, starts[1:]))

@@ -40,7 +40,8 @@ from pydrake.systems.framework import (
 )
 from pydrake.systems.primitives import Demultiplexer
 
-from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.arm_plant import make_arm_controller_plant
 from drake_coop.control.controller import Controller
 from drake_coop.control.delay import DelayPredictor
 from drake_coop.control.finger import FingerLaw
@@ -228,7 +229,7 @@ class ControllerHandles:
     velocity_source, force_source, controller : LeafSystem
         The block's three systems.
     reference_input : InputPort
-        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.finger.ReferenceLayout`):
+        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.reference_layout.ReferenceLayout`):
         the one input the user must connect.
     q_input : InputPort
         The measured ``q`` (already connected).

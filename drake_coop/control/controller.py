@@ -85,7 +85,7 @@ class Controller(LeafSystem):
     Delta_F_tilde : m-vector
         The force observer's integral ``ΔF̃`` (6).
     reference : (3n + m + 1)-vector
-        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.finger.ReferenceLayout`).
+        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.reference_layout.ReferenceLayout`).
 
     Output ports
     ------------

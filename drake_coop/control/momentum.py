@@ -48,7 +48,7 @@ from pydrake.systems.framework import (
 
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.params import check_momentum_gain, check_period
 
 

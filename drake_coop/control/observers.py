@@ -230,7 +230,7 @@ class ForceObserver(ForceSource):
     q, q_hat, qdot_o : n-vectors
         Measured positions and the velocity observer's outputs.
     reference : (3n + m + 1)-vector
-        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.finger.ReferenceLayout`).
+        ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`~drake_coop.control.reference_layout.ReferenceLayout`).
 
     Output ports
     ------------

@@ -383,3 +383,57 @@ def _validated_period(period: float, time_step: float | None = None) -> float:
             raise ValueError(f"period: must be a whole multiple of the plant's time step "
                              f"{time_step:g} s (got {h:g} s, {ratio:.6g} steps)")
     return h
+
+
+def normalized_normals(normals) -> np.ndarray:
+    """``normals`` as unit rows ``(m, 3)``, ``m = 1..3``, checked to be independent.
+
+    Parameters
+    ----------
+    normals : array_like, shape (m, 3) or (3,)
+        The constraint normals.
+
+    Returns
+    -------
+    numpy.ndarray
+        The unit normals (m, 3).
+
+    Raises
+    ------
+    ValueError
+        Naming ``normals``: wrong shape, a zero or non-finite row, or dependent rows.
+    """
+    N = np.atleast_2d(as_array(normals, "normals"))
+    if N.ndim != 2 or N.shape[1] != 3 or not 1 <= N.shape[0] <= 3:
+        raise ValueError(f"normals: 1 to 3 rows of 3 numbers are required (got shape "
+                         f"{np.shape(normals)})")
+    if not np.all(np.isfinite(N)):
+        raise ValueError("normals: every entry must be finite")
+    norms = np.linalg.norm(N, axis=1, keepdims=True)
+    if np.any(norms < 1e-9):
+        raise ValueError("normals: a row is zero (each row is a direction)")
+    N = N / norms
+    if np.linalg.matrix_rank(N, tol=1e-6) < N.shape[0]:
+        raise ValueError(f"normals: the {N.shape[0]} rows must be linearly independent "
+                         "(rank-deficient constraints)")
+    return N
+
+
+def contact_vector(contact_point) -> np.ndarray:
+    """``contact_point`` as a finite 3-vector (``ValueError`` naming it otherwise).
+
+    Parameters
+    ----------
+    contact_point : array_like, shape (3,)
+        The contact point ``c`` (m).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``c`` (3,), m.
+    """
+    c = as_array(contact_point, "contact_point")
+    if c.shape != (3,) or not np.all(np.isfinite(c)):
+        raise ValueError(f"contact_point: 3 finite numbers are required (got "
+                         f"{np.shape(contact_point)})")
+    return c

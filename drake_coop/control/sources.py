@@ -35,7 +35,7 @@ from pydrake.systems.framework import (
 )
 
 from drake_coop.control.interfaces import ForceSource, VelocitySource
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.params import check_count, check_optional_positive, check_period
 from drake_coop.control.timing import lowpass_alpha
 

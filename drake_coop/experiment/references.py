@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.experiment.plan import RunPlan, num_ticks_until, plan_run
 from drake_coop.kinematics.pose_task import pad_control, point_kinematics
 from drake_coop.plant.arms import Arm
@@ -165,7 +165,7 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
     t : ndarray, shape (K,)
         Tick times ``k h`` (``h`` of the run's plan, :mod:`drake_coop.experiment.plan`).
     r : ndarray, shape (K, 3n + m + 1)
-        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`drake_coop.control.finger.ReferenceLayout`).
+        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`drake_coop.control.reference_layout.ReferenceLayout`).
     """
     plan = plan or plan_run(scenario)
     h, task, robot = plan.h, scenario.task, scenario.robots[index]

@@ -40,7 +40,7 @@ def torque_limits(scenario: Scenario, index: int, plan=None) -> np.ndarray:
     numpy.ndarray
         ``τ_max`` (n,), N·m.
     """
-    from drake_coop.control.arm_model import make_arm_controller_plant
+    from drake_coop.control.arm_plant import make_arm_controller_plant
     from drake_coop.control.squeeze_limits import effort_limits
     from drake_coop.experiment.plan import plan_run
 
@@ -79,7 +79,7 @@ def check_squeeze_limits(scenario: Scenario, plan=None, t_end: float | None = No
     """
     if scenario.plant.object_mode != "contact":
         return
-    from drake_coop.control.finger import ReferenceLayout
+    from drake_coop.control.reference_layout import ReferenceLayout
     from drake_coop.control.object import load_distribution
     from drake_coop.control.squeeze_limits import check_squeeze_path, squeeze_torques
     from drake_coop.experiment.object_blocks import acceleration_samples

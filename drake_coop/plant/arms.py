@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
-from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+from drake_coop.control.arm_model import ArmModel
+from drake_coop.control.arm_plant import make_arm_controller_plant
 from drake_coop.kinematics.crs import (
     GEOMETRY,
     ArmGeometry,

@@ -3,11 +3,11 @@
 In the ``planes`` and ``rigid`` modes, when no controller reads the F/T sensor
 (``force_source`` other than ``sensor`` on every robot), nothing in the control loop consumes
 the ground-truth wrist force: it is a measurement *of the simulation*. Instead of evaluating
-:class:`~drake_coop.plant.wrist.WristDynamics` at every tick in Python, the experiment holds,
-once per tick and with C++ blocks only (:class:`~pydrake.systems.primitives.Multiplexer`,
+:class:`~drake_coop.plant.wrist_dynamics.WristDynamics` at every tick in Python, the experiment
+holds, once per tick and with C++ blocks only (:class:`~pydrake.systems.primitives.Multiplexer`,
 :class:`~pydrake.systems.primitives.ZeroOrderHold`), exactly what its equation needs, logs it,
-and :class:`GroundTruthLog` evaluates the equation (:class:`~drake_coop.plant.wrist.ArmForces`)
-for all the ticks at once after the run.
+and :class:`GroundTruthLog` evaluates the equation
+(:class:`~drake_coop.plant.wrist_dynamics.ArmForces`) for all the ticks at once after the run.
 
 Holds (period ``h``, the plant step ``Δt``; each reads the context half a plant step away from
 every plant update, or at a tick itself, so no floating-point rounding of an event time can
@@ -67,7 +67,7 @@ from pydrake.systems.primitives import (
 
 from drake_coop.plant.cooperative import CoopPlant
 from drake_coop.plant.grasp import PadForces
-from drake_coop.plant.wrist import ArmForces, _holds_last_step
+from drake_coop.plant.wrist_dynamics import ArmForces, _holds_last_step
 from drake_coop.sensing.force_sensor import FTModel
 
 
@@ -198,8 +198,8 @@ class TickForces(LeafSystem):
         - <robot>_F_step
 
     Reads ``[x(t_k), u_k, a_k]`` of ``ground_truth_hold_tick`` and evaluates
-    :class:`~drake_coop.plant.wrist.ArmForces` for every arm, once per tick and only when an
-    output is read (no event of its own): what the live ground truth's ``<robot>_F_step``
+    :class:`~drake_coop.plant.wrist_dynamics.ArmForces` for every arm, once per tick and only
+    when an output is read (no event of its own): what the live ground truth's ``<robot>_F_step``
     latches, for readers during the run (the Meshcat force arrows). The logs do not use it.
     Before the hold's first sample (its initial value, all zeros: at ``Simulator.Initialize``)
     every force is zero.

@@ -12,7 +12,7 @@ each the force the end effector exerts *on the object* (palm frame): the rows of
 object's force on the end effector (Decision 1), so a squeeze (λ > 0) draws arrows pointing
 into the object. For the paper (m_i = 1) ``N_i = n_iᵀ = (s_i, 0, 0)`` and the arrows are
 ``−λ n_i``. λ_d and the held flag are read from the reference vector through its
-:class:`~drake_coop.control.finger.ReferenceLayout` (``3 n_i + m_i + 1`` rows). An arrow of
+:class:`~drake_coop.control.reference_layout.ReferenceLayout` (``3 n_i + m_i + 1`` rows). An arrow of
 force F ends at ``p_E + o_k`` (``o_k`` a small vertical offset per kind so the three stay
 apart) and starts at ``p_E + o_k − scale · F``: it pushes on the pad from outside the object,
 so a squeeze's arrows are never hidden inside the held box (5 mm per newton by default: 12 cm
@@ -36,7 +36,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.plant.arms import Arm
 
 if TYPE_CHECKING:
@@ -186,7 +186,7 @@ class ForceArrows(LeafSystem):
         The arm's plant state ``[q, v]`` (the end-effector point is ``fk(q)``).
     <name>_reference : (3n + m + 1)-vector
         The robot's reference ``[q_d, q̇_d, q̈_d, λ_d, held]``
-        (:class:`~drake_coop.control.finger.ReferenceLayout`).
+        (:class:`~drake_coop.control.reference_layout.ReferenceLayout`).
     <name>_F_meas : 3-vector
         Ground-truth force on the end effector (N).
     <name>_lambda_hat : m-vector

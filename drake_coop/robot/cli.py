@@ -20,7 +20,7 @@ the folder (and a previous run in it) as it was.
 
 ``run.json`` also records the real-time settings the process actually got, read back from
 the kernel (scheduling policy and priority, CPU affinity, locked memory:
-:func:`~drake_coop.robot.pacing.realtime_settings`); ``--require-rt`` refuses to start (exit 2,
+:func:`~drake_coop.robot.realtime.realtime_settings`); ``--require-rt`` refuses to start (exit 2,
 one line naming what is missing) without a real-time policy, a CPU affinity narrower than the
 online CPUs and memory locked (``mlockall``, attempted once the other two are granted).
 
@@ -113,7 +113,7 @@ def _load(args, wait_option: str, wait: float):
     """The scenario, its driver specs and the LCM connection, or an exit code (2) after one
     line: the preamble ``serve`` and ``sim-driver`` share (``wait_option`` names the command's
     own waiting time, ``wait`` its value, checked with the rest before anything starts)."""
-    from drake_coop.robot.drivers import driver_specs
+    from drake_coop.robot.driver_spec import driver_specs
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.model_check import check_models
     from drake_coop.scenario.resources import find_scenario
@@ -195,7 +195,7 @@ def cmd_serve(args) -> int:
         return _error(f"--robot: one of {', '.join(robots)} (got {args.robot!r})")
     from drake_coop.experiment.plan import plan_run
     from drake_coop.results.run_folder import OutputFolderError, RunFolder
-    from drake_coop.robot.pacing import missing_realtime, realtime_settings, unlock_memory
+    from drake_coop.robot.realtime import missing_realtime, realtime_settings, unlock_memory
 
     rt = realtime_settings()
     if getattr(args, "require_rt", False):
@@ -235,13 +235,13 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     from drake_coop.robot.pacing import (
         PacingRecord,
         delay_margin,
-        missing_realtime,
         pacing_summary,
         plot_pacing,
         pump_until,
         summary_line,
         write_pacing_csv,
     )
+    from drake_coop.robot.realtime import missing_realtime
     from drake_coop.robot.serve_loop import (
         STOP_CHANNEL,
         ServeLoop,

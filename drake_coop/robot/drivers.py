@@ -32,6 +32,10 @@ Timing in one Diagram on one ``DrakeLcm("memq://")`` (the messages are pumped by
 status of the driver cycle before (``q(t_k − 1 ms)`` at 1 kHz), and the command of ``t_k``
 is applied from the driver's next cycle, ``t_k + 1 ms``: the cable costs one driver cycle each
 way.
+
+Each arm's driver (:class:`~drake_coop.robot.driver_spec.DriverSpec`, resolved from the
+scenario by :func:`~drake_coop.robot.driver_spec.driver_specs`) and the messages' helpers are
+in :mod:`drake_coop.robot.driver_spec` (their names are also importable from here).
 """
 
 from __future__ import annotations
@@ -68,153 +72,19 @@ from drake_coop.experiment.plan import RunPlan, time_grid
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import CoopPlant, build_plant
 from drake_coop.plant.model_error import controller_arm_model
+from drake_coop.robot.driver_spec import (  # noqa: F401 (re-exported)
+    DriverSpec,
+    SharedPandaCommand,
+    driver_specs,
+    safe_command_message,
+    shared_message_type,
+)
 from drake_coop.robot.status import CheckedStatusReceiver, RawMessage
-from drake_coop.scenario.schema import Driver, Scenario, ScenarioError
-from drake_coop.scenario.validation import driver_channels
+from drake_coop.scenario.schema import Scenario, ScenarioError
 
 #: The command of tick ``k`` is published at ``t_k + COMMAND_OFFSET`` (simulated time): after
 #: the tick's updates, off the driver's 1 ms grid.
 COMMAND_OFFSET = 1e-4
-
-
-def shared_message_type(lcm_type):
-    """``lcm_type`` whose decoded messages are shared, not deep-copied, when Drake copies the
-    subscriber's state (pydrake deep-copies Python values; a status at 1 kHz costs a deep copy
-    of its eight arrays several times per message, most of the split run's time).
-
-    Safe because a decoded message is never modified: its arrays are tuples and nothing here
-    writes its fields.
-
-    Parameters
-    ----------
-    lcm_type : type
-        A generated LCM message class.
-
-    Returns
-    -------
-    type
-        Its subclass whose ``__deepcopy__`` returns the message itself.
-    """
-
-    class Shared(lcm_type):
-        __slots__ = []
-
-        @staticmethod
-        def decode(data):
-            msg = lcm_type.decode(data)
-            msg.__class__ = Shared
-            return msg
-
-        def __copy__(self):
-            return self
-
-        def __deepcopy__(self, memo):
-            return self
-
-    Shared.__name__ = Shared.__qualname__ = f"Shared_{lcm_type.__name__}"
-    return Shared
-
-
-#: The Python-typed command the driver's stamp is read from (shared, see
-#: :func:`shared_message_type`).
-SharedPandaCommand = shared_message_type(lcmt_panda_command)
-
-
-@dataclass(frozen=True)
-class DriverSpec:
-    """One arm's driver, resolved from ``robots[i].driver`` (defaults filled in).
-
-    Attributes
-    ----------
-    robot : str
-        The robot's name.
-    kind : str
-        The driver's messages (``panda``).
-    status_channel, command_channel : str
-        The LCM channels.
-    n : int
-        The arm's joints.
-    period : float
-        The driver's cycle, s.
-    torque_limits : numpy.ndarray or None
-        The commanded torque's limits (n,), N·m; None: none given.
-    max_status_age : float
-        The watchdog's largest status age, s.
-    command_timeout : float
-        The driver's largest command age, s.
-    safe_command : str
-        ``zero_torque`` or ``hold``.
-    clock_phase : float
-        The simulated driver's clock phase, s.
-    clock_drift : float
-        The simulated driver's relative clock-rate error.
-    """
-
-    robot: str
-    kind: str
-    status_channel: str
-    command_channel: str
-    n: int
-    period: float
-    torque_limits: np.ndarray | None
-    max_status_age: float
-    command_timeout: float
-    safe_command: str
-    #: The simulated driver's clock: cycles at ``phase + j period (1 + drift)``.
-    clock_phase: float = 0.0
-    clock_drift: float = 0.0
-
-
-def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
-    """Each robot's :class:`DriverSpec` (``joints``: each arm's ``n``).
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario.
-    joints : list of int
-        Each arm's ``n``.
-
-    Returns
-    -------
-    list of DriverSpec
-        One per robot.
-
-    Raises
-    ------
-    ScenarioError
-        A velocity or force source that needs what a driver does not give (``measured``
-        velocities, an F/T ``sensor``), or a ``max_status_age`` shorter than one control
-        period, naming the field.
-    """
-    h = time_grid(scenario)[0]
-    specs = []
-    for i, (robot, n) in enumerate(zip(scenario.robots, joints)):
-        if robot.velocity_source == "measured":
-            raise ScenarioError(f"robots[{i}].velocity_source: 'measured' reads the arm's "
-                                "velocity, which the driver's status is not used for; use "
-                                "observer or difference")
-        if robot.force_source == "sensor":
-            raise ScenarioError(f"robots[{i}].force_source: 'sensor' needs an F/T sensor the "
-                                "driver does not carry; use observer, momentum or none")
-        d = robot.driver if robot.driver is not None else Driver()
-        if d.max_status_age < h * (1 - 1e-9):
-            raise ScenarioError(f"robots[{i}].driver.max_status_age: at least one control "
-                                f"period ({h:g} s) is required, got {d.max_status_age:g}")
-        if d.num_joints is not None and d.num_joints != n:     # also checked by validate()
-            raise ScenarioError(f"robots[{i}].driver.num_joints is {d.num_joints} but the arm "
-                                f"has {n} joints")
-        limits = d.torque_limits if d.torque_limits is not None else \
-            robot.actuators.torque_limits
-        status, command = driver_channels(robot)
-        specs.append(DriverSpec(
-            robot=robot.name, kind=d.kind, status_channel=status, command_channel=command,
-            n=n, period=1.0 / d.rate_hz,
-            torque_limits=None if limits is None else np.asarray(limits, dtype=float),
-            max_status_age=d.max_status_age, command_timeout=d.command_timeout,
-            safe_command=d.safe_command, clock_phase=d.clock_phase,
-            clock_drift=d.clock_drift))
-    return specs
 
 
 class CommandHold(LeafSystem):
@@ -658,36 +528,3 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
                               hold=hold,
                               status_sender=sender, status_publisher=publisher))
     return DriverSide(coop=coop, arms=arms)
-
-
-def safe_command_message(spec: DriverSpec, tau: np.ndarray, utime: int) -> lcmt_panda_command:
-    """A torque-mode ``lcmt_panda_command`` carrying ``tau`` (non-finite entries sent as 0).
-
-    Parameters
-    ----------
-    spec : DriverSpec
-        The arm's driver.
-    tau : numpy.ndarray
-        The torque (n,), N·m.
-    utime : int
-        The message's time stamp, µs.
-
-    Returns
-    -------
-    lcmt_panda_command
-        The message.
-    """
-    msg = lcmt_panda_command()
-    msg.utime = int(utime)
-    msg.control_mode_expected = lcmt_panda_status.CONTROL_MODE_TORQUE
-    tau = np.asarray(tau, dtype=float).reshape(spec.n)
-    tau = np.where(np.isfinite(tau), tau, 0.0)
-    if spec.torque_limits is not None:
-        tau = np.clip(tau, -spec.torque_limits, spec.torque_limits)
-    msg.num_joint_position = 0
-    msg.joint_position = []
-    msg.num_joint_velocity = 0
-    msg.joint_velocity = []
-    msg.num_joint_torque = spec.n
-    msg.joint_torque = [float(v) for v in tau]
-    return msg

@@ -19,7 +19,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
 from drake_coop.experiment.references import reference_trajectory
 from drake_coop.experiment.simulate import guard_chunks, phases, rest_posture

@@ -32,7 +32,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from drake_coop.control.watchdog import STATUS_NONE, STATUS_OK
-from drake_coop.robot.drivers import add_controller_side, safe_command_message
+from drake_coop.robot.driver_spec import safe_command_message
+from drake_coop.robot.drivers import add_controller_side
 from drake_coop.robot.status import check_panda_status
 
 #: The LCM channel on which a tripped ``serve`` tells the others to stop.
@@ -123,7 +124,7 @@ class ServeLoop:
     lcm : DrakeLcmInterface
         Where the commands are published.
     specs : list of DriverSpec
-        Every arm's :class:`~drake_coop.robot.drivers.DriverSpec`.
+        Every arm's :class:`~drake_coop.robot.driver_spec.DriverSpec`.
     robots : list of str, optional
         The arms served (default all; one for ``serve --robot``).
     """

@@ -5,7 +5,7 @@ A robot's ``model`` may be a ``package://`` URL of a maintained description, e.g
 ``robots`` extra, ``pip install -e ".[robots]"``: the PyPI wheel ``example-robot-data`` holds
 no Python module, its data lands in ``site-packages/cmeel.prefix/share/example-robot-data``,
 whose ``package.xml`` names the package ``example_robot_descriptions`` while its URDFs say
-``package://example-robot-data/...``; :func:`~drake_coop.control.arm_model.description_packages`
+``package://example-robot-data/...``; :func:`~drake_coop.control.arm_plant.description_packages`
 adds Drake's :class:`~pydrake.multibody.parsing.PackageMap` entry by the URDFs' name).
 
 Such a file is not an arm the rest of the package can use as it is: a Panda has a floating
@@ -87,7 +87,7 @@ def cache_dir() -> Path:
 
 def needs_preparation(robot: Robot, value: str) -> bool:
     """Whether the model file ``value`` of ``robot`` is loaded through :func:`prepared_urdf`:
-    a URL of a description package (:data:`~drake_coop.control.arm_model.DESCRIPTION_PACKAGES`),
+    a URL of a description package (:data:`~drake_coop.control.arm_plant.DESCRIPTION_PACKAGES`),
     locked joints or a tool. Another package's file (on ``ROS_PACKAGE_PATH``) is used as it is.
 
     Parameters
@@ -102,7 +102,7 @@ def needs_preparation(robot: Robot, value: str) -> bool:
     bool
         True when prepared.
     """
-    from drake_coop.control.arm_model import DESCRIPTION_PACKAGES
+    from drake_coop.control.arm_plant import DESCRIPTION_PACKAGES
 
     package = value[len("package://"):].split("/", 1)[0] if value.startswith("package://") else ""
     return package in DESCRIPTION_PACKAGES or bool(robot.locked_joints) or robot.tool is not None

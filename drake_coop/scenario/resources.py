@@ -107,7 +107,7 @@ def resolve_package_url(url: str, field: str = "model") -> Path:
     """
     from pydrake.multibody.parsing import PackageMap
 
-    from drake_coop.control.arm_model import DESCRIPTION_PACKAGES, add_description_packages
+    from drake_coop.control.arm_plant import DESCRIPTION_PACKAGES, add_description_packages
 
     package = url[len(PACKAGE_SCHEME):].split("/", 1)[0]
     packages = PackageMap()
@@ -155,7 +155,7 @@ def _model_path(value: str, field: str, robot: Robot | None = None) -> Path:
 
     if not needs_preparation(robot, value):
         return source
-    from drake_coop.control.arm_model import DESCRIPTION_PACKAGES
+    from drake_coop.control.arm_plant import DESCRIPTION_PACKAGES
 
     package = value[len(PACKAGE_SCHEME):].split("/", 1)[0] if value.startswith(
         PACKAGE_SCHEME) else ""

@@ -30,7 +30,7 @@ Without a second solve (``planes`` and ``rigid`` modes, ``h ≥ 2Δt``): reading
 live port between two plant updates makes the plant solve that step once for the read and
 once more for its own update (a change of time invalidates the solve). There,
 :func:`add_ft_sensor` feeds the model the ground truth's ``lambda_last_step``
-(:class:`~drake_coop.plant.wrist.WristDynamics`: the step before the tick, from the plant
+(:class:`~drake_coop.plant.wrist_dynamics.WristDynamics`: the step before the tick, from the plant
 state held at ``t_k − 3Δt/2`` and the state the plant's update at ``t_k − Δt`` produced), read
 at ``t_k − Δt/2``, also half a plant step from every update: the same values without the
 second solve. An ideal model (no filter, bias or noise) is then a C++ ``ZeroOrderHold`` of that

@@ -24,7 +24,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.references import reference_samples

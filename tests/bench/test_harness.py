@@ -49,9 +49,9 @@ def test_live_ground_truth_costs_one_latch_and_one_last_step_read_per_tick():
     result = _count_callbacks(scenario, t_end)
     by = result["by_function"]
     # The latch at ticks 0..K; the read of the step before each tick 1..K.
-    assert by["drake_coop.plant.wrist.WristDynamics._update_step"] * ticks == \
+    assert by["drake_coop.plant.wrist_dynamics.WristDynamics._update_step"] * ticks == \
         pytest.approx(ticks + 1, rel=1e-12)
-    assert by["drake_coop.plant.wrist.WristDynamics._calc_last_step"] * ticks == \
+    assert by["drake_coop.plant.wrist_dynamics.WristDynamics._calc_last_step"] * ticks == \
         pytest.approx(ticks, rel=1e-12)
     assert not [name for name in by if "FTSensor" in name or "ForceSensor._update" in name]
     assert result["per_tick"] == pytest.approx(sum(by.values()))

@@ -24,7 +24,7 @@ from drake_coop.control import (
     SensedForce,
     VelocityObserver,
 )
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.scenario.resources import urdf_dir
 
 URDF = str(urdf_dir() / "crs_a465_3dof.urdf")

@@ -14,7 +14,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.common.value import AbstractValue
 
 from drake_coop.control import ArmModel, MakeArmControllerPlant
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.object import GRAVITY, LoadFeedforward, MassEstimator
 from drake_coop.control.couple import face_distance, squeeze_couple
 from drake_coop.scenario.resources import urdf_dir

@@ -21,7 +21,7 @@ from drake_coop.control import (
     Gains,
     build_control_block,
 )
-from drake_coop.control.arm_model import make_arm_controller_plant
+from drake_coop.control.arm_plant import make_arm_controller_plant
 from drake_coop.scenario.resources import urdf_dir
 
 H = 0.009

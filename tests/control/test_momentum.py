@@ -24,7 +24,7 @@ from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 from pydrake.common.value import AbstractValue
 
 from drake_coop.plant.arms import arm_model
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.momentum import MomentumObserver
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.loading import default_scenario, load_scenario

@@ -4,7 +4,7 @@ closed form of its first tick: an arm at rest whose actuators saturate."""
 import numpy as np
 import pytest
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.momentum import MomentumObserver
 from drake_coop.plant.arms import Arm, arm_model
 from drake_coop.scenario.loading import default_scenario

@@ -18,7 +18,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer
 
 from drake_coop.control import ArmModel, FingerLaw, Gains, MakeArmControllerPlant
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.object import (
     GRAVITY,
     CompressedReference,

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from drake_coop.control import orthogonal
-from drake_coop.control.finger import FingerLaw, Reference
+from drake_coop.control.finger import FingerLaw
+from drake_coop.control.reference_layout import Reference
 from drake_coop.control.params import Gains
 from drake_coop.plant.arms import Arm, arm_model
 from drake_coop.scenario.loading import default_scenario

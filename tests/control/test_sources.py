@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.sources import (
     DifferenceVelocity,
     MeasuredVelocity,
@@ -102,7 +102,7 @@ def _law():
     from pydrake.math import RigidTransform, RotationMatrix
 
     from drake_coop.control import ArmModel, FingerLaw, Gains
-    from drake_coop.control.arm_model import make_arm_controller_plant
+    from drake_coop.control.arm_plant import make_arm_controller_plant
     from drake_coop.scenario.resources import urdf_dir
 
     plant = make_arm_controller_plant(str(urdf_dir() / "crs_a465_3dof.urdf"), "base_link",

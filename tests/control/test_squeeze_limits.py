@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.object import load_distribution
 from drake_coop.control.squeeze_limits import (
     check_squeeze_path,

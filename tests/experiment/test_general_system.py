@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from drake_coop.plant.arms import arm_model
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.experiment.references import reference_samples
 from drake_coop.experiment.simulate import simulate
 from drake_coop.plant.arms import Arm

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from pydrake.common.yaml import yaml_load_typed
 
-from drake_coop.control.arm_model import description_packages
+from drake_coop.control.arm_plant import description_packages
 from drake_coop.scenario import Scenario, Task, validate
 from drake_coop.scenario.resources import scenarios_dir
 

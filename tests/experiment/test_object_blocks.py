@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.experiment.object_blocks import couple_samples
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.references import reference_trajectory

@@ -117,7 +117,7 @@ def test_a_compliant_contact_presses_the_joint_references_in():
     (the pads' centres followed: control_point centre)."""
     from drake_coop.experiment.plan import plan_run
     from drake_coop.experiment.references import reference_samples
-    from drake_coop.control.finger import ReferenceLayout
+    from drake_coop.control.reference_layout import ReferenceLayout
     base = load_scenario(data=CONTACT)
     known = load_scenario(data=CONTACT + "object_model: {mode: known, control_point: centre}\n")
     for i in range(2):
@@ -141,7 +141,7 @@ def test_friction_squeeze_is_the_cone_bound_times_the_margin():
     """squeeze: friction at the circle's start (zero acceleration): each pad carries m g / 2
     tangentially, so λ_d = margin · m g / (2 μ)."""
     from drake_coop.experiment.references import reference_samples
-    from drake_coop.control.finger import ReferenceLayout
+    from drake_coop.control.reference_layout import ReferenceLayout
     s = load_scenario(data=CONTACT.replace("friction: 1.0", "friction: 0.6") +
                       "object_model: {mode: known, squeeze: friction, margin: 1.4}\n")
     t, r = reference_samples(s, 0, t_end=26.0)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from drake_coop.control.arm_model import make_arm_controller_plant
+from drake_coop.control.arm_plant import make_arm_controller_plant
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario import load_scenario
 

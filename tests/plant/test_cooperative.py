@@ -267,7 +267,8 @@ def test_wrist_dynamics_ground_truth_equals_the_reaction_force_chain():
     offline path evaluates the same equation (``ArmForces``) from held data and is checked
     against the live one in ``tests/plant/test_ground_truth.py``."""
     from drake_coop.experiment.simulate import simulate
-    from drake_coop.plant.wrist import WristDynamics, WristKinematics
+    from drake_coop.plant.wrist import WristKinematics
+    from drake_coop.plant.wrist_dynamics import WristDynamics
     from tests.conftest import short_scenario
 
     scenario = short_scenario("planes", 0.001)

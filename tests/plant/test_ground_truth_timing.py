@@ -1,6 +1,6 @@
 """The ground truth's two reads per tick against the plant's own steps (issue 16, second pass).
 
-With a control period, :class:`~drake_coop.plant.wrist.WristDynamics` serves two steps at
+With a control period, :class:`~drake_coop.plant.wrist_dynamics.WristDynamics` serves two steps at
 every tick ``t_k`` without solving any plant step twice: the latch ``<robot>_lambda_step`` of
 the step from ``t_k`` (shared with the plant's update at ``t_k``) and ``lambda_last_step``,
 the step ``[t_k − Δt, t_k)``, rebuilt from the state held at ``t_k − 3Δt/2`` and the state the
@@ -104,7 +104,7 @@ def test_latched_force_of_every_tick_is_the_step_the_plant_takes_from_it(run):
 def test_three_by_three_solve_of_the_ground_truth_satisfies_its_equation():
     """``_solve_transposed3`` (the adjugate on floats) against the equation itself: the
     residual ``Jᵀ F − b`` over random, also ill-conditioned, 3×3 Jacobians."""
-    from drake_coop.plant.wrist import _solve_transposed3
+    from drake_coop.plant.wrist_dynamics import _solve_transposed3
 
     rng = np.random.default_rng(7)
     for scale in (1.0, 1e-3):

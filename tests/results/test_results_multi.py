@@ -230,7 +230,7 @@ def test_arrows_of_two_constraints_are_the_sum_of_the_normals_times_lambda():
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
 
-    from drake_coop.control.finger import ReferenceLayout
+    from drake_coop.control.reference_layout import ReferenceLayout
     from drake_coop.plant.arms import Arm
     from drake_coop.results.export import shared_meshcat
     from drake_coop.results.viz import ARROW_KINDS, ARROW_SCALE, ForceArrows

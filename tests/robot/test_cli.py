@@ -373,14 +373,14 @@ def test_require_rt_refuses_when_mlockall_fails(tmp_path, monkeypatch, capsys):
     import errno
     from types import SimpleNamespace
 
-    from drake_coop.robot import pacing
+    from drake_coop.robot import realtime
 
     monkeypatch.setattr(os, "sched_getscheduler", lambda pid: os.SCHED_FIFO)
     monkeypatch.setattr(os, "sched_getparam", lambda pid: SimpleNamespace(sched_priority=80))
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {1})
     monkeypatch.setattr(os, "cpu_count", lambda: 2)
-    monkeypatch.setattr(pacing, "_mlockall", lambda: errno.EPERM)
-    monkeypatch.setattr(pacing, "_locked_kib", lambda: 0)
+    monkeypatch.setattr(realtime, "_mlockall", lambda: errno.EPERM)
+    monkeypatch.setattr(realtime, "_locked_kib", lambda: 0)
     out = tmp_path / "run"
     assert main(["serve", "paper", "--lcm-url", "memq://", "--out", str(out), "--quiet",
                  "--delay-margin", "0.002", "--require-rt"]) == 2

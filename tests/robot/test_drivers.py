@@ -19,8 +19,8 @@ from drake_coop.robot.drivers import (
     COMMAND_OFFSET,
     CommandHold,
     add_controller_side,
-    safe_command_message,
 )
+from drake_coop.robot.driver_spec import safe_command_message
 from drake_coop.robot.loopback import initialize_sides
 from drake_coop.scenario.loading import load_scenario
 
@@ -146,7 +146,7 @@ def test_a_status_that_stops_arriving_sends_zero_torque_within_one_tick(scenario
 
 
 def test_safe_command_message_is_finite_and_limited():
-    from drake_coop.robot.drivers import DriverSpec
+    from drake_coop.robot.driver_spec import DriverSpec
 
     spec = DriverSpec("r", "panda", "S", "C", 3, 1e-3, np.array([1.0, 2.0, 3.0]), 0.05, 0.05,
                       "zero_torque")

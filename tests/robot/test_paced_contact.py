@@ -14,7 +14,7 @@ from bench.serve_tick import _status_bytes
 from drake import lcmt_panda_command
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.simulate import simulate
-from drake_coop.robot.drivers import driver_specs
+from drake_coop.robot.driver_spec import driver_specs
 from drake_coop.robot.serve_loop import ServeLoop
 from drake_coop.robot.status import check_panda_status
 from drake_coop.scenario.loading import dump_scenario, load_scenario

@@ -18,7 +18,8 @@ from drake import lcmt_panda_command, lcmt_panda_status
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.simulate import rest_posture
 from drake_coop.robot import pacing
-from drake_coop.robot.drivers import COMMAND_OFFSET, add_controller_side, driver_specs
+from drake_coop.robot.driver_spec import driver_specs
+from drake_coop.robot.drivers import COMMAND_OFFSET, add_controller_side
 from drake_coop.robot.loopback import initialize_sides
 from drake_coop.robot.pacing import PacingRecord
 from drake_coop.robot.serve_loop import (

@@ -14,7 +14,7 @@ from pydrake.math import RigidTransform
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
-from drake_coop.control.arm_model import description_packages
+from drake_coop.control.arm_plant import description_packages
 from drake_coop.scenario import ScenarioError, load_scenario
 from drake_coop.scenario.resources import model_urdf_path, scenarios_dir
 from drake_coop.scenario.schema import Robot, Tool
@@ -145,9 +145,9 @@ def test_a_missing_robots_extra_is_named(monkeypatch, tmp_path, capsys):
     """Without example-robot-data (here: looked for where it is not), one line names the extra
     and the command exits 2."""
     from drake_coop.cli import main
-    from drake_coop.control import arm_model
+    from drake_coop.control import arm_plant
 
-    monkeypatch.setattr(arm_model, "DESCRIPTION_PACKAGES",
+    monkeypatch.setattr(arm_plant, "DESCRIPTION_PACKAGES",
                         {"example-robot-data": "no/such/folder/example-robot-data"})
     with pytest.raises(ScenarioError, match=r'robots\[0\].model: .* install the robots extra: '
                                             r'pip install -e "\.\[robots\]"'):
@@ -187,7 +187,8 @@ def test_the_controller_plant_reads_the_package_url_and_the_prepared_file():
     """make_arm_controller_plant (the ArmModel of AddCooperativeController) knows the package
     by the URDFs' name: the package's own file parses (9 positions: the fingers are free), and
     the prepared file is the 7-joint arm whose model the controller uses."""
-    from drake_coop.control.arm_model import ArmModel, make_arm_controller_plant
+    from drake_coop.control.arm_model import ArmModel
+    from drake_coop.control.arm_plant import make_arm_controller_plant
 
     raw = make_arm_controller_plant(PANDA, "panda_link0")
     assert raw.num_positions() == 9

@@ -10,7 +10,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from drake_coop.control.arm_model import description_packages
+from drake_coop.control.arm_plant import description_packages
 from drake_coop.scenario.lab_arms import LAB_ARMS, arm_facts, lab_arm_robot
 from drake_coop.scenario.model_check import check_model_file
 from drake_coop.scenario.resources import model_urdf_path, resolve_package_url

@@ -95,7 +95,7 @@ LAB_ARMS = ("two_pandas.yaml", "two_ur5.yaml")
 def _shipped(path):
     if path.name not in LAB_ARMS:
         return path
-    from drake_coop.control.arm_model import description_packages
+    from drake_coop.control.arm_plant import description_packages
 
     return pytest.param(path, marks=[pytest.mark.slow, pytest.mark.skipif(
         "example-robot-data" not in description_packages(),

@@ -302,7 +302,7 @@ def test_a_bad_control_point_is_refused_naming_it(text, start):
 
 
 def _ur5_contact(control_point: str) -> str:
-    from drake_coop.control.arm_model import description_packages
+    from drake_coop.control.arm_plant import description_packages
     from drake_coop.scenario.resources import scenarios_dir
 
     if "example-robot-data" not in description_packages():

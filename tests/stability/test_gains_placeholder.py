@@ -9,7 +9,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 
 from drake_coop.cli import main
-from drake_coop.control.arm_model import description_packages
+from drake_coop.control.arm_plant import description_packages
 from drake_coop.scenario import ScenarioError, load_scenario
 from drake_coop.scenario.resources import find_scenario, model_urdf_path
 from drake_coop.stability import gains as rules

@@ -11,7 +11,7 @@ from pydrake.systems.framework import (
 )
 
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.object.model import _vector
 from drake_coop.control.object.stiffness import ContactStiffness
 

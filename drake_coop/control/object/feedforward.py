@@ -13,7 +13,7 @@ from pydrake.systems.framework import (
 )
 
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.object.grasp import contact_jacobian
 from drake_coop.control.object.model import GRAVITY, _vector
 from drake_coop.control.params import check_period, check_positive

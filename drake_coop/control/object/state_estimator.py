@@ -13,7 +13,7 @@ from pydrake.systems.framework import (
     OutputPort,
 )
 
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.object.grasp import grasp_matrix
 from drake_coop.control.object.model import GRAVITY, ObjectModel
 from drake_coop.control.params import check_period, check_positive
