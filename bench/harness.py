@@ -36,6 +36,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import sys
 import statistics
 from collections import defaultdict
 
@@ -332,7 +333,11 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
               f"runs:")
         _print_object_blocks(blocks, "  ", target=0.20)
 
+    from importlib.metadata import version
+
     numbers = {
+        "command": "python " + " ".join(sys.argv),
+        "drake": version("drake"),
         "machine_cpu": _cpu_name(),
         "load_average_1min_start": load_start,
         "machine": f"{platform.processor() or platform.machine()}, Python "
