@@ -332,6 +332,11 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
               f"{s.task.t_grasp:g} s, circle from {s.task.t_circle_start:g} s), {t_lab:g} s "
               f"runs:")
         _print_object_blocks(blocks, "  ", target=0.20)
+        if out:     # kept as each scenario ends (the whole file is written again at the end)
+            from drake_coop.results.io import atomic_write_text
+
+            atomic_write_text(out, json.dumps({"partial": True, "lab_object_blocks": lab},
+                                              indent=2))
 
     from importlib.metadata import version
 
