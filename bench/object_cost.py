@@ -9,12 +9,13 @@ from bench.callbacks import _timed_callbacks
 from bench.runs import _experiment, _plant_replay, _spread
 
 
-def _object_blocks_cost(scenario, t_end: float, repeats: int) -> dict:
+def _object_blocks_cost(scenario, t_end: float, repeats: int,
+                        modes: tuple[str, ...] = ("none", "known", "estimated")) -> dict:
     """What the object-aware blocks (``object_model``: ``LoadFeedforward`` and, when
     ``estimated``, ``MassEstimator``) add to a run, apart from the plant's own changed work.
 
-    CPU seconds of the scenario with ``object_model.mode`` ``none``, ``known`` and
-    ``estimated``, alternated ``repeats`` times in this process, each run followed by the
+    CPU seconds of the scenario with each ``object_model.mode`` of ``modes`` (``none`` first;
+    by default ``none``, ``known`` and ``estimated``), alternated ``repeats`` times in this process, each run followed by the
     plant alone replaying that run's applied torques (:func:`_plant_replay`, its deviation
     from the run's joint angles and box pose reported). The runs differ physically (other
     torques, other contact states), so the plain ratio ``run_X / run_none`` mixes the blocks'
@@ -26,15 +27,16 @@ def _object_blocks_cost(scenario, t_end: float, repeats: int) -> dict:
     * ``plant_difference`` = ``replay_X / replay_none − 1``: the plant's own extra work on
       the object-aware run's trajectory.
 
-    And, from one instrumented ``estimated`` run, the blocks' own Python time per tick. The
+    And, from one instrumented run of the last mode, the blocks' own Python time per tick. The
     load average (1 min) is recorded at the start and the end."""
     import copy
     import os
 
     from drake_coop.experiment.plan import num_ticks_until, time_grid
 
+    if not modes or modes[0] != "none" or len(modes) < 2:
+        raise ValueError(f"modes: 'none' first and at least one object model, got {modes!r}")
     load_start = os.getloadavg()[0]
-    modes = ("none", "known", "estimated")
     variants = {}
     for mode in modes:
         variants[mode] = copy.deepcopy(scenario)
@@ -59,7 +61,7 @@ def _object_blocks_cost(scenario, t_end: float, repeats: int) -> dict:
             plant[mode].append(replay[mode][k] / base_replay - 1.0)
     totals: dict = defaultdict(float)
     with _timed_callbacks(totals):
-        _experiment(variants["estimated"], t_end)
+        _experiment(variants[modes[-1]], t_end)
     ticks = num_ticks_until(t_end, time_grid(scenario)[0])
     blocks = {label: 1e6 * sum(v for (lab, _), v in totals.items() if lab == label) / ticks
               for label in ("load feedforward (object_model)",
@@ -73,5 +75,6 @@ def _object_blocks_cost(scenario, t_end: float, repeats: int) -> dict:
             "plant_difference": {k: _spread(v) for k, v in plant.items()},
             "replay_max_deviation": deviation,
             "per_repeat": {"cpu_s": dict(cpu), "replay_cpu_s": dict(replay)},
-            "python_us_per_tick": blocks, "simulated_s": t_end, "repeats": repeats,
+            "python_us_per_tick": blocks, "instrumented_mode": modes[-1],
+            "simulated_s": t_end, "repeats": repeats,
             "load_average_1min": [load_start, os.getloadavg()[0]]}

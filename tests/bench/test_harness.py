@@ -100,3 +100,44 @@ def test_plant_replay_reproduces_a_contact_runs_joint_angles_and_box_pose(monkey
     monkeypatch.setattr(ContactObject, "set_stand_lowered",
                         lambda self, context, lowered: lower(self, context, False))
     assert _plant_replay(scenario, t_end, kept[0])[2] > 1e-6
+
+
+def test_object_blocks_cost_needs_none_first_and_an_object_model():
+    """The blocks' own cost is a ratio to the ``none`` run: without it, or without an object
+    model to compare, the call is refused before any run."""
+    from bench.object_cost import _object_blocks_cost
+    from drake_coop.scenario.loading import default_scenario
+
+    for modes in (("estimated",), ("estimated", "none"), ("none",), ()):
+        with pytest.raises(ValueError, match="modes"):
+            _object_blocks_cost(default_scenario(), 0.1, 1, modes=modes)
+
+
+@pytest.mark.slow
+def test_plant_replay_reproduces_a_pandas_contact_run_with_an_object_model():
+    """The baseline of the benchmark's ``--object-arms two_pandas`` rows: the two 7-joint
+    Pandas with contact.yaml's plant and ``object_model: estimated`` (the redundant arms'
+    pose reference, the pads' contact points, the load feedforward and the mass estimator),
+    compressed phases through the grasp and into the lift; the plant alone driven by the
+    run's logged torques lands on the run's joint angles and the box's pose at every tick,
+    and misses them when one arm's torque is changed by 1 % from tick 5 on."""
+    import dataclasses
+
+    from bench.harness import _experiment, _plant_replay
+    from bench.lab_arms_object import contact_scenario
+    from drake_coop.control.arm_model import description_packages
+    from drake_coop.scenario import validate
+
+    if "example-robot-data" not in description_packages():
+        pytest.skip('example-robot-data is not installed (pip install -e ".[robots]")')
+    scenario = contact_scenario("two_pandas")
+    scenario.task = dataclasses.replace(scenario.task, t_pregrasp=0.6, t_grasp=1.0,
+                                        t_circle_start=2.0, t_circle_end=12.0, t_release=13.0,
+                                        t_end=14.0)
+    validate(scenario)
+    t_end = 1.6
+    kept: list = []
+    _experiment(scenario, t_end, kept)
+    assert _plant_replay(scenario, t_end, kept[0])[2] == 0.0
+    kept[0].logs[scenario.robots[0].name]["tau"][5:] *= 1.01
+    assert _plant_replay(scenario, t_end, kept[0])[2] > 1e-6
