@@ -34,6 +34,14 @@ the value the element has *at that moment* (the grid's value, or an earlier draw
 (:attr:`Case.values`) are read back from the case's resolved scenario, so they are the values
 the case ran with whatever the overlap.
 
+Bases
+-----
+A grid axis ``base`` (:data:`~drake_coop.studies.spec.BASE_AXIS`: base scenario files, see
+:mod:`~drake_coop.studies.spec`) picks each case's base scenario; the other paths resolve,
+and the other values and the draws apply, on that base. The Monte Carlo draws are made per
+base from the same seed, so a path matched alike on every base (``plant.friction``) gets the
+same draws on every base (paired); ``robots.*`` draws follow each base's arm count.
+
 Cases
 -----
 Grid points are the Cartesian product of the grid's lists (first key outermost); each grid point
@@ -74,7 +82,7 @@ import numpy as np
 
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario, ScenarioError
-from drake_coop.studies.spec import Perturbation, Study, StudyError
+from drake_coop.studies.spec import BASE_AXIS, Perturbation, Study, StudyError, _short
 
 __all__ = ["MAX_CASES", "Case", "case_hash", "draw", "expand", "get_value", "resolve",
            "set_value", "study_size"]
@@ -458,16 +466,16 @@ class _Builder:
     """Builds and validates the scenario of one case from the base (see the module's
     docstring)."""
 
-    def __init__(self, study: Study):
+    def __init__(self, study: Study, base_yaml: str | None = None, where: str = "base"):
         from pydrake.common.yaml import yaml_load
 
         try:
-            if study.base_yaml:
-                self.base = load_scenario(data=study.base_yaml)
+            if base_yaml:
+                self.base = load_scenario(data=base_yaml)
             else:
                 self.base = load_scenario()
         except ScenarioError as exc:
-            raise StudyError(f"base: {exc}") from None
+            raise StudyError(f"{where}: {exc}") from None
         self.base_dict = yaml_load(data=dump_scenario(self.base))
         self.t_end = study.t_end
         self.cache: dict = {}
@@ -590,39 +598,65 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
                          f"samples), more than {max_cases}; shrink the grid or monte_carlo.n"
                          + (f", or raise the bound on purpose with {max_cases_option}"
                             if max_cases_option else ""))
-    builder = _Builder(study)
-    paths = list(study.grid) + ([p.path for p in study.monte_carlo.perturb]
-                                if study.monte_carlo is not None else [])
-    _fill_joint_lists(builder, paths)
-    base = builder.base_dict
-    grid_targets = {path: resolve(base, path, f"grid.{path}") for path in study.grid}
+    labels = study.grid.get(BASE_AXIS) or [None]
+    for label in labels:
+        if label is not None and label not in study.bases:
+            raise StudyError(f"grid.{BASE_AXIS} = {_short(label)}: not one of the study's "
+                             "base files (a study with a base axis is read by load_study)")
+    builders = {label: _Builder(study, study.bases[label] if label is not None
+                                else study.base_yaml,
+                                "base" if label is None else f"grid.{BASE_AXIS} = {label!r}")
+                for label in labels}
+    scenario_paths = [path for path in study.grid if path != BASE_AXIS]
+    paths = scenario_paths + ([p.path for p in study.monte_carlo.perturb]
+                              if study.monte_carlo is not None else [])
+    targets: dict = {}
+    for label, builder in builders.items():
+        _fill_joint_lists(builder, paths)
+        on = "" if label is None else f" (on base {label!r})"
+        try:
+            targets[label] = {path: resolve(builder.base_dict, path, f"grid.{path}")
+                              for path in scenario_paths}
+        except StudyError as exc:
+            raise StudyError(f"{exc}{on}") from None
     # Each value alone on the base first, so that a bad value is named as the grid gives it.
     # A value refused alone may still be valid with the other keys' values (control_period
     # with plant.time_step): only a case, a combination, that fails is an error, named by
     # that value when it fails for the same reason, by the case otherwise.
-    alone: dict[tuple[str, str], StudyError] = {}
-    for path, values in study.grid.items():
-        for value in values:
-            marker = json.dumps(value, sort_keys=True, default=repr)
-            if (path, marker) in alone:
-                continue
-            try:
-                builder.build([(keys, "set", value) for keys in grid_targets[path]],
-                              f"grid.{path} = {value!r}")
-                alone[(path, marker)] = None
-            except StudyError as exc:
-                if len(study.grid) == 1 and not study.monte_carlo:
-                    raise
-                alone[(path, marker)] = exc
-    samples = _samples(study, base)
-    mc_paths = [] if not samples[0] else list(dict.fromkeys(k for k, _, _ in samples[0]))
+    alone: dict[tuple, StudyError] = {}
+    for label, builder in builders.items():
+        on = "" if label is None else f" (on base {label!r})"
+        for path in scenario_paths:
+            for value in study.grid[path]:
+                marker = json.dumps(value, sort_keys=True, default=repr)
+                if (label, path, marker) in alone:
+                    continue
+                try:
+                    builder.build([(keys, "set", value) for keys in targets[label][path]],
+                                  f"grid.{path} = {value!r}{on}")
+                    alone[(label, path, marker)] = None
+                except StudyError as exc:
+                    if len(study.grid) == 1 and not study.monte_carlo:
+                        raise
+                    alone[(label, path, marker)] = exc
+    samples, mc_paths = {}, {}
+    for label, builder in builders.items():
+        try:
+            samples[label] = _samples(study, builder.base_dict)
+        except StudyError as exc:
+            raise StudyError(f"{exc}{'' if label is None else f' (on base {label!r})'}") \
+                from None
+        first_sample = samples[label][0]
+        mc_paths[label] = list(dict.fromkeys(k for k, _, _ in first_sample))
     cases = []
     keys_order = list(study.grid)
     for point in itertools.product(*(study.grid[k] for k in keys_order)):
         grid_params = dict(zip(keys_order, point))
+        label = grid_params.get(BASE_AXIS)
+        builder = builders[label]
         grid_assign = [(keys, "set", value) for path, value in grid_params.items()
-                       for keys in grid_targets[path]]
-        for s, draws in enumerate(samples):
+                       if path != BASE_AXIS for keys in targets[label][path]]
+        for s, draws in enumerate(samples[label]):
             if first is not None and len(cases) >= first:
                 break
             params = dict(grid_params)
@@ -633,20 +667,25 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
                                                f"case {len(cases)} ({_label(params)})")
             except StudyError as exc:
                 for path, value in grid_params.items():
-                    first_error = alone[(path, json.dumps(value, sort_keys=True,
-                                                          default=repr))]
+                    if path == BASE_AXIS:
+                        continue
+                    first_error = alone[(label, path, json.dumps(value, sort_keys=True,
+                                                                 default=repr))]
                     if first_error is not None and first_error.detail == exc.detail:
                         raise first_error from None
                 raise
             values = {}
             for path, spec in grid_params.items():
-                read = [_read(scenario, keys, spec) for keys in grid_targets[path]]
+                if path == BASE_AXIS:
+                    values[path] = label
+                    continue
+                read = [_read(scenario, keys, spec) for keys in targets[label][path]]
                 same = all(json.dumps(r, sort_keys=True) == json.dumps(read[0], sort_keys=True)
                            for r in read)
                 values[path] = read[0] if same else read
             if study.monte_carlo is not None:
                 values["sample"] = s
-                for keys in mc_paths:
+                for keys in mc_paths[label]:
                     values[".".join(map(str, keys))] = _read(scenario, keys, None)
             cases.append(Case(index=len(cases), params=params, values=values,
                               scenario_yaml=text, scenario=scenario,

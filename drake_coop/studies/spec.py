@@ -10,6 +10,8 @@ least one ``grid`` entry or a ``monte_carlo`` block)::
     grid:                          # dotted scenario paths -> lists of values (Cartesian product)
       control_period: [0.003, 0.009]
       robots.*.gains.k_d: [20, 40, 80]
+      # base: [../scenarios/two_pandas.yaml, ../scenarios/two_ur5.yaml]   # an axis of base
+      #                            # scenario files instead of the top-level base (see below)
     monte_carlo:                   # n random samples per grid point
       n: 50
       seed: 1
@@ -25,6 +27,15 @@ A study file is read as a scenario file is (:mod:`drake_coop.scenario.safe_yaml`
 ``name`` is 1 to 100 printable characters; it becomes part of file names only through
 :func:`file_stem`. Every problem is a :class:`StudyError` whose message starts with the
 field's dotted name, e.g. ``grid.robots.0.gains.k_x: no such field``.
+
+A grid axis ``base`` (the key :data:`BASE_AXIS`) lists base scenario files instead of the
+top-level ``base`` (which it then replaces: giving both is refused): every other grid value
+and every Monte Carlo draw is applied to each of them, so one study runs the same variants on
+several arm sets. Each file is read as a top-level ``base:`` file is (relative to the study
+file); its text, as written in the grid, is the axis's value in ``results.csv``. Paths
+resolve against each base on its own (``robots.*`` matches the arms each base has), and the
+draws are the same on every base when the perturbed paths match alike (``plant.object_mass``:
+paired draws across the arm sets).
 """
 
 from __future__ import annotations
@@ -33,7 +44,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["DISTRIBUTIONS", "Guide", "MonteCarlo", "Perturbation", "Study", "StudyError",
+__all__ = ["BASE_AXIS", "DISTRIBUTIONS", "Guide", "MonteCarlo", "Perturbation", "Study", "StudyError",
            "file_stem", "load_study"]
 
 #: Monte Carlo distributions: name -> meaning of its two parameters ``[a, b]``.
@@ -43,6 +54,10 @@ DISTRIBUTIONS = {
     "scale_uniform": "[lo, hi]: value = base value * U(lo, hi)",
 }
 PHASES = ("free", "lift", "circle", "put_down", "return", "all")
+#: The grid key whose values are base scenario files (see the module's docstring).
+BASE_AXIS = "base"
+#: Most files on the ``base`` axis.
+MAX_BASES = 20
 _TOP_KEYS = ("name", "description", "base", "t_end", "grid", "monte_carlo", "phase", "metrics",
              "guides")
 
@@ -121,6 +136,9 @@ class Study:
         What the study shows, one paragraph.
     base_yaml : str or None
         The base scenario as YAML text; None means the paper's scenario.
+    bases : dict[str, str]
+        With a ``base`` grid axis: each of its values (the file as written) -> that base
+        scenario's YAML text; empty without one.
     t_end : float or None
         Simulation stop of every case (s).
     grid : dict[str, list]
@@ -138,6 +156,7 @@ class Study:
     name: str
     description: str = ""
     base_yaml: str | None = None
+    bases: dict[str, str] = field(default_factory=dict)
     t_end: float | None = None
     grid: dict[str, list] = field(default_factory=dict)
     monte_carlo: MonteCarlo | None = None
@@ -219,6 +238,28 @@ def _base_yaml(base, folder: Path) -> str | None:
         return _models_beside(text, path.resolve().parent)
     raise StudyError(f"base: must be a scenario file path or an inline scenario, got "
                      f"{_short(base)}")
+
+
+def _bases(values: list, top, folder: Path) -> dict[str, str]:
+    """The ``base`` grid axis: each file as written -> its scenario YAML text."""
+    where = f"grid.{BASE_AXIS}"
+    if top is not None:
+        raise StudyError(f"{where}: the grid's base files replace the top-level base; give "
+                         "one or the other, not both")
+    if len(values) > MAX_BASES:
+        raise StudyError(f"{where}: at most {MAX_BASES} base scenario files, got {len(values)}")
+    bases: dict[str, str] = {}
+    for value in values:
+        if not isinstance(value, str) or not value.endswith((".yaml", ".yml")):
+            raise StudyError(f"{where}: each value must be a scenario file path (.yaml, "
+                             f"relative to the study file), got {_short(value)}")
+        if value in bases:
+            raise StudyError(f"{where}: {value!r} is listed twice")
+        try:
+            bases[value] = _base_yaml(value, folder)
+        except StudyError as exc:
+            raise StudyError(f"{where} = {value!r}: {str(exc).removeprefix('base: ')}") from None
+    return bases
 
 
 def _models_beside(text: str, folder: Path) -> str:
@@ -360,6 +401,8 @@ def load_study(path: str | Path | None = None, *, data: str | None = None,
             raise StudyError(f"grid.{key}: must be a non-empty list of values, got "
                              f"{_short(values)}")
         study.grid[key] = values
+    if BASE_AXIS in study.grid:
+        study.bases = _bases(study.grid[BASE_AXIS], raw.get("base"), Path(folder))
     if raw.get("monte_carlo") is not None:
         study.monte_carlo = _monte_carlo(raw["monte_carlo"])
     if not study.grid and study.monte_carlo is None:

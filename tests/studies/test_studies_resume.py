@@ -30,8 +30,10 @@ ROOT = Path(__file__).resolve().parents[2]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml"))
 T_END = 0.02
 #: The shrunk size of each study: its first cases (the object carry's first four are the
-#: four object models on one draw: none, known, estimated, estimated + shared).
-SIZES = {"object_carry": {"t_end": T_END, "draws": 1, "cases": 4}}
+#: four object models on one draw: none, known, estimated, estimated + shared; the lab arms'
+#: first three the paper's control on two Pandas, two UR5s and three arms, one draw).
+SIZES = {"object_carry": {"t_end": T_END, "draws": 1, "cases": 4},
+         "object_carry_lab": {"t_end": T_END, "draws": 1, "cases": 3}}
 
 
 def _size(path: Path) -> dict:
@@ -157,6 +159,23 @@ def test_the_object_carry_resumes_from_any_point(tmp_path, monkeypatch, capsys,
     assert any("slips" in p and "drops" in p for p in phases)
     _interrupt_and_resume(tmp_path, monkeypatch, capsys, ROOT / "studies" / "object_carry.yaml",
                           results, where, k)
+
+
+@pytest.mark.parametrize("where, k", [("between", 2), ("saved", 1), ("tables", 2)])
+def test_the_lab_arms_carry_resumes_with_its_arm_sets_in_one_table(tmp_path, monkeypatch,
+                                                                   capsys, real_results,
+                                                                   where, k):
+    """studies/object_carry_lab.yaml (a grid over base scenarios): two- and three-arm cases
+    in one folder, interrupted anywhere, resume to one table naming each case's base."""
+    path = ROOT / "studies" / "object_carry_lab.yaml"
+    results = real_results["object_carry_lab"]
+    robots = {len(r["metrics"]) for r in results.values()}
+    assert robots == {2, 3}
+    _interrupt_and_resume(tmp_path, monkeypatch, capsys, path, results, where, k)
+    with open(tmp_path / "out" / "results.csv", newline="") as f:
+        bases = [r["base"] for r in csv.DictReader(f)]
+    assert bases == ["../scenarios/two_pandas.yaml", "../scenarios/two_ur5.yaml",
+                     "../scenarios/three_arms_contact.yaml"]
 
 
 def test_a_finished_contact_case_is_kept_by_the_store(tmp_path, real_results):
