@@ -268,7 +268,8 @@ def test_every_case_is_the_scenario_the_yaml_loading_makes_of_its_values():
     from pydrake.common.yaml import yaml_dump, yaml_load
 
     from drake_coop.scenario.loading import dump_scenario
-    from drake_coop.studies.expand import case_hash, resolve, set_value
+    from drake_coop.studies.expand import case_hash
+    from drake_coop.studies.paths import resolve, set_value
 
     study = load_study(data="""
 grid:
