@@ -151,6 +151,81 @@ def test_friction_squeeze_is_the_cone_bound_times_the_margin():
     assert lam[np.searchsorted(t, 5.0)] == 0.0          # not held
 
 
+def _sphere_compression(lam, E=5e6, r=0.015):
+    """δ of Drake's hydroelastic sphere on a rigid face, λ = π E (δ² − 2δ³/(3r)), by the
+    cubic's roots (independent of ContactStiffness)."""
+    if lam <= 0.0:
+        return 0.0
+    roots = np.roots([-2.0 / (3.0 * r), 1.0, 0.0, -lam / (np.pi * E)])
+    return min(z.real for z in roots if abs(z.imag) < 1e-12 and 0 < z.real < r)
+
+
+@pytest.mark.parametrize("squeeze", ["profile", "friction"])
+def test_the_squeeze_presses_the_pads_in_along_the_quintic_and_holds_the_box_by_the_ramps_end(
+        squeeze):
+    """A grasp held by friction on compliant pads: λ_d = max((29), λ_hold) σ(τ)² (profile) or
+    λ_hold σ(τ)² (friction), so each pad's compression δ(λ_d) is δ(λ_∞) σ(τ), the quintic
+    itself (rate zero at the grasp, where (29)'s linear rise gave δ ∝ √t); by the ramp's end
+    (1 s) λ_d holds the prior's weight in the cone: two opposing pads at rest, each carries
+    m g / 2 across its normal, so λ_d ≥ margin · m g / (2 μ) (a hand static balance)."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.scenario.task_path import cartesian_reference, force_reference, quintic
+
+    s = load_scenario(data=CONTACT.replace("friction: 1.0", "friction: 0.6")
+                      + f"object_model: {{mode: estimated, squeeze: {squeeze}}}\n")
+    plan = plan_run(s)
+    task, om = s.task, s.object_model
+    hold = om.margin * om.prior_mass_factor * 0.5 * 9.81 / (2 * 0.6)
+    t_g = task.t_grasp
+    end = plan.squeeze(np.array([t_g + 1.0]))[0]
+    assert end >= hold * (1 - 1e-9)
+    for tau in (0.1, 0.3, 0.5, 0.8):
+        lam = plan.squeeze(np.array([t_g + tau]))[0]
+        # The hold at that time: each pad carries m (g + a_z) / 2 across its normal (a_z
+        # the lift's acceleration); the profile's (29) where it is above.
+        a_z = cartesian_reference(task, s.robots[0], np.array([t_g + tau]))[2][0, 2]
+        target = hold * (9.81 + a_z) / 9.81
+        if squeeze == "profile":
+            target = max(target, force_reference(task, np.array([t_g + tau]))[0])
+        sigma = quintic(np.array([tau]))[0][0]
+        # π E δ² (the law's leading order, exponent 2): δ ∝ σ exactly; the sphere's exact
+        # law within its δ³/r term (δ ≤ 0.8 mm, r = 15 mm: a few percent).
+        assert np.sqrt(lam / target) == pytest.approx(sigma, rel=1e-9)
+        assert _sphere_compression(lam) == pytest.approx(
+            _sphere_compression(target) * sigma, rel=0.03)
+    # The compression's rate at the grasp: δ(ε) = O(ε³), not (29)'s O(√ε).
+    eps = 1e-3
+    assert _sphere_compression(plan.squeeze(np.array([t_g + eps]))[0]) < 1e-8
+    assert _sphere_compression(force_reference(task, np.array([t_g + eps]))[0]) > 1e-6
+    # In the circle the shipped box's (29) is far above the hold: λ_d is (29) itself.
+    t = np.array([30.0, 45.0, 60.0])
+    if squeeze == "profile":
+        np.testing.assert_array_equal(plan.squeeze(t), force_reference(task, t))
+    assert plan.squeeze(np.array([t_g - 0.01, task.t_release + 0.01])).tolist() == [0.0, 0.0]
+
+
+def test_a_heavy_box_lifts_the_profile_squeeze_to_the_hold_and_no_model_keeps_29():
+    """On a box (29) cannot hold (2 kg at μ 0.4: the prior's 3 kg needs 1.5 · 3 · 9.81 /
+    (2 · 0.4) = 55 N), λ_d is the hold wherever (29) is below it; without an object model,
+    and in the rigid mode, λ_d stays (29) exactly (the paper's run)."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.scenario.task_path import cartesian_reference, force_reference
+
+    heavy = CONTACT.replace("object_mass: 0.5", "object_mass: 2.0").replace(
+        "friction: 1.0", "friction: 0.4")
+    plan = plan_run(load_scenario(data=heavy + "object_model: {mode: estimated}\n"))
+    t = np.array([25.0, 45.0, 60.0])
+    a = cartesian_reference(plan.scenario.task, plan.scenario.robots[0], t)[2]
+    # Each pad carries m (a − g) / 2 across its normal (x): its y, z parts.
+    need = 3.0 / 2 * np.hypot(a[:, 1], 9.81 + a[:, 2]) / 0.4
+    np.testing.assert_allclose(plan.squeeze(t), 1.5 * need, rtol=1e-9)
+    assert need[0] == pytest.approx(3.0 * 9.81 / (2 * 0.4))     # the circle's start: at rest
+    tt = np.linspace(0.0, 90.0, 9001)
+    for data in (heavy, heavy.replace("contact", "rigid") + "object_model: {mode: known}\n"):
+        plan = plan_run(load_scenario(data=data))
+        np.testing.assert_array_equal(plan.squeeze(tt), force_reference(plan.scenario.task, tt))
+
+
 @pytest.mark.slow
 def test_a_short_rigid_run_estimates_the_mass_and_logs_the_new_signals():
     from drake_coop.experiment.simulate import simulate
