@@ -415,20 +415,22 @@ class RunPlan:
         """The squeeze at the times ``t`` (K,).
 
         Without an object model, the task's profile (29) (the paper's). With one:
-        ``object_model.squeeze: friction``, the friction squeeze (:func:`friction_squeeze`);
-        ``profile`` in the ``contact`` mode (a grasp held by friction), the profile but never
-        below that least squeeze, both brought in by the grasp ramp,
-        ``λ_d(t) = max(λ₂₉(t), λ_hold(t)) σ(τ)ᵖ``
-        (:func:`grasp_ramp`, ``p`` :attr:`compression_exponent`; ``λ_hold`` the least
-        squeeze holding the object model's load in every friction cone along the path, times
-        ``margin``). The task's path lifts the object from the grasp on while (29) rises from
-        zero over the whole lift: until the squeeze holds the weight the lifted object slides
-        down its pads (two UR5s: 0.43 mm, kept for the whole carry). And the linear rise
-        from zero is a compression ``δ ∝ √t`` of infinite rate at the grasp, which the
-        pads cannot follow: while the squeeze is still near zero they move along the face
-        and slide on it. The ramp raised to ``p`` makes ``δ(λ_d)`` rise as ``σ`` itself
-        (zero rate and acceleration at the grasp) and reach the holding squeeze within the
-        ramp; the rigid and ``planes`` modes keep (29)."""
+        ``object_model.squeeze: friction``, the friction squeeze (:func:`friction_squeeze`:
+        the least squeeze holding the object model's load in every friction cone along the
+        path, times ``margin``, brought in by :func:`grasp_ramp` raised to the pads' law's
+        exponent ``p``, :attr:`compression_exponent`); ``profile`` in the ``contact`` mode (a
+        grasp held by friction), the profile but never below that friction squeeze,
+        ``λ_d(t) = max(λ₂₉(t), λ_hold(t) σ(τ)ᵖ)``.
+
+        The task's path lifts the object from the grasp on while (29) rises from zero over the
+        whole lift: until the squeeze holds the weight, the lifted object slides down its pads
+        (two UR5s: 0.43 mm, kept for the whole carry); the floor holds it from the ramp's end
+        on. The ramp raised to ``p`` presses each pad in along the quintic itself
+        (``δ(λ_hold σᵖ) = δ(λ_hold) σ`` on a law ``λ = a δᵖ``: zero rate at the grasp), where a
+        linear rise from zero is a compression ``δ ∝ √t`` of infinite rate that the pads cannot
+        follow: while the squeeze is still near zero they move along the face and slide on
+        it. The rigid and ``planes`` modes keep (29).
+        """
         from drake_coop.scenario.task_path import force_reference
 
         profile = force_reference(self.scenario.task, t)
@@ -439,8 +441,7 @@ class RunPlan:
             return friction_squeeze(self.scenario, self.object, t, exponent=p)
         if self.scenario.plant.object_mode != "contact":
             return profile
-        hold = friction_squeeze(self.scenario, self.object, t, ramp=0.0)
-        return np.maximum(profile, hold) * grasp_ramp(self.scenario.task, t, GRASP_RAMP, p)
+        return np.maximum(profile, friction_squeeze(self.scenario, self.object, t, exponent=p))
 
     @property
     def switches(self) -> dict[int, bool]:
