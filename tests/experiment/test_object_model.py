@@ -165,13 +165,15 @@ def _sphere_compression(lam, E=5e6, r=0.015):
 
 
 @pytest.mark.parametrize("squeeze", ["profile", "friction"])
-def test_the_squeeze_presses_the_pads_in_along_the_quintic_and_holds_the_box_by_the_ramps_end(
+def test_the_squeeze_holds_the_box_by_the_ramps_end_pressing_the_pads_in_along_the_quintic(
         squeeze):
-    """A grasp held by friction on compliant pads: λ_d = max((29), λ_hold) σ(τ)² (profile) or
-    λ_hold σ(τ)² (friction), so each pad's compression δ(λ_d) is δ(λ_∞) σ(τ), the quintic
-    itself (rate zero at the grasp, where (29)'s linear rise gave δ ∝ √t); by the ramp's end
-    (1 s) λ_d holds the prior's weight in the cone: two opposing pads at rest, each carries
-    m g / 2 across its normal, so λ_d ≥ margin · m g / (2 μ) (a hand static balance)."""
+    """A grasp held by friction on compliant pads: the hold λ_hold (two opposing pads at rest
+    each carry m (g + a_z) / 2 across their normal, so λ_hold = margin · m (g + a_z) / (2 μ), a
+    hand static balance) is brought in by σ(τ)² (the quintic over 1 s, squared: the pads'
+    law's exponent): with ``friction`` λ_d = λ_hold σ², so each pad's compression δ(λ_d) is
+    δ(λ_hold) σ, the quintic itself (rate zero at the grasp, where a linear rise gives
+    δ ∝ √t); with ``profile`` λ_d = max((29), λ_hold σ²). By the ramp's end λ_d holds the
+    prior's weight in the cone; in the circle the shipped box's (29) is above the hold."""
     from drake_coop.experiment.plan import plan_run
     from drake_coop.scenario.task_path import cartesian_reference, force_reference, quintic
 
@@ -181,29 +183,28 @@ def test_the_squeeze_presses_the_pads_in_along_the_quintic_and_holds_the_box_by_
     task, om = s.task, s.object_model
     hold = om.margin * om.prior_mass_factor * 0.5 * 9.81 / (2 * 0.6)
     t_g = task.t_grasp
-    end = plan.squeeze(np.array([t_g + 1.0]))[0]
-    assert end >= hold * (1 - 1e-9)
+    assert plan.squeeze(np.array([t_g + 1.0]))[0] >= hold * (1 - 1e-9)
     for tau in (0.1, 0.3, 0.5, 0.8):
-        lam = plan.squeeze(np.array([t_g + tau]))[0]
-        # The hold at that time: each pad carries m (g + a_z) / 2 across its normal (a_z
-        # the lift's acceleration); the profile's (29) where it is above.
-        a_z = cartesian_reference(task, s.robots[0], np.array([t_g + tau]))[2][0, 2]
-        target = hold * (9.81 + a_z) / 9.81
-        if squeeze == "profile":
-            target = max(target, force_reference(task, np.array([t_g + tau]))[0])
+        t = np.array([t_g + tau])
+        lam = plan.squeeze(t)[0]
+        a_z = cartesian_reference(task, s.robots[0], t)[2][0, 2]
         sigma = quintic(np.array([tau]))[0][0]
-        # π E δ² (the law's leading order, exponent 2): δ ∝ σ exactly; the sphere's exact
-        # law within its δ³/r term (δ ≤ 0.8 mm, r = 15 mm: a few percent).
-        assert np.sqrt(lam / target) == pytest.approx(sigma, rel=1e-9)
+        held = hold * (9.81 + a_z) / 9.81 * sigma ** 2
+        if squeeze == "profile":
+            assert lam == pytest.approx(max(force_reference(task, t)[0], held), rel=1e-9)
+            continue
+        assert lam == pytest.approx(held, rel=1e-9)
+        # The sphere's exact law: δ along the quintic within its δ³/r term (δ ≤ 0.8 mm,
+        # r = 15 mm: a few percent).
         assert _sphere_compression(lam) == pytest.approx(
-            _sphere_compression(target) * sigma, rel=0.03)
-    # The compression's rate at the grasp: δ(ε) = O(ε³), not (29)'s O(√ε).
-    eps = 1e-3
-    assert _sphere_compression(plan.squeeze(np.array([t_g + eps]))[0]) < 1e-8
-    assert _sphere_compression(force_reference(task, np.array([t_g + eps]))[0]) > 1e-6
-    # In the circle the shipped box's (29) is far above the hold: λ_d is (29) itself.
-    t = np.array([30.0, 45.0, 60.0])
-    if squeeze == "profile":
+            _sphere_compression(held / sigma ** 2) * sigma, rel=0.03)
+    if squeeze == "friction":
+        # The compression at the grasp: δ(ε) = O(ε³), not a linear rise's O(√ε).
+        eps = 1e-3
+        assert _sphere_compression(plan.squeeze(np.array([t_g + eps]))[0]) < 1e-8
+        assert _sphere_compression(hold * eps) > 1e-6
+    else:
+        t = np.array([30.0, 45.0, 60.0])
         np.testing.assert_array_equal(plan.squeeze(t), force_reference(task, t))
     assert plan.squeeze(np.array([t_g - 0.01, task.t_release + 0.01])).tolist() == [0.0, 0.0]
 
