@@ -182,6 +182,26 @@ def _cpu_name() -> str:
     return platform.processor() or platform.machine()
 
 
+def write_case(out: Path, key: str, case: dict) -> None:
+    """Add ``case`` under ``key`` to the JSON file ``out`` (created if absent), whole or not at
+    all: read again and written under an exclusive lock on ``out``'s folder, so that calls
+    running at once each keep the others' cases."""
+    import fcntl
+    import os
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    folder = os.open(out.parent, os.O_RDONLY)
+    try:
+        fcntl.flock(folder, fcntl.LOCK_EX)
+        data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
+        data["cases"][key] = case
+        tmp = out.with_name(f"{out.name}.{os.getpid()}.tmp")
+        tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+        tmp.replace(out)
+    finally:
+        os.close(folder)         # releases the lock
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("names", nargs="+")
@@ -208,14 +228,8 @@ def main(argv=None) -> int:
                            if argv is None else "")
         case["drake"] = version("drake")
         case["cpu"] = _cpu_name()
-        # Read again just before writing: another call may have added its cases meanwhile.
-        data = json.loads(out.read_text()) if out.exists() else {"cases": {}}
-        data["cases"][args.case or case_name(name, args.mass, args.mu, args.time_step,
-                                                  args.squeeze)] = case
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_suffix(".tmp")
-        tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
-        tmp.replace(out)
+        key = args.case or case_name(name, args.mass, args.mu, args.time_step, args.squeeze)
+        write_case(out, key, case)
         print(name, json.dumps(case), flush=True)
     return 0
 

@@ -541,10 +541,34 @@ class RunPlan:
             return False
         return om.couple is True or self.controls_contact_point
 
+    @cached_property
+    def compression_exponent(self) -> float:
+        """``p`` of the pads' contact law ``λ = a δᵖ`` (:attr:`RobotPlan.stiffness`; the
+        largest over the robots), 1 when no pad is compliant: the squeeze's grasp ramp
+        :func:`grasp_ramp` is raised to it, so that every pad's compression ``δ(λ_d)`` rises
+        as the quintic itself."""
+        exponents = [r.stiffness.exponent for r in self.robots if r.stiffness is not None]
+        return max(exponents, default=1.0)
+
     def squeeze(self, t: np.ndarray) -> np.ndarray:
-        """The squeeze at the times ``t`` (K,): the task's profile (29), or with an object
-        model and ``object_model.squeeze: friction`` the friction squeeze
-        (:func:`friction_squeeze`).
+        """The squeeze at the times ``t`` (K,).
+
+        Without an object model, the task's profile (29) (the paper's). With one:
+        ``object_model.squeeze: friction``, the friction squeeze (:func:`friction_squeeze`:
+        the least squeeze holding the object model's load in every friction cone along the
+        path, times ``margin``, brought in by :func:`grasp_ramp` raised to the pads' law's
+        exponent ``p``, :attr:`compression_exponent`); ``profile`` in the ``contact`` mode (a
+        grasp held by friction), the profile but never below that friction squeeze,
+        ``λ_d(t) = max(λ₂₉(t), λ_hold(t) σ(τ)ᵖ)``.
+
+        The task's path lifts the object from the grasp on while (29) rises from zero over the
+        whole lift: until the squeeze holds the weight, the lifted object slides down its pads
+        (two UR5s: 0.43 mm, kept for the whole carry); the floor holds it from the ramp's end
+        on. The ramp raised to ``p`` presses each pad in along the quintic itself
+        (``δ(λ_hold σᵖ) = δ(λ_hold) σ`` on a law ``λ = a δᵖ``: zero rate at the grasp), where a
+        linear rise from zero is a compression ``δ ∝ √t`` of infinite rate that the pads cannot
+        follow: while the squeeze is still near zero they move along the face and slide on
+        it. The rigid and ``planes`` modes keep (29).
 
         Parameters
         ----------
@@ -558,9 +582,15 @@ class RunPlan:
         """
         from drake_coop.scenario.task_path import force_reference
 
-        if self.object is not None and self.scenario.object_model.squeeze == "friction":
-            return friction_squeeze(self.scenario, self.object, t)
-        return force_reference(self.scenario.task, t)
+        profile = force_reference(self.scenario.task, t)
+        if self.object is None:
+            return profile
+        p = self.compression_exponent
+        if self.scenario.object_model.squeeze == "friction":
+            return friction_squeeze(self.scenario, self.object, t, exponent=p)
+        if self.scenario.plant.object_mode != "contact":
+            return profile
+        return np.maximum(profile, friction_squeeze(self.scenario, self.object, t, exponent=p))
 
     @property
     def switches(self) -> dict[int, bool]:
@@ -599,14 +629,39 @@ def plan_run(scenario: Scenario, t_end: float | None = None) -> RunPlan:
                    arms=tuple(Arm(r, task) for r in scenario.robots))
 
 
+#: The squeeze's rise after the grasp and fall before the release (s): :func:`grasp_ramp`
+#: in :func:`friction_squeeze` and :meth:`RunPlan.squeeze`.
+GRASP_RAMP = 1.0
+
+
+def grasp_ramp(task: Task, t: np.ndarray, ramp: float = GRASP_RAMP,
+               exponent: float = 1.0) -> np.ndarray:
+    """The squeeze's grasp ramp at the times ``t``: ``σ(τ)ᵖ``, ``σ`` the quintic time scaling
+    (:func:`~drake_coop.scenario.task_path.quintic`: zero rate and acceleration at both ends),
+    ``τ = min(t − t_grasp, t_release − t) / ramp`` clipped to [0, 1], ``p`` = ``exponent``;
+    0 outside ``[t_grasp, t_release]``, 1 within it when ``ramp`` is 0.
+
+    A squeeze ``λ σᵖ`` on a contact ``λ = a δᵖ`` compresses it by ``δ(λ) σ``: the pad is
+    pressed in along the quintic, from rest, as the path moves."""
+    from drake_coop.scenario.task_path import quintic
+
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    held = (t >= task.t_grasp) & (t <= task.t_release)
+    if ramp <= 0.0:
+        return held.astype(float)
+    s = quintic(np.minimum(t - task.t_grasp, task.t_release - t) / ramp)[0]
+    return np.where(held, s ** float(exponent), 0.0)
+
+
 def friction_squeeze(scenario: Scenario, obj: ObjectPlan, t: np.ndarray,
-                     ramp: float = 1.0) -> np.ndarray:
+                     ramp: float = GRASP_RAMP, exponent: float = 1.0) -> np.ndarray:
     """``object_model.squeeze: friction``: the least squeeze holding the object in every
     friction cone along the desired path (:func:`~drake_coop.control.object.squeeze_for_grasp`
     on the loads of :func:`~drake_coop.control.object.load_distribution`, the controllers'
     object ``obj``, its ``mu``, ``margin``, ``squeeze_min``), between the grasp and the
-    release, ramped linearly over ``ramp`` seconds after the grasp and before the release (N,
-    one per time).
+    release, brought in over ``ramp`` seconds after the grasp and out before the release by
+    :func:`grasp_ramp` (``exponent``: the contact law's, :attr:`RunPlan.compression_exponent`;
+    ``ramp`` 0: none) (N, one per time).
 
     Parameters
     ----------
@@ -618,6 +673,8 @@ def friction_squeeze(scenario: Scenario, obj: ObjectPlan, t: np.ndarray,
         The times (K,), s.
     ramp : float
         The ramps' length, s.
+    exponent : float
+        The grasp ramp's exponent (the pads' contact law's ``p``).
 
     Returns
     -------
@@ -636,5 +693,4 @@ def friction_squeeze(scenario: Scenario, obj: ObjectPlan, t: np.ndarray,
         loads = load_distribution(obj.model, xdd[k])
         lam[k] = squeeze_for_grasp(loads, obj.model.grasp_normals, obj.mu, om.margin,
                                    lambda_min=om.squeeze_min)[0]
-    scale = np.clip(np.minimum(t - task.t_grasp, task.t_release - t) / ramp, 0.0, 1.0)
-    return lam * scale
+    return lam * grasp_ramp(task, t, ramp, exponent)

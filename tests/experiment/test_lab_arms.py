@@ -91,6 +91,7 @@ def test_the_pose_reference_holds_the_pads_orientation_and_material_point(name):
     from drake_coop.experiment.references import (
         cartesian_reference,
         force_reference,
+        quintic,
         reference_samples,
     )
     from drake_coop.scenario.resources import model_urdf_path
@@ -119,7 +120,11 @@ def test_the_pose_reference_holds_the_pads_orientation_and_material_point(name):
         held = (t >= SHORT["t_grasp"] - 1e-9) & (t < SHORT["t_release"] - 1e-9)
         np.testing.assert_array_equal(r[:, 3 * n_q + 1], held)
         lam_d = r[:, 3 * n_q]                         # λ_d of the reference's rows
-        assert (lam_d >= force_reference(s.task, t) * robot.force_weights[0] - 1e-12).all()
+        # Never below (29) but within the grasp's and the release's ramps (1 s, the quintic
+        # squared: the pads' law's exponent 2), where it is brought in from zero.
+        ramp = quintic(np.minimum(t - SHORT["t_grasp"], SHORT["t_release"] - t) / 1.0)[0] ** 2
+        assert (lam_d >= force_reference(s.task, t) * robot.force_weights[0] * ramp
+                - 1e-12).all()
         delta = plan.robots[i].stiffness.compression(lam_d * held)
         assert delta.max() > 1e-3                         # pressed in by more than a mm
         worst_angle, worst_point = 0.0, 0.0

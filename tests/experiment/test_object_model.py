@@ -113,8 +113,9 @@ def test_the_shared_block_is_one_block_between_the_arms_and_feeds_their_referenc
 def test_a_compliant_contact_presses_the_joint_references_in():
     """With an object model in contact mode, q_d puts the pad δ(λ_d) inside the undeformed
     face along the inward normal, δ the root of the sphere's law λ = π E (δ² − 2δ³/(3r))
-    with the pads' E = 5 MPa, r = 15 mm (urdf/README.md); the force profile is unchanged
-    (the pads' centres followed: control_point centre)."""
+    with the pads' E = 5 MPa, r = 15 mm (urdf/README.md); the force profile is (29) in the
+    circle, and never below it (the grasp's ramp, the least squeeze that holds the box,
+    RunPlan.squeeze) outside the ramps (the pads' centres followed: control_point centre)."""
     from drake_coop.experiment.plan import plan_run
     from drake_coop.experiment.references import reference_samples
     from drake_coop.control.reference_layout import ReferenceLayout
@@ -126,7 +127,10 @@ def test_a_compliant_contact_presses_the_joint_references_in():
         layout = ReferenceLayout(3, 1)
         arm = plan_run(base).arms[i]
         lam = layout.column(r0, "lambda_d")[:, 0]
-        assert np.array_equal(lam, layout.column(r1, "lambda_d")[:, 0])
+        circle = t >= 25.0
+        assert np.array_equal(lam[circle], layout.column(r1, "lambda_d")[circle, 0])
+        lift = (t >= 16.0) & (t < 25.0)
+        assert np.all(layout.column(r1, "lambda_d")[lift, 0] >= lam[lift])
         k = np.searchsorted(t, 27.0)
         x0 = arm.fk(layout.column(r0, "q_d")[k:k + 1])[0]
         x1 = arm.fk(layout.column(r1, "q_d")[k:k + 1])[0]
@@ -149,6 +153,82 @@ def test_friction_squeeze_is_the_cone_bound_times_the_margin():
     k = int(np.argmin(abs(t - 25.0)))
     assert np.isclose(lam[k], 1.4 * 0.5 * 9.81 / (2 * 0.6), rtol=1e-9)
     assert lam[np.searchsorted(t, 5.0)] == 0.0          # not held
+
+
+def _sphere_compression(lam, E=5e6, r=0.015):
+    """δ of Drake's hydroelastic sphere on a rigid face, λ = π E (δ² − 2δ³/(3r)), by the
+    cubic's roots (independent of ContactStiffness)."""
+    if lam <= 0.0:
+        return 0.0
+    roots = np.roots([-2.0 / (3.0 * r), 1.0, 0.0, -lam / (np.pi * E)])
+    return min(z.real for z in roots if abs(z.imag) < 1e-12 and 0 < z.real < r)
+
+
+@pytest.mark.parametrize("squeeze", ["profile", "friction"])
+def test_the_squeeze_holds_the_box_by_the_ramps_end_pressing_the_pads_in_along_the_quintic(
+        squeeze):
+    """A grasp held by friction on compliant pads: the hold λ_hold (two opposing pads at rest
+    each carry m (g + a_z) / 2 across their normal, so λ_hold = margin · m (g + a_z) / (2 μ), a
+    hand static balance) is brought in by σ(τ)² (the quintic over 1 s, squared: the pads'
+    law's exponent): with ``friction`` λ_d = λ_hold σ², so each pad's compression δ(λ_d) is
+    δ(λ_hold) σ, the quintic itself (rate zero at the grasp, where a linear rise gives
+    δ ∝ √t); with ``profile`` λ_d = max((29), λ_hold σ²). By the ramp's end λ_d holds the
+    prior's weight in the cone; in the circle the shipped box's (29) is above the hold."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.scenario.task_path import cartesian_reference, force_reference, quintic
+
+    s = load_scenario(data=CONTACT.replace("friction: 1.0", "friction: 0.6")
+                      + f"object_model: {{mode: estimated, squeeze: {squeeze}}}\n")
+    plan = plan_run(s)
+    task, om = s.task, s.object_model
+    hold = om.margin * om.prior_mass_factor * 0.5 * 9.81 / (2 * 0.6)
+    t_g = task.t_grasp
+    assert plan.squeeze(np.array([t_g + 1.0]))[0] >= hold * (1 - 1e-9)
+    for tau in (0.1, 0.3, 0.5, 0.8):
+        t = np.array([t_g + tau])
+        lam = plan.squeeze(t)[0]
+        a_z = cartesian_reference(task, s.robots[0], t)[2][0, 2]
+        sigma = quintic(np.array([tau]))[0][0]
+        held = hold * (9.81 + a_z) / 9.81 * sigma ** 2
+        if squeeze == "profile":
+            assert lam == pytest.approx(max(force_reference(task, t)[0], held), rel=1e-9)
+            continue
+        assert lam == pytest.approx(held, rel=1e-9)
+        # The sphere's exact law: δ along the quintic within its δ³/r term (δ ≤ 0.8 mm,
+        # r = 15 mm: a few percent).
+        assert _sphere_compression(lam) == pytest.approx(
+            _sphere_compression(held / sigma ** 2) * sigma, rel=0.03)
+    if squeeze == "friction":
+        # The compression at the grasp: δ(ε) = O(ε³), not a linear rise's O(√ε).
+        eps = 1e-3
+        assert _sphere_compression(plan.squeeze(np.array([t_g + eps]))[0]) < 1e-8
+        assert _sphere_compression(hold * eps) > 1e-6
+    else:
+        t = np.array([30.0, 45.0, 60.0])
+        np.testing.assert_array_equal(plan.squeeze(t), force_reference(task, t))
+    assert plan.squeeze(np.array([t_g - 0.01, task.t_release + 0.01])).tolist() == [0.0, 0.0]
+
+
+def test_a_heavy_box_lifts_the_profile_squeeze_to_the_hold_and_no_model_keeps_29():
+    """On a box (29) cannot hold (2 kg at μ 0.4: the prior's 3 kg needs 1.5 · 3 · 9.81 /
+    (2 · 0.4) = 55 N), λ_d is the hold wherever (29) is below it; without an object model,
+    and in the rigid mode, λ_d stays (29) exactly (the paper's run)."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.scenario.task_path import cartesian_reference, force_reference
+
+    heavy = CONTACT.replace("object_mass: 0.5", "object_mass: 2.0").replace(
+        "friction: 1.0", "friction: 0.4")
+    plan = plan_run(load_scenario(data=heavy + "object_model: {mode: estimated}\n"))
+    t = np.array([25.0, 45.0, 60.0])
+    a = cartesian_reference(plan.scenario.task, plan.scenario.robots[0], t)[2]
+    # Each pad carries m (a − g) / 2 across its normal (x): its y, z parts.
+    need = 3.0 / 2 * np.hypot(a[:, 1], 9.81 + a[:, 2]) / 0.4
+    np.testing.assert_allclose(plan.squeeze(t), 1.5 * need, rtol=1e-9)
+    assert need[0] == pytest.approx(3.0 * 9.81 / (2 * 0.4))     # the circle's start: at rest
+    tt = np.linspace(0.0, 90.0, 9001)
+    for data in (heavy, heavy.replace("contact", "rigid") + "object_model: {mode: known}\n"):
+        plan = plan_run(load_scenario(data=data))
+        np.testing.assert_array_equal(plan.squeeze(tt), force_reference(plan.scenario.task, tt))
 
 
 @pytest.mark.slow
