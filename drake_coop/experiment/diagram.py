@@ -255,7 +255,7 @@ class Experiment:
 
     @property
     def h(self) -> float:
-        """The control period on the run's time grid (:func:`~drake_coop.experiment.plan.time_grid`)."""
+        """The control period on the run's time grid (:func:`~drake_coop.experiment.ticks.time_grid`)."""
         return self.plan.h if self.plan is not None else time_grid(self.scenario)[0]
 
     @property

@@ -301,7 +301,7 @@ def add_object_state_estimator(b: DiagramBuilder, plan: RunPlan,
     """The shared ``object_state_estimator``: the plan's grasp
     (:class:`~drake_coop.experiment.plan.ObjectPlan`: grasp points and normals, ``mu``),
     ``margin``, ``squeeze_min``, the grasp window and ramp of
-    :func:`~drake_coop.experiment.plan.friction_squeeze`, ``squeeze_rate`` and each robot's
+    :func:`~drake_coop.experiment.squeeze.friction_squeeze`, ``squeeze_rate`` and each robot's
     force weights. Its inputs (mass shares, ``a_d``) are connected by
     :func:`connect_object_state_estimator`, the references by the caller.
 

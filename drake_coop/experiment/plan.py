@@ -5,7 +5,7 @@ the stability map's operating point and the benchmark make their own plan of the
 scenario):
 
 * ``h``, ``dt`` — control period and plant step, aligned so that every tick is a plant step
-  (:func:`time_grid`: the one place a scenario's periods are aligned, by
+  (:func:`~drake_coop.experiment.ticks.time_grid`: the one place a scenario's periods are aligned, by
   :func:`~drake_coop.control.timing.aligned_periods`; the plant builder, the diagram, the
   runner, identification and the benchmark read it);
 * ``k_grasp``, ``k_release`` — the first held and the first released control tick
@@ -27,131 +27,29 @@ run reads no pad.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from drake_coop.control.timing import aligned_periods
+from drake_coop.experiment.squeeze import (  # noqa: F401 (re-exported)
+    GRASP_RAMP,
+    friction_squeeze,
+    grasp_ramp,
+)
+from drake_coop.experiment.ticks import (  # noqa: F401 (re-exported)
+    MAX_PLANT_STEPS,
+    MAX_TICKS,
+    _run_end,
+    check_run_size,
+    grasp_ticks,
+    num_ticks_until,
+    run_size,
+    time_grid,
+)
 from drake_coop.plant.arms import Arm
-from drake_coop.scenario.schema import Robot, Scenario, ScenarioError, Task
-
-#: Largest run (control ticks of ``h``, and plant steps) accepted: the references and the
-#: logs cost about 5 kB per tick (1 GB at the limit), a plant step about 50 µs.
-MAX_TICKS = 200_000
-MAX_PLANT_STEPS = 20_000_000
-
-
-def time_grid(scenario: Scenario) -> tuple[float, float]:
-    """``(h, dt)``: the scenario's control period and plant step on one exact grid
-    (``h = N dt``, :func:`~drake_coop.control.timing.aligned_periods`).
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario.
-
-    Returns
-    -------
-    h, dt : float
-        The control period and the plant step, s.
-    """
-    return aligned_periods(scenario.control_period, scenario.plant.time_step)
-
-
-def _run_end(scenario: Scenario, t_end: float | None) -> float:
-    return scenario.task.t_end if t_end is None else min(t_end, scenario.task.t_end)
-
-
-def run_size(scenario: Scenario, t_end: float | None = None) -> tuple[int, int]:
-    """Control ticks and plant steps of a run to ``min(t_end, task.t_end)``.
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario.
-    t_end : float or None
-        The run's end, s; None for the task's.
-
-    Returns
-    -------
-    ticks, steps : int
-        The control ticks and plant steps.
-    """
-    h, dt = time_grid(scenario)
-    T = _run_end(scenario, t_end)
-    return int(T / h) + 1, int(T / dt)
-
-
-def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
-    """Refuse a run shorter than one control period, or whose work (ticks, plant steps)
-    exceeds :data:`MAX_TICKS` or :data:`MAX_PLANT_STEPS`, before anything is built.
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario.
-    t_end : float or None
-        The run's end, s; None for the task's.
-
-    Raises
-    ------
-    ScenarioError
-        Naming ``task.t_end`` (or ``t_end``) and the period, with the limit.
-    """
-    h, _ = time_grid(scenario)
-    T = _run_end(scenario, t_end)
-    if not T >= h:
-        name = "task.t_end" if t_end is None or t_end >= scenario.task.t_end else "t_end"
-        raise ScenarioError(f"{name}: the run ({T:g} s) is shorter than one control period "
-                            f"(h = {h:g} s); it must last at least h")
-    ticks, steps = run_size(scenario, t_end)
-    if ticks > MAX_TICKS:
-        raise ScenarioError(
-            f"task.t_end / control_period gives {ticks} control ticks, at most {MAX_TICKS} "
-            f"(memory of the references and logs); shorten task.t_end or use --t-end")
-    if steps > MAX_PLANT_STEPS:
-        raise ScenarioError(
-            f"task.t_end / plant.time_step gives {steps} plant steps, at most "
-            f"{MAX_PLANT_STEPS}; shorten task.t_end, use --t-end or a larger plant.time_step")
-
-
-def grasp_ticks(task: Task, h: float) -> tuple[int, int]:
-    """First held tick and first released tick: ``(⌈t_grasp/h⌉, ⌈t_release/h⌉)``.
-
-    Parameters
-    ----------
-    task : Task
-        The task.
-    h : float
-        The control period, s.
-
-    Returns
-    -------
-    k_grasp, k_release : int
-        The ticks.
-    """
-    return (int(math.ceil(task.t_grasp / h - 1e-6)), int(math.ceil(task.t_release / h - 1e-6)))
-
-
-def num_ticks_until(t: float, h: float) -> int:
-    """Index of the last control tick at or before ``t``.
-
-    Parameters
-    ----------
-    t : float
-        The time, s.
-    h : float
-        The control period, s.
-
-    Returns
-    -------
-    int
-        The tick.
-    """
-    return int(math.floor(t / h + 1e-6))
+from drake_coop.scenario.schema import Robot, Scenario, Task
 
 
 @dataclass(frozen=True)
@@ -628,69 +526,3 @@ def plan_run(scenario: Scenario, t_end: float | None = None) -> RunPlan:
                    z_grasp=task.circle_top_z - task.lift_height,
                    arms=tuple(Arm(r, task) for r in scenario.robots))
 
-
-#: The squeeze's rise after the grasp and fall before the release (s): :func:`grasp_ramp`
-#: in :func:`friction_squeeze` and :meth:`RunPlan.squeeze`.
-GRASP_RAMP = 1.0
-
-
-def grasp_ramp(task: Task, t: np.ndarray, ramp: float = GRASP_RAMP,
-               exponent: float = 1.0) -> np.ndarray:
-    """The squeeze's grasp ramp at the times ``t``: ``σ(τ)ᵖ``, ``σ`` the quintic time scaling
-    (:func:`~drake_coop.scenario.task_path.quintic`: zero rate and acceleration at both ends),
-    ``τ = min(t − t_grasp, t_release − t) / ramp`` clipped to [0, 1], ``p`` = ``exponent``;
-    0 outside ``[t_grasp, t_release]``, 1 within it when ``ramp`` is 0.
-
-    A squeeze ``λ σᵖ`` on a contact ``λ = a δᵖ`` compresses it by ``δ(λ) σ``: the pad is
-    pressed in along the quintic, from rest, as the path moves."""
-    from drake_coop.scenario.task_path import quintic
-
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-    held = (t >= task.t_grasp) & (t <= task.t_release)
-    if ramp <= 0.0:
-        return held.astype(float)
-    s = quintic(np.minimum(t - task.t_grasp, task.t_release - t) / ramp)[0]
-    return np.where(held, s ** float(exponent), 0.0)
-
-
-def friction_squeeze(scenario: Scenario, obj: ObjectPlan, t: np.ndarray,
-                     ramp: float = GRASP_RAMP, exponent: float = 1.0) -> np.ndarray:
-    """``object_model.squeeze: friction``: the least squeeze holding the object in every
-    friction cone along the desired path (:func:`~drake_coop.control.object.squeeze_for_grasp`
-    on the loads of :func:`~drake_coop.control.object.load_distribution`, the controllers'
-    object ``obj``, its ``mu``, ``margin``, ``squeeze_min``), between the grasp and the
-    release, brought in over ``ramp`` seconds after the grasp and out before the release by
-    :func:`grasp_ramp` (``exponent``: the contact law's, :attr:`RunPlan.compression_exponent`;
-    ``ramp`` 0: none) (N, one per time).
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario.
-    obj : ObjectPlan
-        The controllers' object.
-    t : numpy.ndarray
-        The times (K,), s.
-    ramp : float
-        The ramps' length, s.
-    exponent : float
-        The grasp ramp's exponent (the pads' contact law's ``p``).
-
-    Returns
-    -------
-    numpy.ndarray
-        The squeeze (K,), N.
-    """
-    from drake_coop.control.object import load_distribution, squeeze_for_grasp
-    from drake_coop.scenario.task_path import cartesian_reference
-
-    om, task = scenario.object_model, scenario.task
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-    xdd = cartesian_reference(task, scenario.robots[0], t)[2]
-    lam = np.zeros_like(t)
-    held = (t >= task.t_grasp) & (t <= task.t_release)
-    for k in np.flatnonzero(held):
-        loads = load_distribution(obj.model, xdd[k])
-        lam[k] = squeeze_for_grasp(loads, obj.model.grasp_normals, obj.mu, om.margin,
-                                   lambda_min=om.squeeze_min)[0]
-    return lam * grasp_ramp(task, t, ramp, exponent)

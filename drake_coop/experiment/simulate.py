@@ -419,8 +419,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     Raises
     ------
     ScenarioError
-        If the run's work exceeds :data:`~drake_coop.experiment.plan.MAX_TICKS` or
-        :data:`~drake_coop.experiment.plan.MAX_PLANT_STEPS` (checked before anything is built),
+        If the run's work exceeds :data:`~drake_coop.experiment.ticks.MAX_TICKS` or
+        :data:`~drake_coop.experiment.ticks.MAX_PLANT_STEPS` (checked before anything is built),
         or, in ``contact`` mode, if an arm's squeeze and load need more than its torque limits
         somewhere along the path (:mod:`drake_coop.experiment.squeeze_check`, also before).
     """

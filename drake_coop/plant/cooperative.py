@@ -377,7 +377,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario,
         Uses ``scenario.plant`` (time step, object mode, object mass, friction) and the robots.
     time_step : float, optional
         The plant step on the run's time grid (``RunPlan.dt``,
-        :func:`drake_coop.experiment.plan.time_grid`: a multiple of it is exactly the control
+        :func:`drake_coop.experiment.ticks.time_grid`: a multiple of it is exactly the control
         period); default ``scenario.plant.time_step`` as written.
     arms : sequence of Arm, optional
         The run's resolved arms (``RunPlan.arms``, one per robot, in order), so that the plant

@@ -39,7 +39,7 @@ The number of cases (grid points × samples) is computed from the study before a
 expanded and refused above ``max_cases`` (:data:`MAX_CASES` unless raised on purpose). Every
 case is validated as ``drake-coop run`` validates its scenario (the field checks of
 :func:`~drake_coop.scenario.validation.validate` and the run size of
-:func:`~drake_coop.experiment.plan.check_run_size` at the study's ``t_end``). Numbers and lists
+:func:`~drake_coop.experiment.ticks.check_run_size` at the study's ``t_end``). Numbers and lists
 of numbers are set on a copy of the validated base :class:`~drake_coop.scenario.Scenario`
 (converted as the YAML loader converts them), other values (variants, texts, ``null``) go
 through the scenario's YAML loading; the reachability check, which reads only the task and the
