@@ -18,6 +18,7 @@ import numpy as np
 
 from drake import lcmt_panda_command, lcmt_panda_status
 from drake_coop.experiment.plan import time_grid
+from drake_coop.scenario.driver import FRANKA_DAMPING
 from drake_coop.scenario.schema import Driver, Scenario, ScenarioError
 from drake_coop.scenario.validation import driver_channels
 
@@ -89,6 +90,12 @@ class DriverSpec:
         The driver's largest command age, s.
     safe_command : str
         ``zero_torque`` or ``hold``.
+    time_base : str
+        The driver's clock: ``epoch`` or ``run`` (:class:`~drake_coop.scenario.driver.Driver`).
+    gravity : str
+        Who adds ``g(q)``: ``robot_adds``, ``driver_subtracts`` or ``none``.
+    damping : numpy.ndarray
+        The driver's damping gains ``k_d`` (n,), N·m·s/rad.
     clock_phase : float
         The simulated driver's clock phase, s.
     clock_drift : float
@@ -105,6 +112,9 @@ class DriverSpec:
     max_status_age: float
     command_timeout: float
     safe_command: str
+    time_base: str = "epoch"
+    gravity: str = "robot_adds"
+    damping: np.ndarray | None = None
     #: The simulated driver's clock: cycles at ``phase + j period (1 + drift)``.
     clock_phase: float = 0.0
     clock_drift: float = 0.0
@@ -157,9 +167,59 @@ def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
             n=n, period=1.0 / d.rate_hz,
             torque_limits=None if limits is None else np.asarray(limits, dtype=float),
             max_status_age=d.max_status_age, command_timeout=d.command_timeout,
-            safe_command=d.safe_command, clock_phase=d.clock_phase,
+            safe_command=d.safe_command, time_base=d.time_base, gravity=d.gravity,
+            damping=default_damping(n, d.damping), clock_phase=d.clock_phase,
             clock_drift=d.clock_drift))
     return specs
+
+
+def default_damping(n: int, damping=None) -> np.ndarray:
+    """The driver's damping gains: ``damping`` as given, else drake-franka-driver's
+    (:data:`~drake_coop.scenario.driver.FRANKA_DAMPING`) for ``n = 7``, else its smallest
+    (2.5 N·m·s/rad) on every joint.
+
+    Parameters
+    ----------
+    n : int
+        The arm's joints.
+    damping : list of float or None
+        The scenario's ``driver.damping``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``k_d`` (n,), N·m·s/rad.
+    """
+    if damping is not None:
+        return np.asarray(damping, dtype=float).reshape(n)
+    if n == len(FRANKA_DAMPING):
+        return np.array(FRANKA_DAMPING, dtype=float)
+    return np.full(n, min(FRANKA_DAMPING))
+
+
+def wire_torque(spec: DriverSpec, tau: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+    """What the wire carries for the torque ``tau`` the controller wants on the arm, by the
+    driver's gravity convention: ``tau − gravity`` when the robot adds ``g(q)`` itself
+    (``robot_adds``), else ``tau`` (the driver subtracts its own, or nobody adds any).
+
+    Parameters
+    ----------
+    spec : DriverSpec
+        The arm's driver.
+    tau : numpy.ndarray
+        The torque on the arm (n,), N·m, gravity included.
+    gravity : numpy.ndarray
+        ``g(q)`` from the controller's model at the reading (n,), N·m.
+
+    Returns
+    -------
+    numpy.ndarray
+        The command's torque (n,), N·m.
+    """
+    tau = np.asarray(tau, dtype=float)
+    if spec.gravity == "robot_adds":
+        return tau - np.asarray(gravity, dtype=float)
+    return tau
 
 
 def safe_command_message(spec: DriverSpec, tau: np.ndarray, utime: int) -> lcmt_panda_command:
@@ -179,17 +239,35 @@ def safe_command_message(spec: DriverSpec, tau: np.ndarray, utime: int) -> lcmt_
     lcmt_panda_command
         The message.
     """
-    msg = lcmt_panda_command()
-    msg.utime = int(utime)
-    msg.control_mode_expected = lcmt_panda_status.CONTROL_MODE_TORQUE
     tau = np.asarray(tau, dtype=float).reshape(spec.n)
     tau = np.where(np.isfinite(tau), tau, 0.0)
     if spec.torque_limits is not None:
         tau = np.clip(tau, -spec.torque_limits, spec.torque_limits)
+    return torque_command_message(tau, utime)
+
+
+def torque_command_message(tau, utime: int) -> lcmt_panda_command:
+    """A torque-mode ``lcmt_panda_command`` carrying ``tau`` as it is, stamped ``utime``.
+
+    Parameters
+    ----------
+    tau : array_like
+        The wire's torque (n,), N·m.
+    utime : int
+        The stamp, µs in the driver's time base.
+
+    Returns
+    -------
+    lcmt_panda_command
+        The message.
+    """
+    msg = lcmt_panda_command()
+    msg.utime = int(utime)
+    msg.control_mode_expected = lcmt_panda_status.CONTROL_MODE_TORQUE
     msg.num_joint_position = 0
     msg.joint_position = []
     msg.num_joint_velocity = 0
     msg.joint_velocity = []
-    msg.num_joint_torque = spec.n
     msg.joint_torque = [float(v) for v in tau]
+    msg.num_joint_torque = len(msg.joint_torque)
     return msg

@@ -7,7 +7,8 @@ Controller side (:func:`add_controller_side`), per arm::
                      (the raw bytes)           (robot/status.py)                  ─▶ Watchdog
     Watchdog ─ q_checked ─▶ AddCooperativeController(q, connect_actuation=False) ─ tau ─▶ Watchdog
     reference ─▶ AddCooperativeController
-    Watchdog ─ tau_safe ─▶ PandaCommandSender (torque mode) ─▶ LcmPublisherSystem ─▶ command channel
+    Watchdog ─ tau_latched ─▶ WireCommand (τ − g(q) for a robot that adds g; utime in the
+                              driver's time base) ─▶ LcmPublisherSystem ─▶ command channel
 
 The control blocks read the driver's measured position only, never its velocity or torque
 (the paper's premise: no tachometer, no force sensor). The status's bytes are checked before
@@ -19,12 +20,13 @@ updates): before the first valid status, and once tripped, it is the safe comman
 
 Simulated driver (:func:`add_driver_side`), per arm, on the scenario's cooperative plant::
 
-    command channel ─▶ LcmSubscriberSystem ─▶ PandaCommandReceiver ─ torque ─▶ CommandHold ─▶ plant
-    plant ─ [q, v] ─▶ PandaStatusSender ─▶ LcmPublisherSystem (every driver cycle) ─▶ status channel
+    command channel ─▶ LcmSubscriberSystem ─▶ TorqueDriver ─ tau_applied ─▶ plant
+    plant ─ [q, v] ─▶ TorqueDriver ─▶ status channel (published every driver cycle)
 
-:class:`CommandHold` applies the newest command as a real driver does: held until the next
-one, clipped to the driver's torque limits, zero torque when it is older than
-``command_timeout`` or before the first one, never a non-finite value.
+:class:`~drake_coop.robot.torque_driver.TorqueDriver` applies the newest command as a real
+driver does, by the arm's conventions: held until the next one or its expiry by ``utime``
+against the driver's clock, the robot's ``g(q)`` added where the robot adds it, gravity
+compensation and damping before the arm's own first command and after an expiry.
 
 Timing in one Diagram on one ``DrakeLcm("memq://")`` (the messages are pumped by
 ``LcmInterfaceSystem`` when the Simulator asks for its next event): the status published at
@@ -46,24 +48,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm
-from pydrake.manipulation import (
-    PandaCommandReceiver,
-    PandaCommandSender,
-    PandaControlMode,
-    PandaStatusSender,
-)
-from pydrake.systems.framework import (
-    Context,
-    DiagramBuilder,
-    LeafSystem,
-    OutputPort,
-    State,
-    TriggerType,
-)
+from pydrake.systems.framework import DiagramBuilder, OutputPort, TriggerType
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
-from pydrake.systems.primitives import Demultiplexer, PassThrough, TrajectorySource
+from pydrake.systems.primitives import PassThrough, TrajectorySource
 
-from drake import lcmt_panda_command, lcmt_panda_status
+from drake import lcmt_panda_command
 from drake_coop.control.block import AddCooperativeController, ControllerHandles
 from drake_coop.control.watchdog import Watchdog
 from drake_coop.control.params import checked_period
@@ -80,75 +69,13 @@ from drake_coop.robot.driver_spec import (  # noqa: F401 (re-exported)
     shared_message_type,
 )
 from drake_coop.robot.status import CheckedStatusReceiver, RawMessage
+from drake_coop.robot.torque_driver import DriverClock, TorqueDriver
+from drake_coop.robot.wire import WireCommand
 from drake_coop.scenario.schema import Scenario, ScenarioError
 
 #: The command of tick ``k`` is published at ``t_k + COMMAND_OFFSET`` (simulated time): after
 #: the tick's updates, off the driver's 1 ms grid.
 COMMAND_OFFSET = 1e-4
-
-
-class CommandHold(LeafSystem):
-    """What a torque-mode driver applies: the newest command, held, limited, timed out.
-
-    .. pydrake_system::
-
-        name: CommandHold
-        input_ports:
-        - tau_commanded
-        - command
-        output_ports:
-        - tau_applied
-
-    At every driver cycle ``t`` (a periodic unrestricted update, so the plant's step at ``t``
-    applies it), with ``t_c`` the cycle at which the newest command (its ``utime``) was first
-    seen::
-
-        tau_applied = clip(τ_cmd, −τ_max, τ_max)   if a command arrived and t − t_c <= T_out
-                      0                            otherwise (and where τ_cmd is not finite)
-
-    Parameters
-    ----------
-    n : int
-        Joints.
-    period : float
-        The driver's cycle (s).
-    timeout : float
-        ``T_out`` (s).
-    torque_limits : array_like, optional
-        ``τ_max`` (N·m); default none.
-    offset : float
-        The first cycle's time (the driver clock's phase, s); default 0.
-    """
-
-    def __init__(self, n: int, period: float, timeout: float, torque_limits=None,
-                 offset: float = 0.0):
-        super().__init__()
-        self._n = n
-        self._timeout = float(timeout)
-        self._tau_max = (np.full(n, np.inf) if torque_limits is None
-                         else np.asarray(torque_limits, dtype=float))
-        self._tau = self.DeclareVectorInputPort("tau_commanded", n)
-        self._msg = self.DeclareAbstractInputPort("command",
-                                                  AbstractValue.Make(lcmt_panda_command()))
-        self._applied = self.DeclareDiscreteState(n)
-        self._seen = self.DeclareDiscreteState(np.array([0.0, -math.inf]))   # utime, t_c
-        self.DeclarePeriodicUnrestrictedUpdateEvent(period, offset, self._update)
-        self.DeclareStateOutputPort("tau_applied", self._applied)
-
-    def _update(self, context: Context, state: State) -> None:
-        t = context.get_time()
-        utime = float(self._msg.Eval(context).utime)
-        last, t_c = context.get_discrete_state(self._seen).get_value()
-        if utime != last and utime != 0.0:
-            last, t_c = utime, t
-        state.get_mutable_discrete_state(self._seen).SetFromVector([last, t_c])
-        tau = np.zeros(self._n)
-        if t - t_c <= self._timeout * (1 + 1e-9):
-            tau = np.asarray(self._tau.Eval(context), dtype=float)
-            if tau.size != self._n:          # an empty or malformed command: nothing applied
-                tau = np.zeros(self._n)
-            tau = np.clip(np.where(np.isfinite(tau), tau, 0.0), -self._tau_max, self._tau_max)
-        state.get_mutable_discrete_state(self._applied).SetFromVector(tau)
 
 
 @dataclass
@@ -167,8 +94,8 @@ class ArmController:
         The status subscriber (None with ``status_input="loop"``).
     status_receiver : CheckedStatusReceiver or None
         The status decoder (None with ``status_input="loop"``).
-    command_sender : PandaCommandSender
-        The command encoder.
+    command_sender : WireCommand
+        The command encoder (the wire's torque and stamp).
     command_publisher : LcmPublisherSystem
         The command publisher.
     hold_torque : object
@@ -186,7 +113,7 @@ class ArmController:
     watchdog: Watchdog
     status_subscriber: LcmSubscriberSystem | None
     status_receiver: CheckedStatusReceiver | None
-    command_sender: PandaCommandSender
+    command_sender: WireCommand
     command_publisher: LcmPublisherSystem
     hold_torque: object = None
     #: ``status_input="loop"``: the C++ pass-through whose input the caller sets to the
@@ -207,22 +134,13 @@ class ArmDriver:
         Its driver.
     command_subscriber : LcmSubscriberSystem
         The command subscriber.
-    command_receiver : PandaCommandReceiver
-        The command decoder.
-    hold : CommandHold
-        The command's hold (zero torque past ``command_timeout``).
-    status_sender : PandaStatusSender
-        The status encoder.
-    status_publisher : LcmPublisherSystem
-        The status publisher (every driver cycle).
+    driver : TorqueDriver
+        The driver: the torque on the arm, the status.
     """
 
     spec: DriverSpec
     command_subscriber: LcmSubscriberSystem
-    command_receiver: PandaCommandReceiver
-    hold: CommandHold
-    status_sender: PandaStatusSender
-    status_publisher: LcmPublisherSystem
+    driver: TorqueDriver
 
 
 @dataclass
@@ -255,10 +173,32 @@ class DriverSide:
         The plant.
     arms : list of ArmDriver
         One per arm.
+    clock : DriverClock
+        The drivers' clock.
     """
 
     coop: CoopPlant
     arms: list[ArmDriver]
+    clock: DriverClock | None = None
+
+    def fault(self, context) -> str:
+        """The first emulated driver's stop (one line), or ``''``.
+
+        Parameters
+        ----------
+        context : Context
+            The root context.
+
+        Returns
+        -------
+        str
+            The reason, or ``''``.
+        """
+        for arm in self.arms:
+            reason = arm.driver.fault(arm.driver.GetMyContextFromRoot(context))
+            if reason:
+                return reason
+        return ""
 
 
 def add_lcm_interface(builder: DiagramBuilder, lcm: DrakeLcm) -> LcmInterfaceSystem:
@@ -313,7 +253,8 @@ def urdf_limits(plant, instance) -> tuple[np.ndarray, np.ndarray]:
 def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
                         plan: RunPlan, specs: list[DriverSpec] | None = None, *,
                         status_input: str = "subscriber",
-                        robots: list[str] | None = None) -> ControllerSide:
+                        robots: list[str] | None = None,
+                        clock: DriverClock | None = None) -> ControllerSide:
     """Add each arm's control block, watchdog and LCM status/command systems to ``builder``.
 
     ``status_input="subscriber"``: each arm's status arrives through an
@@ -334,7 +275,9 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     scenario's order.
 
     Either way the command carries the watchdog's ``tau_latched`` (its ``tau_safe`` latched at
-    the tick: no Python call to publish it).
+    the tick) as the driver reads it (:class:`~drake_coop.robot.wire.WireCommand`: minus the
+    controller model's ``g(q)`` for a robot that adds gravity itself; stamped by ``clock``
+    in the driver's time base, the Diagram's time for ``time_base: run``).
 
     The control blocks are the public
     :func:`~drake_coop.control.block.AddCooperativeController` with ``q`` from the driver's
@@ -360,6 +303,8 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
         ``subscriber`` or ``loop``.
     robots : list of str or None
         The arms to add; None for all.
+    clock : DriverClock or None
+        The command's stamp for ``time_base: epoch`` (default: the wall clock).
 
     Returns
     -------
@@ -445,17 +390,21 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
                                     estimator_period=estimator_h).tau
         builder.Connect(tau, watchdog.get_tau_input_port())
         builder.Connect(block.lambda_hat_output, watchdog.get_lambda_hat_input_port())
+        stamp = None
+        if spec.time_base == "epoch":
+            stamp = (clock if clock is not None else DriverClock("epoch", wall=True)).utime
         sender = builder.AddNamedSystem(f"{name}_command_sender",
-                                        PandaCommandSender(n, PandaControlMode.kTorque))
-        builder.Connect(watchdog.get_tau_latched_output_port(), sender.get_torque_input_port())
+                                        WireCommand(spec, model.g, stamp))
+        builder.Connect(watchdog.get_tau_latched_output_port(), sender.get_input_port(0))
+        builder.Connect(q, sender.get_input_port(1))
         if position is not None:
             publisher = LcmPublisherSystem.Make(
-                spec.command_channel, lcmt_panda_command, lcm, use_cpp_serializer=True,
+                spec.command_channel, lcmt_panda_command, lcm,
                 publish_triggers={TriggerType.kForced})
         else:
             publisher = LcmPublisherSystem.Make(
                 spec.command_channel, lcmt_panda_command, lcm, publish_period=plan.h,
-                publish_offset=COMMAND_OFFSET, use_cpp_serializer=True)
+                publish_offset=COMMAND_OFFSET)
         publisher = builder.AddNamedSystem(f"{name}_command_publisher", publisher)
         builder.Connect(sender.get_output_port(), publisher.get_input_port())
         arms.append(ArmController(spec=spec, block=block, watchdog=watchdog,
@@ -467,7 +416,8 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
 
 
 def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
-                    specs: list[DriverSpec] | None = None) -> DriverSide:
+                    specs: list[DriverSpec] | None = None, *, clock: DriverClock | None = None,
+                    emulate: str | None = None) -> DriverSide:
     """Add the scenario's cooperative plant (on the run's time grid) and each arm's simulated
     driver to ``builder``.
 
@@ -481,11 +431,22 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
         The LCM connection.
     specs : list of DriverSpec or None
         The drivers; None resolves them here.
+    clock : DriverClock or None
+        The drivers' clock (default: a simulated epoch clock from this second).
+    emulate : str or None
+        ``drake-franka-driver``: emulate that driver
+        (:class:`~drake_coop.robot.torque_driver.TorqueDriver`); None: the plain simulated
+        driver.
 
     Returns
     -------
     DriverSide
         The systems added.
+
+    Raises
+    ------
+    ValueError
+        ``emulate`` with an arm of other than 7 joints (one line naming the robot).
     """
     coop = build_plant(builder, scenario, time_grid(scenario)[1])
     plant = coop.plant
@@ -494,37 +455,15 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
     arms = []
     for handles, robot, spec in zip(coop.arms, scenario.robots, specs):
         name, n = robot.name, spec.n
-        state = builder.AddNamedSystem(f"{name}_driver_state", Demultiplexer([n, n]))
-        builder.Connect(plant.get_state_output_port(handles.instance), state.get_input_port(0))
+        arm_clock = (clock if clock is not None and spec.time_base == "epoch"
+                     else DriverClock(spec.time_base))
+        model = controller_arm_model(handles.arm, None)      # the robot's own, exact
         cmd_sub = builder.AddNamedSystem(f"{name}_command_subscriber", LcmSubscriberSystem.Make(
-            spec.command_channel, lcmt_panda_command, lcm, use_cpp_serializer=True))
-        cmd_stamp = builder.AddNamedSystem(f"{name}_command_stamp_subscriber",
-                                           LcmSubscriberSystem.Make(spec.command_channel,
-                                                                    SharedPandaCommand, lcm))
-        receiver = builder.AddNamedSystem(f"{name}_command_receiver",
-                                          PandaCommandReceiver(n, PandaControlMode.kTorque))
-        builder.Connect(cmd_sub.get_output_port(), receiver.get_message_input_port())
-        builder.Connect(state.get_output_port(0), receiver.get_position_measured_input_port())
-        # The driver's own clock (phase and drift); the plant still reads the held torque and
-        # gives its state on its own step grid, so both act to within one plant step.
-        cycle = spec.period * (1.0 + spec.clock_drift)
-        hold = builder.AddNamedSystem(f"{name}_command_hold", CommandHold(
-            n, cycle, spec.command_timeout, spec.torque_limits, offset=spec.clock_phase))
-        builder.Connect(receiver.get_commanded_torque_output_port(), hold.get_input_port(0))
-        builder.Connect(cmd_stamp.get_output_port(), hold.get_input_port(1))
-        builder.Connect(hold.get_output_port(0), plant.get_actuation_input_port(handles.instance))
-        sender = builder.AddNamedSystem(f"{name}_status_sender", PandaStatusSender(n))
-        builder.Connect(state.get_output_port(0), sender.get_position_measured_input_port())
-        builder.Connect(state.get_output_port(0), sender.get_position_commanded_input_port())
-        builder.Connect(state.get_output_port(1), sender.get_velocity_measured_input_port())
-        builder.Connect(receiver.get_commanded_torque_output_port(),
-                        sender.get_torque_commanded_input_port())
-        builder.Connect(hold.get_output_port(0), sender.get_torque_measured_input_port())
-        publisher = builder.AddNamedSystem(f"{name}_status_publisher", LcmPublisherSystem.Make(
-            spec.status_channel, lcmt_panda_status, lcm, publish_period=cycle,
-            publish_offset=spec.clock_phase, use_cpp_serializer=True))
-        builder.Connect(sender.get_output_port(), publisher.get_input_port())
-        arms.append(ArmDriver(spec=spec, command_subscriber=cmd_sub, command_receiver=receiver,
-                              hold=hold,
-                              status_sender=sender, status_publisher=publisher))
-    return DriverSide(coop=coop, arms=arms)
+            spec.command_channel, SharedPandaCommand, lcm))
+        driver = builder.AddNamedSystem(f"{name}_driver", TorqueDriver(
+            spec, model.g, arm_clock, lcm, model=model, emulate=emulate))
+        builder.Connect(cmd_sub.get_output_port(), driver.get_input_port(0))
+        builder.Connect(plant.get_state_output_port(handles.instance), driver.get_input_port(1))
+        builder.Connect(driver.get_output_port(0), plant.get_actuation_input_port(handles.instance))
+        arms.append(ArmDriver(spec=spec, command_subscriber=cmd_sub, driver=driver))
+    return DriverSide(coop=coop, arms=arms, clock=clock)

@@ -33,6 +33,7 @@ from drake_coop.robot.drivers import (
     add_driver_side,
     add_lcm_interface,
 )
+from drake_coop.robot.torque_driver import DriverClock
 from drake_coop.scenario.schema import Scenario, ScenarioError
 from drake_coop.sensing.force_sensor import FTModel
 
@@ -160,14 +161,15 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     lcm = DrakeLcm(lcm_url)
     builder = DiagramBuilder()
     add_lcm_interface(builder, lcm)
-    driver = add_driver_side(builder, scenario, lcm)
-    controller = add_controller_side(builder, scenario, lcm, plan)
+    clock = DriverClock("epoch")          # one simulated clock: the drivers' and the stamps'
+    driver = add_driver_side(builder, scenario, lcm, clock=clock)
+    controller = add_controller_side(builder, scenario, lcm, plan, clock=clock)
     truth = add_ground_truth(
         builder, driver.coop, plan.h,
         [FTModel.from_settings(r.force_sensor, plan.h, i, arm.arm.m)
          for i, (r, arm) in enumerate(zip(scenario.robots, driver.coop.arms))],
-        [arm.hold.get_output_port(0) for arm in driver.arms], tick_forces=False)
-    wire = [LogVectorOutput(arm.command_receiver.get_commanded_torque_output_port(), builder,
+        [arm.driver.get_output_port(0) for arm in driver.arms], tick_forces=False)
+    wire = [LogVectorOutput(arm.driver.get_output_port(1), builder,
                             publish_period=plan.h) for arm in driver.arms]
     diagram = builder.Build()
     simulator = Simulator(diagram)

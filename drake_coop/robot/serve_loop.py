@@ -32,7 +32,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
 from drake_coop.control.watchdog import STATUS_NONE, STATUS_OK
-from drake_coop.robot.driver_spec import safe_command_message
+from drake_coop.robot.driver_spec import safe_command_message, wire_torque
 from drake_coop.robot.drivers import add_controller_side
 from drake_coop.robot.status import check_panda_status
 
@@ -270,7 +270,10 @@ class ServeLoop:
             wd = arm.watchdog
             q = wd.last_good_position(wd.GetMyContextFromRoot(self.context))
             tau = np.zeros(spec.n) if spec.safe_command == "zero_torque" else arm.hold_torque(q)
-            msg = safe_command_message(spec, tau, int(time.time() * 1e6))
+            tau = wire_torque(spec, tau, arm.hold_torque(q))     # as the driver reads it
+            utime = (int(time.time() * 1e6) if spec.time_base == "epoch"
+                     else int(round(self.k * self.h * 1e6)))
+            msg = safe_command_message(spec, tau, utime)
             self._lcm.Publish(spec.command_channel, msg.encode())
 
 

@@ -20,7 +20,9 @@ from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains  # 
 from drake_coop.scenario.bounds import one_line
 from drake_coop.scenario.driver import (  # noqa: F401 (re-exported)
     DRIVER_KINDS,
+    GRAVITY_CONVENTIONS,
     SAFE_COMMANDS,
+    TIME_BASES,
     Driver,
 )
 

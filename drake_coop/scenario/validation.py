@@ -12,7 +12,9 @@ from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
     DRIVER_KINDS,
+    GRAVITY_CONVENTIONS,
     SAFE_COMMANDS,
+    TIME_BASES,
     FORCE_SOURCES,
     JITTER_DISTRIBUTIONS,
     OBJECT_MODEL_MODES,
@@ -88,6 +90,7 @@ BOUNDS: dict[str, Bound] = {
     "robots[].driver.command_timeout": Bound(0.0, 10.0, "s", **_POS),
     "robots[].driver.clock_phase": Bound(0.0, 1.0, "s"),
     "robots[].driver.clock_drift": Bound(-1e-3, 1e-3, ""),
+    "robots[].driver.damping[]": Bound(0.0, 1e4, "N·m·s/rad", **_POS),
     **{f"task.{name}": Bound(0.0, 1e4, "s", **_POS) for name in (
         "t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end")},
     "task.pregrasp_distance": Bound(0.0, 1.0, "m", **_POS),
@@ -304,6 +307,12 @@ def _validate_drivers(scenario: Scenario) -> None:
         if d is not None:
             _choice(d.kind, DRIVER_KINDS, f"{where}.kind")
             _choice(d.safe_command, SAFE_COMMANDS, f"{where}.safe_command")
+            _choice(d.time_base, TIME_BASES, f"{where}.time_base")
+            _choice(d.gravity, GRAVITY_CONVENTIONS, f"{where}.gravity")
+            if d.safe_command == "zero_torque" and d.gravity == "robot_adds":
+                raise ScenarioError(f"{where}.safe_command: zero_torque would send -g(q) to a "
+                                    "robot that adds its own gravity (gravity: robot_adds), "
+                                    "and the arm would fall; use hold")
             if not _is_multiple(scenario.control_period, 1.0 / d.rate_hz):
                 raise ScenarioError(f"{where}.rate_hz ({d.rate_hz}) must make control_period "
                                     f"({scenario.control_period}) a whole number of cycles")
@@ -334,6 +343,9 @@ def _validate_driver_joints(robot: Robot, n: int, where: str) -> None:
     if d.torque_limits is not None and len(d.torque_limits) != n:
         raise ScenarioError(f"{where}.driver.torque_limits must list {n} limits (one per "
                             f"joint), got {len(d.torque_limits)}")
+    if d.damping is not None and len(d.damping) != n:
+        raise ScenarioError(f"{where}.driver.damping must list {n} gains (one per joint), "
+                            f"got {len(d.damping)}")
 
 
 def reach_inputs(scenario: Scenario) -> str:

@@ -2,11 +2,12 @@
 position only; the watchdog's safe command reaches the wire within one tick; never a NaN on
 the wire; the simulated driver's command hold and timeout."""
 
+import copy
 import math
+import time
 
 import numpy as np
 import pytest
-from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
@@ -15,14 +16,11 @@ from drake import lcmt_panda_command, lcmt_panda_status
 from drake_coop.control.watchdog import TRIP_REASONS
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.simulate import rest_posture
-from drake_coop.robot.drivers import (
-    COMMAND_OFFSET,
-    CommandHold,
-    add_controller_side,
-)
+from drake_coop.robot.drivers import COMMAND_OFFSET, add_controller_side
 from drake_coop.robot.driver_spec import safe_command_message
 from drake_coop.robot.loopback import initialize_sides
-from drake_coop.scenario.loading import load_scenario
+from drake_coop.scenario.loading import dump_scenario, load_scenario
+from drake_coop.scenario.schema import Driver
 
 
 @pytest.fixture(scope="module")
@@ -101,7 +99,9 @@ def test_the_blocks_read_the_measured_position_only(scenario):
     ta, tb = torques(a), torques(b)
     for name in ta:
         assert ta[name].shape == (6, 3)
-        assert np.all(np.any(ta[name] != 0.0, axis=1))
+        # (tick 0 at rest: the controller's torque is g(q0), zero on the wire of a robot
+        # that adds gravity itself)
+        assert np.all(np.any(ta[name][1:] != 0.0, axis=1))
         np.testing.assert_array_equal(ta[name], tb[name])   # velocity, torque fields ignored
     # the same test can fail: a different position changes the command
     c, _ = run_controller(scenario, lambda i, k, q0: moving(i, k, q0) + 1e-6,
@@ -109,14 +109,60 @@ def test_the_blocks_read_the_measured_position_only(scenario):
     assert not np.array_equal(torques(c)["robot1"], ta["robot1"])
 
 
+def with_driver(scenario, **fields):
+    s = copy.deepcopy(scenario)
+    for robot in s.robots:
+        robot.driver = Driver(**fields)
+    return load_scenario(data=dump_scenario(s))
+
+
 def test_commands_are_torque_mode_and_one_per_tick(scenario):
-    commands, reasons = run_controller(scenario, moving)
+    """A driver that says its clock is the run's (``time_base: run``): stamped with the
+    Diagram's time, as Drake's PandaCommandSender does."""
+    commands, reasons = run_controller(with_driver(scenario, time_base="run"), moving)
     for msgs in commands.values():
         assert [m.utime for m in msgs] == [int(round((k * 0.009 + COMMAND_OFFSET) * 1e6))
                                            for k in range(6)]
         assert all(m.control_mode_expected == lcmt_panda_status.CONTROL_MODE_TORQUE
                    and m.num_joint_torque == 3 for m in msgs)
     assert set(reasons.values()) == {""}
+
+
+def test_commands_are_stamped_with_the_drivers_wall_clock_by_default(scenario):
+    """The default driver (drake-franka-driver's clock, ``time_base: epoch``): every command's
+    utime is the wall clock's µs since the Unix epoch when it was sent, not the run's time
+    (which such a driver would drop as older than its expiry)."""
+    before = time.time() * 1e6
+    commands, _ = run_controller(scenario, moving)
+    after = time.time() * 1e6
+    for msgs in commands.values():
+        stamps = [m.utime for m in msgs]
+        assert len(stamps) == 6 and all(before <= u <= after for u in stamps), stamps
+        assert stamps == sorted(stamps)
+
+
+def test_the_wire_carries_tau_minus_gravity_for_a_robot_that_adds_it(scenario):
+    """``gravity: robot_adds`` against ``none`` on the same readings: the two commands differ
+    by the controller model's g(q) at the tick's reading, computed here independently from
+    the arm's URDF (Drake's gravity generalized forces of a plant of the arm alone)."""
+    from drake_coop.plant.model_error import controller_arm_model
+    from drake_coop.plant.cooperative import build_plant
+
+    adds, _ = run_controller(scenario, moving)
+    plain, _ = run_controller(with_driver(scenario, gravity="none", safe_command="hold"),
+                              moving)
+    coop = build_plant(DiagramBuilder(), scenario, 1e-3)
+    q0, _ = rest_posture(scenario, list(plan_run(scenario, 1.0).arms))
+    for i, name in enumerate(["robot1", "robot2"]):
+        model = controller_arm_model(coop.arms[i].arm, None)
+        plant = model.plant
+        ctx = plant.CreateDefaultContext()
+        d = torques(plain)[name] - torques(adds)[name]
+        for k in range(1, 6):               # tick k reads the status of tick k (see above)
+            plant.SetPositions(ctx, moving(i, k, q0[i]))
+            g = -plant.CalcGravityGeneralizedForces(ctx)
+            np.testing.assert_allclose(d[k], g, rtol=0, atol=1e-9)
+        assert np.abs(d[1:]).max() > 1.0     # a real difference: gravity is not small
 
 
 def test_a_nan_reading_sends_zero_torque_at_that_tick_and_never_a_nan(scenario):
@@ -129,7 +175,7 @@ def test_a_nan_reading_sends_zero_torque_at_that_tick_and_never_a_nan(scenario):
     commands, reasons = run_controller(scenario, nan_at_3)
     t = torques(commands)
     assert np.all(np.isfinite(t["robot1"])) and np.all(np.isfinite(t["robot2"]))
-    assert np.all(np.any(t["robot1"][:3] != 0.0, axis=1))
+    assert np.all(np.any(t["robot1"][1:3] != 0.0, axis=1))     # (tick 0 at rest: g(q0))
     np.testing.assert_array_equal(t["robot1"][3:], 0.0)
     assert reasons["robot1"] == "malformed status: non-finite joint position in the status"
 
@@ -140,7 +186,7 @@ def test_a_status_that_stops_arriving_sends_zero_torque_within_one_tick(scenario
     commands, reasons = run_controller(scenario, moving, ticks=11, stop_after=last)
     k_trip = next(k for k in range(last, 20) if (k - last) * h > max_age)   # independent
     t = torques(commands)["robot1"]
-    assert np.all(np.any(t[:k_trip] != 0.0, axis=1))
+    assert np.all(np.any(t[1:k_trip] != 0.0, axis=1))     # (tick 0 at rest: g(q0))
     np.testing.assert_array_equal(t[k_trip:], 0.0)
     assert reasons["robot1"] == TRIP_REASONS[1]
 
@@ -153,32 +199,6 @@ def test_safe_command_message_is_finite_and_limited():
     msg = safe_command_message(spec, np.array([math.nan, -5.0, 0.5]), 7)
     assert msg.joint_torque == [0.0, -2.0, 0.5] and msg.num_joint_torque == 3
     assert list(lcmt_panda_command.decode(msg.encode()).joint_torque) == [0.0, -2.0, 0.5]
-
-
-def test_command_hold_holds_limits_and_times_out():
-    hold = CommandHold(2, 1e-3, 5e-3, torque_limits=[1.0, 1.0])
-    sim = Simulator(hold)
-    ctx = sim.get_mutable_context()
-    tau = hold.get_input_port(0).FixValue(ctx, np.array([0.5, 3.0]))
-    msg = lcmt_panda_command()
-    port = hold.get_input_port(1).FixValue(ctx, AbstractValue.Make(msg))
-    sim.Initialize()
-    applied = lambda: hold.get_output_port(0).Eval(ctx).copy()   # noqa: E731
-    sim.AdvanceTo(2.5e-3)
-    np.testing.assert_array_equal(applied(), [0.0, 0.0])          # no command yet
-    msg.utime = 1
-    port.GetMutableData().set_value(msg)
-    sim.AdvanceTo(3.5e-3)                                         # seen at t = 3 ms
-    np.testing.assert_array_equal(applied(), [0.5, 1.0])          # clipped
-    sim.AdvanceTo(8.5e-3)                                         # 5 ms old: still held
-    np.testing.assert_array_equal(applied(), [0.5, 1.0])
-    sim.AdvanceTo(9.5e-3)                                         # 6 ms old: timed out
-    np.testing.assert_array_equal(applied(), [0.0, 0.0])
-    msg.utime = 2
-    port.GetMutableData().set_value(msg)
-    tau.GetMutableData().set_value(np.array([math.nan, -0.25]))
-    sim.AdvanceTo(10.5e-3)
-    np.testing.assert_array_equal(applied(), [0.0, -0.25])        # never a NaN applied
 
 
 def test_no_controller_torque_leaves_before_the_first_status(scenario):

@@ -1,0 +1,324 @@
+"""The simulated driver of one arm in torque mode: what reaches the arm from the newest
+command, and the status it publishes, by the arm's declared conventions
+(:class:`~drake_coop.robot.driver_spec.DriverSpec`: time base, gravity, expiry, damping).
+
+:class:`TorqueDriver` runs, at every driver cycle ``t`` (the newest command ``c`` as received,
+the arm's state ``q, v`` at ``t``, ``now`` the driver's clock in its time base, µs)::
+
+    status published first: utime = now, q, v, τ_J = the torque on the arm (gravity
+        included), τ_ext = the external-torque estimate (emulation), τ_J_d = τ_d
+    c newer than the one held: held
+    held and |now − c.utime| > expiry: dropped (not taken again)
+    none held:   τ_d = −k_d v                       (gravity compensation and damping)
+    held:        τ_d = c.τ − g(q)  if gravity == driver_subtracts, else c.τ
+    on the arm:  τ = τ_d + g(q)    if gravity in (robot_adds, driver_subtracts) or none held,
+                 τ = τ_d           otherwise (gravity: none)
+
+with ``g(q)`` the arm's own gravity torque (the robot's model: the arm's exact model here, so
+a ``driver_subtracts`` command reaches the arm as sent). The driver holds each arm until that
+arm's own first command (another arm's command releases nothing).
+
+The plain simulated driver clips ``τ_d`` to the driver's torque limits and takes a
+malformed command (not torque mode, a wrong joint count, a non-finite torque) as none.
+:data:`EMULATE` (``drake-coop sim-driver --emulate drake-franka-driver``) follows
+drake-franka-driver's torque mode as its published source does, point by point: 7 joints
+only; a held command not in torque mode, carrying positions or velocities, not 7 torques, or
+a non-finite torque stops the driver (its loop throws: :attr:`TorqueDriver.fault` names the
+field; the arm is then held by gravity compensation and damping, and no status follows);
+no clipping; ``τ_d`` passed through libfranka's control loop as the driver calls it
+(``limit_rate`` on, cutoff ``--low_pass_freq`` = 30 Hz): first-order low-pass against the
+last ``τ_d`` sent, ``y = a x + (1 − a) y₋``, ``a = T / (T + 1/(2π f_c))``, then the rate
+limit ``|Δτ_d| ≤ 1000 N·m/s · T`` (``T`` = 1 ms, libfranka's cycle); the status's
+``joint_torque_external`` an estimate of the external torque from the arm's model,
+``H(q)(v − v₋)/c + C(q, v)v + g(q) − τ₋``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Callable
+
+import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import Context, LeafSystem, State
+
+from drake import lcmt_panda_status
+from drake_coop.robot.driver_spec import SharedPandaCommand
+
+#: The mode name of drake-franka-driver's emulation (``sim-driver --emulate``).
+EMULATE = "drake-franka-driver"
+#: The joints drake-franka-driver serves (``kNdof``).
+FRANKA_JOINTS = 7
+#: libfranka's control cycle (``kDeltaT``, s) and torque-rate limit (``kMaxTorqueRate``,
+#: N·m/s), and drake-franka-driver's default low-pass cutoff (``--low_pass_freq``, Hz).
+FRANKA_CYCLE = 1e-3
+FRANKA_TORQUE_RATE = 1000.0
+FRANKA_LOW_PASS_HZ = 30.0
+#: libfranka's "no filter" cutoff (``kMaxCutoffFrequency``, Hz).
+FRANKA_NO_FILTER_HZ = 1000.0
+#: The faults of an emulated driver's loop (its ``DRAKE_THROW_UNLESS`` and libfranka's
+#: ``checkFinite``), by code.
+FAULTS = {1: "control_mode_expected is not torque", 2: "num_joint_position is not 0",
+          3: "num_joint_velocity is not 0", 4: "num_joint_torque is not 7",
+          5: "joint_torque is not finite"}
+
+
+class DriverClock:
+    """A driver's clock in its time base (µs), as a function of the run's time ``t`` (s).
+
+    ``run``: ``round(t·1e6)``; ``epoch``: ``origin + round(t·1e6)`` (a simulated clock: the
+    loopback run, a lockstep run, a test), or the wall clock itself (``wall=True``: the paced
+    ``sim-driver``, whose run time follows the wall clock).
+
+    Parameters
+    ----------
+    time_base : str
+        ``epoch`` or ``run``.
+    origin : int or None
+        The epoch's µs at ``t = 0``; None: the wall clock's whole second now.
+    wall : bool
+        Read the wall clock (``epoch`` only).
+    """
+
+    def __init__(self, time_base: str = "epoch", origin: int | None = None, wall: bool = False):
+        if time_base not in ("epoch", "run"):
+            raise ValueError(f"time_base: 'epoch' or 'run' (got {time_base!r})")
+        self.time_base = time_base
+        self.wall = bool(wall) and time_base == "epoch"
+        self.origin = 0 if time_base == "run" else (
+            int(time.time()) * 1_000_000 if origin is None else int(origin))
+
+    def utime(self, t: float) -> int:
+        """The clock at run time ``t``.
+
+        Parameters
+        ----------
+        t : float
+            The run's time, s.
+
+        Returns
+        -------
+        int
+            µs in the time base.
+        """
+        if self.wall:
+            return int(time.time() * 1e6)
+        return self.origin + int(round(t * 1e6))
+
+
+def _no_message(msg) -> bool:
+    return msg.utime == 0 and msg.num_joint_torque == 0 and msg.control_mode_expected == 0
+
+
+def command_fault(msg, n: int) -> int:
+    """drake-franka-driver's checks of a held torque command (0: passes; else a key of
+    :data:`FAULTS`).
+
+    Parameters
+    ----------
+    msg : lcmt_panda_command
+        The command.
+    n : int
+        The arm's joints.
+
+    Returns
+    -------
+    int
+        The fault code.
+    """
+    if msg.control_mode_expected != lcmt_panda_status.CONTROL_MODE_TORQUE:
+        return 1
+    if msg.num_joint_position != 0:
+        return 2
+    if msg.num_joint_velocity != 0:
+        return 3
+    if msg.num_joint_torque != n or len(msg.joint_torque) != n:
+        return 4
+    if not all(math.isfinite(v) for v in msg.joint_torque):
+        return 5
+    return 0
+
+
+class TorqueDriver(LeafSystem):
+    """One arm's driver in torque mode (see the module).
+
+    .. pydrake_system::
+
+        name: TorqueDriver
+        input_ports:
+        - command
+        - state
+        output_ports:
+        - tau_applied
+        - tau_commanded
+
+    ``command``: the newest ``lcmt_panda_command`` received (a subscriber's output);
+    ``state``: the arm's ``[q, v]`` (2n). ``tau_applied``: the torque on the arm from this
+    cycle (gravity included), ``tau_commanded``: the held command's torque as received (0
+    while none is held).
+
+    Parameters
+    ----------
+    spec : DriverSpec
+        The arm's driver (conventions, expiry, damping, limits, channel).
+    gravity : Callable[[numpy.ndarray], numpy.ndarray]
+        The arm's gravity torque ``g(q)`` (N·m).
+    clock : DriverClock
+        The driver's clock.
+    lcm : DrakeLcmInterface or None
+        Where the status is published (on ``spec.status_channel``); None: no status.
+    model : ArmModel or None
+        The arm's model for the external-torque estimate (``H``, ``Cv``); None: zeros.
+    emulate : str or None
+        :data:`EMULATE`, or None for the plain simulated driver.
+    low_pass_hz : float
+        The emulation's torque cutoff (Hz; :data:`FRANKA_NO_FILTER_HZ` or more: none).
+
+    Raises
+    ------
+    ValueError
+        ``emulate`` of an arm without 7 joints, or an unknown ``emulate``.
+    """
+
+    def __init__(self, spec, gravity: Callable, clock: DriverClock, lcm=None, model=None,
+                 emulate: str | None = None, low_pass_hz: float = FRANKA_LOW_PASS_HZ):
+        super().__init__()
+        if emulate not in (None, EMULATE):
+            raise ValueError(f"emulate: {EMULATE!r} or None (got {emulate!r})")
+        n = spec.n
+        if emulate and n != FRANKA_JOINTS:
+            raise ValueError(f"robots: {spec.robot} has {n} joints; {EMULATE} serves "
+                             f"{FRANKA_JOINTS} only")
+        self._spec, self._n, self._g, self._clock = spec, n, gravity, clock
+        self._lcm, self._model, self._emulate = lcm, model, emulate
+        self._kd = np.asarray(spec.damping, dtype=float)
+        self._limits = (None if emulate or spec.torque_limits is None
+                        else np.asarray(spec.torque_limits, dtype=float))
+        self._expire_us = int(spec.command_timeout * 1e6)
+        self._period = spec.period * (1.0 + spec.clock_drift)
+        self._alpha = (None if low_pass_hz >= FRANKA_NO_FILTER_HZ else
+                       FRANKA_CYCLE / (FRANKA_CYCLE + 1.0 / (2 * math.pi * low_pass_hz)))
+        self._msg = self.DeclareAbstractInputPort(
+            "command", AbstractValue.Make(SharedPandaCommand()))
+        self._state = self.DeclareVectorInputPort("state", 2 * n)
+        self._applied = self.DeclareDiscreteState(n)
+        self._commanded = self.DeclareDiscreteState(n)
+        self._tau_d = self.DeclareDiscreteState(n)          # τ_d sent (libfranka's tau_J_d)
+        self._v_prev = self.DeclareDiscreteState(n)
+        # newest utime seen, held (0/1), fault code
+        self._memo = self.DeclareDiscreteState(np.array([-math.inf, 0.0, 0.0]))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, spec.clock_phase, self._update)
+        if lcm is not None:
+            self.DeclarePeriodicPublishEvent(self._period, spec.clock_phase, self._publish)
+            self.DeclareForcedPublishEvent(self._publish)
+        self.DeclareStateOutputPort("tau_applied", self._applied)
+        self.DeclareStateOutputPort("tau_commanded", self._commanded)
+
+    def fault(self, context: Context) -> str:
+        """The emulated driver's stop (``"<channel>: <field> ..."``), or ``''``.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        str
+            The one-line reason, or ``''``.
+        """
+        code = int(context.get_discrete_state(self._memo).get_value()[2])
+        return "" if code == 0 else f"{self._spec.command_channel}: {FAULTS[code]}"
+
+    def _update(self, context: Context, state: State) -> None:
+        n = self._n
+        x = self._state.Eval(context)
+        q, v = np.asarray(x[:n]), np.asarray(x[n:])
+        msg = self._msg.Eval(context)
+        seen, held, fault = context.get_discrete_state(self._memo).get_value()
+        now = self._clock.utime(context.get_time())
+        if fault == 0 and not _no_message(msg) and msg.utime != seen:
+            seen, held = float(msg.utime), 1.0          # a new command: held
+        if held and abs(now - int(seen)) > self._expire_us:
+            held = 0.0                                  # expired: dropped for good
+        tau_cmd = np.zeros(n)
+        g = np.asarray(self._g(q), dtype=float)
+        if held and fault == 0:
+            code = command_fault(msg, n)
+            if code and self._emulate:
+                fault, held = float(code), 0.0          # the driver's loop throws: it stops
+            elif code:
+                held = 0.0                              # the plain driver: taken as none
+            else:
+                tau_cmd = np.asarray(msg.joint_torque, dtype=float)
+        if held:
+            tau_d = tau_cmd - g if self._spec.gravity == "driver_subtracts" else tau_cmd.copy()
+        else:
+            tau_d = -self._kd * v
+        if self._emulate:
+            last = context.get_discrete_state(self._tau_d).get_value()
+            if self._alpha is not None:
+                tau_d = self._alpha * tau_d + (1.0 - self._alpha) * last
+            step = FRANKA_TORQUE_RATE * FRANKA_CYCLE
+            tau_d = last + np.clip(tau_d - last, -step, step)
+        elif self._limits is not None:
+            tau_d = np.clip(tau_d, -self._limits, self._limits)
+        adds = not held or self._spec.gravity != "none"
+        tau = tau_d + g if adds else tau_d
+        state.get_mutable_discrete_state(self._v_prev).SetFromVector(v)
+        state.get_mutable_discrete_state(self._tau_d).SetFromVector(tau_d)
+        state.get_mutable_discrete_state(self._applied).SetFromVector(tau)
+        state.get_mutable_discrete_state(self._commanded).SetFromVector(tau_cmd)
+        state.get_mutable_discrete_state(self._memo).SetFromVector([seen, held, fault])
+
+    def external_torque(self, q, v, v_prev, tau) -> np.ndarray:
+        """The external-torque estimate ``H(q)(v − v₋)/c + C(q, v)v + g(q) − τ``.
+
+        Parameters
+        ----------
+        q, v : numpy.ndarray
+            The arm's state now (n,).
+        v_prev : numpy.ndarray
+            Its velocity one cycle before (n,).
+        tau : numpy.ndarray
+            The torque on the arm over that cycle (n,), gravity included.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``τ_ext`` (n,), N·m.
+        """
+        m = self._model
+        return (m.H(q) @ ((v - v_prev) / self._period) + m.Cv(q, v) + m.g(q)
+                - np.asarray(tau, dtype=float))
+
+    def _publish(self, context: Context) -> None:
+        memo = context.get_discrete_state(self._memo).get_value()
+        if memo[2] != 0:
+            return                                      # the driver has stopped
+        n = self._n
+        x = np.asarray(self._state.Eval(context))
+        q, v = x[:n], x[n:]
+        tau = context.get_discrete_state(self._applied).get_value()
+        tau_d = context.get_discrete_state(self._tau_d).get_value()
+        ext = np.zeros(n)
+        if self._emulate and self._model is not None and context.get_time() > 0:
+            ext = self.external_torque(q, v, context.get_discrete_state(self._v_prev)
+                                       .get_value(), tau)
+        msg = lcmt_panda_status()
+        msg.utime = self._clock.utime(context.get_time())
+        msg.num_joints = n
+        msg.joint_position = q.tolist()
+        msg.joint_position_desired = q.tolist()
+        msg.joint_velocity = v.tolist()
+        msg.joint_velocity_desired = [0.0] * n
+        msg.joint_acceleration_desired = [0.0] * n
+        msg.joint_torque = [float(a) for a in tau]
+        msg.joint_torque_desired = [float(a) for a in tau_d]
+        msg.joint_torque_external = [float(a) for a in ext]
+        msg.control_mode = lcmt_panda_status.CONTROL_MODE_TORQUE
+        msg.robot_mode = lcmt_panda_status.kMove
+        msg.control_command_success_rate = 1.0
+        msg.robot_utime = int(round(context.get_time() * 1e3)) * 1000
+        self._lcm.Publish(self._spec.status_channel, msg.encode())
