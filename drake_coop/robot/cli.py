@@ -42,6 +42,14 @@ import time
 STATUS_WAIT = 10.0
 #: The LCM providers ``--lcm-url`` accepts (``file://`` would write a log outside the run).
 LCM_PROVIDERS = ("udpm", "mpudpm", "tcpq", "memq")
+#: ``--lcm-url``'s help.
+LCM_URL_HELP = ("LCM URL, required: tcpq://127.0.0.1:PORT (with drake-coop tcpq-hub), memq:// "
+                "(one process) or an explicit udpm:// (multicast)")
+#: drake-franka-driver's emulation (``sim-driver --emulate``), its default cutoff and
+#: libfranka's "no filter" (Hz): :mod:`drake_coop.robot.torque_driver`.
+EMULATE = "drake-franka-driver"
+FRANKA_LOW_PASS_HZ = 30.0
+FRANKA_NO_FILTER_HZ = 1000.0
 #: Said of ``memq://`` where it matters.
 MEMQ_NOTE = ("memq:// is in-process only: a driver in another process cannot reach it; "
              "use udpm:// or tcpq://")
@@ -58,8 +66,7 @@ def add_robot_parsers(sub) -> None:
     serve = sub.add_parser("serve", help="run the control blocks against the wall clock over "
                                          "the arms' LCM drivers")
     serve.add_argument("scenario", help="scenario YAML or shipped scenario name")
-    serve.add_argument("--lcm-url", default=None,
-                       help="LCM URL (default: LCM's own, udpm://239.255.76.67:7667?ttl=0)")
+    serve.add_argument("--lcm-url", default=None, help=LCM_URL_HELP)
     serve.add_argument("--out", required=True, help="run folder for the pacing figures")
     serve.add_argument("--force", action="store_true", help="replace a previous run's folder")
     serve.add_argument("--t-end", type=float, default=None, help="stop earlier (s)")
@@ -75,6 +82,9 @@ def add_robot_parsers(sub) -> None:
                             "the others through the DRAKE_COOP_STOP channel)")
     serve.add_argument("--tick", choices=("grid", "arrival"), default="grid",
                        help="tick on the wall clock (default) or on each arm's fresh status")
+    serve.add_argument("--lockstep", action="store_true",
+                       help="tick only once every arm's status of the tick has arrived "
+                            "(simulated time; with sim-driver --lockstep)")
     serve.add_argument("--quiet", action="store_true", help="no progress messages")
     serve.set_defaults(func=cmd_serve)
     hub = sub.add_parser("tcpq-hub", help="the hub of LCM's tcpq:// provider on 127.0.0.1 "
@@ -85,7 +95,16 @@ def add_robot_parsers(sub) -> None:
     drv = sub.add_parser("sim-driver", help="the scenario's simulated arms behind their "
                                             "drivers' LCM messages, at real time")
     drv.add_argument("scenario", help="scenario YAML or shipped scenario name")
-    drv.add_argument("--lcm-url", default=None, help="LCM URL (default: LCM's own)")
+    drv.add_argument("--lcm-url", default=None, help=LCM_URL_HELP)
+    drv.add_argument("--emulate", choices=(EMULATE,), default=None,
+                     help="emulate drake-franka-driver's torque mode point by point (7-joint "
+                          "arms only)")
+    drv.add_argument("--low-pass-freq", type=float, default=FRANKA_LOW_PASS_HZ, metavar="HZ",
+                     help="with --emulate: the driver's torque cutoff (its --low_pass_freq, "
+                          f"default {FRANKA_LOW_PASS_HZ:g}; {FRANKA_NO_FILTER_HZ:g}: none)")
+    drv.add_argument("--lockstep", action="store_true",
+                     help="advance the plant only once every arm's command of the tick has "
+                          "arrived (simulated time; with serve --lockstep)")
     drv.add_argument("--t-end", type=float, default=None, help="stop earlier (s)")
     drv.add_argument("--command-wait", type=float, default=60.0,
                      help="wait for the first command (s, default 60)")
@@ -142,8 +161,8 @@ def _load(args, wait_option: str, wait: float):
 
 
 def check_lcm_url(url) -> None:
-    """Raise ``ValueError`` (one line naming ``--lcm-url``) unless ``url`` is None or a URL of
-    one of :data:`LCM_PROVIDERS`.
+    """Raise ``ValueError`` (one line naming ``--lcm-url``) unless ``url`` is a URL of one of
+    :data:`LCM_PROVIDERS` (required: none, LCM's own default, would be multicast).
 
     Parameters
     ----------
@@ -151,7 +170,9 @@ def check_lcm_url(url) -> None:
         ``--lcm-url``'s value.
     """
     if url is None:
-        return
+        raise ValueError("--lcm-url is required (no multicast by default): "
+                         "tcpq://127.0.0.1:PORT with drake-coop tcpq-hub, memq:// in one "
+                         "process, or udpm://GROUP:PORT?ttl=0 explicitly")
     if not isinstance(url, str) or "://" not in url:
         raise ValueError(f"--lcm-url must be a URL such as memq:// or udpm://239.255.76.67:7667"
                          f"?ttl=0, got {url!r}")
@@ -166,7 +187,7 @@ def _make_lcm(url):
 
     check_lcm_url(url)
     try:
-        return DrakeLcm(url) if url is not None else DrakeLcm()
+        return DrakeLcm(url)
     except Exception as exc:
         raise ValueError(f"--lcm-url {url!r}: {' '.join(str(exc).split())[:200]}") from None
 
@@ -267,6 +288,11 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     loop = ServeLoop(scenario, plan, lcm, specs, robots=served)
     specs = loop.specs                    # the arms served, their torque limits resolved
     arrivals = status_arrivals(lcm, specs)   # every message's bytes checked as it arrives
+    lockstep = None
+    if getattr(args, "lockstep", False):      # every status by its stamp, from the first
+        from drake_coop.robot.lockstep import LockstepStatuses
+
+        lockstep = LockstepStatuses(lcm, specs)
     stop = StopListener(lcm, served)
     record = PacingRecord(period=plan.h, driver_period=max(s.period for s in specs))
     status, message, code, trip = "ok", f"completed {plan.t_end:g} s", 0, None
@@ -310,9 +336,16 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                   file=sys.stderr)
         started = True
         try:
-            reason = run_on_arrival(loop, lcm, arrivals, plan.k_end, record,
-                                    lambda k: "tripped" if loop.tripped() else "",
-                                    stop=stop, on_arrival=args.tick == "arrival")
+            if lockstep is not None:
+                from drake_coop.robot.lockstep import run_lockstep
+
+                reason = run_lockstep(loop, lcm, lockstep, plan.k_end, record,
+                                      lambda k: "tripped" if loop.tripped() else "",
+                                      stop=stop, timeout=args.status_wait)
+            else:
+                reason = run_on_arrival(loop, lcm, arrivals, plan.k_end, record,
+                                        lambda k: "tripped" if loop.tripped() else "",
+                                        stop=stop, on_arrival=args.tick == "arrival")
         except Exception as exc:       # a defect, not an input: the record is kept all the same
             status, code = "failed", 1
             message = (f"error at t = {loop.time():.3f} s: {type(exc).__name__}: "
@@ -329,6 +362,9 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                         "reason": reason[6:]}
                 message = (f"stopped at t = {loop.time():.3f} s by another serve on "
                            f"{STOP_CHANNEL}: {reason[6:]}")
+            elif reason:                      # lockstep: the driver went silent
+                status, code = "stopped", 1
+                message = f"stopped at t = {loop.time():.3f} s: {reason}"
     except KeyboardInterrupt as exc:    # Ctrl-C, or SIGTERM (raised as one by the command line)
         status, interrupted = "interrupted", exc
         message = f"interrupted at t = {loop.time():.3f} s"
@@ -378,20 +414,27 @@ def cmd_sim_driver(args) -> int:
     Returns
     -------
     int
-        The exit code: 0 done, 1 no command within ``--command-wait``, 2 bad input.
+        The exit code: 0 done, 1 no command within ``--command-wait`` (or an emulated
+        driver stopped by a command it refuses), 2 bad input.
     """
     loaded = _load(args, "--command-wait", args.command_wait)
     if isinstance(loaded, int):
         return loaded
     scenario, specs, lcm = loaded
+    emulate = getattr(args, "emulate", None)
+    low_pass = getattr(args, "low_pass_freq", FRANKA_LOW_PASS_HZ)
+    lockstep = getattr(args, "lockstep", False)
+    if not (0 < low_pass < math.inf):
+        return _error(f"--low-pass-freq must be a finite number > 0 Hz, got {low_pass}")
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
 
     from drake_coop.experiment.plan import plan_run
     from drake_coop.experiment.simulate import guard_chunks
-    from drake_coop.robot.drivers import add_driver_side, add_lcm_interface
+    from drake_coop.robot.drivers import COMMAND_OFFSET, add_driver_side, add_lcm_interface
     from drake_coop.robot.loopback import initialize_sides
     from drake_coop.robot.pacing import pump_until
+    from drake_coop.robot.torque_driver import DriverClock
 
     plan = plan_run(scenario, args.t_end)
     log = getattr(args, "log", None)
@@ -402,53 +445,92 @@ def cmd_sim_driver(args) -> int:
             return _error(f"--log must name a .npz file in an existing folder, got {log!r}")
         if Path(log).exists():
             return _error(f"--log {log!r} exists; not replaced")
+    if lockstep and any(s.clock_phase >= COMMAND_OFFSET for s in specs):
+        late = [s.robot for s in specs if s.clock_phase >= COMMAND_OFFSET]
+        return _error(f"--lockstep: the driver's clock_phase of {', '.join(late)} must be < "
+                      f"{COMMAND_OFFSET:g} s (its first status before the first command)")
     builder = DiagramBuilder()
-    add_lcm_interface(builder, lcm)
-    side = add_driver_side(builder, scenario, lcm, specs)
-    truth = add_truth_log(builder, side, plan.h) if log is not None else None
+    if not lockstep:       # lockstep: pumped between the steps, by drive_lockstep
+        add_lcm_interface(builder, lcm)
+    # the driver's clock: its wall clock when paced, a simulated one in lockstep
+    clock = DriverClock("epoch", wall=not lockstep)
+    try:
+        side = add_driver_side(builder, scenario, lcm, specs, clock=clock, emulate=emulate,
+                               low_pass_hz=low_pass)
+    except ValueError as exc:
+        return _error(str(exc))
+    truth = add_truth_log(builder, side, plan.h, scenario) if log is not None else None
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
     initialize_sides(scenario, plan, context, side, None)
     simulator.Initialize()
-    # Brakes on: the status at rest, every driver cycle, until the first command arrives.
-    period = min(s.period for s in specs)
-    deadline = time.perf_counter() + args.command_wait
+    plant_context = side.coop.plant.GetMyMutableContextFromRoot(context)
     if not args.quiet:
         print("drake-coop: sim-driver publishing "
-              + ", ".join(s.status_channel for s in specs) + "; waiting for a command",
-              file=sys.stderr)
-    # (the command subscribers' own counts: a plain Python handler must not be pumped by the
-    # LcmInterfaceSystem inside AdvanceTo, see add_lcm_interface)
-    while not any(arm.command_subscriber.WaitForMessage(0, None, 1e-6) > 0
-                  for arm in side.arms):
-        if time.perf_counter() > deadline:
-            print(f"drake-coop: no command on {', '.join(s.command_channel for s in specs)} "
-                  f"within {args.command_wait:g} s", file=sys.stderr)
-            return 1
-        for arm in side.arms:
-            arm.status_publisher.ForcedPublish(arm.status_publisher.GetMyContextFromRoot(context))
-        pump_until(lcm, time.perf_counter() + period)
-    simulator.set_target_realtime_rate(1.0)
-    simulator.ResetStatistics()      # the wall clock starts now, not at Initialize()
-    plant_context = side.coop.plant.GetMyMutableContextFromRoot(context)
+              + ", ".join(s.status_channel for s in specs) + "; waiting for a command"
+              + (" (lockstep)" if lockstep else "")
+              + (f" (emulating {emulate})" if emulate else ""), file=sys.stderr)
     start = time.perf_counter()
-    worst = 0.0          # how far the simulated time fell behind the wall clock (s)
-    for k_stop in guard_chunks(plan, scenario.guards.check_period):
-        simulator.AdvanceTo(k_stop * plan.h)
-        worst = max(worst, time.perf_counter() - start - context.get_time())
-        if k_stop in plan.switches:
-            side.coop.set_held(plant_context, plan.switches[k_stop])
+    if lockstep:
+        from drake_coop.robot.lockstep import drive_lockstep
+
+        def at_tick(k):
+            if k in plan.switches:
+                side.coop.set_held(plant_context, plan.switches[k])
+            return side.fault(context)
+
+        reason = drive_lockstep(simulator, side, lcm, plan, args.command_wait,
+                                before_tick=at_tick, offset=COMMAND_OFFSET)
+        if reason:
+            print(f"drake-coop: sim-driver stopped at t = {context.get_time():.3f} s: "
+                  f"{reason}", file=sys.stderr)
+            if truth is not None:
+                write_truth_log(log, truth, context)
+            return 1
+        worst = math.nan
+    else:
+        # The status at rest, every driver cycle, until a first command arrives (each arm is
+        # then held by its driver's gravity compensation and damping until its own first).
+        period = min(s.period for s in specs)
+        deadline = time.perf_counter() + args.command_wait
+        # (the command subscribers' own counts: a plain Python handler must not be pumped by
+        # the LcmInterfaceSystem inside AdvanceTo, see add_lcm_interface)
+        while not any(arm.command_subscriber.WaitForMessage(0, None, 1e-6) > 0
+                      for arm in side.arms):
+            if time.perf_counter() > deadline:
+                print(f"drake-coop: no command on "
+                      f"{', '.join(s.command_channel for s in specs)} within "
+                      f"{args.command_wait:g} s", file=sys.stderr)
+                return 1
+            for arm in side.arms:
+                arm.driver.ForcedPublish(arm.driver.GetMyContextFromRoot(context))
+            pump_until(lcm, time.perf_counter() + period)
+        simulator.set_target_realtime_rate(1.0)
+        simulator.ResetStatistics()      # the wall clock starts now, not at Initialize()
+        start = time.perf_counter()
+        worst = 0.0          # how far the simulated time fell behind the wall clock (s)
+        for k_stop in guard_chunks(plan, scenario.guards.check_period):
+            simulator.AdvanceTo(k_stop * plan.h)
+            worst = max(worst, time.perf_counter() - start - context.get_time())
+            fault = side.fault(context)
+            if fault:
+                print(f"drake-coop: sim-driver stopped at t = {context.get_time():.3f} s: "
+                      f"{emulate} threw on {fault}", file=sys.stderr)
+                return 1
+            if k_stop in plan.switches:
+                side.coop.set_held(plant_context, plan.switches[k_stop])
     if truth is not None:
         write_truth_log(log, truth, context)
     if not args.quiet:
         print(f"drake-coop: sim-driver done at t = {context.get_time():.3f} s after "
-              f"{time.perf_counter() - start:.3f} s of wall time (at most {worst * 1e3:.1f} ms "
-              "behind the wall clock)", file=sys.stderr)
+              f"{time.perf_counter() - start:.3f} s of wall time"
+              + ("" if math.isnan(worst) else
+                 f" (at most {worst * 1e3:.1f} ms behind the wall clock)"), file=sys.stderr)
     return 0
 
 
-def add_truth_log(builder, side, h: float) -> dict:
+def add_truth_log(builder, side, h: float, scenario=None) -> dict:
     """Loggers of the driver's plant's ground truth at every tick ``h`` (``sim-driver
     --log``): in contact mode each arm's pad contact force (the C++ hold of
     :func:`~drake_coop.plant.ground_truth.add_pad_force_log`: the force of the plant step
@@ -462,12 +544,16 @@ def add_truth_log(builder, side, h: float) -> dict:
         The simulated driver's side (its ``coop`` plant handles).
     h : float
         The control period, s: the loggers publish every tick.
+    scenario : Scenario or None
+        The scenario: in ``planes`` and ``rigid`` modes the squeeze's ground truth is logged
+        as the loopback run's (:func:`~drake_coop.robot.loopback.add_squeeze_truth`).
 
     Returns
     -------
     dict
         ``normals`` (each arm's constraint normals), ``arms`` (each arm's state logger) and,
-        in contact mode, ``pads`` (the pads' forces) and ``box`` (the box's state logger).
+        in contact mode, ``pads`` (the pads' forces) and ``box`` (the box's state logger);
+        in ``planes`` and ``rigid`` modes ``squeeze`` (the ground truth's log).
     """
     import numpy as np
     from pydrake.systems.primitives import LogVectorOutput
@@ -481,6 +567,10 @@ def add_truth_log(builder, side, h: float) -> dict:
         out["pads"] = LogVectorOutput(pads.hold, builder, publish_period=h)
         out["box"] = LogVectorOutput(coop.plant.get_state_output_port(
             coop.grasp.box.model_instance()), builder, publish_period=h)
+    elif scenario is not None and coop.mode in ("planes", "rigid"):
+        from drake_coop.robot.loopback import add_squeeze_truth
+
+        out["squeeze"] = add_squeeze_truth(builder, scenario, side, h)
     out["arms"] = [LogVectorOutput(coop.plant.get_state_output_port(a.instance), builder,
                                    publish_period=h) for a in coop.arms]
     return out
@@ -488,7 +578,8 @@ def add_truth_log(builder, side, h: float) -> dict:
 
 def write_truth_log(path, truth: dict, context) -> None:
     """``sim-driver --log``'s file (written whole): ``t``; ``lambda`` (ticks × arms × m:
-    ``N_i F_i``, NaN outside contact mode); ``box_state`` (the box's positions and
+    ``N_i F_i`` in contact mode; in ``planes`` and ``rigid`` the loopback run's ground truth
+    of each tick but the last); ``box_state`` (the box's positions and
     velocities, contact mode); ``arm<i>_state``.
 
     Parameters
@@ -515,6 +606,12 @@ def write_truth_log(path, truth: dict, context) -> None:
         lam = [np.atleast_2d(N) @ F[:, 3 * i:3 * i + 3].T for i, N in enumerate(normals)]
         data["lambda"] = np.stack([x.T for x in lam], axis=1)
         data["box_state"] = truth["box"].FindLog(context).data().T
+    elif "squeeze" in truth:
+        from drake_coop.robot.loopback import squeeze_truth
+
+        n, forces = squeeze_truth(truth["squeeze"], context)
+        data["lambda"] = np.stack([np.asarray(f["lambda_meas"]).reshape(n, -1)
+                                   for f in forces], axis=1)
     for i, log in enumerate(arms):
         data[f"arm{i}_state"] = log.data().T
     buffer = io.BytesIO()

@@ -69,7 +69,7 @@ from drake_coop.robot.driver_spec import (  # noqa: F401 (re-exported)
     shared_message_type,
 )
 from drake_coop.robot.status import CheckedStatusReceiver, RawMessage
-from drake_coop.robot.torque_driver import DriverClock, TorqueDriver
+from drake_coop.robot.torque_driver import FRANKA_LOW_PASS_HZ, DriverClock, TorqueDriver
 from drake_coop.robot.wire import WireCommand
 from drake_coop.scenario.schema import Scenario, ScenarioError
 
@@ -397,6 +397,7 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
                                         WireCommand(spec, model.g, stamp))
         builder.Connect(watchdog.get_tau_latched_output_port(), sender.get_input_port(0))
         builder.Connect(q, sender.get_input_port(1))
+        builder.Connect(watchdog.get_tripped_output_port(), sender.get_input_port(2))
         if position is not None:
             publisher = LcmPublisherSystem.Make(
                 spec.command_channel, lcmt_panda_command, lcm,
@@ -417,7 +418,8 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
 
 def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
                     specs: list[DriverSpec] | None = None, *, clock: DriverClock | None = None,
-                    emulate: str | None = None) -> DriverSide:
+                    emulate: str | None = None,
+                    low_pass_hz: float = FRANKA_LOW_PASS_HZ) -> DriverSide:
     """Add the scenario's cooperative plant (on the run's time grid) and each arm's simulated
     driver to ``builder``.
 
@@ -437,6 +439,8 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
         ``drake-franka-driver``: emulate that driver
         (:class:`~drake_coop.robot.torque_driver.TorqueDriver`); None: the plain simulated
         driver.
+    low_pass_hz : float
+        The emulation's torque cutoff, Hz (drake-franka-driver's ``--low_pass_freq``).
 
     Returns
     -------
@@ -461,7 +465,8 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
         cmd_sub = builder.AddNamedSystem(f"{name}_command_subscriber", LcmSubscriberSystem.Make(
             spec.command_channel, SharedPandaCommand, lcm))
         driver = builder.AddNamedSystem(f"{name}_driver", TorqueDriver(
-            spec, model.g, arm_clock, lcm, model=model, emulate=emulate))
+            spec, model.g, arm_clock, lcm, model=model, emulate=emulate,
+            low_pass_hz=low_pass_hz))
         builder.Connect(cmd_sub.get_output_port(), driver.get_input_port(0))
         builder.Connect(plant.get_state_output_port(handles.instance), driver.get_input_port(1))
         builder.Connect(driver.get_output_port(0), plant.get_actuation_input_port(handles.instance))

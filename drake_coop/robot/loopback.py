@@ -107,6 +107,56 @@ def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
     return q0
 
 
+def add_squeeze_truth(builder: DiagramBuilder, scenario: Scenario, driver: DriverSide,
+                      h: float):
+    """The offline ground truth of the squeeze on the driver's plant (``planes`` or
+    ``rigid``), sampling each arm's applied torque from its driver: the loopback run's and
+    ``sim-driver --log``'s, one formula with :func:`~drake_coop.experiment.simulate.simulate`.
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The driver's builder.
+    scenario : Scenario
+        The scenario.
+    driver : DriverSide
+        The simulated driver.
+    h : float
+        The control period, s.
+
+    Returns
+    -------
+    GroundTruthLog
+        The log (:func:`squeeze_truth` reads it after the run).
+    """
+    return add_ground_truth(
+        builder, driver.coop, h,
+        [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
+         for i, (r, arm) in enumerate(zip(scenario.robots, driver.coop.arms))],
+        [arm.driver.get_output_port(0) for arm in driver.arms], tick_forces=False)
+
+
+def squeeze_truth(truth, context: Context) -> tuple[int, list]:
+    """``(n, forces)``: the ticks logged and, per robot, the ground truth of each
+    (``forces[i]["lambda_meas"]``, ``(n, m)`` N).
+
+    Parameters
+    ----------
+    truth : GroundTruthLog
+        The log of :func:`add_squeeze_truth`.
+    context : Context
+        The root context after the run.
+
+    Returns
+    -------
+    tuple
+        ``n`` and the per-robot dicts.
+    """
+    published = truth.logger.FindLog(context).sample_times().size
+    n = max(published - 1, 0)
+    return n, truth.evaluate(context, n, False)
+
+
 def tripped(controller: ControllerSide, context: Context) -> str | None:
     """``"<robot>: <reason> on <status channel>"`` of the first tripped watchdog, else None.
 
@@ -164,11 +214,7 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     clock = DriverClock("epoch")          # one simulated clock: the drivers' and the stamps'
     driver = add_driver_side(builder, scenario, lcm, clock=clock)
     controller = add_controller_side(builder, scenario, lcm, plan, clock=clock)
-    truth = add_ground_truth(
-        builder, driver.coop, plan.h,
-        [FTModel.from_settings(r.force_sensor, plan.h, i, arm.arm.m)
-         for i, (r, arm) in enumerate(zip(scenario.robots, driver.coop.arms))],
-        [arm.driver.get_output_port(0) for arm in driver.arms], tick_forces=False)
+    truth = add_squeeze_truth(builder, scenario, driver, plan.h)
     wire = [LogVectorOutput(arm.driver.get_output_port(1), builder,
                             publish_period=plan.h) for arm in driver.arms]
     diagram = builder.Build()
@@ -188,9 +234,7 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
         if k_stop in plan.switches:
             driver.coop.set_held(plant_context, plan.switches[k_stop])
     wall = time.perf_counter() - start
-    published = truth.logger.FindLog(context).sample_times().size
-    n = max(published - 1, 0)
-    forces = truth.evaluate(context, n, False)
+    n, forces = squeeze_truth(truth, context)
     logs = {}
     for i, robot in enumerate(scenario.robots):
         t = np.arange(n) * plan.h

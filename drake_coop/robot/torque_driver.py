@@ -199,6 +199,8 @@ class TorqueDriver(LeafSystem):
         self._period = spec.period * (1.0 + spec.clock_drift)
         self._alpha = (None if low_pass_hz >= FRANKA_NO_FILTER_HZ else
                        FRANKA_CYCLE / (FRANKA_CYCLE + 1.0 / (2 * math.pi * low_pass_hz)))
+        #: The bytes of the first status this driver published (None before).
+        self.first_status: bytes | None = None
         self._msg = self.DeclareAbstractInputPort(
             "command", AbstractValue.Make(SharedPandaCommand()))
         self._state = self.DeclareVectorInputPort("state", 2 * n)
@@ -321,4 +323,7 @@ class TorqueDriver(LeafSystem):
         msg.robot_mode = lcmt_panda_status.kMove
         msg.control_command_success_rate = 1.0
         msg.robot_utime = int(round(context.get_time() * 1e3)) * 1000
-        self._lcm.Publish(self._spec.status_channel, msg.encode())
+        data = msg.encode()
+        if self.first_status is None:
+            self.first_status = data
+        self._lcm.Publish(self._spec.status_channel, data)

@@ -28,12 +28,18 @@ class WireCommand(LeafSystem):
     """The command on the wire: ``τ`` (gravity included) and the reading ``q`` in,
     the driver's ``lcmt_panda_command`` out (see the module).
 
+    ``tripped``: the watchdog's code; once it is not 0 the command is the safe one as the
+    driver reads it: with ``robot_adds`` zero on the wire (the robot's own gravity
+    compensation: the ``hold`` safe command, whatever the last reading was), else ``τ`` (the
+    watchdog's safe torque) itself.
+
     .. pydrake_system::
 
         name: WireCommand
         input_ports:
         - tau
         - q
+        - tripped
         output_ports:
         - lcmt_panda_command
 
@@ -55,6 +61,7 @@ class WireCommand(LeafSystem):
         self._echo: int | None = None
         self._tau = self.DeclareVectorInputPort("tau", spec.n)
         self._q = self.DeclareVectorInputPort("q", spec.n)
+        self._tripped = self.DeclareVectorInputPort("tripped", 1)
         self.DeclareAbstractOutputPort(
             "lcmt_panda_command", lambda: AbstractValue.Make(lcmt_panda_command()), self._calc)
 
@@ -83,6 +90,8 @@ class WireCommand(LeafSystem):
             The wire's torque.
         """
         tau = np.asarray(self._tau.Eval(context), dtype=float)
+        if self._spec.gravity == "robot_adds" and self._tripped.Eval(context)[0] != 0.0:
+            return np.zeros(self._spec.n)
         gravity = (self._g(np.asarray(self._q.Eval(context), dtype=float))
                    if self._spec.gravity == "robot_adds" else 0.0)
         return wire_torque(self._spec, tau, gravity)

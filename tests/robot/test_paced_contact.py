@@ -19,7 +19,7 @@ from drake_coop.robot.serve_loop import ServeLoop
 from drake_coop.robot.status import check_panda_status
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.model_check import check_models
-from drake_coop.scenario.schema import ScenarioError
+from drake_coop.scenario.schema import Driver, ScenarioError
 
 
 def compressed(mode: str):
@@ -55,6 +55,9 @@ def wire_torques(s, logs, t_end):
 
 def test_serve_puts_the_controller_torque_plus_the_load_feedforward_on_the_wire():
     s = compressed("known")
+    for robot in s.robots:           # the wire carries τ itself (no robot adding g(q))
+        robot.driver = Driver(gravity="none")
+    s = load_scenario(data=dump_scenario(s))
     T = 2.2                               # the grasp at 1.5 s, the lift to 2 s, the circle
     run = simulate(s, t_end=T)
     assert run.ok, run.meta

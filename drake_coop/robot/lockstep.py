@@ -1,0 +1,262 @@
+"""Lockstep over the wire: ``drake-coop sim-driver --lockstep`` and ``drake-coop serve
+--lockstep`` exchange the same messages as the paced run, but the driver advances its plant
+only once every arm's command of the tick has arrived, and ``serve`` ticks only once every
+arm's status of the tick has arrived: simulated time on both sides, no wall clock, so the
+two-process run over ``tcpq://127.0.0.1`` is the same on any machine, however loaded, as the
+one-process loopback run (:func:`~drake_coop.robot.loopback.run_loopback`).
+
+The schedule is the loopback run's, tick ``k`` at ``t_k = k h``:
+
+* the driver (:func:`drive_lockstep`) advances to ``t_k + COMMAND_OFFSET`` (its cycles up to
+  ``t_k``: statuses published, the command of tick ``k − 1`` applied), then waits for tick
+  ``k``'s command of every arm (each ``serve`` sends one per tick), so that it is applied
+  from the driver's first cycle after ``t_k + COMMAND_OFFSET``; before tick 0 it repeats
+  its first status (a ``serve`` may start after it);
+* ``serve`` (:func:`run_lockstep`) feeds tick ``k`` each arm's status of the driver cycle
+  before ``t_k`` (the newest one published strictly before ``t_k``: :func:`status_time`;
+  none at tick 0), found by its ``utime`` in the driver's clock (the first status gives the
+  clock's origin), and stamps each command with that status's ``utime`` + 1 µs (the driver's
+  own clock: within its expiry whatever the wall clocks say).
+
+A side that hears nothing for ``timeout`` wall seconds stops (one line): the other process
+has died or stopped.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from drake_coop.robot.status import check_panda_status
+
+#: µs of slack when matching a status's ``utime`` to the cycle it should come from.
+UTIME_SLACK = 2
+
+
+def status_time(spec, t: float) -> float | None:
+    """The time of the driver's newest cycle strictly before ``t`` (its status is what a
+    tick at ``t`` reads), or None before the first.
+
+    Parameters
+    ----------
+    spec : DriverSpec
+        The arm's driver (its cycle, phase and drift).
+    t : float
+        The tick's time, s.
+
+    Returns
+    -------
+    float or None
+        ``phase + j c (1 + drift)`` for the largest such ``j``, s.
+    """
+    cycle = spec.period * (1.0 + spec.clock_drift)
+    j = math.ceil((t - spec.clock_phase) / cycle - 1e-9) - 1
+    return None if j < 0 else spec.clock_phase + j * cycle
+
+
+class LockstepStatuses:
+    """Every status of each arm by its ``utime`` (subscribed at construction: before the
+    driver's first status can be missed).
+
+    Parameters
+    ----------
+    lcm : DrakeLcm
+        The LCM connection.
+    specs : list of DriverSpec
+        The arms' drivers.
+    """
+
+    def __init__(self, lcm, specs):
+        self._specs = list(specs)
+        self.origin: list[int | None] = [None] * len(self._specs)
+        self._by_utime: list[dict[int, bytes]] = [{} for _ in self._specs]
+        for i, spec in enumerate(self._specs):
+            lcm.Subscribe(spec.status_channel, lambda data, i=i: self._handle(i, data))
+
+    def _handle(self, i: int, data: bytes) -> None:
+        if len(data) < 16:
+            return
+        utime = int.from_bytes(bytes(data[8:16]), "big", signed=True)
+        if self.origin[i] is None:     # the driver's first status: its cycle at clock_phase
+            self.origin[i] = utime - int(round(self._specs[i].clock_phase * 1e6))
+        self._by_utime[i][utime] = bytes(data)
+
+    def expected_utime(self, i: int, t: float) -> int:
+        """Arm ``i``'s status ``utime`` of its cycle at ``t`` (s).
+
+        Parameters
+        ----------
+        i : int
+            The arm.
+        t : float
+            The cycle's time, s.
+
+        Returns
+        -------
+        int
+            µs in the driver's clock.
+        """
+        return self.origin[i] + int(round(t * 1e6))
+
+    def take(self, i: int, t: float):
+        """The bytes and ``utime`` of arm ``i``'s status of its cycle at ``t``, or None if not
+        arrived yet (older ones are forgotten).
+
+        Parameters
+        ----------
+        i : int
+            The arm.
+        t : float
+            The cycle's time, s.
+
+        Returns
+        -------
+        tuple of (bytes, int) or None
+            The status and its ``utime``.
+        """
+        if self.origin[i] is None:
+            return None
+        want = self.expected_utime(i, t)
+        found = next((u for u in self._by_utime[i] if abs(u - want) <= UTIME_SLACK), None)
+        if found is None:
+            return None
+        data = self._by_utime[i][found]
+        for u in [u for u in self._by_utime[i] if u < found - UTIME_SLACK]:
+            del self._by_utime[i][u]
+        return data, found
+
+
+def run_lockstep(loop, lcm, statuses: LockstepStatuses, k_end: int, record, after_tick=None,
+                 stop=None, timeout: float = 10.0) -> str:
+    """Tick ``loop`` (a started :class:`~drake_coop.robot.serve_loop.ServeLoop`) from
+    ``k = 0`` to ``k_end`` in lockstep with the driver (see the module).
+
+    Parameters
+    ----------
+    loop : ServeLoop
+        The controller (started: its first readings from the driver's first statuses).
+    lcm : DrakeLcm
+        The LCM connection.
+    statuses : LockstepStatuses
+        The statuses.
+    k_end : int
+        The last tick.
+    record : PacingRecord
+        Receives each tick's computation time.
+    after_tick : Callable[[int], str or None] or None
+        Called after each tick; a string stops the loop (returned).
+    stop : StopListener or None
+        Another ``serve``'s stop.
+    timeout : float
+        The longest wall-clock wait for a status, s.
+
+    Returns
+    -------
+    str
+        Why the loop stopped, or ``''`` at ``k_end``.
+    """
+    specs = loop.specs
+    senders = [arm.command_sender for arm in loop.side.arms]
+    for i, sender in enumerate(senders):          # tick 0: the first status's clock
+        sender.echo(statuses.origin[i] + int(round(specs[i].clock_phase * 1e6)))
+    for k in range(k_end + 1):
+        t_k = k * loop.h
+        taken = []
+        for i, spec in enumerate(specs):
+            t_s = status_time(spec, t_k)
+            if t_s is None:
+                taken.append(None)
+                continue
+            deadline = time.perf_counter() + timeout
+            got = statuses.take(i, t_s)
+            while got is None:
+                if stop is not None and stop.reason is not None:
+                    return f"stop: {stop.reason}"
+                if time.perf_counter() > deadline:
+                    return (f"no status on {spec.status_channel} for t = {t_s:.4f} s within "
+                            f"{timeout:g} s (lockstep: is the driver running with "
+                            "--lockstep?)")
+                lcm.HandleSubscriptions(10)
+                got = statuses.take(i, t_s)
+            taken.append(got)
+        lcm.HandleSubscriptions(0)
+        if stop is not None and stop.reason is not None:
+            return f"stop: {stop.reason}"
+        start = time.perf_counter()
+        for i, got in enumerate(taken):
+            if got is not None:
+                loop.feed(i, check_panda_status(got[0], specs[i].n))
+                senders[i].echo(got[1])
+        loop.tick()
+        end = time.perf_counter()
+        record.add(k, end - start, end - start, 0.0, 0.0)
+        if after_tick is not None:
+            reason = after_tick(k)
+            if reason:
+                return reason
+    return ""
+
+
+def drive_lockstep(simulator, side, lcm, plan, timeout: float, before_tick=None,
+                   offset: float = 1e-4) -> str:
+    """Advance the simulated driver in lockstep with the ``serve`` processes (see the
+    module): to ``t_k + offset``, then wait for tick ``k``'s command of every arm.
+
+    Parameters
+    ----------
+    simulator : Simulator
+        The driver's Simulator (initialized; no ``LcmInterfaceSystem`` in its Diagram).
+    side : DriverSide
+        Its arms.
+    lcm : DrakeLcm
+        The LCM connection (pumped here, between the steps).
+    plan : RunPlan
+        The run's plan (``h``, ``k_end``).
+    timeout : float
+        The longest wall-clock wait for a command, s.
+    before_tick : Callable[[int], str or None] or None
+        Called at ``t_k`` before the tick's updates (the plan's switches; a fault check);
+        a string stops the run (returned).
+    offset : float
+        The commands' offset after the tick (s, :data:`~drake_coop.robot.drivers.
+        COMMAND_OFFSET`).
+
+    Returns
+    -------
+    str
+        Why it stopped early, or ``''``.
+
+    Raises
+    ------
+    ValueError
+        A driver whose first cycle comes after ``offset`` (``clock_phase``).
+    """
+    late = [arm.spec.robot for arm in side.arms if arm.spec.clock_phase >= offset]
+    if late:
+        raise ValueError(f"--lockstep: the driver's clock_phase of {', '.join(late)} must be "
+                         f"< {offset:g} s (its first status before the first command)")
+    counts = {arm.spec.command_channel: 0 for arm in side.arms}
+    for channel in counts:
+        lcm.Subscribe(channel, lambda data, c=channel: counts.__setitem__(c, counts[c] + 1))
+    for k in range(plan.k_end + 1):
+        simulator.AdvanceTo(k * plan.h)
+        if before_tick is not None:
+            reason = before_tick(k)
+            if reason:
+                return reason
+        simulator.AdvanceTo(k * plan.h + offset)
+        deadline = time.perf_counter() + timeout
+        repeat = time.perf_counter()
+        while any(n <= k for n in counts.values()):
+            if time.perf_counter() > deadline:
+                late = [c for c, n in counts.items() if n <= k]
+                return (f"no command of tick {k} on {', '.join(late)} within {timeout:g} s "
+                        "(lockstep: is serve running with --lockstep?)")
+            if k == 0 and time.perf_counter() >= repeat:    # a serve may start late
+                for arm in side.arms:
+                    if arm.driver.first_status is not None:
+                        lcm.Publish(arm.spec.status_channel, arm.driver.first_status)
+                repeat = time.perf_counter() + 0.05
+            lcm.HandleSubscriptions(10)
+    simulator.AdvanceTo(plan.t_end)
+    return ""
