@@ -551,7 +551,8 @@ def add_truth_log(builder, side, h: float, scenario=None) -> dict:
     Returns
     -------
     dict
-        ``normals`` (each arm's constraint normals), ``arms`` (each arm's state logger) and,
+        ``normals`` (each arm's constraint normals), ``arms`` (each arm's state logger),
+        ``commanded`` (each arm's held command's logger) and,
         in contact mode, ``pads`` (the pads' forces) and ``box`` (the box's state logger);
         in ``planes`` and ``rigid`` modes ``squeeze`` (the ground truth's log).
     """
@@ -571,6 +572,8 @@ def add_truth_log(builder, side, h: float, scenario=None) -> dict:
         from drake_coop.robot.loopback import add_squeeze_truth
 
         out["squeeze"] = add_squeeze_truth(builder, scenario, side, h)
+    out["commanded"] = [LogVectorOutput(a.driver.get_output_port(1), builder,
+                                        publish_period=h) for a in side.arms]
     out["arms"] = [LogVectorOutput(coop.plant.get_state_output_port(a.instance), builder,
                                    publish_period=h) for a in coop.arms]
     return out
@@ -580,7 +583,8 @@ def write_truth_log(path, truth: dict, context) -> None:
     """``sim-driver --log``'s file (written whole): ``t``; ``lambda`` (ticks × arms × m:
     ``N_i F_i`` in contact mode; in ``planes`` and ``rigid`` the loopback run's ground truth
     of each tick but the last); ``box_state`` (the box's positions and
-    velocities, contact mode); ``arm<i>_state``.
+    velocities, contact mode); ``arm<i>_state``; ``arm<i>_tau_commanded`` (the command the
+    driver held at each tick, as received).
 
     Parameters
     ----------
@@ -614,6 +618,7 @@ def write_truth_log(path, truth: dict, context) -> None:
                                    for f in forces], axis=1)
     for i, log in enumerate(arms):
         data[f"arm{i}_state"] = log.data().T
+        data[f"arm{i}_tau_commanded"] = truth["commanded"][i].FindLog(context).data().T
     buffer = io.BytesIO()
     np.savez(buffer, **data)
     atomic_write_bytes(path, buffer.getvalue())

@@ -29,11 +29,13 @@ against the driver's clock, the robot's ``g(q)`` added where the robot adds it, 
 compensation and damping before the arm's own first command and after an expiry.
 
 Timing in one Diagram on one ``DrakeLcm("memq://")`` (the messages are pumped by
-``LcmInterfaceSystem`` when the Simulator asks for its next event): the status published at
-``t`` reaches the controller after that instant's updates, so the tick at ``t_k`` reads the
-status of the driver cycle before (``q(t_k − 1 ms)`` at 1 kHz), and the command of ``t_k``
-is applied from the driver's next cycle, ``t_k + 1 ms``: the cable costs one driver cycle each
-way.
+``LcmInterfaceSystem`` when the Simulator asks for its next event): the status the driver
+publishes at ``t`` (a publish event, at the end of the step that reaches ``t``) is latched by
+the controller's subscriber before that instant's updates (an unrestricted update, run before
+the discrete ones), so the tick at ``t_k`` reads ``q(t_k)``, and the command of ``t_k`` is
+applied from the driver's next cycle, ``t_k + 1 ms``: the cable costs one driver cycle
+(checked: the lockstep run over two processes, which feeds each tick the status of its own
+cycle, gives the same doubles, :mod:`drake_coop.robot.lockstep`).
 
 Each arm's driver (:class:`~drake_coop.robot.driver_spec.DriverSpec`, resolved from the
 scenario by :func:`~drake_coop.robot.driver_spec.driver_specs`) and the messages' helpers are

@@ -12,9 +12,8 @@ The schedule is the loopback run's, tick ``k`` at ``t_k = k h``:
   ``k``'s command of every arm (each ``serve`` sends one per tick), so that it is applied
   from the driver's first cycle after ``t_k + COMMAND_OFFSET``; before tick 0 it repeats
   its first status (a ``serve`` may start after it);
-* ``serve`` (:func:`run_lockstep`) feeds tick ``k`` each arm's status of the driver cycle
-  before ``t_k`` (the newest one published strictly before ``t_k``: :func:`status_time`;
-  none at tick 0), found by its ``utime`` in the driver's clock (the first status gives the
+* ``serve`` (:func:`run_lockstep`) feeds tick ``k`` each arm's status of the driver's newest
+  cycle at or before ``t_k`` (:func:`status_time`), found by its ``utime`` in the driver's clock (the first status gives the
   clock's origin), and stamps each command with that status's ``utime`` + 1 µs (the driver's
   own clock: within its expiry whatever the wall clocks say).
 
@@ -34,8 +33,9 @@ UTIME_SLACK = 2
 
 
 def status_time(spec, t: float) -> float | None:
-    """The time of the driver's newest cycle strictly before ``t`` (its status is what a
-    tick at ``t`` reads), or None before the first.
+    """The time of the driver's newest cycle at or before ``t`` (its status is what the
+    loopback run's tick at ``t`` reads: published at the end of the step that reaches ``t``,
+    latched before the tick's updates), or None before the first.
 
     Parameters
     ----------
@@ -50,7 +50,7 @@ def status_time(spec, t: float) -> float | None:
         ``phase + j c (1 + drift)`` for the largest such ``j``, s.
     """
     cycle = spec.period * (1.0 + spec.clock_drift)
-    j = math.ceil((t - spec.clock_phase) / cycle - 1e-9) - 1
+    j = math.floor((t - spec.clock_phase) / cycle + 1e-9)
     return None if j < 0 else spec.clock_phase + j * cycle
 
 
@@ -258,5 +258,5 @@ def drive_lockstep(simulator, side, lcm, plan, timeout: float, before_tick=None,
                         lcm.Publish(arm.spec.status_channel, arm.driver.first_status)
                 repeat = time.perf_counter() + 0.05
             lcm.HandleSubscriptions(10)
-    simulator.AdvanceTo(plan.t_end)
+    simulator.AdvanceTo(max(plan.t_end, simulator.get_context().get_time()))
     return ""

@@ -40,16 +40,16 @@ from drake_coop.sensing.force_sensor import FTModel
 
 @dataclass
 class LoopbackResult:
-    """Per robot ``t``, ``lambda_meas`` (the plant's squeeze), ``lambda_d`` and
-    ``tau_commanded`` (the newest command the driver had received at ``t``: the wire's; zero
-    before the first); the status (``ok`` or ``stopped``, with the watchdog's one-line
+    """Per robot ``t``, ``lambda_meas`` (the plant's squeeze), ``lambda_d``,
+    ``tau_commanded`` (the command the driver held at ``t``: the wire's; zero before the
+    first) and ``q`` (the arm's positions at ``t``); the status (``ok`` or ``stopped``, with the watchdog's one-line
     reason) and the wall time.
 
     Attributes
     ----------
     logs : dict of str to dict of str to numpy.ndarray
         ``logs[robot][array]``: ``t`` (s), ``lambda_meas``, ``lambda_d`` (N),
-        ``tau_commanded`` (N·m).
+        ``tau_commanded`` (N·m), ``q`` (rad).
     status : str
         ``ok`` or ``stopped``.
     message : str
@@ -217,6 +217,8 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     truth = add_squeeze_truth(builder, scenario, driver, plan.h)
     wire = [LogVectorOutput(arm.driver.get_output_port(1), builder,
                             publish_period=plan.h) for arm in driver.arms]
+    states = [LogVectorOutput(driver.coop.plant.get_state_output_port(arm.instance), builder,
+                              publish_period=plan.h) for arm in driver.coop.arms]
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
@@ -247,7 +249,8 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
         tau = wire[i].FindLog(context).data().T[:n]
         logs[robot.name] = {"t": t, "lambda_meas": lam[:, 0] if m == 1 else lam,
                             "lambda_d": lam_d[:, 0] if m == 1 else lam_d,
-                            "tau_commanded": tau}
+                            "tau_commanded": tau,
+                            "q": states[i].FindLog(context).data().T[:n, :layout.n]}
     return LoopbackResult(logs=logs, status=status, message=message, wall_time=wall)
 
 
