@@ -50,6 +50,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm
+from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import DiagramBuilder, OutputPort, TriggerType
 from pydrake.systems.lcm import LcmInterfaceSystem, LcmPublisherSystem, LcmSubscriberSystem
 from pydrake.systems.primitives import PassThrough, TrajectorySource
@@ -177,11 +178,14 @@ class DriverSide:
         One per arm.
     clock : DriverClock
         The drivers' clock.
+    keep : list
+        Objects kept alive with the systems (the arms' models).
     """
 
     coop: CoopPlant
     arms: list[ArmDriver]
     clock: DriverClock | None = None
+    keep: list = field(default_factory=list, repr=False)
 
     def fault(self, context) -> str:
         """The first emulated driver's stop (one line), or ``''``.
@@ -458,7 +462,7 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
     plant = coop.plant
     joints = [plant.num_positions(a.instance) for a in coop.arms]
     specs = specs if specs is not None else driver_specs(scenario, joints)
-    arms = []
+    arms, keep = [], []
     for handles, robot, spec in zip(coop.arms, scenario.robots, specs):
         name, n = robot.name, spec.n
         arm_clock = (clock if clock is not None and spec.time_base == "epoch"
@@ -467,10 +471,16 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
         cmd_sub = builder.AddNamedSystem(f"{name}_command_subscriber", LcmSubscriberSystem.Make(
             spec.command_channel, SharedPandaCommand, lcm))
         driver = builder.AddNamedSystem(f"{name}_driver", TorqueDriver(
-            spec, model.g, arm_clock, lcm, model=model, emulate=emulate,
-            low_pass_hz=low_pass_hz))
+            spec, arm_clock, lcm, model=model, emulate=emulate, low_pass_hz=low_pass_hz))
+        # the robot's g(q): C++ gravity compensation on the arm's own model (kept alive)
+        gravity = builder.AddNamedSystem(f"{name}_robot_gravity", InverseDynamics(
+            model.plant, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
+        keep.append(model)
+        state = plant.get_state_output_port(handles.instance)
         builder.Connect(cmd_sub.get_output_port(), driver.get_input_port(0))
-        builder.Connect(plant.get_state_output_port(handles.instance), driver.get_input_port(1))
+        builder.Connect(state, driver.get_input_port(1))
+        builder.Connect(state, gravity.get_input_port(0))
+        builder.Connect(gravity.get_output_port(0), driver.get_input_port(2))
         builder.Connect(driver.get_output_port(0), plant.get_actuation_input_port(handles.instance))
         arms.append(ArmDriver(spec=spec, command_subscriber=cmd_sub, driver=driver))
-    return DriverSide(coop=coop, arms=arms, clock=clock)
+    return DriverSide(coop=coop, arms=arms, clock=clock, keep=keep)

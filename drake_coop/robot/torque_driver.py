@@ -14,8 +14,10 @@ the arm's state ``q, v`` at ``t``, ``now`` the driver's clock in its time base, 
     on the arm:  τ = τ_d + g(q)    if gravity in (robot_adds, driver_subtracts) or none held,
                  τ = τ_d           otherwise (gravity: none)
 
-with ``g(q)`` the arm's own gravity torque (the robot's model: the arm's exact model here, so
-a ``driver_subtracts`` command reaches the arm as sent). The driver holds each arm until that
+with ``g(q)`` the arm's own gravity torque (its ``gravity`` input: the robot's model, the
+arm's exact model in :func:`~drake_coop.robot.drivers.add_driver_side`, Drake's C++
+``InverseDynamics`` in gravity-compensation mode; so a ``driver_subtracts`` command reaches
+the arm as sent). The driver holds each arm until that
 arm's own first command (another arm's command releases nothing).
 
 The plain simulated driver clips ``τ_d`` to the driver's torque limits and takes a
@@ -29,15 +31,16 @@ no clipping; ``τ_d`` passed through libfranka's control loop as the driver call
 (``limit_rate`` on, cutoff ``--low_pass_freq`` = 30 Hz): first-order low-pass against the
 last ``τ_d`` sent, ``y = a x + (1 − a) y₋``, ``a = T / (T + 1/(2π f_c))``, then the rate
 limit ``|Δτ_d| ≤ 1000 N·m/s · T`` (``T`` = 1 ms, libfranka's cycle); the status's
-``joint_torque_external`` an estimate of the external torque from the arm's model,
-``H(q)(v − v₋)/c + C(q, v)v + g(q) − τ₋``.
+``joint_torque_external`` an estimate of the external torque from the arm's model with
+Franka's sign (``tau_ext_hat_filtered``, the negative of the environment's torque on the arm,
+as Drake's ``lcmt_panda_status`` says): ``τ₋ − (H(q)(v − v₋)/c + C(q, v)v + g(q))``.
 """
 
 from __future__ import annotations
 
 import math
+import struct
 import time
-from typing import Callable
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -149,12 +152,14 @@ class TorqueDriver(LeafSystem):
         input_ports:
         - command
         - state
+        - gravity
         output_ports:
         - tau_applied
         - tau_commanded
 
     ``command``: the newest ``lcmt_panda_command`` received (a subscriber's output);
-    ``state``: the arm's ``[q, v]`` (2n). ``tau_applied``: the torque on the arm from this
+    ``state``: the arm's ``[q, v]`` (2n); ``gravity``: the robot's ``g(q)`` at that state (n,
+    N·m). ``tau_applied``: the torque on the arm from this
     cycle (gravity included), ``tau_commanded``: the held command's torque as received (0
     while none is held).
 
@@ -162,8 +167,6 @@ class TorqueDriver(LeafSystem):
     ----------
     spec : DriverSpec
         The arm's driver (conventions, expiry, damping, limits, channel).
-    gravity : Callable[[numpy.ndarray], numpy.ndarray]
-        The arm's gravity torque ``g(q)`` (N·m).
     clock : DriverClock
         The driver's clock.
     lcm : DrakeLcmInterface or None
@@ -181,7 +184,7 @@ class TorqueDriver(LeafSystem):
         ``emulate`` of an arm without 7 joints, or an unknown ``emulate``.
     """
 
-    def __init__(self, spec, gravity: Callable, clock: DriverClock, lcm=None, model=None,
+    def __init__(self, spec, clock: DriverClock, lcm=None, model=None,
                  emulate: str | None = None, low_pass_hz: float = FRANKA_LOW_PASS_HZ):
         super().__init__()
         if emulate not in (None, EMULATE):
@@ -190,7 +193,7 @@ class TorqueDriver(LeafSystem):
         if emulate and n != FRANKA_JOINTS:
             raise ValueError(f"robots: {spec.robot} has {n} joints; {EMULATE} serves "
                              f"{FRANKA_JOINTS} only")
-        self._spec, self._n, self._g, self._clock = spec, n, gravity, clock
+        self._spec, self._n, self._clock = spec, n, clock
         self._lcm, self._model, self._emulate = lcm, model, emulate
         self._kd = np.asarray(spec.damping, dtype=float)
         self._limits = (None if emulate or spec.torque_limits is None
@@ -204,12 +207,15 @@ class TorqueDriver(LeafSystem):
         self._msg = self.DeclareAbstractInputPort(
             "command", AbstractValue.Make(SharedPandaCommand()))
         self._state = self.DeclareVectorInputPort("state", 2 * n)
+        self._gravity = self.DeclareVectorInputPort("gravity", n)
         self._applied = self.DeclareDiscreteState(n)
         self._commanded = self.DeclareDiscreteState(n)
-        self._tau_d = self.DeclareDiscreteState(n)          # τ_d sent (libfranka's tau_J_d)
-        self._v_prev = self.DeclareDiscreteState(n)
-        # newest utime seen, held (0/1), fault code
-        self._memo = self.DeclareDiscreteState(np.array([-math.inf, 0.0, 0.0]))
+        # memory: τ_d sent (libfranka's tau_J_d), v of the cycle, [newest utime seen,
+        # held (0/1), fault code]
+        self._memo = self.DeclareDiscreteState(np.concatenate(
+            [np.zeros(2 * n), [-math.inf, 0.0, 0.0]]))
+        self._format = struct.Struct(f">8sqi{8 * n}ddbqb")
+        self._fingerprint = lcmt_panda_status._get_packed_fingerprint()
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, spec.clock_phase, self._update)
         if lcm is not None:
             self.DeclarePeriodicPublishEvent(self._period, spec.clock_phase, self._publish)
@@ -230,22 +236,23 @@ class TorqueDriver(LeafSystem):
         str
             The one-line reason, or ``''``.
         """
-        code = int(context.get_discrete_state(self._memo).get_value()[2])
+        code = int(context.get_discrete_state(self._memo).get_value()[-1])
         return "" if code == 0 else f"{self._spec.command_channel}: {FAULTS[code]}"
 
     def _update(self, context: Context, state: State) -> None:
         n = self._n
         x = self._state.Eval(context)
-        q, v = np.asarray(x[:n]), np.asarray(x[n:])
+        v = np.asarray(x[n:])
         msg = self._msg.Eval(context)
-        seen, held, fault = context.get_discrete_state(self._memo).get_value()
+        memo = context.get_discrete_state(self._memo).get_value()
+        last, (seen, held, fault) = memo[:n], memo[2 * n:]
         now = self._clock.utime(context.get_time())
         if fault == 0 and not _no_message(msg) and msg.utime != seen:
             seen, held = float(msg.utime), 1.0          # a new command: held
         if held and abs(now - int(seen)) > self._expire_us:
             held = 0.0                                  # expired: dropped for good
         tau_cmd = np.zeros(n)
-        g = np.asarray(self._g(q), dtype=float)
+        g = np.asarray(self._gravity.Eval(context), dtype=float)
         if held and fault == 0:
             code = command_fault(msg, n)
             if code and self._emulate:
@@ -259,7 +266,6 @@ class TorqueDriver(LeafSystem):
         else:
             tau_d = -self._kd * v
         if self._emulate:
-            last = context.get_discrete_state(self._tau_d).get_value()
             if self._alpha is not None:
                 tau_d = self._alpha * tau_d + (1.0 - self._alpha) * last
             step = FRANKA_TORQUE_RATE * FRANKA_CYCLE
@@ -268,14 +274,14 @@ class TorqueDriver(LeafSystem):
             tau_d = np.clip(tau_d, -self._limits, self._limits)
         adds = not held or self._spec.gravity != "none"
         tau = tau_d + g if adds else tau_d
-        state.get_mutable_discrete_state(self._v_prev).SetFromVector(v)
-        state.get_mutable_discrete_state(self._tau_d).SetFromVector(tau_d)
+        state.get_mutable_discrete_state(self._memo).SetFromVector(
+            np.concatenate([tau_d, v, [seen, held, fault]]))
         state.get_mutable_discrete_state(self._applied).SetFromVector(tau)
         state.get_mutable_discrete_state(self._commanded).SetFromVector(tau_cmd)
-        state.get_mutable_discrete_state(self._memo).SetFromVector([seen, held, fault])
 
     def external_torque(self, q, v, v_prev, tau) -> np.ndarray:
-        """The external-torque estimate ``H(q)(v − v₋)/c + C(q, v)v + g(q) − τ``.
+        """The external-torque estimate with Franka's sign (``tau_ext_hat_filtered``):
+        ``τ − (H(q)(v − v₋)/c + C(q, v)v + g(q))``.
 
         Parameters
         ----------
@@ -289,41 +295,29 @@ class TorqueDriver(LeafSystem):
         Returns
         -------
         numpy.ndarray
-            ``τ_ext`` (n,), N·m.
+            The estimate (n,), N·m.
         """
         m = self._model
-        return (m.H(q) @ ((v - v_prev) / self._period) + m.Cv(q, v) + m.g(q)
-                - np.asarray(tau, dtype=float))
+        return np.asarray(tau, dtype=float) - (
+            m.H(q) @ ((v - v_prev) / self._period) + m.Cv(q, v) + m.g(q))
 
     def _publish(self, context: Context) -> None:
         memo = context.get_discrete_state(self._memo).get_value()
-        if memo[2] != 0:
+        if memo[-1] != 0:
             return                                      # the driver has stopped
         n = self._n
         x = np.asarray(self._state.Eval(context))
         q, v = x[:n], x[n:]
         tau = context.get_discrete_state(self._applied).get_value()
-        tau_d = context.get_discrete_state(self._tau_d).get_value()
         ext = np.zeros(n)
         if self._emulate and self._model is not None and context.get_time() > 0:
-            ext = self.external_torque(q, v, context.get_discrete_state(self._v_prev)
-                                       .get_value(), tau)
-        msg = lcmt_panda_status()
-        msg.utime = self._clock.utime(context.get_time())
-        msg.num_joints = n
-        msg.joint_position = q.tolist()
-        msg.joint_position_desired = q.tolist()
-        msg.joint_velocity = v.tolist()
-        msg.joint_velocity_desired = [0.0] * n
-        msg.joint_acceleration_desired = [0.0] * n
-        msg.joint_torque = [float(a) for a in tau]
-        msg.joint_torque_desired = [float(a) for a in tau_d]
-        msg.joint_torque_external = [float(a) for a in ext]
-        msg.control_mode = lcmt_panda_status.CONTROL_MODE_TORQUE
-        msg.robot_mode = lcmt_panda_status.kMove
-        msg.control_command_success_rate = 1.0
-        msg.robot_utime = int(round(context.get_time() * 1e3)) * 1000
-        data = msg.encode()
+            ext = self.external_torque(q, v, memo[n:2 * n], tau)
+        t = context.get_time()
+        zeros = (0.0,) * n
+        data = self._format.pack(
+            self._fingerprint, self._clock.utime(t), n, *q, *q, *v, *zeros, *zeros, *tau,
+            *memo[:n], *ext, 1.0, lcmt_panda_status.kMove, int(round(t * 1e3)) * 1000,
+            lcmt_panda_status.CONTROL_MODE_TORQUE)
         if self.first_status is None:
             self.first_status = data
         self._lcm.Publish(self._spec.status_channel, data)

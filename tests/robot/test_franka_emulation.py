@@ -67,12 +67,13 @@ class Rig:
         self.statuses = []
         self.lcm.Subscribe("PANDA_STATUS", lambda d: self.statuses.append(
             lcmt_panda_status.decode(d)))
-        self.driver = TorqueDriver(spec(n, convention), gravity,
-                                   DriverClock("epoch", origin=ORIGIN), self.lcm,
+        self.driver = TorqueDriver(spec(n, convention), DriverClock("epoch", origin=ORIGIN),
+                                   self.lcm,
                                    emulate=EMULATE, low_pass_hz=low_pass_hz)
         self.sim = Simulator(self.driver)
         self.ctx = self.sim.get_mutable_context()
         self.state = self.driver.get_input_port(1).FixValue(self.ctx, np.concatenate([Q, V]))
+        self.driver.get_input_port(2).FixValue(self.ctx, gravity(Q[:n]))
         self.port = self.driver.get_input_port(0).FixValue(
             self.ctx, AbstractValue.Make(SharedPandaCommand()))
         self.sim.Initialize()
