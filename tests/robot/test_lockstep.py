@@ -1,0 +1,134 @@
+"""Lockstep over the wire (:mod:`drake_coop.robot.lockstep`): ``serve --lockstep`` and
+``sim-driver --lockstep`` as two processes joined by the project's tcpq hub on 127.0.0.1
+give the one-process loopback run (:func:`~drake_coop.robot.loopback.run_loopback`) on any
+machine, however loaded: the arms' positions, the commands the driver held and the squeeze,
+tick by tick."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from drake_coop.robot.lockstep import status_time
+from drake_coop.robot.loopback import run_loopback, squeeze_error
+from drake_coop.robot.tcpq_hub import TcpqHub
+from drake_coop.scenario.loading import dump_scenario, load_scenario
+from drake_coop.scenario.resources import find_scenario
+
+CLI = [sys.executable, "-m", "drake_coop"]
+
+
+def two_processes(tmp_path, scenario_path, t_end, extra=()):
+    """The hub (a thread here), the simulated driver and serve (processes), in lockstep."""
+    hub = TcpqHub(0).start()
+    truth = tmp_path / "truth.npz"
+    common = ["--lcm-url", hub.url, "--lockstep", "--t-end", str(t_end), "--quiet"]
+    try:
+        driver = subprocess.Popen(CLI + ["sim-driver", str(scenario_path), *common,
+                                         "--log", str(truth), "--command-wait", "60", *extra],
+                                  stderr=subprocess.PIPE, text=True)
+        serve = subprocess.Popen(CLI + ["serve", str(scenario_path), *common, "--out",
+                                        str(tmp_path / "run"), "--delay-margin", "0.002",
+                                        "--status-wait", "60"],
+                                 stderr=subprocess.PIPE, text=True)
+        serve_err = serve.communicate(timeout=1800)[1]
+        driver_err = driver.communicate(timeout=120)[1]
+    finally:
+        for proc in ("driver", "serve"):
+            p = locals().get(proc)
+            if p is not None and p.poll() is None:
+                p.kill()
+        hub.stop()
+    assert serve.returncode == 0, serve_err
+    assert driver.returncode == 0, driver_err
+    return dict(np.load(truth))
+
+
+def assert_same_run(logs, truth, rel=1e-6):
+    for i, (name, log) in enumerate(logs.items()):
+        n = len(log["t"])
+        for key, theirs in (("q", truth[f"arm{i}_state"][:n, :log["q"].shape[1]]),
+                            ("tau_commanded", truth[f"arm{i}_tau_commanded"][:n]),
+                            ("lambda_meas", truth["lambda"][:n, i].reshape(
+                                np.shape(log["lambda_meas"])))):
+            ours = np.asarray(log[key], dtype=float)
+            scale = max(np.max(np.abs(ours)), 1e-12)
+            assert theirs.shape == ours.shape, (name, key, theirs.shape, ours.shape)
+            assert np.max(np.abs(theirs - ours)) <= rel * scale, (name, key)
+
+
+def compressed(name, path):
+    s = load_scenario(find_scenario(name))
+    t = s.task
+    t.t_pregrasp, t.t_grasp, t.t_circle_start = 1.0, 1.5, 2.0
+    t.t_circle_end, t.t_release, t.t_end = 4.0, 4.5, 6.0
+    t.force_omega = 3 * np.pi / 2.0
+    path.write_text(dump_scenario(load_scenario(data=dump_scenario(s))))
+    return load_scenario(path)
+
+
+def test_each_tick_reads_the_status_of_its_own_driver_cycle():
+    from drake_coop.robot.driver_spec import DriverSpec
+
+    spec = DriverSpec("r", "panda", "S", "C", 3, 1e-3, None, 0.05, 0.1, "hold")
+    assert status_time(spec, 0.0) == 0.0
+    assert status_time(spec, 0.009) == pytest.approx(0.009, abs=1e-12)
+    late = DriverSpec("r", "panda", "S", "C", 3, 1e-3, None, 0.05, 0.1, "hold",
+                      clock_phase=4e-4)
+    assert status_time(late, 0.0) is None
+    assert status_time(late, 0.009) == pytest.approx(0.0084, abs=1e-12)
+
+
+def test_two_processes_in_lockstep_give_the_loopback_run(tmp_path):
+    """The paper's scenario, 0.3 s: the two processes' run equals the one-process run."""
+    s = load_scenario()
+    path = tmp_path / "paper.yaml"
+    path.write_text(dump_scenario(s))
+    truth = two_processes(tmp_path, path, 0.3)
+    run = run_loopback(s, 0.3)
+    assert run.status == "ok", run.message
+    assert_same_run(run.logs, truth)
+    moved = max(np.max(np.abs(log["q"] - log["q"][0])) for log in run.logs.values())
+    assert moved > 1e-6                        # the arms moved: a comparison that can fail
+
+
+def _circle(tmp_path, name, t_end=2.6):
+    s = compressed(name, tmp_path / f"{name}.yaml")
+    truth = two_processes(tmp_path, tmp_path / f"{name}.yaml", t_end)
+    run = run_loopback(s, t_end)
+    assert run.status == "ok", run.message
+    assert_same_run(run.logs, truth)
+    theirs = {n: dict(log, lambda_meas=truth["lambda"][:len(log["t"]), i].reshape(
+        np.shape(log["lambda_meas"]))) for i, (n, log) in enumerate(run.logs.items())}
+    ours, other = squeeze_error(run.logs, s), squeeze_error(theirs, s)
+    for robot in ours:
+        assert np.isfinite(ours[robot]) and ours[robot] > 0
+        assert abs(other[robot] - ours[robot]) <= 1e-6 * ours[robot], (robot, ours, other)
+
+
+@pytest.mark.slow
+def test_the_paper_circle_in_lockstep(tmp_path):
+    _circle(tmp_path, "paper")
+
+
+def _have_robots() -> bool:
+    from drake_coop.control.arm_plant import description_packages
+
+    return "example-robot-data" in description_packages()
+
+
+ROBOTS = pytest.mark.skipif(not _have_robots(), reason="example-robot-data is not installed "
+                                                       '(pip install -e ".[robots]")')
+
+
+@pytest.mark.slow
+@ROBOTS
+def test_two_pandas_carrying_the_box_in_lockstep(tmp_path):
+    _circle(tmp_path, "two_pandas")
+
+
+@pytest.mark.slow
+@ROBOTS
+def test_a_lab_arm_pair_in_lockstep(tmp_path):
+    _circle(tmp_path, "two_ur5")
