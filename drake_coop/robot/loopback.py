@@ -181,7 +181,8 @@ def tripped(controller: ControllerSide, context: Context) -> str | None:
 
 
 def run_loopback(scenario: Scenario, t_end: float | None = None, *,
-                 lcm_url: str = "memq://") -> LoopbackResult:
+                 lcm_url: str = "memq://", emulate: str | None = None,
+                 low_pass_hz: float | None = None) -> LoopbackResult:
     """Run the experiment with the controller and the simulated driver joined by LCM only.
 
     Parameters
@@ -192,6 +193,11 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
         The run's end, s; None for the task's.
     lcm_url : str
         The LCM URL (``memq://``: in-process).
+    emulate : str or None
+        ``drake-franka-driver``: the simulated driver emulates it
+        (:class:`~drake_coop.robot.torque_driver.TorqueDriver`); None: the plain one.
+    low_pass_hz : float or None
+        The emulation's torque cutoff, Hz; None: the driver's default (30 Hz).
 
     Returns
     -------
@@ -212,7 +218,8 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     builder = DiagramBuilder()
     add_lcm_interface(builder, lcm)
     clock = DriverClock("epoch")          # one simulated clock: the drivers' and the stamps'
-    driver = add_driver_side(builder, scenario, lcm, clock=clock)
+    extra = {} if low_pass_hz is None else {"low_pass_hz": low_pass_hz}
+    driver = add_driver_side(builder, scenario, lcm, clock=clock, emulate=emulate, **extra)
     controller = add_controller_side(builder, scenario, lcm, plan, clock=clock)
     truth = add_squeeze_truth(builder, scenario, driver, plan.h)
     wire = [LogVectorOutput(arm.driver.get_output_port(1), builder,

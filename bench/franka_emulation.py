@@ -1,0 +1,93 @@
+"""What drake-franka-driver's torque mode does to the paper's controller on two Pandas:
+``python -m bench.franka_emulation [--t-end 4.0] [--out docs/results/franka_emulation.json]``.
+
+The loopback run (both sides in one process, ``memq://``,
+:func:`~drake_coop.robot.loopback.run_loopback`) of ``scenarios/two_pandas.yaml`` on a
+compressed task (grasp 1.5 s, circle 2–4 s, as the robot tests compress it), with
+
+* ``plain``: the plain simulated driver (the wire's conventions only: the robot adds g(q),
+  commands expire after 0.1 s);
+* ``emulated``: ``sim-driver --emulate drake-franka-driver``'s driver: libfranka's control loop
+  as the driver calls it, torque low-pass filtered at its ``--low_pass_freq`` (30 Hz) and
+  rate-limited to 1000 N·m/s;
+* ``emulated_unfiltered``: the same with the cutoff at libfranka's "no filter" (1000 Hz),
+  the rate limit alone.
+
+Per case: the run's status and message, the circle's RMS squeeze error per arm (N), the
+wall time and the load average. Simulated time only: the figures do not depend on the
+machine's load (the wall time does).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+CASES = {"plain": (None, None), "emulated": ("drake-franka-driver", None),
+         "emulated_unfiltered": ("drake-franka-driver", 1000.0)}
+
+
+def compressed(name: str):
+    """The scenario with the robot tests' compressed task (circle 2–4 s)."""
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+    from drake_coop.scenario.resources import find_scenario
+
+    s = load_scenario(find_scenario(name))
+    t = s.task
+    t.t_pregrasp, t.t_grasp, t.t_circle_start = 1.0, 1.5, 2.0
+    t.t_circle_end, t.t_release, t.t_end = 4.0, 4.5, 6.0
+    t.force_omega = 3 * np.pi / 2.0
+    return load_scenario(data=dump_scenario(s))
+
+
+def run_case(scenario, t_end: float, emulate, low_pass) -> dict:
+    """One loopback run and its figures."""
+    from drake_coop.robot.loopback import run_loopback, squeeze_error
+
+    start = time.perf_counter()
+    run = run_loopback(scenario, t_end, emulate=emulate, low_pass_hz=low_pass)
+    wall = time.perf_counter() - start
+    error = squeeze_error(run.logs, scenario)
+    reached = max(float(log["t"][-1]) if len(log["t"]) else 0.0 for log in run.logs.values())
+    return {"status": run.status, "message": run.message, "t_reached_s": reached,
+            "circle_squeeze_error_rms_N": {k: (None if not np.isfinite(v) else float(v))
+                                           for k, v in error.items()},
+            "wall_s": wall, "load_after": list(os.getloadavg())}
+
+
+def main(argv=None) -> int:
+    """Run the cases and write the JSON.
+
+    Parameters
+    ----------
+    argv : list of str or None
+        The command line.
+
+    Returns
+    -------
+    int
+        0.
+    """
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", default="two_pandas")
+    parser.add_argument("--t-end", type=float, default=4.0)
+    parser.add_argument("--out", default="docs/results/franka_emulation.json")
+    args = parser.parse_args(argv)
+    scenario = compressed(args.scenario)
+    result = {"scenario": args.scenario, "t_end_s": args.t_end,
+              "task": "compressed: grasp 1.5 s, circle 2-4 s", "load_before":
+              list(os.getloadavg()), "cases": {}}
+    for name, (emulate, low_pass) in CASES.items():
+        result["cases"][name] = run_case(scenario, args.t_end, emulate, low_pass)
+        print(name, json.dumps(result["cases"][name]), flush=True)
+    Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
