@@ -334,7 +334,9 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         if not quiet:
             print(f"drake-coop: serving {', '.join(served)} at h = {plan.h * 1e3:g} ms to "
                   f"t = {plan.t_end:g} s, ticking on "
-                  + ("each status's arrival" if args.tick == "arrival" else "the wall clock"),
+                  + ("the driver's messages (lockstep: simulated time)" if lockstep is not None
+                     else "each status's arrival" if args.tick == "arrival"
+                     else "the wall clock"),
                   file=sys.stderr)
         started = True
         try:
@@ -384,6 +386,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     summary = pacing_summary(record, margin)
     meta = {"status": status, "message": message, "command": "serve",
             "watchdog": trip, "robots": served, "tick": args.tick,
+            "lockstep": lockstep is not None,
             "stop_channel": STOP_CHANNEL,
             "lcm_url": args.lcm_url, "control_period": plan.h,
             "channels": {s.robot: [s.status_channel, s.command_channel] for s in specs},

@@ -47,7 +47,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, LeafSystem, State
 
 from drake import lcmt_panda_status
-from drake_coop.robot.driver_spec import SharedPandaCommand
+from drake_coop.robot.driver_spec import SharedPandaCommand, default_damping
 
 #: The mode name of drake-franka-driver's emulation (``sim-driver --emulate``).
 EMULATE = "drake-franka-driver"
@@ -195,7 +195,7 @@ class TorqueDriver(LeafSystem):
                              f"{FRANKA_JOINTS} only")
         self._spec, self._n, self._clock = spec, n, clock
         self._lcm, self._model, self._emulate = lcm, model, emulate
-        self._kd = np.asarray(spec.damping, dtype=float)
+        self._kd = default_damping(n, spec.damping)
         self._limits = (None if emulate or spec.torque_limits is None
                         else np.asarray(spec.torque_limits, dtype=float))
         self._expire_us = int(spec.command_timeout * 1e6)
