@@ -208,3 +208,38 @@ def test_seven_joints_are_required():
     with pytest.raises(ValueError, match=r"^robots: panda has 3 joints; drake-franka-driver "
                                          r"serves 7 only$"):
         Rig(n=3)
+
+
+class StubModel:
+    """An arm model written here: H = 2 I, no Coriolis, the test's gravity."""
+
+    def H(self, q):
+        return 2.0 * np.eye(7)
+
+    def Cv(self, q, v):
+        return np.zeros(7)
+
+    def g(self, q):
+        return gravity(q)
+
+
+def test_the_external_torque_has_frankas_sign():
+    """An arm held still by its surroundings (its state fixed) while the driver applies
+    τ_d + g(q): the surroundings push back with −τ_d, and Franka's tau_ext_hat_filtered (the
+    negative of the environment's torque) reads +τ_d."""
+    lcm = DrakeLcm("memq://")
+    statuses = []
+    lcm.Subscribe("PANDA_STATUS", lambda d: statuses.append(lcmt_panda_status.decode(d)))
+    driver = TorqueDriver(spec(), DriverClock("epoch", origin=ORIGIN), lcm, model=StubModel(),
+                          emulate=EMULATE, low_pass_hz=FRANKA_NO_FILTER_HZ)
+    sim = Simulator(driver)
+    ctx = sim.get_mutable_context()
+    driver.get_input_port(1).FixValue(ctx, np.concatenate([Q, np.zeros(7)]))
+    driver.get_input_port(2).FixValue(ctx, gravity(Q))
+    tau = np.array([0.4, -0.3, 0.2, 0.1, -0.05, 0.02, 0.01])
+    driver.get_input_port(0).FixValue(ctx, AbstractValue.Make(command(tau, ORIGIN)))
+    sim.Initialize()
+    sim.AdvanceTo(0.0035)
+    lcm.HandleSubscriptions(0)
+    np.testing.assert_allclose(statuses[-1].joint_torque_external, tau, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(statuses[0].joint_torque_external, 0.0)   # t = 0: none yet
