@@ -271,9 +271,7 @@ class ServeLoop:
             q = wd.last_good_position(wd.GetMyContextFromRoot(self.context))
             tau = np.zeros(spec.n) if spec.safe_command == "zero_torque" else arm.hold_torque(q)
             tau = wire_torque(spec, tau, arm.hold_torque(q))     # as the driver reads it
-            utime = (int(time.time() * 1e6) if spec.time_base == "epoch"
-                     else int(round(self.k * self.h * 1e6)))
-            msg = safe_command_message(spec, tau, utime)
+            msg = safe_command_message(spec, tau, arm.command_sender.utime(self.k * self.h))
             self._lcm.Publish(spec.command_channel, msg.encode())
 
 

@@ -76,6 +76,22 @@ class WireCommand(LeafSystem):
         """
         self._echo = None if utime is None else int(utime)
 
+    def utime(self, t: float) -> int:
+        """The stamp of a command sent at the Diagram's time ``t`` (s): the echoed status's
+        ``utime`` + 1 in lockstep, else ``stamp(t)``.
+
+        Parameters
+        ----------
+        t : float
+            The Diagram's time, s.
+
+        Returns
+        -------
+        int
+            µs in the driver's time base.
+        """
+        return self._echo + 1 if self._echo is not None else self._stamp(t)
+
     def wire(self, context: Context) -> np.ndarray:
         """The torque the command carries now (n,), N·m.
 
@@ -97,6 +113,5 @@ class WireCommand(LeafSystem):
         return wire_torque(self._spec, tau, gravity)
 
     def _calc(self, context: Context, value: AbstractValue) -> None:
-        utime = (self._echo + 1 if self._echo is not None
-                 else self._stamp(context.get_time()))
-        value.set_value(torque_command_message(self.wire(context), utime))
+        value.set_value(torque_command_message(self.wire(context),
+                                               self.utime(context.get_time())))
