@@ -48,7 +48,6 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcm
 from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import DiagramBuilder, OutputPort, TriggerType
