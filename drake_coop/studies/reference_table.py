@@ -150,11 +150,12 @@ def _encoders(scenario: Scenario, rng: np.random.Generator, draw: int) -> None:
 
 
 def _timing(scenario: Scenario, rng: np.random.Generator, draw: int) -> None:
-    h = scenario.control_period
+    """A delay ``U(0.5, 2)`` ms and the exponential lateness (mean 1.1 ms) of a stock-kernel
+    Python loop (``studies/timing.yaml``)."""
     for robot in scenario.robots:
-        robot.timing.computation_delay = float(rng.uniform(0.1, 0.5)) * h
-        robot.timing.jitter = "uniform"
-        robot.timing.jitter_scale = float(rng.uniform(0.05, 0.2)) * h
+        robot.timing.computation_delay = float(rng.uniform(0.5e-3, 2e-3))
+        robot.timing.jitter = "exponential"
+        robot.timing.jitter_scale = 1.1e-3
         robot.timing.seed = draw
 
 
@@ -178,7 +179,7 @@ def columns(peaks: dict | None = None) -> tuple[Column, ...]:
     if peaks is not None:
         cols.append(Column("saturation", "torque saturation (lift)", _saturation(peaks)))
     cols += [Column("encoders", "encoders 31 µrad, noise 0.05–0.2 mrad", _encoders),
-             Column("timing", "delay 0.1–0.5 h, jitter", _timing)]
+             Column("timing", "delay 0.5–2 ms, jitter 1.1 ms", _timing)]
     return tuple(cols)
 
 
