@@ -82,16 +82,38 @@ def verdicts(short: dict, full: dict) -> list[dict]:
     return out
 
 
-def cost(out: Path, draws: int = 20) -> dict:
-    """CPU seconds per case by column, and the full table's extrapolated CPU and wall time."""
+def import_cpu() -> float:
+    """CPU seconds of a fresh process importing what a batch imports (pydrake, the
+    simulation): the per-batch overhead."""
+    import resource
+    import subprocess
+    import sys
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run([sys.executable, "-c", "import drake_coop.studies.engines, "
+                    "drake_coop.experiment.simulate, drake_coop.results.metrics"], check=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def cost(folders: list[Path], draws: int = 20, batch: int = 5) -> dict:
+    """CPU seconds per case (the finished cases of ``folders``) and the full table's CPU and
+    two-core wall time at ``draws`` draws, batches of ``batch`` cases."""
     per: dict = {}
-    for r in csv.DictReader(open(out / "cases.csv")):
-        if r["cpu_time_s"] and r["status"] == "ok":
-            per.setdefault(r["column"], []).append(float(r["cpu_time_s"]))
-    mean = {c: float(np.mean(v)) for c, v in per.items()}
-    total = sum(mean.get(c, np.mean(list(mean.values()))) for c in COLUMNS) * len(ROWS) * draws
-    return {"per_case_cpu_s": mean, "cases": len(ROWS) * len(COLUMNS) * draws,
-            "cpu_s": total, "wall_s_on_2_cores": total / 2.0}
+    for out in folders:
+        for path in sorted((out / "cases").glob("*.json")):
+            r = json.loads(path.read_text())
+            if r.get("cpu_time_s") is not None and r["status"] == "ok":
+                per.setdefault(r["params"]["column"], []).append(float(r["cpu_time_s"]))
+    values = [v for vs in per.values() for v in vs]
+    mean = float(np.mean(values))
+    overhead = import_cpu()
+    cases = len(ROWS) * len(COLUMNS) * draws
+    total = cases * (mean + overhead / batch)
+    return {"per_case_mean_cpu_s": mean, "cases_measured": len(values),
+            "per_column_mean_cpu_s": {c: float(np.mean(v)) for c, v in per.items()},
+            "import_cpu_s_per_batch": overhead, "batch": batch, "table_cases": cases,
+            "table_cpu_min": total / 60.0, "table_wall_min_2_cores": total / 120.0}
 
 
 def main() -> None:
@@ -99,11 +121,14 @@ def main() -> None:
     parser.add_argument("--out", required=True)
     parser.add_argument("--draws", type=int, default=6)
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--cost", action="store_true")
+    parser.add_argument("--cost", nargs="+", default=None, metavar="DIR",
+                        help="extrapolate the full table's cost from these tables' cases")
     args = parser.parse_args()
     out = Path(args.out)
     if args.cost:
-        print(json.dumps(cost(out), indent=1))
+        result = cost([Path(d) for d in args.cost])
+        out.write_text(json.dumps(result, indent=1) + "\n")
+        print(json.dumps(result, indent=1))
         return
     table = run_table(out, rows=["observer", "momentum", "sensor_0.3", "sensor_3", "none"],
                       cols=["exact", "model_30"], draws=args.draws, workers=args.workers)
