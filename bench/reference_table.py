@@ -38,7 +38,7 @@ FIGURES = ROOT / "docs" / "figures" / "studies"
 def full_exact() -> dict[str, list[float]]:
     """Study 4's worst-robot circle RMS per source (one run each: no interval)."""
     out = {}
-    names = {("observer", 0.0): "observer", ("sensor", 0.3): "sensor_0.3",
+    names = {("observer", 0.0): "observer", ("sensor", 0.3): "sensor_0p3",
              ("sensor", 3.0): "sensor_3", ("none", 0.0): "none"}
     for r in csv.DictReader(open(FIGURES / "force_sensing_results.csv")):
         key = (r["robots.*.force_source"], float(r["robots.*.force_sensor.noise_std"]))
@@ -51,7 +51,7 @@ def full_exact() -> dict[str, list[float]]:
 def full_model_30() -> dict[str, list[float]]:
     """Study 5's draws with the nominal models: median and its 95 % bootstrap interval."""
     rows = list(csv.DictReader(open(FIGURES / "identified_sources.csv")))
-    names = {"observer": "observer", "momentum": "momentum", "sensor": "sensor_0.3",
+    names = {"observer": "observer", "momentum": "momentum", "sensor": "sensor_0p3",
              "none": "none"}
     return {ours: list(bootstrap_interval(np.array([float(r[theirs]) for r in rows]), 0.5))
             for theirs, ours in names.items()}
@@ -130,7 +130,7 @@ def main() -> None:
         out.write_text(json.dumps(result, indent=1) + "\n")
         print(json.dumps(result, indent=1))
         return
-    table = run_table(out, rows=["observer", "momentum", "sensor_0.3", "sensor_3", "none"],
+    table = run_table(out, rows=["observer", "momentum", "sensor_0p3", "sensor_3", "none"],
                       cols=["exact", "model_30"], draws=args.draws, workers=args.workers)
     result = {}
     for col, full in (("exact", full_exact()), ("model_30", full_model_30())):

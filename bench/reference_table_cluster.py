@@ -6,7 +6,7 @@ node and a worker node with Ray's own command (``ray start --head --port P --num
 process group, ended by its group id when the run is over), then:
 
 1. runs ``drake-coop reference-table --ray 127.0.0.1:P`` (2 rows × 2 columns, ``--draws``
-   draws, a 5.3 s segment, batches of 1 case) and kills one Ray worker process (SIGKILL, the
+   draws, a 6 s segment, batches of 1 case) and kills one Ray worker process (SIGKILL, the
    first ``ray::run_batch`` process found under this run's nodes) while it runs a case;
 2. runs the same command again: the cases finished before are kept, the killed one runs again;
 3. runs the same table locally (``--workers 1``) into ``DIR/local`` and compares the
@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-ROWS, COLS, T_END = "observer,sensor_3", "exact,model_30", "5.3"
+ROWS, COLS, T_END = "observer,sensor_3", "exact,model_30", "6"
 BIN = Path(sys.executable).parent
 
 
@@ -43,23 +43,30 @@ def _table(out: Path, extra: list[str]) -> subprocess.Popen:
                              "1", "--quiet", *extra])
 
 
-def _group_pids(groups: list[int]) -> list[int]:
-    pids = []
+def _descendants(roots: list[int]) -> list[int]:
+    """The processes descended from ``roots`` (Ray's workers are the raylet's children)."""
+    parent = {}
     for entry in Path("/proc").iterdir():
         if entry.name.isdigit():
             try:
-                if os.getpgid(int(entry.name)) in groups:
-                    pids.append(int(entry.name))
-            except ProcessLookupError:
+                stat = (entry / "stat").read_text()
+            except OSError:
                 continue
-    return pids
+            parent[int(entry.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+    found, frontier = [], list(roots)
+    while frontier:
+        pid = frontier.pop()
+        children = [c for c, p in parent.items() if p == pid]
+        found += children
+        frontier += children
+    return found
 
 
 def _kill_one_worker(groups: list[int], timeout: float = 300.0) -> int | None:
-    """SIGKILL the first Ray worker running ``run_batch`` in this run's process groups."""
+    """SIGKILL the first Ray worker running ``run_batch`` under this run's nodes."""
     end = time.time() + timeout
     while time.time() < end:
-        for pid in _group_pids(groups):
+        for pid in _descendants(groups):
             try:
                 cmd = Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
             except OSError:
@@ -97,7 +104,7 @@ def main() -> int:
         run = _table(out / "cluster", ["--ray", address, *draws])
         killed = _kill_one_worker(groups)
         first = run.wait()
-        print(f"first run on {address}: exit {first}, killed Ray worker {killed}")
+        print(f"first run on {address}: exit {first}, killed Ray worker {killed}", flush=True)
         second = _table(out / "cluster", ["--ray", address, *draws]).wait()
         print(f"resumed: exit {second}")
     finally:

@@ -103,7 +103,7 @@ def _source(name: str, noise: float | None = None) -> Callable[[Scenario, int], 
 ROWS: tuple[Row, ...] = (
     Row("observer", "force observer (22)", _source("observer")),
     Row("momentum", "momentum observer", _source("momentum")),
-    Row("sensor_0.3", "F/T sensor, σ = 0.3 N", _source("sensor", 0.3)),
+    Row("sensor_0p3", "F/T sensor, σ = 0.3 N", _source("sensor", 0.3)),
     Row("sensor_3", "F/T sensor, σ = 3 N", _source("sensor", 3.0)),
     Row("none", "none (λ̂ = λ_d)", _source("none")),
 )
