@@ -180,6 +180,13 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     cols = list(cols or COLUMNS)
     if batch < 1 or workers < 1:
         raise ValueError(f"batch and workers: must be >= 1, got {batch} and {workers}")
+    for given, known, what in ((rows, [r.name for r in ROWS], "rows"),
+                               (cols, list(COLUMNS), "columns")):
+        for name in given:
+            if name not in known:
+                raise ValueError(f"{what}: unknown name {name!r}; allowed: {', '.join(known)}")
+    if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
+        raise ValueError(f"draws: must be an integer >= 1, got {draws!r}")
     out.mkdir(parents=True, exist_ok=True)
     scenario = base_scenario(base)
     peaks = calibrate(out, scenario, t_end) if "saturation" in cols else None
@@ -330,8 +337,9 @@ def cmd_reference_table(args: argparse.Namespace) -> int:
         print((Path(args.out) / "table.md").read_text())
     diverged = sum(s["diverged"] for r in table["cells"].values() for s in r.values())
     if table["missing"]:
-        print(f"drake-coop reference-table: {len(table['missing'])} cases did not finish; "
-              "run the same command again to resume", file=sys.stderr)
+        print(f"drake-coop reference-table: {len(table['missing'])} of {table['cases']} cases "
+              "did not finish (a worker died); run the same command again to resume",
+              file=sys.stderr)
         return 1
     return 1 if diverged else 0
 

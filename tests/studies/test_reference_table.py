@@ -90,3 +90,18 @@ def test_table_end_to_end_resumes_and_matches_the_logs(tmp_path):
     assert [f.stat().st_mtime_ns for f in files] == mtimes
     assert again["cells"] == table["cells"]
     assert json.loads((tmp_path / "table.json").read_text())["cells"] == table["cells"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--rows", "bogus"], "rows: unknown name 'bogus'"),
+    (["--columns", "exact,nope"], "columns: unknown name 'nope'"),
+    (["--draws", "0"], "draws: must be an integer >= 1"),
+    (["--workers", "0"], "batch and workers: must be >= 1"),
+])
+def test_command_refuses_bad_input_in_one_line(tmp_path, capsys, args, message):
+    from drake_coop.cli.parser import main
+
+    assert main(["reference-table", "--out", str(tmp_path / "t"), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err and "Traceback" not in err
+    assert not (tmp_path / "t").exists()
