@@ -43,7 +43,8 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues
+from pydrake.common.value import AbstractValue
+from pydrake.systems.framework import BasicVector, Context, DiscreteValues, ValueProducer
 
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.params import check_momentum_gain, check_period
@@ -178,8 +179,15 @@ class OnlineIdentification(ForceSource):
         self._prev = self.DeclareDiscreteState(n * p + n + n * n + 1)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.DeclareForcedDiscreteUpdateEvent(self._update)
+        # The tick's rows and estimate, computed once for the output and the update; they
+        # do not read the torque (read by the update only: no algebraic loop with (13)).
+        self._cache = self.DeclareCacheEntry(
+            "rows and estimate", ValueProducer(
+                allocate=AbstractValue.Make(()).Clone, calc=self._calc_estimate),
+            {self.xd_ticket(), self._q.ticket(), self._v.ticket(), self._reference.ticket()})
         self.DeclareStateOutputPort("theta_hat", self._theta)
-        self.DeclareVectorOutputPort("lambda_hat", m, self._calc_lambda_hat)
+        self.DeclareVectorOutputPort("lambda_hat", m, self._calc_lambda_hat,
+                                     prerequisites_of_calc={self._cache.ticket()})
         self.DeclareStateOutputPort("Delta_F_tilde", self._DF)
 
     def set_initial_state(self, context: Context, q0: np.ndarray,
@@ -208,6 +216,12 @@ class OnlineIdentification(ForceSource):
         return self._n * self._p + self._n + self._n * self._n + 1
 
     def _estimate(self, context: Context):
+        return self._cache.Eval(context)
+
+    def _calc_estimate(self, context: Context, value: AbstractValue) -> None:
+        value.set_value(self._compute(context))
+
+    def _compute(self, context: Context):
         q, v = self._q.Eval(context), self._v.Eval(context)
         theta = context.get_discrete_state(self._theta).value()
         Y_p, Y_b = momentum_rows(self._regressor, q, v)

@@ -112,3 +112,15 @@ def test_online_identification_against_the_simulated_truth(run):
     truth = log["lambda_meas"][circle]
     rms = [np.sqrt(np.mean((lam[circle] - truth) ** 2)) for lam in (lam_online, lam_frozen)]
     assert rms[0] < 0.3 * rms[1]      # measured: 4.4 N against 24.2 N
+
+
+def test_the_force_estimate_does_not_read_the_torque():
+    """``λ̂`` is an output of ``q``, ``q̇̂`` and the state, not of the torque ``τ`` that (13)
+    computes from it (read by the update only): no algebraic loop in a control block."""
+    _, nominal, structure = _arm()
+    block = OnlineIdentification(Regressor(structure), true_parameters(structure, nominal.plant),
+                                 nominal.J_phi, ReferenceLayout(n=3, m=1), 0.009, 25.0)
+    out = block.GetOutputPort("lambda_hat").get_index()
+    feeds = {block.get_input_port(i).get_name(): block.HasDirectFeedthrough(i, out)
+             for i in range(block.num_input_ports())}
+    assert feeds == {"q": True, "qdot_hat": True, "tau": False, "reference": True}
