@@ -105,3 +105,23 @@ def test_command_refuses_bad_input_in_one_line(tmp_path, capsys, args, message):
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err and "Traceback" not in err
     assert not (tmp_path / "t").exists()
+
+
+def test_every_cell_expands_and_the_saturation_limits_follow_the_peaks():
+    """Every row under every column validates as `drake-coop run` validates a scenario; the
+    saturation column's limits are 0.9 × the lift's peak × U(0.95, 1.05), never below 1.02 ×
+    the peak outside the lift."""
+    from drake_coop.studies.reference_table import COLUMNS, ROWS
+
+    peaks = {"robot1": {"lift": [10.0, 20.0, 5.0], "other": [1.0, 30.0, 1.0]},
+             "robot2": {"lift": [8.0, 8.0, 8.0], "other": [1.0, 1.0, 1.0]}}
+    cases = expand_table(load_scenario(), [r.name for r in ROWS], list(COLUMNS), 2,
+                         t_end=T_TINY, peaks=peaks)
+    assert len(cases) == len(ROWS) * len(COLUMNS) * 2
+    assert len({c.hash for c in cases}) == len(cases)
+    for case in cases:
+        if case.params["column"] != "saturation":
+            continue
+        limits = load_scenario(data=case.scenario_yaml).robots[0].actuators.torque_limits
+        assert 0.9 * 10.0 * 0.95 <= limits[0] <= 0.9 * 10.0 * 1.05
+        assert limits[1] == pytest.approx(1.02 * 30.0)       # the peak outside the lift
