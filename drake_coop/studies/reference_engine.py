@@ -37,19 +37,23 @@ from pathlib import Path
 from drake_coop.results.io import atomic_write_text
 from drake_coop.studies.expand import Case
 from drake_coop.studies.reference_table import (
+    ALL_COLUMNS,
     COLUMNS,
+    IDENTIFIED,
     ROWS,
     T_SHORT,
     base_scenario,
     cell_statistics,
     expand_table,
+    identified_name,
     markdown_table,
     per_draw,
     torque_peaks,
 )
 from drake_coop.studies.store import FINISHED, ResultStore
 
-__all__ = ["add_reference_table_parser", "calibrate", "run_batch", "run_table", "write_table"]
+__all__ = ["add_reference_table_parser", "calibrate", "identify_columns", "identify_task",
+           "run_batch", "run_table", "write_table"]
 
 
 class Batch:
@@ -131,6 +135,138 @@ def calibrate(out: Path, base, t_end: float) -> dict:
     return peaks
 
 
+def identify_task(scenario_yaml: str, folder: str, estimator: str, duration: float,
+                  seed: int) -> dict:
+    """Identify every arm of one draw; write the URDFs and ``models.json`` in ``folder``.
+
+    Parameters
+    ----------
+    scenario_yaml : str
+        The draw's scenario (its controller models are the prior).
+    folder : str
+        Where the identified URDFs go.
+    estimator : str
+        ``map_sdp``, ``idim_iv`` or ``didim``.
+    duration : float
+        The excitation's length, s.
+    seed : int
+        The excitation's seed.
+
+    Returns
+    -------
+    dict
+        Robot name -> its identified URDF (absolute path), or ``{"error": message}``.
+    """
+    from drake_coop.identification.report import identify_robot
+    from drake_coop.scenario.loading import load_scenario
+
+    scenario = load_scenario(data=scenario_yaml)
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    models = {}
+    try:
+        for i, robot in enumerate(scenario.robots):
+            ident = identify_robot(scenario, i, duration, seed=seed, estimator=estimator)
+            path = out / f"{ident.name}_identified.urdf"
+            atomic_write_text(path, ident.urdf_text)
+            models[robot.name] = str(path.resolve())
+    except Exception as exc:                       # a result: the column's draw is missing
+        return {"error": f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"}
+    atomic_write_text(out / "models.json", json.dumps(models) + "\n")
+    return models
+
+
+class _Task:
+    """One identification (a column's draw), as the engines take it."""
+
+    def __init__(self, key: tuple, args: tuple):
+        self.key, self.args = key, args
+        self.hash = f"{key[0]}_{key[1]}"
+        self.index = key[1]
+
+
+def identify_columns(out: Path, base, cols: list[str], draws: int, seed: int, *,
+                     workers: int, ray: str | None, quiet: bool) -> dict:
+    """The identified columns' models, identified once per column and draw and kept in
+    ``out/identified/<column>/<draw>/`` (a resume reads them back).
+
+    Parameters
+    ----------
+    out : Path
+        The table's folder.
+    base : Scenario
+        The base scenario.
+    cols : list of str
+        The identified columns.
+    draws : int
+        Draws per cell.
+    seed : int
+        The draws' seed.
+    workers : int
+        Parallel processes.
+    ray : str or None
+        As :func:`run_table`'s.
+    quiet : bool
+        No progress messages.
+
+    Returns
+    -------
+    dict
+        ``models[(column, draw)][robot]``: the URDF's path.
+
+    Raises
+    ------
+    RuntimeError
+        An identification failed (its message).
+    """
+    import numpy as np
+
+    from drake_coop.scenario.loading import dump_scenario
+    from drake_coop.studies.reference_table import _model_30, compress
+
+    spec = {identified_name(m, b): (m, b) for m, b in IDENTIFIED}
+    k = list(ALL_COLUMNS).index("model_30")
+    models, tasks = {}, []
+    for col in cols:
+        for draw in range(draws):
+            folder = out / "identified" / col / str(draw)
+            if (folder / "models.json").is_file():
+                models[(col, draw)] = json.loads((folder / "models.json").read_text())
+                continue
+            s = compress(base)
+            _model_30(s, np.random.default_rng([seed, k, draw]), draw)
+            tasks.append(_Task((col, draw), (dump_scenario(s), str(folder), *spec[col],
+                                             draw)))
+    failed = []
+
+    def on_result(task: _Task, result: dict) -> None:
+        if "error" in result:
+            failed.append(f"{task.key[0]} draw {task.key[1]}: {result['error']}")
+        else:
+            models[task.key] = result
+        if not quiet:
+            print(f"reference table: identified {len(models)} of {len(cols) * draws}",
+                  file=sys.stderr)
+
+    if tasks:
+        _run(tasks, identify_task, lambda t: t.args, on_result,
+             lambda message: {"error": message}, ray=ray, workers=workers)
+    if failed:
+        raise RuntimeError(f"identification failed: {failed[0]}")
+    return models
+
+
+def _run(tasks: list, work, args_of, on_result, on_death, *, ray: str | None,
+         workers: int) -> None:
+    if ray is None:
+        from drake_coop.studies.engines import run_in_processes
+
+        run_in_processes(tasks, work, args_of, on_result, on_death, workers=workers)
+    else:
+        _run_ray(tasks, work, args_of, on_result, on_death, address=ray or None,
+                 workers=workers)
+
+
 def _batches(cases: list[Case], size: int) -> list[Batch]:
     cells: dict = {}
     for case in cases:
@@ -181,7 +317,7 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     if batch < 1 or workers < 1:
         raise ValueError(f"batch and workers: must be >= 1, got {batch} and {workers}")
     for given, known, what in ((rows, [r.name for r in ROWS], "rows"),
-                               (cols, list(COLUMNS), "columns")):
+                               (cols, list(ALL_COLUMNS), "columns")):
         for name in given:
             if name not in known:
                 raise ValueError(f"{what}: unknown name {name!r}; allowed: {', '.join(known)}")
@@ -190,7 +326,11 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     out.mkdir(parents=True, exist_ok=True)
     scenario = base_scenario(base)
     peaks = calibrate(out, scenario, t_end) if "saturation" in cols else None
-    cases = expand_table(scenario, rows, cols, draws, seed=seed, t_end=t_end, peaks=peaks)
+    id_cols = [c for c in cols if c.startswith("id_")]
+    models = (identify_columns(out, scenario, id_cols, draws, seed, workers=workers, ray=ray,
+                               quiet=quiet) if id_cols else None)
+    cases = expand_table(scenario, rows, cols, draws, seed=seed, t_end=t_end, peaks=peaks,
+                         models=models)
     store = ResultStore(out)
     records = store.load()
     todo = [c for c in cases if c.hash not in records]
@@ -211,23 +351,18 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
             print(f"reference table: {sum(c.hash in records for c in cases)} of {len(cases)}",
                   file=sys.stderr)
 
-    batches = _batches(todo, batch)
-    if ray is None:
-        from drake_coop.studies.engines import run_in_processes
-
-        run_in_processes(batches, run_batch,
-                         lambda b: ([(c.hash, c.scenario_yaml) for c in b.cases], t_end),
-                         on_result, _batch_died, workers=workers)
-    else:
-        _run_ray(batches, t_end, on_result, address=ray or None, workers=workers)
+    _run(_batches(todo, batch), run_batch,
+         lambda b: ([(c.hash, c.scenario_yaml) for c in b.cases], t_end), on_result,
+         _batch_died, ray=ray, workers=workers)
     table = write_table(out, cases, records, rows, cols)
     table["missing"] = [c.hash for c in cases if c.hash not in records]
     return table
 
 
-def _run_ray(batches: list[Batch], t_end: float, on_result, *, address: str | None,
+def _run_ray(tasks: list, work, args_of, on_result, on_death, *, address: str | None,
              workers: int) -> None:
-    """The batches as Ray tasks (workers reused across tasks); a failed task is not saved."""
+    """The tasks as Ray tasks (workers reused across tasks); a failed task gives
+    ``on_death(message)``, which is not saved."""
     import ray
 
     started = not ray.is_initialized()
@@ -237,19 +372,18 @@ def _run_ray(batches: list[Batch], t_end: float, on_result, *, address: str | No
                      configure_logging=False)
         else:
             ray.init(address=address, log_to_driver=False, configure_logging=False)
-    task = ray.remote(num_cpus=1, max_retries=0)(run_batch)
-    refs = {task.remote([(c.hash, c.scenario_yaml) for c in b.cases], t_end): b
-            for b in batches}
+    remote = ray.remote(num_cpus=1, max_retries=0)(work)
+    refs = {remote.remote(*args_of(t)): t for t in tasks}
     pending = list(refs)
     try:
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
             for ref in done:
                 try:
-                    results = ray.get(ref)
+                    result = ray.get(ref)
                 except (ray.exceptions.RayError, OSError) as exc:
-                    results = _batch_died(f"its Ray task failed: {type(exc).__name__}")
-                on_result(refs[ref], results)
+                    result = on_death(f"its Ray task failed: {type(exc).__name__}")
+                on_result(refs[ref], result)
     finally:
         if started:
             ray.shutdown()
@@ -333,6 +467,9 @@ def cmd_reference_table(args: argparse.Namespace) -> int:
     except ValueError as exc:
         print(f"drake-coop reference-table: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
+    except RuntimeError as exc:            # the calibration or an identification failed
+        print(f"drake-coop reference-table: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 1
     if not args.quiet:
         print((Path(args.out) / "table.md").read_text())
     diverged = sum(s["diverged"] for r in table["cells"].values() for s in r.values())
@@ -358,8 +495,9 @@ def add_reference_table_parser(sub) -> None:
     p.add_argument("--draws", type=int, default=20, help="paired draws per cell (default 20)")
     p.add_argument("--rows", default=None, help="comma-separated rows (default: all: "
                    + ",".join(r.name for r in ROWS) + ")")
-    p.add_argument("--columns", default=None, help="comma-separated columns (default: all: "
-                   + ",".join(COLUMNS) + ")")
+    p.add_argument("--columns", default=None, help="comma-separated columns (default: "
+                   + ",".join(COLUMNS) + "; also " + ",".join(
+                       c for c in ALL_COLUMNS if c not in COLUMNS) + ")")
     p.add_argument("--seed", type=int, default=1, help="the draws' seed (default 1)")
     p.add_argument("--t-end", type=float, default=T_SHORT, metavar="S",
                    help=f"every case's end (default {T_SHORT:g} s)")

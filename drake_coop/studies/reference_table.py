@@ -38,8 +38,9 @@ from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario
 from drake_coop.studies.expand import Case, case_hash
 
-__all__ = ["COLUMNS", "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval",
-           "cell_statistics", "compress", "expand_table", "markdown_table", "per_draw"]
+__all__ = ["ALL_COLUMNS", "COLUMNS", "IDENTIFIED", "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval",
+           "cell_statistics", "compress", "expand_table", "identified_name", "markdown_table",
+           "per_draw"]
 
 #: The compressed task: the paper's phases shortened before the circle (s).
 SEGMENT = {"t_pregrasp": 2.0, "t_grasp": 3.0, "t_circle_start": 5.0, "t_circle_end": 45.0,
@@ -83,11 +84,48 @@ class Column:
     apply : callable
         ``apply(scenario, rng, draw)``: puts the run under the error, in place; ``rng`` is the
         column's generator for this draw (the same for every row).
+    draws_like : str or None
+        Another column whose generator this one's draws use (an identified column draws its
+        prior as the ±30 % column does); None: its own.
     """
 
     name: str
     label: str
     apply: Callable[[Scenario, np.random.Generator, int], None]
+    draws_like: str | None = None
+
+
+#: The identified columns: (estimator, excitation length in s), identified from the ±30 %
+#: column's draw (its controller models are the identification's prior).
+IDENTIFIED = tuple((m, b) for b in (2.0, 5.0, 10.0) for m in ("map_sdp", "idim_iv", "didim"))
+
+
+def identified_name(estimator: str, duration: float) -> str:
+    """The column name of an identified column, e.g. ``id_didim_5s``.
+
+    Parameters
+    ----------
+    estimator : str
+        ``map_sdp``, ``idim_iv`` or ``didim``.
+    duration : float
+        The excitation's length, s.
+
+    Returns
+    -------
+    str
+        The name.
+    """
+    return f"id_{estimator}_{duration:g}s"
+
+
+def _identified(models: dict, name: str) -> Callable:
+    def apply(scenario: Scenario, rng: np.random.Generator, draw: int) -> None:
+        _model_30(scenario, rng, draw)           # the prior: the ±30 % column's draw
+        for robot in scenario.robots:
+            robot.controller_model = models[(name, draw)][robot.name]
+            e = robot.model_error
+            e.mass_scale = e.inertia_scale = e.damping_scale = 1.0
+    return apply
 
 
 def _source(name: str, noise: float | None = None) -> Callable[[Scenario, int], None]:
@@ -159,14 +197,18 @@ def _timing(scenario: Scenario, rng: np.random.Generator, draw: int) -> None:
         robot.timing.seed = draw
 
 
-def columns(peaks: dict | None = None) -> tuple[Column, ...]:
-    """The table's error sources (the saturation column needs the calibration's peaks).
+def columns(peaks: dict | None = None, models: dict | None = None) -> tuple[Column, ...]:
+    """The table's error sources (the saturation column needs the calibration's peaks, the
+    identified columns their models).
 
     Parameters
     ----------
     peaks : dict or None
         ``peaks[robot]["lift" | "other"]``: the exact run's peak |τ| per joint (N·m) over the
         lift and outside it; None leaves the saturation column out.
+    models : dict or None
+        ``models[(column, draw)][robot]``: the identified URDF of each identified column's
+        draw; None leaves the identified columns out.
 
     Returns
     -------
@@ -180,11 +222,18 @@ def columns(peaks: dict | None = None) -> tuple[Column, ...]:
         cols.append(Column("saturation", "torque saturation (lift)", _saturation(peaks)))
     cols += [Column("encoders", "encoders 31 µrad, noise 0.05–0.2 mrad", _encoders),
              Column("timing", "delay 0.5–2 ms, jitter 1.1 ms", _timing)]
+    if models is not None:
+        cols += [Column(identified_name(m, b), f"identified, {m}, {b:g} s",
+                        _identified(models, identified_name(m, b)), draws_like="model_30")
+                 for m, b in IDENTIFIED]
     return tuple(cols)
 
 
-#: The column names (the saturation column included).
+#: The column names of the default table (the saturation column included, the identified
+#: columns not: ``--columns`` names them, :data:`ALL_COLUMNS`).
 COLUMNS = tuple(c.name for c in columns({}))
+#: Every column name.
+ALL_COLUMNS = tuple(c.name for c in columns({}, {}))
 
 
 def compress(scenario: Scenario) -> Scenario:
@@ -207,8 +256,8 @@ def compress(scenario: Scenario) -> Scenario:
 
 
 def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *,
-                 seed: int = 1, t_end: float = T_SHORT, peaks: dict | None = None
-                 ) -> list[Case]:
+                 seed: int = 1, t_end: float = T_SHORT, peaks: dict | None = None,
+                 models: dict | None = None) -> list[Case]:
     """The table's cases, cell by cell (row outer, column, then draw), each validated.
 
     Parameters
@@ -225,6 +274,8 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
         Every case's end (s).
     peaks : dict or None
         The saturation column's calibration (:func:`columns`); needed when ``cols`` names it.
+    models : dict or None
+        The identified columns' models (:func:`columns`); needed when ``cols`` names one.
 
     Returns
     -------
@@ -242,8 +293,8 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
         raise ValueError(f"draws: must be an integer >= 1, got {draws!r}")
     known_rows = {r.name: r for r in ROWS}
-    table_cols = {c.name: (k, c) for k, c in enumerate(columns(peaks if peaks is not None
-                                                                else {}))}
+    table_cols = {c.name: (k, c) for k, c in enumerate(columns(
+        peaks if peaks is not None else {}, models if models is not None else {}))}
     for name in rows:
         if name not in known_rows:
             raise ValueError(f"rows: unknown row {name!r}; allowed: {', '.join(known_rows)}")
@@ -253,12 +304,17 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
                              f"{', '.join(table_cols)}")
     if "saturation" in cols and peaks is None:
         raise ValueError("columns: saturation needs the calibration run's peaks")
+    for col in cols:
+        if col.startswith("id_") and not all((col, d) in (models or {}) for d in range(draws)):
+            raise ValueError(f"columns: {col} needs its identified models")
     short = compress(base)
     cases: list[Case] = []
     cache: dict = {}
     for row in rows:
         for col in cols:
             k, column = table_cols[col]
+            if column.draws_like is not None:
+                k = table_cols[column.draws_like][0]
             for draw in range(draws):
                 s = copy.deepcopy(short)
                 column.apply(s, np.random.default_rng([seed, k, draw]), draw)
@@ -404,7 +460,7 @@ def markdown_table(table: dict, key: str = "squeeze") -> str:
     """
     rows, cols = table["rows"], table["columns"]
     labels = {r.name: r.label for r in ROWS}
-    col_labels = {c.name: c.label for c in columns({})}
+    col_labels = {c.name: c.label for c in columns({}, {})}
     head = ["force source", *[col_labels[c] for c in cols], "dominant error source"]
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for row in rows:

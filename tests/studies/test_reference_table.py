@@ -125,3 +125,25 @@ def test_every_cell_expands_and_the_saturation_limits_follow_the_peaks():
         limits = load_scenario(data=case.scenario_yaml).robots[0].actuators.torque_limits
         assert 0.9 * 10.0 * 0.95 <= limits[0] <= 0.9 * 10.0 * 1.05
         assert limits[1] == pytest.approx(1.02 * 30.0)       # the peak outside the lift
+
+
+def test_identified_columns_take_their_models_and_refuse_without(tmp_path):
+    """An identified column runs each draw on that draw's identified URDFs (the model error's
+    scales reset: the identified model replaces the ±30 % prior); without them, one line."""
+    from pathlib import Path
+
+    from drake_coop.studies.reference_table import ALL_COLUMNS, identified_name
+
+    col = identified_name("didim", 5.0)
+    assert col in ALL_COLUMNS
+    urdf = Path(__file__).resolve().parents[2] / "urdf"
+    models = {(col, 0): {"robot1": str(urdf / "crs_a465_3dof.urdf"),
+                         "robot2": str(urdf / "crs_a255_3dof.urdf")}}
+    (case,) = expand_table(load_scenario(), ["observer"], [col], 1, t_end=T_TINY,
+                           models=models)
+    robots = load_scenario(data=case.scenario_yaml).robots
+    assert [r.controller_model for r in robots] == [models[(col, 0)]["robot1"],
+                                                   models[(col, 0)]["robot2"]]
+    assert all(r.model_error.mass_scale == 1.0 for r in robots)
+    with pytest.raises(ValueError, match=f"columns: {col} needs its identified models"):
+        expand_table(load_scenario(), ["observer"], [col], 2, t_end=T_TINY, models=models)
