@@ -158,9 +158,20 @@ def _model_30(scenario: Scenario, rng: np.random.Generator, draw: int) -> None:
                                                           rng.uniform(0.7, 1.3, 3))
 
 
+#: Joint counts per robot, by the robots' model files (parsing a lab arm's takes seconds).
+_JOINTS: dict = {}
+
+
 def _coulomb(scenario: Scenario, rng: np.random.Generator, draw: int) -> None:
-    for robot in scenario.robots:
-        robot.model_error.coulomb_friction = [float(v) for v in rng.uniform(0.0, 1.0, 3)]
+    """Coulomb friction ``U(0, 1)`` N·m on every joint of every arm (its joint count read
+    from its model: a lab arm has more than the paper's three)."""
+    from drake_coop.scenario.model_check import check_models
+
+    key = tuple((r.model, r.controller_model, tuple(r.locked_joints)) for r in scenario.robots)
+    if key not in _JOINTS:
+        _JOINTS[key] = check_models(scenario)
+    for robot, joints in zip(scenario.robots, _JOINTS[key]):
+        robot.model_error.coulomb_friction = [float(v) for v in rng.uniform(0.0, 1.0, joints)]
 
 
 #: Torque limits of the saturation column: each joint's limit is this fraction of the peak
