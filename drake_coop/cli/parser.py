@@ -90,6 +90,8 @@ def build_parser() -> argparse.ArgumentParser:
     ident.set_defaults(func=cmd_identify)
     from drake_coop.studies.cli import add_study_parser
     add_study_parser(sub)
+    from drake_coop.studies.reference_engine import add_reference_table_parser
+    add_reference_table_parser(sub)
     from drake_coop.stability.cli import add_stability_parser
     add_stability_parser(sub)
     from drake_coop.stability.gains_cli import add_gains_parser

@@ -1,0 +1,130 @@
+"""The reference table on a Ray cluster of two nodes on 127.0.0.1, a worker killed, resumed.
+
+``python bench/reference_table_cluster.py --out DIR [--draws 2] [--port 6391]`` starts a head
+node and a worker node with Ray's own command (``ray start --head --port P --num-cpus 1
+--block`` and ``ray start --address 127.0.0.1:P --num-cpus 1 --block``, each in its own
+process group, ended by its group id when the run is over), then:
+
+1. runs ``drake-coop reference-table --ray 127.0.0.1:P`` (2 rows × 2 columns, ``--draws``
+   draws, a 6 s segment, batches of 1 case) and kills one Ray worker process (SIGKILL, the
+   first ``ray::run_batch`` process found under this run's nodes) while it runs a case;
+2. runs the same command again: the cases finished before are kept, the killed one runs again;
+3. runs the same table locally (``--workers 1``) into ``DIR/local`` and compares the
+   per-case numbers (``cases.csv``) of the two: the same seeds must give the same numbers.
+
+Prints one line per step and ``same numbers: True/False``; exit 1 when they differ or a case
+is missing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROWS, COLS, T_END = "observer,sensor_3", "exact,model_30", "6"
+BIN = Path(sys.executable).parent
+
+
+def _start(args: list[str], log: Path) -> subprocess.Popen:
+    return subprocess.Popen([str(BIN / "ray"), "start", *args, "--block"],
+                            stdout=open(log, "w"), stderr=subprocess.STDOUT,
+                            start_new_session=True)
+
+
+def _table(out: Path, extra: list[str]) -> subprocess.Popen:
+    return subprocess.Popen([str(BIN / "drake-coop"), "reference-table", "--out", str(out),
+                             "--rows", ROWS, "--columns", COLS, "--t-end", T_END, "--batch",
+                             "1", "--quiet", *extra])
+
+
+def _descendants(roots: list[int]) -> list[int]:
+    """The processes descended from ``roots`` (Ray's workers are the raylet's children)."""
+    parent = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            parent[int(entry.name)] = int(stat.rsplit(")", 1)[1].split()[1])
+    found, frontier = [], list(roots)
+    while frontier:
+        pid = frontier.pop()
+        children = [c for c, p in parent.items() if p == pid]
+        found += children
+        frontier += children
+    return found
+
+
+def _kill_one_worker(groups: list[int], timeout: float = 300.0) -> int | None:
+    """SIGKILL the first Ray worker running ``run_batch`` under this run's nodes."""
+    end = time.time() + timeout
+    while time.time() < end:
+        for pid in _descendants(groups):
+            try:
+                cmd = Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace")
+            except OSError:
+                continue
+            if "run_batch" in cmd:
+                time.sleep(1.0)            # inside its case
+                os.kill(pid, signal.SIGKILL)
+                return pid
+        time.sleep(0.2)
+    return None
+
+
+def _numbers(out: Path) -> dict:
+    with open(out / "cases.csv") as f:
+        return {r["hash"]: (r["status"], r["squeeze"], r["estimate"]) for r in csv.DictReader(f)}
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--draws", type=int, default=2)
+    parser.add_argument("--port", type=int, default=6391)
+    args = parser.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    address = f"127.0.0.1:{args.port}"
+    draws = ["--draws", str(args.draws)]
+    nodes = [_start(["--head", "--port", str(args.port), "--num-cpus", "1",
+                     "--include-dashboard", "false"], out / "head.log")]
+    try:
+        time.sleep(15.0)
+        nodes.append(_start(["--address", address, "--num-cpus", "1"], out / "worker.log"))
+        time.sleep(15.0)
+        groups = [p.pid for p in nodes]
+        run = _table(out / "cluster", ["--ray", address, *draws])
+        killed = _kill_one_worker(groups)
+        first = run.wait()
+        print(f"first run on {address}: exit {first}, killed Ray worker {killed}", flush=True)
+        second = _table(out / "cluster", ["--ray", address, *draws]).wait()
+        print(f"resumed: exit {second}")
+    finally:
+        for p in nodes:
+            try:
+                os.killpg(p.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        for p in nodes:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+    local = _table(out / "local", ["--workers", "1", *draws]).wait()
+    print(f"local run: exit {local}")
+    a, b = _numbers(out / "cluster"), _numbers(out / "local")
+    same = a == b and all(v[0] != "pending" for v in a.values())
+    print(f"cases: {len(a)} on the cluster, {len(b)} local; same numbers: {same}")
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
