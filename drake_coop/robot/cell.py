@@ -29,7 +29,7 @@ import os
 import time
 from dataclasses import dataclass
 
-__all__ = ["CELL_CHANNEL", "CellWatch", "Heartbeat", "parse_heartbeat", "printable"]
+__all__ = ["CELL_CHANNEL", "CellStops", "CellWatch", "Heartbeat", "parse_heartbeat", "printable"]
 
 #: The LCM channel of the serve processes' heartbeats.
 CELL_CHANNEL = "DRAKE_COOP_CELL"
@@ -43,7 +43,7 @@ STATES = ("waiting", "serving", "done", "stopped")
 
 def printable(data, limit: int = 300) -> str:
     """``data`` as one line of printable text: bytes decoded as UTF-8 (an invalid byte shown
-    as ``\\xNN``), every character that is not printable (C0/C1 controls, ESC, DEL,
+    as its backslash escape), every character that is not printable (C0/C1 controls, ESC, DEL,
     bidirectional and other format characters, separators) shown as its Python escape,
     blanks collapsed, at most ``limit`` characters (``…`` ending a cut).
 

@@ -250,6 +250,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         status_arrivals,
     )
     from drake_coop.robot.cell import CELL_CHANNEL, CellStops, CellWatch, printable
+    from drake_coop.robot.safe_start import arms_refusal, first_readings, start_ramp
     from drake_coop.robot.status import check_panda_status
     from drake_coop.scenario.cell import CellSettings
     from drake_coop.scenario.loading import dump_scenario
@@ -289,7 +290,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                 break                  # (ready() first: it checks the heartbeats heard)
             cell.announce("waiting")
             pump_until(lcm, min(deadline, time.perf_counter() + 0.05))
-            _first_readings(arrivals, specs, first)
+            first_readings(arrivals, specs, first)
         if cell.reason is not None:    # a duplicate: this one does not begin
             print(f"drake-coop: --robot: {cell.reason}; nothing written", file=sys.stderr)
             folder.discard()
@@ -321,7 +322,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                 return 2
             # any other fault trips the watchdog at the first tick
             q0.append(q if fault == STATUS_OK else np.asarray(rest[i], dtype=float))
-        refusal = _start_refusal(arrivals, specs, index, q0, rest, first, settings)
+        refusal = arms_refusal(arrivals, specs, index, q0, rest, first, settings)
         if refusal is not None:        # an arm moving or away from its start: nothing begins
             print(f"drake-coop: {refusal}; nothing written", file=sys.stderr)
             cell.announce("stopped")
@@ -329,7 +330,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
             folder.discard()
             return 1
         loop.start(q0)
-        loop.ramp = _start_ramp(loop, q0, settings.start_ramp, plan.h)
+        loop.ramp = start_ramp(loop, q0, settings.start_ramp, plan.h)
         cell.begin()
         if not quiet:
             print(f"drake-coop: serving {', '.join(served)} at h = {plan.h * 1e3:g} ms to "
@@ -410,64 +411,6 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     if interrupted is not None:
         raise interrupted      # the command line's exit code: 130 (Ctrl-C) or 143 (SIGTERM)
     return code
-
-
-def _first_readings(arrivals, specs, first: dict) -> None:
-    """Keep each arm's first valid reading and its arrival time in ``first`` (channel →
-    ``(q, t)``) and its newest in ``first[channel + "/last"]``: the positions' change over
-    the wait for the first status."""
-    from drake_coop.control.watchdog import STATUS_OK
-
-    for spec in specs:
-        c = spec.status_channel
-        if arrivals.count[c] == 0:
-            continue
-        q, _, fault, _ = arrivals.parsed(c)
-        if fault == STATUS_OK:
-            first.setdefault(c, (q, arrivals.last[c]))
-            first[c + "/last"] = (q, arrivals.last[c])
-
-
-def _start_refusal(arrivals, specs, index, q0, rest, first, settings):
-    """The first arm that must not start (moving, or away from its start posture: one
-    line, :func:`~drake_coop.robot.safe_start.start_refusal`), else None."""
-    import numpy as np
-    from drake import lcmt_panda_status
-
-    from drake_coop.robot.safe_start import start_refusal
-
-    faulty = arrivals.faulty
-    for i, spec, q in zip(index, specs, q0):
-        c = spec.status_channel
-        if faulty[c] is not None:      # a faulty status: the watchdog trips at the first tick
-            continue
-        try:
-            velocity = list(lcmt_panda_status.decode(arrivals.message[c]).joint_velocity)
-            velocity = velocity if len(velocity) == spec.n else None
-        except Exception:            # a faulty status: the watchdog trips at the first tick
-            velocity = None
-        drift = None
-        if c in first and c + "/last" in first:
-            (qa, ta), (qb, tb) = first[c], first[c + "/last"]
-            if tb - ta >= 0.02:
-                drift = (np.asarray(qb) - np.asarray(qa)) / (tb - ta)
-        refusal = start_refusal(spec.robot, q, rest[i], velocity, drift,
-                                settings.start_max_offset, settings.start_max_speed)
-        if refusal is not None:
-            return refusal
-    return None
-
-
-def _start_ramp(loop, q0, ramp_time: float, h: float):
-    """The first commands' blend over ``ceil(ramp_time / h)`` ticks from each arm's hold
-    torque at its first reading (:class:`~drake_coop.robot.safe_start.StartRamp`)."""
-    import numpy as np
-
-    from drake_coop.robot.safe_start import StartRamp
-
-    ticks = int(math.ceil(ramp_time / h - 1e-9)) if ramp_time > 0 else 0
-    return StartRamp([np.asarray(arm.hold_torque(np.asarray(q, dtype=float)), dtype=float)
-                      for arm, q in zip(loop.side.arms, q0)], ticks)
 
 
 def cmd_sim_driver(args) -> int:

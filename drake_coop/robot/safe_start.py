@@ -1,4 +1,4 @@
-"""``serve``'s start: it begins only on arms at rest at their start posture, and brings its
+r"""``serve``'s start: it begins only on arms at rest at their start posture, and brings its
 first commands in without a kick.
 
 Before its first tick ``serve`` checks each arm's first reading against the scenario's start
@@ -12,7 +12,7 @@ start in one line naming the robot, the joint and how far or how fast
 Its first commands are ramped (:class:`StartRamp`): at tick ``k`` of the first ``N =
 ceil(cell.start_ramp / h)`` the command is
 
-.. math:: \\tau_{cmd}(k) = (1 - k/N)\\, \\tau_{hold}(q_0) + (k/N)\\, \\tau(k),
+.. math:: \tau_{cmd}(k) = (1 - k/N)\, \tau_{hold}(q_0) + (k/N)\, \tau(k),
 
 ``τ_hold(q_0)`` the controller model's hold (gravity) torque at the first reading and
 ``τ(k)`` the controller's command (the watchdog's latched torque, already within the
@@ -30,7 +30,7 @@ import math
 
 import numpy as np
 
-__all__ = ["StartRamp", "start_refusal"]
+__all__ = ["StartRamp", "arms_refusal", "first_readings", "start_ramp", "start_refusal"]
 
 
 def start_refusal(robot: str, q, q_start, velocity=None, drift_speed=None,
@@ -147,3 +147,106 @@ class StartRamp:
         """
         w = self.weight(k)
         return (1.0 - w) * self.hold[i] + w * np.asarray(tau, dtype=float)
+
+
+def first_readings(arrivals, specs, first: dict) -> None:
+    """Keep each arm's first valid reading and its arrival time, and its newest, while
+    ``serve`` waits for the first status (the positions' change over the wait).
+
+    Parameters
+    ----------
+    arrivals : StatusArrivals
+        The statuses (:func:`~drake_coop.robot.serve_loop.status_arrivals`).
+    specs : list of DriverSpec
+        The arms served.
+    first : dict
+        Updated: status channel → ``(q, t)`` of the first valid reading, and
+        ``channel + "/last"`` → that of the newest (``t``: ``time.perf_counter``, s).
+    """
+    from drake_coop.control.watchdog import STATUS_OK
+
+    for spec in specs:
+        c = spec.status_channel
+        if arrivals.count[c] == 0:
+            continue
+        q, _, fault, _ = arrivals.parsed(c)
+        if fault == STATUS_OK:
+            first.setdefault(c, (q, arrivals.last[c]))
+            first[c + "/last"] = (q, arrivals.last[c])
+
+
+def arms_refusal(arrivals, specs, index, q0, rest, first: dict, settings) -> str | None:
+    """The first served arm that must not start (:func:`start_refusal` on its first reading,
+    the status's measured velocity and the change kept by :func:`first_readings` over at
+    least 20 ms), else None. An arm whose first status was faulty is left to the watchdog
+    (it trips at the first tick).
+
+    Parameters
+    ----------
+    arrivals : StatusArrivals
+        The statuses.
+    specs : list of DriverSpec
+        The arms served.
+    index : list of int
+        Their indices among the scenario's robots.
+    q0 : list of numpy.ndarray
+        Their first readings (n,), rad.
+    rest : list of array_like
+        Every robot's start posture (n,), rad.
+    first : dict
+        What :func:`first_readings` kept.
+    settings : CellSettings
+        The limits (``cell.start_max_offset``, ``cell.start_max_speed``).
+
+    Returns
+    -------
+    str or None
+        The refusal, or None to start.
+    """
+    from drake import lcmt_panda_status
+
+    faulty = arrivals.faulty
+    for i, spec, q in zip(index, specs, q0):
+        c = spec.status_channel
+        if faulty[c] is not None:
+            continue
+        try:
+            velocity = list(lcmt_panda_status.decode(arrivals.message[c]).joint_velocity)
+            velocity = velocity if len(velocity) == spec.n else None
+        except Exception:            # not a status: the watchdog trips at the first tick
+            velocity = None
+        drift = None
+        if c in first and c + "/last" in first:
+            (qa, ta), (qb, tb) = first[c], first[c + "/last"]
+            if tb - ta >= 0.02:
+                drift = (np.asarray(qb) - np.asarray(qa)) / (tb - ta)
+        refusal = start_refusal(spec.robot, q, rest[i], velocity, drift,
+                                settings.start_max_offset, settings.start_max_speed)
+        if refusal is not None:
+            return refusal
+    return None
+
+
+def start_ramp(loop, q0, ramp_time: float, h: float) -> StartRamp:
+    """The first commands' blend over ``ceil(ramp_time / h)`` ticks from each arm's hold
+    torque at its first reading.
+
+    Parameters
+    ----------
+    loop : ServeLoop
+        The controller (its arms' ``hold_torque``).
+    q0 : list of numpy.ndarray
+        Each served arm's first reading (n,), rad.
+    ramp_time : float
+        ``cell.start_ramp``, s (0: no ramp).
+    h : float
+        The control period, s.
+
+    Returns
+    -------
+    StartRamp
+        The blend.
+    """
+    ticks = int(math.ceil(ramp_time / h - 1e-9)) if ramp_time > 0 else 0
+    return StartRamp([np.asarray(arm.hold_torque(np.asarray(q, dtype=float)), dtype=float)
+                      for arm, q in zip(loop.side.arms, q0)], ticks)
