@@ -316,6 +316,32 @@ class TcpqHub:
                     self.relayed += 1
 
 
+def _background_log(stream, size: int = 100):
+    """A ``log`` callable that never blocks the hub: lines go through a bounded queue to a
+    daemon thread that writes them (a full queue — a stream nobody reads, a pipe full —
+    drops the line)."""
+    import queue
+
+    lines: queue.Queue = queue.Queue(size)
+
+    def write() -> None:
+        while True:
+            line = lines.get()
+            try:
+                print(line, file=stream, flush=True)
+            except (OSError, ValueError):
+                return
+
+    threading.Thread(target=write, daemon=True, name="tcpq-hub-log").start()
+
+    def log(line: str) -> None:
+        try:
+            lines.put_nowait(line)
+        except queue.Full:
+            pass
+    return log
+
+
 def cmd_tcpq_hub(args) -> int:
     """``drake-coop tcpq-hub``: run the hub until Ctrl-C / SIGTERM.
 
@@ -330,8 +356,7 @@ def cmd_tcpq_hub(args) -> int:
         The exit code: 0 stopped, 2 bad input.
     """
     try:
-        hub = TcpqHub(args.port, log=None if args.quiet else
-                      (lambda line: print(line, file=sys.stderr, flush=True)))
+        hub = TcpqHub(args.port, log=None if args.quiet else _background_log(sys.stderr))
     except ValueError as exc:
         from drake_coop.console import error
 
