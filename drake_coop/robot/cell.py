@@ -8,10 +8,11 @@ per process), its pid, when it started, its state (``waiting`` for the first sta
 at every tick while it serves (:class:`CellWatch`). From the others' heartbeats it knows:
 
 - **a partner's death.** An arm of the scenario this process does not serve is a partner's;
-  ``serve`` begins only once a serve for every partner arm has announced itself, and a
-  partner not heard for ``cell.partner_silence_ticks`` of this process's own ticks in a row
-  (killed, hung, its hub connection lost) stops this one: one line naming the silent arm,
-  its safe command sent, exit 1; its stop then stops the others.
+  ``serve`` begins only once a serve for every partner arm has announced itself; a partner
+  serving, then not heard for ``cell.partner_silence_ticks`` of this process's own ticks in a
+  row (killed, hung, its hub connection lost), stops this one: one line naming the silent
+  arm, its safe command sent, exit 1; its stop then stops the others. A partner that has not
+  announced ``serving`` within :data:`START_GRACE` of this one's start stops it too.
 - **a duplicate.** A second ``serve`` for an arm already served (a heartbeat naming one of its
   arms from another session) refuses to begin in one line (exit 2); which one is second: the
   one still waiting when the other serves, else the later to start. When that cannot be told
@@ -39,6 +40,9 @@ MAX_HEARTBEAT = 4096
 #: the same time hears it first).
 MIN_ANNOUNCEMENTS = 3
 STATES = ("waiting", "serving", "done", "stopped")
+#: How long a partner may take to begin serving once this serve has begun (s): it announces
+#: while waiting only every pump (50 ms) and waits a lead before its first tick.
+START_GRACE = 1.0
 
 
 def printable(data, limit: int = 300) -> str:
@@ -163,7 +167,11 @@ class CellWatch:
     cell_robots : list of str
         Every arm of the scenario (the others are the partners').
     silence_ticks : int
-        A partner not heard for this many of this process's ticks in a row stops it.
+        A partner not heard for this many of this process's ticks in a row, once it serves,
+        stops it.
+    grace_ticks : int
+        A partner that has not announced ``serving`` this many ticks after this process began
+        stops it (its start is slower than a tick: see :data:`START_GRACE`).
     channel : str
         The heartbeat channel.
     session : str or None
@@ -174,12 +182,14 @@ class CellWatch:
     """
 
     def __init__(self, lcm, robots: list[str], cell_robots: list[str], silence_ticks: int = 3,
-                 channel: str = CELL_CHANNEL, session: str | None = None,
-                 clock_ns=time.time_ns):
+                 grace_ticks: int = 112, channel: str = CELL_CHANNEL,
+                 session: str | None = None, clock_ns=time.time_ns):
         self._lcm, self.channel = lcm, channel
         self.robots = list(robots)
         self.partners = [r for r in cell_robots if r not in self.robots]
         self.silence_ticks = int(silence_ticks)
+        self.grace_ticks = int(grace_ticks)
+        self.serving: set[str] = set()             # partner arms heard serving
         self.session = session if session is not None else os.urandom(8).hex()
         self.pid = os.getpid()
         self.start_ns = int(clock_ns())
@@ -256,7 +266,11 @@ class CellWatch:
             if r in self.done or self.heard[r] is None:
                 continue
             silent = self.k - self.heard[r]
-            if silent >= self.silence_ticks:
+            if r not in self.serving:              # still starting: the grace
+                if self.k >= self.grace_ticks:
+                    self._stop(r, f"{r}: its serve did not begin within {self.k} ticks of "
+                                  "this one")
+            elif silent >= self.silence_ticks:
                 self._stop(r, f"{r}: its serve silent for {silent} ticks (killed, hung or "
                               "cut from the LCM hub)")
         return self.reason
@@ -280,6 +294,8 @@ class CellWatch:
                 self.heard[r] = self.k
                 if beat.state == "done":
                     self.done.add(r)
+                elif beat.state == "serving":
+                    self.serving.add(r)
 
     def check(self) -> None:
         """Each other serve's newest heartbeat against this one's arms: a duplicate sets

@@ -249,7 +249,13 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         run_on_arrival,
         status_arrivals,
     )
-    from drake_coop.robot.cell import CELL_CHANNEL, CellStops, CellWatch, printable
+    from drake_coop.robot.cell import (
+        CELL_CHANNEL,
+        START_GRACE,
+        CellStops,
+        CellWatch,
+        printable,
+    )
     from drake_coop.robot.safe_start import arms_refusal, first_readings, start_ramp
     from drake_coop.robot.status import check_panda_status
     from drake_coop.scenario.cell import CellSettings
@@ -271,7 +277,8 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     specs = loop.specs                    # the arms served, their torque limits resolved
     arrivals = status_arrivals(lcm, specs)   # every message's bytes checked as it arrives
     settings = scenario.cell if scenario.cell is not None else CellSettings()
-    cell = CellWatch(lcm, served, names, silence_ticks=settings.partner_silence_ticks)
+    cell = CellWatch(lcm, served, names, silence_ticks=settings.partner_silence_ticks,
+                     grace_ticks=int(math.ceil(START_GRACE / plan.h)))
     stop = StopListener(lcm, served, session=cell.session)
     record = PacingRecord(period=plan.h, driver_period=max(s.period for s in specs))
     status, message, code, trip = "ok", f"completed {plan.t_end:g} s", 0, None

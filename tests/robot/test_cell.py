@@ -112,6 +112,32 @@ def test_a_partner_silent_for_three_ticks_stops_this_serve_naming_it():
     assert not two.refused
 
 
+def test_a_partner_still_starting_has_a_grace_then_its_silence_stops_this_serve():
+    """A partner heard only waiting (its start is slower than a tick) is given
+    ``grace_ticks``; not serving by then, it stops this serve naming it."""
+    lcm = DrakeLcm("memq://")
+    one, two = watch(lcm, ["robot1"]), watch(lcm, ["robot2"], grace_ticks=40)
+    announce_all(lcm, one, two)          # robot1's serve waiting, then nothing more
+    two.begin()
+    ticks = 1
+    while two.tick() is None:
+        ticks += 1
+        assert ticks <= 40
+    assert ticks == 40 and two.reason == "robot1: its serve did not begin within 40 ticks of " \
+        "this one"
+    # a partner that begins within the grace: then the silence rule
+    lcm = DrakeLcm("memq://")
+    one, two = watch(lcm, ["robot1"]), watch(lcm, ["robot2"], grace_ticks=40)
+    announce_all(lcm, one, two)
+    two.begin()
+    for _ in range(30):                  # robot1 still starting: no stop
+        assert two.tick() is None
+    one.begin()
+    one.tick()
+    lcm.HandleSubscriptions(0)
+    assert [two.tick() for _ in range(3)][-1].startswith("robot1: its serve silent for 3")
+
+
 def test_a_partner_that_is_done_is_not_a_death():
     lcm = DrakeLcm("memq://")
     one, two = watch(lcm, ["robot1"]), watch(lcm, ["robot2"])
