@@ -299,7 +299,8 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
             pump_until(lcm, min(deadline, time.perf_counter() + 0.05))
             first_readings(arrivals, specs, first)
         if cell.reason is not None:    # a duplicate: this one does not begin
-            print(f"drake-coop: --robot: {cell.reason}; nothing written", file=sys.stderr)
+            print(f"drake-coop: {'--robot: ' if args.robot else ''}{cell.reason}; nothing "
+                  "written", file=sys.stderr)
             folder.discard()
             return 2
         if not arrivals.all_arrived():
@@ -357,7 +358,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                        + " ".join(str(exc).split())[:200])
         else:
             trip = loop.tripped() if reason else None
-            if trip is None and cell.reason is not None:   # a partner silent, a duplicate
+            if reason and trip is None and cell.reason is not None:   # silent, duplicate
                 status, code = "stopped", 1
                 trip = {"robot": cell.arm, "channel": CELL_CHANNEL,
                         "reason": cell.reason.removeprefix(f"{cell.arm}: ")}
