@@ -272,7 +272,16 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         run_on_arrival,
         status_arrivals,
     )
+    from drake_coop.robot.cell import (
+        CELL_CHANNEL,
+        START_GRACE,
+        CellStops,
+        CellWatch,
+        printable,
+    )
+    from drake_coop.robot.safe_start import arms_refusal, first_readings, start_ramp
     from drake_coop.robot.status import check_panda_status
+    from drake_coop.scenario.cell import CellSettings
     from drake_coop.scenario.loading import dump_scenario
 
     quiet = args.quiet
@@ -295,7 +304,10 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         from drake_coop.robot.lockstep import LockstepStatuses
 
         lockstep = LockstepStatuses(lcm, specs)
-    stop = StopListener(lcm, served)
+    settings = scenario.cell if scenario.cell is not None else CellSettings()
+    cell = CellWatch(lcm, served, names, silence_ticks=settings.partner_silence_ticks,
+                     grace_ticks=int(math.ceil(START_GRACE / plan.h)))
+    stop = StopListener(lcm, served, session=cell.session)
     record = PacingRecord(period=plan.h, driver_period=max(s.period for s in specs))
     status, message, code, trip = "ok", f"completed {plan.t_end:g} s", 0, None
     interrupted: BaseException | None = None
@@ -307,14 +319,30 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                   + ", ".join(s.status_channel for s in specs)
                   + (f" ({MEMQ_NOTE})" if memq else ""), file=sys.stderr)
         deadline = time.perf_counter() + args.status_wait
-        while not arrivals.all_arrived() and time.perf_counter() < deadline:
+        first = {}                     # each arm's first reading and when it came
+        while time.perf_counter() < deadline:
+            if cell.ready() and arrivals.all_arrived() or cell.reason is not None:
+                break                  # (ready() first: it checks the heartbeats heard)
+            cell.announce("waiting")
             pump_until(lcm, min(deadline, time.perf_counter() + 0.05))
+            first_readings(arrivals, specs, first)
+        if cell.reason is not None:    # a duplicate: this one does not begin
+            print(f"drake-coop: {'--robot: ' if args.robot else ''}{cell.reason}; nothing "
+                  "written", file=sys.stderr)
+            folder.discard()
+            return 2
         if not arrivals.all_arrived():
             missing = [c for c, n in arrivals.count.items() if n == 0]
             print(f"drake-coop: no status on {', '.join(missing)} within "
                   f"{args.status_wait:g} s ("
                   + (MEMQ_NOTE if memq else "is the driver running, on the same --lcm-url?")
                   + "); nothing written", file=sys.stderr)
+            folder.discard()
+            return 1
+        if cell.missing():
+            print(f"drake-coop: no serve for {', '.join(cell.missing())} within "
+                  f"{args.status_wait:g} s on {CELL_CHANNEL} (start one serve per arm with "
+                  "--robot, on the same --lcm-url); nothing written", file=sys.stderr)
             folder.discard()
             return 1
         rest, _ = rest_posture(scenario, list(plan.arms))
@@ -330,7 +358,16 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                 return 2
             # any other fault trips the watchdog at the first tick
             q0.append(q if fault == STATUS_OK else np.asarray(rest[i], dtype=float))
+        refusal = arms_refusal(arrivals, specs, index, q0, rest, first, settings)
+        if refusal is not None:        # an arm moving or away from its start: nothing begins
+            print(f"drake-coop: {refusal}; nothing written", file=sys.stderr)
+            cell.announce("stopped")
+            StopListener.publish(lcm, ",".join(served), refusal, session=cell.session)
+            folder.discard()
+            return 1
         loop.start(q0)
+        loop.ramp = start_ramp(loop, q0, settings.start_ramp, plan.h)
+        cell.begin()
         if not quiet:
             print(f"drake-coop: serving {', '.join(served)} at h = {plan.h * 1e3:g} ms to "
                   f"t = {plan.t_end:g} s, ticking on "
@@ -340,23 +377,30 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                   file=sys.stderr)
         started = True
         try:
+            def after_tick(k):
+                return "tripped" if loop.tripped() else (cell.tick() or "")
+
             if lockstep is not None:
                 from drake_coop.robot.lockstep import run_lockstep
 
-                reason = run_lockstep(loop, lcm, lockstep, plan.k_end, record,
-                                      lambda k: "tripped" if loop.tripped() else "",
-                                      stop=stop, timeout=args.status_wait)
+                reason = run_lockstep(loop, lcm, lockstep, plan.k_end, record, after_tick,
+                                      stop=CellStops(stop, cell), timeout=args.status_wait)
             else:
-                reason = run_on_arrival(loop, lcm, arrivals, plan.k_end, record,
-                                        lambda k: "tripped" if loop.tripped() else "",
-                                        stop=stop, on_arrival=args.tick == "arrival")
+                reason = run_on_arrival(loop, lcm, arrivals, plan.k_end, record, after_tick,
+                                        stop=CellStops(stop, cell),
+                                        on_arrival=args.tick == "arrival")
         except Exception as exc:       # a defect, not an input: the record is kept all the same
             status, code = "failed", 1
             message = (f"error at t = {loop.time():.3f} s: {type(exc).__name__}: "
                        + " ".join(str(exc).split())[:200])
         else:
             trip = loop.tripped() if reason else None
-            if trip is not None:
+            if reason and trip is None and cell.reason is not None:   # silent, duplicate
+                status, code = "stopped", 1
+                trip = {"robot": cell.arm, "channel": CELL_CHANNEL,
+                        "reason": cell.reason.removeprefix(f"{cell.arm}: ")}
+                message = f"stopped at t = {loop.time():.3f} s: {cell.reason}"
+            elif trip is not None:
                 status, code = "stopped", 1
                 message = (f"watchdog at t = {loop.time():.3f} s: {trip['robot']}: "
                            f"{trip['reason']} on {trip['channel']}")
@@ -375,19 +419,29 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     finally:
         if started:
             loop.send_safe()
+            cell.announce("done" if status == "ok" else "stopped")
             if status != "ok" and not (trip and trip["channel"] == STOP_CHANNEL):
-                # the other arms' serve processes stop too (a trip, a defect, Ctrl-C)
-                StopListener.publish(lcm, served[0], trip["reason"] if trip else message)
+                # the other arms' serve processes stop too (a trip, a defect, Ctrl-C),
+                # told which arm tripped (this process's arms for any other stop)
+                StopListener.publish(lcm, trip["robot"] if trip else ",".join(served),
+                                     trip["reason"] if trip else message,
+                                     session=cell.session)
     if not started:                     # interrupted while waiting: nothing to keep
         folder.discard()
         print("drake-coop: interrupted while waiting for the first status; nothing written",
               file=sys.stderr)
         raise interrupted
     summary = pacing_summary(record, margin)
+    message = printable(message, 1000)         # no control bytes to a terminal or run.json
+    if trip is not None:
+        trip = {key: printable(value, 1000) for key, value in trip.items()}
     meta = {"status": status, "message": message, "command": "serve",
             "watchdog": trip, "robots": served, "tick": args.tick,
             "lockstep": lockstep is not None,
             "stop_channel": STOP_CHANNEL,
+            "cell": {"channel": CELL_CHANNEL, "session": cell.session, "pid": cell.pid,
+                     "partners": cell.partners, "ignored_heartbeats": cell.ignored,
+                     "start_ramp_ticks": loop.ramp.ticks if loop.ramp is not None else 0},
             "lcm_url": args.lcm_url, "control_period": plan.h,
             "channels": {s.robot: [s.status_channel, s.command_channel] for s in specs},
             "safe_command": {s.robot: s.safe_command for s in specs},

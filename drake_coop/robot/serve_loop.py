@@ -72,7 +72,11 @@ def status_arrivals(lcm, specs):
 
 class StopListener:
     """The stop messages of the other ``serve`` processes (:data:`STOP_CHANNEL`), ignoring
-    this process's own (``robots``: the arms this process serves).
+    this process's own: those carrying its ``session`` (a message without one: those naming
+    one of its ``robots``). Another process serving the same arm (a duplicate) has another
+    session: its stop is heard. The reason kept is printable text only
+    (:func:`~drake_coop.robot.cell.printable`: no control bytes reach a terminal or
+    ``run.json``).
 
     Parameters
     ----------
@@ -82,36 +86,59 @@ class StopListener:
         This process's arms.
     channel : str
         The stop channel.
+    session : str or None
+        This process's session id (:class:`~drake_coop.robot.cell.CellWatch`).
     """
 
-    def __init__(self, lcm, robots: list[str], channel: str = STOP_CHANNEL):
+    def __init__(self, lcm, robots: list[str], channel: str = STOP_CHANNEL,
+                 session: str | None = None):
         self.channel = channel
         self._own = set(robots)
+        self._session = session
         self.reason: str | None = None
         lcm.Subscribe(channel, self._handle)
 
     def _handle(self, data: bytes) -> None:
-        text = bytes(data).decode("utf-8", "replace")
-        if text.split(":", 1)[0] in self._own or self.reason is not None:
+        from drake_coop.robot.cell import printable
+
+        if self.reason is not None:
             return
-        self.reason = " ".join(text.split())[:300]
+        text, session = bytes(data), None
+        head, sep, tail = text.rpartition(b"\nsession ")
+        if sep and 0 < len(tail) <= 64 and all(c in b"0123456789abcdef" for c in tail):
+            text, session = head, tail.decode("ascii")
+        if session is not None:
+            if session == self._session:
+                return
+        elif text.split(b":", 1)[0].decode("utf-8", "replace") in self._own:
+            return
+        self.reason = printable(text)
 
     @staticmethod
-    def publish(lcm, robot: str, reason: str, channel: str = STOP_CHANNEL) -> None:
-        """Publish ``"<robot>: <reason>"`` on the stop channel (the other processes stop).
+    def publish(lcm, robot: str, reason: str, channel: str = STOP_CHANNEL,
+                session: str | None = None) -> None:
+        """Publish ``"<robot>: <reason>"`` (and a line ``session <id>``) on the stop channel
+        (the other processes stop).
 
         Parameters
         ----------
         lcm : DrakeLcm
             The LCM connection.
         robot : str
-            The robot whose watchdog tripped.
+            The robot whose watchdog tripped (or this process's arms, for another stop).
         reason : str
             Its reason.
         channel : str
             The stop channel.
+        session : str or None
+            This process's session id.
         """
-        lcm.Publish(channel, f"{robot}: {reason}".encode("utf-8"))
+        from drake_coop.robot.cell import printable
+
+        text = f"{printable(robot, 100)}: {printable(reason)}"
+        if session is not None:
+            text += f"\nsession {session}"
+        lcm.Publish(channel, text.encode("utf-8"))
 
 
 class ServeLoop:
@@ -147,6 +174,9 @@ class ServeLoop:
         self._good: list[np.ndarray] = []
         self._pub: list = []
         self.k = 0
+        #: The first commands' blend (:class:`~drake_coop.robot.safe_start.StartRamp`);
+        #: None: the controller's command from the first tick.
+        self.ramp = None
 
     def start(self, q0: list[np.ndarray]) -> None:
         """Observers at ``q̂ = q0``, watchdogs untripped with ``q0`` as their last good
@@ -233,9 +263,38 @@ class ServeLoop:
             wd.tick(wd_context, t, status, q, lam, tau.Eval(tau_context).tolist())
 
     def send(self) -> None:
-        """Each arm's command (the watchdog's ``tau_latched``) encoded and published."""
-        for arm, pub_context in zip(self.side.arms, self._pub):
+        """Each arm's command (the watchdog's ``tau_latched``) encoded and published; during
+        :attr:`ramp`, an untripped arm's command blended from its hold torque
+        (:meth:`send_ramped`)."""
+        for i, (arm, pub_context) in enumerate(zip(self.side.arms, self._pub)):
+            if self.ramp is not None and self.ramp.active(self.k - 1) and self.send_ramped(i):
+                continue
             arm.command_publisher.ForcedPublish(pub_context)
+
+    def send_ramped(self, i: int) -> bool:
+        """Arm ``i``'s blended command of tick ``k`` (:class:`~drake_coop.robot.safe_start.
+        StartRamp`), stamped with the wall clock, unless its watchdog has tripped.
+
+        Parameters
+        ----------
+        i : int
+            The arm's index.
+
+        Returns
+        -------
+        bool
+            False (nothing sent) when the arm's watchdog has tripped.
+        """
+        wd, wd_context = self._wd[i][0], self._wd[i][1]
+        if wd.is_tripped(wd_context):
+            return False
+        tau = wd.get_tau_latched_output_port().Eval(wd_context)
+        spec, arm = self.specs[i], self.side.arms[i]
+        q = wd.last_good_position(wd_context)
+        tau = wire_torque(spec, self.ramp.blend(i, self.k - 1, tau), arm.hold_torque(q))
+        msg = safe_command_message(spec, tau, arm.command_sender.utime(self.k * self.h))
+        self._lcm.Publish(spec.command_channel, msg.encode())
+        return True
 
     def time(self) -> float:
         """``t_k`` of the last tick (s; 0 before the first).

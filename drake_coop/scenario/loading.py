@@ -61,8 +61,10 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None,
         except YamlInputError as exc:
             raise ScenarioError(str(exc)) from None
         untyped = _load_untyped(data)
-        if untyped is None:
-            raise ScenarioError("the scenario is empty: it must be a mapping of fields "
+        if untyped is None:          # 0 bytes, blanks or comments only: never the defaults
+            where = f"the scenario file {one_line(str(path), 200)}" if path is not None \
+                else "the scenario"
+            raise ScenarioError(f"{where} is empty: it must be a mapping of fields "
                                 f"({', '.join(f.name for f in dataclasses.fields(Scenario))})")
         _check_structure(untyped, Scenario, "")
         try:

@@ -9,7 +9,8 @@ what a field takes when a scenario file leaves it out (the paper's robot 1 and t
 pins them to ``paper.yaml``). Loading is in :mod:`drake_coop.scenario.loading`, the ranges and rules
 in :mod:`drake_coop.scenario.validation`. This module imports only the leaves
 :mod:`drake_coop.scenario.bounds` (for the one-line message of :class:`ScenarioError`) and
-:mod:`drake_coop.scenario.driver` (a robot's LCM driver section).
+:mod:`drake_coop.scenario.driver` (a robot's LCM driver section) and
+:mod:`drake_coop.scenario.cell` (the ``serve`` processes' start and liveness section).
 """
 
 import math
@@ -18,6 +19,7 @@ from typing import Optional
 
 from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains  # noqa: F401 (re-exported)
 from drake_coop.scenario.bounds import one_line
+from drake_coop.scenario.cell import CellSettings  # noqa: F401 (re-exported)
 from drake_coop.scenario.driver import (  # noqa: F401 (re-exported)
     DRIVER_KINDS,
     GRAVITY_CONVENTIONS,
@@ -555,6 +557,9 @@ class Scenario:
         The run's divergence guards.
     object_model : ObjectModelSettings
         What the controllers know of the held object (default: nothing, the paper's).
+    cell : CellSettings or None
+        How the ``drake-coop serve`` processes of a cell start and watch each other (null:
+        :class:`CellSettings`' defaults); unused by simulated runs.
     """
 
     control_period: float = 0.009
@@ -563,6 +568,7 @@ class Scenario:
     task: Task = field(default_factory=Task)
     guards: Guards = field(default_factory=Guards)
     object_model: ObjectModelSettings = field(default_factory=ObjectModelSettings)
+    cell: Optional[CellSettings] = None
 
 
 # --------------------------------------------------------------------------- timing

@@ -114,6 +114,10 @@ BOUNDS: dict[str, Bound] = {
     "guards.max_force": Bound(0.0, 1e5, "N", **_POS),
     "guards.joint_limit_margin_deg": Bound(0.0, 180.0, "deg"),
     "guards.check_period": Bound(0.0, 100.0, "s", **_POS),
+    "cell.start_max_offset": Bound(0.0, 3.2, "rad", **_POS),
+    "cell.start_max_speed": Bound(0.0, 10.0, "rad/s", **_POS),
+    "cell.start_ramp": Bound(0.0, 10.0, "s"),
+    "cell.partner_silence_ticks": Bound(1, 1000, "ticks"),
 }
 #: Length of every list of numbers.
 #: Lists whose length depends on the arm (``n_i`` joints, ``m_i`` constraints) are checked by

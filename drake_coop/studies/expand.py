@@ -320,7 +320,7 @@ class _Builder:
         from pydrake.common.yaml import yaml_load
 
         try:
-            if base_yaml:
+            if base_yaml is not None:      # an empty text is refused, never the paper's
                 self.base = load_scenario(data=base_yaml)
             else:
                 self.base = load_scenario()

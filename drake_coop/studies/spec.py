@@ -235,9 +235,23 @@ def _base_yaml(base, folder: Path) -> str | None:
             text = read_text_file(path, "scenario file")
         except YamlInputError as exc:
             raise StudyError(f"base: {exc}") from None
+        if _is_empty(text):     # never the paper's scenario in its place
+            raise StudyError(f"base: the scenario file {_short(str(path), 200)} is empty (0 "
+                             "bytes, blanks or comments only): it must be a mapping of fields")
         return _models_beside(text, path.resolve().parent)
     raise StudyError(f"base: must be a scenario file path or an inline scenario, got "
                      f"{_short(base)}")
+
+
+def _is_empty(text: str) -> bool:
+    """Whether a scenario file's text holds no YAML document (0 bytes, blanks, comments)."""
+    from drake_coop.scenario.loading import _load_untyped
+    from drake_coop.scenario.schema import ScenarioError
+
+    try:
+        return _load_untyped(text) is None
+    except ScenarioError:
+        return False                     # not empty: the scenario's own checks report it
 
 
 def _bases(values: list, top, folder: Path) -> dict[str, str]:

@@ -22,6 +22,7 @@ from drake_coop.robot.driver_spec import driver_specs
 from drake_coop.robot.drivers import COMMAND_OFFSET, add_controller_side
 from drake_coop.robot.loopback import initialize_sides
 from drake_coop.robot.pacing import PacingRecord
+from drake_coop.robot.cell import CELL_CHANNEL, MIN_ANNOUNCEMENTS, Heartbeat
 from drake_coop.robot.serve_loop import (
     STOP_CHANNEL,
     ServeLoop,
@@ -210,14 +211,18 @@ def test_one_serve_per_arm_a_trip_in_robot1_stops_robot2_before_its_next_tick(
     scenario = load_scenario()
     q0, _ = rest_posture(scenario, list(plan_run(scenario).arms))
     trip_pump = 30
-    k_trip = trip_pump - 2                   # pump p precedes tick p - 2 (pump 1: the wait)
+    # pump p precedes tick p - 4 (pumps 1-3: the wait, three heartbeats announced)
+    k_trip = trip_pump - 1 - MIN_ANNOUNCEMENTS
 
     def serve(robot, lcm, hostile=False, stop_message=None):
         calls = {"n": 0}
+        partner = "robot2" if robot == "robot1" else "robot1"
+        partner_beat = Heartbeat("ab" * 8, 4242, 0, "serving", [partner]).encode()
 
         def pump(lcm_, deadline):
             calls["n"] += 1
             n = calls["n"]
+            lcm.Publish(CELL_CHANNEL, partner_beat)       # the other arm's serve, alive
             for name, q in zip(("robot1", "robot2"), q0):
                 q = np.array(q, dtype=float)
                 if hostile and name == "robot1" and n == trip_pump:
