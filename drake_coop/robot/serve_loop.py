@@ -114,6 +114,28 @@ class StopListener:
         lcm.Publish(channel, f"{robot}: {reason}".encode("utf-8"))
 
 
+def step_end(k: int, h: float) -> float:
+    """Where :meth:`ServeLoop.step` stops before tick ``k``: ``k h`` less a tenth of
+    :func:`~drake_coop.control.timing.tick_of`'s tolerance (``1e-10 max(1, k h)`` s), so that
+    the context's time still reads as tick ``k`` and the events at ``k h`` to a rounding
+    (ulps, far below the margin) are all still to come.
+
+    Parameters
+    ----------
+    k : int
+        The next tick.
+    h : float
+        The control period, s.
+
+    Returns
+    -------
+    float
+        The time, s.
+    """
+    t = k * h
+    return t - 1e-10 * max(1.0, t)
+
+
 class ServeLoop:
     """The controller side of ``serve`` for the given arms, ticked by the caller.
 
@@ -218,10 +240,17 @@ class ServeLoop:
 
     def step(self) -> None:
         """The updates at ``t_k`` (one Simulator step), ``λ̂(k)`` read first: the value the
-        step's updates then use (computed once, cached by Drake) and the watchdog checks."""
+        step's updates then use (computed once, cached by Drake) and the watchdog checks.
+
+        The step ends just short of :math:`t_{k+1}` (:func:`step_end`), so that every event
+        Drake schedules at :math:`t_{k+1}` to a rounding (the mass estimator's, every
+        ``ESTIMATOR_TICKS h``: ``m (5h)`` and ``(5m) h`` differ by an ulp now and then) runs
+        in the next step, on the reading of tick ``k + 1``: what the simulated diagram's
+        blocks read there (its encoders treat a time within ``1e-9`` of a tick as the tick,
+        :func:`~drake_coop.control.timing.tick_of`)."""
         self._lam = [port.Eval(block).tolist() for _, _, block, port, _ in self._wd]
         self.k += 1
-        self.simulator.AdvanceTo(self.k * self.h)
+        self.simulator.AdvanceTo(step_end(self.k, self.h))
 
     def check(self) -> None:
         """Each arm's watchdog for tick ``k``
