@@ -305,7 +305,8 @@ class ServeLoop:
 
 def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tick=None,
                    lead: float = 0.05, timeout: float | None = None,
-                   stop: StopListener | None = None, on_arrival: bool = True) -> str:
+                   stop: StopListener | None = None, on_arrival: bool = True,
+                   collector=None) -> str:
     """Tick ``loop`` from ``k = 0`` to ``k_end``, each tick on a fresh status of every arm.
 
     With ``on_arrival``, tick ``k`` is released by the first status of every arm that
@@ -323,6 +324,10 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
     ``serve`` (``stop``) stops it before the next tick (``"stop: <its reason>"`` returned).
     Per tick, ``record`` gets the computation, the lateness (from ``g_k`` on the grid; from the
     tick's release on arrival), the oldest status's age at the start and the wait past ``g_k``.
+    With a ``collector`` (:class:`~drake_coop.robot.collector.ManagedCollector`, started by
+    the caller), Python's garbage collector runs only in the slack after a tick's command
+    (:meth:`~drake_coop.robot.collector.ManagedCollector.slack`, before the next ``g_k``),
+    and a collection that starts during a tick's work is counted.
 
     Parameters
     ----------
@@ -346,6 +351,8 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
         The other processes' stops.
     on_arrival : bool
         Tick on each fresh status (else on the wall-clock grid).
+    collector : ManagedCollector or None
+        Collects in the slack; None leaves Python's collector as it is.
 
     Returns
     -------
@@ -375,11 +382,15 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
             if stop is not None and stop.reason is not None:
                 return f"stop: {stop.reason}"
         start = time.perf_counter()
+        if collector is not None:
+            collector.pauses.ticking = True
         age = arrivals.age(start)
         for i, c in enumerate(channels):
             loop.feed(i, arrivals.take_parsed(c))
         loop.tick()
         end = time.perf_counter()
+        if collector is not None:
+            collector.pauses.ticking = False
         if on_arrival:
             newest = max(arrivals.last[c] for c in channels)
             released = newest if newest > grid else None
@@ -392,4 +403,6 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
             reason = after_tick(k)
             if reason:
                 return reason
+        if collector is not None:
+            collector.slack(grid)
     return ""
