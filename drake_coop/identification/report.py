@@ -47,6 +47,12 @@ from drake_coop.identification.regressor import (
     load_structure,
     true_parameters,
 )
+from drake_coop.identification.setup import (  # noqa: F401 (IdentifyInputError re-exported)
+    IdentificationSetup,
+    IdentifyInputError,
+    design_for,
+    identification_setup,
+)
 from drake_coop.identification.urdf_writer import identified_urdf_text
 from drake_coop.results.io import OutputError, check_output_folder, staged_folder
 from drake_coop.scenario.schema import Scenario
@@ -62,10 +68,6 @@ DURATION_RANGE = (1.0, 120.0)
 ESTIMATORS = ("map_sdp", "idim_iv", "didim")
 #: Files ``identify`` writes (an existing ``--out`` may hold only these).
 OUTPUT_FILES = ("identify.json", "identify_fit.png", "identified.yaml")
-
-
-class IdentifyInputError(ValueError):
-    """Bad input of ``identify`` (one-line message)."""
 
 
 @dataclass
@@ -118,15 +120,11 @@ class RobotIdentification:
     estimator: str = "map_sdp"
 
 
-def _velocity_limits(structure: ArmStructure) -> np.ndarray:
-    plant = structure.plant
-    return np.array([min(10.0, plant.GetJointByName(j).velocity_upper_limits()[0])
-                     for j in structure.joints])
-
-
 def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed: int = 0,
-                   estimator: str = "map_sdp") -> RobotIdentification:
-    """Identify robot ``index`` of ``scenario`` (module docstring).
+                   estimator: str = "map_sdp", q0: np.ndarray | None = None
+                   ) -> RobotIdentification:
+    """Identify robot ``index`` of ``scenario`` (module docstring): the excitation
+    (:func:`design_for`), the simulated experiment, then :func:`identify_from_data`.
 
     Parameters
     ----------
@@ -140,6 +138,8 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
         The excitation's random candidates.
     estimator : str
         One of :data:`ESTIMATORS`.
+    q0 : numpy.ndarray or None
+        The excitation's centre (default: the middle of the joint range).
 
     Returns
     -------
@@ -154,39 +154,46 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     if estimator not in ESTIMATORS:
         raise IdentifyInputError(f"estimator must be one of {', '.join(ESTIMATORS)}, "
                                  f"got {estimator!r}")
+    setup = identification_setup(scenario, index)
+    excitation = design_for(setup, duration, seed, q0, scenario.robots[index].name)
+    data = simulate_excitation(scenario, index, excitation, setup.nominal)
+    return identify_from_data(scenario, setup, excitation, data, seed, estimator)
+
+
+def identify_from_data(scenario: Scenario, setup: IdentificationSetup,
+                       excitation: FourierExcitation, data: ExcitationData, seed: int = 0,
+                       estimator: str = "map_sdp") -> RobotIdentification:
+    """The estimate from recorded data, whatever recorded it (the simulated experiment, or a
+    recording of the wire: :mod:`~drake_coop.identification.recording`): the one path from
+    ``q``, ``τ`` at ``h`` to the identified model, its validation and its URDF.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario (its robot's truth, for the validation's reference).
+    setup : IdentificationSetup
+        The robot's setup.
+    excitation : FourierExcitation
+        The excitation the data followed.
+    data : ExcitationData
+        The recorded ``t``, ``q``, ``τ``, ``h`` and torque limits.
+    seed : int
+        Seeds the validation trajectory (``seed + 1``).
+    estimator : str
+        One of :data:`ESTIMATORS`.
+
+    Returns
+    -------
+    RobotIdentification
+        The identification.
+    """
     from drake_coop.identification.excitation import ExcitationError
-    from drake_coop.plant.arms import Arm
-    from drake_coop.plant.model_error import controller_arm_model
 
+    index, structure, regressor = setup.index, setup.structure, setup.regressor
     robot = scenario.robots[index]
-    arm = Arm(robot, scenario.task)
-    nominal = controller_arm_model(arm, robot.model_error)
-    structure = load_structure(arm.urdf_path, arm.base_frame,
-                               payload_mass=robot.model_error.payload_mass,
-                               sensor_joint=robot.sensor_joint)
-    theta_true = true_parameters(structure)
-    if robot.model_error.coulomb_friction:
-        theta_true[structure.joint_slice("coulomb")] = robot.model_error.coulomb_friction
-    theta_nominal = true_parameters(structure, nominal.plant)
-    regressor = Regressor(structure)
+    nominal, theta_true, theta_nominal = setup.nominal, setup.theta_true, setup.theta_nominal
     n = structure.n
-    limits = ExcitationLimits(
-        q_min=arm.q_min, q_max=arm.q_max,
-        torque_limits=(np.full(n, np.inf) if robot.actuators.torque_limits is None
-                       else np.asarray(robot.actuators.torque_limits, float)),
-        velocity_limits=_velocity_limits(structure))
-
-    def nominal_torque(q, v, a):
-        return np.array([nominal.inverse_dynamics_terms(q[k], v[k], a[k])
-                         for k in range(len(q))])
-
-    q0 = 0.5 * (arm.q_min + arm.q_max)
-    try:
-        excitation, _ = design_excitation(duration, q0, limits, nominal_torque,
-                                          regressor.matrix, seed=seed)
-    except ExcitationError as exc:
-        raise IdentifyInputError(f"{robot.name}: {exc}") from None
-    data = simulate_excitation(scenario, index, excitation, nominal)
+    duration = excitation.duration
     prepared = prepare(data.t, data.q, data.tau, data.h, data.torque_limits)
     estimate = estimate_parameters(regressor, prepared, theta_nominal)
     if estimator == "idim_iv":
@@ -203,7 +210,8 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     # Validation: a different excitation, exact states, torques of the truth (no friction
     # term: the Coulomb column's smoothing is the identification's own choice).
     try:
-        other, _ = design_excitation(duration, q0, limits, nominal_torque, regressor.matrix,
+        other, _ = design_excitation(duration, excitation.q0, setup.limits,
+                                     setup.nominal_torque, regressor.matrix,
                                      seed=seed + 1, candidates=3)
     except ExcitationError:        # no second trajectory fits: validate on the first one
         other = excitation
@@ -222,7 +230,7 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     fit = {"t": prepared.t, "tau": prepared.tau,
            "identified": (Y @ estimate.theta).reshape(-1, n),
            "nominal": (Y @ theta_nominal).reshape(-1, n)}
-    nominal_text = Path(arm.controller_urdf_path).read_text()
+    nominal_text = Path(setup.arm.controller_urdf_path).read_text()
     urdf_text = identified_urdf_text(
         nominal_text, structure, estimate.theta,
         note=f"Robot {robot.name}, {duration:g} s of excitation.")

@@ -72,7 +72,7 @@ def test_the_command_writes_gains_whose_map_and_run_are_stable(paper_gains):
     margin = meta["delay_margin"]
     assert margin["without"]["margin_s"] > 0 and margin["with"]["margin_s"] > 0
     assert margin["with"]["horizon"] == "matched" and "without compensation" in margin["line"]
-    assert margin["without"]["rho"][0] == pytest.approx(meta["rho"]["free"], rel=1e-6)
+    assert margin["without"]["rho"][0] == pytest.approx(meta["rho"]["free"], rel=1e-3)
     rows = list(csv.DictReader((out / "stability.csv").open()))
     assert all(float(r["rho"]) < 1.0 for r in rows) and len(rows) == 4
     text = (out / "scenario.yaml").read_text()
