@@ -67,7 +67,7 @@ DURATION_RANGE = (1.0, 120.0)
 #: (:func:`~drake_coop.identification.instrumental.estimate_parameters_didim`).
 ESTIMATORS = ("map_sdp", "idim_iv", "didim")
 #: Files ``identify`` writes (an existing ``--out`` may hold only these).
-OUTPUT_FILES = ("identify.json", "identify_fit.png", "identified.yaml")
+OUTPUT_FILES = ("identify.json", "identify_fit.png", "identified.yaml", "recording.npz")
 
 
 @dataclass
@@ -450,7 +450,8 @@ def parse_robots(text: str | None, count: int) -> list[int]:
 
 def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
                  duration: float = 10.0, seed: int = 0, log=print,
-                 estimator: str = "map_sdp") -> dict:
+                 estimator: str = "map_sdp", recordings: dict | None = None,
+                 source: str = "simulation") -> dict:
     """Identify ``robots`` of ``scenario`` and write ``out`` whole (module docstring).
 
     Parameters
@@ -469,6 +470,13 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
         Receives progress lines.
     estimator : str
         One of :data:`ESTIMATORS`.
+    recordings : dict of int to WireRecording or None
+        Identify each robot from its recording
+        (:func:`~drake_coop.identification.recording.identify_recording`) instead of the
+        simulated experiment; written to ``recording.npz`` when ``source`` is ``wire``.
+    source : str
+        Where the data came from, for ``identify.json``: ``simulation``, ``wire`` (driven
+        now) or ``recording FILE``.
 
     Returns
     -------
@@ -489,11 +497,26 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
     _check_out(out)
     idents = {}
     for i in robots:
+        if recordings is not None:
+            from drake_coop.identification.recording import identify_recording
+
+            log(f"drake-coop: identifying {scenario.robots[i].name} from its recording "
+                f"({source})")
+            idents[i] = identify_recording(scenario, recordings[i], seed, estimator)
+            continue
         log(f"drake-coop: identifying {scenario.robots[i].name} ({duration:g} s of excitation)")
         idents[i] = identify_robot(scenario, i, duration, seed, estimator)
-    report = {"scenario_robots": [r.name for r in scenario.robots],
-              "robots": {ident.name: summary(ident, duration) for ident in idents.values()}}
+    report = {"scenario_robots": [r.name for r in scenario.robots], "data_source": source,
+              "robots": {ident.name: summary(ident, ident.excitation.duration)
+                         for ident in idents.values()}}
     with staged_folder(out) as staging:
+        kept = source.startswith("recording ") and (out / "recording.npz").resolve() == \
+            Path(source[len("recording "):]).resolve()     # the folder replaced holds it
+        if recordings is not None and (source == "wire" or kept):
+            from drake_coop.identification.recording import write_recording
+
+            write_recording(staging / "recording.npz",
+                            [recordings[i] for i in sorted(recordings)])
         for ident in idents.values():
             (staging / f"{ident.name}_identified.urdf").write_text(ident.urdf_text)
         (staging / "identify.json").write_text(json.dumps(report, indent=1))

@@ -249,7 +249,7 @@ def _read(data: bytes, n: int):
 
 
 def preflight(scenario, arms: list[_Arm], first: dict[int, bytes], duration: float,
-              seed: int) -> None:
+              seed: int, radius: float | None = None) -> None:
     """The checks of the module's docstring, before the first command; designs each arm's
     excitation about its reading.
 
@@ -265,6 +265,9 @@ def preflight(scenario, arms: list[_Arm], first: dict[int, bytes], duration: flo
         The excitation's length, s.
     seed : int
         Seeds the excitations.
+    radius : float or None
+        The links' capsules' radius (m) of the clearance check; None for
+        :data:`~drake_coop.identification.clearance.LINK_RADIUS`.
 
     Raises
     ------
@@ -321,14 +324,18 @@ def preflight(scenario, arms: list[_Arm], first: dict[int, bytes], duration: flo
             from drake_coop.experiment.simulate import rest_posture
 
             postures.append(rest_posture(scenario, list(plan_run(scenario).arms))[0][i])
+    from drake_coop.identification.clearance import LINK_RADIUS
+
     contact = first_contact(scenario, {a.index: (lambda t, e=a.excitation: e.evaluate(t)[0])
-                                       for a in arms}, postures, duration)
+                                       for a in arms}, postures, duration,
+                            radius=LINK_RADIUS if radius is None else radius)
     if contact is not None:
         raise WireRefusal(f"the excitation would bring {contact}; no command sent")
 
 
 def drive(scenario, robots: list[int], lcm, clock, *, duration: float = 10.0, seed: int = 0,
-          specs=None, status_wait: float = 5.0) -> list[WireRecording]:
+          specs=None, status_wait: float = 5.0,
+          clearance_radius: float | None = None) -> list[WireRecording]:
     """Drive each robot's excitation over the wire and record it (module docstring).
 
     Parameters
@@ -349,6 +356,8 @@ def drive(scenario, robots: list[int], lcm, clock, *, duration: float = 10.0, se
         The drivers (default: the scenario's).
     status_wait : float
         The longest wait for every arm's first status, s (simulated in lockstep).
+    clearance_radius : float or None
+        The links' capsules' radius of the clearance check, m (None: the default).
 
     Returns
     -------
@@ -386,7 +395,7 @@ def drive(scenario, robots: list[int], lcm, clock, *, duration: float = 10.0, se
     while not all(a.index in newest for a in arms) and waited < status_wait:
         waited += 0.01
         clock.advance(waited) if clock.lockstep else lcm.HandleSubscriptions(10)
-    preflight(scenario, arms, newest, duration, seed)
+    preflight(scenario, arms, newest, duration, seed, clearance_radius)
     guards = scenario.guards
     for arm in arms:
         plant = arm.setup.structure.plant
