@@ -2,7 +2,7 @@
 
 The data come from the simulated experiment (default), from the arms themselves over the
 wire (``--wire URL``: each arm's excitation through its driver's LCM messages, checked before
-the first command, :mod:`~drake_coop.identification.wire`; ``--wire lockstep``: the
+the first command, :mod:`~drake_coop.robot.wire_identify`; ``--wire lockstep``: the
 in-process simulated driver, stepped tick by tick), or from a recording of the wire
 (``--recording FILE``, :mod:`~drake_coop.identification.recording`). Exit codes: 0 done, 1 an
 identification failed or the wire experiment was refused or stopped (one line), 2 bad input.
@@ -101,7 +101,7 @@ def _drive(url: str, scenario, robots: list[int], args, log):
     """Drive the excitation over the wire; the recordings by index, or an exit code."""
     import sys
 
-    from drake_coop.identification.wire import Lockstep, WallClock, WireRefusal, drive
+    from drake_coop.robot.wire_identify import Lockstep, WallClock, WireRefusal, drive
     from drake_coop.robot.cli import check_lcm_url
     from drake_coop.robot.driver_spec import driver_specs
     from drake_coop.scenario.model_check import check_models

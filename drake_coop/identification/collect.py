@@ -125,7 +125,7 @@ def tracking_law(model: ArmModel, excitation: FourierExcitation, h: float, kp: n
                  kv: np.ndarray, k: int, q: np.ndarray, q_prev: np.ndarray) -> np.ndarray:
     """:class:`JointTracker`'s torque ``τ(k)`` on floats: the one law of the simulated
     experiment and of the excitation driven over the wire
-    (:mod:`~drake_coop.identification.wire`).
+    (:mod:`~drake_coop.robot.wire_identify`).
 
     Parameters
     ----------

@@ -25,7 +25,7 @@ one row per control tick ``k``:
     the control period, s; ``NAME/torque_limits`` (n,): the limits the commands were clipped
     to, N·m (``inf``: none).
 
-:func:`identify_recording` identifies an arm from it through
+:func:`~drake_coop.identification.report.identify_recording` identifies an arm from it through
 :func:`~drake_coop.identification.report.identify_from_data`, exactly the path of the
 simulated experiment (:func:`~drake_coop.identification.report.identify_robot`): a recording
 of the simulated experiment (:func:`recording_from_data`) identifies to the same model.
@@ -44,8 +44,7 @@ import numpy as np
 from drake_coop.identification.collect import ExcitationData
 from drake_coop.identification.excitation import FourierExcitation
 
-__all__ = ["FORMAT", "WireRecording", "identify_recording", "read_recording",
-           "recording_from_data", "write_recording"]
+__all__ = ["FORMAT", "WireRecording", "read_recording", "recording_from_data", "write_recording"]
 
 #: The format's name and version, stored in the file.
 FORMAT = "drake_coop.wire_recording/1"
@@ -222,50 +221,3 @@ def read_recording(path: str | Path) -> dict[str, WireRecording]:
             arrival_s=a["arrival_s"], h=float(a["h"]), torque_limits=a["torque_limits"],
             source=arm["source"], channels=list(arm.get("channels", [])))
     return out
-
-
-def identify_recording(scenario, recording: WireRecording, seed: int = 0,
-                       estimator: str = "map_sdp"):
-    """Identify the recording's arm (:func:`~drake_coop.identification.report.
-    identify_from_data`, the simulated experiment's path).
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario the arm belongs to (its nominal model; its truth for the validation).
-    recording : WireRecording
-        The arm's rows.
-    seed : int
-        Seeds the validation trajectory.
-    estimator : str
-        One of :data:`~drake_coop.identification.report.ESTIMATORS`.
-
-    Returns
-    -------
-    RobotIdentification
-        The identification.
-
-    Raises
-    ------
-    IdentifyInputError
-        The recording does not fit the scenario (robot, joints, control period).
-    """
-    from drake_coop.experiment.plan import time_grid
-    from drake_coop.identification.report import identify_from_data
-    from drake_coop.identification.setup import IdentifyInputError, identification_setup
-
-    names = [r.name for r in scenario.robots]
-    i = recording.index
-    if not (0 <= i < len(names)) or names[i] != recording.robot:
-        raise IdentifyInputError(f"--recording: robot {recording.robot!r} (index {i}) is not "
-                                 f"in the scenario ({', '.join(names)})")
-    setup = identification_setup(scenario, i)
-    if recording.q.shape[1] != setup.structure.n:
-        raise IdentifyInputError(f"--recording: {recording.robot} has {recording.q.shape[1]} "
-                                 f"joints, the scenario's arm {setup.structure.n}")
-    h, _ = time_grid(scenario)
-    if not math.isclose(recording.h, h, rel_tol=1e-9):
-        raise IdentifyInputError(f"--recording: {recording.robot} was recorded at h = "
-                                 f"{recording.h:g} s, the scenario's control_period is {h:g} s")
-    return identify_from_data(scenario, setup, recording.excitation, recording.data(), seed,
-                              estimator)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -56,6 +57,9 @@ from drake_coop.identification.setup import (  # noqa: F401 (IdentifyInputError 
 from drake_coop.identification.urdf_writer import identified_urdf_text
 from drake_coop.results.io import OutputError, check_output_folder, staged_folder
 from drake_coop.scenario.schema import Scenario
+
+if TYPE_CHECKING:
+    from drake_coop.identification.recording import WireRecording
 
 #: Allowed excitation lengths (s).
 DURATION_RANGE = (1.0, 120.0)
@@ -237,6 +241,53 @@ def identify_from_data(scenario: Scenario, setup: IdentificationSetup,
     return RobotIdentification(robot.name, structure, excitation, data, estimate, theta_true,
                                theta_nominal, identifiable, validation, fit, urdf_text,
                                estimator)
+
+
+def identify_recording(scenario, recording: WireRecording, seed: int = 0,
+                       estimator: str = "map_sdp"):
+    """Identify the recording's arm (:func:`~drake_coop.identification.report.
+    identify_from_data`, the simulated experiment's path).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario the arm belongs to (its nominal model; its truth for the validation).
+    recording : WireRecording
+        The arm's rows (:mod:`~drake_coop.identification.recording`).
+    seed : int
+        Seeds the validation trajectory.
+    estimator : str
+        One of :data:`~drake_coop.identification.report.ESTIMATORS`.
+
+    Returns
+    -------
+    RobotIdentification
+        The identification.
+
+    Raises
+    ------
+    IdentifyInputError
+        The recording does not fit the scenario (robot, joints, control period).
+    """
+    import math
+
+    from drake_coop.experiment.plan import time_grid
+
+    names = [r.name for r in scenario.robots]
+    i = recording.index
+    if not (0 <= i < len(names)) or names[i] != recording.robot:
+        raise IdentifyInputError(f"--recording: robot {recording.robot!r} (index {i}) is not "
+                                 f"in the scenario ({', '.join(names)})")
+    setup = identification_setup(scenario, i)
+    if recording.q.shape[1] != setup.structure.n:
+        raise IdentifyInputError(f"--recording: {recording.robot} has {recording.q.shape[1]} "
+                                 f"joints, the scenario's arm {setup.structure.n}")
+    h, _ = time_grid(scenario)
+    if not math.isclose(recording.h, h, rel_tol=1e-9):
+        raise IdentifyInputError(f"--recording: {recording.robot} was recorded at h = "
+                                 f"{recording.h:g} s, the scenario's control_period is {h:g} s")
+    return identify_from_data(scenario, setup, recording.excitation, recording.data(), seed,
+                              estimator)
 
 
 def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, nominal,
@@ -472,7 +523,7 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
         One of :data:`ESTIMATORS`.
     recordings : dict of int to WireRecording or None
         Identify each robot from its recording
-        (:func:`~drake_coop.identification.recording.identify_recording`) instead of the
+        (:func:`identify_recording`) instead of the
         simulated experiment; written to ``recording.npz`` when ``source`` is ``wire``.
     source : str
         Where the data came from, for ``identify.json``: ``simulation``, ``wire`` (driven
@@ -498,8 +549,6 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
     idents = {}
     for i in robots:
         if recordings is not None:
-            from drake_coop.identification.recording import identify_recording
-
             log(f"drake-coop: identifying {scenario.robots[i].name} from its recording "
                 f"({source})")
             idents[i] = identify_recording(scenario, recordings[i], seed, estimator)

@@ -1,7 +1,7 @@
 """Where identifying one robot starts: its nominal model, parameter layout, simulated truth and
 limits (:func:`identification_setup`), and its excitation (:func:`design_for`) — shared by the
 simulated experiment (:func:`~drake_coop.identification.report.identify_robot`) and the one
-driven over the wire (:mod:`~drake_coop.identification.wire`).
+driven over the wire (:mod:`~drake_coop.robot.wire_identify`).
 """
 
 from __future__ import annotations

@@ -236,11 +236,11 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     from drake_coop.robot.pacing import (
         PacingRecord,
         pacing_summary,
-        plot_pacing,
         pump_until,
         summary_line,
         write_pacing_csv,
     )
+    from drake_coop.robot.pacing_plot import plot_pacing
     from drake_coop.robot.realtime import missing_realtime
     from drake_coop.robot.serve_loop import (
         STOP_CHANNEL,

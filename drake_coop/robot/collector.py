@@ -74,7 +74,7 @@ class CollectorPauses:
     total_s: float = 0.0
     in_tick: int = 0
     ticking: bool = False
-    _start: float | None = field(default=None, repr=False)
+    _start: float | None = field(default=None, init=False, repr=False)
 
     def __call__(self, phase: str, info: dict) -> None:
         """The ``gc.callbacks`` hook.

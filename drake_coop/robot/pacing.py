@@ -514,7 +514,3 @@ def write_pacing_csv(path: Path, record: PacingRecord) -> None:
                      f"{a['lateness_s'][i]:.9f},{a['status_age_s'][i]:.9f},{a['missed'][i]},"
                      f"{a['wait_s'][i]:.9f}")
     atomic_write_text(path, "\n".join(lines) + "\n")
-
-
-# The figure lives in its own module; re-exported here (the names the callers know).
-from drake_coop.robot.pacing_plot import clip_limit, plot_pacing  # noqa: E402,F401

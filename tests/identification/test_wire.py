@@ -1,4 +1,4 @@
-"""Identification over the wire (:mod:`drake_coop.identification.wire`,
+"""Identification over the wire (:mod:`drake_coop.robot.wire_identify`,
 :mod:`drake_coop.identification.recording`): the checks before the first command, the recording
 against what the wire carried (a spy on the channels), the recording's format, and the
 identification from a recording against the simulated experiment's own."""
@@ -11,14 +11,13 @@ from drake import lcmt_panda_command, lcmt_panda_status
 from drake_coop.identification.clearance import first_contact
 from drake_coop.identification.recording import (
     FORMAT,
-    identify_recording,
     read_recording,
     recording_from_data,
     write_recording,
 )
-from drake_coop.identification.report import identify_robot
+from drake_coop.identification.report import identify_recording, identify_robot
 from drake_coop.identification.setup import identification_setup
-from drake_coop.identification.wire import Lockstep, WireRefusal, _Arm, drive, preflight
+from drake_coop.robot.wire_identify import Lockstep, WireRefusal, _Arm, drive, preflight
 from drake_coop.robot.driver_spec import driver_specs
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.model_check import check_models

@@ -9,11 +9,11 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.primitives import ZeroOrderHold
 
 from drake_coop.robot import pacing
+from drake_coop.robot.pacing_plot import clip_limit, plot_pacing
 from drake_coop.robot.pacing import (
     PacingRecord,
     StatusArrivals,
     pacing_summary,
-    plot_pacing,
     pump_until,
     run_paced,
     write_pacing_csv,
@@ -151,5 +151,5 @@ def test_one_late_tick_does_not_set_the_figures_axes(tmp_path):
     # the margin's line stays on the axes
     assert limits["compute"]["limit_ms"] >= 2.0
     assert (tmp_path / "pacing.png").stat().st_size > 1000
-    assert pacing.clip_limit(np.array([1e-3] * 999 + [0.181])) == pytest.approx(
+    assert clip_limit(np.array([1e-3] * 999 + [0.181])) == pytest.approx(
         1.5 * np.percentile([1e-3] * 999 + [0.181], 99.9))
