@@ -36,18 +36,8 @@ from drake_coop.identification.instrumental import (
     estimate_parameters_didim,
     estimate_parameters_iv,
 )
-from drake_coop.identification.excitation import (
-    ExcitationLimits,
-    FourierExcitation,
-    design_excitation,
-)
-from drake_coop.identification.regressor import (
-    ArmStructure,
-    Regressor,
-    identifiable_basis,
-    load_structure,
-    true_parameters,
-)
+from drake_coop.identification.excitation import FourierExcitation, design_excitation
+from drake_coop.identification.regressor import ArmStructure, identifiable_basis
 from drake_coop.identification.setup import (  # noqa: F401 (IdentifyInputError re-exported)
     IdentificationSetup,
     IdentifyInputError,

@@ -317,8 +317,11 @@ def preflight(scenario, arms: list[_Arm], first: dict[int, bytes], duration: flo
     for i, robot in enumerate(scenario.robots):
         if i in readings:
             postures.append(readings[i])
-        elif i in first:
-            postures.append(_read(first[i], len(readings[next(iter(readings))]))[0])
+        elif i in first:                  # an arm not excited: where its status says
+            from drake import lcmt_panda_status
+
+            postures.append(np.asarray(lcmt_panda_status.decode(first[i]).joint_position,
+                                       float))
         else:
             from drake_coop.experiment.plan import plan_run
             from drake_coop.experiment.simulate import rest_posture
@@ -372,13 +375,13 @@ def drive(scenario, robots: list[int], lcm, clock, *, duration: float = 10.0, se
     from drake_coop.control.watchdog import STATUS_OK, Watchdog
     from drake_coop.experiment.plan import time_grid
     from drake_coop.robot.driver_spec import driver_specs, safe_command_message
-    from drake_coop.robot.drivers import urdf_limits
     from drake_coop.scenario.model_check import check_models
 
     h, _ = time_grid(scenario)
     specs = specs if specs is not None else driver_specs(scenario, check_models(scenario))
-    arms = [_Arm(index=i, spec=_with_limits(specs[i], identification_setup(scenario, i)),
-                 setup=identification_setup(scenario, i)) for i in robots]
+    setups = {i: identification_setup(scenario, i) for i in robots}
+    arms = [_Arm(index=i, spec=_with_limits(specs[i], setups[i]), setup=setups[i])
+            for i in robots]
     newest: dict[int, bytes] = {}
     arrival: dict[int, float] = {}
 
@@ -394,7 +397,10 @@ def drive(scenario, robots: list[int], lcm, clock, *, duration: float = 10.0, se
     waited = 0.0
     while not all(a.index in newest for a in arms) and waited < status_wait:
         waited += 0.01
-        clock.advance(waited) if clock.lockstep else lcm.HandleSubscriptions(10)
+        if clock.lockstep:
+            clock.advance(waited)
+        else:
+            lcm.HandleSubscriptions(10)
     preflight(scenario, arms, newest, duration, seed, clearance_radius)
     guards = scenario.guards
     for arm in arms:

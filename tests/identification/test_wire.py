@@ -171,3 +171,19 @@ def test_over_the_wire_the_recording_is_what_the_wire_carried_and_identifies_the
         ident = identify_recording(s, rec)
         v = ident.validation
         assert v["torque_error_rms_identified"] < 0.2 * v["torque_error_rms_nominal"], v
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--wire", "memq://"], "--wire memq:// is in-process only"),
+    (["--wire", "bogus://x"], "--wire 'bogus://x': unknown LCM provider"),
+    (["--wire", "lockstep", "--recording", "r.npz"], "--wire and --recording: give one"),
+    (["--recording", "missing.npz"], "--recording missing.npz: not a readable .npz file"),
+])
+def test_identify_wire_and_recording_bad_input_is_one_line_exit_2(tmp_path, capsys, args,
+                                                                   message):
+    from drake_coop.cli import main
+
+    assert main(["identify", "paper", "--out", str(tmp_path / "out"), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err
+    assert not (tmp_path / "out").exists()
