@@ -29,8 +29,8 @@ def cases() -> dict:
         text = find_scenario("two_ur5").read_text().replace("ur5_robot.urdf", "ur10_robot.urdf")
         return load_scenario(data=text)
 
-    return {"paper": shipped("paper"), "two_ur5": shipped("two_ur5"),
-            "two_pandas": shipped("two_pandas"), "ur10_with_ur5_gains": ur10}
+    return {"paper": shipped("paper"), "ur10_with_ur5_gains": ur10,
+            "two_ur5": shipped("two_ur5"), "two_pandas": shipped("two_pandas")}
 
 
 def main() -> None:
