@@ -153,3 +153,22 @@ def test_one_late_tick_does_not_set_the_figures_axes(tmp_path):
     assert (tmp_path / "pacing.png").stat().st_size > 1000
     assert clip_limit(np.array([1e-3] * 999 + [0.181])) == pytest.approx(
         1.5 * np.percentile([1e-3] * 999 + [0.181], 99.9))
+
+
+def test_serve_gives_the_margin_or_the_line_why_not(monkeypatch, capsys):
+    """What ``serve`` checks its delay against and writes to ``run.json``: the map's margin
+    of the served arms, or None and the one line saying why (a loop unstable with no delay:
+    once "margin unknown" with no reason)."""
+    from drake_coop.robot.cli import serve_margin
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.stability import grid
+
+    monkeypatch.setattr(grid, "point_rows", lambda text, points, eps: [
+        {"rho": 2.17, "status": "unstable", "slowest_states": "plant:robot1::joint1_w"}])
+    margin, entry, reason = serve_margin(load_scenario(), ["robot1"], None)
+    assert margin is None and reason.startswith("the loop is unstable with no delay")
+    assert entry["robots"] == ["robot1"] and "\n" not in entry["line"]
+    assert capsys.readouterr().err.strip().splitlines()[-1] == f"drake-coop: {entry['line']}"
+    s = pacing_summary(record([0.3] * 10), margin, margin_reason=reason)
+    assert s["delay_margin_reason"] == reason and pacing.summary_line(s).endswith(f"({reason})")
+    assert serve_margin(load_scenario(), ["robot1"], 0.004)[0] == 0.004
