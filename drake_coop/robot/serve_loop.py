@@ -114,11 +114,13 @@ class StopListener:
         lcm.Publish(channel, f"{robot}: {reason}".encode("utf-8"))
 
 
-def step_end(k: int, h: float) -> float:
-    """Where :meth:`ServeLoop.step` stops before tick ``k``: ``k h`` less a tenth of
-    :func:`~drake_coop.control.timing.tick_of`'s tolerance (``1e-10 max(1, k h)`` s), so that
-    the context's time still reads as tick ``k`` and the events at ``k h`` to a rounding
-    (ulps, far below the margin) are all still to come.
+def step_end(k: int, h: float, periods: tuple[float, ...] = ()) -> float:
+    """Where :meth:`ServeLoop.step` stops before tick ``k``: ``k h``, unless an event of one of
+    ``periods`` (Drake schedules it at ``m P``, offset 0) falls a rounding *before* ``k h``
+    (within :func:`~drake_coop.control.timing.tick_of`'s tolerance): then ``k h`` less a tenth
+    of that tolerance, so that the event runs in the next step, on tick ``k``'s reading — as
+    the simulated diagram's encoders give it there. The context's time still reads as tick
+    ``k`` either way.
 
     Parameters
     ----------
@@ -126,6 +128,9 @@ def step_end(k: int, h: float) -> float:
         The next tick.
     h : float
         The control period, s.
+    periods : tuple of float
+        The periods of the Diagram's events off the tick grid's own ``h`` (the mass
+        estimator's ``ESTIMATOR_TICKS h``), s.
 
     Returns
     -------
@@ -133,7 +138,12 @@ def step_end(k: int, h: float) -> float:
         The time, s.
     """
     t = k * h
-    return t - 1e-10 * max(1.0, t)
+    tolerance = 1e-9 * max(1.0, t)
+    for period in periods:
+        event = round(t / period) * period      # as Drake computes it: 0 + m P
+        if event < t and t - event <= tolerance:
+            return t - 0.1 * tolerance
+    return t
 
 
 class ServeLoop:
@@ -160,6 +170,13 @@ class ServeLoop:
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
         self.h = plan.h
+        # the events off the grid of h (the mass estimator's period), for step_end
+        self._periods: tuple[float, ...] = ()
+        if scenario.object_model.mode == "estimated":
+            from drake_coop.control.params import checked_period
+            from drake_coop.experiment.object_blocks import ESTIMATOR_TICKS
+
+            self._periods = (checked_period(ESTIMATOR_TICKS * plan.h),)
         self._scenario, self._plan, self._lcm = scenario, plan, lcm
         self._fixed_q: list = []
         self._status: list[tuple[float, float, float]] = []   # each arm's [s, f, v]
@@ -242,15 +259,15 @@ class ServeLoop:
         """The updates at ``t_k`` (one Simulator step), ``λ̂(k)`` read first: the value the
         step's updates then use (computed once, cached by Drake) and the watchdog checks.
 
-        The step ends just short of :math:`t_{k+1}` (:func:`step_end`), so that every event
-        Drake schedules at :math:`t_{k+1}` to a rounding (the mass estimator's, every
-        ``ESTIMATOR_TICKS h``: ``m (5h)`` and ``(5m) h`` differ by an ulp now and then) runs
-        in the next step, on the reading of tick ``k + 1``: what the simulated diagram's
-        blocks read there (its encoders treat a time within ``1e-9`` of a tick as the tick,
+        The step ends at :math:`t_{k+1}`, or just short of it when an event falls a rounding
+        before it (:func:`step_end`: the mass estimator's, every ``ESTIMATOR_TICKS h``,
+        ``m (5h)`` and ``(5m) h`` differ by an ulp now and then), so that such an event runs in
+        the next step, on the reading of tick ``k + 1``: what the simulated diagram's blocks
+        read there (its encoders treat a time within ``1e-9`` of a tick as the tick,
         :func:`~drake_coop.control.timing.tick_of`)."""
         self._lam = [port.Eval(block).tolist() for _, _, block, port, _ in self._wd]
         self.k += 1
-        self.simulator.AdvanceTo(step_end(self.k, self.h))
+        self.simulator.AdvanceTo(step_end(self.k, self.h, self._periods))
 
     def check(self) -> None:
         """Each arm's watchdog for tick ``k``

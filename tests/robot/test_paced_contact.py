@@ -100,3 +100,18 @@ def test_sim_driver_log_is_refused_naming_it(tmp_path, capsys, name, existing):
     err = capsys.readouterr().err
     assert "--log" in err and len([x for x in err.splitlines() if x.strip()]) == 1
     assert path.read_bytes() == b"not ours" if existing else not path.exists()
+
+
+def test_a_step_ends_short_of_a_tick_only_where_an_event_falls_a_rounding_before_it():
+    from drake_coop.robot.serve_loop import step_end
+
+    h, period = 0.009, 5 * 0.009
+    early = [k for k in range(0, 2000, 5) if (k // 5) * period < k * h]
+    assert early                      # the rounding happens (m (5h) < (5m) h now and then)
+    for k in range(0, 2000):
+        end = step_end(k, h, (period,))
+        if k in early:
+            assert (k // 5) * period > end and k * h - end <= 1e-9 * max(1.0, k * h)
+        else:
+            assert end == k * h
+        assert step_end(k, h) == k * h
