@@ -103,9 +103,11 @@ def test_sim_driver_log_is_refused_naming_it(tmp_path, capsys, name, existing):
 
 
 def test_a_step_ends_short_of_a_tick_only_where_an_event_falls_a_rounding_before_it():
+    from drake_coop.control.params import checked_period
     from drake_coop.robot.serve_loop import step_end
 
-    h, period = 0.009, 5 * 0.009
+    h = plan_run(compressed("estimated"), 1.0).h   # 9 ms on a 3 ms plant step's grid
+    period = checked_period(5 * h)                # the mass estimator's
     early = [k for k in range(0, 2000, 5) if (k // 5) * period < k * h]
     assert early                      # the rounding happens (m (5h) < (5m) h now and then)
     for k in range(0, 2000):
