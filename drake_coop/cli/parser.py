@@ -86,6 +86,13 @@ def build_parser() -> argparse.ArgumentParser:
                             "LMIs), idim_iv (instrumental variables from the simulated closed "
                             "loop) or didim (the simulated loop's regressor); all three keep "
                             "the LMIs")
+    ident.add_argument("--wire", default=None, metavar="URL",
+                       help="drive the excitation through each arm's driver over LCM at URL "
+                            "(tcpq://, udpm://; 'lockstep': the in-process simulated driver, "
+                            "stepped tick by tick) and record the wire to DIR/recording.npz")
+    ident.add_argument("--recording", default=None, metavar="FILE",
+                       help="identify from a recording of the wire (a recording.npz of "
+                            "--wire) instead of running an experiment")
     ident.add_argument("--quiet", action="store_true", help="no progress messages")
     ident.set_defaults(func=cmd_identify)
     from drake_coop.studies.cli import add_study_parser

@@ -104,12 +104,8 @@ class JointTracker(LeafSystem):
 
     def _law(self, context: Context, k: int) -> np.ndarray:
         x = context.get_discrete_state(self._state).value()
-        q_prev = x[self._n: 2 * self._n]
-        q = self._q.Eval(context)
-        qd, vd, ad = (y[0] for y in self._excitation.evaluate(k * self._h))
-        v = (q - q_prev) / self._h
-        return (self._model.inverse_dynamics_terms(qd, vd, ad)
-                + self._kp * (qd - q) + self._kv * (vd - v))
+        return tracking_law(self._model, self._excitation, self._h, self._kp, self._kv, k,
+                            self._q.Eval(context), x[self._n: 2 * self._n])
 
     def _calc_tau(self, context: Context, output: BasicVector) -> None:
         k = tick_of(context.get_time(), self._h)
@@ -123,6 +119,39 @@ class JointTracker(LeafSystem):
         k = tick_of(context.get_time(), self._h)
         discrete_state.set_value(self._state, np.concatenate(
             [self._law(context, k), self._q.Eval(context), [float(k)]]))
+
+
+def tracking_law(model: ArmModel, excitation: FourierExcitation, h: float, kp: np.ndarray,
+                 kv: np.ndarray, k: int, q: np.ndarray, q_prev: np.ndarray) -> np.ndarray:
+    """:class:`JointTracker`'s torque ``τ(k)`` on floats: the one law of the simulated
+    experiment and of the excitation driven over the wire
+    (:mod:`~drake_coop.robot.wire_identify`).
+
+    Parameters
+    ----------
+    model : ArmModel
+        The nominal model of the feedforward.
+    excitation : FourierExcitation
+        The reference ``q_d(t)``.
+    h : float
+        The control period, s.
+    kp, kv : numpy.ndarray
+        The PD gains (n,), N·m/rad and N·m·s/rad.
+    k : int
+        The tick.
+    q : numpy.ndarray
+        The reading of tick ``k`` (n,), rad.
+    q_prev : numpy.ndarray
+        The reading of tick ``k − 1`` (n,), rad (the first reading at ``k = 0``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``τ(k)`` (n,), N·m.
+    """
+    qd, vd, ad = (y[0] for y in excitation.evaluate(k * h))
+    v = (np.asarray(q, float) - np.asarray(q_prev, float)) / h
+    return model.inverse_dynamics_terms(qd, vd, ad) + kp * (qd - q) + kv * (vd - v)
 
 
 @dataclass

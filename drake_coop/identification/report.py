@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,21 +36,20 @@ from drake_coop.identification.instrumental import (
     estimate_parameters_didim,
     estimate_parameters_iv,
 )
-from drake_coop.identification.excitation import (
-    ExcitationLimits,
-    FourierExcitation,
-    design_excitation,
-)
-from drake_coop.identification.regressor import (
-    ArmStructure,
-    Regressor,
-    identifiable_basis,
-    load_structure,
-    true_parameters,
+from drake_coop.identification.excitation import FourierExcitation, design_excitation
+from drake_coop.identification.regressor import ArmStructure, identifiable_basis
+from drake_coop.identification.setup import (  # noqa: F401 (IdentifyInputError re-exported)
+    IdentificationSetup,
+    IdentifyInputError,
+    design_for,
+    identification_setup,
 )
 from drake_coop.identification.urdf_writer import identified_urdf_text
 from drake_coop.results.io import OutputError, check_output_folder, staged_folder
 from drake_coop.scenario.schema import Scenario
+
+if TYPE_CHECKING:
+    from drake_coop.identification.recording import WireRecording
 
 #: Allowed excitation lengths (s).
 DURATION_RANGE = (1.0, 120.0)
@@ -61,11 +61,7 @@ DURATION_RANGE = (1.0, 120.0)
 #: (:func:`~drake_coop.identification.instrumental.estimate_parameters_didim`).
 ESTIMATORS = ("map_sdp", "idim_iv", "didim")
 #: Files ``identify`` writes (an existing ``--out`` may hold only these).
-OUTPUT_FILES = ("identify.json", "identify_fit.png", "identified.yaml")
-
-
-class IdentifyInputError(ValueError):
-    """Bad input of ``identify`` (one-line message)."""
+OUTPUT_FILES = ("identify.json", "identify_fit.png", "identified.yaml", "recording.npz")
 
 
 @dataclass
@@ -118,15 +114,11 @@ class RobotIdentification:
     estimator: str = "map_sdp"
 
 
-def _velocity_limits(structure: ArmStructure) -> np.ndarray:
-    plant = structure.plant
-    return np.array([min(10.0, plant.GetJointByName(j).velocity_upper_limits()[0])
-                     for j in structure.joints])
-
-
 def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed: int = 0,
-                   estimator: str = "map_sdp") -> RobotIdentification:
-    """Identify robot ``index`` of ``scenario`` (module docstring).
+                   estimator: str = "map_sdp", q0: np.ndarray | None = None
+                   ) -> RobotIdentification:
+    """Identify robot ``index`` of ``scenario`` (module docstring): the excitation
+    (:func:`design_for`), the simulated experiment, then :func:`identify_from_data`.
 
     Parameters
     ----------
@@ -140,6 +132,8 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
         The excitation's random candidates.
     estimator : str
         One of :data:`ESTIMATORS`.
+    q0 : numpy.ndarray or None
+        The excitation's centre (default: the middle of the joint range).
 
     Returns
     -------
@@ -154,39 +148,46 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     if estimator not in ESTIMATORS:
         raise IdentifyInputError(f"estimator must be one of {', '.join(ESTIMATORS)}, "
                                  f"got {estimator!r}")
+    setup = identification_setup(scenario, index)
+    excitation = design_for(setup, duration, seed, q0, scenario.robots[index].name)
+    data = simulate_excitation(scenario, index, excitation, setup.nominal)
+    return identify_from_data(scenario, setup, excitation, data, seed, estimator)
+
+
+def identify_from_data(scenario: Scenario, setup: IdentificationSetup,
+                       excitation: FourierExcitation, data: ExcitationData, seed: int = 0,
+                       estimator: str = "map_sdp") -> RobotIdentification:
+    """The estimate from recorded data, whatever recorded it (the simulated experiment, or a
+    recording of the wire: :mod:`~drake_coop.identification.recording`): the one path from
+    ``q``, ``τ`` at ``h`` to the identified model, its validation and its URDF.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario (its robot's truth, for the validation's reference).
+    setup : IdentificationSetup
+        The robot's setup.
+    excitation : FourierExcitation
+        The excitation the data followed.
+    data : ExcitationData
+        The recorded ``t``, ``q``, ``τ``, ``h`` and torque limits.
+    seed : int
+        Seeds the validation trajectory (``seed + 1``).
+    estimator : str
+        One of :data:`ESTIMATORS`.
+
+    Returns
+    -------
+    RobotIdentification
+        The identification.
+    """
     from drake_coop.identification.excitation import ExcitationError
-    from drake_coop.plant.arms import Arm
-    from drake_coop.plant.model_error import controller_arm_model
 
+    index, structure, regressor = setup.index, setup.structure, setup.regressor
     robot = scenario.robots[index]
-    arm = Arm(robot, scenario.task)
-    nominal = controller_arm_model(arm, robot.model_error)
-    structure = load_structure(arm.urdf_path, arm.base_frame,
-                               payload_mass=robot.model_error.payload_mass,
-                               sensor_joint=robot.sensor_joint)
-    theta_true = true_parameters(structure)
-    if robot.model_error.coulomb_friction:
-        theta_true[structure.joint_slice("coulomb")] = robot.model_error.coulomb_friction
-    theta_nominal = true_parameters(structure, nominal.plant)
-    regressor = Regressor(structure)
+    nominal, theta_true, theta_nominal = setup.nominal, setup.theta_true, setup.theta_nominal
     n = structure.n
-    limits = ExcitationLimits(
-        q_min=arm.q_min, q_max=arm.q_max,
-        torque_limits=(np.full(n, np.inf) if robot.actuators.torque_limits is None
-                       else np.asarray(robot.actuators.torque_limits, float)),
-        velocity_limits=_velocity_limits(structure))
-
-    def nominal_torque(q, v, a):
-        return np.array([nominal.inverse_dynamics_terms(q[k], v[k], a[k])
-                         for k in range(len(q))])
-
-    q0 = 0.5 * (arm.q_min + arm.q_max)
-    try:
-        excitation, _ = design_excitation(duration, q0, limits, nominal_torque,
-                                          regressor.matrix, seed=seed)
-    except ExcitationError as exc:
-        raise IdentifyInputError(f"{robot.name}: {exc}") from None
-    data = simulate_excitation(scenario, index, excitation, nominal)
+    duration = excitation.duration
     prepared = prepare(data.t, data.q, data.tau, data.h, data.torque_limits)
     estimate = estimate_parameters(regressor, prepared, theta_nominal)
     if estimator == "idim_iv":
@@ -203,7 +204,8 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     # Validation: a different excitation, exact states, torques of the truth (no friction
     # term: the Coulomb column's smoothing is the identification's own choice).
     try:
-        other, _ = design_excitation(duration, q0, limits, nominal_torque, regressor.matrix,
+        other, _ = design_excitation(duration, excitation.q0, setup.limits,
+                                     setup.nominal_torque, regressor.matrix,
                                      seed=seed + 1, candidates=3)
     except ExcitationError:        # no second trajectory fits: validate on the first one
         other = excitation
@@ -222,13 +224,60 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     fit = {"t": prepared.t, "tau": prepared.tau,
            "identified": (Y @ estimate.theta).reshape(-1, n),
            "nominal": (Y @ theta_nominal).reshape(-1, n)}
-    nominal_text = Path(arm.controller_urdf_path).read_text()
+    nominal_text = Path(setup.arm.controller_urdf_path).read_text()
     urdf_text = identified_urdf_text(
         nominal_text, structure, estimate.theta,
         note=f"Robot {robot.name}, {duration:g} s of excitation.")
     return RobotIdentification(robot.name, structure, excitation, data, estimate, theta_true,
                                theta_nominal, identifiable, validation, fit, urdf_text,
                                estimator)
+
+
+def identify_recording(scenario, recording: WireRecording, seed: int = 0,
+                       estimator: str = "map_sdp"):
+    """Identify the recording's arm (:func:`~drake_coop.identification.report.
+    identify_from_data`, the simulated experiment's path).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario the arm belongs to (its nominal model; its truth for the validation).
+    recording : WireRecording
+        The arm's rows (:mod:`~drake_coop.identification.recording`).
+    seed : int
+        Seeds the validation trajectory.
+    estimator : str
+        One of :data:`~drake_coop.identification.report.ESTIMATORS`.
+
+    Returns
+    -------
+    RobotIdentification
+        The identification.
+
+    Raises
+    ------
+    IdentifyInputError
+        The recording does not fit the scenario (robot, joints, control period).
+    """
+    import math
+
+    from drake_coop.experiment.plan import time_grid
+
+    names = [r.name for r in scenario.robots]
+    i = recording.index
+    if not (0 <= i < len(names)) or names[i] != recording.robot:
+        raise IdentifyInputError(f"--recording: robot {recording.robot!r} (index {i}) is not "
+                                 f"in the scenario ({', '.join(names)})")
+    setup = identification_setup(scenario, i)
+    if recording.q.shape[1] != setup.structure.n:
+        raise IdentifyInputError(f"--recording: {recording.robot} has {recording.q.shape[1]} "
+                                 f"joints, the scenario's arm {setup.structure.n}")
+    h, _ = time_grid(scenario)
+    if not math.isclose(recording.h, h, rel_tol=1e-9):
+        raise IdentifyInputError(f"--recording: {recording.robot} was recorded at h = "
+                                 f"{recording.h:g} s, the scenario's control_period is {h:g} s")
+    return identify_from_data(scenario, setup, recording.excitation, recording.data(), seed,
+                              estimator)
 
 
 def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, nominal,
@@ -442,7 +491,8 @@ def parse_robots(text: str | None, count: int) -> list[int]:
 
 def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
                  duration: float = 10.0, seed: int = 0, log=print,
-                 estimator: str = "map_sdp") -> dict:
+                 estimator: str = "map_sdp", recordings: dict | None = None,
+                 source: str = "simulation") -> dict:
     """Identify ``robots`` of ``scenario`` and write ``out`` whole (module docstring).
 
     Parameters
@@ -461,6 +511,13 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
         Receives progress lines.
     estimator : str
         One of :data:`ESTIMATORS`.
+    recordings : dict of int to WireRecording or None
+        Identify each robot from its recording
+        (:func:`identify_recording`) instead of the
+        simulated experiment; written to ``recording.npz`` when ``source`` is ``wire``.
+    source : str
+        Where the data came from, for ``identify.json``: ``simulation``, ``wire`` (driven
+        now) or ``recording FILE``.
 
     Returns
     -------
@@ -481,11 +538,24 @@ def run_identify(scenario: Scenario, out: str | Path, robots: list[int],
     _check_out(out)
     idents = {}
     for i in robots:
+        if recordings is not None:
+            log(f"drake-coop: identifying {scenario.robots[i].name} from its recording "
+                f"({source})")
+            idents[i] = identify_recording(scenario, recordings[i], seed, estimator)
+            continue
         log(f"drake-coop: identifying {scenario.robots[i].name} ({duration:g} s of excitation)")
         idents[i] = identify_robot(scenario, i, duration, seed, estimator)
-    report = {"scenario_robots": [r.name for r in scenario.robots],
-              "robots": {ident.name: summary(ident, duration) for ident in idents.values()}}
+    report = {"scenario_robots": [r.name for r in scenario.robots], "data_source": source,
+              "robots": {ident.name: summary(ident, ident.excitation.duration)
+                         for ident in idents.values()}}
     with staged_folder(out) as staging:
+        kept = source.startswith("recording ") and (out / "recording.npz").resolve() == \
+            Path(source[len("recording "):]).resolve()     # the folder replaced holds it
+        if recordings is not None and (source == "wire" or kept):
+            from drake_coop.identification.recording import write_recording
+
+            write_recording(staging / "recording.npz",
+                            [recordings[i] for i in sorted(recordings)])
         for ident in idents.values():
             (staging / f"{ident.name}_identified.urdf").write_text(ident.urdf_text)
         (staging / "identify.json").write_text(json.dumps(report, indent=1))

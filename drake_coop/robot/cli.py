@@ -255,15 +255,15 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     from drake_coop.control.watchdog import STATUS_OK
     from drake_coop.experiment.simulate import rest_posture
     from drake_coop.results.io import atomic_write_text
+    from drake_coop.robot.collector import ManagedCollector
     from drake_coop.robot.pacing import (
         PacingRecord,
-        delay_margin,
         pacing_summary,
-        plot_pacing,
         pump_until,
         summary_line,
         write_pacing_csv,
     )
+    from drake_coop.robot.pacing_plot import plot_pacing
     from drake_coop.robot.realtime import missing_realtime
     from drake_coop.robot.serve_loop import (
         STOP_CHANNEL,
@@ -286,15 +286,9 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
 
     quiet = args.quiet
     memq = isinstance(args.lcm_url, str) and args.lcm_url.startswith("memq://")
-    margin = args.delay_margin
-    if margin is None:
-        if not quiet:
-            print("drake-coop: computing the delay margin (stability map, free point)",
-                  file=sys.stderr)
-        margin = delay_margin(scenario)
-        margin = None if math.isnan(margin) else margin
     names = [s.robot for s in specs]
     served = names if args.robot is None else [args.robot]
+    margin, margins, margin_reason = serve_margin(scenario, served, args.delay_margin, quiet)
     index = [names.index(r) for r in served]
     loop = ServeLoop(scenario, plan, lcm, specs, robots=served)
     specs = loop.specs                    # the arms served, their torque limits resolved
@@ -312,6 +306,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     status, message, code, trip = "ok", f"completed {plan.t_end:g} s", 0, None
     interrupted: BaseException | None = None
     started = False          # the loop has begun commanding the arms
+    collector = ManagedCollector()
 
     try:
         if not quiet:
@@ -380,15 +375,17 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
             def after_tick(k):
                 return "tripped" if loop.tripped() else (cell.tick() or "")
 
-            if lockstep is not None:
+            if lockstep is not None:    # simulated time: no deadline for the collector to miss
                 from drake_coop.robot.lockstep import run_lockstep
 
                 reason = run_lockstep(loop, lcm, lockstep, plan.k_end, record, after_tick,
                                       stop=CellStops(stop, cell), timeout=args.status_wait)
             else:
-                reason = run_on_arrival(loop, lcm, arrivals, plan.k_end, record, after_tick,
-                                        stop=CellStops(stop, cell),
-                                        on_arrival=args.tick == "arrival")
+                with collector:          # Python's collector only in the slack after a command
+                    reason = run_on_arrival(loop, lcm, arrivals, plan.k_end, record, after_tick,
+                                            stop=CellStops(stop, cell),
+                                            on_arrival=args.tick == "arrival",
+                                            collector=collector)
         except Exception as exc:       # a defect, not an input: the record is kept all the same
             status, code = "failed", 1
             message = (f"error at t = {loop.time():.3f} s: {type(exc).__name__}: "
@@ -431,7 +428,8 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
         print("drake-coop: interrupted while waiting for the first status; nothing written",
               file=sys.stderr)
         raise interrupted
-    summary = pacing_summary(record, margin)
+    summary = pacing_summary(record, margin, margin_reason=margin_reason,
+                             collector=collector.summary())
     message = printable(message, 1000)         # no control bytes to a terminal or run.json
     if trip is not None:
         trip = {key: printable(value, 1000) for key, value in trip.items()}
@@ -447,7 +445,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
             "safe_command": {s.robot: s.safe_command for s in specs},
             "torque_limits": {s.robot: [float(v) for v in s.torque_limits] for s in specs},
             "realtime": realtime, "realtime_missing": missing_realtime(realtime),
-            "pacing": summary}
+            "pacing": summary, "delay_margin": margins}
     write_pacing_csv(staging / "pacing.csv", record)
     if record.k:
         plot_pacing(staging / "pacing.png", record, summary)
@@ -460,6 +458,53 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     if interrupted is not None:
         raise interrupted      # the command line's exit code: 130 (Ctrl-C) or 143 (SIGTERM)
     return code
+
+
+def serve_margin(scenario, served: list[str], given: float | None, quiet: bool = False
+                 ) -> tuple[float | None, dict, str]:
+    """The delay margin ``serve`` checks its loop's delay against: ``--delay-margin`` when
+    given, else the margins of the served arms from the stability map, without and with delay
+    compensation (:func:`~drake_coop.stability.margin.delay_margins`), the scenario's own one
+    checked; when there is none, one line saying why (printed, and kept in ``run.json``).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    served : list of str
+        The arms this ``serve`` runs.
+    given : float or None
+        ``--delay-margin``, s.
+    quiet : bool
+        No progress lines.
+
+    Returns
+    -------
+    (margin, margins, reason)
+        The margin checked (s, or None), ``run.json``'s ``delay_margin`` entry, and why there
+        is no margin (``''`` when there is one).
+    """
+    if given is not None:
+        return given, {"given_s": given, "line": f"delay margin {given * 1e3:g} ms (given)"}, ""
+    from drake_coop.stability.margin import delay_margins
+
+    if not quiet:
+        print("drake-coop: computing the delay margin of " + ", ".join(served)
+              + " without and with delay compensation (stability map, free point)",
+              file=sys.stderr)
+    try:
+        margins = delay_margins(scenario, robots=served)
+    except Exception as exc:       # the map's own failures are rows; this is anything else
+        reason = ("the stability map could not be built for this scenario: "
+                  f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}")
+        if not quiet:
+            print(f"drake-coop: no delay margin: {reason}", file=sys.stderr)
+        return None, {"line": reason, "error": reason}, reason
+    m = margins.configured
+    entry = margins.as_dict()
+    if not quiet:
+        print(f"drake-coop: {entry['line']}", file=sys.stderr)
+    return m.margin_s, entry, m.reason
 
 
 def cmd_sim_driver(args) -> int:

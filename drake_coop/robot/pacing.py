@@ -377,11 +377,22 @@ def percentile(x: np.ndarray, q: float) -> float:
     return float(np.percentile(x, q)) if x.size else math.nan
 
 
-def pacing_summary(record: PacingRecord, margin: float | None) -> dict:
+#: The percentiles reported of each figure (``p50``, ``p99``, ``p99.9``) and its maximum.
+PERCENTILES = (50.0, 99.0, 99.9)
+
+
+def _key(q: float) -> str:
+    return f"p{q:g}".replace(".", "_")
+
+
+def pacing_summary(record: PacingRecord, margin: float | None, *, margin_reason: str = "",
+                   collector: dict | None = None) -> dict:
     """The paced run's figures against the delay margin ``margin`` (s; None: unknown).
 
     ``met`` is True when no deadline was missed and the 99th percentile of the loop's delay
-    (``status_age + lateness + driver cycle``) is within the margin.
+    (``status_age + lateness + driver cycle``) is within the margin. Each figure (computation,
+    lateness, status age, loop delay) is given at :data:`PERCENTILES` and its maximum
+    (``<figure>_p50_s``, ``_p99_s``, ``_p99_9_s``, ``_max_s``).
 
     Parameters
     ----------
@@ -389,6 +400,11 @@ def pacing_summary(record: PacingRecord, margin: float | None) -> dict:
         The run's figures.
     margin : float or None
         The delay margin, s.
+    margin_reason : str
+        Why there is no margin (one line), when ``margin`` is None.
+    collector : dict or None
+        The garbage collector's figures
+        (:meth:`~drake_coop.robot.collector.ManagedCollector.summary`).
 
     Returns
     -------
@@ -397,23 +413,22 @@ def pacing_summary(record: PacingRecord, margin: float | None) -> dict:
     """
     a = record.arrays()
     delay = a["status_age_s"] + a["lateness_s"] + record.driver_period
-    summary = {
-        "ticks": int(a["k"].size), "period_s": record.period,
-        "driver_period_s": record.driver_period,
-        "compute_p50_s": percentile(a["compute_s"], 50),
-        "compute_p99_s": percentile(a["compute_s"], 99),
-        "compute_max_s": float(a["compute_s"].max()) if a["k"].size else math.nan,
-        "lateness_p50_s": percentile(a["lateness_s"], 50),
-        "lateness_p99_s": percentile(a["lateness_s"], 99),
-        "lateness_max_s": float(a["lateness_s"].max()) if a["k"].size else math.nan,
-        "status_age_p99_s": percentile(a["status_age_s"], 99),
-        "wait_p99_s": percentile(a["wait_s"], 99),
-        "loop_delay_p99_s": percentile(delay, 99),
-        "missed_deadlines": int(a["missed"].sum()),
-        "delay_margin_s": margin,
-    }
+    summary = {"ticks": int(a["k"].size), "period_s": record.period,
+               "driver_period_s": record.driver_period}
+    figures = {"compute": a["compute_s"], "lateness": a["lateness_s"],
+               "status_age": a["status_age_s"], "loop_delay": delay, "wait": a["wait_s"]}
+    for name, x in figures.items():
+        for q in PERCENTILES:
+            summary[f"{name}_{_key(q)}_s"] = percentile(x, q)
+        summary[f"{name}_max_s"] = float(x.max()) if x.size else math.nan
+    summary["missed_deadlines"] = int(a["missed"].sum())
+    summary["delay_margin_s"] = margin
+    if margin is None and margin_reason:
+        summary["delay_margin_reason"] = margin_reason
     summary["met_margin"] = (None if margin is None or not a["k"].size else bool(
         summary["missed_deadlines"] == 0 and summary["loop_delay_p99_s"] <= margin + 1e-12))
+    if collector is not None:
+        summary["collector"] = dict(collector)
     return summary
 
 
@@ -432,20 +447,35 @@ def summary_line(summary: dict) -> str:
     """
     ms = 1e3
     margin = summary["delay_margin_s"]
-    verdict = ("margin unknown" if summary["met_margin"] is None else
-               ("met the" if summary["met_margin"] else "did NOT meet the")
-               + f" {margin * ms:.0f} ms delay margin")
-    return (f"{summary['ticks']} ticks: computation p99 {summary['compute_p99_s'] * ms:.2f} ms, "
-            f"lateness p99 {summary['lateness_p99_s'] * ms:.2f} ms, status age p99 "
-            f"{summary['status_age_p99_s'] * ms:.2f} ms, loop delay p99 "
-            f"{summary['loop_delay_p99_s'] * ms:.2f} ms, {summary['missed_deadlines']} missed "
-            f"deadlines: {verdict}")
+    if summary["met_margin"] is None:
+        reason = summary.get("delay_margin_reason", "")
+        verdict = "margin unknown" + (f" ({reason})" if reason else "")
+    else:
+        verdict = (("met the" if summary["met_margin"] else "did NOT meet the")
+                   + f" {margin * ms:.3g} ms delay margin")
+
+    def spread(name: str) -> str:
+        return "/".join(f"{summary[f'{name}_{_key(q)}_s'] * ms:.2f}" for q in PERCENTILES) + \
+            f"/{summary[f'{name}_max_s'] * ms:.2f}"
+
+    gc_part = ""
+    c = summary.get("collector")
+    if c:
+        gc_part = (f", {c['pauses_over_1ms']} collector pauses over 1 ms "
+                   f"({c['collections']} collections, {c['during_ticks']} during ticks)")
+    return (f"{summary['ticks']} ticks: loop delay p50/p99/p99.9/max {spread('loop_delay')} ms, "
+            f"computation {spread('compute')} ms, lateness p99 "
+            f"{summary['lateness_p99_s'] * ms:.2f} ms, status age p99 "
+            f"{summary['status_age_p99_s'] * ms:.2f} ms, {summary['missed_deadlines']} missed "
+            f"deadlines{gc_part}: {verdict}")
 
 
 def delay_margin(scenario, *, epsilon: float = 1e-5) -> float:
-    """The largest computation delay ``d`` (whole plant steps, up to ``h``) for which the
-    stability map (:mod:`drake_coop.stability`, free operating point) gives ``ρ < 1`` at every
-    delay from 0 to ``d``; 0 if only the undelayed loop is stable, NaN if not even that.
+    """The delay margin of ``scenario`` as it runs (its own delay compensation): the largest
+    computation delay ``d`` (whole plant steps, up to ``h``) for which the stability map
+    (:mod:`drake_coop.stability`, free operating point) gives ``ρ < 1`` at every delay from 0
+    to ``d``; NaN if not even the undelayed loop is stable (:func:`~drake_coop.stability.
+    margin.delay_margins` says why, and gives the margin with and without compensation).
 
     Parameters
     ----------
@@ -459,23 +489,10 @@ def delay_margin(scenario, *, epsilon: float = 1e-5) -> float:
     float
         ``d``, s.
     """
-    import copy
+    from drake_coop.stability.margin import delay_margins
 
-    from drake_coop.scenario.loading import dump_scenario
-    from drake_coop.experiment.plan import time_grid
-    from drake_coop.stability.grid import point_rows
-
-    h, dt = time_grid(scenario)
-    margin = math.nan
-    for steps in range(int(round(h / dt)) + 1):
-        s = copy.deepcopy(scenario)
-        for robot in s.robots:
-            robot.timing.computation_delay = steps * dt
-        row = point_rows(dump_scenario(s), ["free"], epsilon)[0]
-        if not (row["rho"] < 1.0):
-            break
-        margin = steps * dt
-    return margin
+    m = delay_margins(scenario, epsilon=epsilon).configured
+    return math.nan if m.margin_s is None else m.margin_s
 
 
 def write_pacing_csv(path: Path, record: PacingRecord) -> None:
@@ -497,57 +514,3 @@ def write_pacing_csv(path: Path, record: PacingRecord) -> None:
                      f"{a['lateness_s'][i]:.9f},{a['status_age_s'][i]:.9f},{a['missed'][i]},"
                      f"{a['wait_s'][i]:.9f}")
     atomic_write_text(path, "\n".join(lines) + "\n")
-
-
-def plot_pacing(path: Path, record: PacingRecord, summary: dict) -> None:
-    """``pacing.png``: histograms of computation time and lateness, their time series and the
-    status age, with the delay margin drawn.
-
-    Parameters
-    ----------
-    path : Path
-        The file.
-    record : PacingRecord
-        The figures.
-    summary : dict
-        :func:`pacing_summary`'s.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from drake_coop.results.io import atomic_path
-
-    a = record.arrays()
-    ms = 1e3
-    margin = summary["delay_margin_s"]
-    fig, axes = plt.subplots(2, 2, figsize=(11, 7))
-    for ax, key, label in ((axes[0, 0], "compute_s", "computation time per tick"),
-                           (axes[0, 1], "lateness_s", "lateness of the command vs t_k")):
-        ax.hist(a[key] * ms, bins=60, color="C0")
-        ax.set_yscale("log")
-        ax.set_xlabel(f"{label} (ms)")
-        ax.set_ylabel("ticks")
-        ax.axvline(percentile(a[key], 99) * ms, color="C1", ls="--", label="99th percentile")
-        if margin is not None and math.isfinite(margin):
-            ax.axvline(margin * ms, color="C3", label=f"delay margin {margin * ms:.0f} ms")
-        ax.legend(fontsize=8)
-    ax = axes[1, 0]
-    ax.plot(a["t"], a["compute_s"] * ms, lw=0.5, label="computation")
-    ax.plot(a["t"], a["lateness_s"] * ms, lw=0.5, label="lateness")
-    if margin is not None and math.isfinite(margin):
-        ax.axhline(margin * ms, color="C3", label="delay margin")
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("ms")
-    ax.legend(fontsize=8)
-    ax = axes[1, 1]
-    ax.plot(a["t"], a["status_age_s"] * ms, lw=0.5, color="C2")
-    ax.set_xlabel("t (s)")
-    ax.set_ylabel("age of the status used (ms)")
-    fig.suptitle(summary_line(summary), fontsize=8)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=90)
-    plt.close(fig)
-

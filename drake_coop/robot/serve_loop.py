@@ -141,6 +141,38 @@ class StopListener:
         lcm.Publish(channel, text.encode("utf-8"))
 
 
+def step_end(k: int, h: float, periods: tuple[float, ...] = ()) -> float:
+    """Where :meth:`ServeLoop.step` stops before tick ``k``: ``k h``, unless an event of one of
+    ``periods`` (Drake schedules it at ``m P``, offset 0) falls a rounding *before* ``k h``
+    (within :func:`~drake_coop.control.timing.tick_of`'s tolerance): then ``k h`` less a tenth
+    of that tolerance, so that the event runs in the next step, on tick ``k``'s reading — as
+    the simulated diagram's encoders give it there. The context's time still reads as tick
+    ``k`` either way.
+
+    Parameters
+    ----------
+    k : int
+        The next tick.
+    h : float
+        The control period, s.
+    periods : tuple of float
+        The periods of the Diagram's events off the tick grid's own ``h`` (the mass
+        estimator's ``ESTIMATOR_TICKS h``), s.
+
+    Returns
+    -------
+    float
+        The time, s.
+    """
+    t = k * h
+    tolerance = 1e-9 * max(1.0, t)
+    for period in periods:
+        event = round(t / period) * period      # as Drake computes it: 0 + m P
+        if event < t and t - event <= tolerance:
+            return t - 0.1 * tolerance
+    return t
+
+
 class ServeLoop:
     """The controller side of ``serve`` for the given arms, ticked by the caller.
 
@@ -165,6 +197,13 @@ class ServeLoop:
         self.simulator = Simulator(self.diagram)
         self.context = self.simulator.get_mutable_context()
         self.h = plan.h
+        # the events off the grid of h (the mass estimator's period), for step_end
+        self._periods: tuple[float, ...] = ()
+        if scenario.object_model.mode == "estimated":
+            from drake_coop.control.params import checked_period
+            from drake_coop.experiment.object_blocks import ESTIMATOR_TICKS
+
+            self._periods = (checked_period(ESTIMATOR_TICKS * plan.h),)
         self._scenario, self._plan, self._lcm = scenario, plan, lcm
         self._fixed_q: list = []
         self._status: list[tuple[float, float, float]] = []   # each arm's [s, f, v]
@@ -248,10 +287,17 @@ class ServeLoop:
 
     def step(self) -> None:
         """The updates at ``t_k`` (one Simulator step), ``λ̂(k)`` read first: the value the
-        step's updates then use (computed once, cached by Drake) and the watchdog checks."""
+        step's updates then use (computed once, cached by Drake) and the watchdog checks.
+
+        The step ends at :math:`t_{k+1}`, or just short of it when an event falls a rounding
+        before it (:func:`step_end`: the mass estimator's, every ``ESTIMATOR_TICKS h``,
+        ``m (5h)`` and ``(5m) h`` differ by an ulp now and then), so that such an event runs in
+        the next step, on the reading of tick ``k + 1``: what the simulated diagram's blocks
+        read there (its encoders treat a time within ``1e-9`` of a tick as the tick,
+        :func:`~drake_coop.control.timing.tick_of`)."""
         self._lam = [port.Eval(block).tolist() for _, _, block, port, _ in self._wd]
         self.k += 1
-        self.simulator.AdvanceTo(self.k * self.h)
+        self.simulator.AdvanceTo(step_end(self.k, self.h, self._periods))
 
     def check(self) -> None:
         """Each arm's watchdog for tick ``k``
@@ -336,7 +382,8 @@ class ServeLoop:
 
 def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tick=None,
                    lead: float = 0.05, timeout: float | None = None,
-                   stop: StopListener | None = None, on_arrival: bool = True) -> str:
+                   stop: StopListener | None = None, on_arrival: bool = True,
+                   collector=None) -> str:
     """Tick ``loop`` from ``k = 0`` to ``k_end``, each tick on a fresh status of every arm.
 
     With ``on_arrival``, tick ``k`` is released by the first status of every arm that
@@ -354,6 +401,10 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
     ``serve`` (``stop``) stops it before the next tick (``"stop: <its reason>"`` returned).
     Per tick, ``record`` gets the computation, the lateness (from ``g_k`` on the grid; from the
     tick's release on arrival), the oldest status's age at the start and the wait past ``g_k``.
+    With a ``collector`` (:class:`~drake_coop.robot.collector.ManagedCollector`, started by
+    the caller), Python's garbage collector runs only in the slack after a tick's command
+    (:meth:`~drake_coop.robot.collector.ManagedCollector.slack`, before the next ``g_k``),
+    and a collection that starts during a tick's work is counted.
 
     Parameters
     ----------
@@ -377,6 +428,8 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
         The other processes' stops.
     on_arrival : bool
         Tick on each fresh status (else on the wall-clock grid).
+    collector : ManagedCollector or None
+        Collects in the slack; None leaves Python's collector as it is.
 
     Returns
     -------
@@ -406,11 +459,15 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
             if stop is not None and stop.reason is not None:
                 return f"stop: {stop.reason}"
         start = time.perf_counter()
+        if collector is not None:
+            collector.pauses.ticking = True
         age = arrivals.age(start)
         for i, c in enumerate(channels):
             loop.feed(i, arrivals.take_parsed(c))
         loop.tick()
         end = time.perf_counter()
+        if collector is not None:
+            collector.pauses.ticking = False
         if on_arrival:
             newest = max(arrivals.last[c] for c in channels)
             released = newest if newest > grid else None
@@ -423,4 +480,6 @@ def run_on_arrival(loop: ServeLoop, lcm, arrivals, k_end: int, record, after_tic
             reason = after_tick(k)
             if reason:
                 return reason
+        if collector is not None:
+            collector.slack(grid)
     return ""

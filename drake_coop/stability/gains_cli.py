@@ -6,7 +6,9 @@ its controller model at the task's postures and checked with the one-period map
 :class:`~drake_coop.results.run_folder.RunFolder`): ``scenario.yaml`` (the scenario with the
 derived gains), ``gains.csv`` (one row per robot: every gain, the inertias ``J_j`` and
 ``h p_f``), ``stability.csv`` (ρ at each operating point, at the gains and with the ``K_R``
-margin) and ``run.json`` (all of it, the rules' constants and the outcome). Exit codes: 0 the
+margin) and ``run.json`` (all of it, the rules' constants, the outcome, and the delay margin
+with the derived gains without and with delay compensation, or the line saying why there is
+none: :func:`gains_margins`). Exit codes: 0 the
 gains pass the check, 1 no gains passed it after the back-offs (the outputs are written: a
 result) or the derivation failed (one line, nothing written), 2 bad input (one line, before
 any computation), 130 Ctrl-C, 143 SIGTERM.
@@ -21,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["add_gains_parser", "cmd_gains", "load_for_gains"]
+__all__ = ["add_gains_parser", "cmd_gains", "gains_margins", "load_for_gains"]
 
 
 def add_gains_parser(sub) -> None:
@@ -50,8 +52,8 @@ def _csv_text(columns: list[str], rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def _outputs(scenario, report, wall: float) -> dict[str, str]:
-    """The output files' texts."""
+def _outputs(scenario, report, wall: float, margins: dict | None = None) -> dict[str, str]:
+    """The output files' texts (``margins``: :func:`gains_margins`'s entry)."""
     from drake_coop.scenario.loading import dump_scenario
     from drake_coop.stability import gains as rules
 
@@ -80,11 +82,41 @@ def _outputs(scenario, report, wall: float) -> dict[str, str]:
                   "force_loop_gain": rules.FORCE_LOOP_GAIN, "posture_step_s": rules.POSTURE_STEP,
                   "gain_margin": rules.GAIN_MARGIN, "backoff": rules.BACKOFF},
         "robots": gain_rows, "wall_time_s": wall,
+        "delay_margin": margins,
     }
     return {"scenario.yaml": dump_scenario(out_scenario),
             "gains.csv": _csv_text(list(gain_rows[0]), gain_rows),
             "stability.csv": _csv_text(["point", "K_R_factor", "rho", "stable"], rho_rows),
             "run.json": json.dumps(meta, indent=2, default=float) + "\n"}
+
+
+def gains_margins(scenario, report) -> dict:
+    """The delay margin of the scenario with the derived gains, without and with delay
+    compensation (:func:`~drake_coop.stability.margin.delay_margins`), as ``run.json``'s
+    ``delay_margin`` entry; when there is none, its ``line`` says why.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The input scenario.
+    report : GainsReport
+        :func:`~drake_coop.stability.gains.derive_and_check`'s report.
+
+    Returns
+    -------
+    dict
+        ``without``, ``with``, ``as_configured``, ``robots``, ``line``.
+    """
+    from drake_coop.stability import gains as rules
+    from drake_coop.stability.margin import delay_margins
+
+    if not report.stable:
+        return {"line": "no delay margin: no derived gains passed the stability check"}
+    try:
+        return delay_margins(rules.gains_for_scenario(scenario, report.robots)).as_dict()
+    except Exception as exc:            # the map's own failures are rows: anything else
+        return {"line": "no delay margin: the stability map could not be built: "
+                        f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"}
 
 
 def _signals_blocked():
@@ -194,7 +226,9 @@ def cmd_gains(args) -> int:
             print(f"drake-coop: gains failed: {type(exc).__name__}: "
                   f"{' '.join(str(exc).split())[:300]}", file=sys.stderr)
             return 1
-        texts = _outputs(scenario, report, time.perf_counter() - start)
+        progress("the delay margin with the derived gains, without and with compensation")
+        margins = gains_margins(scenario, report)
+        texts = _outputs(scenario, report, time.perf_counter() - start, margins)
         with _signals_blocked():
             for name, text in texts.items():
                 (staging / name).write_text(text, encoding="utf-8")
@@ -207,6 +241,7 @@ def cmd_gains(args) -> int:
             print(f"{d.name}: K_R {[round(k, 1) for k in d.gains.K_R]}, Lambda "
                   f"{d.gains.Lambda:.3g}, k_d {d.gains.k_d:.3g}, xi {d.gains.xi:.3g}",
                   file=sys.stderr)
+        print(margins["line"], file=sys.stderr)
         print(f"rho: {', '.join(f'{k} {v:.6g}' for k, v in report.rho.items())}; "
               f"wrote {args.out}", file=sys.stderr)
     return 0 if report.stable else 1

@@ -68,6 +68,11 @@ def test_the_command_writes_gains_whose_map_and_run_are_stable(paper_gains):
     meta = json.loads((out / "run.json").read_text())
     assert meta["status"] == "ok" and set(meta["rho"]) == {"free", "held", "free_margin",
                                                            "held_margin"}
+    # the delay margin with the derived gains, without and with compensation
+    margin = meta["delay_margin"]
+    assert margin["without"]["margin_s"] > 0 and margin["with"]["margin_s"] > 0
+    assert margin["with"]["horizon"] == "matched" and "without compensation" in margin["line"]
+    assert margin["without"]["rho"][0] == pytest.approx(meta["rho"]["free"], rel=1e-3)
     rows = list(csv.DictReader((out / "stability.csv").open()))
     assert all(float(r["rho"]) < 1.0 for r in rows) and len(rows) == 4
     text = (out / "scenario.yaml").read_text()
@@ -136,6 +141,9 @@ def test_a_previous_output_is_replaced_only_with_force(tmp_path, monkeypatch):
         return report
 
     monkeypatch.setattr(rules, "derive_and_check", quick)
+    from drake_coop.stability import gains_cli
+
+    monkeypatch.setattr(gains_cli, "gains_margins", lambda scenario, report: {"line": "m"})
     out = tmp_path / "out"
     assert main(["gains", "paper", "--out", str(out), "--quiet"]) == 0
     assert main(["gains", "paper", "--out", str(out), "--quiet"]) == 2

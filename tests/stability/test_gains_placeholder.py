@@ -55,6 +55,9 @@ def test_gains_accepts_missing_or_wrong_length_K_R(tmp_path, monkeypatch, gains_
         return report
 
     monkeypatch.setattr(rules, "derive_and_check", quick)
+    from drake_coop.stability import gains_cli    # the margin: tests/stability/test_margin.py
+
+    monkeypatch.setattr(gains_cli, "gains_margins", lambda scenario, report: {"line": "m"})
     out = tmp_path / "out"
     assert main(["gains", str(path), "--out", str(out), "--quiet"]) == 0
     written = load_scenario(out / "scenario.yaml")     # a run takes the written scenario
