@@ -36,6 +36,7 @@ def scenario():
     import dataclasses
 
     from drake_coop.scenario.loading import dump_scenario, load_scenario
+    from drake_coop.scenario.schema import Driver
 
     s = load_scenario()
     s.task = dataclasses.replace(s.task, **COMPRESSED)
@@ -44,6 +45,7 @@ def scenario():
         r.model_error.inertia_scale = 1.3
         r.model_error.damping_scale = 0.7
         r.model_error.coulomb_friction = [0.5] * 3
+        r.driver = Driver(gravity="none")     # the torque on the arm known to identification
     return load_scenario(data=dump_scenario(s))
 
 
