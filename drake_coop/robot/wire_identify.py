@@ -310,15 +310,16 @@ def preflight(scenario, arms: list[_Arm], first: dict[int, bytes], duration: flo
         if use > 1.0:
             raise WireRefusal(f"{where}: the excitation leaves the URDF's or the driver's "
                               f"limits (use {use:.3g} of them); no command sent")
-        if arm.spec.gravity == "robot_adds":      # the torque on the arm would be unknown
+        arm.q = q
+        arm.status = (stamp, float(fault), value)
+        readings[arm.index] = q
+    for arm in arms:                      # the torque on the arm would be unknown
+        if arm.spec.gravity == "robot_adds":
             raise WireRefusal(
                 f"robots[{arm.index}].driver.gravity: robot_adds leaves the torque on the arm "
                 "unknown to identification (the robot adds its own g(q)); identify with "
                 "driver_subtracts (the driver removes the robot's compensation) or none; "
                 "no command sent")
-        arm.q = q
-        arm.status = (stamp, float(fault), value)
-        readings[arm.index] = q
     postures = []
     for i, robot in enumerate(scenario.robots):
         if i in readings:

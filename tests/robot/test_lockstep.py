@@ -13,6 +13,7 @@ import pytest
 from drake_coop.robot.lockstep import status_time
 from drake_coop.robot.loopback import run_loopback, squeeze_error
 from drake_coop.robot.tcpq_hub import TcpqHub
+from drake_coop.scenario.cell import CellSettings
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.resources import find_scenario
 
@@ -20,7 +21,13 @@ CLI = [sys.executable, "-m", "drake_coop"]
 
 
 def two_processes(tmp_path, scenario_path, t_end, extra=()):
-    """The hub (a thread here), the simulated driver and serve (processes), in lockstep."""
+    """The hub (a thread here), the simulated driver and serve (processes), in lockstep.
+    ``serve``'s start ramp is turned off (``cell.start_ramp: 0``): the one-process loopback
+    run it is compared with commands the controller's torque from tick 0."""
+    s = load_scenario(scenario_path)
+    s.cell = CellSettings(start_ramp=0.0)
+    scenario_path = tmp_path / "lockstep.yaml"
+    scenario_path.write_text(dump_scenario(s))
     hub = TcpqHub(0).start()
     truth = tmp_path / "truth.npz"
     common = ["--lcm-url", hub.url, "--lockstep", "--t-end", str(t_end), "--quiet"]
