@@ -248,3 +248,22 @@ def test_no_module_is_longer_than_the_limit():
             if (n := len(path.read_text().splitlines())) > MODULE_LINES_MAX}
     assert not long, f"modules over {MODULE_LINES_MAX} lines: {long}"
     assert len(package_modules()) > 50      # the reader found the package
+
+
+#: A reference to a tracker's item by number (the word issue and a number; a project's name,
+#: a hash sign and a number): a reader of the repository cannot resolve it; the text says
+#: what the thing is instead.
+ISSUE_NUMBER = re.compile(r"\b[Ii]ssues? #?\d+|\b[A-Za-z_][\w-]* #\d{1,6}\b")
+
+
+def test_no_file_refers_to_an_issue_by_number():
+    files = subprocess.run(["git", "ls-files", "*.py", "*.md", "*.yaml", "*.yml", "*.toml",
+                            "*.cff", "*.ipynb"], cwd=ROOT, capture_output=True, text=True,
+                           check=True).stdout.split()
+    found = [f"{name}:{n}: {m.group(0)}" for name in files if (ROOT / name).is_file()
+             for n, line in enumerate((ROOT / name).read_text(encoding="utf-8",
+                                                             errors="replace").splitlines(), 1)
+             for m in ISSUE_NUMBER.finditer(line)]
+    assert ISSUE_NUMBER.search("as " + "issue 3 asks") and ISSUE_NUMBER.search("lib " + "#7")
+    assert not ISSUE_NUMBER.search("colour #1f77b4, Fig. 3, (29)")
+    assert not found, found
