@@ -234,8 +234,9 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
     integrated exactly across the switch. The controller's model is ``model_scale·(J, D)``.
     The predictor (``horizon = p``, None: off) computes ``a = (τ_prev − D̂ q̇̂)/Ĵ`` and feeds
     the law ``q_p = q + p q̇̂ + p² a/2`` (likewise ``q̂``), ``q̇̂ + p a``, ``q̇_o + p a``; the
-    observer (16) is fed ``w a + (1 − w) q̈̂_r`` with ``w = p/h`` (``feed = "horizon"``) or
-    ``w = delay/h`` (``feed = "delay"``).
+    observer (16) is fed ``w a + (1 − w) q̈̂_r`` with ``w = p/h`` (``feed = "horizon"``, the
+    block's), ``w = delay/h`` (``feed = "delay"``) or ``w = 0`` (``feed = "none"``: the
+    prediction without the observer's feed, to measure what the feed buys).
 
     Parameters
     ----------
@@ -260,13 +261,20 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
     model_scale : float
         The controller model's scale of ``J`` and ``D``.
     feed : str
-        ``horizon`` or ``delay``: the observer's weight ``w``.
+        ``horizon``, ``delay`` or ``none``: the observer's weight ``w``.
 
     Returns
     -------
     numpy.ndarray
         Φ (5, 5).
+
+    Raises
+    ------
+    ValueError
+        ``feed`` is none of the three.
     """
+    if feed not in ("horizon", "delay", "none"):
+        raise ValueError(f"feed: one of horizon, delay, none, got {feed!r}")
     Jm, Dm = model_scale * J, model_scale * D
     e = np.eye(5)
     q, v, qh, qo, tp = e
@@ -280,7 +288,7 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
     else:
         p = float(horizon)
         a = (tp - Dm * qdot_hat) / Jm
-        w = (p if feed == "horizon" else delay) / h
+        w = {"horizon": p, "delay": delay, "none": 0.0}[feed] / h
     shift = p * qdot_hat + 0.5 * p * p * a
     qh_p = qh + shift
     qdot_hat_p = qdot_hat + p * a
