@@ -295,7 +295,8 @@ def _difference(key: str, other: str, j: int, scale: float = 1.0) -> Signal:
 
 
 def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
-                 formats: Iterable[str] = ("png", "svg")) -> list[Path]:
+                 formats: Iterable[str] = ("png", "svg"),
+                 only: Iterable[str] | None = None) -> list[Path]:
     """Draw Figures 2–6 of the paper into ``out_dir``.
 
     Parameters
@@ -309,6 +310,9 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
         Output directory; created if needed.
     formats : iterable of str
         File formats, each one file per figure (``"png"``, ``"svg"``, ``"pdf"``, ...).
+    only : iterable of str, optional
+        Draw only these figures (their file names without suffix); None: every figure the
+        logs hold data for.
 
     Returns
     -------
@@ -318,11 +322,11 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
     Raises
     ------
     ValueError
-        If a format is not supported by matplotlib (before anything is written).
+        If a format is not supported by matplotlib, or ``only`` names a figure these logs do
+        not draw (before anything is written).
     """
     formats = _check_formats(formats)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
 
     def joints(key: str, other: str, title: str, ylabel: str):
         """One column per joint of the robot: ``log[key] − log[other]``."""
@@ -330,20 +334,20 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
                              _difference(key, other, j)) for j in range(log[key].shape[1])]
 
     figures = {
-        "fig2_tracking_errors": _grid(
+        "fig2_tracking_errors": lambda: _grid(
             logs, meta,
             [(rf"$\tilde{{{c}}}_#$", rf"$\tilde{{{c}}}_#$ [{{unit}}]", _difference("x", "x_d", j))
              for j, c in enumerate("xyz")],
             "Fig. 2 — tracking errors in Cartesian coordinates", LENGTH_UNITS),
-        "fig3_force_tracking": _pair(
+        "fig3_force_tracking": lambda: _pair(
             logs, meta, ("lambda_meas", r"measured $\lambda$", r"measured $\lambda_{k}$"),
             ("lambda_d", r"desired $\lambda_d$ (29)", r"desired $\lambda_{{d{k}}}$ (29)"),
             "Fig. 3 — measured force against the desired force"),
-        "fig4_force_estimate": _pair(
+        "fig4_force_estimate": lambda: _pair(
             logs, meta, ("lambda_meas", r"measured $\lambda$", r"measured $\lambda_{k}$"),
             ("lambda_hat", r"estimate $\hat\lambda$ (22)", r"estimate $\hat\lambda_{k}$ (22)"),
             "Fig. 4 — measured force against its estimate"),
-        "fig5_aux_force_error": _grid(
+        "fig5_aux_force_error": lambda: _grid(
             logs, meta,
             # The robot's number as subscript for one constraint (the paper), the rows' numbers
             # (legend) for several.
@@ -354,10 +358,10 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
                           lambda log: log["lambda_hat"] - log["lambda_d"])],
             r"Fig. 5 — auxiliary force errors $\hat\lambda - \lambda_d$", FORCE_UNITS,
             symbol=r"$\hat\lambda_{k} - \lambda_{{d{k}}}$"),
-        "fig6_observation_errors": _grid(
+        "fig6_observation_errors": lambda: _grid(
             logs, meta, joints("q", "q_hat", "$z_{{#,{j}}}$", "$z_{{#,{j}}}$ [{{unit}}]"),
             r"Fig. 6 — observation errors $z = q - \hat q$ (robot, joint)", ANGLE_UNITS),
-        "fig_force_errors": _grid(
+        "fig_force_errors": lambda: _grid(
             logs, meta,
             [(r"robot #: squeeze tracking $\lambda - \lambda_d$",
               r"$\lambda - \lambda_d$ [{unit}]",
@@ -369,17 +373,24 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
             r"$\lambda - \hat\lambda$", FORCE_UNITS, symbol=r"$\lambda_{k}$"),
     }
     if all("qdot" in logs[r] and "qdot_hat" in logs[r] for r in meta["robots"]):
-        figures["fig7_velocity_estimate"] = _grid(
+        figures["fig7_velocity_estimate"] = lambda: _grid(
             logs, meta,
             joints("qdot", "qdot_hat", "$\\dot q_{{#,{j}}} - \\hat{{\\dot q}}_{{#,{j}}}$",
                    "$\\dot q_{{#,{j}}} - \\hat{{\\dot q}}_{{#,{j}}}$ [{{unit}}]"),
             r"Fig. 7 — velocity-estimate errors $\dot q - \hat{\dot q}$ (robot, joint)",
             RATE_UNITS)
     if all("mass_share" in logs[r] for r in meta["robots"]):
-        figures["fig_object_mass"] = _object_mass(logs, meta)
+        figures["fig_object_mass"] = lambda: _object_mass(logs, meta)
+    if only is not None:
+        only = set(only)
+        if only - set(figures):
+            raise ValueError(f"only: {', '.join(sorted(only - set(figures)))} not among the "
+                             f"figures these logs draw ({', '.join(figures)})")
+        figures = {name: draw for name, draw in figures.items() if name in only}
+    out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in figures.items():
-        paths += _save(fig, out, name, formats)
+    for name, draw in figures.items():       # drawn one at a time: one figure open at once
+        paths += _save(draw(), out, name, formats)
     return paths
 
 
