@@ -109,6 +109,8 @@ def _phases(ax: Axes, meta: dict, t_end: float | None, label: bool,
 
 #: ``gid`` of the phase names drawn by :func:`_phases` (:func:`_unstack_phase_labels`).
 PHASE_LABEL = "phase_label"
+#: The least horizontal gap (points) between two phase names on one row.
+LABEL_GAP_PT = 3.0
 
 
 def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> None:
@@ -118,6 +120,7 @@ def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> No
     page's width) would print their names over each other; the measured text extents
     decide, whatever the run's timeline or the panel's width."""
     renderer = fig.canvas.get_renderer()
+    gap = LABEL_GAP_PT * fig.dpi / 72.0        # names that merely touch read as one word
     for ax in fig.axes:
         labels = [t for t in ax.texts if t.get_gid() == PHASE_LABEL]
         placed = []
@@ -125,10 +128,10 @@ def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> No
             x, y0 = text.xyann
             for level in range(levels):
                 text.xyann = (x, y0 + step * level)
-                box = text.get_window_extent(renderer)
+                box = text.get_window_extent(renderer).padded(gap / 2)
                 if not any(box.overlaps(other) for other in placed):
                     break
-            placed.append(text.get_window_extent(renderer))
+            placed.append(text.get_window_extent(renderer).padded(gap / 2))
         if labels:   # the title above the highest row of names (pads in points)
             top = max(t.get_window_extent(renderer).y1 for t in labels)
             needed = (top - ax.get_window_extent(renderer).y1) * 72.0 / fig.dpi + 3.0
