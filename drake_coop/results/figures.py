@@ -52,6 +52,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.transforms import Bbox
 
 from drake_coop.results.io import atomic_path
 
@@ -113,6 +114,11 @@ PHASE_LABEL = "phase_label"
 LABEL_GAP_PT = 3.0
 
 
+def _widened(box: Bbox, pad: float) -> Bbox:
+    """``box`` widened by ``pad`` pixels left and right (not up and down: rows stay close)."""
+    return Bbox.from_extents(box.x0 - pad, box.y0, box.x1 + pad, box.y1)
+
+
 def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> None:
     """Raise a phase name that, as drawn, overlaps a neighbour of its panel by ``step`` points
     until it overlaps none (at most ``levels`` rows). Short phases on a narrow panel
@@ -128,10 +134,10 @@ def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> No
             x, y0 = text.xyann
             for level in range(levels):
                 text.xyann = (x, y0 + step * level)
-                box = text.get_window_extent(renderer).padded(gap / 2)
+                box = _widened(text.get_window_extent(renderer), gap / 2)
                 if not any(box.overlaps(other) for other in placed):
                     break
-            placed.append(text.get_window_extent(renderer).padded(gap / 2))
+            placed.append(_widened(text.get_window_extent(renderer), gap / 2))
         if labels:   # the title above the highest row of names (pads in points)
             top = max(t.get_window_extent(renderer).y1 for t in labels)
             needed = (top - ax.get_window_extent(renderer).y1) * 72.0 / fig.dpi + 3.0
