@@ -375,6 +375,21 @@ def test_percentiles_are_numpys_linear_rule():
             == f"{np.percentile(values, p):.6f} N"
 
 
+#: Pages whose measured numbers are not all read from files yet, with the count of numbers
+#: their prose still types (inputs and measurements alike, as :func:`measured_numbers`
+#: finds them): a ratchet, lowered as a page is converted; a page at 0 moves to CHECKED.
+NOT_YET_CONVERTED = {"stability.md": 323, "identification.md": 197,
+                     "guide/real_robot.md": 146, "benchmark.md": 225, "guide/lab_arms.md": 86}
+
+
+@pytest.mark.parametrize("page", sorted(NOT_YET_CONVERTED))
+def test_pages_not_yet_converted_type_no_more_numbers(page):
+    found = measured_numbers((DOCS / page).read_text())
+    assert len(found) <= NOT_YET_CONVERTED[page], (
+        f"{page}: {len(found)} typed numbers, more than {NOT_YET_CONVERTED[page]}: write a new "
+        "number as {result}`VALUE <SOURCE:EXPR>` (docs/_ext/results_role.py)")
+
+
 def test_every_listed_input_is_still_on_its_page():
     """An exception that no page needs any more is removed, not kept."""
     found = {_rel(p): {" ".join(n.replace("\u00a0", " ").split())
