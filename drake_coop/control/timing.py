@@ -57,11 +57,6 @@ def tick_of(t: float, h: float) -> int | None:
         A time (s).
     h : float
         The sampling time (s).
-
-    Returns
-    -------
-    int or None
-        ``k``, or None.
     """
     k = round(t / h)
     return k if abs(t - k * h) <= 1e-9 * max(1.0, t) else None

@@ -290,11 +290,6 @@ class ForceArrows(LeafSystem):
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        bool
-            True while held.
         """
         return self._layouts[0].held(self._ports[0]["reference"].Eval(context))
 

@@ -120,11 +120,6 @@ def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
     joints : list of int
         Each arm's ``n``.
 
-    Returns
-    -------
-    list of DriverSpec
-        One per robot.
-
     Raises
     ------
     ScenarioError
@@ -173,11 +168,6 @@ def safe_command_message(spec: DriverSpec, tau: np.ndarray, utime: int) -> lcmt_
         The torque (n,), N·m.
     utime : int
         The message's time stamp, µs.
-
-    Returns
-    -------
-    lcmt_panda_command
-        The message.
     """
     msg = lcmt_panda_command()
     msg.utime = int(utime)

@@ -48,11 +48,6 @@ def continuous_rho(rho_dt: float, rho_half: float) -> float:
         ρ at the plant step ``Δt``.
     rho_half : float
         ρ at ``Δt/2``.
-
-    Returns
-    -------
-    float
-        The extrapolated ρ.
     """
     return 2.0 * float(rho_half) - float(rho_dt)
 

@@ -64,11 +64,6 @@ def one_joint_phi(J: float, D: float, Lambda: float, k_d: float, K_R: float, h: 
         ``observer`` or ``measured``.
     delay_steps : int
         ``s``, the plant steps of computation delay.
-
-    Returns
-    -------
-    numpy.ndarray
-        Φ, square.
     """
     N = int(round(h / dt))
     s = int(delay_steps)
@@ -114,11 +109,6 @@ def one_joint_rho(*args, **kwargs) -> float:
     ----------
     *args, **kwargs
         Those of :func:`one_joint_phi`.
-
-    Returns
-    -------
-    float
-        ρ(Φ).
     """
     return float(np.max(np.abs(np.linalg.eigvals(one_joint_phi(*args, **kwargs)))))
 
@@ -173,11 +163,6 @@ def observer_period_limit(Lambda: float, k_d: float) -> float:
         ``Λ``, 1/s.
     k_d : float
         ``k_d``, 1/s.
-
-    Returns
-    -------
-    float
-        ``2/p_f``, s.
     """
     b = 2.0 * Lambda + k_d
     p_fast = 0.5 * (b + np.sqrt(b * b - 4.0 * Lambda * k_d))
@@ -263,11 +248,6 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
     feed : str
         ``horizon``, ``delay`` or ``none``: the observer's weight ``w``.
 
-    Returns
-    -------
-    numpy.ndarray
-        Φ (5, 5).
-
     Raises
     ------
     ValueError
@@ -319,10 +299,5 @@ def one_joint_predicted_rho(*args, **kwargs) -> float:
     ----------
     *args, **kwargs
         Those of :func:`one_joint_predicted_phi`.
-
-    Returns
-    -------
-    float
-        ρ(Φ).
     """
     return float(np.max(np.abs(np.linalg.eigvals(one_joint_predicted_phi(*args, **kwargs)))))
