@@ -85,7 +85,7 @@ _CONTACT_ATTRIBUTION = {
     "contact ground truth now: pad forces held and logged at every plant step (C++), "
     "evaluated after the run":
         _contact_pad_force_log,
-    "contact ground truth before issue 25: reaction forces + body lists at t_k and t_k - 3dt/2":
+    "contact ground truth, first version: reaction forces + body lists at t_k and t_k - 3dt/2":
         _contact_reaction_ground_truth,
 }
 

@@ -43,7 +43,7 @@ if __name__ == "__main__":
                         help="shipped scenarios (e.g. two_pandas; contact = the paper's arms) "
                              "run with contact.yaml's plant and object_model estimated: the "
                              "whole run against its plant replay and the object blocks' own "
-                             "cost (issue 33: <= 20 %%)")
+                             "cost (bar: <= 20 %%)")
     parser.add_argument("--t-object-arms", type=float, default=30.0,
                         help="simulated seconds of those runs (30: the grasp at 15 s, the "
                              "lift, 5 s of the circle)")

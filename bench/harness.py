@@ -316,7 +316,7 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
             extra["object_blocks"] = blocks
             _print_object_blocks(blocks, "    ", target=0.10)
 
-    # 7. the object-aware blocks on lab arms (issue 33: <= 20 % over their plant replay)
+    # 7. the object-aware blocks on lab arms (bar: <= 20 % over their plant replay)
     lab = {}
     for name in lab_object or ():
         from bench.lab_arms_object import contact_scenario

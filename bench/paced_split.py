@@ -19,7 +19,7 @@ computation time, the status age, the lateness and the loop delay (status age + 
 one driver cycle, what the stability map calls the computation delay ``d``; p50, p99, max),
 the missed deadlines and the real-time settings read back; per case the load average
 (``/proc/loadavg``, sampled every second) and the driver's last line; and the bars of
-issue 34: computation p99 ≤ ``--compute-bar`` (0.5 ms), loop delay p99 within the margin
+the bars: computation p99 ≤ ``--compute-bar`` (0.5 ms), loop delay p99 within the margin
 with half to spare (≤ ``--margin`` / 2), no missed deadline, the whole run completed::
 
     python -m bench.paced_split --t-end 90 --tick grid arrival --sched fifo default \\
@@ -57,7 +57,7 @@ import numpy as np
 #: (continuous arm, p = 3 ms) gives ρ < 1 with every model it computed (exact: 8 ms; 30 %
 #: light, 30 % heavy, identified: 6 ms, the largest delay computed for them).
 MARGIN = 0.006
-#: Computation bar (s) per tick and arm (issue 34).
+#: Computation bar (s) per tick and arm.
 COMPUTE_BAR = 0.0005
 #: FIFO priorities: the hub relays every message, the serves' ticks are short and
 #: latency-critical, the driver's plant steps are the long work.
@@ -414,7 +414,7 @@ def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
                  horizon: float = 0.003, margin: float = MARGIN,
                  priority: dict | None = None, serve_cpus: list[int] | None = None,
                  driver_cpu: int | None = None, object_mode: str = "estimated") -> dict:
-    """Item 8 of issue 34: the lab-arm contact scenario ``name``
+    """The lab-arm contact scenario ``name``
     (:func:`bench.lab_arms_object.contact_scenario`: contact.yaml's plant, an estimated
     object model; compensation ``horizon``) over the cable (:func:`run_case`, the
     sim-driver logging its ground truth), against the simulated run

@@ -1,4 +1,4 @@
-"""Arms and boxes the project does not ship, set up from the docs alone: issue 33's goals.
+"""Arms and boxes the project does not ship, set up from the docs alone: the lab-arm goals.
 
 Each name is a scenario file written as the how-to of the lab-arms guide says (a robot entry of
 ``drake-coop arms --yaml NAME`` per arm, placed and oriented, ``contact.yaml``'s plant with the
@@ -7,7 +7,7 @@ derives the gains as ``drake-coop gains`` does (:func:`drake_coop.stability.gain
 the same rules and stability check), then runs the scenario with them to the circle's end
 (+1 s) and measures it with :func:`bench.lab_arms_object.measure` (the same code as the shipped
 lab arms' numbers; the lift phase's slips and friction use are added from the same metrics),
-and checks issue 33's bars on the circle phase::
+and checks the bars on the circle phase::
 
     python -m bench.unseen_arms docs/guide/lab_arms_howto/two_xarm7_box.yaml \\
         --out docs/results/unseen_arms.json
@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-#: Issue 33's bars on the circle phase: squeeze error RMS (N, worst arm), the box's position
+#: The bars on the circle phase: squeeze error RMS (N, worst arm), the box's position
 #: error RMS (m), its turn about the grasp line RMS (rad), slips, drops, and the mass estimate's
 #: relative error at the lift's end.
 BARS = {"squeeze_error_rms_N": 0.3, "object_position_error_rms_m": 0.5e-3,

@@ -13,6 +13,7 @@ the ``docs`` extra: without it these tests are skipped, unless ``DRAKE_COOP_REQU
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import subprocess
@@ -203,3 +204,50 @@ def test_rebuilding_after_a_rerun_updates_the_numbers(tmp_path):
     write([0.0123, 0.0456, 0.0789])
     second = build()
     assert "The error is 0.079 N" in second and "78.9" in second
+
+
+def test_a_written_value_its_file_no_longer_gives_fails_the_build(tmp_path):
+    """``{result}`VALUE <SPEC>```: the site prints VALUE (a short source name the page
+    defines resolves); once the file gives another value the ``-W`` build fails, naming
+    both, until ``results_role.py --write`` rewrites the page."""
+    _need_sphinx()
+    from sphinx.application import Sphinx
+    from sphinx.errors import SphinxWarning
+
+    root = tmp_path / "repo"
+    studies = root / "docs" / "figures" / "studies"
+    studies.mkdir(parents=True)
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "conf.py").write_text(
+        f"import sys\nsys.path.insert(0, {str(DOCS / '_ext')!r})\n"
+        f"extensions = ['myst_parser', 'results_role']\nresults_root = {str(root)!r}\n",
+        encoding="utf-8")
+    (src / "index.md").write_text(
+        "# Numbers\n\n<!-- result sources:\nd = demo\n-->\n\n"
+        "The error is {result}`0.046 N <d:max(worst.force_error.rms) as .3f N>`.\n",
+        encoding="utf-8")
+    csv_path = studies / "demo_results.csv"
+
+    def build(values, out):
+        csv_path.write_text("index,worst.force_error.rms\n" + "".join(
+            f"{i},{v}\n" for i, v in enumerate(values)), encoding="utf-8")
+        warnings = io.StringIO()
+        app = Sphinx(str(src), str(src), str(tmp_path / out), str(tmp_path / (out + "_doctrees")),
+                     "html", status=None, warning=warnings, freshenv=True, warningiserror=True)
+        try:
+            app.build()
+        except SphinxWarning as exc:          # older Sphinx: raised at the first warning
+            return "", str(exc), 1
+        html = _text((tmp_path / out / "index.html").read_text("utf-8")).replace("\xa0", " ")
+        return html, warnings.getvalue(), app.statuscode
+
+    # (a second Sphinx app in one process warns that Sphinx's own nodes are registered again:
+    # only the role's warnings are looked at)
+    html, warned, status = build([0.0123, 0.0456], "first")
+    assert "The error is 0.046 N" in html and "{result} role" not in warned, warned
+    # (a file of another size: the role caches a file by its modification time and size,
+    # and two writes within one tick of a coarse file clock share the time)
+    _, warned, status = build([0.0123, 0.07891], "second")
+    assert status != 0 and "{result} role: written '0.046 N', the file gives '0.079 N'" in warned
+

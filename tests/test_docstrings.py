@@ -18,10 +18,19 @@ parameter (``self``/``cls`` aside) and no other; a callable without parameters n
 section. An unindented line inside the section is read as a parameter, as numpydoc reads it
 (prose after the parameters belongs in a ``Notes`` section). Every entry of the
 ``Parameters``, ``Attributes``, ``Returns`` and ``Yields`` sections has a description (an
-indented line under it: what it means, with its unit). A function or method that returns
-a value (a ``return`` with a value in its own body, or a return annotation other than
-``None``) has a ``Returns`` section; a generator a ``Yields`` section. A property needs its
-docstring only (it describes the value).
+indented line under it: what it means, with its unit). A generator has a ``Yields``
+section. A function or method that returns a value (a ``return`` with a value in its own
+body, or a return annotation other than ``None``) has a ``Returns`` section *unless its
+summary names the value* — python-control's rule, a ``Returns`` only where it tells
+something: the summary (its first paragraph) reads as the description of what is returned,
+which is the case when it begins with a determiner (``The``, ``A``, ``An``, ``Its``,
+``Their``, ``Each``, ``Every``, ``One``), with ``Whether``, ``True``, ``What``, ``Where``,
+``Which``, ``Return(s)``, with a number, or with a formula (a code span, ``:math:``, or a
+symbol such as ``ρ``, ``Φ``, ``λ``) — not with a verb (``Write``, ``Build``, ``Check``: what
+the function does, after which the value still needs its line). A property needs its
+docstring only (it describes the value). And a ``Returns`` entry says more than its type:
+at most :data:`THIN_RETURNS_MAX` of the package's entries have a description of three
+words or fewer (``The path.``), where the summary then should carry the value instead.
 
 Two rules exempt a method, and no list of names does:
 
@@ -54,6 +63,18 @@ PKG = ROOT / "drake_coop"
 _HEADER = re.compile(r"^\s*([A-Z][A-Za-z ]*)\n\s*-{3,}\s*$", re.M)
 #: A Drake system's port getter (documented by its class's ``.. pydrake_system::`` block).
 _PORT_GETTER = re.compile(r"^get_(\w+)_(?:input|output)_port$")
+#: A summary that names the returned value (the module's rule): a determiner, a question
+#: word, a number or a formula first, not a verb.
+_NAMES_THE_VALUE = re.compile(r"^(?:(?:The|A|An|Its|Their|Each|Every|One|Whether|True|What|"
+                              r"Where|Which|Return|Returns)\b|``|:math:|\d|[^\x00-\x7f])")
+#: The largest share of the package's ``Returns`` entries whose description has three words
+#: or fewer (a type restated: ``The path.``).
+THIN_RETURNS_MAX = 0.15
+
+
+def summary_names_the_value(doc: str | None) -> bool:
+    """Whether ``doc``'s summary names the value a function returns (the module's rule)."""
+    return bool(doc) and bool(_NAMES_THE_VALUE.match(inspect.cleandoc(doc).lstrip()))
 
 
 def _dunder_all(path: Path) -> list[str] | None:
@@ -272,6 +293,8 @@ def member_problems(owner, name: str, node: ast.AST, label: str) -> list[str]:
     problems += [f"{label}: {entry!r} has no description" for d in docs
                  for entry in undescribed_entries(d)]
     kind = None if inspect.isclass(obj) else _return_kind(node)
+    if kind == "Returns" and summary_names_the_value(doc):
+        kind = None                   # the summary is the value's description
     if kind and documented_parameters(doc, (kind,)) is None:
         problems.append(f"{label}: {kind.lower()} a value but has no {kind} section")
     return problems
@@ -584,3 +607,68 @@ class _System(_Base):
 def test_the_two_exemptions_are_rules_that_can_fail(name, problems):
     node = next(n for n in _node(_System).body if getattr(n, "name", None) == name)
     assert member_problems(_System, name, node, "f") == problems
+
+
+def returns_descriptions() -> list[tuple[str, str]]:
+    """(function, description) of every ``Returns`` entry of the package's functions."""
+    out = []
+    for path in sorted(PKG.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            doc = ast.get_docstring(node)
+            if not doc:
+                continue
+            headers = list(_HEADER.finditer(doc))
+            for i, header in enumerate(headers):
+                if header.group(1).strip() != "Returns":
+                    continue
+                end = headers[i + 1].start() if i + 1 < len(headers) else len(doc)
+                entries: list[list[str]] = []
+                for line in doc[header.end():end].strip("\n").splitlines():
+                    if line.strip() and not line[0].isspace():
+                        entries.append([])
+                    elif entries and line.strip():
+                        entries[-1].append(line.strip())
+                out += [(f"{_dotted(path)}.{node.name}", " ".join(e)) for e in entries]
+    return out
+
+
+def test_returns_entries_say_more_than_their_type():
+    entries = returns_descriptions()
+    thin = [(name, text) for name, text in entries if len(text.split()) <= 3]
+    assert len(entries) > 200
+    assert len(thin) <= THIN_RETURNS_MAX * len(entries), (
+        f"{len(thin)} of {len(entries)} Returns entries say three words or fewer (name the "
+        f"value in the summary instead, or say what it is): {thin[:20]}")
+
+
+def _names_it(a):
+    """The number of ``a``'s items.
+
+    Parameters
+    ----------
+    a : list
+        Items.
+    """
+    return len(a)
+
+
+def _does_it(a):
+    """Count ``a``'s items.
+
+    Parameters
+    ----------
+    a : list
+        Items.
+    """
+    return len(a)
+
+
+def test_a_summary_that_names_the_value_stands_for_the_returns_section():
+    assert member_problems(sys.modules[__name__], "_names_it", _node(_names_it), "f") == []
+    assert member_problems(sys.modules[__name__], "_does_it", _node(_does_it), "f") == [
+        "f: returns a value but has no Returns section"]
+    assert summary_names_the_value("ρ(Φ) of the map.") and summary_names_the_value(
+        "Whether it holds.") and not summary_names_the_value("Write the file.")
+

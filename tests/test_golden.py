@@ -1,7 +1,7 @@
 """Golden test: the paper's run, with every optional scenario field at its default, is the
 run that was checked independently (``tests/golden/paper_run.json``, kept as recorded).
 
-The rule (issue 16) is a physical tolerance, not bit-exactness: faster but mathematically
+The rule is a physical tolerance, not bit-exactness: faster but mathematically
 equivalent code (closed-form kinematics, one inverse-dynamics call, other operation orders)
 moves the last bits of the torques, and SAP's iterative solve carries those bits through the
 90 s run. What must not move is the result:

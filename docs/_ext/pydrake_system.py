@@ -149,6 +149,14 @@ def _process_docstring(app, what, name, obj, options, lines: list[str]) -> None:
 
 
 def setup(app):
+    import warnings
+
+    # numpydoc parses each docstring a second time, unprocessed, for the signature, and warns
+    # (a Python warning, which -W does not turn into an error) about the port sections that
+    # _process_docstring has already moved into rubrics for the rendered page: silence only
+    # those, so that any other numpydoc warning still shows in the build's output.
+    warnings.filterwarnings("ignore", message=r"Unknown section (Input|Output) Ports",
+                            category=UserWarning, module=r"numpydoc\.docscrape")
     app.add_directive("pydrake_system", PydrakeSystem)
     # Before numpydoc's own handler (priority 500), which would drop the port sections.
     app.connect("autodoc-process-docstring", _process_docstring, priority=400)

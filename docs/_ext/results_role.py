@@ -18,7 +18,7 @@ re-running the study and rebuilding the docs updates the prose. Syntax (MyST)::
     ``COLUMN`` is a CSV column, named in full or by a unique ending after a ``.``
     (``force_source`` for ``robots.*.force_source``); without ``AGG`` the filters must select
     exactly one row. A ``FILTER`` is ``COLUMN=VALUE`` (numbers compared as numbers, text
-    exactly), ``COLUMN~TEXT`` (the cell contains the text), or ``COLUMN<NUMBER``,
+    exactly; ``COLUMN=`` alone: the cell is empty), ``COLUMN~TEXT`` (the cell contains the text), or ``COLUMN<NUMBER``,
     ``COLUMN>NUMBER`` (in the file's SI unit). In a JSON file ``COLUMN`` is a
     dotted key path (list items by index; ``*`` in a key matches any, as ``fnmatch``), and an
     ``AGG`` applies to every value it reaches (``max(*.circle.force_error.rms)``: the worst
@@ -60,7 +60,7 @@ UNITS: dict[str, float] = {
     "": 1.0, "m": 1.0, "mm": 1e3, "µm": 1e6, "N": 1.0, "mN": 1e3, "N/s": 1.0, "N m": 1.0,
     "s": 1.0, "ms": 1e3, "µs": 1e6, "kg": 1.0, "g": 1e3, "rad": 1.0, "mrad": 1e3,
     "rad/s": 1.0, "mrad/s": 1e3, "m/s": 1.0, "mm/s": 1e3, "%": 100.0, "×": 1.0,
-    "MPa": 1e-6, "N·m": 1.0,
+    "MPa": 1e-6, "N·m": 1.0, "µrad": 1e6, "°": 180.0 / math.pi,
 }
 AGGREGATES = ("min", "max", "mean", "median", "sum", "range", "count")
 
@@ -68,7 +68,7 @@ _SPEC = re.compile(r"^(?P<source>[^:\s]+):(?P<expr>.+?)(?:\s+as\s+(?P<fmt>[^\s]*
                    r"(?:\s+(?P<unit>.+?))?)?\s*$", re.S)
 _PERCENTILE = re.compile(r"^p(\d{1,2})$")
 _AGG = re.compile(r"^(?P<agg>\w+)\((?P<inner>.+)\)$", re.S)
-_FILTER = re.compile(r"^(?P<col>[^=~<>\s]+)\s*(?P<op>[=~<>])\s*(?P<value>.+?)$")
+_FILTER = re.compile(r"^(?P<col>[^=~<>\s]+)\s*(?P<op>[=~<>])\s*(?P<value>.*?)$")
 
 
 class ResultError(ValueError):
@@ -128,6 +128,8 @@ def _number(text: str) -> float | None:
 def _matches(cell: str, op: str, value: str) -> bool:
     if op == "~":
         return value in cell
+    if op == "=" and not value.strip():         # COLUMN= : the cell is empty
+        return not cell.strip()
     a, b = _number(cell), _number(value)
     if op in "<>":
         if b is None:
@@ -304,13 +306,83 @@ def table_cells(source: str, lines: list[str], where: str = "",
     return body
 
 
+#: A page's short source names, defined once in an HTML comment (hidden on a forge and on
+#: the site)::
+#:
+#:     <!-- result sources:
+#:     carry = docs/figures/run_results/contact_decentralized/metrics.json
+#:     split = docs/results/paced_split.json
+#:     -->
+_SOURCES = re.compile(r"<!--\s*result sources:(?P<body>.*?)-->", re.S)
+_ALIAS = re.compile(r"^\s*(?P<name>[A-Za-z_][\w-]*)\s*=\s*(?P<source>\S+)\s*$")
+#: A role's text that carries its value: ``VALUE <SPEC>`` (the value as the page prints it).
+_WRITTEN = re.compile(r"^(?P<value>[^<>:]*?)\s*<(?P<spec>[^\s<>][^:]*:.+)>\s*$", re.S)
+
+
+def page_sources(text: str) -> dict[str, str]:
+    """The short source names a page defines (``name = SOURCE`` lines of its
+    ``<!-- result sources: ... -->`` comment); a malformed line is a :class:`ResultError`."""
+    names: dict[str, str] = {}
+    for block in _SOURCES.finditer(text):
+        for line in block["body"].splitlines():
+            if not line.strip():
+                continue
+            m = _ALIAS.match(line)
+            if m is None:
+                raise ResultError(f"result sources: {line.strip()!r} is not NAME = SOURCE")
+            if m["name"] in names and names[m["name"]] != m["source"]:
+                raise ResultError(f"result sources: {m['name']!r} is defined twice")
+            names[m["name"]] = m["source"]
+    return names
+
+
+def expand(spec: str, sources: dict[str, str]) -> str:
+    """``spec`` with a short source name replaced by the source it stands for."""
+    source, sep, rest = spec.strip().partition(":")
+    return f"{sources[source]}:{rest}" if sep and source in sources else spec
+
+
+def _same(written: str, printed: str) -> bool:
+    return " ".join(written.replace("\u00a0", " ").split()) == \
+        " ".join(printed.replace("\u00a0", " ").split())
+
+
+def check_written(text: str, sources: dict[str, str] | None = None,
+                  root: Path = ROOT) -> tuple[str, Path]:
+    """The value a role's ``text`` prints and the file it read.
+
+    ``text`` is ``VALUE <SPEC>`` (the value written beside its source, so that the page read
+    as plain Markdown, on a forge, shows the number) or a bare ``SPEC``. ``SPEC`` is resolved
+    (:func:`resolve_with_source`, a short name of ``sources`` expanded first) and must print
+    ``VALUE`` exactly (spaces aside): a written value its file no longer gives is a
+    :class:`ResultError` naming both (``python docs/_ext/results_role.py --write PAGE``
+    rewrites the values from the files).
+    """
+    m = _WRITTEN.match(text)
+    spec = m["spec"] if m else text
+    printed, path = resolve_with_source(expand(spec, sources or {}), root)
+    if m is not None and not _same(m["value"], printed):
+        raise ResultError(f"written {m['value'].strip()!r}, the file gives {printed!r} "
+                          f"({spec.strip()})")
+    return printed, path
+
+
+@lru_cache(maxsize=256)
+def _page_sources_cached(path: str, stamp: int) -> dict[str, str]:
+    return page_sources(Path(path).read_text(encoding="utf-8"))
+
+
 def result_role(name, rawtext, text, lineno, inliner, options=None, content=None):
-    """Docutils role: ``{result}`SOURCE:EXPR as FORMAT UNIT```."""
+    """Docutils role: ``{result}`VALUE <SOURCE:EXPR as FORMAT UNIT>``` (or without the
+    written ``VALUE``); ``SOURCE`` may be a short name the page defines."""
     env = getattr(inliner.document.settings, "env", None)
     root = Path(env.config.results_root) if env is not None and env.config.results_root \
         else ROOT
     try:
-        value, path = resolve_with_source(text, root)
+        page = Path(inliner.document["source"]) if inliner.document.get("source") else None
+        sources = _page_sources_cached(str(page), page.stat().st_mtime_ns) \
+            if page is not None and page.is_file() else {}
+        value, path = check_written(text, sources, root)
     except ResultError as exc:
         msg = inliner.reporter.error(f"{{result}} role: {exc}", line=lineno)
         return [inliner.problematic(rawtext, rawtext, msg)], [msg]
@@ -381,3 +453,161 @@ def setup(app):
     app.add_role("result", result_role)
     app.add_directive("result-table", ResultTable)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
+
+
+# --- Writing the values into the pages --------------------------------------------------------
+
+#: A role in a page's Markdown source.
+ROLE = re.compile(r"\{result\}`([^`]*)`")
+#: A number written in plain Markdown beside its source, for a page no role renders (the
+#: README, a forge's landing page): ``0.83 ms<!-- result: split:... as .2f ms -->``.
+COMMENTED = re.compile(r"(?P<value>[-−+]?\d[^\s<>]*(?:[ \u00a0][^\s<>\d][^\s<>]*)?)"
+                       r"<!--\s*result:\s*(?P<spec>.+?)\s*-->", re.S)
+
+
+def _short_name(source: str, taken: dict[str, str]) -> str:
+    """A short name for a path source: its run's folder (``…/contact/metrics.json``) or the
+    file's stem, made unique on the page."""
+    path = Path(source)
+    stem = path.parent.name if path.name in ("metrics.json", "results.csv") else path.stem
+    stem = re.sub(r"\W+", "_", stem).strip("_") or "src"
+    name, n = stem, 2
+    while name in taken and taken[name] != source:
+        name, n = f"{stem}{n}", n + 1
+    return name
+
+
+def write_values(text: str, root: Path = ROOT, shorten: bool = False) -> str:
+    """``text`` (a page's Markdown) with each role's written value set to what its file
+    gives: ``{result}`SPEC``` becomes ``{result}`VALUE <SPEC>```. With ``shorten``, path
+    sources are replaced by short names, defined in the page's ``result sources`` comment
+    (added after the page's title)."""
+    sources = page_sources(text)
+    inverse = {v: k for k, v in sources.items()}
+
+    def one(match: re.Match) -> str:
+        m = _WRITTEN.match(match[1])
+        spec = " ".join((m["spec"] if m else match[1]).split())
+        source, sep, rest = spec.partition(":")
+        if shorten and sep and source.endswith((".csv", ".json")) and source not in sources:
+            name = inverse.get(source) or _short_name(source, sources)
+            sources[name], inverse[source] = source, name
+            spec = f"{name}:{rest}"
+        printed, _ = resolve_with_source(expand(spec, sources), root)
+        return f"{{result}}`{printed} <{spec}>`"
+
+    out = ROLE.sub(one, text)
+    out = COMMENTED.sub(lambda m: f"{resolve(expand(m['spec'], sources), root)}"
+                        f"<!-- result: {m['spec']} -->", out)
+    old = page_sources(text)
+    if sources != old:
+        block = "<!-- result sources:\n" + "".join(
+            f"{k} = {v}\n" for k, v in sorted(sources.items())) + "-->\n"
+        if _SOURCES.search(out):
+            out = _SOURCES.sub(block.rstrip("\n"), out, count=1)
+        else:
+            lines = out.split("\n")
+            at = next((i + 1 for i, line in enumerate(lines) if line.startswith("# ")), 0)
+            lines[at:at] = ["", block.rstrip("\n")] if at else [block.rstrip("\n"), ""]
+            out = "\n".join(lines)
+    return out
+
+
+_TABLE = re.compile(r"^(`{3,})\{result-table\}\s+(\S+)\s*\n(.*?)^\1\s*$", re.S | re.M)
+
+
+def tables_to_markdown(text: str, root: Path = ROOT) -> str:
+    """``text`` with each ``result-table`` directive written out as a Markdown table whose
+    numbers are ``{result}`VALUE <SPEC>``` roles (a forge shows a directive as code; it
+    shows this table with its numbers). A cell whose value is missing prints its ``else``
+    text."""
+    sources = page_sources(text)
+    inverse = {v: k for k, v in sources.items()}
+
+    def one(match: re.Match) -> str:
+        source = match[2]
+        if source.endswith((".csv", ".json")):
+            name = inverse.get(source) or _short_name(source, sources)
+            sources[name], inverse[source] = source, name
+        else:
+            name = source
+        options, lines = {}, []
+        for line in match[3].splitlines():
+            opt = re.match(r"^:([\w-]+):\s*(.*)$", line)
+            if opt and not lines:
+                options[opt[1]] = opt[2]
+            elif line.strip():
+                lines.append(line)
+        where = " ".join(options.get("where", "").split())
+        if "each-row" in options:
+            rows = load(source_path(source, root))
+            index = _column(rows, "index", source)
+            picked = _csv_values(rows, f"{index}" + (f" where {where}" if where else ""),
+                                 source)
+            lines = [f"[{index}={int(i)}] {lines[0]}" for i in picked]
+            where = ""
+        header = [h.strip() for h in options["header"].split(" | ")]
+        out = ["| " + " | ".join(header) + " |", "|" + " --- |" * len(header)]
+        for line in lines:
+            m = _ROW_FILTER.match(line)
+            row_where = " and ".join(w for w in (where, m[1].strip() if m else "") if w)
+            line = line[m.end():] if m else line
+
+            def cell(c: re.Match) -> str:
+                body, has_else, fallback = c[1].partition(" else ")
+                expr, sep, fmt = body.partition(" as ")
+                spec = f"{name}:{_and_filter(expr.strip(), row_where)}" + (
+                    f" as {fmt.strip()}" if sep else "")
+                try:
+                    printed = resolve(expand(spec, sources), root)
+                except MissingValue:
+                    if not has_else:
+                        raise
+                    return fallback.strip()
+                return f"{{result}}`{printed} <{spec}>`"
+            out.append("| " + " | ".join(_CELL.sub(cell, c.strip())
+                                         for c in line.split(" | ")) + " |")
+        return "\n".join(out) + "\n"
+
+    out = _TABLE.sub(one, text)
+    if sources != page_sources(text):
+        block = "<!-- result sources:\n" + "".join(
+            f"{k} = {v}\n" for k, v in sorted(sources.items())) + "-->"
+        if _SOURCES.search(out):
+            out = _SOURCES.sub(block, out, count=1)
+        else:
+            lines = out.split("\n")
+            at = next((i + 1 for i, line in enumerate(lines) if line.startswith("# ")), 0)
+            lines[at:at] = ["", block]
+            out = "\n".join(lines)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python docs/_ext/results_role.py [--write] [--shorten] PAGE ...``: list (or, with
+    ``--write``, rewrite) each role whose written value differs from its file's."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("pages", nargs="+", type=Path)
+    parser.add_argument("--write", action="store_true", help="rewrite the pages in place")
+    parser.add_argument("--shorten", action="store_true",
+                        help="give path sources short names defined once per page")
+    parser.add_argument("--tables", action="store_true",
+                        help="write result-table directives out as Markdown tables of roles")
+    args = parser.parse_args(argv)
+    stale = 0
+    for page in args.pages:
+        text = page.read_text(encoding="utf-8")
+        new = tables_to_markdown(text) if args.tables else text
+        new = write_values(new, shorten=args.shorten)
+        if new != text:
+            stale += 1
+            print(f"{page}: values or names to update")
+            if args.write:
+                page.write_text(new, encoding="utf-8")
+    return 1 if stale and not args.write else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

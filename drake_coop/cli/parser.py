@@ -22,11 +22,6 @@ IDENTIFY_ESTIMATORS = ("map_sdp", "idim_iv", "didim")
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``drake-coop``.
-
-    Returns
-    -------
-    OneLineParser
-        The parser.
     """
     from drake_coop.console import OneLineParser
 
@@ -125,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     Returns
     -------
     int
-        The exit code.
+        The process's exit code (0 done, 1 a run that failed, 2 bad input).
     """
     SIGNALS = _signals.SIGNALS = Signals()
     previous = {}

@@ -61,11 +61,6 @@ class Signals:
         ----------
         exc : BaseException or None
             The exception that ended the command, if any.
-
-        Returns
-        -------
-        int
-            130 or 143.
         """
         if isinstance(exc, Terminated):
             return 143

@@ -170,11 +170,6 @@ class ArmModel:
             The constraint normals (m, 3) or (3,).
         contact_point : array_like
             The contact point ``c`` (3,), m, world frame.
-
-        Returns
-        -------
-        ArmModel
-            The model.
         """
         return cls(plant, ee_frame, normals, contact_point)
 
@@ -329,17 +324,12 @@ class ArmModel:
         return self.plant.CalcBiasTerm(self.context)
 
     def g(self, q: np.ndarray) -> np.ndarray:
-        """Gravity vector ``g(q)`` of (1) (left-hand side), n-vector.
+        """The gravity vector ``g(q)`` of (1) (left-hand side), n-vector.
 
         Parameters
         ----------
         q : numpy.ndarray
             Joint positions (n,), rad.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``g(q)`` (n,), N·m.
         """
         self._set_q(q)
         return -self.plant.CalcGravityGeneralizedForces(self.context)
@@ -480,17 +470,12 @@ class ArmModel:
             self.plant.world_frame(), self.plant.world_frame())[:3]
 
     def phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint (2), ``φ = N (x − c)`` (m), an m-vector.
+        """The constraint (2), ``φ = N (x − c)`` (m), an m-vector.
 
         Parameters
         ----------
         q : numpy.ndarray
             Joint positions (n,), rad.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``φ(q)`` (m,), m.
         """
         return self._N @ (self.ee_position(q) - self._c)
 

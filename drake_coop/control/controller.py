@@ -207,11 +207,6 @@ class Controller(LeafSystem):
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``τ(k)`` (n,), N·m.
         """
         return self.terms(context)["tau"]
 

@@ -112,11 +112,6 @@ def face_distance(centres, normal, radii=(0.0, 0.0), compressions=(0.0, 0.0)) ->
         ``ρ_i`` (m), >= 0 (0 for pads held at their centres).
     compressions : array_like, shape (2,) or (..., 2)
         ``δ_i`` (m), >= 0, each pad's compression.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``w`` (...,), m.
     """
     E = np.asarray(centres, dtype=float)
     if E.ndim < 2 or E.shape[-2:] != (2, 3):

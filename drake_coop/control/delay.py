@@ -57,11 +57,6 @@ def check_horizon(horizon: float, period: float, name: str = "prediction_horizon
         The control period ``h`` (s).
     name : str
         The argument or field named in the error.
-
-    Returns
-    -------
-    float
-        ``horizon``.
     """
     if isinstance(horizon, bool) or not isinstance(horizon, (int, float)) \
             or not np.isfinite(horizon) or not 0.0 < horizon <= period * (1 + 1e-9):
@@ -186,11 +181,6 @@ class DelayPredictor(LeafSystem):
             The applied torque (n,), N·m.
         lambda_hat : numpy.ndarray
             The force estimate ``λ̂`` (m,), N.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``a`` (n,), rad/s².
         """
         model = self._model
         rhs = np.asarray(tau, dtype=float) - model.inverse_dynamics_terms(q, v, np.zeros(self._n))

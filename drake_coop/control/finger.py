@@ -68,11 +68,6 @@ def observer_qdot_o(q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray, k_
         The observer's ``q̇̂_o``.
     k_d : float
         ``k_d`` (1/s).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``q̇_o`` (n,), rad/s.
     """
     return qdot_hat_o + k_d * (q - q_hat)
 
@@ -318,11 +313,6 @@ class FingerLaw:
             The reference sample.
         Delta_F_tilde : numpy.ndarray
             ``ΔF̃`` of (6) (m,), N·s.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``q̇_r`` (n,), rad/s.
         """
         return orthogonal.reference_velocity(
             c.Q, c.J_pinv, q_hat=q_hat, q_d=ref.q_d, qdot_d=ref.qdot_d, Lambda=self.Lambda,
@@ -423,11 +413,6 @@ class FingerLaw:
             The reference sample.
         Delta_F_tilde : numpy.ndarray
             ``ΔF̃`` of (6) (m,), N·s.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``λ̂`` (m,), N.
         """
         if not ref.held:
             return self._zero_m
@@ -454,11 +439,6 @@ class FingerLaw:
             The torque (n,), N·m.
         held : bool
             Whether the object is held (else 0).
-
-        Returns
-        -------
-        numpy.ndarray
-            ``λ̂`` (m,), N.
         """
         if not held:
             return self._zero_m

@@ -215,11 +215,6 @@ class MomentumObserver(ForceSource):
             Joint positions (n,), rad.
         v : numpy.ndarray
             Joint velocities (n,), rad/s.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``p`` (n,), kg·m²/s.
         """
         return self._model.H(q) @ v
 
@@ -232,11 +227,6 @@ class MomentumObserver(ForceSource):
             Joint positions (n,), rad.
         v : numpy.ndarray
             Joint velocities (n,), rad/s.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``β`` (n,), N·m.
         """
         model = self._model
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(v, float).reshape(-1, 1))

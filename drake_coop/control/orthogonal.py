@@ -159,11 +159,6 @@ def xi_times(xi: float | np.ndarray, x: np.ndarray | float) -> np.ndarray:
         ``ξ``.
     x : ndarray, shape (m,), or float
         The vector it multiplies.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``ξ x`` (m,).
     """
     if np.ndim(xi) == 0:
         return xi * np.asarray(x)
@@ -214,11 +209,6 @@ def reference_velocity(
         ``ΔF̃``, the integral (6).
     pdot_d : ndarray, shape (m,), or float
         ``ṗ_d`` (0 in the paper).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``q̇_r`` (n,), rad/s.
     """
     motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
     force = pdot_d - beta * np.asarray(Delta_p) + xi_times(xi, Delta_F_tilde)
@@ -280,11 +270,6 @@ def reference_acceleration(
         ``ΔF̃`` (6) and ``Δλ̃ = λ̂ − λ_d``.
     pdot, pdot_d, pddot_d : ndarray, shape (m,), or float
         ``ṗ``, ``ṗ_d`` and ``p̈_d`` (0 in the paper).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``q̈̂_r`` (n,), rad/s².
     """
     motion = np.asarray(qdot_d) - Lambda * (np.asarray(q_hat) - np.asarray(q_d))
     motion_dot = np.asarray(qddot_d) - Lambda * (np.asarray(qdot_hat) - np.asarray(qdot_d))

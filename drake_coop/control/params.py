@@ -89,11 +89,6 @@ def as_number(value, name: str) -> float:
         The argument's value.
     name : str
         The argument's name, for the message.
-
-    Returns
-    -------
-    float
-        The value.
     """
     if isinstance(value, bool) or not isinstance(value, (Real, np.floating, np.integer)):
         raise TypeError(f"{name}: a number is required (got {type(value).__name__} {value!r})")
@@ -134,11 +129,6 @@ def check_positive(value, name: str) -> float:
         The argument's value.
     name : str
         The argument's name, for the message.
-
-    Returns
-    -------
-    float
-        The value.
     """
     x = as_number(value, name)
     if not math.isfinite(x) or x <= 0.0:
@@ -156,11 +146,6 @@ def check_optional_positive(value, name: str) -> float | None:
         The argument's value.
     name : str
         The argument's name, for the message.
-
-    Returns
-    -------
-    float or None
-        The value.
     """
     return None if value is None else check_positive(value, name)
 
@@ -175,11 +160,6 @@ def check_count(value, name: str) -> int:
         The argument's value.
     name : str
         The argument's name, for the message.
-
-    Returns
-    -------
-    int
-        The value.
     """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name}: a positive integer is required (got {type(value).__name__} "
@@ -200,11 +180,6 @@ def check_choice(value, name: str, allowed: tuple[str, ...]) -> str:
         The argument's name, for the message.
     allowed : tuple of str
         The allowed values.
-
-    Returns
-    -------
-    str
-        The value.
     """
     if not isinstance(value, str) or value not in allowed:
         raise ValueError(f"{name}: one of {', '.join(allowed)} (got {value!r})")
@@ -279,11 +254,6 @@ def check_momentum_gain(momentum_gain: float, period: float) -> float:
     period : float
         The sampling time ``h`` (s).
 
-    Returns
-    -------
-    float
-        ``K_O`` (1/s).
-
     Raises
     ------
     TypeError, ValueError
@@ -311,11 +281,6 @@ class CheckedPeriod(float):
         ----------
         time_step : float or None
             The plant's time step (s); None or ≤ 0 for a continuous plant.
-
-        Returns
-        -------
-        bool
-            True when covered.
         """
         return time_step is None or time_step <= 0.0 or time_step == self.time_step
 
@@ -352,11 +317,6 @@ def check_period(period: float, time_step: float | None = None) -> float:
         The sampling time ``h`` (s).
     time_step : float, optional
         The plant's step (s); given, ``h`` must be a whole multiple of it.
-
-    Returns
-    -------
-    float
-        ``h``.
 
     Raises
     ------
@@ -426,11 +386,6 @@ def contact_vector(contact_point) -> np.ndarray:
     ----------
     contact_point : array_like, shape (3,)
         The contact point ``c`` (m).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``c`` (3,), m.
     """
     c = as_array(contact_point, "contact_point")
     if c.shape != (3,) or not np.all(np.isfinite(c)):

@@ -64,11 +64,6 @@ class ReferenceLayout:
             The value to check.
         name : str
             The argument's name, for the message.
-
-        Returns
-        -------
-        ReferenceLayout
-            ``layout``.
         """
         if not isinstance(layout, ReferenceLayout):
             raise TypeError(f"{name}: a drake_coop.control.ReferenceLayout is required "
@@ -99,11 +94,6 @@ class ReferenceLayout:
         ----------
         r : numpy.ndarray
             One reference sample (size,).
-
-        Returns
-        -------
-        bool
-            True when held.
         """
         return bool(r[3 * self.n + self.m] > 0.5)
 

@@ -93,11 +93,6 @@ class Source:
 
     def system_class(self) -> type:
         """The system's class (imports its module).
-
-        Returns
-        -------
-        type
-            The LeafSystem subclass.
         """
         return getattr(importlib.import_module(f"drake_coop.control.{self.module}"),
                        self.class_name)
@@ -113,11 +108,6 @@ class Source:
             The sampling time ``h`` (s).
         options : dict
             The source's own options (its gains, filters).
-
-        Returns
-        -------
-        LeafSystem
-            The source.
         """
         return self.build(self.system_class(), law, period, options)
 
@@ -156,11 +146,6 @@ def names(kind: str) -> tuple[str, ...]:
     ----------
     kind : str
         ``"velocity"`` or ``"force"``.
-
-    Returns
-    -------
-    tuple of str
-        The names.
     """
     return tuple(s.name for s in SOURCES if s.kind == kind)
 
@@ -174,11 +159,6 @@ def source(kind: str, name: str) -> Source:
         ``"velocity"`` or ``"force"``.
     name : str
         The source's name, as a scenario spells it.
-
-    Returns
-    -------
-    Source
-        The registry entry.
 
     Raises
     ------

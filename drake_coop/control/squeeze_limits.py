@@ -49,11 +49,6 @@ def effort_limits(plant: MultibodyPlant) -> np.ndarray:
     ----------
     plant : MultibodyPlant
         The arm's plant (finalized), as parsed from its URDF.
-
-    Returns
-    -------
-    numpy.ndarray
-        The limits (n,).
     """
     limits = np.full(plant.num_velocities(), np.inf)
     for index in plant.GetJointActuatorIndices():

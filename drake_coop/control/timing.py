@@ -19,7 +19,7 @@ def aligned_periods(control_period: float, time_step: float) -> tuple[float, flo
     Drake schedules a periodic event at ``k * period`` (floating point). With ``h = 0.009`` and
     ``dt = 0.001``, ``k * 0.009`` and ``(9 k) * 0.001`` differ by one rounding now and then, and
     the simulator takes spurious ~1e-17 s steps between the plant's step and the controller's
-    tick (Drake's GitHub issue 15021) — with the plant stepping *before* the controller reads
+    tick (a known Drake behaviour) — with the plant stepping *before* the controller reads
     its state.
     Rounding ``dt`` to ``53 − ceil(log2 N)`` significant bits (a relative change below 1e-14)
     makes ``h = N dt`` exact, and then ``k h`` and ``(N k) dt`` are the same real number rounded
@@ -57,11 +57,6 @@ def tick_of(t: float, h: float) -> int | None:
         A time (s).
     h : float
         The sampling time (s).
-
-    Returns
-    -------
-    int or None
-        ``k``, or None.
     """
     k = round(t / h)
     return k if abs(t - k * h) <= 1e-9 * max(1.0, t) else None

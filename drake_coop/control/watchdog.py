@@ -321,11 +321,6 @@ class Watchdog(LeafSystem):
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        bool
-            True once tripped.
         """
         return context.get_discrete_state(self._memory).get_value()[0] != 0.0
 
@@ -336,11 +331,6 @@ class Watchdog(LeafSystem):
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``q_g`` (n,), rad.
         """
         return context.get_discrete_state(self._memory).get_value()[_FLAGS:].copy()
 

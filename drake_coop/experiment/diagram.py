@@ -282,17 +282,12 @@ def reads_sensor(robot) -> bool:
 
 
 def is_ideal(settings) -> bool:
-    """Encoders that pass the exact ``q(t_k)``: no quantization, no noise, no delay.
+    """Whether the encoders pass the exact ``q(t_k)``: no quantization, no noise, no delay.
 
     Parameters
     ----------
     settings : Encoders
         The robot's encoder settings (:class:`~drake_coop.scenario.schema.Encoders`).
-
-    Returns
-    -------
-    bool
-        True when ideal.
     """
     return (settings.counts_per_rev is None and settings.noise_std == 0.0
             and settings.delay_samples == 0)

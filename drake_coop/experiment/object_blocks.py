@@ -315,11 +315,6 @@ def add_object_state_estimator(b: DiagramBuilder, plan: RunPlan,
         Each robot's reference layout.
     period : float
         The control period, s.
-
-    Returns
-    -------
-    ObjectStateEstimator
-        The system added.
     """
     scenario = plan.scenario
     om, task = scenario.object_model, scenario.task

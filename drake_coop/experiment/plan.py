@@ -81,11 +81,6 @@ def read_pad(urdf: str | Path, ee_frame: str) -> Pad:
         The model file.
     ee_frame : str
         The end-effector link.
-
-    Returns
-    -------
-    Pad
-        Its pad.
     """
     from pydrake.geometry import SceneGraph, Sphere
     from pydrake.multibody.parsing import Parser
@@ -147,11 +142,6 @@ def grasp_object(scenario: Scenario, mass: float):
         The scenario (its robots' contact points and normals).
     mass : float
         The object's mass, kg.
-
-    Returns
-    -------
-    ObjectModel
-        The object.
     """
     from drake_coop.control.object import ObjectModel
 
@@ -511,11 +501,6 @@ def plan_run(scenario: Scenario, t_end: float | None = None) -> RunPlan:
         A validated scenario.
     t_end : float or None
         The run's end, s; None for the task's.
-
-    Returns
-    -------
-    RunPlan
-        The plan.
     """
     h, dt = time_grid(scenario)
     task = scenario.task

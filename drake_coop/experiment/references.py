@@ -84,11 +84,6 @@ def start_posture(arm: Arm, task, point=None) -> np.ndarray:
         The task.
     point : ControlPoint or None
         The controlled material point; None for the pad's centre.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``q_d(0)`` (n,), rad.
     """
     x, xd, xdd = cartesian_reference(task, arm.robot, [0.0])
     kin = arm.kinematics

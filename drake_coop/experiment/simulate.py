@@ -222,11 +222,6 @@ def guard_chunks(plan: RunPlan, check_period: float) -> list[int]:
         The run's plan.
     check_period : float
         The guards' period, s.
-
-    Returns
-    -------
-    list of int
-        The ticks.
     """
     chunk = max(1, int(round(check_period / plan.h)))
     return sorted({*range(chunk, plan.k_end, chunk), *plan.stops})
@@ -289,11 +284,6 @@ def collect_logs(exp: Experiment, context) -> dict[str, dict[str, np.ndarray]]:
         The experiment.
     context : Context
         The root context after the run.
-
-    Returns
-    -------
-    dict of str to dict of str to numpy.ndarray
-        ``logs[robot][array]``.
     """
     logs = {}
     task = exp.scenario.task

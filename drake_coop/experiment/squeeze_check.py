@@ -23,7 +23,7 @@ __all__ = ["check_squeeze_limits", "torque_limits"]
 
 
 def torque_limits(scenario: Scenario, index: int, plan=None) -> np.ndarray:
-    """Robot ``index``'s ``τ_max``: ``actuators.torque_limits``, else its simulated URDF's
+    """The robot ``index``'s ``τ_max``: ``actuators.torque_limits``, else its simulated URDF's
     effort limits (Drake's reading; ``inf`` where none).
 
     Parameters
@@ -34,11 +34,6 @@ def torque_limits(scenario: Scenario, index: int, plan=None) -> np.ndarray:
         The robot's index.
     plan : RunPlan or None
         The run's plan; None plans it here.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``τ_max`` (n,), N·m.
     """
     from drake_coop.control.arm_plant import make_arm_controller_plant
     from drake_coop.control.squeeze_limits import effort_limits

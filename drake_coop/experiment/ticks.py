@@ -98,7 +98,7 @@ def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
 
 
 def grasp_ticks(task: Task, h: float) -> tuple[int, int]:
-    """First held tick and first released tick: ``(⌈t_grasp/h⌉, ⌈t_release/h⌉)``.
+    """The first held tick and first released tick: ``(⌈t_grasp/h⌉, ⌈t_release/h⌉)``.
 
     Parameters
     ----------
@@ -106,17 +106,12 @@ def grasp_ticks(task: Task, h: float) -> tuple[int, int]:
         The task.
     h : float
         The control period, s.
-
-    Returns
-    -------
-    k_grasp, k_release : int
-        The ticks.
     """
     return (int(math.ceil(task.t_grasp / h - 1e-6)), int(math.ceil(task.t_release / h - 1e-6)))
 
 
 def num_ticks_until(t: float, h: float) -> int:
-    """Index of the last control tick at or before ``t``.
+    """The index of the last control tick at or before ``t``.
 
     Parameters
     ----------
@@ -124,10 +119,5 @@ def num_ticks_until(t: float, h: float) -> int:
         The time, s.
     h : float
         The control period, s.
-
-    Returns
-    -------
-    int
-        The tick.
     """
     return int(math.floor(t / h + 1e-6))

@@ -295,11 +295,6 @@ def estimate_parameters(regressor: Regressor, data: PreparedData, theta0: np.nda
         The prepared samples.
     theta0 : ndarray
         The nominal parameters (the prior's centre), e.g. of the controller's model.
-
-    Returns
-    -------
-    Estimate
-        The estimate.
     """
     from drake_coop.identification.regressor import column_scale, condition_number
 

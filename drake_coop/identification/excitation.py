@@ -92,11 +92,6 @@ class FourierExcitation:
         ----------
         factor : float
             The excursion's factor.
-
-        Returns
-        -------
-        FourierExcitation
-            The scaled trajectory.
         """
         return FourierExcitation(self.q0, self.a * factor, self.b * factor, self.period,
                                  self.duration, self.ramp)
@@ -144,11 +139,6 @@ class ExcitationLimits:
             Velocities (N, n), rad/s.
         tau : numpy.ndarray
             The nominal torques (N, n), N·m.
-
-        Returns
-        -------
-        float
-            The largest ratio.
         """
         centre = 0.5 * (self.q_max + self.q_min)
         half = 0.5 * (self.q_max - self.q_min) - self.margin
@@ -166,11 +156,6 @@ def default_period(duration: float) -> float:
     ----------
     duration : float
         The excitation's length, s.
-
-    Returns
-    -------
-    float
-        The period, s.
     """
     return float(min(duration, 10.0))
 

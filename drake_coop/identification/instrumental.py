@@ -274,11 +274,6 @@ def iv_solution(Y: np.ndarray, Z: np.ndarray, tau: np.ndarray) -> np.ndarray:
         The instruments (N n, p).
     tau : numpy.ndarray
         The torques (N n,), N·m.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``θ`` (p,).
     """
     A, b = projected_equations(Y, Z, tau)
     scale = column_scale(Y)

@@ -51,11 +51,6 @@ def spatial_inertia_from_theta(theta: np.ndarray) -> SpatialInertia:
     ----------
     theta : numpy.ndarray
         ``[m, h, I_Bo]`` (10,): kg, kg·m, kg·m².
-
-    Returns
-    -------
-    SpatialInertia
-        ``M_BBo_B``.
     """
     m = float(theta[0])
     Ixx, Iyy, Izz, Ixy, Ixz, Iyz = (float(x) for x in theta[4:10])
@@ -96,11 +91,6 @@ def pseudo_inertia(theta: np.ndarray) -> np.ndarray:
     ----------
     theta : array_like
         ``[m, h, I_Bo]`` (10,), numbers or symbolic expressions.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``J`` (4, 4).
     """
     m, hx, hy, hz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz = theta
     # Σ = ½ tr(I) 1 − I written out (also for symbolic entries: no products with 0 or 1).
@@ -249,11 +239,6 @@ def true_parameters(structure: ArmStructure, plant: MultibodyPlant | None = None
         Another finalized plant of the same arm (same body and joint names, e.g. the
         controller's :class:`~drake_coop.control.arm_model.ArmModel` plant); default the
         structure's own. Bodies it lacks (a payload) are skipped.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``θ`` (p,).
     """
     plant = structure.plant if plant is None else plant
     context = plant.CreateDefaultContext()
@@ -368,11 +353,6 @@ def column_scale(Y: np.ndarray, column_rtol: float = COLUMN_RTOL) -> np.ndarray:
         The regressor (N n, p).
     column_rtol : float
         The relative norm below which a column is round-off.
-
-    Returns
-    -------
-    numpy.ndarray
-        The scale (p,).
     """
     scale = np.linalg.norm(Y, axis=0)
     largest = float(scale.max()) if scale.size else 0.0
@@ -390,11 +370,6 @@ def base_rank(singular_values: np.ndarray, rtol: float = RANK_RTOL) -> int:
         Decreasing singular values.
     rtol : float
         The relative tolerance.
-
-    Returns
-    -------
-    int
-        The rank.
     """
     sv = np.asarray(singular_values, dtype=float)
     if sv.size == 0 or sv[0] <= 0.0:
@@ -430,7 +405,7 @@ def identifiable_basis(Y: np.ndarray, rtol: float = RANK_RTOL) -> tuple[np.ndarr
 
 
 def condition_number(Y: np.ndarray, rtol: float = RANK_RTOL) -> tuple[float, int]:
-    """Condition number of the column-scaled ``Y`` on its identifiable subspace, and its rank.
+    """The condition number of the column-scaled ``Y`` on its identifiable subspace, and its rank.
 
     ``σ_1 / σ_r`` with ``r`` the number of singular values above ``rtol σ_1`` (round-off
     columns zeroed first: :func:`column_scale`): the sensitivity of the identifiable
@@ -442,13 +417,6 @@ def condition_number(Y: np.ndarray, rtol: float = RANK_RTOL) -> tuple[float, int
         The regressor (N n, p).
     rtol : float
         The relative rank tolerance.
-
-    Returns
-    -------
-    cond : float
-        ``σ_1 / σ_r``.
-    rank : int
-        ``r``.
     """
     sv = np.linalg.svd(Y / column_scale(Y), compute_uv=False)
     r = base_rank(sv, rtol)

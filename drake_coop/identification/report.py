@@ -299,11 +299,6 @@ def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, n
         The model of the tracking law's feedforward.
     data : ExcitationData
         The recorded experiment (its ticks and torque limits).
-
-    Returns
-    -------
-    ClosedLoop
-        The loop.
     """
     from drake_coop.experiment.plan import time_grid
     from drake_coop.identification.collect import tracking_gains
@@ -352,11 +347,6 @@ def summary(ident: RobotIdentification, duration: float) -> dict:
         One robot's identification.
     duration : float
         The excitation's length, s.
-
-    Returns
-    -------
-    dict
-        The entry.
     """
     s = ident.structure
     e = ident.estimate
@@ -471,11 +461,6 @@ def parse_robots(text: str | None, count: int) -> list[int]:
         ``--robots``' value (1-based, comma-separated).
     count : int
         The scenario's robots.
-
-    Returns
-    -------
-    list of int
-        0-based indices.
     """
     if text is None:
         return list(range(count))

@@ -69,11 +69,6 @@ def identified_urdf_text(nominal_text: str, structure: ArmStructure, theta: np.n
         The identified parameters (p,).
     note : str
         A comment written into the file.
-
-    Returns
-    -------
-    str
-        The URDF text.
     """
     ET.register_namespace("drake", DRAKE_NS)
     root = ET.fromstring(nominal_text)

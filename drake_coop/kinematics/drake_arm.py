@@ -156,17 +156,12 @@ class DrakeArmKinematics(RedundantReference):
         return self._map(q, lambda qk: self._pose(qk).translation(), (3,))
 
     def rotation(self, q: np.ndarray) -> np.ndarray:
-        """Orientation ``R(q)`` of ``ee_frame`` in the world: (3, 3) or (K, 3, 3).
+        """The orientation ``R(q)`` of ``ee_frame`` in the world: (3, 3) or (K, 3, 3).
 
         Parameters
         ----------
         q : numpy.ndarray
             Joint positions (n,) or (K, n).
-
-        Returns
-        -------
-        numpy.ndarray
-            The rotation matrices.
         """
         return self._map(q, lambda qk: self._pose(qk).rotation().matrix(), (3, 3))
 
@@ -278,11 +273,6 @@ class DrakeArmKinematics(RedundantReference):
             The target point of E (3,), m, world frame.
         q_guess : numpy.ndarray
             The start posture (n,), clipped to the limits; the solution stays on its branch.
-
-        Returns
-        -------
-        numpy.ndarray
-            The posture (n,).
 
         Raises
         ------

@@ -182,11 +182,6 @@ class DrakePadPoint:
         ----------
         q : numpy.ndarray
             Joint positions (n,).
-
-        Returns
-        -------
-        numpy.ndarray
-            ``R(q)`` (3, 3).
         """
         return self._pose(np.asarray(q, dtype=float)).rotation().matrix()
 

@@ -78,11 +78,6 @@ class RedundantReference:
         ----------
         q_nominal : numpy.ndarray or None
             The posture (n,), rad, or None for the middle of the limits.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``q_nom`` (n,), rad.
         """
         if q_nominal is not None:
             return np.asarray(q_nominal, dtype=float)

@@ -39,13 +39,8 @@ __all__ = ["GEOMETRY", "Arm", "ArmGeometry", "CrsKinematics", "arm_model", "urdf
 
 
 def urdf_dir() -> Path:
-    """Folder of the robot models: ``$DRAKE_COOP_URDF_DIR``, else the shipped ``urdf/``
+    """The folder of the robot models: ``$DRAKE_COOP_URDF_DIR``, else the shipped ``urdf/``
     (installed package data or the checkout's folder, see :mod:`drake_coop.scenario.resources`).
-
-    Returns
-    -------
-    Path
-        The folder.
     """
     from drake_coop.scenario.resources import urdf_dir as _urdf_dir
 
@@ -269,11 +264,6 @@ def arm_model(arm: Arm, urdf: str | Path | None = None, closed_form: bool | None
         Use the closed-form kinematics of :mod:`drake_coop.kinematics.crs` for ``φ``, ``J_φ`` and
         ``J̇_φ``; default: when the arm has them and the controller's URDF is the simulated
         model (``controller_model`` unset; scaled masses and inertias keep the geometry).
-
-    Returns
-    -------
-    ArmModel
-        The controller's model.
     """
     path = Path(urdf) if urdf is not None else arm.controller_urdf_path
     X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)

@@ -129,7 +129,7 @@ class CoopPlant:
 
     # ------------------------------------------------------------------ state helpers
     def arm_positions(self, context: Context, i: int) -> np.ndarray:
-        """Joint positions of arm i from a plant context.
+        """The joint positions of arm i from a plant context.
 
         Parameters
         ----------
@@ -137,11 +137,6 @@ class CoopPlant:
             The plant's context.
         i : int
             The arm's index.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``q`` (n,), rad.
         """
         return self.plant.GetPositions(context, self.arms[i].instance)
 
@@ -206,11 +201,6 @@ class CoopPlant:
         ----------
         context : Context
             The plant's context.
-
-        Returns
-        -------
-        bool
-            True while held.
         """
         return bool(self.constraint_ids) and self.plant.GetConstraintActiveStatus(
             context, self.constraint_ids[0])

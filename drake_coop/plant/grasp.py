@@ -363,11 +363,6 @@ def pad_radius(scene_graph: SceneGraph, pad: GeometryId) -> float:
     pad : GeometryId
         The pad's collision geometry.
 
-    Returns
-    -------
-    float
-        The radius, m.
-
     Raises
     ------
     ValueError

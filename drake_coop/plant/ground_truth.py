@@ -528,11 +528,6 @@ def add_pad_force_log(builder: DiagramBuilder, coop: CoopPlant, period: float,
         Each robot's F/T sensor model (for ``lambda_sensor``).
     log : bool
         Add the logger (without it only the hold, for the guards and live F/T models).
-
-    Returns
-    -------
-    PadForceLog
-        The log.
     """
     if coop.mode != "contact":
         raise ValueError(f"the pads' ground truth needs contact mode, not {coop.mode!r}")

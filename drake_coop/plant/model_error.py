@@ -47,11 +47,6 @@ def scaled_urdf_text(text: str, error: ModelError) -> str:
     error : ModelError
         ``mass_scale``, ``inertia_scale``, ``damping_scale`` (the other fields are the
         simulated arm's and are ignored here).
-
-    Returns
-    -------
-    str
-        The scaled URDF.
     """
     ET.register_namespace("drake", DRAKE_NS)
     root = ET.fromstring(text)
@@ -97,11 +92,6 @@ def controller_arm_model(arm: Arm, error: ModelError | None = None) -> ArmModel:
         The robot.
     error : ModelError or None
         The scales of the controller's model; None for none.
-
-    Returns
-    -------
-    ArmModel
-        The controller's model.
     """
     if error is None or not has_scaling(error):
         return arm_model(arm)

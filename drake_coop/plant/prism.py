@@ -45,11 +45,6 @@ def prism_section(points: np.ndarray, normals: np.ndarray, r_pad: float) -> Pris
     r_pad : float
         The pads' radius (m).
 
-    Returns
-    -------
-    PrismSection
-        The polygon.
-
     Raises
     ------
     ValueError

@@ -202,11 +202,6 @@ class ForceSensor(LeafSystem):
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``F`` (3,), N.
         """
         return self._force_cache.Eval(context)
 
@@ -273,11 +268,6 @@ def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | 
         The plant.
     period : float or None
         The control period ``h``, s.
-
-    Returns
-    -------
-    list of ForceSensor
-        One per arm.
     """
     plant = coop.plant
     direct = coop.mode in ("planes", "rigid")

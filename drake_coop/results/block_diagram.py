@@ -63,13 +63,16 @@ _ORDER = ("TrajectorySource", "Controller",
           *(s.class_name for s in SOURCES if s.kind == "velocity"),
           *(s.class_name for s in SOURCES if s.kind == "force"),
           "Saturation", "CoulombFriction", "Adder", "Encoders", "Demultiplexer", "FTSensor", "ForceSensor")
-#: Signals by output port name, as the paper writes them (HTML-like graphviz text).
+#: Signals by output port name, as the paper writes them (HTML-like graphviz text). Indices
+#: are Unicode subscripts, not ``<SUB>``: graphviz places a ``<SUB>`` as a text element of
+#: its own at its own font's widths, and a browser drawing the SVG in a wider font printed it
+#: over its neighbours (one text element per label cannot overlap itself).
 SIGNAL_LABELS: dict[str, str] = {
     "q": "q", "tau": "τ",
-    "qddot_r_hat": "q̈̂<SUB>r</SUB>", "q_hat": "q̂", "qdot_hat": "dq̂/dt",
-    "qdot_o": "q̇<SUB>o</SUB>", "lambda_hat": "λ̂", "Delta_F_tilde": "ΔF̃",
-    "lambda_sensor": "λ<SUB>s</SUB>", "lambda_meas": "λ", "F_meas": "F",
-    "tau_ext_hat": "τ̂<SUB>ext</SUB>", "O_F_ext_hat": "F̂<SUB>ext</SUB>",
+    "qddot_r_hat": "q̈̂ᵣ", "q_hat": "q̂", "qdot_hat": "dq̂/dt",
+    "qdot_o": "q̇ₒ", "lambda_hat": "λ̂", "Delta_F_tilde": "ΔF̃",
+    "lambda_sensor": "λₛ", "lambda_meas": "λ", "F_meas": "F",
+    "tau_ext_hat": "τ̂ₑₓₜ", "O_F_ext_hat": "F̂ₑₓₜ",
 }
 _SKIPPED_TYPES = {"SceneGraph"}
 
@@ -78,7 +81,7 @@ def _signal(source: System, port_name: str) -> str:
     """The signal an output port carries, as the paper writes it."""
     kind = type(source).__name__
     if kind == "TrajectorySource":
-        return "q<SUB>d</SUB>, q̇<SUB>d</SUB>, q̈<SUB>d</SUB>, λ<SUB>d</SUB>"
+        return "desired q, q̇, q̈, λ"
     if kind in ("Saturation", "Adder"):
         return "τ"
     if kind == "MultibodyPlant" and not port_name.endswith("state"):
@@ -87,6 +90,8 @@ def _signal(source: System, port_name: str) -> str:
         return "wrist motion and forces"
     if port_name.endswith("state"):
         return "q, q̇"
+    if kind == "Demultiplexer" and source.get_name().endswith("_encoders"):
+        return "q"                          # ideal encoders: the plant's q, split off its state
     return SIGNAL_LABELS.get(port_name, html.escape(port_name))
 
 
@@ -208,15 +213,15 @@ def paper_block_diagram(diagram: Diagram) -> str:
         text = ", ".join(texts)
         back = (key[1], key[0])
         if back in signals:
-            # Both ways between two blocks (controller ⇄ velocity observer): one double arrow
-            # labelled with both directions' signals.
+            # Both ways between two blocks (controller ⇄ velocity observer): one double arrow,
+            # each direction's signals at the end it leaves (one label for both directions
+            # sat mid-way on the curved edge, the line through its text).
             done.add(back)
             if type(a).__name__ == "Controller":
                 a, b, text = b, a, ", ".join(signals[back])
-            to_b = BLOCK_LABELS.get(type(b).__name__, (b.get_name(),))[0]
-            to_a = BLOCK_LABELS.get(type(a).__name__, (a.get_name(),))[0]
-            lines.append(f"  {node[id(a)]} -> {node[id(b)]} [dir=both, label=<{text} to the "
-                         f"{to_b}<BR/>{', '.join(signals[(id(b), id(a))])} to the {to_a}>];")
+            lines.append(f"  {node[id(a)]} -> {node[id(b)]} [dir=both, "
+                         f"taillabel=<{text}>, headlabel=<{', '.join(signals[(id(b), id(a))])}>, "
+                         "labeldistance=3, labelangle=30];")
         elif column[id(a)] > column[id(b)]:
             # Feedback: drawn from its target's side so the loop reads left to right.
             lines.append(f"  {node[id(b)]} -> {node[id(a)]} [dir=back, label=<{text}>];")

@@ -52,6 +52,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.transforms import Bbox
 
 from drake_coop.results.io import atomic_path
 
@@ -109,6 +110,13 @@ def _phases(ax: Axes, meta: dict, t_end: float | None, label: bool,
 
 #: ``gid`` of the phase names drawn by :func:`_phases` (:func:`_unstack_phase_labels`).
 PHASE_LABEL = "phase_label"
+#: The least horizontal gap (points) between two phase names on one row.
+LABEL_GAP_PT = 3.0
+
+
+def _widened(box: Bbox, pad: float) -> Bbox:
+    """``box`` widened by ``pad`` pixels left and right (not up and down: rows stay close)."""
+    return Bbox.from_extents(box.x0 - pad, box.y0, box.x1 + pad, box.y1)
 
 
 def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> None:
@@ -118,6 +126,7 @@ def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> No
     page's width) would print their names over each other; the measured text extents
     decide, whatever the run's timeline or the panel's width."""
     renderer = fig.canvas.get_renderer()
+    gap = LABEL_GAP_PT * fig.dpi / 72.0        # names that merely touch read as one word
     for ax in fig.axes:
         labels = [t for t in ax.texts if t.get_gid() == PHASE_LABEL]
         placed = []
@@ -125,10 +134,10 @@ def _unstack_phase_labels(fig: Figure, step: float = 8.0, levels: int = 4) -> No
             x, y0 = text.xyann
             for level in range(levels):
                 text.xyann = (x, y0 + step * level)
-                box = text.get_window_extent(renderer)
+                box = _widened(text.get_window_extent(renderer), gap / 2)
                 if not any(box.overlaps(other) for other in placed):
                     break
-            placed.append(text.get_window_extent(renderer))
+            placed.append(_widened(text.get_window_extent(renderer), gap / 2))
         if labels:   # the title above the highest row of names (pads in points)
             top = max(t.get_window_extent(renderer).y1 for t in labels)
             needed = (top - ax.get_window_extent(renderer).y1) * 72.0 / fig.dpi + 3.0
@@ -295,7 +304,8 @@ def _difference(key: str, other: str, j: int, scale: float = 1.0) -> Signal:
 
 
 def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
-                 formats: Iterable[str] = ("png", "svg")) -> list[Path]:
+                 formats: Iterable[str] = ("png", "svg"),
+                 only: Iterable[str] | None = None) -> list[Path]:
     """Draw Figures 2–6 of the paper into ``out_dir``.
 
     Parameters
@@ -309,6 +319,9 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
         Output directory; created if needed.
     formats : iterable of str
         File formats, each one file per figure (``"png"``, ``"svg"``, ``"pdf"``, ...).
+    only : iterable of str, optional
+        Draw only these figures (their file names without suffix); None: every figure the
+        logs hold data for.
 
     Returns
     -------
@@ -318,11 +331,11 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
     Raises
     ------
     ValueError
-        If a format is not supported by matplotlib (before anything is written).
+        If a format is not supported by matplotlib, or ``only`` names a figure these logs do
+        not draw (before anything is written).
     """
     formats = _check_formats(formats)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
 
     def joints(key: str, other: str, title: str, ylabel: str):
         """One column per joint of the robot: ``log[key] − log[other]``."""
@@ -330,20 +343,20 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
                              _difference(key, other, j)) for j in range(log[key].shape[1])]
 
     figures = {
-        "fig2_tracking_errors": _grid(
+        "fig2_tracking_errors": lambda: _grid(
             logs, meta,
             [(rf"$\tilde{{{c}}}_#$", rf"$\tilde{{{c}}}_#$ [{{unit}}]", _difference("x", "x_d", j))
              for j, c in enumerate("xyz")],
             "Fig. 2 — tracking errors in Cartesian coordinates", LENGTH_UNITS),
-        "fig3_force_tracking": _pair(
+        "fig3_force_tracking": lambda: _pair(
             logs, meta, ("lambda_meas", r"measured $\lambda$", r"measured $\lambda_{k}$"),
             ("lambda_d", r"desired $\lambda_d$ (29)", r"desired $\lambda_{{d{k}}}$ (29)"),
             "Fig. 3 — measured force against the desired force"),
-        "fig4_force_estimate": _pair(
+        "fig4_force_estimate": lambda: _pair(
             logs, meta, ("lambda_meas", r"measured $\lambda$", r"measured $\lambda_{k}$"),
             ("lambda_hat", r"estimate $\hat\lambda$ (22)", r"estimate $\hat\lambda_{k}$ (22)"),
             "Fig. 4 — measured force against its estimate"),
-        "fig5_aux_force_error": _grid(
+        "fig5_aux_force_error": lambda: _grid(
             logs, meta,
             # The robot's number as subscript for one constraint (the paper), the rows' numbers
             # (legend) for several.
@@ -354,10 +367,10 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
                           lambda log: log["lambda_hat"] - log["lambda_d"])],
             r"Fig. 5 — auxiliary force errors $\hat\lambda - \lambda_d$", FORCE_UNITS,
             symbol=r"$\hat\lambda_{k} - \lambda_{{d{k}}}$"),
-        "fig6_observation_errors": _grid(
+        "fig6_observation_errors": lambda: _grid(
             logs, meta, joints("q", "q_hat", "$z_{{#,{j}}}$", "$z_{{#,{j}}}$ [{{unit}}]"),
             r"Fig. 6 — observation errors $z = q - \hat q$ (robot, joint)", ANGLE_UNITS),
-        "fig_force_errors": _grid(
+        "fig_force_errors": lambda: _grid(
             logs, meta,
             [(r"robot #: squeeze tracking $\lambda - \lambda_d$",
               r"$\lambda - \lambda_d$ [{unit}]",
@@ -369,17 +382,24 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
             r"$\lambda - \hat\lambda$", FORCE_UNITS, symbol=r"$\lambda_{k}$"),
     }
     if all("qdot" in logs[r] and "qdot_hat" in logs[r] for r in meta["robots"]):
-        figures["fig7_velocity_estimate"] = _grid(
+        figures["fig7_velocity_estimate"] = lambda: _grid(
             logs, meta,
             joints("qdot", "qdot_hat", "$\\dot q_{{#,{j}}} - \\hat{{\\dot q}}_{{#,{j}}}$",
                    "$\\dot q_{{#,{j}}} - \\hat{{\\dot q}}_{{#,{j}}}$ [{{unit}}]"),
             r"Fig. 7 — velocity-estimate errors $\dot q - \hat{\dot q}$ (robot, joint)",
             RATE_UNITS)
     if all("mass_share" in logs[r] for r in meta["robots"]):
-        figures["fig_object_mass"] = _object_mass(logs, meta)
+        figures["fig_object_mass"] = lambda: _object_mass(logs, meta)
+    if only is not None:
+        only = set(only)
+        if only - set(figures):
+            raise ValueError(f"only: {', '.join(sorted(only - set(figures)))} not among the "
+                             f"figures these logs draw ({', '.join(figures)})")
+        figures = {name: draw for name, draw in figures.items() if name in only}
+    out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fig in figures.items():
-        paths += _save(fig, out, name, formats)
+    for name, draw in figures.items():       # drawn one at a time: one figure open at once
+        paths += _save(draw(), out, name, formats)
     return paths
 
 

@@ -84,7 +84,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     Returns
     -------
     Path
-        ``path``.
+        ``path``, the file now holding the data.
     """
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
@@ -104,7 +104,7 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     Returns
     -------
     Path
-        ``path``.
+        ``path``, the file now holding the data.
     """
     return atomic_write_bytes(path, text.encode("utf-8"))
 
@@ -128,7 +128,7 @@ def check_output_folder(out: str | Path, option: str = "--out",
     Returns
     -------
     Path
-        ``out``.
+        ``out``, checked and ready to be written.
 
     Raises
     ------
@@ -234,11 +234,6 @@ class Locked(Exception):
 
     def by(self) -> str:
         """`` (pid N)`` when the holder is known, else an empty string.
-
-        Returns
-        -------
-        str
-            The text.
         """
         return f" (pid {self.holder})" if self.holder.isdigit() else ""
 
@@ -256,7 +251,7 @@ def lock_file(path: str | Path) -> int:
     Returns
     -------
     int
-        The file descriptor.
+        The open file's descriptor; closing it releases the lock.
 
     Raises
     ------
@@ -296,7 +291,7 @@ def lock_folder(path: str | Path) -> int:
     Returns
     -------
     int
-        The file descriptor.
+        The open file's descriptor; closing it releases the lock.
 
     Raises
     ------

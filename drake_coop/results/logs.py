@@ -144,11 +144,6 @@ def log_sizes(log: dict[str, np.ndarray]) -> tuple[int, int]:
     ----------
     log : dict of str to numpy.ndarray
         One robot's log.
-
-    Returns
-    -------
-    n, m : int
-        Joints and constraints.
     """
     n = np.shape(log["q"])[1] if np.ndim(log["q"]) == 2 else 0
     m = 1 if np.ndim(log["lambda_d"]) == 1 else int(np.shape(log["lambda_d"])[-1])
@@ -185,11 +180,6 @@ def csv_header(log: dict[str, np.ndarray] | None = None) -> str:
     ----------
     log : dict of str to numpy.ndarray or None
         One robot's log; None for the paper's robots.
-
-    Returns
-    -------
-    str
-        The header.
     """
     columns = COLUMNS if log is None else log_columns(log)
     return ",".join(c for names in columns.values() for c in names)

@@ -118,11 +118,6 @@ def creep_floor(time_step: float, duration: float) -> float:
         The plant's step, s.
     duration : float
         The time held still, s.
-
-    Returns
-    -------
-    float
-        The floor, m.
     """
     return CREEP_RATE * (float(time_step) / 3e-3) * float(duration)
 
@@ -459,11 +454,6 @@ def object_metrics(logs: dict[str, dict[str, np.ndarray]], meta: dict,
         ``phases``, ``friction``, ``object_size``.
     masks : dict
         ``phase -> mask`` of the samples (:func:`~drake_coop.results.metrics.phase_masks`).
-
-    Returns
-    -------
-    dict
-        ``metrics[robot][phase][name]``.
     """
     signals = object_signals(logs, meta)
     if signals is None:

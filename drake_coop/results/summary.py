@@ -45,11 +45,6 @@ def summary_phase(metrics: dict) -> str:
     ----------
     metrics : dict
         ``metrics[robot][phase]``.
-
-    Returns
-    -------
-    str
-        ``circle`` or ``all``.
     """
     return "circle" if metrics and all("circle" in m for m in metrics.values()) else "all"
 

@@ -181,7 +181,7 @@ class ForceArrows(LeafSystem):
     """Draws force arrows at each end effector (and the held object) in Meshcat.
 
     Input ports (per robot ``<name>``, with ``n`` joints and ``m`` constraints)
-    ------------------------------------------------------------------------
+    ---------------------------------------------------------------------------
     <name>_state : 2n-vector
         The arm's plant state ``[q, v]`` (the end-effector point is ``fk(q)``).
     <name>_reference : (3n + m + 1)-vector
@@ -290,11 +290,6 @@ class ForceArrows(LeafSystem):
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        bool
-            True while held.
         """
         return self._layouts[0].held(self._ports[0]["reference"].Eval(context))
 

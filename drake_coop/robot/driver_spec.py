@@ -130,11 +130,6 @@ def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
     joints : list of int
         Each arm's ``n``.
 
-    Returns
-    -------
-    list of DriverSpec
-        One per robot.
-
     Raises
     ------
     ScenarioError
@@ -233,11 +228,6 @@ def safe_command_message(spec: DriverSpec, tau: np.ndarray, utime: int) -> lcmt_
         The torque (n,), N·m.
     utime : int
         The message's time stamp, µs.
-
-    Returns
-    -------
-    lcmt_panda_command
-        The message.
     """
     tau = np.asarray(tau, dtype=float).reshape(spec.n)
     tau = np.where(np.isfinite(tau), tau, 0.0)

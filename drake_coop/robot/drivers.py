@@ -221,11 +221,6 @@ def add_lcm_interface(builder: DiagramBuilder, lcm: DrakeLcm) -> LcmInterfaceSys
         The builder.
     lcm : DrakeLcm
         The LCM connection.
-
-    Returns
-    -------
-    LcmInterfaceSystem
-        The system added.
     """
     return builder.AddNamedSystem("lcm_interface", LcmInterfaceSystem(lcm))
 

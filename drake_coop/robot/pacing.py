@@ -209,11 +209,6 @@ class StatusArrivals:
         ----------
         channel : str
             The channel.
-
-        Returns
-        -------
-        object
-            The parsed message.
         """
         return self._parse[channel](self.message[channel])
 
@@ -224,11 +219,6 @@ class StatusArrivals:
         ----------
         channel : str
             The channel.
-
-        Returns
-        -------
-        object or None
-            The parsed message.
         """
         data = self.take(channel)
         return None if data is None else self._parse[channel](data)
@@ -241,11 +231,6 @@ class StatusArrivals:
         ----------
         channel : str
             The channel.
-
-        Returns
-        -------
-        bytes or None
-            The message's bytes.
         """
         self._settle(channel)
         data = self._faulty[channel]
@@ -271,11 +256,6 @@ class StatusArrivals:
         ----------
         now : float
             The wall time (``time.perf_counter``), s.
-
-        Returns
-        -------
-        float
-            The age, s.
         """
         return max(now - t for t in self.last.values())
 
@@ -367,11 +347,6 @@ def percentile(x: np.ndarray, q: float) -> float:
         The values.
     q : float
         The percentile, 0 to 100.
-
-    Returns
-    -------
-    float
-        The percentile.
     """
     x = np.asarray(x, dtype=float)
     return float(np.percentile(x, q)) if x.size else math.nan
@@ -483,11 +458,6 @@ def delay_margin(scenario, *, epsilon: float = 1e-5) -> float:
         The scenario.
     epsilon : float
         The central differences' step.
-
-    Returns
-    -------
-    float
-        ``d``, s.
     """
     from drake_coop.stability.margin import delay_margins
 

@@ -74,11 +74,6 @@ def realtime_settings(lock_memory: bool = False) -> dict:
     ----------
     lock_memory : bool
         Call ``mlockall``.
-
-    Returns
-    -------
-    dict
-        The settings.
     """
     import errno
     import os
@@ -115,11 +110,6 @@ def missing_realtime(settings: dict, memory: bool = True) -> list[str]:
         :func:`realtime_settings`'.
     memory : bool
         Whether locked memory is required.
-
-    Returns
-    -------
-    list of str
-        The phrases.
     """
     missing = []
     if settings.get("policy") not in REALTIME_POLICIES or not settings.get("priority"):

@@ -53,11 +53,6 @@ def status_arrivals(lcm, specs):
         The LCM connection.
     specs : list of DriverSpec
         The arms' drivers.
-
-    Returns
-    -------
-    StatusArrivals
-        The subscription.
     """
     from drake_coop.robot.pacing import StatusArrivals
     from drake_coop.robot.status import first_bad_panda_status
@@ -344,11 +339,6 @@ class ServeLoop:
 
     def time(self) -> float:
         """``t_k`` of the last tick (s; 0 before the first).
-
-        Returns
-        -------
-        float
-            ``t_k``, s.
         """
         return max(self.k - 1, 0) * self.h
 

@@ -34,17 +34,12 @@ _HEAD, _TAIL = 20, 18
 
 
 def panda_status_size(n: int) -> int:
-    """Bytes of an encoded ``lcmt_panda_status`` of ``n`` joints.
+    """The bytes of an encoded ``lcmt_panda_status`` of ``n`` joints.
 
     Parameters
     ----------
     n : int
         The arm's joints.
-
-    Returns
-    -------
-    int
-        The size, bytes.
     """
     return _HEAD + 64 * n + _TAIL
 
@@ -74,21 +69,11 @@ class RawMessage:
         ----------
         data : bytes-like
             The bytes received.
-
-        Returns
-        -------
-        RawMessage
-            The message.
         """
         return RawMessage(bytes(data))
 
     def encode(self) -> bytes:
         """The message's bytes (LCM's encoding protocol).
-
-        Returns
-        -------
-        bytes
-            ``data``.
         """
         return self.data
 

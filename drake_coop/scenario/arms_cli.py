@@ -95,7 +95,7 @@ def cmd_arms(args) -> int:
     Returns
     -------
     int
-        The exit code.
+        The process's exit code, as the module's docstring lists them.
     """
     from drake_coop.control.arm_model import description_packages
     from drake_coop.scenario.description import ROBOTS_EXTRA

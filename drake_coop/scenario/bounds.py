@@ -42,11 +42,6 @@ def show(value: object, limit: int = 60) -> str:
         The value.
     limit : int
         The longest rendering, characters.
-
-    Returns
-    -------
-    str
-        The rendering.
     """
     if value is None:
         return "null"
@@ -70,11 +65,6 @@ def one_line(text: object, limit: int = MAX_MESSAGE) -> str:
         The text (its ``str``).
     limit : int
         The longest result, characters.
-
-    Returns
-    -------
-    str
-        The line.
     """
     text = " ".join(str(text).split())
     return text if len(text) <= limit else text[:limit - 1] + "…"
@@ -194,11 +184,6 @@ def optional_of(schema):
     ----------
     schema : type
         A type hint.
-
-    Returns
-    -------
-    type
-        ``X`` or ``schema``.
     """
     args = typing.get_args(schema)
     if type(None) in args and len(args) == 2:
@@ -207,7 +192,7 @@ def optional_of(schema):
 
 
 def numeric_fields(schema: type, pattern: str = "") -> list[str]:
-    """Patterns of every number (``float``, ``int``, optional or in lists) of a dataclass
+    """The patterns of every number (``float``, ``int``, optional or in lists) of a dataclass
     schema: the keys its bounds table should have.
 
     Parameters
@@ -216,11 +201,6 @@ def numeric_fields(schema: type, pattern: str = "") -> list[str]:
         The dataclass.
     pattern : str
         The prefix of its patterns.
-
-    Returns
-    -------
-    list of str
-        The patterns.
     """
     out = []
     hints = _type_hints(schema)

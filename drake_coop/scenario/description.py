@@ -71,11 +71,6 @@ _VERSION = "5"
 
 def cache_dir() -> Path:
     """Where prepared URDFs are written (see the module's docstring).
-
-    Returns
-    -------
-    Path
-        The folder.
     """
     env = os.environ.get("DRAKE_COOP_CACHE_DIR")
     if env:
@@ -96,11 +91,6 @@ def needs_preparation(robot: Robot, value: str) -> bool:
         The robot.
     value : str
         Its model file (path or ``package://`` URL).
-
-    Returns
-    -------
-    bool
-        True when prepared.
     """
     from drake_coop.control.arm_plant import DESCRIPTION_PACKAGES
 

@@ -82,11 +82,6 @@ def lab_arm_robot(name: str) -> Robot:
     name : str
         A key of :data:`LAB_ARMS`.
 
-    Returns
-    -------
-    Robot
-        The robot entry.
-
     Raises
     ------
     ValueError

@@ -163,11 +163,6 @@ def dump_scenario(scenario: Scenario) -> str:
     ----------
     scenario : Scenario
         The scenario to write.
-
-    Returns
-    -------
-    str
-        The YAML text.
     """
     from pydrake.common.yaml import yaml_dump_typed
 
@@ -177,11 +172,6 @@ def dump_scenario(scenario: Scenario) -> str:
 def paper_robots() -> list[Robot]:
     """The two robots of Section IV with the paper's gains (β is ours), read from
     ``scenarios/paper.yaml``.
-
-    Returns
-    -------
-    list of Robot
-        The two robots.
     """
     return default_scenario().robots
 
@@ -189,11 +179,6 @@ def paper_robots() -> list[Robot]:
 def default_scenario() -> Scenario:
     """The paper's experiment: ``scenarios/paper.yaml`` (the one source of the paper's numbers),
     parsed once and copied on every call.
-
-    Returns
-    -------
-    Scenario
-        A fresh copy.
     """
     return copy.deepcopy(_paper_scenario())
 

@@ -47,11 +47,6 @@ def robot_kinematics(robot: Robot):
     ----------
     robot : Robot
         The robot.
-
-    Returns
-    -------
-    CrsKinematics or DrakeArmKinematics
-        Its kinematics.
     """
     p_base = np.asarray(robot.base_xyz, dtype=float)
     yaw = math.radians(robot.base_yaw_deg)

@@ -64,12 +64,7 @@ def data_dir(kind: str) -> Path:
 
 
 def urdf_dir() -> Path:
-    """Folder of the robot models: ``$DRAKE_COOP_URDF_DIR`` if set, else the shipped one.
-
-    Returns
-    -------
-    Path
-        The folder.
+    """The folder of the robot models: ``$DRAKE_COOP_URDF_DIR`` if set, else the shipped one.
     """
     env = os.environ.get("DRAKE_COOP_URDF_DIR")
     return Path(env) if env else data_dir("urdf")
@@ -93,11 +88,6 @@ def resolve_package_url(url: str, field: str = "model") -> Path:
         The ``package://`` URL.
     field : str
         The scenario field naming it, for messages.
-
-    Returns
-    -------
-    Path
-        The file.
 
     Raises
     ------
@@ -176,11 +166,6 @@ def model_urdf_path(robot: Robot, field: str = "model") -> Path:
         The robot.
     field : str
         The scenario field, for messages.
-
-    Returns
-    -------
-    Path
-        The URDF.
     """
     if robot.model in SHIPPED_ARMS:
         return _model_path(SHIPPED_ARMS[robot.model], field, robot)
@@ -197,11 +182,6 @@ def controller_urdf_path(robot: Robot, field: str = "controller_model") -> Path:
         The robot.
     field : str
         The scenario field, for messages.
-
-    Returns
-    -------
-    Path
-        The URDF.
     """
     if not robot.controller_model:
         return model_urdf_path(robot)
@@ -209,34 +189,19 @@ def controller_urdf_path(robot: Robot, field: str = "controller_model") -> Path:
 
 
 def scenarios_dir() -> Path:
-    """Folder of the shipped scenarios (``paper.yaml`` and its variants).
-
-    Returns
-    -------
-    Path
-        The folder.
+    """The folder of the shipped scenarios (``paper.yaml`` and its variants).
     """
     return data_dir("scenarios")
 
 
 def default_scenario_path() -> Path:
     """The shipped ``paper.yaml``: the default scenario of ``drake-coop run``.
-
-    Returns
-    -------
-    Path
-        The file.
     """
     return scenarios_dir() / "paper.yaml"
 
 
 def shipped_scenarios() -> dict[str, Path]:
-    """Shipped scenarios by name (file stem), sorted by name.
-
-    Returns
-    -------
-    dict of str to Path
-        Name → file.
+    """The shipped scenarios by name (file stem), sorted by name.
     """
     return {p.stem: p for p in sorted(scenarios_dir().glob("*.yaml"))}
 
@@ -249,11 +214,6 @@ def scenario_summary(path: Path) -> str:
     ----------
     path : Path
         The scenario file.
-
-    Returns
-    -------
-    str
-        The sentence.
     """
     words: list[str] = []
     for line in Path(path).read_text(encoding="utf-8").splitlines():
@@ -277,11 +237,6 @@ def find_scenario(name_or_path: str | Path) -> Path:
     ----------
     name_or_path : str or Path
         A path or a shipped scenario's name.
-
-    Returns
-    -------
-    Path
-        The file.
 
     Raises
     ------

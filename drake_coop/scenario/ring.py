@@ -28,11 +28,6 @@ def ring_scenario(l: int) -> Scenario:
     ----------
     l : int
         The number of arms.
-
-    Returns
-    -------
-    Scenario
-        The scenario.
     """
 
     s = load_scenario(scenarios_dir() / "three_arms.yaml")

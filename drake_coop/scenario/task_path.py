@@ -43,17 +43,12 @@ from drake_coop.scenario.schema import Robot, Task
 
 
 def quintic(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Quintic time scaling σ(τ) and its first two derivatives, τ clipped to [0, 1].
+    """The quintic time scaling σ(τ) and its first two derivatives, τ clipped to [0, 1].
 
     Parameters
     ----------
     tau : numpy.ndarray
         The normalized time τ.
-
-    Returns
-    -------
-    s, ds, dds : numpy.ndarray
-        σ(τ), dσ/dτ, d²σ/dτ².
     """
     tau = np.clip(tau, 0.0, 1.0)
     s = tau ** 3 * (10 - 15 * tau + 6 * tau ** 2)
@@ -69,11 +64,6 @@ def first_normal(robot: Robot) -> np.ndarray:
     ----------
     robot : Robot
         The robot.
-
-    Returns
-    -------
-    numpy.ndarray
-        The normal (3,).
     """
     n = np.asarray(robot.normals[0], dtype=float)
     return n / np.linalg.norm(n)
@@ -199,7 +189,7 @@ def cartesian_reference(task: Task, robot: Robot, t: np.ndarray
 
 
 def force_reference(task: Task, t: np.ndarray) -> np.ndarray:
-    """Desired squeeze force λ_d of (29) (N) at times ``t``.
+    """The desired squeeze force λ_d of (29) (N) at times ``t``.
 
     Parameters
     ----------
@@ -207,11 +197,6 @@ def force_reference(task: Task, t: np.ndarray) -> np.ndarray:
         The task (its phase times and force profile).
     t : numpy.ndarray
         The times, s.
-
-    Returns
-    -------
-    numpy.ndarray
-        λ_d (N,), N.
     """
     t = np.atleast_1d(np.asarray(t, dtype=float))
     f = np.zeros_like(t)

@@ -288,11 +288,6 @@ def driver_channels(robot: Robot) -> tuple[str, str]:
     ----------
     robot : Robot
         The robot.
-
-    Returns
-    -------
-    status, command : str
-        The LCM channels.
     """
     d = robot.driver
     status = d.status_channel if d is not None and d.status_channel else f"PANDA_STATUS_{robot.name}"

@@ -106,11 +106,6 @@ class FTModel:
             The robot's index (seeds its noise).
         m : int
             The number of constraints (the reading's size).
-
-        Returns
-        -------
-        FTModel
-            The model.
         """
         s = settings or ForceSensorModel()
         return cls(alpha=lowpass_alpha(s.cutoff_hz, period), bias=float(s.bias),
@@ -125,11 +120,6 @@ class FTModel:
 
     def initial_reading(self) -> np.ndarray:
         """``λ_s(0)``: the reading before any read (``y(0) = 0``): the bias.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``λ_s(0)`` (m,), N.
         """
         return np.full(self.m, self.bias)
 

@@ -56,11 +56,6 @@ def lateness(timing: Timing, robot: int, k: int, h: float) -> float:
         The tick index.
     h : float
         The control period, s.
-
-    Returns
-    -------
-    float
-        ``ℓ_k``, s.
     """
     if timing.jitter == "none":
         return 0.0
@@ -82,11 +77,6 @@ def switch_step(delay: float, dt: float, steps: int) -> int:
         The plant's step ``Δt``, s.
     steps : int
         The plant steps per tick.
-
-    Returns
-    -------
-    int
-        ``s``.
     """
     return int(min(steps, max(0, math.ceil(delay / dt - 1e-9))))
 
@@ -143,11 +133,6 @@ class ActuationDelay(LeafSystem):
         ----------
         k : int
             The tick index.
-
-        Returns
-        -------
-        int
-            ``s_k``.
         """
         delay = self._timing.computation_delay + lateness(self._timing, self._robot, k, self._h)
         return switch_step(delay, self._dt, self._N)

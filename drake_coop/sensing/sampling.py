@@ -21,7 +21,7 @@ FORCE_SENSOR_STREAM = 1
 
 def white_noise(seed: int, robot: int, stream: int, k: int, std: float, size: int
                 ) -> np.ndarray:
-    """Samples of zero-mean Gaussian white noise of standard deviation ``std`` at tick ``k``.
+    """The samples of zero-mean Gaussian white noise of standard deviation ``std`` at tick ``k``.
 
     Drawn from a generator seeded with ``[seed, robot, stream, k]`` (NumPy's ``SeedSequence``
     mixes them), so the value depends on nothing else: reproducible, independent across
@@ -41,11 +41,6 @@ def white_noise(seed: int, robot: int, stream: int, k: int, std: float, size: in
         The standard deviation (the signal's unit).
     size : int
         The number of samples.
-
-    Returns
-    -------
-    numpy.ndarray
-        The samples (size,).
     """
     if std == 0.0:
         return np.zeros(size)

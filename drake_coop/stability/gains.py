@@ -191,11 +191,6 @@ def derive_robot_gains(model, postures: np.ndarray, grasp: np.ndarray, h: float,
         ``κ``, the fraction of the sampling limit.
     name : str
         The robot's name.
-
-    Returns
-    -------
-    DerivedGains
-        The gains.
     """
     inv_diag = np.array([np.diag(np.linalg.inv(model.H(q))) for q in postures])
     inertia = 1.0 / inv_diag.max(axis=0)           # min over postures of 1/(H⁻¹)_jj
@@ -225,11 +220,6 @@ def gains_for_scenario(scenario: Scenario, derived: list[DerivedGains], K_R_fact
         One per robot.
     K_R_factor : float
         The factor on ``K_R`` (the margin check uses :data:`GAIN_MARGIN`).
-
-    Returns
-    -------
-    Scenario
-        The copy.
     """
     s = copy.deepcopy(scenario)
     for robot, d in zip(s.robots, derived):
@@ -251,11 +241,6 @@ def derive_gains(scenario: Scenario, kappa: float = KAPPA,
         ``κ``.
     progress : Callable[[str], None]
         Receives one line per step.
-
-    Returns
-    -------
-    list of DerivedGains
-        One per robot.
     """
     from drake_coop.experiment.plan import plan_run
     from drake_coop.plant.arms import arm_model

@@ -164,11 +164,6 @@ def load_for_gains(name_or_path):
     name_or_path : str or Path
         A scenario file or a shipped scenario's name.
 
-    Returns
-    -------
-    Scenario
-        The scenario.
-
     Raises
     ------
     ScenarioError
@@ -191,7 +186,7 @@ def cmd_gains(args) -> int:
     Returns
     -------
     int
-        The exit code.
+        The process's exit code, as the module's docstring lists them.
     """
     from drake_coop.console import error as _error
     from drake_coop.results.run_folder import OutputFolderError, RunFolder

@@ -43,11 +43,6 @@ def status_of(rho: float, residual: float) -> str:
         ρ(Φ).
     residual : float
         Newton's last residual.
-
-    Returns
-    -------
-    str
-        The status.
     """
     if not math.isfinite(rho):
         return "unstable"
@@ -65,11 +60,6 @@ def grid_cases(base_yaml: str | None, grid: dict[str, list]) -> list[Case]:
         The base scenario's YAML text; None for the defaults.
     grid : dict of str to list
         Each swept path's values.
-
-    Returns
-    -------
-    list of Case
-        The cases.
 
     Raises
     ------

@@ -64,11 +64,6 @@ def one_joint_phi(J: float, D: float, Lambda: float, k_d: float, K_R: float, h: 
         ``observer`` or ``measured``.
     delay_steps : int
         ``s``, the plant steps of computation delay.
-
-    Returns
-    -------
-    numpy.ndarray
-        Φ, square.
     """
     N = int(round(h / dt))
     s = int(delay_steps)
@@ -114,11 +109,6 @@ def one_joint_rho(*args, **kwargs) -> float:
     ----------
     *args, **kwargs
         Those of :func:`one_joint_phi`.
-
-    Returns
-    -------
-    float
-        ρ(Φ).
     """
     return float(np.max(np.abs(np.linalg.eigvals(one_joint_phi(*args, **kwargs)))))
 
@@ -173,11 +163,6 @@ def observer_period_limit(Lambda: float, k_d: float) -> float:
         ``Λ``, 1/s.
     k_d : float
         ``k_d``, 1/s.
-
-    Returns
-    -------
-    float
-        ``2/p_f``, s.
     """
     b = 2.0 * Lambda + k_d
     p_fast = 0.5 * (b + np.sqrt(b * b - 4.0 * Lambda * k_d))
@@ -234,8 +219,9 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
     integrated exactly across the switch. The controller's model is ``model_scale·(J, D)``.
     The predictor (``horizon = p``, None: off) computes ``a = (τ_prev − D̂ q̇̂)/Ĵ`` and feeds
     the law ``q_p = q + p q̇̂ + p² a/2`` (likewise ``q̂``), ``q̇̂ + p a``, ``q̇_o + p a``; the
-    observer (16) is fed ``w a + (1 − w) q̈̂_r`` with ``w = p/h`` (``feed = "horizon"``) or
-    ``w = delay/h`` (``feed = "delay"``).
+    observer (16) is fed ``w a + (1 − w) q̈̂_r`` with ``w = p/h`` (``feed = "horizon"``, the
+    block's), ``w = delay/h`` (``feed = "delay"``) or ``w = 0`` (``feed = "none"``: the
+    prediction without the observer's feed, to measure what the feed buys).
 
     Parameters
     ----------
@@ -260,13 +246,15 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
     model_scale : float
         The controller model's scale of ``J`` and ``D``.
     feed : str
-        ``horizon`` or ``delay``: the observer's weight ``w``.
+        ``horizon``, ``delay`` or ``none``: the observer's weight ``w``.
 
-    Returns
-    -------
-    numpy.ndarray
-        Φ (5, 5).
+    Raises
+    ------
+    ValueError
+        ``feed`` is none of the three.
     """
+    if feed not in ("horizon", "delay", "none"):
+        raise ValueError(f"feed: one of horizon, delay, none, got {feed!r}")
     Jm, Dm = model_scale * J, model_scale * D
     e = np.eye(5)
     q, v, qh, qo, tp = e
@@ -280,7 +268,7 @@ def one_joint_predicted_phi(J: float, D: float, Lambda: float, k_d: float, K_R: 
     else:
         p = float(horizon)
         a = (tp - Dm * qdot_hat) / Jm
-        w = (p if feed == "horizon" else delay) / h
+        w = {"horizon": p, "delay": delay, "none": 0.0}[feed] / h
     shift = p * qdot_hat + 0.5 * p * p * a
     qh_p = qh + shift
     qdot_hat_p = qdot_hat + p * a
@@ -311,10 +299,5 @@ def one_joint_predicted_rho(*args, **kwargs) -> float:
     ----------
     *args, **kwargs
         Those of :func:`one_joint_predicted_phi`.
-
-    Returns
-    -------
-    float
-        ρ(Φ).
     """
     return float(np.max(np.abs(np.linalg.eigvals(one_joint_predicted_phi(*args, **kwargs)))))

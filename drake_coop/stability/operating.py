@@ -67,11 +67,6 @@ def linearizable(scenario: Scenario) -> Scenario:
     ----------
     scenario : Scenario
         The scenario.
-
-    Returns
-    -------
-    Scenario
-        The copy.
     """
     s = copy.deepcopy(scenario)
     for robot in s.robots:

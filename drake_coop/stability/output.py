@@ -96,11 +96,6 @@ def outcome_key(values, swept: list[str]) -> tuple[str, ...]:
         Each swept path's value.
     swept : list of str
         The swept paths.
-
-    Returns
-    -------
-    tuple of str
-        The key.
     """
     return tuple(_key(values[p]) for p in swept)
 

@@ -190,11 +190,6 @@ class MapReport:
 
     def dynamic_labels(self) -> list[str]:
         """The labels of the dynamic entries (those Φ is taken on).
-
-        Returns
-        -------
-        list of str
-            The labels.
         """
         return [self.labels[i] for i in self.dynamic]
 
@@ -230,11 +225,6 @@ def check_step(epsilon: float) -> float:
     ----------
     epsilon : float
         The first step.
-
-    Returns
-    -------
-    float
-        The second step.
     """
     if epsilon >= 3e-4:
         return 3.0 * epsilon
@@ -335,7 +325,7 @@ def find_equilibrium(F: PeriodMap, x: np.ndarray, free: list[int], *, epsilon: f
 
 def modes(Phi: np.ndarray, labels: list[str], period: float, top: int = 3
           ) -> tuple[np.ndarray, Mode | None, Mode | None]:
-    """Eigenvalues of ``Φ`` (by decreasing ``|μ|``), its slowest mode (largest ``|μ|``) and its
+    """The eigenvalues of ``Φ`` (by decreasing ``|μ|``), its slowest mode (largest ``|μ|``) and its
     fastest (smallest nonzero ``|μ|``), each with the ``top`` dominant state entries.
 
     Parameters
@@ -348,13 +338,6 @@ def modes(Phi: np.ndarray, labels: list[str], period: float, top: int = 3
         ``h``, s.
     top : int
         The dominant entries kept per mode.
-
-    Returns
-    -------
-    mu : numpy.ndarray
-        The eigenvalues.
-    slowest, fastest : Mode or None
-        The two modes.
     """
     if Phi.size == 0:
         return np.zeros(0), None, None
@@ -377,7 +360,7 @@ def modes(Phi: np.ndarray, labels: list[str], period: float, top: int = 3
 def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *,
             epsilon: float = DEFAULT_EPSILON,
             newton: bool = True, tol: float = 1e-10, check: bool = True) -> MapReport:
-    """Equilibrium, Φ on the dynamic entries, ρ(Φ) and the slowest and fastest modes.
+    """The equilibrium, Φ on the dynamic entries, ρ(Φ) and the slowest and fastest modes.
 
     Order: counters (one evaluation), locked joints, then a first Jacobian at ``x_guess``
     names the overwritten entries (zero columns), Newton's method solves ``F(x) = x`` on the
@@ -408,11 +391,6 @@ def analyse(F: PeriodMap, x_guess: np.ndarray | None = None, *,
         one, ``ε/3``, when the second disagrees) and report the agreeing one, or the second
         (``rho_check``; :attr:`MapReport.step_agrees`): a ρ that depends on the step is not
         the map's.
-
-    Returns
-    -------
-    MapReport
-        The report.
     """
     x = F.x0 if x_guess is None else np.asarray(x_guess, dtype=float).copy()
     fx = F(x)

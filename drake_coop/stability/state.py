@@ -42,11 +42,6 @@ def leaf_systems(diagram: Diagram) -> list[System]:
     ----------
     diagram : Diagram
         The diagram.
-
-    Returns
-    -------
-    list of System
-        The leaf systems.
     """
     out: list[System] = []
     for system in diagram.GetSystems():
@@ -122,11 +117,6 @@ class LoopState:
         ----------
         context : Context
             The root context.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``x``.
         """
         parts = []
         for b in self.blocks:
@@ -175,7 +165,7 @@ class LoopState:
         return out
 
     def locked_indices(self, context: Context) -> list[int]:
-        """Indices of ``x`` that are positions or velocities of joints a plant holds locked.
+        """The indices of ``x`` that are positions or velocities of joints a plant holds locked.
 
         A locked joint's velocity is held at zero and its position stays wherever it is: these
         entries give eigenvalues 0 and 1 that belong to no motion of the loop, so the map leaves
@@ -185,11 +175,6 @@ class LoopState:
         ----------
         context : Context
             The root context.
-
-        Returns
-        -------
-        list of int
-            The indices.
         """
         out: list[int] = []
         i = 0

@@ -142,11 +142,6 @@ def case_hash(scenario: Scenario | str, t_end: float | None) -> str:
         The scenario, or its YAML text.
     t_end : float or None
         The study's ``t_end``, s.
-
-    Returns
-    -------
-    str
-        The hash.
     """
     if isinstance(scenario, str):
         scenario = load_scenario(data=scenario)
@@ -167,11 +162,6 @@ def draw(p: Perturbation, base, rng: np.random.Generator):
         The base scenario's value.
     rng : numpy.random.Generator
         The study's generator.
-
-    Returns
-    -------
-    float or list of float
-        The value.
     """
     if p.distribution == "uniform":
         return float(rng.uniform(p.a, p.b))
@@ -201,11 +191,6 @@ def study_size(study: Study) -> tuple[int, int, int]:
     ----------
     study : Study
         The study.
-
-    Returns
-    -------
-    cases, points, samples : int
-        The counts.
     """
     points = math.prod(len(v) for v in study.grid.values())
     samples = study.monte_carlo.n if study.monte_carlo is not None else 1
@@ -416,7 +401,7 @@ def _label(params: dict) -> str:
 def expand(study: Study, *, max_cases: int = MAX_CASES,
            max_cases_option: str | None = "--max-cases", first: int | None = None
            ) -> list[Case]:
-    """All cases of ``study``, each scenario validated, in order (grid outer, samples inner).
+    """The all cases of ``study``, each scenario validated, in order (grid outer, samples inner).
 
     Parameters
     ----------
@@ -429,11 +414,6 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
         without one, such as ``stability``).
     first : int or None
         Only the first ``first`` cases (``study --cases N``); None: all of them.
-
-    Returns
-    -------
-    list of Case
-        The cases.
 
     Raises
     ------

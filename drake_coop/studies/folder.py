@@ -60,11 +60,6 @@ class StudyFolder:
     # --- reading what is there -----------------------------------------------------------
     def owner(self) -> str | None:
         """The name of the study that owns the folder, or None (no marker, no study.json).
-
-        Returns
-        -------
-        str or None
-            The study's name.
         """
         for name, key in ((MARKER, "name"), ("study.json", "name")):
             path = self.out / name
@@ -83,11 +78,6 @@ class StudyFolder:
         """The size the folder's study was run at (:mod:`drake_coop.studies.size`): the
         marker's ``size``; ``{}`` (the file's own size) for a folder written before sizes
         were recorded; None for a folder that holds no study yet.
-
-        Returns
-        -------
-        dict or None
-            The size.
         """
         path = self.out / MARKER
         try:

@@ -82,11 +82,6 @@ def metric_label(metric: str, unit: str) -> str:
         A summary column's name.
     unit : str
         Its unit.
-
-    Returns
-    -------
-    str
-        The label.
     """
     robot, error, stat = _metric_parts(metric)
     name = ERROR_NAMES.get(error, f"z of joint {error[1:]}" if error[:1] == "z" else error)
@@ -104,13 +99,6 @@ def param_label(param: str) -> tuple[str, float]:
     ----------
     param : str
         A grid parameter's path.
-
-    Returns
-    -------
-    label : str
-        The label.
-    factor : float
-        The values' factor.
     """
     if param in _PARAMS:
         name, factor, unit = _PARAMS[param]

@@ -79,11 +79,6 @@ def watch(driver: int, pipe) -> int:
         The driver's pid.
     pipe : file
         The reading end of the driver's pipe (``done`` written on a clean shutdown).
-
-    Returns
-    -------
-    int
-        0.
     """
     me = os.getpid()
     seen: dict[int, str] = {}

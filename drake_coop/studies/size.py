@@ -56,11 +56,6 @@ def size_text(size: dict) -> str:
     ----------
     size : dict
         Option key → value.
-
-    Returns
-    -------
-    str
-        The text.
     """
     if not size:
         return "the study file's own size (no " + ", ".join(OPTIONS.values()) + ")"

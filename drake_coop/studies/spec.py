@@ -331,11 +331,6 @@ def file_stem(name: str) -> str:
     ----------
     name : str
         The study's name.
-
-    Returns
-    -------
-    str
-        The stem.
     """
     import re
 

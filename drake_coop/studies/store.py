@@ -89,7 +89,7 @@ def _robot_summary(phase_metrics: dict) -> dict[str, float]:
 
 
 def summary_columns(metrics: dict, phase: str) -> dict[str, float]:
-    """Summary metrics of one case for ``phase`` (missing when the run never reached it).
+    """The summary metrics of one case for ``phase`` (missing when the run never reached it).
 
     Parameters
     ----------
@@ -97,11 +97,6 @@ def summary_columns(metrics: dict, phase: str) -> dict[str, float]:
         ``metrics[robot][phase]``.
     phase : str
         The phase.
-
-    Returns
-    -------
-    dict of str to float
-        Column → value.
     """
     out: dict[str, float] = {}
     worst: dict[str, float] = {}
@@ -122,11 +117,6 @@ def metric_names(robots: list[str]) -> list[str]:
     ----------
     robots : list of str
         The robots' names.
-
-    Returns
-    -------
-    list of str
-        The names.
     """
     return [f"{r}.{e}.{s}" for r in [*robots, "worst"] for e in ERRORS for s in STATS] + [
         f"{r}.{e}.{s}" for r in [*robots, "worst"] for e, s in EVENTS.items()]
@@ -169,15 +159,10 @@ class ResultStore:
         self.cases_dir = self.out / "cases"
 
     def load(self) -> dict[str, dict]:
-        """Finished case records by hash.
+        """The finished case records by hash.
 
         A file that cannot be read, is not UTF-8 JSON, or misses a field of a record is
         skipped (its case runs again); :attr:`skipped` lists them as one-line warnings.
-
-        Returns
-        -------
-        dict of str to dict
-            Hash → record.
 
         Raises
         ------
@@ -211,12 +196,7 @@ class ResultStore:
         return records
 
     def died(self) -> dict[str, str]:
-        """Cases whose process died in an earlier run: hash -> message.
-
-        Returns
-        -------
-        dict of str to str
-            Hash → message.
+        """The cases whose process died in an earlier run: hash -> message.
         """
         notes = {}
         if self.cases_dir.is_dir():

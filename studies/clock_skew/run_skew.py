@@ -1,4 +1,4 @@
-"""The arms' clocks (issue 34, item 6): the squeeze error of the split run (controller side and
+"""The arms' clocks: the squeeze error of the split run (controller side and
 simulated drivers joined by LCM, ``drake_coop.robot.loopback``) against the skew between the two
 drivers' 1 kHz clocks, without and with delay compensation.
 

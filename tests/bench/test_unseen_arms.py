@@ -1,4 +1,4 @@
-"""``bench.unseen_arms``: issue 33's bars as the issue states them (0.3 N, 0.5 mm, 0.3°, no
+"""``bench.unseen_arms``: the lab-arm bars as stated (0.3 N, 0.5 mm, 0.3°, no
 slip, no drop, 5 % of the mass), applied to the worst arm of a case."""
 
 import math
@@ -13,7 +13,7 @@ def _robot(squeeze, box, turn, slips=0, drops=0):
             "object_turn_rms": turn, "slips": slips, "drops": drops}
 
 
-def test_the_bars_are_the_issues():
+def test_the_bars_are_the_stated_ones():
     assert BARS["squeeze_error_rms_N"] == 0.3
     assert BARS["object_position_error_rms_m"] == 0.5e-3
     assert math.degrees(BARS["object_turn_rms_rad"]) == pytest.approx(0.3, rel=1e-12)

@@ -1,5 +1,5 @@
 """The commands' outputs as safe as ``run``'s: checked before any work, written whole or not at
-all, one line per error; and the inputs the issue found accepted or crashing.
+all, one line per error; and the inputs review found accepted or crashing.
 
 Full disks are simulated by making the write raise ``OSError(ENOSPC)``; an unwritable folder by
 a file where a folder is needed, or by making the write probe fail (the tests run as root, whom

@@ -186,7 +186,7 @@ def test_controller_forced_update_latches_gravity_torque_at_rest(law):
 
 
 def test_observer_starts_at_the_first_measured_q_without_set_initial_state():
-    """The issue's silent-wrong case: left out, q̂(0) was 0 (a 111 N squeeze for 24 N)."""
+    """The silent-wrong case first reported: left out, q̂(0) was 0 (a 111 N squeeze for 24 N)."""
     builder, plant, arms = _user_plant(n_arms=1)
     block = AddCooperativeController(
         builder, plant, arms[0], gains=GAINS, period=H, controller_model=URDF, ee_frame="pad",

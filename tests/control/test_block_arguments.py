@@ -1,5 +1,5 @@
 """The public API's edges: bad arguments to :func:`AddCooperativeController`, :class:`Gains` and
-the blocks' constructors (the issue's 58 and more). Each is a ``ValueError`` or ``TypeError``
+the blocks' constructors (the 58 reported and more). Each is a ``ValueError`` or ``TypeError``
 whose message names the argument; none is accepted; nothing raises ``SystemExit`` (every case
 catches ``BaseException`` to tell them apart)."""
 
@@ -197,7 +197,7 @@ CASES = [
 ]
 
 
-def test_there_are_at_least_the_issues_58_cases():
+def test_there_are_at_least_the_58_reported_cases():
     assert len(CASES) >= 58
     assert len({case_id for case_id, _, _ in CASES}) == len(CASES)
 

@@ -163,6 +163,7 @@ def test_momentum_gain_beyond_one_over_h_is_rejected_with_the_field_named():
     assert ok.robots[0].force_source == "momentum"
 
 
+@pytest.mark.slow           # 19 s of the paper's run: an end-to-end run (CI's slow subset)
 def test_momentum_estimate_follows_the_ground_truth_sensor_in_a_run():
     from drake_coop.experiment.simulate import simulate
 

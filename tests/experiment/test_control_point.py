@@ -1,5 +1,5 @@
 """``object_model.control_point``: the pads' material contact points as what the references
-follow across the normal (issue 25): the point on the pad's surface, its references checked
+follow across the normal: the point on the pad's surface, its references checked
 against the kinematics of the point and the pad's centre (Drake's and the closed form), the
 object's desired path unchanged, the rolling correction against its integral, and which
 scenarios use it."""

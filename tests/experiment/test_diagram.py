@@ -114,7 +114,7 @@ def test_events_fire_at_ticks_and_the_ft_read_without_tiny_steps():
     steps = steps[steps > 0]
     # No ~1e-17 s steps from 0.009 vs 0.001: every step is one plant step (1 ms), except that
     # the ground truth's C++ hold at t_k − 1.5 ms and the F/T sensor's read at t_k − 0.5 ms
-    # (each mid-way between two plant updates, issue 19) split the plant's last two steps
+    # (each mid-way between two plant updates) split the plant's last two steps
     # before each tick into halves.
     half = np.abs(steps - 0.0005) < 0.0005 * 1e-9
     assert np.all(half | (np.abs(steps - 0.001) < 0.001 * 1e-9)), steps.min()

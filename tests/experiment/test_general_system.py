@@ -1,9 +1,9 @@
-"""The paper's general system (issue 10): l robots, n_i joints, m_i constraints.
+"""The paper's general system: l robots, n_i joints, m_i constraints.
 
 Independent checks: the constraint Jacobian of the controller's model against the closed-form
 kinematics, a NumPy replay of (4), (8), (11), (13), (15)-(16), (22) with NumPy's SVD
 pseudo-inverse for m = 2 and 3, the rotational symmetry of three arms around one object, the
-6-joint arm's orientation reference, and the bad inputs of the issue (exit 2, one line).
+6-joint arm's orientation reference, and the bad inputs found in review (exit 2, one line).
 """
 
 import subprocess

@@ -4,7 +4,7 @@ in the planes mode and build in the contact mode.
 Compressed phases (free 1 s, lift 1 s, circle 10 s instead of 40 s, put-down 1 s, return 1 s)
 keep the runs short (a 4 s circle, 100 times the paper's accelerations, gives the Pandas
 0.22 mm); the measured errors against the simulated plant's own end-effector positions and
-constraint forces (the logs' ground truth) must stay within the issue's targets, 0.1 mm and
+constraint forces (the logs' ground truth) must stay within the targets, 0.1 mm and
 0.1 N RMS in the circle phase. Skipped without example-robot-data (the ``robots`` extra).
 """
 

@@ -1,4 +1,4 @@
-"""The squeeze's couple in a run (``object_model.couple``, issue 25): which scenarios use it,
+"""The squeeze's couple in a run (``object_model.couple``): which scenarios use it,
 the samples each arm gets (against the moment balance by hand, on the pads' centres from
 Drake's kinematics and the box's width), and the blocks it adds to the diagram."""
 

@@ -1,4 +1,4 @@
-"""Three arms (and l ≥ 3 pads) holding one object by friction (issue 33, item 3).
+"""Three arms (and l ≥ 3 pads) holding one object by friction.
 
 * The l-pad load split (:func:`~drake_coop.control.object.load_distribution`) against a hand
   static balance: the contact forces sum to ``m (a − g)``, their moment about the centre of mass

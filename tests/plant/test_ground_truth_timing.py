@@ -1,4 +1,4 @@
-"""The ground truth's two reads per tick against the plant's own steps (issue 16, second pass).
+"""The ground truth's two reads per tick against the plant's own steps (second pass).
 
 With a control period, :class:`~drake_coop.plant.wrist_dynamics.WristDynamics` serves two steps at
 every tick ``t_k`` without solving any plant step twice: the latch ``<robot>_lambda_step`` of

@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
+from matplotlib.transforms import Bbox
 
 from drake_coop.results import (
     compute_metrics,
@@ -129,6 +130,9 @@ def test_unknown_format_is_refused_before_anything_is_written(tmp_path):
     logs, meta = synthetic_run(t_end=1.0)
     with pytest.raises(ValueError, match="unsupported figure formats \\['bmpx'\\]"):
         plot_figures(logs, meta, tmp_path, formats=("png", "bmpx"))
+    with pytest.raises(ValueError, match="only: fig_object_mass not among"):
+        plot_figures(logs, meta, tmp_path / "new", only=("fig2_tracking_errors",
+                                                         "fig_object_mass"))
     assert list(tmp_path.iterdir()) == []
 
 
@@ -158,7 +162,8 @@ def test_figures_use_the_units_a_reader_reads(tmp_path):
         log["qdot"] = np.zeros_like(log["q"])
         log["qdot_hat"] = log["qdot"] + 2e-3
     with matplotlib.rc_context({"svg.fonttype": "none"}):
-        plot_figures(logs, meta, tmp_path)
+        plot_figures(logs, meta, tmp_path, formats=("svg",),
+                     only=("fig2_tracking_errors", "fig7_velocity_estimate"))
     fig2 = svg_texts(tmp_path / "fig2_tracking_errors.svg")
     fig7 = svg_texts(tmp_path / "fig7_velocity_estimate.svg")
     assert fig2.count("[µm]") == 6 and "[mm]" not in fig2
@@ -172,7 +177,8 @@ def test_fig6_and_fig7_name_the_figure_and_the_robot_of_each_panel(tmp_path):
     for log in logs.values():
         log["qdot"], log["qdot_hat"] = np.zeros_like(log["q"]), np.ones_like(log["q"])
     with matplotlib.rc_context({"svg.fonttype": "none"}):
-        plot_figures(logs, meta, tmp_path)
+        plot_figures(logs, meta, tmp_path, formats=("svg",),
+                     only=("fig6_observation_errors", "fig7_velocity_estimate"))
     fig6 = svg_texts(tmp_path / "fig6_observation_errors.svg")
     fig7 = svg_texts(tmp_path / "fig7_velocity_estimate.svg")
     assert "Fig.7" in fig7 and "Fig.6" in fig6
@@ -184,8 +190,8 @@ def test_fig6_and_fig7_name_the_figure_and_the_robot_of_each_panel(tmp_path):
 
 def test_object_mass_figure_only_with_mass_shares_and_its_sum_line(tmp_path):
     logs, meta = synthetic_run(h=0.03)
-    assert not any(p.stem == "fig_object_mass" for p in plot_figures(logs, meta, tmp_path / "a",
-                                                                      formats=("png",)))
+    with pytest.raises(ValueError, match="only: fig_object_mass not among"):
+        plot_figures(logs, meta, tmp_path / "a", formats=("png",), only=("fig_object_mass",))
     for k, log in enumerate(logs.values()):
         log["mass_share"] = np.full(log["t"].shape, 0.2 + 0.1 * k)
     fig = __import__("drake_coop.results.figures", fromlist=["_object_mass"])._object_mass(
@@ -194,11 +200,12 @@ def test_object_mass_figure_only_with_mass_shares_and_its_sum_line(tmp_path):
     sums = [ln for ln in lines if ln.get_label().startswith(r"$\sum")]
     expected = sum(0.2 + 0.1 * k for k in range(len(logs)))
     assert len(sums) == 1 and np.allclose(sums[0].get_ydata(), expected)
-    paths = plot_figures(logs, meta, tmp_path / "b", formats=("png",))
-    check_png(next(p for p in paths if p.stem == "fig_object_mass"))
+    paths = plot_figures(logs, meta, tmp_path / "b", formats=("png",), only=("fig_object_mass",))
+    assert [p.stem for p in paths] == ["fig_object_mass"]
+    check_png(paths[0])
 
 
-def _drawn_figures(monkeypatch, logs, meta, tmp_path) -> dict:
+def _drawn_figures(monkeypatch, logs, meta, tmp_path, only=None) -> dict:
     """Per figure :func:`plot_figures` draws (drawn as saved, texts laid out, before it is
     cleared): per panel, the title's box and the phase names with their boxes."""
     import drake_coop.results.figures as figures_module
@@ -215,14 +222,14 @@ def _drawn_figures(monkeypatch, logs, meta, tmp_path) -> dict:
         return []
 
     monkeypatch.setattr(figures_module, "_save", keep)
-    plot_figures(logs, meta, tmp_path, formats=("png",))
+    plot_figures(logs, meta, tmp_path, formats=("png",), only=only)
     return captured
 
 
 def test_phase_names_do_not_overlap_on_the_papers_timeline(tmp_path, monkeypatch):
-    """Figs. 2 and 6 printed "put_down" and "return" over each other (short phases on a
-    third of the page): every phase name's drawn box clears its neighbours' and the panel's
-    title."""
+    """Figs. 2 and 6 printed "put_down" and "return" over each other, then touching (short
+    phases on a third of the page): every phase name's drawn box clears its neighbours' by a
+    gap, and the panel's title."""
     from drake_coop.experiment.simulate import phases
     from drake_coop.scenario import load_scenario
 
@@ -232,16 +239,21 @@ def test_phase_names_do_not_overlap_on_the_papers_timeline(tmp_path, monkeypatch
     meta["phases"] = [list(p) for p in timeline]
     names = [p[0] for p in timeline]
     assert "put_down" in names and "return" in names
-    drawn = _drawn_figures(monkeypatch, logs, meta, tmp_path)
-    for name in ("fig2_tracking_errors", "fig6_observation_errors", "fig3_force_tracking"):
+    checked = ("fig2_tracking_errors", "fig6_observation_errors", "fig3_force_tracking")
+    drawn = _drawn_figures(monkeypatch, logs, meta, tmp_path, only=checked)
+    assert set(drawn) == set(checked)
+    for name in checked:
         panels = [labels for _, labels in drawn[name] if labels]
         assert panels and all({text for text, _ in labels} >= {"put_down", "return"}
                               for labels in panels), name
+        gap = 2.0 * 120 / 72                   # 2 pt at the figures' 120 dpi, in pixels
         for title, labels in drawn[name]:
             for i, (a, box_a) in enumerate(labels):
                 assert not box_a.overlaps(title), (name, a, "title")
                 for b, box_b in labels[i + 1:]:
-                    assert not box_a.overlaps(box_b), (name, a, b)
+                    # apart by at least the gap (names that touch read as "put_downreturn")
+                    wide = Bbox.from_extents(box_a.x0 - gap, box_a.y0, box_a.x1 + gap, box_a.y1)
+                    assert not wide.overlaps(box_b), (name, a, b)
 
 
 def test_object_mass_figure_draws_the_true_mass_when_the_plant_has_a_body(tmp_path):

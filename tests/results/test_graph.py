@@ -189,3 +189,59 @@ def test_paper_block_diagram_follows_the_sources_a_scenario_chooses():
     assert ("robot1_ft_sensor", "robot1_sensed_force") in edges    # the sensor now feeds (13)
     assert ("plant", "robot1_measured_velocity") in edges          # true velocities
     assert "robot2_ft_sensor" not in blocks                        # robot 2 keeps (22)
+
+
+def _text_boxes(svg: str) -> list[tuple[str, str, tuple[float, float, float, float]]]:
+    """(group title, text, box in points) of every text element of a graphviz SVG, its width
+    measured in DejaVu Sans (wider than the Helvetica graphviz lays out with: a browser's
+    substitute font must still fit)."""
+    import xml.etree.ElementTree as ET
+
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.textpath import TextPath
+
+    ns = "{http://www.w3.org/2000/svg}"
+    font = FontProperties(family="DejaVu Sans")
+    boxes = []
+    for group in ET.fromstring(svg).iter(f"{ns}g"):
+        title = group.find(f"{ns}title")
+        for t in group.findall(f"{ns}text"):
+            text, size = "".join(t.itertext()), float(t.get("font-size"))
+            x, y = float(t.get("x")), float(t.get("y"))
+            width = TextPath((0, 0), text, size=size, prop=font).get_extents().width
+            x0 = {"middle": x - width / 2, "end": x - width}.get(t.get("text-anchor"), x)
+            boxes.append((title.text if title is not None else "", text,
+                          (x0, y - 0.75 * size, x0 + width, y + 0.25 * size)))
+    return boxes
+
+
+def _overlapping(boxes) -> list[tuple[str, str]]:
+    """Pairs of texts whose boxes overlap: of two groups (nodes, edges), or of one group on
+    one line (the lines of one node are graphviz's own stacking, not compared)."""
+    return [(a, b) for i, (ga, a, (ax0, ay0, ax1, ay1)) in enumerate(boxes)
+            for gb, b, (bx0, by0, bx1, by1) in boxes[i + 1:]
+            if (ga != gb or abs(ay1 - by1) < 1.0)
+            and ax0 < bx1 and bx0 < ax1 and ay0 < by1 and by0 < ay1]
+
+
+@pytest.mark.skipif(shutil.which("dot") is None, reason="graphviz's dot is not installed")
+def test_paper_block_diagrams_labels_do_not_overlap():
+    """The docs index's diagram: edge labels are one text element per line (graphviz places
+    a ``<SUB>`` as a text element of its own, at its own font's widths, which a browser's
+    wider font pushes over its neighbours), and no two text boxes of the rendered SVG
+    overlap, measured in a wider font. (That no edge runs through a label — the controller
+    ⇄ velocity observer label did — is checked by eye on the rendered diagram.)"""
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.results.block_diagram import paper_block_diagram
+    from drake_coop.scenario import default_scenario
+
+    dot = paper_block_diagram(build_experiment(default_scenario(), log=True).diagram)
+    assert "<SUB>" not in dot.split("fillcolor")[-1]       # edge labels: no separate pieces
+    svg = subprocess.run(["dot", "-Tsvg"], input=dot, text=True, capture_output=True,
+                         check=True).stdout
+    boxes = _text_boxes(svg)
+    assert len(boxes) > 40 and any("q̈̂ᵣ" in text for _, text, _ in boxes)
+    assert not _overlapping(boxes)
+    # the check sees an overlap: two labels written at one place
+    assert _overlapping([("a", "desired q", (0, 0, 40, 9)), ("b", "q̈̂ᵣ", (35, 5, 45, 14))])
+    assert _overlapping([("e", "q̇", (0, 0, 10, 9)), ("e", "o", (8, 0, 14, 9))])

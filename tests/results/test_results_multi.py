@@ -1,4 +1,4 @@
-"""The results layer for l robots with n_i joints and m_i constraints (issue 10): logs, metrics,
+"""The results layer for l robots with n_i joints and m_i constraints: logs, metrics,
 figures and force arrows of synthetic runs mixing n = 3 / 6 and m = 1 / 2."""
 
 from __future__ import annotations

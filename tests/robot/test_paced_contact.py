@@ -1,4 +1,4 @@
-"""The controller side over the cable with an object model (issue 34, item 8): ``serve``'s
+"""The controller side over the cable with an object model: ``serve``'s
 blocks (:class:`~drake_coop.robot.serve_loop.ServeLoop`) build the object model's load
 feedforward as the simulated diagram does. Checked against the simulated run itself: fed the
 run's own readings as statuses, the torque ``serve`` puts on the wire is, tick by tick, the

@@ -1,4 +1,4 @@
-"""A field that the chosen mode ignores is refused, naming it (issue 35): it must not run
+"""A field that the chosen mode ignores is refused, naming it: it must not run
 as if it had been honoured."""
 
 import pytest

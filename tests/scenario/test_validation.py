@@ -1,6 +1,6 @@
-"""Hostile scenario files (issue 11): each case is refused with one line naming the field.
+"""Hostile scenario files: each case is refused with one line naming the field.
 
-One test per finding of the issue's "Why": broken model files, unreadable or non-UTF-8
+One test per finding of the review's list: broken model files, unreadable or non-UTF-8
 files, degenerate periods and horizons, unhelpful messages, malformed input that used to be
 accepted. Messages must be one line of at most 300 characters, and no case may build anything.
 """

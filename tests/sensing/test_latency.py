@@ -1,4 +1,4 @@
-"""Computation delay and sampling jitter (issue 20, :mod:`drake_coop.sensing.latency`): the
+"""Computation delay and sampling jitter (:mod:`drake_coop.sensing.latency`): the
 switch on the plant's step grid against the definition, seeded reproducible jitter, the
 fields' validation, and the paper's diagram unchanged at the defaults."""
 

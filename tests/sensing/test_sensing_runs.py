@@ -109,7 +109,7 @@ def test_harsh_raw_difference_of_a_coarse_encoder_diverges_exit_1_logs_kept(tmp_
     assert set(OPTIONAL_COLUMNS) <= set(logs["robot1"])
     header = (out / "robot1.csv").read_text().splitlines()[0].split(",")
     assert header[-10:] == [c for names in OPTIONAL_COLUMNS.values() for c in names]
-    # The same logs without the new arrays (as written before issue 7) still load and plot.
+    # The same logs without the new arrays (as written before the sensing fields existed) still load and plot.
     old = tmp_path / "old"
     save_logs(old, {r: {k: v for k, v in log.items() if k in COLUMNS}
                     for r, log in logs.items()}, meta)
@@ -209,8 +209,8 @@ def _ft_readings_and_step_forces(t_end):
 def test_ft_sensor_reads_the_low_pass_of_the_plant_step_before_every_tick():
     """Every tick k >= 1 of a realistic run (ideal sensors would hide nothing: noise, bias and a
     25 Hz filter are on) holds ``y(k) + b + v_k`` with ``y(k) = y(k−1) + α (λ_j − y(k−1))`` and
-    ``λ_j`` the ground truth of the plant step ``j = N k − 1``, ``[t_k − Δt, t_k)`` (issue 19:
-    an event at ``t_k − Δt`` read the step after it on ~1 % of the ticks)."""
+    ``λ_j`` the ground truth of the plant step ``j = N k − 1``, ``[t_k − Δt, t_k)`` (an
+    event at ``t_k − Δt`` read the step after it on ~1 % of the ticks)."""
     from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
 
     scenario, h, dt, result, steps = _ft_readings_and_step_forces(16.5)

@@ -1,4 +1,4 @@
-"""The sensing fields of a scenario (issue 7): defaults are the ideal world, round trips, and
+"""The sensing fields of a scenario: defaults are the ideal world, round trips, and
 one clear error per bad input (a ScenarioError naming the field; exit 2 through the CLI)."""
 
 from pathlib import Path

@@ -1,5 +1,5 @@
 """``stability --grid`` (and a study's grid) is checked in its combinations: a value that is
-invalid against the base alone but valid with another key's value is accepted (issue 35);
+invalid against the base alone but valid with another key's value is accepted;
 an invalid combination is named by its case, and a value bad on its own by its key."""
 
 import pytest

@@ -1,4 +1,4 @@
-"""The stability map (issue 20): the finite-difference monodromy matrix against a closed form,
+"""The stability map: the finite-difference monodromy matrix against a closed form,
 the state bookkeeping, and ρ(Φ) of the paper's loop where the studies say stable / diverged."""
 
 import math

@@ -208,7 +208,7 @@ def test_a_finished_contact_case_is_kept_by_the_store(tmp_path, real_results):
 
 @pytest.mark.slow
 def test_a_real_sigterm_during_a_rerun_keeps_every_finished_case_finished(tmp_path):
-    """The issue's case: a finished contact study, two case files removed, rerun on the
+    """The case first reported: a finished contact study, two case files removed, rerun on the
     local pool and stopped by SIGTERM as soon as it runs a case; every case file on disk is
     finished in results.csv, and the resume runs only the missing ones."""
     path = ROOT / "studies" / "object_carry.yaml"

@@ -111,11 +111,6 @@ class CompressedReference(LeafSystem):
         ----------
         r : array_like
             One reference sample ``[q_d, q̇_d, q̈_d, λ_d, held]`` (rad, rad/s, rad/s², N).
-
-        Returns
-        -------
-        numpy.ndarray
-            The compressed sample.
         """
         r = np.array(r, dtype=float)
         lay = self._layout

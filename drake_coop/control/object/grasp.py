@@ -172,11 +172,6 @@ def mass_shares(model: ObjectModel) -> np.ndarray:
     ----------
     model : ObjectModel
         The held object (its mass, centre of mass and grasp points).
-
-    Returns
-    -------
-    numpy.ndarray
-        ``m_i`` (k,), kg.
     """
     f = load_distribution(model, np.zeros(3))
     return f[:, 2] / GRAVITY

@@ -233,17 +233,12 @@ class ObjectStateEstimator(LeafSystem):
         return self._mass_in[i]
 
     def get_reference_input_port(self, i: int) -> InputPort:
-        """Arm ``i``'s planned reference.
+        """The arm ``i``'s planned reference.
 
         Parameters
         ----------
         i : int
             The arm's index.
-
-        Returns
-        -------
-        InputPort
-            The port.
         """
         return self._ref_in[i]
 
@@ -264,17 +259,12 @@ class ObjectStateEstimator(LeafSystem):
         return self._squeeze_out
 
     def get_reference_output_port(self, i: int) -> OutputPort:
-        """Arm ``i``'s reference with the shared squeeze.
+        """The arm ``i``'s reference with the shared squeeze.
 
         Parameters
         ----------
         i : int
             The arm's index.
-
-        Returns
-        -------
-        OutputPort
-            The port.
         """
         return self._ref_out[i]
 
@@ -331,13 +321,6 @@ class ObjectStateEstimator(LeafSystem):
             ``m̂_i`` (k,), kg.
         acceleration : array_like
             The object's planned acceleration (3,), m/s², world frame.
-
-        Returns
-        -------
-        lambda_star : float
-            ``λ*``, N.
-        lambda_0 : float
-            ``λ⁰``, N.
         """
         m, c = self.combine(shares)
         if m <= 1e-9:
@@ -374,11 +357,6 @@ class ObjectStateEstimator(LeafSystem):
             The object's planned acceleration (3,), m/s², world frame.
         held : bool
             Whether the object is held.
-
-        Returns
-        -------
-        float
-            :math:`\lambda_k`, N.
         """
         lam, hold = self.target(shares, acceleration)
         if not held:
@@ -403,7 +381,7 @@ class ObjectStateEstimator(LeafSystem):
         return min(1.0, max(0.0, min(t - t0, t1 - t) / self._ramp))
 
     def reference(self, context: Context, i: int) -> np.ndarray:
-        """Arm ``i``'s reference with ``λ_d,i = s(t) λ_k w_i``.
+        """The arm ``i``'s reference with ``λ_d,i = s(t) λ_k w_i``.
 
         Parameters
         ----------
@@ -411,11 +389,6 @@ class ObjectStateEstimator(LeafSystem):
             This system's context.
         i : int
             The arm's index.
-
-        Returns
-        -------
-        numpy.ndarray
-            The reference sample.
         """
         r = np.array(self._ref_in[i].Eval(context), dtype=float)
         lam = float(context.get_discrete_state(self._lam).value()[0])

@@ -65,11 +65,6 @@ class ContactStiffness:
         ----------
         lam : float
             The force ``λ``, N.
-
-        Returns
-        -------
-        float
-            ``c``, m/N.
         """
         lam = max(float(lam), 1.0)
         if self.radius is not None:         # 1 / (dλ/dδ)
@@ -87,11 +82,6 @@ class ContactStiffness:
         ----------
         lam : float
             The force ``λ``, N.
-
-        Returns
-        -------
-        float
-            ``c(λ)/T_i``, m/(N·s).
         """
         return self.compliance(lam) / self.integral_time
 
@@ -114,11 +104,6 @@ class ContactStiffness:
         ----------
         lam : float or array_like
             The force ``λ``, N.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``δ``, m.
         """
         lam = np.maximum(np.asarray(lam, dtype=float), 0.0)
         if self.radius is None:
@@ -187,11 +172,6 @@ class ContactStiffness:
         ----------
         delta : float or array_like
             The compression ``δ``, m.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``λ``, N.
         """
         d = np.maximum(np.asarray(delta, dtype=float), 0.0)
         if self.radius is None:
