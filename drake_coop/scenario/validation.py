@@ -111,6 +111,10 @@ BOUNDS: dict[str, Bound] = {
     "guards.max_force": Bound(0.0, 1e5, "N", **_POS),
     "guards.joint_limit_margin_deg": Bound(0.0, 180.0, "deg"),
     "guards.check_period": Bound(0.0, 100.0, "s", **_POS),
+    "guards.max_pad_error": Bound(0.0, 10.0, "m", **_POS),
+    "guards.max_squeeze_error": Bound(0.0, 1e5, "N", **_POS),
+    "guards.max_object_tilt_deg": Bound(0.0, 180.0, "deg", **_POS),
+    "guards.max_object_position_error": Bound(0.0, 10.0, "m", **_POS),
 }
 #: Length of every list of numbers.
 #: Lists whose length depends on the arm (``n_i`` joints, ``m_i`` constraints) are checked by
@@ -222,6 +226,7 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
         raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
     _validate_two_sided(scenario)
     _validate_drivers(scenario)
+    _validate_failure_guards(scenario)
 
     t = scenario.task
     times = ["t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end"]
@@ -272,6 +277,13 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
             cache[key] = str(exc)
     if cache[key] is not None:
         raise ScenarioError(cache[key])
+
+
+def _validate_failure_guards(scenario: Scenario) -> None:
+    """``guards.grasp_lost`` a boolean (the numbers' ranges are in :data:`BOUNDS`)."""
+    if not isinstance(scenario.guards.grasp_lost, bool):
+        raise ScenarioError(f"guards.grasp_lost must be true or false, got "
+                            f"{show(scenario.guards.grasp_lost)}")
 
 
 def driver_channels(robot: Robot) -> tuple[str, str]:
