@@ -37,7 +37,8 @@ DPI = 110
 
 #: Error names of the summary columns, in words.
 ERROR_NAMES = {
-    "x_tilde": r"$\tilde x$", "y_tilde": r"$\tilde y$", "z_tilde": r"$\tilde z$",
+    # the Cartesian errors by their axis, not x-, y-, z-tilde: z is the observer's q - q-hat
+    "x_tilde": r"$(x - x_d)_x$", "y_tilde": r"$(x - x_d)_y$", "z_tilde": r"$(x - x_d)_z$",
     "position_error": r"$|x - x_d|$ (worst axis)", "force_error": r"$\lambda - \lambda_d$",
     "estimate_error": r"$\lambda - \hat\lambda$", "aux_force_error": r"$\hat\lambda - \lambda_d$",
     "observation_error": r"$z = q - \hat q$ (worst joint)",
