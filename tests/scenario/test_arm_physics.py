@@ -81,7 +81,7 @@ def test_the_triangle_inequality_is_the_bound(tmp_path):
     assert "break the triangle inequality" in _refusal(tmp_path, inertia=(0.01, 0.01, 0.0201))
 
 
-@pytest.mark.parametrize("command", ["run", "gains"])
+@pytest.mark.parametrize("command", ["run", "gains", "identify"])
 def test_commands_that_load_the_arm_exit_2(tmp_path, capsys, command):
     from drake_coop.cli import main
 
