@@ -217,9 +217,6 @@ def cmd_study(args: argparse.Namespace) -> int:
     problem = check_metric_names(study.metrics, robots)
     if problem:
         return _error(problem)
-    warning = phase_warning(study, cases[0])
-    if warning:
-        print(f"drake-coop study: warning: {warning}", file=sys.stderr)
     if args.ray is not None:
         try:
             import ray  # noqa: F401
@@ -278,6 +275,9 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
         print(f"drake-coop study: {study.name}: {len(cases)} cases ({unique} distinct), "
               f"{unique - len(todo)} already finished, running {len(todo)}{again} on {engine} "
               f"({args.workers} workers) -> {out}", file=sys.stderr)
+        warning = phase_warning(study, cases[0]) if todo else ""
+        if warning:
+            print(f"drake-coop study: warning: {warning}", file=sys.stderr)
     progress = None if args.quiet else CaseProgress(unique, unique - len(todo))
     lost: list[str] = []
 
