@@ -213,17 +213,13 @@ class FailureCheck:
         for name, x, x_d in zip(self.robots, s.x, s.x_d):
             e = float(np.linalg.norm(np.asarray(x) - np.asarray(x_d)))
             if not e <= g.max_pad_error:
-                return Failure("max_pad_error", name, s.t, e, g.max_pad_error,
-                               f"pad {e * 1e3:.1f} mm off its path (guards.max_pad_error = "
-                               f"{g.max_pad_error * 1e3:g} mm)")
+                return _pad_failure(g, name, s.t, e)
         held = self.t_grasp <= s.t < self.t_release
         if held and self.squeeze and s.lam is not None and s.t >= self.t_grasp + SQUEEZE_SETTLE:
             for name, lam, lam_d in zip(self.robots, s.lam, s.lam_d):
                 e = float(np.linalg.norm(np.asarray(lam) - np.asarray(lam_d)))
                 if not e <= g.max_squeeze_error:
-                    return Failure("max_squeeze_error", name, s.t, e, g.max_squeeze_error,
-                                   f"squeeze {e:.1f} N from its reference (guards."
-                                   f"max_squeeze_error = {g.max_squeeze_error:g} N)")
+                    return _squeeze_failure(g, name, s.t, e)
         if not (self.contact and held and s.pose is not None):
             return None
         return self._check_box(s)
@@ -243,16 +239,11 @@ class FailureCheck:
             self._axis = self._grasp_line([c[2][0] for c in comps])
         e = float(np.linalg.norm(pose[4:7] - mid_d - self._offset))
         if not e <= g.max_object_position_error:
-            return Failure("max_object_position_error", "box", s.t, e,
-                           g.max_object_position_error,
-                           f"{e * 1e3:.1f} mm off its path (guards.max_object_position_error "
-                           f"= {g.max_object_position_error * 1e3:g} mm)")
+            return _position_failure(g, s.t, e)
         tilt = math.degrees(tilt_about_line(self._q0, pose[:4] / np.linalg.norm(pose[:4]),
                                             self._axis))
         if not tilt <= g.max_object_tilt_deg:
-            return Failure("max_object_tilt_deg", "box", s.t, tilt, g.max_object_tilt_deg,
-                           f"tilted {tilt:.1f} deg (guards.max_object_tilt_deg = "
-                           f"{g.max_object_tilt_deg:g})")
+            return _tilt_failure(g, s.t, tilt)
         f_n = [float(c[0][0]) for c in comps]
         pressing = all(f >= CONTACT_FORCE for f in f_n)
         if not self._established:
@@ -266,10 +257,7 @@ class FailureCheck:
         resting = abs(float(pose[6]) - self._z0) <= REST_HEIGHT
         if g.grasp_lost and not pressing and not resting:
             j = int(np.argmin(f_n))
-            return Failure("grasp_lost", self.robots[j], s.t, 1.0, 0.0,
-                           f"lost the grasp: its pad presses {f_n[j]:.2f} N (< {CONTACT_FORCE}"
-                           f" N) with the box {1e3 * abs(float(pose[6]) - self._z0):.1f} mm off"
-                           " its stand (guards.grasp_lost)")
+            return _grasp_failure(self.robots[j], s.t, f_n[j], abs(float(pose[6]) - self._z0))
         return None
 
     def _grasp_line(self, pads_in_box: list) -> np.ndarray:
@@ -291,53 +279,163 @@ class FailureCheck:
         return np.linalg.svd(points - points.mean(axis=0))[2][-1]
 
 
+def _pad_failure(g: Guards, name: str, t: float, e: float) -> Failure:
+    return Failure("max_pad_error", name, t, e, g.max_pad_error,
+                   f"pad {e * 1e3:.1f} mm off its path (guards.max_pad_error = "
+                   f"{g.max_pad_error * 1e3:g} mm)")
+
+
+def _squeeze_failure(g: Guards, name: str, t: float, e: float) -> Failure:
+    return Failure("max_squeeze_error", name, t, e, g.max_squeeze_error,
+                   f"squeeze {e:.1f} N from its reference (guards.max_squeeze_error = "
+                   f"{g.max_squeeze_error:g} N)")
+
+
+def _position_failure(g: Guards, t: float, e: float) -> Failure:
+    return Failure("max_object_position_error", "box", t, e, g.max_object_position_error,
+                   f"{e * 1e3:.1f} mm off its path (guards.max_object_position_error = "
+                   f"{g.max_object_position_error * 1e3:g} mm)")
+
+
+def _tilt_failure(g: Guards, t: float, tilt: float) -> Failure:
+    return Failure("max_object_tilt_deg", "box", t, tilt, g.max_object_tilt_deg,
+                   f"tilted {tilt:.1f} deg (guards.max_object_tilt_deg = "
+                   f"{g.max_object_tilt_deg:g})")
+
+
+def _grasp_failure(name: str, t: float, f_n: float, off_stand: float) -> Failure:
+    return Failure("grasp_lost", name, t, 1.0, 0.0,
+                   f"lost the grasp: its pad presses {f_n:.2f} N (< {CONTACT_FORCE} N) with "
+                   f"the box {1e3 * off_stand:.1f} mm off its stand (guards.grasp_lost)")
+
+
+def _tilts(q0: np.ndarray, q: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """:func:`tilt_about_line` of every row of ``q`` (K, 4)."""
+    w0, v0 = q0[0], -np.asarray(q0[1:], dtype=float)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w = w0 * q[:, 0] - q[:, 1:] @ v0
+    v = w0 * q[:, 1:] + q[:, :1] * v0 + np.cross(v0, q[:, 1:])
+    along = v @ np.asarray(axis, dtype=float)
+    return 2.0 * np.arctan2(np.sqrt(np.maximum(np.sum(v * v, axis=1) - along ** 2, 0.0)),
+                            np.sqrt(w * w + along * along))
+
+
+def _first(mask: np.ndarray) -> int | None:
+    k = np.flatnonzero(mask)
+    return int(k[0]) if k.size else None
+
+
 def first_failure_in_logs(check: FailureCheck, logs: dict) -> Failure | None:
-    """Feed every logged tick to a fresh copy of the guards' state.
+    """The first failure on the logged ticks, as :meth:`FailureCheck.check` fed every tick in
+    order from a fresh state would report it (computed on the arrays at once).
 
     Parameters
     ----------
     check : FailureCheck
-        The run's guards (its state is not touched: a copy is fed).
+        The run's guards (its state is not read or changed).
     logs : dict
         ``logs[robot][array]`` of :func:`~drake_coop.experiment.simulate.collect_logs`
         (``t``, ``x``, ``x_d``, ``lambda_meas``, ``lambda_d``; in ``contact`` mode
-        ``object_pose`` and ``F_meas``).
+        ``object_pose`` and ``F_meas``). Rows from the first non-finite pad point on (a
+        blown-up state: the divergence guards' report) are not read.
 
     Returns
     -------
     Failure or None
         The first failure, or None.
     """
-    fresh = FailureCheck(check.guards, check.robots, check.t_grasp, check.t_release,
-                         check.contact, check.half_width, check.faces, check.squeeze)
     names = list(logs)
     if not names:
         return None
-    t = np.asarray(logs[names[0]]["t"], dtype=float)
+    g = check.guards
     K = min(len(np.asarray(logs[r]["t"])) for r in names)
 
     def rows(key):
-        return [np.asarray(logs[r][key], dtype=float).reshape(len(logs[r]["t"]), -1)
-                for r in names]
+        return [np.asarray(logs[r][key], dtype=float)[:K].reshape(K, -1) for r in names]
 
+    t = np.asarray(logs[names[0]]["t"], dtype=float)[:K]
     x, x_d = rows("x"), rows("x_d")
-    lam = rows("lambda_meas") if "lambda_meas" in logs[names[0]] else None
-    lam_d = rows("lambda_d") if lam is not None else None
-    pose = (np.asarray(logs[names[0]]["object_pose"], dtype=float)
-            if check.contact and "object_pose" in logs[names[0]] else None)
-    F = rows("F_meas") if pose is not None else None
-    for k in range(K):
-        s = GraspSample(float(t[k]), [a[k] for a in x], [a[k] for a in x_d],
-                        None if lam is None else [a[k] for a in lam],
-                        None if lam_d is None else [a[k] for a in lam_d],
-                        None if pose is None else pose[k],
-                        None if F is None else [a[k] for a in F])
-        if not all(np.all(np.isfinite(v)) for v in s.x):
-            return None                   # a blown-up state: the divergence guards' report
-        failure = fresh.check(s)
-        if failure is not None:
-            return failure
-    return None
+    bad = _first(~np.all([np.all(np.isfinite(a), axis=1) for a in x], axis=0))
+    K = K if bad is None else bad
+    t, x, x_d = t[:K], [a[:K] for a in x], [a[:K] for a in x_d]
+    found: list[tuple[int, int, Failure]] = []       # (tick, the check's order, failure)
+    for i, name in enumerate(names):
+        e = np.linalg.norm(x[i] - x_d[i], axis=1)
+        k = _first(~(e <= g.max_pad_error))
+        if k is not None:
+            found.append((k, i, _pad_failure(g, name, float(t[k]), float(e[k]))))
+    held = (t >= check.t_grasp) & (t < check.t_release)
+    if check.squeeze and "lambda_meas" in logs[names[0]]:
+        lam, lam_d = rows("lambda_meas"), rows("lambda_d")
+        settled = held & (t >= check.t_grasp + SQUEEZE_SETTLE)
+        for i, name in enumerate(names):
+            e = np.linalg.norm(lam[i][:K] - lam_d[i][:K], axis=1)
+            k = _first(settled & ~(e <= g.max_squeeze_error))
+            if k is not None:
+                found.append((k, len(names) + i, _squeeze_failure(g, name, float(t[k]),
+                                                                  float(e[k]))))
+    k0 = _first(held)
+    if check.contact and "object_pose" in logs[names[0]] and k0 is not None:
+        found += _box_failures(check, names, t, x, x_d, rows, k0, held)
+    if not found:
+        return None
+    return min(found, key=lambda f: (f[0], f[1]))[2]
+
+
+def _box_failures(check: FailureCheck, names: list, t: np.ndarray, x: list, x_d: list, rows,
+                  k0: int, held: np.ndarray) -> list:
+    """The box's failures of :func:`first_failure_in_logs` (the first of each guard)."""
+    g = check.guards
+    K = t.size
+    order = 2 * len(names)
+    pose = _pose_rows(rows, K)
+    F = [a[:K] for a in rows("F_meas")]
+    faces = [f[0] for f in check.faces] if check.faces else [None] * len(names)
+    comps = [pad_contact_components(F[i], x[i], pose, faces[i]) for i in range(len(names))]
+    probe = FailureCheck(g, names, check.t_grasp, check.t_release, True, check.half_width,
+                         check.faces)
+    axis = probe._grasp_line([c[2][k0] for c in comps])
+    q0 = pose[k0, :4] / np.linalg.norm(pose[k0, :4])
+    mid_d = np.mean(x_d, axis=0)
+    e = np.linalg.norm(pose[:, 4:7] - mid_d - (pose[k0, 4:7] - mid_d[k0]), axis=1)
+    out = []
+    k = _first(held & ~(e <= g.max_object_position_error))
+    if k is not None:
+        out.append((k, order, _position_failure(g, float(t[k]), float(e[k]))))
+    tilt = np.degrees(_tilts(q0, pose[:, :4], axis))
+    k = _first(held & ~(tilt <= g.max_object_tilt_deg))
+    if k is not None:
+        out.append((k, order + 1, _tilt_failure(g, float(t[k]), float(tilt[k]))))
+    if not g.grasp_lost:
+        return out
+    f_n = np.array([c[0] for c in comps])
+    pressing = np.all(f_n >= CONTACT_FORCE, axis=0)
+    since, established = None, None
+    for k in range(k0, K):                     # the state machine of FailureCheck.check
+        if not held[k]:
+            break
+        if not pressing[k]:
+            since = None
+            continue
+        since = t[k] if since is None else since
+        if t[k] - since >= SETTLE_TIME - 1e-12:
+            established = k
+            break
+    if established is None:
+        return out
+    off = np.abs(pose[:, 6] - pose[k0, 6])
+    after = np.arange(K) > established
+    k = _first(after & held & ~pressing & (off > REST_HEIGHT))
+    if k is not None:
+        j = int(np.argmin(f_n[:, k]))
+        out.append((k, order + 2, _grasp_failure(names[j], float(t[k]), float(f_n[j, k]),
+                                                 float(off[k]))))
+    return out
+
+
+def _pose_rows(rows, K: int) -> np.ndarray:
+    """The box's pose rows (K, 7), robot 1's log (the same in every robot's)."""
+    return rows("object_pose")[0][:K]
 
 
 def failure_check(exp) -> FailureCheck:

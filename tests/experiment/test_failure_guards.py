@@ -185,3 +185,54 @@ def test_an_unknown_payload_makes_the_squeeze_fail_its_guard():
     log = result.logs[failure["who"]]
     e = np.abs(log["lambda_meas"] - log["lambda_d"])
     assert e[-1] > 20.0                     # the truth at the stop is past the bound
+
+
+def _logs_of(samples):
+    """Logs (``collect_logs``'s arrays) holding the samples, row by row."""
+    names = ["robot1", "robot2"]
+    t = np.array([s.t for s in samples])
+    return {r: {"t": t, "x": np.array([s.x[i] for s in samples]),
+                "x_d": np.array([s.x_d[i] for s in samples]),
+                "lambda_meas": np.array([s.lam[i][0] for s in samples]),
+                "lambda_d": np.array([s.lam_d[i][0] for s in samples]),
+                "object_pose": np.array([s.pose for s in samples]),
+                "F_meas": np.array([s.F[i] for s in samples])} for i, r in enumerate(names)}
+
+
+@pytest.mark.parametrize("event", ["none", "pad", "squeeze", "position", "tilt", "lost",
+                                   "lost_before_established", "set_down"])
+def test_the_sweep_of_the_logs_is_the_sample_by_sample_check(event):
+    """The arrays' sweep (after the run) reports what the stateful check fed every tick in
+    order reports (during the run): the same guard, robot and tick."""
+    rng = np.random.default_rng(len(event))
+    samples = []
+    for k in range(300):
+        t = 0.9 + 0.01 * k
+        kw = dict(q=_quat(rng.normal(size=3), 0.002), box_shift=tuple(1e-4 * rng.normal(size=3)))
+        if t >= 1.2:
+            kw["box_shift"] = (0.0, 0.0, 0.003)       # lifted
+        if event == "pad" and t > 2.0:
+            kw["dx"] = 0.03
+        if event == "squeeze" and t > 1.2:
+            kw["lam"] = (10.0, 40.0)
+        if event == "position" and t > 2.2:
+            kw["box_shift"] = (0.0, 0.0, -0.03)
+        if event == "tilt" and t > 2.5:
+            kw["q"] = _quat([0, 1, 0], math.radians(20))
+        if event == "lost" and t > 2.0:
+            kw["f_n"] = (0.1, 10.0)
+        if event == "lost_before_established" and 1.0 < t < 1.05:
+            kw["f_n"] = (0.1, 10.0)
+        if event == "set_down" and t > 3.0:
+            kw["box_shift"], kw["f_n"] = (0.0, 0.0, 0.0), (0.1, 0.1)
+        samples.append(_sample(t, **kw))
+    stateful = _check(max_pad_error=0.02, max_object_position_error=0.02)
+    expected = next((f for f in map(stateful.check, samples) if f is not None), None)
+    got = first_failure_in_logs(_check(max_pad_error=0.02, max_object_position_error=0.02),
+                                _logs_of(samples))
+    if expected is not None:
+        assert (got.guard, got.who, got.t) == (expected.guard, expected.who, expected.t)
+        assert got.value == pytest.approx(expected.value, rel=1e-12)
+    else:
+        assert got is None
+    assert (expected is None) == (event in ("none", "lost_before_established", "set_down"))
