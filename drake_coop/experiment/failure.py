@@ -30,8 +30,9 @@ grasp lost. :class:`FailureCheck` checks these on samples fed in time order, eac
 
 During the simulation the runner feeds one sample per guard chunk from the plant's state
 (:func:`~drake_coop.experiment.simulate.simulate`), so a run stops within ``check_period`` of
-its failure; after the run it feeds every logged tick (:func:`first_failure_in_logs`), so that
-no run whose logs pass a guard's bound between two chunks is called completed. The first
+its failure; after the run it checks every logged tick (:func:`first_failure_in_logs`, the
+same rules on the arrays at once), so that no run whose logs pass a guard's bound between two
+chunks is called completed. The first
 failure ends the run with ``status = "failed"`` and :attr:`Failure.message`.
 """
 
@@ -388,7 +389,7 @@ def _box_failures(check: FailureCheck, names: list, t: np.ndarray, x: list, x_d:
     g = check.guards
     K = t.size
     order = 2 * len(names)
-    pose = _pose_rows(rows, K)
+    pose = rows("object_pose")[0][:K]          # robot 1's log (the same in every robot's)
     F = [a[:K] for a in rows("F_meas")]
     faces = [f[0] for f in check.faces] if check.faces else [None] * len(names)
     comps = [pad_contact_components(F[i], x[i], pose, faces[i]) for i in range(len(names))]
@@ -431,11 +432,6 @@ def _box_failures(check: FailureCheck, names: list, t: np.ndarray, x: list, x_d:
         out.append((k, order + 2, _grasp_failure(names[j], float(t[k]), float(f_n[j, k]),
                                                  float(off[k]))))
     return out
-
-
-def _pose_rows(rows, K: int) -> np.ndarray:
-    """The box's pose rows (K, 7), robot 1's log (the same in every robot's)."""
-    return rows("object_pose")[0][:K]
 
 
 def failure_check(exp) -> FailureCheck:
