@@ -11,6 +11,7 @@ identification failed or the wire experiment was refused or stopped (one line), 
 from __future__ import annotations
 
 import argparse
+import sys
 
 from drake_coop.console import error as _error
 from drake_coop.scenario.resources import find_scenario
@@ -66,6 +67,11 @@ def cmd_identify(args: argparse.Namespace) -> int:
         _error(f"--out {args.out}: writing the outputs failed ({exc.strerror or exc}); "
                "nothing was replaced")
         return 1
+    for name, r in report["robots"].items():
+        if r.get("estimator_stopped"):        # e.g. DIDIM's loop diverged: said, in one line
+            print(f"drake-coop: warning: {name}: the {r['estimator']} iterations stopped: "
+                  f"{' '.join(str(r['estimator_stopped']).split())[:300]}; the estimate is "
+                  "the last one reached", file=sys.stderr)
     if not args.quiet:
         for name, r in report["robots"].items():
             v = r["validation"]

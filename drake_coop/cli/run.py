@@ -176,7 +176,7 @@ def _print_summary(result, metrics: dict) -> None:
     even with ``--quiet``: they are the run's result (:mod:`drake_coop.results.summary`)."""
     from drake_coop.results.summary import sanity_warnings, summary_lines
 
-    lines = summary_lines(metrics, result.meta)
+    lines = summary_lines(metrics, result.meta, result.logs)
     print(f"drake-coop: {lines[0]}", *lines[1:], sep="\n", flush=True)
     for warning in sanity_warnings(result.logs):
         print(f"drake-coop: warning: {warning}", file=sys.stderr)

@@ -10,8 +10,12 @@ control ticks), after the step that reaches each chunk's end (in ``contact`` mod
 phase and put back at the first after it:
 :meth:`~drake_coop.plant.grasp.ContactObject.set_stand_lowered`): a non-finite state, a joint past
 its limit or a force beyond ``guards.max_force`` ends the run with ``status = "diverged"`` and
-whatever was logged so far; so does an exception inside Drake. No Python call happens at the
-plant's steps for the guards (a Simulator monitor would be one per plant step).
+whatever was logged so far; so does an exception inside Drake. The failure guards
+(:mod:`drake_coop.experiment.failure`: a pad off its path, the squeeze far from its reference,
+the held box tilted or off its path, the grasp lost) read the plant's state at the same chunk
+ends and end the run with ``status = "failed"``; once the run is over they also read every
+logged tick, so a failure between two chunk ends is not called completed. No Python call
+happens at the plant's steps for the guards (a Simulator monitor would be one per plant step).
 
 The ground truth: with the offline path (:attr:`Experiment.ground_truth`, the default when no
 controller reads the F/T sensor in ``planes`` and ``rigid`` modes), ``F_meas``,
@@ -34,6 +38,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator, SimulatorStatus
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
+from drake_coop.experiment.failure import failure_check, first_failure_in_logs, plant_sample
 from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
 from drake_coop.experiment.references import (
     cartesian_reference,
@@ -171,8 +176,9 @@ def set_rest_state(exp: Experiment, context, q0: list[np.ndarray], z_grasp: floa
             rs.velocity_observer.GetMyMutableContextFromRoot(context), q)
 
 
-def _check_guards(exp: Experiment, context) -> str | None:
-    """A message if a guard trips, else None.
+def _check_guards(exp: Experiment, context, forces: list | None = None) -> str | None:
+    """A message if a divergence guard trips, else None; ``forces`` (a list) gets each arm's
+    measured force ``F`` read here, for the failure guards.
 
     At a tick ``t_k`` (before its updates). The measured force is, with the offline ground
     truth, the force of the plant step ``[t_k − Δt, t_k)`` from the held data and the current
@@ -204,6 +210,8 @@ def _check_guards(exp: Experiment, context) -> str | None:
         else:
             F = rs.force_sensor.GetOutputPort("F_meas").Eval(
                 rs.force_sensor.GetMyContextFromRoot(context))
+        if forces is not None:
+            forces.append(np.asarray(F, dtype=float))
         for label, value in (("estimated force", float(np.max(np.abs(lam_hat)))),
                              ("measured force", float(np.linalg.norm(F)))):
             if not math.isfinite(value) or value > g.max_force:
@@ -248,7 +256,7 @@ def finish_last_tick(exp: Experiment, simulator, status: str) -> None:
         The run's status (``ok``, ``diverged``, …).
     """
     context = simulator.get_context()
-    if status not in ("ok", "diverged") or not exp.robots:
+    if status not in ("ok", "diverged", "failed") or not exp.robots:
         return
     ctrl = exp.robots[0].controller
     t = context.get_time()
@@ -403,8 +411,10 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     Returns
     -------
     RunResult
-        ``meta["status"]`` is ``"ok"``, ``"diverged"`` or ``"interrupted"`` (Ctrl-C), with
-        ``meta["message"]``; the logs hold everything up to the stop.
+        ``meta["status"]`` is ``"ok"``, ``"diverged"``, ``"failed"`` (a failure guard, with
+        ``meta["failure"]``: the guard, robot or ``box``, time, value and bound) or
+        ``"interrupted"`` (Ctrl-C), with ``meta["message"]``; the logs hold everything up to
+        the stop.
 
     Raises
     ------
@@ -430,7 +440,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     simulator.Initialize()
     if on_start is not None:
         on_start(exp, simulator)
-    status, message = "ok", ""
+    status, message, failure = "ok", "", None
+    failures = failure_check(exp)
     plant_context = exp.coop.plant.GetMyMutableContextFromRoot(context)
     grasp = exp.coop.grasp
     stand = grasp if grasp is not None and grasp.stand_drop > 0 else None
@@ -449,10 +460,15 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
             if result.reason() == SimulatorStatus.ReturnReason.kReachedTerminationCondition:
                 status, message = "diverged", result.message()   # a monitor of on_start
                 break
-            reason = _check_guards(exp, context)
+            forces: list = []
+            reason = _check_guards(exp, context, forces)
             if reason is not None:
                 status = "diverged"
                 message = f"diverged at t = {context.get_time():.3f} s: {reason}"
+                break
+            failure = failures.check(plant_sample(exp, context, forces))
+            if failure is not None:
+                status, message = "failed", failure.message
                 break
             if k_stop in plan.switches:
                 exp.coop.set_held(plant_context, plan.switches[k_stop])
@@ -471,9 +487,14 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     with hold_signals() if hold_signals is not None else contextlib.nullcontext():
         finish_last_tick(exp, simulator, status)
         logs = collect_logs(exp, context)
+        if status == "ok":     # a failure between two chunks: every logged tick checked
+            failure = first_failure_in_logs(failures, logs)
+            if failure is not None:
+                status, message = "failed", failure.message
     meta = {
         "status": status,
         "message": message or f"completed {T:g} s",
+        **({"failure": failure.as_dict()} if failure is not None else {}),
         "phases": phases(scenario),
         "robots": [rs.name for rs in exp.robots],
         "control_period": plan.h,

@@ -153,6 +153,15 @@ class ModelDynamics:
         return q + dt * v, v
 
 
+#: A simulated closed loop whose joint speed passes this (rad/s, or m/s) has diverged.
+MAX_LOOP_SPEED = 1e3
+
+
+class ClosedLoopDiverged(RuntimeError):
+    """The closed loop simulated with a parameter estimate diverged (a non-finite state, or a
+    joint faster than :data:`MAX_LOOP_SPEED`); raised before the state reaches Drake."""
+
+
 def simulate_tracking(dynamics: ModelDynamics, q_d: np.ndarray, v_d: np.ndarray,
                       feedforward: np.ndarray, kp: np.ndarray, kv: np.ndarray, h: float,
                       substeps: int, torque_limits: np.ndarray | None = None,
@@ -189,6 +198,11 @@ def simulate_tracking(dynamics: ModelDynamics, q_d: np.ndarray, v_d: np.ndarray,
         Positions and velocities at the ticks, the accelerations just after them (the
         model's exact ``q̈(t_k⁺)`` under the held torque), the commanded and the applied
         (clipped) torques.
+
+    Raises
+    ------
+    ClosedLoopDiverged
+        If the loop diverges (one line: the time and the joint).
     """
     N, n = q_d.shape
     if substeps < 1:
@@ -209,6 +223,13 @@ def simulate_tracking(dynamics: ModelDynamics, q_d: np.ndarray, v_d: np.ndarray,
         A[k] = np.linalg.solve(M, applied - bias)
         for _ in range(substeps):
             q, v = dynamics.step(q, v, applied, dt)
+            speed = np.abs(v)
+            if not (np.all(np.isfinite(q)) and np.all(speed <= MAX_LOOP_SPEED)):
+                j = int(np.argmax(np.where(np.isfinite(speed), speed, np.inf)))
+                raise ClosedLoopDiverged(
+                    f"the closed loop simulated with the estimate diverged at t = "
+                    f"{(k + 1) * h:.3f} s (joint {j + 1}: speed {speed[j]:.3g}, bound "
+                    f"{MAX_LOOP_SPEED:g} rad/s)")
     return Simulated(q=Q, v=V, a=A, tau=T, applied=U)
 
 
@@ -411,8 +432,13 @@ def estimate_parameters_iv(regressor: Regressor, data: PreparedData, theta0: np.
     history, changes, stopped = [theta], [], ""
     tau_prev = None
     solver = start.solver
+    theta_iv = start.theta_ls
     for _ in range(iterations):
-        Z, tau_sim = instruments(regressor, theta, loop, data.index)
+        try:
+            Z, tau_sim = instruments(regressor, theta, loop, data.index)
+        except ClosedLoopDiverged as exc:       # keep the last estimate whose loop ran
+            stopped = str(exc)
+            break
         theta_iv = iv_solution(Y, Z, y)
         rank = condition_number(Y)[1]
         sigma2 = max(float(np.sum((y - Y @ theta_iv) ** 2)) / max(1, Y.shape[0] - rank), 1e-12)
@@ -498,10 +524,16 @@ def estimate_parameters_didim(regressor: Regressor, tau: np.ndarray, theta0: np.
     theta = start.theta
     history, changes, tau_prev, stopped = [theta], [], None, ""
     solver, theta_ls = start.solver, start.theta_ls
+    Y = None
     for _ in range(iterations):
-        sim = simulate_tracking(ModelDynamics(s, theta, regressor.coulomb_velocity),
-                                loop.q_d, loop.v_d, loop.feedforward, loop.kp, loop.kv,
-                                loop.h, loop.substeps, loop.torque_limits, loop.encoder_delay)
+        try:
+            sim = simulate_tracking(ModelDynamics(s, theta, regressor.coulomb_velocity),
+                                    loop.q_d, loop.v_d, loop.feedforward, loop.kp, loop.kv,
+                                    loop.h, loop.substeps, loop.torque_limits,
+                                    loop.encoder_delay)
+        except ClosedLoopDiverged as exc:       # keep the last estimate whose loop ran
+            stopped = str(exc)
+            break
         if tau_prev is not None:
             change = float(np.sqrt(np.mean((sim.tau - tau_prev) ** 2))
                            / max(np.sqrt(np.mean(sim.tau ** 2)), 1e-12))
@@ -521,6 +553,11 @@ def estimate_parameters_didim(regressor: Regressor, tau: np.ndarray, theta0: np.
             break
         theta = theta_next
         history.append(theta)
+    if Y is None:                 # the start's loop diverged: the start, as it is
+        return IVEstimate(theta=theta, theta_ls=theta_ls, residual_rms=start.residual_rms,
+                          condition_number=start.condition_number, rank=start.rank,
+                          samples=int(keep.sum()), solver=solver, history=history,
+                          changes=changes, stopped=stopped)
     res = (y - Y @ theta).reshape(-1, s.n)
     return IVEstimate(theta=theta, theta_ls=theta_ls,
                       residual_rms=np.sqrt(np.mean(res ** 2, axis=0)),

@@ -345,7 +345,8 @@ def plot_figures(logs: dict[str, Log], meta: dict, out_dir: str | Path,
     figures = {
         "fig2_tracking_errors": lambda: _grid(
             logs, meta,
-            [(rf"$\tilde{{{c}}}_#$", rf"$\tilde{{{c}}}_#$ [{{unit}}]", _difference("x", "x_d", j))
+            # (z - z_d)_i, not the paper's z-tilde: z is the observer's q - q-hat (Fig. 6)
+            [(rf"$({c} - {c}_d)_#$", rf"$({c} - {c}_d)_#$ [{{unit}}]", _difference("x", "x_d", j))
              for j, c in enumerate("xyz")],
             "Fig. 2 — tracking errors in Cartesian coordinates", LENGTH_UNITS),
         "fig3_force_tracking": lambda: _pair(

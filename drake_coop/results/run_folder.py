@@ -43,7 +43,7 @@ BYTES_FIXED = 50_000_000
 
 
 #: The ``run.json`` statuses of a run that is a result, kept unless replacing is asked for.
-RESULT_STATUSES = ("ok", "diverged", "stopped")
+RESULT_STATUSES = ("ok", "diverged", "failed", "stopped")
 #: The largest ``run.json`` read to tell whether a previous run completed.
 MAX_RUN_JSON_BYTES = 16_000_000
 

@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MIN_DESIRED_SHARE", "sanity_warnings", "summary_lines", "summary_phase"]
+__all__ = ["MIN_DESIRED_SHARE", "mass_line", "sanity_warnings", "summary_lines",
+           "summary_phase"]
 
 #: Share of a row's peak desired force above which its measured force is checked.
 MIN_DESIRED_SHARE = 0.1
@@ -63,8 +64,9 @@ def _format(rms: float, peak: float, scales) -> str:
     raise AssertionError("unreachable")
 
 
-def summary_lines(metrics: dict, meta: dict) -> list[str]:
-    """The summary table: a title line, a header and one line per robot.
+def summary_lines(metrics: dict, meta: dict, logs: dict | None = None) -> list[str]:
+    """The summary table: a title line, a header and one line per robot; with an object
+    model's logs, the object's mass line (:func:`mass_line`).
 
     Parameters
     ----------
@@ -72,6 +74,8 @@ def summary_lines(metrics: dict, meta: dict) -> list[str]:
         :func:`~drake_coop.results.metrics.compute_metrics` of the run.
     meta : dict
         The run's metadata (``phases``: the circle's time span for the title).
+    logs : dict or None
+        ``logs[robot][array]`` (``t``, ``mass_share``); None: no mass line.
 
     Returns
     -------
@@ -97,7 +101,54 @@ def summary_lines(metrics: dict, meta: dict) -> list[str]:
     widths = [max(len(r[j]) for r in rows) for j in range(len(rows[0]))]
     table = ["  " + "  ".join(c.ljust(w) if j == 0 else c.rjust(w)
                               for j, (c, w) in enumerate(zip(r, widths))) for r in rows]
-    return [title] + table + _object_line(metrics, phase)
+    return [title] + table + _object_line(metrics, phase) + mass_line(logs or {}, meta)
+
+
+def mass_line(logs: dict, meta: dict) -> list[str]:
+    """The object's mass as the arms estimate it (``object_model`` known or estimated: the
+    sum of their ``mass_share`` logs), at the end of the carrying (the circle's end, or the
+    run's last held sample) against the true mass, and its lowest value while held.
+
+    Parameters
+    ----------
+    logs : dict
+        ``logs[robot][array]``: ``t``, ``mass_share``.
+    meta : dict
+        ``phases`` and ``object_mass`` (kg).
+
+    Returns
+    -------
+    list of str
+        One line, e.g. ``  object mass: estimate 0.497 kg at t = 65.0 s (true 0.5 kg,
+        -0.6 %); lowest while held -0.057 kg at t = 15.2 s (a negative share is fed forward
+        as 0)``; none without ``mass_share`` logs or a held sample.
+    """
+    if not logs or not all("mass_share" in log for log in logs.values()) \
+            or "object_mass" not in meta:
+        return []
+    first = next(iter(logs.values()))
+    t = np.asarray(first["t"], dtype=float)
+    K = min(len(np.asarray(log["mass_share"])) for log in logs.values())
+    t = t[:K]
+    total = np.sum([np.asarray(log["mass_share"], dtype=float)[:K] for log in logs.values()],
+                   axis=0)
+    spans = {str(name): (a, b) for name, a, b in meta.get("phases", [])}
+    if "lift" not in spans:
+        return []
+    t0 = spans["lift"][0]
+    t1 = spans["circle"][1] if "circle" in spans else spans.get("put_down", (0, t0))[0]
+    held = (t >= t0) & (t < t1) & np.isfinite(total)
+    if not held.any():
+        return []
+    k_end = int(np.flatnonzero(held)[-1])
+    k_low = int(np.flatnonzero(held)[np.argmin(total[held])])
+    m = float(meta["object_mass"])
+    text = (f"  object mass: estimate {total[k_end]:.3g} kg at t = {t[k_end]:.1f} s (true "
+            f"{m:g} kg, {100 * (total[k_end] - m) / m:+.1f} %); lowest while held "
+            f"{total[k_low]:.3g} kg at t = {t[k_low]:.1f} s")
+    if total[k_low] < 0:
+        text += " (a negative share is fed forward as 0)"
+    return [text]
 
 
 def _object_line(metrics: dict, phase: str) -> list[str]:

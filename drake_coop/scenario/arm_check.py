@@ -97,6 +97,12 @@ def check_dimensions(robot: Robot, n: int, where: str) -> None:
              f"{where}.q_seed": (robot.q_seed, n)}
     if robot.model_error.coulomb_friction:
         sized[f"{where}.model_error.coulomb_friction"] = (robot.model_error.coulomb_friction, n)
+    if robot.gains.K_R is not None and len(robot.gains.K_R) != n \
+            and list(robot.gains.K_R) == list(type(robot.gains)().K_R):
+        raise ScenarioError(f"{where}.gains.K_R must have {n} entries (one per joint); the "
+                            f"{len(robot.gains.K_R)} it has are the defaults (the paper's "
+                            f"{len(robot.gains.K_R)}-joint arm's, no gains given): run "
+                            "`drake-coop gains SCENARIO --out DIR` to derive this arm's gains")
     for name, (value, size) in sized.items():
         if value is not None and len(value) != size:
             raise ScenarioError(f"{name} must have {size} entries (one per "

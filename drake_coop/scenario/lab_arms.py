@@ -194,8 +194,9 @@ def arm_facts(name: str) -> ArmFacts:
     Raises
     ------
     ScenarioError
-        The package is not installed, or the prepared URDF is not a model Drake can load (one
-        line naming the arm).
+        The package is not installed, or the prepared URDF is not a model Drake can load or
+        not a physically possible arm (:func:`~drake_coop.scenario.model_check.check_model_file`;
+        one line naming the arm).
     """
     import logging
 
@@ -207,6 +208,9 @@ def arm_facts(name: str) -> ArmFacts:
 
     robot = lab_arm_robot(name)
     path = model_urdf_path(robot, f"arms[{name}].model")
+    from drake_coop.scenario.model_check import check_model_file
+
+    check_model_file(path, f"arms[{name}].model", robot, shown=robot.model)   # physics too
     logger = logging.getLogger("drake")
     previous = logger.level
     logger.setLevel(logging.ERROR)        # the parser's warnings (ignored URDF tags)

@@ -442,7 +442,11 @@ class Task:
 
 @dataclass
 class Guards:
-    """Divergence guards of the simulation.
+    """Divergence and failure guards of the simulation.
+
+    The first three stop a diverging run (``status: diverged``); the others a run that
+    failed its task (``status: failed``), checked on the plant's truth
+    (:mod:`drake_coop.experiment.failure`).
 
     Attributes
     ----------
@@ -452,11 +456,26 @@ class Guards:
         A joint passing its URDF limit by more than this stops the run (degrees).
     check_period : float
         How often the guards are evaluated (s of simulated time).
+    max_pad_error : float
+        Bound on each pad's distance from its desired path ``‖x − x_d‖`` (m), the whole run.
+    max_squeeze_error : float
+        Bound on ``‖λ − λ_d‖`` (N) while the object is held (from 0.5 s after the grasp).
+    max_object_tilt_deg : float
+        Bound on the held box's tilt since the grasp (degrees; ``contact`` mode).
+    max_object_position_error : float
+        Bound on the held box's distance from its path (m; ``contact`` mode).
+    grasp_lost : bool
+        Whether a pad letting go of the box off its stand fails the run (``contact`` mode).
     """
 
     max_force: float = 500.0
     joint_limit_margin_deg: float = 0.0
     check_period: float = 0.09
+    max_pad_error: float = 0.02
+    max_squeeze_error: float = 20.0
+    max_object_tilt_deg: float = 10.0
+    max_object_position_error: float = 0.02
+    grasp_lost: bool = True
 
 
 @dataclass

@@ -118,6 +118,10 @@ BOUNDS: dict[str, Bound] = {
     "cell.start_max_speed": Bound(0.0, 10.0, "rad/s", **_POS),
     "cell.start_ramp": Bound(0.0, 10.0, "s"),
     "cell.partner_silence_ticks": Bound(1, 1000, "ticks"),
+    "guards.max_pad_error": Bound(0.0, 10.0, "m", **_POS),
+    "guards.max_squeeze_error": Bound(0.0, 1e5, "N", **_POS),
+    "guards.max_object_tilt_deg": Bound(0.0, 180.0, "deg", **_POS),
+    "guards.max_object_position_error": Bound(0.0, 10.0, "m", **_POS),
 }
 #: Length of every list of numbers.
 #: Lists whose length depends on the arm (``n_i`` joints, ``m_i`` constraints) are checked by
@@ -229,6 +233,7 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
         raise ScenarioError(f"robots[].name must be distinct, got {show(names)}")
     _validate_two_sided(scenario)
     _validate_drivers(scenario)
+    _validate_failure_guards(scenario)
 
     t = scenario.task
     times = ["t_pregrasp", "t_grasp", "t_circle_start", "t_circle_end", "t_release", "t_end"]
@@ -279,6 +284,13 @@ def validate(scenario: Scenario, *, cache: dict | None = None) -> None:
             cache[key] = str(exc)
     if cache[key] is not None:
         raise ScenarioError(cache[key])
+
+
+def _validate_failure_guards(scenario: Scenario) -> None:
+    """``guards.grasp_lost`` a boolean (the numbers' ranges are in :data:`BOUNDS`)."""
+    if not isinstance(scenario.guards.grasp_lost, bool):
+        raise ScenarioError(f"guards.grasp_lost must be true or false, got "
+                            f"{show(scenario.guards.grasp_lost)}")
 
 
 def driver_channels(robot: Robot) -> tuple[str, str]:

@@ -175,6 +175,100 @@ def load_for_gains(name_or_path):
     return load_scenario(find_scenario(name_or_path), before_validation=_size_gains)
 
 
+#: A derived ``K_R,j`` below this fraction of the arm's largest is explained in the output.
+LIGHT_FRACTION = 0.05
+
+
+def light_joint_notes(scenario, report) -> list[str]:
+    """Why a joint got a gain far below the arm's others: one line per such joint.
+
+    ``K_R,j = κ J_j / h`` follows the least inertia joint ``j`` sees. A wrist that moves only
+    its light links gets a small one, and more so when the model has no rotor inertia for
+    it: Drake reads a URDF's ``<mechanicalReduction>`` but ignores it (a geared joint's rotor
+    reflects its inertia times the reduction squared), so unless the URDF gives
+    ``drake:rotor_inertia`` and ``drake:gear_ratio`` the wrist is modelled without its motor.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario the gains were derived for.
+    report : object
+        :func:`~drake_coop.stability.gains.derive_and_check`'s report (``robots``: each
+        robot's ``name``, ``gains.K_R`` and ``inertia``).
+
+    Returns
+    -------
+    list of str
+        e.g. ``jaco2_1: K_R[6] (j2s6s200_joint_6) = 0.063 N·m·s/rad = κ J/h with J =
+        0.000564 kg·m², the least inertia the joint sees: the model has no rotor inertia for
+        it (its URDF's mechanicalReduction 160 is ignored by Drake) ...``.
+    """
+    import xml.etree.ElementTree as ET
+
+    import numpy as np
+
+    from drake_coop.scenario.resources import model_urdf_path
+
+    lines = []
+    for i, (robot, d) in enumerate(zip(scenario.robots, report.robots)):
+        K = np.asarray(d.gains.K_R, dtype=float)
+        light = [j for j in range(K.size) if K[j] < LIGHT_FRACTION * K.max()]
+        if not light:
+            continue
+        path = model_urdf_path(robot, f"robots[{i}].model")
+        names, rotor = _actuated_joints(path, robot.base_frame, K.size)
+        root = ET.parse(path).getroot()
+        reduction = {}
+        for transmission in root.findall("transmission"):
+            text = transmission.findtext(".//mechanicalReduction")
+            for joint in transmission.findall("joint"):
+                if text is not None:
+                    reduction[joint.get("name")] = text.strip()
+        for j in light:
+            why = (f"its rotor inertia is {rotor[j]:.3g} kg·m²" if rotor[j] > 0 else
+                   "the model has no rotor inertia for it")
+            if rotor[j] == 0 and names[j] in reduction:
+                why += (f" (its URDF's mechanicalReduction {reduction[names[j]]} is ignored by "
+                        "Drake: a geared joint's motor adds its inertia times the reduction "
+                        "squared)")
+            lines.append(f"{d.name}: K_R[{j + 1}] ({names[j]}) = {K[j]:.2g} N·m·s/rad = κ J/h "
+                         f"with J = {d.inertia[j]:.3g} kg·m², the least inertia the joint sees: "
+                         f"{why}; give drake:rotor_inertia and drake:gear_ratio in the URDF "
+                         "for a geared joint, or check this gain on the real arm")
+    return lines
+
+
+def _actuated_joints(path, base_frame: str, n: int) -> tuple[list[str], list[float]]:
+    """The arm's joints in velocity order and each one's rotor inertia (0 without actuator)."""
+    import logging
+
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+
+    logger = logging.getLogger("drake")
+    previous = logger.level
+    logger.setLevel(logging.CRITICAL)
+    try:
+        plant = MultibodyPlant(0.0)
+        Parser(plant).AddModels(str(path))
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(base_frame))
+        plant.Finalize()
+    finally:
+        logger.setLevel(previous)
+    names, rotor = [""] * n, [0.0] * n
+    for index in plant.GetJointIndices():
+        joint = plant.get_joint(index)
+        if joint.num_velocities() == 1 and joint.velocity_start() < n:
+            names[joint.velocity_start()] = joint.name()
+    for index in plant.GetJointActuatorIndices():
+        actuator = plant.get_joint_actuator(index)
+        k = actuator.joint().velocity_start()
+        if k < n:
+            rotor[k] = float(actuator.default_rotor_inertia()
+                             * actuator.default_gear_ratio() ** 2)
+    return names, rotor
+
+
 def cmd_gains(args) -> int:
     """Derive, check, write (see the module docstring for the exit codes).
 
@@ -237,6 +331,8 @@ def cmd_gains(args) -> int:
                   f"{d.gains.Lambda:.3g}, k_d {d.gains.k_d:.3g}, xi {d.gains.xi:.3g}",
                   file=sys.stderr)
         print(margins["line"], file=sys.stderr)
+        for line in light_joint_notes(scenario, report):
+            print(line, file=sys.stderr)
         print(f"rho: {', '.join(f'{k} {v:.6g}' for k, v in report.rho.items())}; "
               f"wrote {args.out}", file=sys.stderr)
     return 0 if report.stable else 1

@@ -275,6 +275,9 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
         print(f"drake-coop study: {study.name}: {len(cases)} cases ({unique} distinct), "
               f"{unique - len(todo)} already finished, running {len(todo)}{again} on {engine} "
               f"({args.workers} workers) -> {out}", file=sys.stderr)
+        warning = phase_warning(study, cases[0]) if todo else ""
+        if warning:
+            print(f"drake-coop study: warning: {warning}", file=sys.stderr)
     progress = None if args.quiet else CaseProgress(unique, unique - len(todo))
     lost: list[str] = []
 
@@ -384,6 +387,36 @@ def _reload(store: ResultStore) -> dict[str, dict]:
         return store.load()
     except OSError:
         return {}
+
+
+def phase_warning(study, case: Case) -> str:
+    """A warning when the study's ``t_end`` stops its cases before the phase it measures.
+
+    Parameters
+    ----------
+    study : Study
+        The study (its ``phase`` and ``t_end``; None: the scenario's own).
+    case : Case
+        A case (its scenario's phase times).
+
+    Returns
+    -------
+    str
+        One line, e.g. ``the cases stop at t_end = 5 s, before phase circle starts (25 s):
+        ...; give --t-end > 25 ...``; ``''`` if the phase is reached.
+    """
+    from drake_coop.experiment.simulate import phases
+    from drake_coop.scenario.loading import load_scenario
+
+    if study.phase == "all" or study.t_end is None:
+        return ""
+    spans = {name: a for name, a, _ in phases(load_scenario(data=case.scenario_yaml))}
+    start = spans.get(study.phase)
+    if start is None or study.t_end > start:
+        return ""
+    return (f"the cases stop at t_end = {study.t_end:g} s, before phase {study.phase} starts "
+            f"({start:g} s): its metrics in results.csv and the plots will be empty; give "
+            f"--t-end > {start:g} (or a study with an earlier phase)")
 
 
 def _robot_names(case: Case) -> list[str]:

@@ -2,7 +2,7 @@
 
 * ``<name>_vs_<param>.png`` — for each grid parameter with several values: each plotted metric
   against it, the median (line) and min–max (band) over every other parameter and sample, ``ok``
-  cases only; the values where cases diverged are marked ✕ with their count. When another grid
+  cases only; the values where cases diverged or failed are marked ✕ with their count. When another grid
   parameter takes text values (``velocity_source: [observer, measured]``), one curve per value.
 * ``<name>_map.png`` — over the first two numeric grid parameters with several values: each
   metric's median as a coloured square, ✕ where every case diverged (the stability region's
@@ -34,10 +34,13 @@ from drake_coop.studies.spec import file_stem
 __all__ = ["metric_label", "param_label", "plot_study"]
 
 DPI = 110
+#: A case's statuses drawn as ✕: a run that diverged or failed its task (a failure guard).
+_NOT_OK = ("diverged", "failed")
 
 #: Error names of the summary columns, in words.
 ERROR_NAMES = {
-    "x_tilde": r"$\tilde x$", "y_tilde": r"$\tilde y$", "z_tilde": r"$\tilde z$",
+    # the Cartesian errors by their axis, not x-, y-, z-tilde: z is the observer's q - q-hat
+    "x_tilde": r"$(x - x_d)_x$", "y_tilde": r"$(x - x_d)_y$", "z_tilde": r"$(x - x_d)_z$",
     "position_error": r"$|x - x_d|$ (worst axis)", "force_error": r"$\lambda - \lambda_d$",
     "estimate_error": r"$\lambda - \hat\lambda$", "aux_force_error": r"$\hat\lambda - \lambda_d$",
     "observation_error": r"$z = q - \hat q$ (worst joint)",
@@ -207,7 +210,7 @@ def _figure_vs(doc: dict, param: str) -> Figure:
                 med.append(np.median(y) if y.size else math.nan)
                 lo.append(y.min() if y.size else math.nan)
                 hi.append(y.max() if y.size else math.nan)
-                n_div.append(sum(c["status"] == "diverged" for c in at))
+                n_div.append(sum(c["status"] in _NOT_OK for c in at))
             label = "median" if group is None else _label(json.loads(group))
             if numeric:
                 gx = xs
@@ -246,7 +249,7 @@ def _figure_vs(doc: dict, param: str) -> Figure:
     axes[-1].set_xlabel(xlabel)
     what = "median (line) and min–max (band)" if numeric else "median (dot) and min–max (bar)"
     fig.suptitle(f"{doc['name']}: {what} over the other parameters "
-                 f"(phase {doc['phase']}; ✕ n: n cases diverged)", fontsize=9)
+                 f"(phase {doc['phase']}; ✕ n: n cases diverged or failed)", fontsize=9)
     return fig
 
 
@@ -273,7 +276,7 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
                       and json.dumps(c["params"][py]) == y]
                 z = factor * np.array([_value(c, metric) for c in at])
                 z = z[np.isfinite(z)]
-                n_div = sum(c["status"] == "diverged" for c in at)
+                n_div = sum(c["status"] in _NOT_OK for c in at)
                 if z.size:
                     cx.append(json.loads(x)); cy.append(json.loads(y)); cz.append(np.median(z))
                 if at and n_div == len(at):
@@ -286,10 +289,10 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
             sc = ax.scatter(cx, cy, c=cz, s=260, marker="s", norm=norm, cmap="viridis")
             fig.colorbar(sc, ax=ax, label=metric_label(metric, unit))
         if dx:
-            ax.scatter(dx, dy, s=90, marker="x", color="crimson", label="diverged")
+            ax.scatter(dx, dy, s=90, marker="x", color="crimson", label="diverged or failed")
         if px_:
             ax.scatter(px_, py_, s=120, marker="o", facecolors="none", edgecolors="crimson",
-                       label="some diverged")
+                       label="some diverged or failed")
         if _log_scale(xv):
             ax.set_xscale("log")
         if _log_scale(yv):
@@ -313,8 +316,8 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
 
 def _plot_hist(doc: dict, out: Path) -> Path:
     cases, metrics = doc["cases"], doc["metrics"]
-    n_div = sum(c["status"] == "diverged" for c in cases)
-    n_done = sum(c["status"] in ("ok", "diverged", "error") for c in cases)
+    n_div = sum(c["status"] in _NOT_OK for c in cases)
+    n_done = sum(c["status"] in ("ok", *_NOT_OK, "error") for c in cases)
     fig = Figure(figsize=(4.2 * len(metrics), 3.4), dpi=DPI, layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(1, len(metrics), squeeze=False)[0]
@@ -329,7 +332,7 @@ def _plot_hist(doc: dict, out: Path) -> Path:
             ax.legend(fontsize=7)
         ax.set_xlabel(metric_label(metric, unit), fontsize=8)
         ax.set_ylabel("cases")
-    fig.suptitle(f"{doc['name']}: {n_done} cases, {n_div} diverged "
+    fig.suptitle(f"{doc['name']}: {n_done} cases, {n_div} diverged or failed "
                  f"({100.0 * n_div / max(1, n_done):.0f} %), phase {doc['phase']}", fontsize=9)
     return _save(fig, out / f"{file_stem(doc['name'])}_hist.png")
 

@@ -50,7 +50,7 @@ from drake_coop.studies.spec import Study
 __all__ = ["ERRORS", "FINISHED", "ResultStore", "check_metric_names", "summary_columns"]
 
 #: Statuses of a finished case (a result); any other (``interrupted``, ``died``) is not stored.
-FINISHED = ("ok", "diverged", "error")
+FINISHED = ("ok", "diverged", "failed", "error")
 #: Largest case file read (bytes): a case's metrics are a few kB, its scenario ~3 kB.
 MAX_CASE_BYTES = 4_000_000
 

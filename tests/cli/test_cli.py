@@ -78,6 +78,7 @@ def test_diverging_run_exits_1_and_keeps_what_it_logged(tmp_path, capsys):
     s = short_scenario("none", 0.003)
     for r in s.robots:
         r.gains.K_R = [3000.0] * 3
+    s.guards.max_pad_error = 10.0        # the divergence guards, not the pad's
     out = tmp_path / "o"
     code = main(["run", str(_write(tmp_path, s)), "--out", str(out), "--quiet", "--no-replay"])
     assert code == 1

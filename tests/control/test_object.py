@@ -146,6 +146,21 @@ def test_feedforward_of_a_static_hold_is_the_virtual_work_of_the_weight(model):
     assert np.allclose(ff.get_f_load_output_port().Eval(ctx), [0, 0, m_i * GRAVITY])
 
 
+def test_a_negative_mass_estimate_is_never_fed_forward(model):
+    """A share estimated below zero (the stand still carrying the object at the grasp) feeds
+    no load forward, as a zero share does; a positive one its own."""
+    ff = LoadFeedforward(model, H)
+    ctx = ff.CreateDefaultContext()
+    ff.get_q_input_port().FixValue(ctx, Q0)
+    ff.get_acceleration_d_input_port().FixValue(ctx, [0.0, 0.0, 0.3])
+    ff.get_reference_input_port().FixValue(ctx, _held_reference(held=True))
+    ff.get_mass_share_input_port().FixValue(ctx, [-0.057])
+    tau, f = ff.load(ctx)
+    assert np.array_equal(f, np.zeros(3)) and np.array_equal(tau, np.zeros(3))
+    ff.get_mass_share_input_port().FixValue(ctx, [0.1])
+    assert np.allclose(ff.load(ctx)[1], [0.0, 0.0, 0.1 * (0.3 + GRAVITY)])
+
+
 def test_feedforward_is_zero_in_free_motion_and_follows_the_acceleration(model):
     ff = LoadFeedforward(model, H)
     ctx = ff.CreateDefaultContext()

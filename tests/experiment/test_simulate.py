@@ -93,6 +93,7 @@ def test_diverging_run_stops_with_a_message_and_keeps_its_logs():
     s = short_scenario("none", 0.003)
     for r in s.robots:
         r.gains.K_R = [3000.0] * 3     # h K_R / H >> 2: unstable at 9 ms
+    s.guards.max_pad_error = 10.0      # the divergence guards, not the pad's (0.09 s, 29 mm)
     result = simulate(s, t_end=5.0)
     assert result.meta["status"] == "diverged"
     assert "diverged at t =" in result.meta["message"] or "failed" in result.meta["message"]
@@ -116,6 +117,12 @@ def test_controller_can_use_its_own_perturbed_model(tmp_path):
         path = tmp_path / f"{r.model}_heavy.urdf"
         path.write_text(heavier)
         r.controller_model = str(path)
+    # Its squeeze leaves the reference by up to 29 N (robot 1): with the default guards the run
+    # ends failed at 1.53 s (guards.max_squeeze_error, 20 N); measured here past it.
+    failed = simulate(s, t_end=2.0)
+    assert failed.meta["status"] == "failed"
+    assert failed.meta["failure"]["guard"] == "max_squeeze_error"
+    s.guards.max_squeeze_error = 100.0
     perturbed = simulate(s, t_end=4.0)
     assert perturbed.ok
     for name in exact:

@@ -27,9 +27,18 @@ def _counts(metrics: dict, name: str) -> int:
                if p in metrics[r])
 
 
+def _without_failure_guards(scenario):
+    """The run carried on past its failure, for its metrics."""
+    g = scenario.guards
+    g.max_pad_error, g.max_squeeze_error = 10.0, 1e5
+    g.max_object_tilt_deg, g.max_object_position_error, g.grasp_lost = 180.0, 10.0, False
+    return scenario
+
+
 def test_a_box_squeezed_with_1_newton_is_dropped():
     # 1 N per pad at μ = 1 holds 2 N of the box's 4.9 N: it stays on the stand as the pads rise.
-    result = simulate(_short_contact(1.0), t_end=3.5)
+    result = simulate(_without_failure_guards(_short_contact(1.0)), t_end=3.5)
+    assert result.ok
     metrics = compute_metrics(result.logs, result.meta)
     assert _counts(metrics, "drops") >= 1
     assert _counts(metrics, "slips") >= 2            # both pads slide up its faces
@@ -61,3 +70,16 @@ def test_the_shipped_contact_run_neither_slips_nor_drops():
     circle = (log["t"] >= 26.0) & (log["t"] < 64.0)
     stand_top = 0.535 - 0.05 - 0.010
     assert (log["object_pose"][circle, 6] - 0.05 > stand_top + 2e-3).all()
+
+
+def test_a_dropped_box_fails_the_run_where_the_grasp_is_lost():
+    """With the default guards the same run stops as failed, soon after the pads let go (the
+    box off its path or the grasp lost, whichever a guard chunk sees first), and its logs end
+    there; the metrics of what was logged count the drop."""
+    result = simulate(_short_contact(1.0), t_end=3.5)
+    assert result.meta["status"] == "failed"
+    failure = result.meta["failure"]
+    assert failure["guard"] in ("grasp_lost", "max_object_position_error")
+    assert 1.0 < failure["t"] < 3.0
+    assert result.meta["message"].startswith(f"failed at t = {failure['t']:.3f} s: ")
+    assert result.logs["robot1"]["t"][-1] <= failure["t"] + 1e-9

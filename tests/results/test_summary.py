@@ -176,3 +176,21 @@ def test_run_warns_on_stderr_when_a_squeeze_turned_into_a_pull(capsys):
     (line,) = err.splitlines()
     assert line.startswith("drake-coop: warning: robot1: the measured squeeze turned into a "
                            "pull (-2.0 N against a desired")
+
+
+def test_the_mass_line_gives_the_summed_estimate_at_the_carrying_end_and_its_lowest():
+    """Two arms' shares summed: at the circle's end and at its lowest while held, with the
+    true mass and a note when the sum went negative; no line without mass shares."""
+    from drake_coop.results.summary import mass_line
+
+    t = np.arange(0.0, 10.0, 0.5)
+    share = np.where(t < 2.0, 0.3, 0.26)
+    share[t == 2.5] = -0.03                        # the dip after the grasp
+    logs = {"r1": {"t": t, "mass_share": share}, "r2": {"t": t, "mass_share": share}}
+    meta = {"object_mass": 0.5, "phases": [["free", 0, 2], ["lift", 2, 4], ["circle", 4, 8],
+                                           ["put_down", 8, 9], ["return", 9, 10]]}
+    (line,) = mass_line(logs, meta)
+    assert line == ("  object mass: estimate 0.52 kg at t = 7.5 s (true 0.5 kg, +4.0 %); "
+                    "lowest while held -0.06 kg at t = 2.5 s (a negative share is fed forward "
+                    "as 0)")
+    assert mass_line({"r1": {"t": t}}, meta) == []

@@ -43,8 +43,9 @@ def test_gains_accepts_missing_or_wrong_length_K_R(tmp_path, monkeypatch, gains_
     assert ("K_R: [81.14" in text) is False           # the shipped gains are gone
     path = tmp_path / "ur5_no_gains.yaml"
     path.write_text(text)
-    with pytest.raises(ScenarioError, match=r"gains\.K_R must have 6 entries"):
+    with pytest.raises(ScenarioError, match=r"gains\.K_R must have 6 entries") as err:
         load_scenario(path)                            # a run refuses it ...
+    assert ("run `drake-coop gains SCENARIO --out DIR`" in str(err.value)) == (gains_line == "")
     scenario = load_for_gains(path)                    # ... the gains command takes it
     assert [len(r.gains.K_R) for r in scenario.robots] == [_joints(r) for r in scenario.robots]
 

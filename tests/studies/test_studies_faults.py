@@ -506,7 +506,7 @@ def test_a_damaged_case_file_is_rerun_with_a_warning_not_a_blocked_resume(tmp_pa
     capsys.readouterr()
     assert main(["study", str(path), "--out", str(out)]) == 0
     err = capsys.readouterr().err
-    assert f"warning: {victim.name}: status must be one of ok, diverged, error; its case runs " \
+    assert f"warning: {victim.name}: status must be one of ok, diverged, failed, error; its case runs " \
            "again" in err
     assert "1 already finished, running 1" in err and calls[2:] == [calls[0]]
     assert json.loads(victim.read_text())["status"] == "ok"

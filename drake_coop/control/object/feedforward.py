@@ -27,7 +27,8 @@ class LoadFeedforward(LeafSystem):
         \qquad \tau_{ff} = 0 \text{ otherwise}
 
     with ``m_i`` the arm's share of the object's mass (:func:`mass_shares`, or
-    :class:`MassEstimator`'s estimate), ``a_d`` the object's desired acceleration along the
+    :class:`MassEstimator`'s estimate, clamped at ``m_i >= 0``: a negative mass is never fed
+    forward), ``a_d`` the object's desired acceleration along the
     shared path and ``g = (0, 0, −g)``. Add ``tau_ff`` to the controller's ``τ`` (13) before
     the actuators; the force observer (22) is left as it is (see the module docstring).
 
@@ -43,6 +44,14 @@ class LoadFeedforward(LeafSystem):
         output_ports:
         - tau_ff
         - f_load
+
+    The mass share is clamped at zero, not held at its prior until trusted: right after the
+    grasp the stand still carries part of the object while the squeeze ramps up, so the
+    estimate of a share can pass below zero for a moment (the two shares of a 0.5 kg box
+    summed to -0.057 kg on two Jaco2s); fed forward, a negative mass would push the object
+    down, against the pads' friction. Zero feeds nothing forward, which is what the arm carries
+    at that instant; holding the prior instead would feed forward its error (+50 % by default)
+    through the time the estimate needs to be trusted, a time with no measured bound.
 
     Latched by a periodic unrestricted update at ``t_k`` (as the controller's ``τ(k)``), so
     the plant's step at ``t_k`` applies it; both outputs are state output ports.
@@ -172,7 +181,7 @@ class LoadFeedforward(LeafSystem):
         if not self._layout.held(reference):
             return np.zeros(self._model.n), np.zeros(3)
         q = self._q.Eval(context)
-        f = float(self._mass.Eval(context)[0]) * (self._a_d.Eval(context) - self._g)
+        f = max(float(self._mass.Eval(context)[0]), 0.0) * (self._a_d.Eval(context) - self._g)
         if self._couple is not None:
             f = f + self._couple.Eval(context)
         if self._mu is not None:
