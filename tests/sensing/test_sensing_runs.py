@@ -17,6 +17,7 @@ import pytest
 
 from drake_coop.cli import main
 from drake_coop.experiment.diagram import build_experiment
+from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.plan import grasp_ticks
 from drake_coop.experiment.simulate import simulate
 from drake_coop.results.logs import COLUMNS, OPTIONAL_COLUMNS, load_logs, save_logs
@@ -35,7 +36,7 @@ def _scenario(velocity_source, force_source, **encoders):
 
 
 def test_diagram_reads_plant_sensors_control_actuators_plant():
-    exp = build_experiment(_scenario("difference", "sensor"), log=False)
+    exp = build_experiment(plan_run(_scenario("difference", "sensor")), log=False)
     names = {s.get_name() for s in exp.diagram.GetSystems()}
     for n in ("robot1_encoders", "robot1_control", "robot1_actuators", "robot1_ft_sensor",
               "robot1_force_sensor"):
