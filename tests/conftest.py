@@ -36,7 +36,7 @@ def advance_to_tick(scenario, k: int, live_ground_truth: bool | None = None):
     from drake_coop.experiment.diagram import build_experiment
 
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.plan import grasp_ticks
+    from drake_coop.experiment.ticks import grasp_ticks
     from drake_coop.experiment.simulate import initialize
     from drake_coop.scenario import aligned_periods
 

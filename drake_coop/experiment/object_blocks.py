@@ -40,7 +40,7 @@ from pydrake.systems.primitives import Adder, ConstantVectorSource, TrajectorySo
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control.couple import face_distance, squeeze_couple
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.object import (
     CompressedReference,
     LoadFeedforward,

@@ -1,13 +1,11 @@
 """One resolved plan of a run: its time grid, tick indices, grasp height and arms.
 
-Computed by :func:`plan_run` once per simulated run (the runner passes it to the references;
-the stability map's operating point and the benchmark make their own plan of the same
-scenario):
+Computed by :func:`plan_run` once per simulated run, the only input below the planning
+floor (the builders take their section of it; the stability map and the benchmark plan too):
 
 * ``h``, ``dt`` — control period and plant step, aligned so that every tick is a plant step
-  (:func:`~drake_coop.experiment.ticks.time_grid`: the one place a scenario's periods are aligned, by
-  :func:`~drake_coop.control.timing.aligned_periods`; the plant builder, the diagram, the
-  runner, identification and the benchmark read it);
+  (:func:`~drake_coop.experiment.ticks.time_grid`, by
+  :func:`~drake_coop.control.timing.aligned_periods`);
 * ``k_grasp``, ``k_release`` — the first held and the first released control tick
   (``⌈t_grasp/h⌉``, ``⌈t_release/h⌉``): the only instants where the plant changes;
 * ``k_end`` — the last tick of the run (``min(t_end, task.t_end)``);
@@ -15,14 +13,12 @@ scenario):
 * ``robots`` — per robot a :class:`RobotPlan`, everything decided from the scenario for that
   arm: its :class:`~drake_coop.plant.arms.Arm` (base, constraints, kinematics), the
   controller's model, the pad's geometry and stiffness (read once, by Drake's parser), the
-  control point, the load's mass share, ``λ_d``; ``arms`` are their arms;
+  control point, the load's mass share, ``λ_d``, the references; ``arms`` are their arms;
 * ``object`` — the controllers' object model (:class:`ObjectPlan`), None without one.
 
-Every rule of the ``object_model`` section (``auto`` and ``null`` values) is decided here, in
-one place; the plant builder, the references, the diagram, the object blocks and the runner
-read the plan (each its own section), never the rule again. What is expensive (the pads'
-files, the controller's model) is resolved on first use and kept: a plan of the ``planes``
-run reads no pad.
+Every rule of the ``object_model`` section (``auto`` and ``null`` values) is decided here, once;
+the builders read the plan, never the rule again. What is expensive (the pads' files, the
+controller's model, the references) is resolved on first use and kept.
 """
 
 from __future__ import annotations
@@ -33,11 +29,14 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_coop.experiment.squeeze import (  # noqa: F401 (re-exported)
-    GRASP_RAMP, friction_squeeze, grasp_ramp)
-from drake_coop.experiment.ticks import (  # noqa: F401 (re-exported)
-    MAX_PLANT_STEPS, MAX_TICKS, _run_end, check_run_size, grasp_ticks, num_ticks_until,
-    run_size, time_grid)
+from drake_coop.control.deprecation import moved
+from drake_coop.experiment.squeeze import friction_squeeze
+from drake_coop.experiment.ticks import _run_end, grasp_ticks, num_ticks_until, time_grid
+
+#: Moved names, found here until :mod:`drake_coop.control.deprecation`'s removal date.
+_MOVED = {**dict.fromkeys(("GRASP_RAMP", "grasp_ramp"), "drake_coop.experiment.squeeze"),
+          **dict.fromkeys(("MAX_PLANT_STEPS", "MAX_TICKS", "check_run_size", "run_size"),
+                          "drake_coop.experiment.ticks")}
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Robot, Scenario, Task
 
@@ -595,3 +594,7 @@ def plan_run(scenario: Scenario, t_end: float | None = None) -> RunPlan:
                    z_grasp=task.circle_top_z - task.lift_height,
                    arms=tuple(Arm(r, task) for r in scenario.robots))
 
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

@@ -1,7 +1,7 @@
 """The references of each robot: joint references through its IK, the reference signal.
 
 The Cartesian paths (28) and the force profile (29) are the scenario's
-(:mod:`drake_coop.scenario.task_path`, re-exported here). Joint references come from the arm's
+(:mod:`drake_coop.scenario.task_path`). Joint references come from the arm's
 inverse kinematics (closed form for the paper's arms, Drake's otherwise,
 :attr:`drake_coop.plant.arms.Arm.kinematics`):
 ``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)`` (``J`` the task Jacobian:
@@ -30,19 +30,15 @@ import numpy as np
 from drake_coop.experiment.ticks import num_ticks_until
 from drake_coop.kinematics.pose_task import pad_control, point_kinematics
 from drake_coop.plant.arms import Arm
-from drake_coop.scenario.task_path import (
-    Segment,
-    cartesian_reference,
-    first_normal,
-    force_reference,
-    quintic,
-    segments,
-    waypoints,
-)
+from drake_coop.control.deprecation import moved
+from drake_coop.scenario.task_path import cartesian_reference
 
-#: The task's paths are the scenario's; they are re-exported for the callers of this module.
-__all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", "quintic",
-           "segments", "waypoints", "joint_reference", "redundant_joint_reference", "start_posture",
+#: The task's paths are the scenario's (:mod:`drake_coop.scenario.task_path` defines them;
+#: found here until the removal date of :mod:`drake_coop.control.deprecation`).
+_MOVED = dict.fromkeys(("Segment", "first_normal", "force_reference",
+                        "quintic", "segments", "waypoints"), "drake_coop.scenario.task_path")
+
+__all__ = ["joint_reference", "redundant_joint_reference", "start_posture",
            "reference_samples", "compressed_path",
            "contact_point_reference", "followed_point", "rolling_correction", "pressed_path"]
 
@@ -424,3 +420,8 @@ def pressed_path(stiffness, path, lam, times: np.ndarray, h: float, inward: np.n
     d1 = (dp - dm) / (2.0 * h)
     d2 = (dp - 2.0 * d0 + dm) / h ** 2
     return (x + d0[:, None] * n, xd + d1[:, None] * n, xdd + d2[:, None] * n)
+
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

@@ -34,11 +34,10 @@ import numpy as np
 from pydrake.systems.analysis import Simulator, SimulatorStatus
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
-from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
-from drake_coop.experiment.references import (
-    cartesian_reference,
-    start_posture,
-)
+from drake_coop.experiment.plan import RunPlan, plan_run
+from drake_coop.experiment.ticks import check_run_size
+from drake_coop.experiment.references import start_posture
+from drake_coop.scenario.task_path import cartesian_reference
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.kinematics.rotations import pad_contact_components
 from drake_coop.scenario.loading import dump_scenario

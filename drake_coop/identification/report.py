@@ -256,7 +256,7 @@ def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, n
     ClosedLoop
         The loop.
     """
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.ticks import time_grid
     from drake_coop.identification.collect import tracking_gains
 
     h, dt = time_grid(scenario)

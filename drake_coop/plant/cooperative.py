@@ -60,7 +60,7 @@ if TYPE_CHECKING:
     from drake_coop.plant.grasp import ContactObject
 
 
-class PlantSection(Protocol):
+class _PlantSection(Protocol):
     """What the plant is built from: the part of a run's plan
     (:class:`~drake_coop.experiment.plan.RunPlan`, a layer above, which has these) the plant
     reads, in the manner of Drake's ``ApplyMultibodyPlantConfig(config, builder)``.
@@ -381,14 +381,14 @@ def _outboard_bodies(plant: MultibodyPlant, weld: Joint) -> list[RigidBody]:
     return sorted(found, key=lambda b: int(b.index()))
 
 
-def build_plant(builder: DiagramBuilder, plan: PlantSection) -> CoopPlant:
+def build_plant(builder: DiagramBuilder, plan: _PlantSection) -> CoopPlant:
     """Add the cooperative plant (with its SceneGraph) to ``builder``, from the run's plan.
 
     Parameters
     ----------
     builder : DiagramBuilder
         The builder the plant and its scene graph are added to.
-    plan : PlantSection
+    plan : RunPlan
         The run's plan (a :class:`~drake_coop.experiment.plan.RunPlan`): its plant step ``dt`` on the run's time grid
         (:func:`drake_coop.experiment.ticks.time_grid`: a multiple of it is exactly the
         control period), its resolved arms (one :class:`~drake_coop.plant.arms.Arm` per

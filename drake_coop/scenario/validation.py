@@ -11,8 +11,6 @@ import math
 from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
-    DRIVER_KINDS,
-    SAFE_COMMANDS,
     JITTER_DISTRIBUTIONS,
     OBJECT_MODEL_MODES,
     CONTROL_POINTS,
@@ -22,6 +20,7 @@ from drake_coop.scenario.schema import (
     Scenario,
     ScenarioError,
 )
+from drake_coop.scenario.driver import DRIVER_KINDS, SAFE_COMMANDS
 
 _POS = dict(lo_open=True)
 #: Allowed range of every number of a scenario, by dotted field (``[]``: any index). A new

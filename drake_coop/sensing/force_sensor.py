@@ -64,7 +64,8 @@ from pydrake.systems.framework import (
 from pydrake.systems.primitives import ZeroOrderHold
 
 from drake_coop.scenario.schema import ForceSensorModel
-from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
+from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, white_noise
+from drake_coop.control.timing import lowpass_alpha
 
 
 @dataclass(frozen=True)

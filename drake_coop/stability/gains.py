@@ -43,7 +43,8 @@ from typing import Callable
 
 import numpy as np
 
-from drake_coop.scenario.schema import Gains, ObjectModelSettings, Scenario
+from drake_coop.scenario.schema import ObjectModelSettings, Scenario
+from drake_coop.control.params import Gains
 
 __all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_and_check", "derive_gains",
            "derive_robot_gains", "gains_for_scenario", "map_copy", "task_postures"]

@@ -63,7 +63,7 @@ import numpy as np
 
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario, ScenarioError
-from drake_coop.studies.paths import (  # noqa: F401 (get_value, resolve, set_value re-exported)
+from drake_coop.studies.paths import (
     KeyPath,
     _hints,
     _unwrap_optional,
@@ -333,7 +333,7 @@ class _Builder:
     def build(self, assignments: list[Assignment], where: str
               ) -> tuple[Scenario, str | None]:
         """The validated scenario (and its YAML when it went through the YAML loading)."""
-        from drake_coop.experiment.plan import check_run_size
+        from drake_coop.experiment.ticks import check_run_size
         from drake_coop.scenario.validation import validate
 
         scenario = copy.deepcopy(self.base)

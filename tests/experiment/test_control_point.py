@@ -11,12 +11,12 @@ import pytest
 
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.references import (
-    cartesian_reference,
     contact_point_reference,
     followed_point,
     rolling_correction,
     start_posture,
 )
+from drake_coop.scenario.task_path import cartesian_reference
 from drake_coop.scenario import load_scenario
 from drake_coop.scenario.resources import find_scenario
 

@@ -20,7 +20,7 @@ from pydrake.systems.analysis import Simulator
 from drake_coop.experiment.diagram import build_experiment
 
 from drake_coop.experiment.plan import plan_run
-from drake_coop.experiment.plan import grasp_ticks
+from drake_coop.experiment.ticks import grasp_ticks
 from drake_coop.experiment.simulate import initialize, simulate
 from drake_coop.scenario import aligned_periods
 from tests.conftest import advance_to_tick, short_scenario

@@ -88,11 +88,7 @@ def test_the_pose_reference_holds_the_pads_orientation_and_material_point(name):
     from pydrake.multibody.plant import MultibodyPlant
 
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.references import (
-        cartesian_reference,
-        force_reference,
-        quintic,
-    )
+    from drake_coop.scenario.task_path import cartesian_reference, force_reference, quintic
     from drake_coop.scenario.resources import model_urdf_path
 
     s = contact_estimated(name)

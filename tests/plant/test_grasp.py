@@ -23,7 +23,7 @@ from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.plant.arms import arm_model
-from drake_coop.experiment.references import cartesian_reference, quintic, waypoints
+from drake_coop.scenario.task_path import cartesian_reference, quintic, waypoints
 from drake_coop.experiment.plan import plan_run
 from drake_coop.plant.cooperative import (
     CoopPlant,

@@ -21,7 +21,7 @@ from drake_coop.experiment.plan import plan_run
 from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 from drake_coop.plant.ground_truth import add_pad_force_log
 from drake_coop.plant.wrist import add_force_sensors
-from drake_coop.experiment.references import waypoints
+from drake_coop.scenario.task_path import waypoints
 from drake_coop.scenario import default_scenario
 from drake_coop.scenario.schema import ForceSensorModel
 from drake_coop.sensing.force_sensor import FTModel, add_ft_sensor

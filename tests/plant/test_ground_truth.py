@@ -123,7 +123,7 @@ def test_guard_reads_the_offline_force_of_the_step_before_the_tick():
     (a force the step before would have needed: ``a = Δv/Δt``) trips the guard on it."""
     from pydrake.systems.analysis import Simulator
 
-    from drake_coop.experiment.plan import grasp_ticks
+    from drake_coop.experiment.ticks import grasp_ticks
     from drake_coop.experiment.simulate import _check_guards, initialize
     from drake_coop.plant.wrist import add_force_sensors
     from drake_coop.scenario import aligned_periods

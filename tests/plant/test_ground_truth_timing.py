@@ -18,7 +18,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ZeroOrderHold
 
 from drake_coop.plant.arms import arm_model
-from drake_coop.experiment.references import waypoints
+from drake_coop.scenario.task_path import waypoints
 from drake_coop.experiment.plan import plan_run
 from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 from drake_coop.plant.wrist import add_force_sensors

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drake_coop.control.arm_model import description_packages
+from drake_coop.control.arm_plant import description_packages
 from drake_coop.scenario.lab_arms import LAB_ARMS, SENSOR_RPY_FOR_AXIS, arm_facts, lab_arm_robot
 from drake_coop.scenario.loading import load_scenario
 from drake_coop.scenario.resources import find_scenario

@@ -12,7 +12,7 @@ import tracemalloc
 
 import pytest
 
-from drake_coop.experiment.plan import MAX_TICKS, check_run_size
+from drake_coop.experiment.ticks import MAX_TICKS, check_run_size
 from drake_coop.experiment.plan import plan_run
 from drake_coop.scenario import (
     BOUNDS,
