@@ -133,8 +133,8 @@ def _sensing_attribution(scenario, t_end: float, repeats: int,
     :data:`_ATTRIBUTION`, alternated ``repeats`` times in this process; each addition's extra
     cost per control tick (median of its pairs with the plant alone run just before it) and as
     a share of the plant alone's cost per tick."""
-    from drake_coop.experiment.plan import num_ticks_until
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.ticks import num_ticks_until
+    from drake_coop.experiment.ticks import time_grid
 
     h, _ = time_grid(scenario)
     ticks = num_ticks_until(t_end, h)

@@ -163,9 +163,9 @@ def _count_callbacks(scenario, t_end: float) -> dict:
     """
     import inspect
 
-    from drake_coop.experiment.plan import num_ticks_until
+    from drake_coop.experiment.ticks import num_ticks_until
     from drake_coop.experiment.simulate import simulate
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.ticks import time_grid
 
     counts: dict[str, int] = defaultdict(int)
     counting = contextlib.ExitStack()

@@ -139,9 +139,9 @@ def run_benchmark(t_end: float = 90.0, repeats: int = 1, out: str | None = None,
         Simulated seconds of those runs (30 s: the grasp at 15 s, the lift, 5 s of the
         circle) and their alternated repeats.
     """
-    from drake_coop.experiment.plan import num_ticks_until
+    from drake_coop.experiment.ticks import num_ticks_until
     from drake_coop.scenario.loading import default_scenario, load_scenario
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.ticks import time_grid
 
     scenario = default_scenario()
     h, _ = time_grid(scenario)

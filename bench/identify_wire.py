@@ -36,7 +36,7 @@ def scenario():
     import dataclasses
 
     from drake_coop.scenario.loading import dump_scenario, load_scenario
-    from drake_coop.scenario.schema import Driver
+    from drake_coop.scenario.driver import Driver
 
     s = load_scenario()
     s.task = dataclasses.replace(s.task, **COMPRESSED)
@@ -89,7 +89,7 @@ def main() -> None:
     from drake_coop.scenario.model_check import check_models
 
     s = scenario()
-    rest = rest_posture(s, list(plan_run(s).arms))[0]
+    rest = rest_posture(plan_run(s))[0]
     out = {"scenario": "paper, model_error mass/inertia x1.3, damping x0.7, Coulomb 0.5 N·m, "
                        "task compressed " + json.dumps(COMPRESSED),
            "duration_s": args.duration, "bar": BAR}

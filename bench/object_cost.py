@@ -32,7 +32,7 @@ def _object_blocks_cost(scenario, t_end: float, repeats: int,
     import copy
     import os
 
-    from drake_coop.experiment.plan import num_ticks_until, time_grid
+    from drake_coop.experiment.ticks import num_ticks_until, time_grid
 
     if not modes or modes[0] != "none" or len(modes) < 2:
         raise ValueError(f"modes: 'none' first and at least one object model, got {modes!r}")

@@ -332,7 +332,7 @@ def tick_cost(scenario_name: str, horizons=(None, 0.003), *, robot: str = "robot
         plan = plan_run(scenario)
         specs = driver_specs(scenario, check_models(scenario))
         lcm = DrakeLcm("memq://")
-        loop = ServeLoop(scenario, plan, lcm, specs, robots=[robot])
+        loop = ServeLoop(plan, lcm, specs, robots=[robot])
         i = [s.robot for s in specs].index(robot)
         q = _readings(scenario, plan, 2 * rounds * ticks + 10, cycles)[i]
         data = [_status_bytes(q[j], j * 1000) for j in range(len(q))]

@@ -21,21 +21,20 @@ def _plant_alone(scenario, t_end: float, extras=None) -> tuple[float, float]:
     from pydrake.systems.primitives import ConstantVectorSource
 
     from drake_coop.plant.arms import arm_model
-    from drake_coop.experiment.references import reference_samples
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.plan import plan_run
     from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 
     b = DiagramBuilder()
-    coop = build_plant(b, scenario, time_step=time_grid(scenario)[1])
-    q0 = [reference_samples(scenario, i, 0.0)[1][0, :h.arm.kinematics.n]
-          for i, h in enumerate(coop.arms)]
+    plan = plan_run(scenario, 0.0)
+    coop = build_plant(b, plan)
+    q0 = [robot.layout.column(robot.samples[1], "q_d")[0] for robot in plan.robots]
     for i, h in enumerate(coop.arms):
         src = b.AddNamedSystem(f"{h.arm.name}_torque",
                                ConstantVectorSource(arm_model(h.arm).g(q0[i])))
         b.Connect(src.get_output_port(), coop.plant.get_actuation_input_port(h.instance))
     finish = None
     if extras is not None:
-        finish = extras(b, coop, *time_grid(scenario))
+        finish = extras(b, coop, plan.h, plan.dt)
     diagram = b.Build()
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
@@ -97,7 +96,7 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
 
     plan = plan_run(scenario, t_end)
     b = DiagramBuilder()
-    coop = build_plant(b, scenario, time_step=plan.dt)
+    coop = build_plant(b, plan)
     loggers = []
     for h in coop.arms:
         log = result.logs[h.arm.name]
@@ -116,7 +115,7 @@ def _plant_replay(scenario, t_end: float, result) -> tuple[float, float, float]:
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
     pc = coop.plant.GetMyMutableContextFromRoot(ctx)
-    initialize_plant_context(coop, pc, *rest_posture(scenario, [h.arm for h in coop.arms]))
+    initialize_plant_context(coop, pc, *rest_posture(plan))
     sim.Initialize()
     grasp = coop.grasp
     stand = grasp if grasp is not None and grasp.stand_drop > 0 else None

@@ -54,12 +54,10 @@ PARTS = ("driver", "receive", "check", "feed", "step", "watchdog", "command")
 
 def _readings(scenario, plan, ticks: int, cycles: int) -> list[np.ndarray]:
     """Each arm's ``q_d`` at every driver cycle of ``ticks`` ticks (``cycles`` per tick)."""
-    from drake_coop.experiment.references import reference_trajectory
-
     out = []
-    for i, arm in enumerate(plan.arms):
-        n = arm.kinematics.n
-        traj = reference_trajectory(scenario, i, plan.t_end, plan)
+    for robot in plan.robots:
+        n = robot.arm.kinematics.n
+        traj = robot.reference
         t = np.arange(ticks * cycles) * (plan.h / cycles)
         out.append(np.array([traj.value(min(tk, plan.t_end)).ravel()[:n] for tk in t]))
     return out
@@ -89,7 +87,7 @@ class _Serve:
         from drake_coop.robot.status import check_panda_status
 
         self.lcm = DrakeLcm("memq://")
-        self.loop = ServeLoop(scenario, plan, self.lcm, specs, robots=robots)
+        self.loop = ServeLoop(plan, self.lcm, specs, robots=robots)
         self.channels = [s.status_channel for s in self.loop.specs]
         self.arrivals = status_arrivals(self.lcm, self.loop.specs)
         index = [[s.robot for s in specs].index(s.robot) for s in self.loop.specs]
@@ -181,12 +179,11 @@ class _Batch:
         from pydrake.trajectories import PiecewisePolynomial
 
         from drake_coop.control.block import AddCooperativeController
-        from drake_coop.experiment.references import reference_trajectory
         from drake_coop.plant.cooperative import build_plant
         from drake_coop.plant.model_error import controller_arm_model
 
         model_builder = DiagramBuilder()
-        coop = build_plant(model_builder, scenario, plan.dt)
+        coop = build_plant(model_builder, plan)
         builder = DiagramBuilder()
         self.blocks = []
         for i, (handles, robot) in enumerate(zip(coop.arms, scenario.robots)):
@@ -205,8 +202,7 @@ class _Batch:
                 difference_cutoff_hz=robot.difference_cutoff_hz,
                 prediction_horizon=robot.timing.prediction_horizon, q=src.get_output_port(),
                 connect_actuation=False, name=robot.name)
-            ref = builder.AddSystem(TrajectorySource(
-                reference_trajectory(scenario, i, plan.t_end, plan)))
+            ref = builder.AddSystem(TrajectorySource(plan.robots[i].reference))
             builder.Connect(ref.get_output_port(), block.reference_input)
             self.blocks.append((block, readings[i][0]))
         self._keep = (model_builder, coop)

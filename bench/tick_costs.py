@@ -17,12 +17,12 @@ def _tick_costs(scenario) -> dict[str, float]:
     """
     from drake_coop.plant.arms import arm_model
     from drake_coop.control.finger import FingerLaw
-    from drake_coop.experiment.references import reference_samples
+    from drake_coop.experiment.plan import plan_run
     from drake_coop.plant.arms import Arm
 
     robot = scenario.robots[0]
     law = FingerLaw(arm_model(Arm(robot, scenario.task)), robot.gains)
-    _, r = reference_samples(scenario, 0)
+    _, r = plan_run(scenario).robots[0].samples
     k = int(np.argmax(law.layout.column(r, "held")[:, 0] > 0.5)) + 1000
     ref = law.layout.unpack(r[k])
     DF = np.full(law.m, 0.1)

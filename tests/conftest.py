@@ -34,11 +34,13 @@ def advance_to_tick(scenario, k: int, live_ground_truth: bool | None = None):
     from pydrake.systems.analysis import Simulator
 
     from drake_coop.experiment.diagram import build_experiment
-    from drake_coop.experiment.plan import grasp_ticks
+
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.experiment.ticks import grasp_ticks
     from drake_coop.experiment.simulate import initialize
     from drake_coop.scenario import aligned_periods
 
-    exp = build_experiment(scenario, log=False, live_ground_truth=live_ground_truth)
+    exp = build_experiment(plan_run(scenario), log=False, live_ground_truth=live_ground_truth)
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()
     initialize(exp, ctx)

@@ -48,11 +48,11 @@ here.
 from __future__ import annotations
 
 from drake_coop.cli import signals as _signals
-from drake_coop.cli.diagram import _write_block_diagrams, cmd_diagram
+from drake_coop.cli.diagram import cmd_diagram
 from drake_coop.cli.identify import cmd_identify
 from drake_coop.cli.parser import build_parser, main
 from drake_coop.cli.plot import cmd_plot
-from drake_coop.cli.run import ProgressBar, _print_summary, _write_outputs, cmd_run
+from drake_coop.cli.run import ProgressBar, cmd_run
 from drake_coop.cli.scenarios import cmd_scenarios
 from drake_coop.cli.signals import Signals, Terminated
 

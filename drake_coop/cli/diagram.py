@@ -44,6 +44,7 @@ def cmd_diagram(args: argparse.Namespace) -> int:
         The exit code: 0 drawn, 2 bad input.
     """
     from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.schema import ScenarioError
 
@@ -51,7 +52,7 @@ def cmd_diagram(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario and find_scenario(args.scenario))
     except ScenarioError as exc:
         return _error(str(exc))
-    exp = build_experiment(scenario, log=False)
+    exp = build_experiment(plan_run(scenario), log=False)
     written = _write_block_diagrams(exp, Path(args.out), "experiment",
                                     f"{exp.robots[0].name}_control", args.quiet)
     if not args.quiet:

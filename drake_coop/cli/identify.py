@@ -32,11 +32,8 @@ def cmd_identify(args: argparse.Namespace) -> int:
     """
     import math
 
-    from drake_coop.identification.report import (
-        IdentifyInputError,
-        parse_robots,
-        run_identify,
-    )
+    from drake_coop.identification.report import parse_robots, run_identify
+    from drake_coop.identification.setup import IdentifyInputError
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.scenario.schema import ScenarioError
 
@@ -89,7 +86,7 @@ def cmd_identify(args: argparse.Namespace) -> int:
 def _read(path: str, scenario, robots: list[int]) -> dict:
     """The recording's arms by scenario index (``IdentifyInputError``: one line)."""
     from drake_coop.identification.recording import read_recording
-    from drake_coop.identification.report import IdentifyInputError
+    from drake_coop.identification.setup import IdentifyInputError
 
     try:
         found = read_recording(path)

@@ -81,7 +81,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from drake_coop.results.viz import add_force_arrows, frame_workspace
         from drake_coop.scenario.loading import load_scenario
         from drake_coop.scenario.schema import ScenarioError
-        from drake_coop.experiment.plan import check_run_size, run_size
+        from drake_coop.experiment.ticks import check_run_size, run_size
 
         if args.t_end is not None and not (0 < args.t_end < float("inf")):
             return _error(f"--t-end must be a finite number > 0, got {args.t_end}")

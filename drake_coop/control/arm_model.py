@@ -47,23 +47,17 @@ import math
 import numpy as np
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import MultibodyForces
-from pydrake.multibody.tree import JacobianWrtVariable
+from pydrake.multibody.tree import JacobianWrtVariable, MultibodyForces
 
 from drake_coop.control.arm_closed_form import (
-    is_serial_chain,
-    jacobian_dot,
-    paper_arm_row,
-    paper_arm_row_dot,
-    paper_arm_row_setup,
-)
-from drake_coop.control.arm_plant import (  # noqa: F401 (re-exported)
-    DESCRIPTION_PACKAGES,
-    add_description_packages,
-    description_packages,
-    make_arm_controller_plant,
-)
+    is_serial_chain, jacobian_dot, paper_arm_row, paper_arm_row_dot, paper_arm_row_setup)
+from drake_coop.control.deprecation import moved
 from drake_coop.control.params import contact_vector, normalized_normals  # noqa: F401
+
+#: Moved names, found here until :mod:`drake_coop.control.deprecation`'s removal date.
+_MOVED = dict.fromkeys(("DESCRIPTION_PACKAGES", "add_description_packages",
+                        "description_packages", "make_arm_controller_plant"),
+                       "drake_coop.control.arm_plant")
 
 
 class ArmModel:
@@ -583,3 +577,8 @@ class ArmModel:
         deriv = (deriv.reshape(3, self.n) if deriv.size == 3 * self.n
                  else np.zeros((3, self.n)))
         return self._N @ value, self._N @ deriv
+
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

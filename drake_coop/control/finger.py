@@ -28,11 +28,12 @@ import numpy as np
 from drake_coop.control import orthogonal
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.params import Gains, check_gains
-from drake_coop.control.reference_layout import (  # noqa: F401 (re-exported)
-    REFERENCE_ROWS,
-    Reference,
-    ReferenceLayout,
-)
+from drake_coop.control.deprecation import moved
+from drake_coop.control.reference_layout import Reference, ReferenceLayout
+
+#: Names this module no longer holds (found here until the removal date of
+#: :mod:`drake_coop.control.deprecation`).
+_MOVED = {"REFERENCE_ROWS": "drake_coop.control.reference_layout"}
 
 
 def observer_qdot_hat(q: np.ndarray, q_hat: np.ndarray, qdot_hat_o: np.ndarray,
@@ -507,3 +508,8 @@ class FingerLaw:
                - self.K_R @ (qdot_o - qdot_r) - c.J_phi.T @ force)
         return {"tau": tau, "qdot_r": qdot_r, "qddot_r_hat": qddot_r_hat,
                 "Delta_lambda_tilde": np.array(Delta_lambda_tilde, dtype=float)}
+
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

@@ -34,9 +34,12 @@ BLOCK_SIGNALS = {
     "qddot_r_hat": "controller",
     "tau": "controller",
 }
-#: Inputs a source reads from outside the block: exported under the same name (the plant's
-#: ``state`` of the arm, an F/T sensor's ``lambda_sensor``).
-EXTERNAL_INPUTS = ("state", "lambda_sensor")
+#: Inputs a source reads from outside the block, exported under the same name, and what each
+#: is (a real arm's driver gives neither: :func:`missing_inputs`).
+EXTERNAL_INPUTS = {
+    "state": "the arm's measured joint velocities (its state)",
+    "lambda_sensor": "a wrist F/T sensor's reading",
+}
 
 #: The outputs every velocity source / force source has (the interchangeable ports).
 KIND_OUTPUTS = {"velocity": ("q_hat", "qdot_hat", "qdot_o"),
@@ -69,6 +72,14 @@ class Source:
         options (``difference_cutoff_hz``, ``momentum_torque_limits``).
     outputs : tuple of str
         Outputs of its own the block exports besides :data:`KIND_OUTPUTS`.
+    options : tuple of str
+        The fields of a robot's scenario entry the source reads (dotted paths inside the
+        entry, e.g. ``gains.momentum_gain``); an option that is null by default applies to
+        the sources that declare it only.
+    checks : callable or None
+        ``checks(robot, h)``: refuses the robot's options for this source at the control
+        period ``h`` with a ``ValueError`` whose message starts with the field's path inside
+        the entry; None when the source has no option to check (:meth:`check`).
     """
 
     name: str
@@ -80,6 +91,32 @@ class Source:
     inputs: tuple[str, ...]
     build: Callable
     outputs: tuple[str, ...] = ()
+    options: tuple[str, ...] = ()
+    checks: Callable | None = None
+
+    @property
+    def external_inputs(self) -> tuple[str, ...]:
+        """The inputs it reads from outside the block (:data:`EXTERNAL_INPUTS`)."""
+        return tuple(i for i in self.inputs if i in EXTERNAL_INPUTS)
+
+    def check(self, robot, h: float) -> None:
+        """Refuse ``robot``'s options for this source at the control period ``h``.
+
+        Parameters
+        ----------
+        robot : Robot
+            The robot's scenario entry (any object with its fields).
+        h : float
+            The control period, s.
+
+        Raises
+        ------
+        ValueError
+            One line starting with the field's path inside the entry (the scenario's
+            validation puts ``robots[i].`` before it) and what is allowed.
+        """
+        if self.checks is not None:
+            self.checks(robot, h)
 
     @property
     def class_name(self) -> str:
@@ -112,6 +149,25 @@ class Source:
         return self.build(self.system_class(), law, period, options)
 
 
+def _check_cutoff(robot, h: float) -> None:
+    """``difference_cutoff_hz``: null or below the Nyquist frequency ``1/(2h)``."""
+    value = robot.difference_cutoff_hz
+    nyquist = 1.0 / (2.0 * h)
+    if value is not None and not 0.0 < value < nyquist:
+        raise ValueError(f"difference_cutoff_hz must be null or in (0, {nyquist:g}) Hz (below "
+                         f"the Nyquist frequency 1/(2h) for h = {h:g} s), got {value!r}")
+
+
+def _check_momentum_gain(robot, h: float) -> None:
+    """``gains.momentum_gain``: at most ``1/h`` (the sampled observer's error shrinks by
+    ``1 − h K_O`` per tick)."""
+    gain = robot.gains.momentum_gain
+    if gain * h > 1.0:
+        raise ValueError(f"gains.momentum_gain must be at most 1/h = {1.0 / h:g} 1/s with "
+                         f"force_source: {robot.force_source} (the sampled observer's error "
+                         f"shrinks by 1 - h K_O per tick), got {gain:g}")
+
+
 SOURCES: tuple[Source, ...] = (
     Source("observer", "velocity", "observers.VelocityObserver", "velocity_observer",
            "velocity observer", "(15)–(16)", ("q", "qddot_r_hat"),
@@ -121,7 +177,8 @@ SOURCES: tuple[Source, ...] = (
            lambda cls, law, h, o: cls(law.n)),
     Source("difference", "velocity", "sources.DifferenceVelocity", "difference_velocity",
            "backward difference", "of the encoders", ("q",),
-           lambda cls, law, h, o: cls(law.n, h, o.get("difference_cutoff_hz"))),
+           lambda cls, law, h, o: cls(law.n, h, o.get("difference_cutoff_hz")),
+           options=("difference_cutoff_hz",), checks=_check_cutoff),
     Source("observer", "force", "observers.ForceObserver", "force_observer",
            "force observer", "(22)", ("q", "q_hat", "qdot_o", "reference"),
            lambda cls, law, h, o: cls(law, h)),
@@ -135,8 +192,57 @@ SOURCES: tuple[Source, ...] = (
            "momentum observer", "generalized momentum", ("q", "qdot_hat", "tau", "reference"),
            lambda cls, law, h, o: cls(law.model, law.layout, h, law.momentum_gain,
                                       torque_limits=o.get("momentum_torque_limits")),
-           outputs=("tau_ext_hat", "O_F_ext_hat")),
+           outputs=("tau_ext_hat", "O_F_ext_hat"), options=("gains.momentum_gain",),
+           checks=_check_momentum_gain),
 )
+
+#: The scenario field that selects each kind's source in a robot's entry.
+SELECTING_FIELD = {"velocity": "velocity_source", "force": "force_source"}
+
+
+def selected(robot) -> tuple[Source, Source]:
+    """The velocity and force sources a robot's entry selects.
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot's scenario entry.
+
+    Returns
+    -------
+    tuple of Source
+        Its velocity source and its force source.
+
+    Raises
+    ------
+    KeyError
+        A name no source of its kind has.
+    """
+    return tuple(source(kind, getattr(robot, field)) for kind, field in SELECTING_FIELD.items())
+
+
+def missing_inputs(robot, available=()) -> list[tuple[str, str, str]]:
+    """The inputs from outside the block the robot's sources read that are not
+    ``available`` (e.g. on a real arm, whose driver gives neither the velocities nor a wrist
+    force: ``available=()``).
+
+    Parameters
+    ----------
+    robot : Robot
+        The robot's scenario entry.
+    available : iterable of str
+        The :data:`EXTERNAL_INPUTS` the path provides.
+
+    Returns
+    -------
+    list of (str, str, str)
+        ``(field, source, input)`` per missing input: the selecting field
+        (``velocity_source``), the source's name and the input (``state``); empty when every
+        input is there.
+    """
+    available = set(available)
+    return [(SELECTING_FIELD[s.kind], s.name, i) for s in selected(robot)
+            for i in s.external_inputs if i not in available]
 
 
 def names(kind: str) -> tuple[str, ...]:

@@ -70,7 +70,6 @@ from drake_coop.experiment.object_blocks import (
     ObjectBlocks,
     add_object_layer,
 )
-from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.cooperative import (
     CoopPlant,
     build_plant,
@@ -83,7 +82,7 @@ from drake_coop.plant.ground_truth import (
 )
 from drake_coop.plant.wrist import ForceSensor, add_force_sensors
 from drake_coop.scenario.schema import Scenario
-from drake_coop.experiment.plan import RunPlan, plan_run, time_grid
+from drake_coop.experiment.plan import RunPlan
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.sensing.force_sensor import FTModel, FTSensor, add_ft_sensor
@@ -227,8 +226,8 @@ class Experiment:
 
     Attributes
     ----------
-    scenario : Scenario
-        The scenario.
+    plan : RunPlan
+        The run's plan the diagram was built from (its scenario is :attr:`scenario`).
     diagram : Diagram
         The built diagram.
     coop : CoopPlant
@@ -238,30 +237,31 @@ class Experiment:
     ground_truth : GroundTruthLog or PadForceLog or None
         The offline ground truth.
     object_state_estimator : ObjectStateEstimator or None
-        The shared object state estimator (``object_model.mode: estimated``).
-    plan : RunPlan or None
-        The run's plan.
+        The shared object-state block (``object_model.shared``), None without it.
     """
 
-    scenario: Scenario
+    plan: RunPlan
     diagram: Diagram
     coop: CoopPlant
     robots: list[RobotSystems]
     ground_truth: GroundTruthLog | PadForceLog | None = None
-    #: The shared object-state block (``object_model.shared``), None without it.
     object_state_estimator: ObjectStateEstimator | None = None
-    #: The run's plan the diagram was built from.
-    plan: RunPlan | None = None
+
+    @property
+    def scenario(self) -> Scenario:
+        """The run's scenario (the plan's)."""
+        return self.plan.scenario
 
     @property
     def h(self) -> float:
-        """The control period on the run's time grid (:func:`~drake_coop.experiment.ticks.time_grid`)."""
-        return self.plan.h if self.plan is not None else time_grid(self.scenario)[0]
+        """The control period on the run's time grid (:attr:`RunPlan.h
+        <drake_coop.experiment.plan.RunPlan.h>`)."""
+        return self.plan.h
 
     @property
     def dt(self) -> float:
         """The plant step on the run's time grid."""
-        return self.plan.dt if self.plan is not None else time_grid(self.scenario)[1]
+        return self.plan.dt
 
 
 def reads_sensor(robot) -> bool:
@@ -321,7 +321,7 @@ def add_encoders(builder: DiagramBuilder, name: str, n: int, period: float, sett
     Returns
     -------
     encoder : LeafSystem
-        The encoders.
+        The encoders' system (a C++ ``Demultiplexer`` when ideal).
     q : OutputPort
         Their reading (n,), rad.
     """
@@ -359,18 +359,20 @@ def uses_live_ground_truth(scenario: Scenario) -> bool:
                               and any(reads_sensor(r) for r in scenario.robots))
 
 
-def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None = None,
-                     log: bool = True, before_build=None, references=None,
+def build_experiment(plan: RunPlan, *, builder: DiagramBuilder | None = None,
+                     log: bool = True, before_build=None,
                      live_ground_truth: bool | None = None) -> Experiment:
-    """Build the experiment's Diagram from a run's plan.
+    """Wire the experiment's Diagram from a run's plan.
+
+    Only wiring: every robot's arm, controller's model, stiffness, control point, object
+    model and reference trajectory (:attr:`~drake_coop.experiment.plan.RobotPlan.reference`)
+    are the plan's, computed there once; nothing is derived again here.
 
     Parameters
     ----------
-    plan : RunPlan or Scenario
-        The run's plan (:func:`~drake_coop.experiment.plan.plan_run`): each robot's arm,
-        controller's model, stiffness, control point and object model are read from it, never
-        re-derived; a validated scenario is planned here (:func:`~drake_coop.experiment.plan.
-        plan_run` of the whole task).
+    plan : RunPlan
+        The run's plan (:func:`~drake_coop.experiment.plan.plan_run`; with references other
+        than the scenario's, :meth:`~drake_coop.experiment.plan.RunPlan.with_references`).
     builder : DiagramBuilder, optional
         Builder to use (e.g. to add a visualizer first).
     log : bool
@@ -380,10 +382,6 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
         the offline ground truth also has ``wrist_forces_at_tick``
         (:class:`~drake_coop.plant.ground_truth.TickForces`), the force during the run for the
         Meshcat arrows.
-    references : list of Trajectory, optional
-        One reference trajectory per robot (rows of
-        :class:`~drake_coop.control.finger.ReferenceLayout`) instead of the scenario's
-        (studies and tests, e.g. a constant posture for Theorem 1).
     live_ground_truth : bool, optional
         Where the ground truth (``F_meas``, ``lambda_meas``) and the F/T sensor model
         (``lambda_sensor``) are computed. True: inside the loop, by
@@ -401,21 +399,25 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
     Returns
     -------
     Experiment
-        The built experiment.
+        The Diagram, its plant and each robot's systems.
 
     Raises
     ------
+    TypeError
+        ``plan`` is not a :class:`~drake_coop.experiment.plan.RunPlan` (a scenario is planned
+        first: ``build_experiment(plan_run(scenario))``).
     ValueError
         ``live_ground_truth=False`` in ``none`` mode, or with a robot's
         ``force_source: sensor`` in the ``planes`` and ``rigid`` modes.
     """
     if not isinstance(plan, RunPlan):
-        plan = plan_run(plan)
+        raise TypeError(f"plan: a RunPlan (plan_run(scenario)) is needed, got "
+                        f"{type(plan).__name__}")
     scenario = plan.scenario
     # The period checked once (against the plant's step) for every block of the diagram.
     h, dt = checked_period(plan.h, plan.dt), plan.dt
     estimator_h = (checked_period(ESTIMATOR_TICKS * h)
-                   if scenario.object_model.mode == "estimated" else None)
+                   if plan.object is not None and plan.object.estimated else None)
     needs_live = uses_live_ground_truth(scenario)
     if live_ground_truth is None:
         live_ground_truth = needs_live
@@ -423,7 +425,7 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
         raise ValueError("live_ground_truth=False needs planes, rigid or contact mode and, "
                          "outside contact mode, no robot with force_source: sensor")
     b = builder or DiagramBuilder()
-    coop = build_plant(b, scenario, time_step=dt, arms=plan.arms)
+    coop = build_plant(b, plan)
     plant = coop.plant
     sensors = add_force_sensors(b, coop, h) if live_ground_truth else [None] * len(coop.arms)
     models = [FTModel.from_settings(r.force_sensor, h, i, arm.arm.m)
@@ -434,9 +436,6 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
     if (not live_ground_truth and coop.mode == "contact"
             and (log or any(reads_sensor(r) for r in scenario.robots))):
         pads = add_pad_force_log(b, coop, h, models, log=log)
-    trajectories = (list(references) if references is not None
-                    else [reference_trajectory(scenario, i, plan=plan)
-                          for i in range(len(coop.arms))])
     # First every arm's sensors and control block, then the object layer between the control
     # blocks and the actuators (nothing without an object model), then actuators and logs.
     parts, arms = [], []
@@ -469,10 +468,9 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
             contact_stiffness=plan.robots[i].stiffness,
             prediction_horizon=robot.timing.prediction_horizon,
             name=name)
-        ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectories[i]))
+        ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(plan.robots[i].reference))
         parts.append((name, robot, state, encoder, q_port, ft, lambda_sensor, block))
-        arms.append(ArmSignals(q=q_port, reference=ref.get_output_port(), control=block.system,
-                               trajectory=trajectories[i]))
+        arms.append(ArmSignals(q=q_port, reference=ref.get_output_port(), control=block.system))
     # The object-aware blocks (object_model: known / estimated; with shared: true the one
     # object_state_estimator between the arms): none in the paper's diagram.
     layer = add_object_layer(b, plan, h, arms, estimator_period=estimator_h)
@@ -547,6 +545,5 @@ def build_experiment(plan: RunPlan | Scenario, *, builder: DiagramBuilder | None
         before_build(b, coop)
     diagram = b.Build()
     diagram.set_name("drake_coop_experiment")
-    return Experiment(scenario=scenario, diagram=diagram, coop=coop, robots=robots,
-                      ground_truth=ground_truth, object_state_estimator=layer.shared,
-                      plan=plan)
+    return Experiment(plan=plan, diagram=diagram, coop=coop, robots=robots,
+                      ground_truth=ground_truth, object_state_estimator=layer.shared)

@@ -40,7 +40,7 @@ from pydrake.systems.primitives import Adder, ConstantVectorSource, TrajectorySo
 from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.control.couple import face_distance, squeeze_couple
-from drake_coop.control.finger import ReferenceLayout
+from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.object import (
     CompressedReference,
     LoadFeedforward,
@@ -89,8 +89,9 @@ class ArmSignals:
 
     ``q``: the encoders' joint positions; ``reference``: the planned reference (the arm's
     ``TrajectorySource``, rows of :class:`~drake_coop.control.finger.ReferenceLayout`);
-    ``control``: the arm's control block (its ``tau``, ``qdot_o`` and ``qddot_r_hat`` outputs);
-    ``trajectory``: the planned reference as a trajectory (for the couple's samples).
+    ``control``: the arm's control block (its ``tau``, ``qdot_o`` and ``qddot_r_hat`` outputs).
+    The planned reference as a trajectory is the plan's
+    (:attr:`~drake_coop.experiment.plan.RobotPlan.reference`).
 
     Attributes
     ----------
@@ -100,14 +101,11 @@ class ArmSignals:
         The planned reference (rows of ``ReferenceLayout``).
     control : Diagram
         The arm's control block.
-    trajectory : Trajectory
-        The planned reference as a trajectory.
     """
 
     q: OutputPort
     reference: OutputPort
     control: object
-    trajectory: object
 
 
 @dataclass
@@ -154,7 +152,7 @@ def acceleration_samples(robot: RobotPlan, t: np.ndarray) -> np.ndarray:
     return cartesian_reference(robot.task, robot.robot, t)[2]
 
 
-def couple_samples(plan: RunPlan, index: int, trajectories, t: np.ndarray) -> np.ndarray:
+def couple_samples(plan: RunPlan, index: int, t: np.ndarray) -> np.ndarray:
     """Robot ``index``'s part ``f_c,i`` of the squeeze's couple at the times ``t`` (K, 3):
     :func:`~drake_coop.control.couple.squeeze_couple` on the two pads' centres
     along their references (forward kinematics of both ``q_d``, fixed before the run), the
@@ -165,10 +163,8 @@ def couple_samples(plan: RunPlan, index: int, trajectories, t: np.ndarray) -> np
     Parameters
     ----------
     plan : RunPlan
-        The run's plan (both arms' kinematics, contact offsets and stiffnesses).
-    trajectories : sequence of PiecewisePolynomial
-        Both robots' reference trajectories (:func:`~drake_coop.experiment.references.
-        reference_trajectory`).
+        The run's plan (both arms' kinematics, contact offsets, stiffnesses and reference
+        trajectories, :attr:`~drake_coop.experiment.plan.RobotPlan.reference`).
     index : int
         The robot's index.
     t : numpy.ndarray
@@ -181,13 +177,12 @@ def couple_samples(plan: RunPlan, index: int, trajectories, t: np.ndarray) -> np
     """
     t = np.asarray(t, dtype=float)
     centres, lam, held, rho, delta = [], [], [], [], []
-    for robot, traj in zip(plan.robots, trajectories):
-        r = np.asarray(traj.vector_values(t)).T
-        # Rows [q_d, q̇_d, q̈_d, λ_d, held] (ReferenceLayout).
-        n = (r.shape[1] - len(robot.robot.normals) - 1) // 3
-        centres.append(robot.arm.kinematics.fk(r[:, :n]))
-        lam.append(r[:, 3 * n] * r[:, -1])
-        held.append(r[:, -1])
+    for robot in plan.robots:
+        r = np.asarray(robot.reference.vector_values(t)).T
+        layout = robot.layout
+        held.append(layout.column(r, "held")[:, 0])
+        centres.append(robot.arm.kinematics.fk(layout.column(r, "q_d")))
+        lam.append(layout.column(r, "lambda_d")[:, 0] * held[-1])
         offset = robot.contact_offset
         rho.append(0.0 if offset is None else float(np.linalg.norm(offset)))
         stiffness = robot.stiffness
@@ -235,7 +230,7 @@ def add_object_blocks(b: DiagramBuilder, robot: RobotPlan, period: float, q: Out
     Returns
     -------
     ObjectBlocks
-        The systems added.
+        The feedforward (and estimator) added and the torque they feed.
     """
     om = robot.object_settings
     name, model = robot.name, robot.controller_model
@@ -266,7 +261,7 @@ def add_object_blocks(b: DiagramBuilder, robot: RobotPlan, period: float, q: Out
     b.Connect(control.GetOutputPort("tau"), tau_sum.get_input_port(0))
     b.Connect(ff.get_tau_ff_output_port(), tau_sum.get_input_port(1))
     estimator = None
-    if om.mode == "estimated":
+    if robot.object.estimated:
         # Every ESTIMATOR_TICKS ticks, with the forgetting per tick of the scenario (ρ^N per
         # update): the same horizon in seconds at a fifth of the cost.
         if estimator_period is None:
@@ -392,7 +387,6 @@ def add_object_layer(b: DiagramBuilder, plan: RunPlan, period: float,
         shared = add_object_state_estimator(
             b, plan, [ReferenceLayout(r.controller_model.n, r.controller_model.m)
                       for r in plan.robots], period)
-    trajectories = [arm.trajectory for arm in arms]
     blocks = []
     for i, (arm, robot) in enumerate(zip(arms, plan.robots)):
         reference = arm.reference
@@ -410,9 +404,9 @@ def add_object_layer(b: DiagramBuilder, plan: RunPlan, period: float,
                 b.Connect(reference, press.get_reference_input_port())
                 reference = press.get_compressed_reference_output_port()
         references[i] = reference
-        t_ref = np.asarray(arm.trajectory.get_segment_times())
+        t_ref = np.asarray(robot.reference.get_segment_times())
         # The squeeze's couple from both arms' references (fixed before the run).
-        couple = couple_samples(plan, i, trajectories, t_ref) if plan.uses_couple else None
+        couple = couple_samples(plan, i, t_ref) if plan.uses_couple else None
         blk = add_object_blocks(b, robot, period, arm.q, reference, arm.control, t_ref,
                                 couple, estimator_period=estimator_period)
         taus[i] = blk.tau

@@ -1,13 +1,11 @@
 """One resolved plan of a run: its time grid, tick indices, grasp height and arms.
 
-Computed by :func:`plan_run` once per simulated run (the runner passes it to the references;
-the stability map's operating point and the benchmark make their own plan of the same
-scenario):
+Computed by :func:`plan_run` once per simulated run, the only input below the planning
+floor (the builders take their section of it; the stability map and the benchmark plan too):
 
 * ``h``, ``dt`` — control period and plant step, aligned so that every tick is a plant step
-  (:func:`~drake_coop.experiment.ticks.time_grid`: the one place a scenario's periods are aligned, by
-  :func:`~drake_coop.control.timing.aligned_periods`; the plant builder, the diagram, the
-  runner, identification and the benchmark read it);
+  (:func:`~drake_coop.experiment.ticks.time_grid`, by
+  :func:`~drake_coop.control.timing.aligned_periods`);
 * ``k_grasp``, ``k_release`` — the first held and the first released control tick
   (``⌈t_grasp/h⌉``, ``⌈t_release/h⌉``): the only instants where the plant changes;
 * ``k_end`` — the last tick of the run (``min(t_end, task.t_end)``);
@@ -15,39 +13,30 @@ scenario):
 * ``robots`` — per robot a :class:`RobotPlan`, everything decided from the scenario for that
   arm: its :class:`~drake_coop.plant.arms.Arm` (base, constraints, kinematics), the
   controller's model, the pad's geometry and stiffness (read once, by Drake's parser), the
-  control point, the load's mass share, ``λ_d``; ``arms`` are their arms;
+  control point, the load's mass share, ``λ_d``, the references; ``arms`` are their arms;
 * ``object`` — the controllers' object model (:class:`ObjectPlan`), None without one.
 
-Every rule of the ``object_model`` section (``auto`` and ``null`` values) is decided here, in
-one place; the plant builder, the references, the diagram, the object blocks and the runner
-read the plan (each its own section), never the rule again. What is expensive (the pads'
-files, the controller's model) is resolved on first use and kept: a plan of the ``planes``
-run reads no pad.
+Every rule of the ``object_model`` section (``auto`` and ``null`` values) is decided here, once;
+the builders read the plan, never the rule again. What is expensive (the pads' files, the
+controller's model, the references) is resolved on first use and kept.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from drake_coop.experiment.squeeze import (  # noqa: F401 (re-exported)
-    GRASP_RAMP,
-    friction_squeeze,
-    grasp_ramp,
-)
-from drake_coop.experiment.ticks import (  # noqa: F401 (re-exported)
-    MAX_PLANT_STEPS,
-    MAX_TICKS,
-    _run_end,
-    check_run_size,
-    grasp_ticks,
-    num_ticks_until,
-    run_size,
-    time_grid,
-)
+from drake_coop.control.deprecation import moved
+from drake_coop.experiment.squeeze import friction_squeeze
+from drake_coop.experiment.ticks import _run_end, grasp_ticks, num_ticks_until, time_grid
+
+#: Moved names, found here until :mod:`drake_coop.control.deprecation`'s removal date.
+_MOVED = {**dict.fromkeys(("GRASP_RAMP", "grasp_ramp"), "drake_coop.experiment.squeeze"),
+          **dict.fromkeys(("MAX_PLANT_STEPS", "MAX_TICKS", "check_run_size", "run_size"),
+                          "drake_coop.experiment.ticks")}
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Robot, Scenario, Task
 
@@ -185,6 +174,8 @@ class ObjectPlan:
         self.model = grasp_object(scenario, self.mass)
         self.shares = np.asarray(mass_shares(self.model), dtype=float)
         self.mu = om.mu if om.mu is not None else scenario.plant.friction
+        #: Whether the controllers estimate the mass (``object_model.mode: estimated``).
+        self.estimated = om.mode == "estimated"
 
 
 class RobotPlan:
@@ -214,6 +205,11 @@ class RobotPlan:
         self.index = index
         self.robot: Robot = run.scenario.robots[index]
         self.arm = arm
+
+    @property
+    def run(self) -> "RunPlan":
+        """The run's plan this robot belongs to."""
+        return self._run
 
     @property
     def name(self) -> str:
@@ -345,6 +341,43 @@ class RobotPlan:
         obj = self._run.object
         return None if obj is None else float(obj.shares[self.index])
 
+    @cached_property
+    def layout(self):
+        """The rows of the robot's reference, ``[q_d, q̇_d, q̈_d, λ_d, held]``
+        (:class:`~drake_coop.control.reference_layout.ReferenceLayout` of its joints and
+        constraint rows)."""
+        from drake_coop.control.reference_layout import ReferenceLayout
+
+        return ReferenceLayout(self.arm.kinematics.n, self.arm.m)
+
+    @cached_property
+    def samples(self) -> tuple[np.ndarray, np.ndarray]:
+        """The robot's reference at every control tick, computed once: tick times ``t`` (K,),
+        rows ``r`` (K, :attr:`layout` size); the run's own
+        (:func:`~drake_coop.experiment.references.reference_samples`, to the plan's ``t_end``)
+        or the given trajectory's breaks and values (:meth:`RunPlan.with_references`)."""
+        given = self._run.references
+        if given is not None:
+            traj = given[self.index]
+            t = np.asarray(traj.get_segment_times(), dtype=float)
+            return t, np.asarray(traj.vector_values(t), dtype=float).T
+        from drake_coop.experiment.references import reference_samples
+
+        return reference_samples(self)
+
+    @cached_property
+    def reference(self):
+        """The robot's reference trajectory, computed once: :attr:`samples` as a first-order
+        hold (at a tick exactly that tick's sample), or the one given
+        (:meth:`RunPlan.with_references`)."""
+        given = self._run.references
+        if given is not None:
+            return given[self.index]
+        from pydrake.trajectories import PiecewisePolynomial
+
+        t, r = self.samples
+        return PiecewisePolynomial.FirstOrderHold(t, r.T)
+
     def lambda_d(self, t: np.ndarray) -> np.ndarray:
         """``λ_d`` at the times ``t`` (K, m): the force weights times the squeeze (29), or the
         friction squeeze (``object_model.squeeze: friction``).
@@ -385,6 +418,9 @@ class RunPlan:
         The grasp height, m.
     arms : tuple of Arm
         One resolved arm per robot.
+    references : tuple of Trajectory or None
+        One trajectory per robot instead of the scenario's (e.g. a constant posture for
+        Theorem 1), set by :meth:`with_references`; None for :attr:`RobotPlan.reference`.
     """
 
     scenario: Scenario
@@ -396,6 +432,38 @@ class RunPlan:
     k_release: int
     z_grasp: float
     arms: tuple[Arm, ...]
+    references: tuple | None = None
+
+    def with_references(self, trajectories) -> "RunPlan":
+        """The same run following ``trajectories`` instead of the scenario's references.
+
+        Parameters
+        ----------
+        trajectories : sequence of Trajectory
+            One per robot, in the scenario's order: rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` of
+            each robot's :attr:`RobotPlan.layout`.
+
+        Returns
+        -------
+        RunPlan
+            The new plan (its robots resolved again on first use).
+
+        Raises
+        ------
+        ValueError
+            Not one trajectory per robot, or rows other than its robot's layout.
+        """
+        trajectories = tuple(trajectories)
+        if len(trajectories) != len(self.arms):
+            raise ValueError(f"references: one trajectory per robot ({len(self.arms)}), got "
+                             f"{len(trajectories)}")
+        plan = replace(self, references=trajectories)
+        for robot, traj in zip(plan.robots, trajectories):
+            if traj.rows() != robot.layout.size:
+                raise ValueError(f"references[{robot.index}] ({robot.name}): "
+                                 f"{robot.layout.size} rows [q_d, qdot_d, qddot_d, lambda_d, "
+                                 f"held] expected, got {traj.rows()}")
+        return plan
 
     @cached_property
     def robots(self) -> tuple[RobotPlan, ...]:
@@ -511,3 +579,7 @@ def plan_run(scenario: Scenario, t_end: float | None = None) -> RunPlan:
                    z_grasp=task.circle_top_z - task.lift_height,
                    arms=tuple(Arm(r, task) for r in scenario.robots))
 
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

@@ -1,7 +1,7 @@
 """The references of each robot: joint references through its IK, the reference signal.
 
 The Cartesian paths (28) and the force profile (29) are the scenario's
-(:mod:`drake_coop.scenario.task_path`, re-exported here). Joint references come from the arm's
+(:mod:`drake_coop.scenario.task_path`). Joint references come from the arm's
 inverse kinematics (closed form for the paper's arms, Drake's otherwise,
 :attr:`drake_coop.plant.arms.Arm.kinematics`):
 ``q_d = IK(x_d)``, ``q̇_d = J⁻¹ ẋ_d``, ``q̈_d = J⁻¹ (ẍ_d − J̇ q̇_d)`` (``J`` the task Jacobian:
@@ -26,27 +26,20 @@ so the switch never depends on rounding of ``k·h``.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.trajectories import PiecewisePolynomial
 
-from drake_coop.control.reference_layout import ReferenceLayout
-from drake_coop.experiment.plan import RunPlan, num_ticks_until, plan_run
+from drake_coop.experiment.ticks import num_ticks_until
 from drake_coop.kinematics.pose_task import pad_control, point_kinematics
 from drake_coop.plant.arms import Arm
-from drake_coop.scenario.schema import Scenario
-from drake_coop.scenario.task_path import (
-    Segment,
-    cartesian_reference,
-    first_normal,
-    force_reference,
-    quintic,
-    segments,
-    waypoints,
-)
+from drake_coop.control.deprecation import moved
+from drake_coop.scenario.task_path import cartesian_reference
 
-#: The task's paths are the scenario's; they are re-exported for the callers of this module.
-__all__ = ["Segment", "cartesian_reference", "first_normal", "force_reference", "quintic",
-           "segments", "waypoints", "joint_reference", "redundant_joint_reference", "start_posture",
-           "reference_samples", "reference_trajectory", "compressed_path",
+#: The task's paths are the scenario's (:mod:`drake_coop.scenario.task_path` defines them;
+#: found here until the removal date of :mod:`drake_coop.control.deprecation`).
+_MOVED = dict.fromkeys(("Segment", "first_normal", "force_reference",
+                        "quintic", "segments", "waypoints"), "drake_coop.scenario.task_path")
+
+__all__ = ["joint_reference", "redundant_joint_reference", "start_posture",
+           "reference_samples", "compressed_path",
            "contact_point_reference", "followed_point", "rolling_correction", "pressed_path"]
 
 
@@ -138,48 +131,45 @@ def redundant_joint_reference(arm: Arm, task, t: np.ndarray, path=None
     return q, qd, qdd
 
 
-def reference_samples(scenario: Scenario, index: int, t_end: float | None = None,
-                      plan: RunPlan | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Reference vector of robot ``index`` at every control tick.
+def reference_samples(robot: "RobotPlan") -> tuple[np.ndarray, np.ndarray]:
+    """The reference vector of one robot at every control tick of its run, computed.
+
+    :attr:`RobotPlan.samples <drake_coop.experiment.plan.RobotPlan.samples>` calls this once
+    per plan and keeps the result; read that (or :attr:`~drake_coop.experiment.plan.RobotPlan.
+    reference`, the trajectory) rather than computing again.
 
     Parameters
     ----------
-    t_end : float, optional
-        Last time needed (a run stopped early): the samples end at the first tick at or after
-        ``min(t_end, task.t_end)``; the ticks before are the same as the full run's.
-    plan : RunPlan, optional
-        The run's plan when the caller has it (else computed from ``scenario``): its arm,
-        ``λ_d``, control point and contact stiffness of the robot.
-    scenario : Scenario
-        The scenario.
-    index : int
-        The robot's index.
+    robot : RobotPlan
+        The robot's plan (its arm, ``λ_d``, control point and contact stiffness; the run's
+        ``h``, grasp ticks and ``t_end``: the samples end at the first tick at or after
+        ``min(t_end, task.t_end)``, and the ticks before are the same as the whole task's).
 
     Returns
     -------
     t : ndarray, shape (K,)
-        Tick times ``k h`` (``h`` of the run's plan, :mod:`drake_coop.experiment.plan`).
+        Tick times ``k h``.
     r : ndarray, shape (K, 3n + m + 1)
-        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:class:`drake_coop.control.reference_layout.ReferenceLayout`).
+        Rows ``[q_d, q̇_d, q̈_d, λ_d, held]`` (:attr:`~drake_coop.experiment.plan.RobotPlan.
+        layout`).
     """
-    plan = plan or plan_run(scenario)
-    h, task, robot = plan.h, scenario.task, scenario.robots[index]
+    plan = robot.run
+    resolved, index = robot, robot.index
+    h, task, robot = plan.h, plan.scenario.task, robot.robot
     k_last = num_ticks_until(task.t_end, h)      # the whole task (the plan may be a shorter run)
-    if t_end is not None:
-        k_last = max(1, min(k_last, num_ticks_until(t_end, h) + 1))
+    k_last = max(1, min(k_last, num_ticks_until(plan.t_end, h) + 1))
     k = np.arange(k_last + 1)
     t = k * h
     arm = plan.arms[index]
     redundant = getattr(arm.kinematics, "redundant", False)
     x, xd, xdd = cartesian_reference(task, robot, t)
     held = ((k >= plan.k_grasp) & (k < plan.k_release)).astype(float)
-    resolved = plan.robots[index]       # λ_d, the control point, the stiffness: the plan's
     lam = resolved.lambda_d(t)
     point = resolved.control_point
     stiffness = resolved.stiffness
     inward = -np.asarray(robot.normals[0], dtype=float)
     path = None
-    if stiffness is not None and not scenario.object_model.shared:
+    if stiffness is not None and not plan.shared:
         # (object_model.shared: λ_d is chosen during the run, and so is the compression:
         # CompressedReference presses the joint references in online.)
         # A compliant contact: the pad is held where the contact carries λ_d, pressed in by
@@ -209,7 +199,7 @@ def reference_samples(scenario: Scenario, index: int, t_end: float | None = None
                                                  xdd + c[2])
     else:      # the centre's path (with the pose held: the material point's too)
         q, qd, qdd = joint_reference(arm, x, xd, xdd)
-    return t, ReferenceLayout(q.shape[1], arm.m).pack(q, qd, qdd, lam, held)
+    return t, resolved.layout.pack(q, qd, qdd, lam, held)
 
 
 def contact_point_reference(kinematics, point, x: np.ndarray, xd: np.ndarray,
@@ -427,29 +417,6 @@ def pressed_path(stiffness, path, lam, times: np.ndarray, h: float, inward: np.n
     return (x + d0[:, None] * n, xd + d1[:, None] * n, xdd + d2[:, None] * n)
 
 
-def reference_trajectory(scenario: Scenario, index: int, t_end: float | None = None,
-                         plan: RunPlan | None = None) -> PiecewisePolynomial:
-    """The tick samples as a first-order-hold :class:`PiecewisePolynomial`.
-
-    Evaluated at a tick time it returns that tick's sample exactly; the controller and the
-    observers only read it at their ticks. ``t_end`` limits it to a shorter run (see
-    :func:`reference_samples`).
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario.
-    index : int
-        The robot's index.
-    t_end : float or None
-        The run's end, s.
-    plan : RunPlan or None
-        The run's plan; None plans it here.
-
-    Returns
-    -------
-    PiecewisePolynomial
-        The trajectory of the rows ``[q_d, q̇_d, q̈_d, λ_d, held]``.
-    """
-    t, r = reference_samples(scenario, index, t_end, plan)
-    return PiecewisePolynomial.FirstOrderHold(t, r.T)
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

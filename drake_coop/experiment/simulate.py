@@ -39,12 +39,10 @@ from pydrake.systems.analysis import Simulator, SimulatorStatus
 
 from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.failure import failure_check, first_failure_in_logs, plant_sample
-from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
-from drake_coop.experiment.references import (
-    cartesian_reference,
-    reference_trajectory,
-    start_posture,
-)
+from drake_coop.experiment.plan import RunPlan, plan_run
+from drake_coop.experiment.ticks import check_run_size
+from drake_coop.experiment.references import start_posture
+from drake_coop.scenario.task_path import cartesian_reference
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.kinematics.rotations import pad_contact_components
 from drake_coop.scenario.loading import dump_scenario
@@ -116,23 +114,18 @@ def initialize(exp: Experiment, context) -> None:
     context : Context
         The root context.
     """
-    set_rest_state(exp, context, *rest_posture(
-        exp.plan if exp.plan is not None else exp.scenario, [h.arm for h in exp.coop.arms]))
+    set_rest_state(exp, context, *rest_posture(exp.plan))
 
 
-def rest_posture(plan: RunPlan | Scenario, arms: list | None = None
-                 ) -> tuple[list[np.ndarray], float]:
+def rest_posture(plan: RunPlan) -> tuple[list[np.ndarray], float]:
     """The run's start: each arm's ``q_d(0)`` (one posture per robot, with the plan's control
-    points) and the height of the object's sliders at the grasp
-    (``circle_top_z − lift_height``). ``arms``: the arms to pose (default: the plan's); a
-    scenario is planned here.
+    points) and the height of the object's sliders at the grasp (the plan's ``z_grasp``,
+    ``circle_top_z − lift_height``).
 
     Parameters
     ----------
-    plan : RunPlan or Scenario
-        The run's plan, or a scenario to plan.
-    arms : list of Arm or None
-        The arms to pose; None for the plan's.
+    plan : RunPlan
+        The run's plan.
 
     Returns
     -------
@@ -141,13 +134,9 @@ def rest_posture(plan: RunPlan | Scenario, arms: list | None = None
     z_grasp : float
         The sliders' height, m.
     """
-    if not isinstance(plan, RunPlan):
-        plan = plan_run(plan)
     task = plan.scenario.task
-    arms = plan.arms if arms is None else arms
-    q0 = [start_posture(arm, task, resolved.control_point)
-          for arm, resolved in zip(arms, plan.robots)]
-    return q0, task.circle_top_z - task.lift_height
+    q0 = [start_posture(resolved.arm, task, resolved.control_point) for resolved in plan.robots]
+    return q0, plan.z_grasp
 
 
 def set_rest_state(exp: Experiment, context, q0: list[np.ndarray], z_grasp: float) -> None:
@@ -427,12 +416,10 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     plan = plan_run(scenario, t_end)
     T = plan.t_end
     check_run_size(scenario, T)
-    # References only to the run's end: a long task stopped early stays cheap.
-    references = [reference_trajectory(scenario, i, T, plan)
-                  for i in range(len(scenario.robots))]
+    # The plan's references run only to the run's end: a long task stopped early stays cheap.
     from drake_coop.experiment.squeeze_check import check_squeeze_limits
-    check_squeeze_limits(scenario, plan, T, references)      # contact mode: refused before
-    exp = build_experiment(plan, before_build=before_build, references=references,
+    check_squeeze_limits(plan)      # contact mode: refused before anything is built
+    exp = build_experiment(plan, before_build=before_build,
                            live_ground_truth=live_ground_truth)
     simulator = Simulator(exp.diagram)
     context = simulator.get_mutable_context()

@@ -17,54 +17,46 @@ from __future__ import annotations
 
 import numpy as np
 
-from drake_coop.scenario.schema import Scenario, ScenarioError
+from drake_coop.experiment.plan import RobotPlan, RunPlan
+from drake_coop.scenario.schema import ScenarioError
 
 __all__ = ["check_squeeze_limits", "torque_limits"]
 
 
-def torque_limits(scenario: Scenario, index: int, plan=None) -> np.ndarray:
-    """The robot ``index``'s ``τ_max``: ``actuators.torque_limits``, else its simulated URDF's
-    effort limits (Drake's reading; ``inf`` where none).
+def torque_limits(robot: RobotPlan) -> np.ndarray:
+    """One robot's ``τ_max``: ``actuators.torque_limits``, else its simulated URDF's effort
+    limits (Drake's reading; ``inf`` where none).
 
     Parameters
     ----------
-    scenario : Scenario
-        The scenario.
-    index : int
-        The robot's index.
-    plan : RunPlan or None
-        The run's plan; None plans it here.
+    robot : RobotPlan
+        The robot's plan (its entry and resolved arm).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``τ_max`` (n,), N·m; ``inf`` where none is known.
     """
     from drake_coop.control.arm_plant import make_arm_controller_plant
     from drake_coop.control.squeeze_limits import effort_limits
-    from drake_coop.experiment.plan import plan_run
 
-    robot = scenario.robots[index]
-    if robot.actuators.torque_limits is not None:
-        return np.asarray(robot.actuators.torque_limits, dtype=float)
-    arm = (plan or plan_run(scenario)).arms[index]
+    if robot.robot.actuators.torque_limits is not None:
+        return np.asarray(robot.robot.actuators.torque_limits, dtype=float)
+    arm = robot.arm
     return effort_limits(make_arm_controller_plant(arm.urdf_path, arm.base_frame))
 
 
-def check_squeeze_limits(scenario: Scenario, plan=None, t_end: float | None = None,
-                         references=None) -> None:
+def check_squeeze_limits(plan: RunPlan) -> None:
     """Refuse a grasp the arms cannot hold within their torque limits (see the module).
 
     Only in ``contact`` mode (the other modes hold the object by constraints, not friction).
-    ``references``: the run's reference trajectories when the caller has them
-    (:func:`~drake_coop.experiment.references.reference_trajectory`, one per robot: their
-    breaks are the ticks and their values the samples), else computed here.
+    The references are the plan's (:attr:`~drake_coop.experiment.plan.RobotPlan.samples`,
+    computed once, to the run's end).
 
     Parameters
     ----------
-    scenario : Scenario
-        The scenario.
-    plan : RunPlan or None
-        The run's plan; None plans it here.
-    t_end : float or None
-        The run's end, s.
-    references : list of PiecewisePolynomial or None
-        The run's reference trajectories.
+    plan : RunPlan
+        The run's plan.
 
     Raises
     ------
@@ -72,36 +64,31 @@ def check_squeeze_limits(scenario: Scenario, plan=None, t_end: float | None = No
         ``robots[i] (name): at t = ... s the squeeze ... N with the object's load needs ...
         at <joint>, beyond its torque limit ...; they allow ... N there``.
     """
+    scenario = plan.scenario
     if scenario.plant.object_mode != "contact":
         return
-    from drake_coop.control.reference_layout import ReferenceLayout
     from drake_coop.control.object import load_distribution
     from drake_coop.control.squeeze_limits import check_squeeze_path, squeeze_torques
     from drake_coop.experiment.object_blocks import acceleration_samples
-    from drake_coop.experiment.plan import grasp_object, plan_run
-    from drake_coop.experiment.references import reference_samples
+    from drake_coop.experiment.plan import grasp_object
     from drake_coop.plant.arms import arm_model
 
-    plan = plan or plan_run(scenario, t_end)
     obj = grasp_object(scenario, float(scenario.plant.object_mass))   # the true object
-    for i, robot in enumerate(scenario.robots):
-        limits = torque_limits(scenario, i, plan)
+    for i, resolved in enumerate(plan.robots):
+        robot = resolved.robot
+        limits = torque_limits(resolved)
         if not np.isfinite(limits).any():
             continue
-        if references is not None:
-            t = np.asarray(references[i].get_segment_times(), dtype=float)
-            r = np.asarray(references[i].vector_values(t)).T
-        else:
-            t, r = reference_samples(scenario, i, t_end, plan)
-        arm = plan.arms[i]
-        n = (r.shape[1] - arm.m - 1) // 3
-        layout = ReferenceLayout(n, arm.m)
+        t, r = resolved.samples
+        arm = resolved.arm
+        layout = resolved.layout
+        n = layout.n
         q, qd, qdd = (layout.column(r, row) for row in ("q_d", "qdot_d", "qddot_d"))
         held = layout.column(r, "held")[:, 0]
         lam = layout.column(r, "lambda_d")[:, 0] * held
-        xdd = acceleration_samples(plan.robots[i], t)
+        xdd = acceleration_samples(resolved, t)
         nu = obj.grasp_normals[i]
-        offset = plan.robots[i].contact_offset
+        offset = resolved.contact_offset
         model = arm_model(arm, arm.urdf_path)
         # The load is affine in the acceleration (G⁺ w, w = [m (a − g); 0]): from 4 solves.
         f0 = load_distribution(obj, np.zeros(3))[i]

@@ -40,11 +40,12 @@ def _segment_pose(p: np.ndarray) -> tuple[RigidTransform, float]:
 
 
 def _build(scenario, radius: float):
+    from drake_coop.plant.arms import Arm
     from drake_coop.plant.cooperative import add_arms
 
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(MultibodyPlantConfig(time_step=0.0), builder)
-    arms = add_arms(plant, scene_graph, scenario)
+    arms = add_arms(plant, scene_graph, [Arm(robot, scenario.task) for robot in scenario.robots])
     grasp = None
     if scenario.plant.object_mode == "contact":
         from drake_coop.plant.grasp import add_contact_object

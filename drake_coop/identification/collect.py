@@ -31,7 +31,7 @@ from drake_coop.identification.excitation import FourierExcitation
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario.schema import Scenario
 from drake_coop.control.timing import tick_of
-from drake_coop.experiment.plan import time_grid
+from drake_coop.experiment.ticks import time_grid
 from drake_coop.sensing.actuators import add_actuators
 from drake_coop.sensing.encoders import Encoders
 from drake_coop.plant.model_error import add_payload

@@ -38,7 +38,7 @@ from drake_coop.identification.instrumental import (
 )
 from drake_coop.identification.excitation import FourierExcitation, design_excitation
 from drake_coop.identification.regressor import ArmStructure, identifiable_basis
-from drake_coop.identification.setup import (  # noqa: F401 (IdentifyInputError re-exported)
+from drake_coop.identification.setup import (
     IdentificationSetup,
     IdentifyInputError,
     design_for,
@@ -261,7 +261,7 @@ def identify_recording(scenario, recording: WireRecording, seed: int = 0,
     """
     import math
 
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.ticks import time_grid
 
     names = [r.name for r in scenario.robots]
     i = recording.index
@@ -300,7 +300,7 @@ def closed_loop(scenario: Scenario, index: int, excitation: FourierExcitation, n
     data : ExcitationData
         The recorded experiment (its ticks and torque limits).
     """
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.ticks import time_grid
     from drake_coop.identification.collect import tracking_gains
 
     h, dt = time_grid(scenario)

@@ -31,7 +31,7 @@ inertia); the controllers never read it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Protocol, Sequence
 
 import numpy as np
 from pydrake.geometry import Box, SceneGraph
@@ -58,6 +58,26 @@ from drake_coop.scenario.schema import Scenario
 
 if TYPE_CHECKING:
     from drake_coop.plant.grasp import ContactObject
+
+
+class _PlantSection(Protocol):
+    """What the plant is built from: the part of a run's plan
+    (:class:`~drake_coop.experiment.plan.RunPlan`, a layer above, which has these) the plant
+    reads, in the manner of Drake's ``ApplyMultibodyPlantConfig(config, builder)``.
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The scenario (its ``plant`` section, task and robots).
+    dt : float
+        The plant step on the run's time grid, s.
+    arms : sequence of Arm
+        The resolved arms, one per robot.
+    """
+
+    scenario: Scenario
+    dt: float
+    arms: Sequence[Arm]
 
 #: Mass of the planes-mode sliders and of the object carriage (kg): negligible against the
 #: end effectors but large enough for a well-conditioned SAP problem.
@@ -299,9 +319,8 @@ def _add_slider(plant: MultibodyPlant, name: str, p_anchor: np.ndarray, axes: np
 
 
 def add_arms(plant: MultibodyPlant, scene_graph: SceneGraph | None,
-             scenario: Scenario, arms: Sequence[Arm] | None = None) -> list[ArmHandles]:
-    """Parse every arm, weld its base frame at its pose in the palm frame (``arms``: the
-    run's resolved arms, one per robot; default: made here from the scenario).
+             arms: Sequence[Arm]) -> list[ArmHandles]:
+    """Parse every arm, weld its base frame at its pose in the palm frame.
 
     Parameters
     ----------
@@ -309,21 +328,19 @@ def add_arms(plant: MultibodyPlant, scene_graph: SceneGraph | None,
         The plant (not finalized).
     scene_graph : SceneGraph or None
         Its scene graph, for the arms' geometry.
-    scenario : Scenario
-        The run's scenario (its robots and task).
-    arms : sequence of Arm or None
-        The resolved arms, one per robot; None builds them from ``scenario``.
+    arms : sequence of Arm
+        The run's resolved arms (:attr:`RunPlan.arms
+        <drake_coop.experiment.plan.RunPlan.arms>`), one per robot, each with its robot's
+        entry (model instances are prefixed with the robot's name).
 
     Returns
     -------
     list of ArmHandles
-        One per robot, in the scenario's order.
+        One per arm, in order.
     """
-    if arms is None:
-        arms = [Arm(robot, scenario.task) for robot in scenario.robots]
     handles = []
-    for robot, arm in zip(scenario.robots, arms):
-        parser = Parser(plant, scene_graph, model_name_prefix=robot.name)
+    for arm in arms:
+        parser = Parser(plant, scene_graph, model_name_prefix=arm.robot.name)
         (instance,) = parser.AddModels(str(arm.urdf_path))
         X_WB = RigidTransform(RotationMatrix.MakeZRotation(arm.yaw), arm.p_base)
         plant.WeldFrames(plant.world_frame(),
@@ -354,33 +371,28 @@ def _outboard_bodies(plant: MultibodyPlant, weld: Joint) -> list[RigidBody]:
     return sorted(found, key=lambda b: int(b.index()))
 
 
-def build_plant(builder: DiagramBuilder, scenario: Scenario,
-                time_step: float | None = None, arms: Sequence[Arm] | None = None
-                ) -> CoopPlant:
-    """Add the cooperative plant (with its SceneGraph) to ``builder``.
+def build_plant(builder: DiagramBuilder, plan: _PlantSection) -> CoopPlant:
+    """Add the cooperative plant (with its SceneGraph) to ``builder``, from the run's plan.
 
     Parameters
     ----------
     builder : DiagramBuilder
         The builder the plant and its scene graph are added to.
-    scenario : Scenario
-        Uses ``scenario.plant`` (time step, object mode, object mass, friction) and the robots.
-    time_step : float, optional
-        The plant step on the run's time grid (``RunPlan.dt``,
-        :func:`drake_coop.experiment.ticks.time_grid`: a multiple of it is exactly the control
-        period); default ``scenario.plant.time_step`` as written.
-    arms : sequence of Arm, optional
-        The run's resolved arms (``RunPlan.arms``, one per robot, in order), so that the plant
-        and the run share one :class:`~drake_coop.plant.arms.Arm` per robot; default: made
-        from the scenario.
+    plan : RunPlan
+        The run's plan (a :class:`~drake_coop.experiment.plan.RunPlan`): its plant step ``dt`` on the run's time grid
+        (:func:`drake_coop.experiment.ticks.time_grid`: a multiple of it is exactly the
+        control period), its resolved arms (one :class:`~drake_coop.plant.arms.Arm` per
+        robot, shared with the run) and its scenario's ``plant`` section (object mode, object
+        mass, friction) and task.
 
     Returns
     -------
     CoopPlant
         Finalized plant with handles to arms, constraints and object.
     """
+    scenario = plan.scenario
     settings = scenario.plant
-    time_step = settings.time_step if time_step is None else time_step
+    time_step = plan.dt
     config = MultibodyPlantConfig(
         time_step=time_step,
         discrete_contact_approximation="sap",
@@ -397,7 +409,7 @@ def build_plant(builder: DiagramBuilder, scenario: Scenario,
     # controllers' (all read x(t_k)); the force sensor then reports the forces of the step
     # that starts at t_k, under the torque τ(k) of that tick.
     plant.SetUseSampledOutputPorts(False)
-    arms = add_arms(plant, scene_graph, scenario, arms)
+    arms = add_arms(plant, scene_graph, plan.arms)
     from drake_coop.plant.model_error import add_payload  # the unmodelled payloads
 
     for h, robot in zip(arms, scenario.robots):

@@ -99,7 +99,7 @@ from pydrake.multibody.tree import (
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import Context, InputPort, LeafSystem, OutputPort
 
-from drake_coop.plant.prism import PrismSection, _prism_shape, prism_section  # noqa: F401
+from drake_coop.plant.prism import _prism_shape, prism_section
 from drake_coop.scenario.schema import Scenario
 
 #: y (depth) and z (height) size of the box (m).

@@ -2,7 +2,7 @@
 cross-section, one flat side per pad a pad radius inside the pad's contact point along its
 outward normal (:func:`prism_section`), and Drake's :class:`~pydrake.geometry.Convex` of it.
 Each pad then presses a sphere on a plane, as on the two-arm box; used by
-:func:`drake_coop.plant.grasp.add_contact_object` (which re-exports these names)."""
+:func:`drake_coop.plant.grasp.add_contact_object`."""
 
 from __future__ import annotations
 

@@ -54,10 +54,12 @@ from pydrake.systems.framework import (
 from pydrake.systems.primitives import Multiplexer, ZeroOrderHold
 
 from drake_coop.plant.cooperative import ArmHandles, CoopPlant
-from drake_coop.plant.wrist_dynamics import (  # noqa: F401 (re-exported)
-    ArmForces,
-    WristDynamics,
-)
+from drake_coop.control.deprecation import moved
+from drake_coop.plant.wrist_dynamics import WristDynamics
+
+#: Names this module no longer holds (found here until the removal date of
+#: :mod:`drake_coop.control.deprecation`).
+_MOVED = {"ArmForces": "drake_coop.plant.wrist_dynamics"}
 
 
 def _wrist_size(handles: ArmHandles) -> int:
@@ -308,3 +310,8 @@ def add_force_sensors(builder: DiagramBuilder, coop: CoopPlant, period: float | 
             sensor.lambda_step = wrist.GetOutputPort(f"{h.arm.name}_lambda_step")
         sensors.append(sensor)
     return sensors
+
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

@@ -139,7 +139,7 @@ def _load(args, wait_option: str, wait: float):
     from drake_coop.scenario.model_check import check_models
     from drake_coop.scenario.resources import find_scenario
     from drake_coop.scenario.schema import ScenarioError
-    from drake_coop.experiment.plan import check_run_size
+    from drake_coop.experiment.ticks import check_run_size
 
     try:
         check_lcm_url(args.lcm_url)
@@ -243,13 +243,13 @@ def cmd_serve(args) -> int:
             unlock_memory()
         return _error(str(exc))
     try:
-        return _serve(args, scenario, specs, plan, lcm, folder, staging, rt)
+        return _serve(args, specs, plan, lcm, folder, staging, rt)
     except BaseException:
         folder.discard()
         raise
 
 
-def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
+def _serve(args, specs, plan, lcm, folder, staging, realtime) -> int:
     import numpy as np
 
     from drake_coop.control.watchdog import STATUS_OK
@@ -284,13 +284,14 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
     from drake_coop.scenario.cell import CellSettings
     from drake_coop.scenario.loading import dump_scenario
 
+    scenario = plan.scenario
     quiet = args.quiet
     memq = isinstance(args.lcm_url, str) and args.lcm_url.startswith("memq://")
     names = [s.robot for s in specs]
     served = names if args.robot is None else [args.robot]
     margin, margins, margin_reason = serve_margin(scenario, served, args.delay_margin, quiet)
     index = [names.index(r) for r in served]
-    loop = ServeLoop(scenario, plan, lcm, specs, robots=served)
+    loop = ServeLoop(plan, lcm, specs, robots=served)
     specs = loop.specs                    # the arms served, their torque limits resolved
     arrivals = status_arrivals(lcm, specs)   # every message's bytes checked as it arrives
     lockstep = None
@@ -340,7 +341,7 @@ def _serve(args, scenario, specs, plan, lcm, folder, staging, realtime) -> int:
                   "--robot, on the same --lcm-url); nothing written", file=sys.stderr)
             folder.discard()
             return 1
-        rest, _ = rest_posture(scenario, list(plan.arms))
+        rest, _ = rest_posture(plan)
         q0 = []
         for i, spec in zip(index, specs):
             q, _, fault, value = arrivals.parsed(spec.status_channel)

@@ -17,9 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from drake import lcmt_panda_command, lcmt_panda_status
-from drake_coop.experiment.plan import time_grid
-from drake_coop.scenario.driver import FRANKA_DAMPING
-from drake_coop.scenario.schema import Driver, Scenario, ScenarioError
+from drake_coop.control import registry
+from drake_coop.control.registry import EXTERNAL_INPUTS
+from drake_coop.experiment.ticks import time_grid
+from drake_coop.scenario.driver import FRANKA_DAMPING, Driver
+from drake_coop.scenario.schema import Scenario, ScenarioError
 from drake_coop.scenario.validation import driver_channels
 
 
@@ -133,20 +135,21 @@ def driver_specs(scenario: Scenario, joints: list[int]) -> list[DriverSpec]:
     Raises
     ------
     ScenarioError
-        A velocity or force source that needs what a driver does not give (``measured``
-        velocities, an F/T ``sensor``), or a ``max_status_age`` shorter than one control
+        A velocity or force source that reads an input from outside the block a driver
+        does not give (:func:`~drake_coop.control.registry.missing_inputs`: the measured
+        velocities, an F/T reading), or a ``max_status_age`` shorter than one control
         period, naming the field.
     """
     h = time_grid(scenario)[0]
     specs = []
     for i, (robot, n) in enumerate(zip(scenario.robots, joints)):
-        if robot.velocity_source == "measured":
-            raise ScenarioError(f"robots[{i}].velocity_source: 'measured' reads the arm's "
-                                "velocity, which the driver's status is not used for; use "
-                                "observer or difference")
-        if robot.force_source == "sensor":
-            raise ScenarioError(f"robots[{i}].force_source: 'sensor' needs an F/T sensor the "
-                                "driver does not carry; use observer, momentum or none")
+        for field, name, signal in registry.missing_inputs(robot):
+            kind = "velocity" if field == "velocity_source" else "force"
+            usable = [s.name for s in registry.SOURCES if s.kind == kind
+                      and not s.external_inputs]
+            raise ScenarioError(f"robots[{i}].{field}: {name!r} reads "
+                                f"{EXTERNAL_INPUTS[signal]}, which the arm's driver does not "
+                                f"give; use {', '.join(usable)}")
         d = robot.driver if robot.driver is not None else Driver()
         if d.max_status_age < h * (1 - 1e-9):
             raise ScenarioError(f"robots[{i}].driver.max_status_age: at least one control "

@@ -59,8 +59,7 @@ from drake_coop.control.block import AddCooperativeController, ControllerHandles
 from drake_coop.control.watchdog import Watchdog
 from drake_coop.control.params import checked_period
 from drake_coop.experiment.object_blocks import ESTIMATOR_TICKS, add_object_blocks, couple_samples
-from drake_coop.experiment.plan import RunPlan, time_grid
-from drake_coop.experiment.references import reference_trajectory
+from drake_coop.experiment.plan import RunPlan
 from drake_coop.plant.cooperative import CoopPlant, build_plant
 from drake_coop.plant.model_error import controller_arm_model
 from drake_coop.robot.driver_spec import (  # noqa: F401 (re-exported)
@@ -73,7 +72,7 @@ from drake_coop.robot.driver_spec import (  # noqa: F401 (re-exported)
 from drake_coop.robot.status import CheckedStatusReceiver, RawMessage
 from drake_coop.robot.torque_driver import FRANKA_LOW_PASS_HZ, DriverClock, TorqueDriver
 from drake_coop.robot.wire import WireCommand
-from drake_coop.scenario.schema import Scenario, ScenarioError
+from drake_coop.scenario.schema import ScenarioError
 
 #: The command of tick ``k`` is published at ``t_k + COMMAND_OFFSET`` (simulated time): after
 #: the tick's updates, off the driver's 1 ms grid.
@@ -250,8 +249,8 @@ def urdf_limits(plant, instance) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(effort, dtype=float), np.asarray(velocity, dtype=float)
 
 
-def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
-                        plan: RunPlan, specs: list[DriverSpec] | None = None, *,
+def add_controller_side(builder: DiagramBuilder, plan: RunPlan, lcm: DrakeLcm,
+                        specs: list[DriverSpec] | None = None, *,
                         status_input: str = "subscriber",
                         robots: list[str] | None = None,
                         clock: DriverClock | None = None) -> ControllerSide:
@@ -291,12 +290,10 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     ----------
     builder : DiagramBuilder
         The controller's builder.
-    scenario : Scenario
-        The scenario.
+    plan : RunPlan
+        The run's plan (its scenario, resolved arms and references).
     lcm : DrakeLcm
         The LCM connection.
-    plan : RunPlan
-        The run's plan.
     specs : list of DriverSpec or None
         The drivers; None resolves them here.
     status_input : str
@@ -309,15 +306,16 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     Returns
     -------
     ControllerSide
-        The systems added.
+        Each served arm's systems (control block, watchdog, LCM) and the models' plant.
 
     Raises
     ------
     ScenarioError
         An arm with no finite torque limit anywhere (``robots[i].driver.torque_limits``).
     """
+    scenario = plan.scenario
     model_builder = DiagramBuilder()
-    coop = build_plant(model_builder, scenario, plan.dt)
+    coop = build_plant(model_builder, plan)
     joints = [coop.plant.num_positions(a.instance) for a in coop.arms]
     specs = specs if specs is not None else driver_specs(scenario, joints)
     if status_input not in ("subscriber", "loop"):
@@ -329,10 +327,9 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
                             "arm's reading in one diagram; not served over the cable")
     # The object model's blocks (object_model: known / estimated), as in the simulated
     # diagram: each arm's load feedforward (and mass estimator) on its own reading.
-    trajectories = [reference_trajectory(scenario, i, plan.t_end, plan)
-                    for i in range(len(coop.arms))]
+    trajectories = [resolved.reference for resolved in plan.robots]
     estimator_h = (checked_period(ESTIMATOR_TICKS * plan.h)
-                   if scenario.object_model.mode == "estimated" else None)
+                   if plan.object is not None and plan.object.estimated else None)
     arms = []
     for i, (handles, robot, spec) in enumerate(zip(coop.arms, scenario.robots, specs)):
         if robots is not None and robot.name not in robots:
@@ -383,7 +380,7 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
         tau = block.tau_output
         if plan.object is not None:
             t_ref = np.asarray(trajectories[i].get_segment_times())
-            couple = (couple_samples(plan, i, trajectories, t_ref) if plan.uses_couple
+            couple = (couple_samples(plan, i, t_ref) if plan.uses_couple
                       else None)
             tau = add_object_blocks(builder, resolved, plan.h, q, ref.get_output_port(),
                                     block.system, t_ref, couple,
@@ -416,7 +413,7 @@ def add_controller_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeL
     return ControllerSide(arms=arms, model_plant=coop, keep=[model_builder])
 
 
-def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
+def add_driver_side(builder: DiagramBuilder, plan: RunPlan, lcm: DrakeLcm,
                     specs: list[DriverSpec] | None = None, *, clock: DriverClock | None = None,
                     emulate: str | None = None,
                     low_pass_hz: float = FRANKA_LOW_PASS_HZ) -> DriverSide:
@@ -427,8 +424,8 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
     ----------
     builder : DiagramBuilder
         The driver's builder.
-    scenario : Scenario
-        The scenario.
+    plan : RunPlan
+        The run's plan (its scenario, plant step and resolved arms).
     lcm : DrakeLcm
         The LCM connection.
     specs : list of DriverSpec or None
@@ -445,14 +442,15 @@ def add_driver_side(builder: DiagramBuilder, scenario: Scenario, lcm: DrakeLcm,
     Returns
     -------
     DriverSide
-        The systems added.
+        The plant and each arm's simulated driver on it.
 
     Raises
     ------
     ValueError
         ``emulate`` with an arm of other than 7 joints (one line naming the robot).
     """
-    coop = build_plant(builder, scenario, time_grid(scenario)[1])
+    scenario = plan.scenario
+    coop = build_plant(builder, plan)
     plant = coop.plant
     joints = [plant.num_positions(a.instance) for a in coop.arms]
     specs = specs if specs is not None else driver_specs(scenario, joints)

@@ -20,8 +20,8 @@ from pydrake.systems.framework import Context, DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
 from drake_coop.control.reference_layout import ReferenceLayout
-from drake_coop.experiment.plan import RunPlan, check_run_size, plan_run
-from drake_coop.experiment.references import reference_trajectory
+from drake_coop.experiment.plan import RunPlan, plan_run
+from drake_coop.experiment.ticks import check_run_size
 from drake_coop.experiment.simulate import guard_chunks, phases, rest_posture
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.plant.ground_truth import add_ground_truth
@@ -64,8 +64,8 @@ class LoopbackResult:
     wall_time: float
 
 
-def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
-                     driver: DriverSide | None, controller: ControllerSide | None,
+def initialize_sides(plan: RunPlan, context: Context, driver: DriverSide | None,
+                     controller: ControllerSide | None,
                      q0: list[np.ndarray] | None = None) -> list[np.ndarray]:
     """The run's start: the driver's arms at rest at ``q_d(0)`` (sliders at the grasp
     height), the controller's observers at ``q̂ = q0`` and its watchdogs untripped with
@@ -73,8 +73,6 @@ def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
 
     Parameters
     ----------
-    scenario : Scenario
-        The scenario.
     plan : RunPlan
         The run's plan.
     context : Context
@@ -91,7 +89,7 @@ def initialize_sides(scenario: Scenario, plan: RunPlan, context: Context,
     list of numpy.ndarray
         The start readings ``q0`` used (n,), rad.
     """
-    rest, z_grasp = rest_posture(scenario, list(plan.arms))
+    rest, z_grasp = rest_posture(plan)
     if driver is not None:
         initialize_plant_context(driver.coop,
                                  driver.coop.plant.GetMyMutableContextFromRoot(context),
@@ -219,8 +217,8 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     add_lcm_interface(builder, lcm)
     clock = DriverClock("epoch")          # one simulated clock: the drivers' and the stamps'
     extra = {} if low_pass_hz is None else {"low_pass_hz": low_pass_hz}
-    driver = add_driver_side(builder, scenario, lcm, clock=clock, emulate=emulate, **extra)
-    controller = add_controller_side(builder, scenario, lcm, plan, clock=clock)
+    driver = add_driver_side(builder, plan, lcm, clock=clock, emulate=emulate, **extra)
+    controller = add_controller_side(builder, plan, lcm, clock=clock)
     truth = add_squeeze_truth(builder, scenario, driver, plan.h)
     wire = [LogVectorOutput(arm.driver.get_output_port(1), builder,
                             publish_period=plan.h) for arm in driver.arms]
@@ -229,7 +227,7 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
-    initialize_sides(scenario, plan, context, driver, controller)
+    initialize_sides(plan, context, driver, controller)
     simulator.Initialize()
     plant_context = driver.coop.plant.GetMyMutableContextFromRoot(context)
     status, message = "ok", f"completed {plan.t_end:g} s"
@@ -249,7 +247,7 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
         t = np.arange(n) * plan.h
         m = driver.coop.arms[i].arm.m
         layout = ReferenceLayout(controller.arms[i].spec.n, m)
-        traj = reference_trajectory(scenario, i, plan.t_end, plan)
+        traj = plan.robots[i].reference
         lam_d = np.array([layout.column(traj.value(tk).reshape(1, -1), "lambda_d")[0]
                           for tk in t]).reshape(n, m)
         lam = np.asarray(forces[i]["lambda_meas"]).reshape(n, m)

@@ -173,8 +173,9 @@ class ServeLoop:
 
     Parameters
     ----------
-    scenario, plan
-        The scenario and its :class:`~drake_coop.experiment.plan.RunPlan`.
+    plan : RunPlan
+        The run's :class:`~drake_coop.experiment.plan.RunPlan` (its scenario, arms and
+        references).
     lcm : DrakeLcmInterface
         Where the commands are published.
     specs : list of DriverSpec
@@ -183,9 +184,9 @@ class ServeLoop:
         The arms served (default all; one for ``serve --robot``).
     """
 
-    def __init__(self, scenario, plan, lcm, specs, robots: list[str] | None = None):
+    def __init__(self, plan, lcm, specs, robots: list[str] | None = None):
         builder = DiagramBuilder()
-        self.side = add_controller_side(builder, scenario, lcm, plan, specs,
+        self.side = add_controller_side(builder, plan, lcm, specs,
                                         status_input="loop", robots=robots)
         self.specs = [arm.spec for arm in self.side.arms]
         self.diagram = builder.Build()
@@ -194,12 +195,12 @@ class ServeLoop:
         self.h = plan.h
         # the events off the grid of h (the mass estimator's period), for step_end
         self._periods: tuple[float, ...] = ()
-        if scenario.object_model.mode == "estimated":
+        if plan.object is not None and plan.object.estimated:
             from drake_coop.control.params import checked_period
             from drake_coop.experiment.object_blocks import ESTIMATOR_TICKS
 
             self._periods = (checked_period(ESTIMATOR_TICKS * plan.h),)
-        self._scenario, self._plan, self._lcm = scenario, plan, lcm
+        self._plan, self._lcm = plan, lcm
         self._fixed_q: list = []
         self._status: list[tuple[float, float, float]] = []   # each arm's [s, f, v]
         self._q: list[list[float]] = []                       # and its last valid reading
@@ -223,7 +224,7 @@ class ServeLoop:
         """
         from drake_coop.robot.loopback import initialize_sides
 
-        initialize_sides(self._scenario, self._plan, self.context, None, self.side, q0)
+        initialize_sides(self._plan, self.context, None, self.side, q0)
         for arm, q in zip(self.side.arms, q0):
             q = np.asarray(q, dtype=float)
             self._good.append(q)

@@ -79,7 +79,7 @@ def cmd_sim_driver(args, load) -> int:
     # the driver's clock: its wall clock when paced, a simulated one in lockstep
     clock = DriverClock("epoch", wall=not lockstep)
     try:
-        side = add_driver_side(builder, scenario, lcm, specs, clock=clock, emulate=emulate,
+        side = add_driver_side(builder, plan, lcm, specs, clock=clock, emulate=emulate,
                                low_pass_hz=low_pass)
     except ValueError as exc:
         return _error(str(exc))
@@ -87,7 +87,7 @@ def cmd_sim_driver(args, load) -> int:
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
-    initialize_sides(scenario, plan, context, side, None)
+    initialize_sides(plan, context, side, None)
     simulator.Initialize()
     plant_context = side.coop.plant.GetMyMutableContextFromRoot(context)
     if not args.quiet:

@@ -131,7 +131,7 @@ class Lockstep:
         from pydrake.systems.primitives import Demultiplexer
 
         from drake import lcmt_panda_command, lcmt_panda_status
-        from drake_coop.experiment.plan import plan_run, time_grid
+        from drake_coop.experiment.plan import plan_run
         from drake_coop.experiment.simulate import rest_posture
         from drake_coop.plant.cooperative import build_plant, initialize_plant_context
         from drake_coop.sensing.actuators import add_actuators
@@ -139,7 +139,8 @@ class Lockstep:
         self.lcm = lcm
         self._publishers = []
         b = DiagramBuilder()
-        coop = build_plant(b, scenario, time_grid(scenario)[1])
+        plan = plan_run(scenario)
+        coop = build_plant(b, plan)
         plant = coop.plant
         for handles, robot, spec in zip(coop.arms, scenario.robots, specs):
             name, n = robot.name, spec.n
@@ -174,8 +175,7 @@ class Lockstep:
         self.diagram = b.Build()
         self.simulator = Simulator(self.diagram)
         context = self.simulator.get_mutable_context()
-        plan = plan_run(scenario)
-        rest, z = rest_posture(scenario, list(plan.arms))
+        rest, z = rest_posture(plan)
         initialize_plant_context(coop, plant.GetMyMutableContextFromRoot(context), rest, z)
         self.coop = coop
         self.simulator.Initialize()
@@ -333,7 +333,7 @@ def preflight(scenario, arms: list[_Arm], first: dict[int, bytes], duration: flo
             from drake_coop.experiment.plan import plan_run
             from drake_coop.experiment.simulate import rest_posture
 
-            postures.append(rest_posture(scenario, list(plan_run(scenario).arms))[0][i])
+            postures.append(rest_posture(plan_run(scenario))[0][i])
     from drake_coop.identification.clearance import LINK_RADIUS
 
     contact = first_contact(scenario, {a.index: (lambda t, e=a.excitation: e.evaluate(t)[0])
@@ -380,7 +380,7 @@ def drive(scenario, robots: list[int], lcm, clock, *, duration: float = 10.0, se
         A refusal before the first command, or a watchdog's trip (one line).
     """
     from drake_coop.control.watchdog import STATUS_OK, Watchdog
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.ticks import time_grid
     from drake_coop.robot.driver_spec import driver_specs, safe_command_message
     from drake_coop.scenario.model_check import check_models
 

@@ -17,13 +17,10 @@ from drake_coop.scenario.loading import (
 )
 from drake_coop.scenario.schema import (
     ARM_MODELS,
-    FORCE_SOURCES,
     OBJECT_MODES,
-    VELOCITY_SOURCES,
     Actuators,
     Encoders,
     ForceSensorModel,
-    Gains,
     Guards,
     ModelError,
     ObjectModelSettings,
@@ -34,6 +31,7 @@ from drake_coop.scenario.schema import (
     Task,
     Tool,
 )
+from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains
 from drake_coop.control.timing import aligned_periods
 from drake_coop.scenario.validation import BOUNDS, LENGTHS, validate
 

@@ -97,7 +97,7 @@ def cmd_arms(args) -> int:
     int
         The process's exit code, as the module's docstring lists them.
     """
-    from drake_coop.control.arm_model import description_packages
+    from drake_coop.control.arm_plant import description_packages
     from drake_coop.scenario.description import ROBOTS_EXTRA
     from drake_coop.scenario.lab_arms import LAB_ARMS, arm_facts
     from drake_coop.scenario.schema import ScenarioError

@@ -19,7 +19,7 @@ from drake_coop.scenario.validation import validate
 
 
 def load_scenario(path: str | Path | None = None, *, data: str | None = None,
-                  before_validation=None) -> Scenario:
+                  before_validation=None, cache: dict | None = None) -> Scenario:
     """Load and validate a scenario from a YAML file (or a YAML string).
 
     Parameters
@@ -34,6 +34,10 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None,
     before_validation : callable, optional
         Called with the typed scenario before it is validated (``drake-coop gains`` sizes a
         placeholder ``K_R`` there: deriving it is its job).
+
+    cache : dict, optional
+        The reachability check's results shared between loadings (a study's cases:
+        :func:`~drake_coop.scenario.validation.validate`'s ``cache``).
 
     Returns
     -------
@@ -51,7 +55,8 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None,
     from drake_coop.scenario.safe_yaml import MAX_BYTES, YamlInputError, read_text_file
 
     if path is None and data is None:
-        return load_scenario(default_scenario_path())   # the shipped paper.yaml
+        return load_scenario(default_scenario_path(), before_validation=before_validation,
+                             cache=cache)             # the shipped paper.yaml
     else:
         try:
             if path is not None:
@@ -78,7 +83,7 @@ def load_scenario(path: str | Path | None = None, *, data: str | None = None,
     resolve_models(scenario, Path(path).resolve().parent if path is not None else Path.cwd())
     if before_validation is not None:
         before_validation(scenario)
-    validate(scenario)
+    validate(scenario, cache=cache)
     return scenario
 
 

@@ -17,16 +17,17 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
-from drake_coop.control.params import FORCE_SOURCES, VELOCITY_SOURCES, Gains  # noqa: F401 (re-exported)
+from drake_coop.control.deprecation import moved
+from drake_coop.control.params import Gains
 from drake_coop.scenario.bounds import one_line
-from drake_coop.scenario.cell import CellSettings  # noqa: F401 (re-exported)
-from drake_coop.scenario.driver import (  # noqa: F401 (re-exported)
-    DRIVER_KINDS,
-    GRAVITY_CONVENTIONS,
-    SAFE_COMMANDS,
-    TIME_BASES,
-    Driver,
-)
+from drake_coop.scenario.cell import CellSettings
+from drake_coop.scenario.driver import Driver
+
+#: Names this module no longer holds (found here until the removal date of
+#: :mod:`drake_coop.control.deprecation`).
+_MOVED = {**dict.fromkeys(("FORCE_SOURCES", "VELOCITY_SOURCES"), "drake_coop.control.params"),
+          **dict.fromkeys(("DRIVER_KINDS", "SAFE_COMMANDS", "GRAVITY_CONVENTIONS", "TIME_BASES"),
+                          "drake_coop.scenario.driver")}
 
 OBJECT_MODES = ("planes", "rigid", "contact", "none")
 #: What the controllers know of the held object (``object_model.mode``).
@@ -591,3 +592,8 @@ class Scenario:
 
 
 # --------------------------------------------------------------------------- timing
+
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

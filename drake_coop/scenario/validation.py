@@ -11,21 +11,16 @@ import math
 from drake_coop.scenario.bounds import Bound, check_numbers, show
 from drake_coop.scenario.schema import (
     ARM_MODELS,
-    DRIVER_KINDS,
-    GRAVITY_CONVENTIONS,
-    SAFE_COMMANDS,
-    TIME_BASES,
-    FORCE_SOURCES,
     JITTER_DISTRIBUTIONS,
     OBJECT_MODEL_MODES,
     CONTROL_POINTS,
     OBJECT_MODES,
     SQUEEZE_SOURCES,
-    VELOCITY_SOURCES,
     Robot,
     Scenario,
     ScenarioError,
 )
+from drake_coop.scenario.driver import DRIVER_KINDS, GRAVITY_CONVENTIONS, SAFE_COMMANDS, TIME_BASES
 
 _POS = dict(lo_open=True)
 #: Allowed range of every number of a scenario, by dotted field (``[]``: any index). A new
@@ -465,18 +460,47 @@ def _validate_sensing(robot: Robot, where: str, h: float) -> None:
     ScenarioError
         Naming the field (``where`` is e.g. ``robots[0]``) and what is allowed.
     """
-    _choice(robot.velocity_source, VELOCITY_SOURCES, f"{where}.velocity_source")
-    _choice(robot.force_source, FORCE_SOURCES, f"{where}.force_source")
-    _cutoff(robot.difference_cutoff_hz, f"{where}.difference_cutoff_hz", h)
-    if robot.force_source == "momentum" and robot.gains.momentum_gain * h > 1.0:
-        raise ScenarioError(f"{where}.gains.momentum_gain must be at most 1/h = {1.0 / h:g} "
-                            f"1/s with force_source: momentum (the sampled observer's error "
-                            f"shrinks by 1 - h K_O per tick), got {robot.gains.momentum_gain:g}")
-    if robot.difference_cutoff_hz is not None and robot.velocity_source != "difference":
-        raise ScenarioError(f"{where}.difference_cutoff_hz applies to velocity_source: "
-                            f"difference only; set it to null or use difference")
+    from drake_coop.control import registry
+
+    for kind, field in registry.SELECTING_FIELD.items():
+        _choice(getattr(robot, field), registry.names(kind), f"{where}.{field}")
+    chosen = registry.selected(robot)
+    for entry in chosen:        # each source checks its own options (the registry answers)
+        try:
+            entry.check(robot, h)
+        except ValueError as exc:
+            raise ScenarioError(f"{where}.{exc}") from None
+    # An option null by default applies only to the sources that declare it.
+    for entry in registry.SOURCES:
+        for option in entry.options:
+            if entry in chosen or option in {o for c in chosen for o in c.options}:
+                continue
+            if _read_path(robot, option) is not None and _default_is_none(robot, option):
+                field = registry.SELECTING_FIELD[entry.kind]
+                users = [s.name for s in registry.SOURCES if option in s.options]
+                raise ScenarioError(f"{where}.{option} applies to {field}: "
+                                    f"{' or '.join(users)} only; set it to null or use "
+                                    f"{' or '.join(users)}")
     _cutoff(robot.force_sensor.cutoff_hz, f"{where}.force_sensor.cutoff_hz", h)
     _validate_timing(robot, f"{where}.timing", h)
+
+
+def _read_path(entry, path: str):
+    """The value at the dotted ``path`` inside a scenario entry."""
+    for key in path.split("."):
+        entry = getattr(entry, key)
+    return entry
+
+
+def _default_is_none(entry, path: str) -> bool:
+    """Whether the field at the dotted ``path`` inside a dataclass entry is null by default."""
+    import dataclasses
+
+    *parents, last = path.split(".")
+    for key in parents:
+        entry = getattr(entry, key)
+    field = {f.name: f for f in dataclasses.fields(entry)}[last]
+    return field.default is None
 
 
 def _validate_timing(robot: Robot, where: str, h: float) -> None:

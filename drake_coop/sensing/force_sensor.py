@@ -64,7 +64,8 @@ from pydrake.systems.framework import (
 from pydrake.systems.primitives import ZeroOrderHold
 
 from drake_coop.scenario.schema import ForceSensorModel
-from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
+from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, white_noise
+from drake_coop.control.timing import lowpass_alpha
 
 
 @dataclass(frozen=True)
@@ -295,7 +296,7 @@ def add_ft_sensor(builder: DiagramBuilder, name: str, period: float, plant_step:
     Returns
     -------
     system : LeafSystem
-        The sensor model.
+        The sensor model's system, added to ``builder``.
     lambda_sensor : OutputPort
         Its reading (m,), N.
     """

@@ -43,7 +43,8 @@ from typing import Callable
 
 import numpy as np
 
-from drake_coop.scenario.schema import Gains, ObjectModelSettings, Scenario
+from drake_coop.scenario.schema import ObjectModelSettings, Scenario
+from drake_coop.control.params import Gains
 
 __all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_and_check", "derive_gains",
            "derive_robot_gains", "gains_for_scenario", "map_copy", "task_postures"]
@@ -122,19 +123,15 @@ class GainsReport:
     messages: list[str] = field(default_factory=list)
 
 
-def task_postures(scenario: Scenario, index: int, plan=None, step: float = POSTURE_STEP
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """The joint reference ``q_d`` of robot ``index`` every ``step`` seconds of the task
-    (home, free path, held path), and the first held posture (the grasp).
+def task_postures(robot, step: float = POSTURE_STEP) -> tuple[np.ndarray, np.ndarray]:
+    """The joint reference ``q_d`` of one robot every ``step`` seconds of its run (home, free
+    path, held path), and the first held posture (the grasp).
 
     Parameters
     ----------
-    scenario : Scenario
-        The run's scenario.
-    index : int
-        The robot's index.
-    plan : RunPlan or None
-        The run's plan; None plans it here.
+    robot : RobotPlan
+        The robot's plan (:attr:`~drake_coop.experiment.plan.RobotPlan.samples`, its
+        references to the run's end: the whole task with a plan of the whole task).
     step : float
         The sampling of the task, s.
 
@@ -145,17 +142,12 @@ def task_postures(scenario: Scenario, index: int, plan=None, step: float = POSTU
     grasp : numpy.ndarray
         The grasp posture (n,), rad.
     """
-    from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.references import reference_samples
-
-    plan = plan or plan_run(scenario)
-    _, samples = reference_samples(scenario, index, plan=plan)
-    arm = plan.arms[index]
-    n = (samples.shape[1] - arm.m - 1) // 3
-    stride = max(1, int(round(step / plan.h)))
-    held = samples[:, -1] > 0.5
-    grasp = samples[int(np.argmax(held))][:n] if held.any() else samples[0][:n]
-    return samples[::stride, :n].copy(), grasp.copy()
+    _, samples = robot.samples
+    q = robot.layout.column(samples, "q_d")
+    held = robot.layout.column(samples, "held")[:, 0] > 0.5
+    stride = max(1, int(round(step / robot.run.h)))
+    grasp = q[int(np.argmax(held))] if held.any() else q[0]
+    return q[::stride].copy(), grasp.copy()
 
 
 def _observer_gains(h: float, kappa: float) -> tuple[float, float, float]:
@@ -248,7 +240,7 @@ def derive_gains(scenario: Scenario, kappa: float = KAPPA,
     plan = plan_run(scenario)
     out = []
     for i, robot in enumerate(scenario.robots):
-        postures, grasp = task_postures(scenario, i, plan)
+        postures, grasp = task_postures(plan.robots[i])
         d = derive_robot_gains(arm_model(plan.arms[i]), postures, grasp, plan.h, kappa,
                                robot.name)
         progress(f"{robot.name}: n={len(d.gains.K_R)}, {d.postures} postures, "

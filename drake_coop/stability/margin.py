@@ -120,7 +120,7 @@ def _describe(row: dict) -> str:
 
 def _one(scenario, robots: set[str], horizon: str, epsilon: float,
          rows: Callable[[str], dict]) -> Margin:
-    from drake_coop.experiment.plan import time_grid
+    from drake_coop.experiment.ticks import time_grid
     from drake_coop.scenario.loading import dump_scenario
 
     h, dt = time_grid(scenario)

@@ -24,10 +24,9 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 from pydrake.trajectories import PiecewisePolynomial
 
-from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.experiment.diagram import Experiment, build_experiment
 from drake_coop.experiment.plan import plan_run
-from drake_coop.experiment.references import reference_samples
+from drake_coop.experiment.ticks import time_grid
 from drake_coop.experiment.simulate import set_rest_state
 from drake_coop.scenario.schema import Scenario, ScenarioError
 from drake_coop.stability.period_map import PeriodMap
@@ -125,26 +124,23 @@ def operating_point(scenario: Scenario, point: str = "free", t_star: float | Non
         raise ScenarioError("plant.object_mode: the stability map supports planes, rigid and "
                             "none, not contact (a floating box: its quaternion is no vector "
                             "space for central differences, its contacts are not smooth)")
-    plan = plan_run(scenario)
-    h = plan.h
+    h = time_grid(scenario)[0]
     if t_star is None:
         t_star = scenario.task.t_circle_start if point == "held" else 0.0
     k_star = int(round(t_star / h))
     held = point == "held"
+    # The references only to the point (the plan's samples end at the first tick after it).
+    plan = plan_run(scenario, k_star * h + h)
     refs, q_star = [], []
-    for i in range(len(scenario.robots)):
-        _, samples = reference_samples(scenario, i, t_end=k_star * h + h, plan=plan)
-        arm = plan.arms[i]
-        n = (samples.shape[1] - arm.m - 1) // 3
-        layout = ReferenceLayout(n, arm.m)
+    for robot in plan.robots:
+        _, samples = robot.samples
         row = samples[min(k_star, len(samples) - 1)]
-        refs.append(_frozen(row, layout, held))
-        q_star.append(np.array(row[:n]))
-    exp = build_experiment(scenario, log=False, references=refs)
+        refs.append(_frozen(row, robot.layout, held))
+        q_star.append(np.array(robot.layout.column(row[None, :], "q_d")[0]))
+    exp = build_experiment(plan.with_references(refs), log=False)
     context = exp.diagram.CreateDefaultContext()
     coop = exp.coop
-    z_grasp = scenario.task.circle_top_z - scenario.task.lift_height
-    set_rest_state(exp, context, q_star, z_grasp)    # (quantization is off: reading = q*)
+    set_rest_state(exp, context, q_star, plan.z_grasp)    # (quantization is off: reading = q*)
     if held:
         coop.set_held(coop.plant.GetMyMutableContextFromRoot(context), True)
     # One period of warm-up: the map then starts at t_0 = h, where every sampled system has a

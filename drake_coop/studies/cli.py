@@ -204,13 +204,16 @@ def cmd_study(args: argparse.Namespace) -> int:
     try:
         study = load_study(args.study)
         given = given_size(args)
-        recorded = folder.recorded_size() if folder.owner() == study.name else None
+        ours = folder.owner() == study.name
+        recorded = folder.recorded_size() if ours else None
         problem = _size_problem(out, given, recorded)
         if problem:
             return _error(problem)
         size = given if given or recorded is None else recorded
         study, first = apply_size(study, size)
-        cases = expand(study, max_cases=args.max_cases, first=first)
+        # A resume reads the reachability checks the folder stored: it checks nothing again.
+        reach = folder.stored_reach() if ours else {}
+        cases = expand(study, max_cases=args.max_cases, first=first, cache=reach)
     except StudyError as exc:
         return _error(str(exc))
     robots = _robot_names(cases[0])
@@ -232,6 +235,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             return _error(problem)
         try:
             folder.record_size(study.name, size)
+            folder.store_reach(reach)
         except OSError as exc:
             return _error(f"--out {out}: {_one_line(exc)}")
         if size and not given and not args.quiet:
@@ -420,9 +424,11 @@ def phase_warning(study, case: Case) -> str:
 
 
 def _robot_names(case: Case) -> list[str]:
-    from drake_coop.scenario.loading import load_scenario
+    """The robots' names of a case's scenario (validated when the case was built: read, not
+    validated again)."""
+    from pydrake.common.yaml import yaml_load
 
-    return [r.name for r in load_scenario(data=case.scenario_yaml).robots]
+    return [r["name"] for r in yaml_load(data=case.scenario_yaml)["robots"]]
 
 
 def add_study_parser(sub) -> None:

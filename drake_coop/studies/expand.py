@@ -63,7 +63,7 @@ import numpy as np
 
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario, ScenarioError
-from drake_coop.studies.paths import (  # noqa: F401 (get_value, resolve, set_value re-exported)
+from drake_coop.studies.paths import (
     KeyPath,
     _hints,
     _unwrap_optional,
@@ -301,24 +301,27 @@ class _Builder:
     """Builds and validates the scenario of one case from the base (see the module's
     docstring)."""
 
-    def __init__(self, study: Study, base_yaml: str | None = None, where: str = "base"):
+    def __init__(self, study: Study, base_yaml: str | None = None, where: str = "base",
+                 cache: dict | None = None):
         from pydrake.common.yaml import yaml_load
 
+        # The reachability check's results, shared by the base and every case built from it
+        # (through the YAML loading too): a geometry is checked once per study.
+        self.cache: dict = {} if cache is None else cache
         try:
             if base_yaml is not None:      # an empty text is refused, never the paper's
-                self.base = load_scenario(data=base_yaml)
+                self.base = load_scenario(data=base_yaml, cache=self.cache)
             else:
-                self.base = load_scenario()
+                self.base = load_scenario(cache=self.cache)
         except ScenarioError as exc:
             raise StudyError(f"{where}: {exc}") from None
         self.base_dict = yaml_load(data=dump_scenario(self.base))
         self.t_end = study.t_end
-        self.cache: dict = {}
 
     def build(self, assignments: list[Assignment], where: str
               ) -> tuple[Scenario, str | None]:
         """The validated scenario (and its YAML when it went through the YAML loading)."""
-        from drake_coop.experiment.plan import check_run_size
+        from drake_coop.experiment.ticks import check_run_size
         from drake_coop.scenario.validation import validate
 
         scenario = copy.deepcopy(self.base)
@@ -331,7 +334,7 @@ class _Builder:
 
                 data = copy.deepcopy(self.base_dict)
                 _apply_dict(data, assignments, where)
-                scenario = load_scenario(data=yaml_dump(data))
+                scenario = load_scenario(data=yaml_dump(data), cache=self.cache)
                 text = dump_scenario(scenario)
             check_run_size(scenario, self.t_end)
         except ScenarioError as exc:
@@ -399,9 +402,9 @@ def _label(params: dict) -> str:
 
 
 def expand(study: Study, *, max_cases: int = MAX_CASES,
-           max_cases_option: str | None = "--max-cases", first: int | None = None
-           ) -> list[Case]:
-    """The all cases of ``study``, each scenario validated, in order (grid outer, samples inner).
+           max_cases_option: str | None = "--max-cases", first: int | None = None,
+           cache: dict | None = None) -> list[Case]:
+    """Every case of ``study``, each scenario validated, in order (grid outer, samples inner).
 
     Parameters
     ----------
@@ -414,6 +417,12 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
         without one, such as ``stability``).
     first : int or None
         Only the first ``first`` cases (``study --cases N``); None: all of them.
+    cache : dict or None
+        The reachability checks' results (:func:`~drake_coop.scenario.validation.validate`'s
+        ``cache``), shared by every base and case and filled here: each geometry is checked
+        once; a resume passes what its folder stored
+        (:meth:`~drake_coop.studies.folder.StudyFolder.stored_reach`) and checks nothing
+        again. None: a cache of this call only.
 
     Raises
     ------
@@ -433,9 +442,11 @@ def expand(study: Study, *, max_cases: int = MAX_CASES,
         if label is not None and label not in study.bases:
             raise StudyError(f"grid.{BASE_AXIS} = {_short(label)}: not one of the study's "
                              "base files (a study with a base axis is read by load_study)")
+    cache = {} if cache is None else cache
     builders = {label: _Builder(study, study.bases[label] if label is not None
                                 else study.base_yaml,
-                                "base" if label is None else f"grid.{BASE_AXIS} = {label!r}")
+                                "base" if label is None else f"grid.{BASE_AXIS} = {label!r}",
+                                cache)
                 for label in labels}
     scenario_paths = [path for path in study.grid if path != BASE_AXIS]
     paths = scenario_paths + ([p.path for p in study.monte_carlo.perturb]

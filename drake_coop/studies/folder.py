@@ -26,12 +26,15 @@ from pathlib import Path
 
 from drake_coop.results.io import Locked, atomic_write_text, lock_file
 
-__all__ = ["LOCK", "MARKER", "StudyFolder", "StudyFolderError"]
+__all__ = ["LOCK", "MARKER", "REACH", "StudyFolder", "StudyFolderError"]
 
 #: The file that marks a folder as a study's (JSON: the study's name).
 MARKER = ".drake-coop-study"
 #: The lock file (holds the pid of the process that holds the lock).
 LOCK = ".drake-coop-study.lock"
+#: The reachability checks the study's folder keeps for a resume (JSON: a list of ``[what the
+#: check reads, its refusal or null]``, :func:`~drake_coop.scenario.validation.reach_inputs`).
+REACH = "reach_checks.json"
 _OURS = {MARKER, LOCK}
 
 
@@ -101,6 +104,41 @@ class StudyFolder:
         """
         atomic_write_text(self.out / MARKER, json.dumps({"name": name, "size": size}) + "\n")
 
+    def stored_reach(self) -> dict:
+        """The reachability checks a run of the study stored here (:meth:`store_reach`), as
+        :func:`~drake_coop.scenario.validation.validate`'s ``cache``; empty when none (or a
+        damaged file: then everything is checked again).
+
+        Returns
+        -------
+        dict
+            ``("reach", inputs) -> refusal or None``.
+        """
+        path = self.out / REACH
+        try:
+            if not path.is_symlink() and path.is_file():
+                doc = json.loads(path.read_bytes().decode("utf-8"))
+                if isinstance(doc, list) and all(
+                        isinstance(e, list) and len(e) == 2 and isinstance(e[0], str)
+                        and (e[1] is None or isinstance(e[1], str)) for e in doc):
+                    return {("reach", inputs): result for inputs, result in doc}
+        except (OSError, ValueError, RecursionError):
+            pass
+        return {}
+
+    def store_reach(self, cache: dict) -> None:
+        """Keep the reachability checks of ``cache`` for a resume (atomically; the folder
+        must be claimed).
+
+        Parameters
+        ----------
+        cache : dict
+            :func:`~drake_coop.scenario.validation.validate`'s ``cache``.
+        """
+        entries = sorted([key[1], result] for key, result in cache.items()
+                         if isinstance(key, tuple) and key[0] == "reach")
+        atomic_write_text(self.out / REACH, json.dumps(entries) + "\n")
+
     def _check(self, name: str) -> bool:
         """Raise unless the folder may be used by study ``name``; True if it exists."""
         out = self.out
@@ -135,7 +173,7 @@ class StudyFolder:
         Returns
         -------
         StudyFolder
-            This folder, locked.
+            This folder, locked and marked as study ``name``'s.
 
         Raises
         ------

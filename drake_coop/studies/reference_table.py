@@ -298,7 +298,7 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
     ValueError
         An unknown row or column, a count below 1, the saturation column without ``peaks``.
     """
-    from drake_coop.experiment.plan import check_run_size
+    from drake_coop.experiment.ticks import check_run_size
     from drake_coop.scenario.validation import validate
 
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:

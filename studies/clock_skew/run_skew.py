@@ -20,7 +20,7 @@ import numpy as np
 
 from drake_coop.robot.loopback import run_loopback, squeeze_error
 from drake_coop.scenario.loading import dump_scenario, load_scenario
-from drake_coop.scenario.schema import Driver
+from drake_coop.scenario.driver import Driver
 
 T_END = 4.0
 BASE_PHASE = 1.25e-4

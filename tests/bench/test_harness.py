@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 
 from bench.harness import _count_callbacks
-from drake_coop.experiment.plan import num_ticks_until
+from drake_coop.experiment.ticks import num_ticks_until
 from drake_coop.scenario.loading import default_scenario
 from drake_coop.control.timing import aligned_periods
 
@@ -128,7 +128,7 @@ def test_plant_replay_reproduces_a_pandas_contact_run_with_an_object_model():
 
     from bench.harness import _experiment, _plant_replay
     from bench.lab_arms_object import contact_scenario
-    from drake_coop.control.arm_model import description_packages
+    from drake_coop.control.arm_plant import description_packages
     from drake_coop.scenario import validate
 
     if "example-robot-data" not in description_packages():

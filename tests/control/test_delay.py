@@ -223,14 +223,15 @@ def test_scenario_refuses_a_horizon_by_name(value, message):
 
 def test_scenario_default_has_no_predictor():
     from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
     from drake_coop.scenario.loading import load_scenario
 
     s = load_scenario()
     assert all(r.timing.prediction_horizon is None for r in s.robots)
-    names = {sys.get_name() for r in build_experiment(s, log=False).robots
+    names = {sys.get_name() for r in build_experiment(plan_run(s), log=False).robots
              for sys in r.control.GetSystems()}
     assert not any(n.endswith("_predictor") for n in names)
     s.robots[1].timing.prediction_horizon = 0.003
-    names = {sys.get_name() for r in build_experiment(s, log=False).robots
+    names = {sys.get_name() for r in build_experiment(plan_run(s), log=False).robots
              for sys in r.control.GetSystems()}
     assert [n for n in names if n.endswith("_predictor")] == ["robot2_predictor"]

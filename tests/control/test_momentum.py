@@ -182,10 +182,11 @@ def test_momentum_estimate_follows_the_ground_truth_sensor_in_a_run():
 
 def test_momentum_control_block_reads_encoders_and_reference_only():
     from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
 
     sc = default_scenario()
     sc.robots[0].force_source = "momentum"
-    exp = build_experiment(sc, log=False)
+    exp = build_experiment(plan_run(sc), log=False)
     rs = exp.robots[0]
     inner = {s.get_name() for s in rs.control.GetSystems()}
     assert inner == {"robot1_velocity_observer", "robot1_momentum_observer", "robot1_controller"}

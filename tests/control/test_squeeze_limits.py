@@ -24,7 +24,6 @@ from drake_coop.control.squeeze_limits import (
 )
 from drake_coop.experiment.object_blocks import acceleration_samples
 from drake_coop.experiment.plan import grasp_object, plan_run
-from drake_coop.experiment.references import reference_samples
 from drake_coop.experiment.squeeze_check import check_squeeze_limits, torque_limits
 from drake_coop.plant.arms import Arm, arm_model
 from drake_coop.scenario import ScenarioError, load_scenario
@@ -101,11 +100,11 @@ def test_effort_limits_are_the_urdfs(contact):
     efforts = [float(x) for x in re.findall(r'effort="([0-9.eE+-]+)"', text)]
     limits = effort_limits(arm_model(arm, arm.urdf_path).plant)
     assert limits.tolist() == efforts[:limits.size] and limits.size == 3
-    assert torque_limits(contact, 0).tolist() == limits.tolist()
+    assert torque_limits(plan_run(contact).robots[0]).tolist() == limits.tolist()
 
 
 def test_the_shipped_contact_scenario_is_within_its_limits(contact):
-    check_squeeze_limits(contact)
+    check_squeeze_limits(plan_run(contact))
 
 
 def _first_violation(scenario, index, limits):
@@ -114,7 +113,7 @@ def _first_violation(scenario, index, limits):
     arm = Arm(scenario.robots[index], scenario.task)
     model = arm_model(arm, arm.urdf_path)
     plan = plan_run(scenario)
-    t, r = reference_samples(scenario, index, plan=plan)
+    t, r = plan.robots[index].samples
     layout = ReferenceLayout(3, 1)
     obj = grasp_object(scenario, float(scenario.plant.object_mass))
     nu = obj.grasp_normals[index]
@@ -146,7 +145,7 @@ def test_a_grasp_beyond_the_limits_is_refused_in_one_line(contact, limits, mass,
     s.robots[0].actuators.torque_limits = limits
     s.plant.object_mass = mass
     with pytest.raises(ScenarioError) as info:
-        check_squeeze_limits(s)
+        check_squeeze_limits(plan_run(s))
     message = str(info.value)
     assert "\n" not in message and message.startswith("robots[0] (robot1): at t = ")
     if expect:

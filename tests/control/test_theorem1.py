@@ -25,6 +25,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from drake_coop.control import orthogonal
 from drake_coop.plant.arms import arm_model
 from drake_coop.experiment.diagram import build_experiment
+from drake_coop.experiment.plan import plan_run
 from drake_coop.plant.arms import Arm
 from drake_coop.plant.cooperative import initialize_plant_context
 from drake_coop.scenario import default_scenario
@@ -49,7 +50,7 @@ def theorem_run():
         q0.append(arm.ik([r.contact_xy[0], 0.002, 0.587]))
     # The live ground truth: this test reads the raw logs, where lambda_meas is logged (the
     # offline path computes it in collect_logs).
-    exp = build_experiment(s, references=refs, live_ground_truth=True)
+    exp = build_experiment(plan_run(s).with_references(refs), live_ground_truth=True)
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()
     pc = exp.coop.plant.GetMyMutableContextFromRoot(ctx)

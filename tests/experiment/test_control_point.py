@@ -11,13 +11,12 @@ import pytest
 
 from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.references import (
-    cartesian_reference,
     contact_point_reference,
     followed_point,
-    reference_samples,
     rolling_correction,
     start_posture,
 )
+from drake_coop.scenario.task_path import cartesian_reference
 from drake_coop.scenario import load_scenario
 from drake_coop.scenario.resources import find_scenario
 
@@ -119,7 +118,7 @@ def test_the_rolling_correction_is_the_integral_of_delta_omega_cross_n(estimated
 def test_the_rest_posture_is_the_references_first_sample(estimated):
     s, plan = estimated
     for i, arm in enumerate(plan.arms):
-        t, r = reference_samples(s, i, t_end=0.05, plan=plan)
+        t, r = plan_run(s, 0.05).robots[i].samples
         q0 = start_posture(arm, s.task, plan.robots[i].control_point)
         assert (r[0, :3] == q0).all()
 

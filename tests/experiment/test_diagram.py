@@ -18,8 +18,9 @@ from pydrake.multibody.plant import MultibodyPlant
 from pydrake.systems.analysis import Simulator
 
 from drake_coop.experiment.diagram import build_experiment
-from drake_coop.experiment.plan import grasp_ticks
-from drake_coop.experiment.references import reference_samples
+
+from drake_coop.experiment.plan import plan_run
+from drake_coop.experiment.ticks import grasp_ticks
 from drake_coop.experiment.simulate import initialize, simulate
 from drake_coop.scenario import aligned_periods
 from tests.conftest import advance_to_tick, short_scenario
@@ -85,7 +86,7 @@ def test_force_observer_22_equals_21_with_the_controllers_torque():
 
 def test_control_block_has_no_direct_feedthrough_on_state_outputs():
     scenario = short_scenario()
-    exp = build_experiment(scenario, log=False)
+    exp = build_experiment(plan_run(scenario), log=False)
     rs = exp.robots[0]
     vel, force = rs.velocity_observer, rs.force_observer
     q_in = vel.GetInputPort("q").get_index()
@@ -102,7 +103,7 @@ def test_events_fire_at_ticks_and_the_ft_read_without_tiny_steps():
     scenario = short_scenario("planes", 0.001)
     # The live ground truth and F/T sensor model: their reads are what this test times (the
     # offline ground truth's holds are timed by tests/plant/test_ground_truth.py).
-    exp = build_experiment(scenario, log=False, live_ground_truth=True)
+    exp = build_experiment(plan_run(scenario), log=False, live_ground_truth=True)
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()
     initialize(exp, ctx)
@@ -166,7 +167,7 @@ def _replay(scenario, index, q_log):
                  if plant.get_joint(j).num_velocities() == 1])
     Lam, KR, kd, kF, xi, zeta, beta = (g.Lambda, np.diag(g.K_R), g.k_d, g.k_F, g.xi, g.zeta,
                                        g.beta)
-    _, ref = reference_samples(scenario, index)
+    _, ref = plan_run(scenario).robots[index].samples
     q_hat = q_log[0].copy()
     qdot_hat_o = np.zeros(3)
     DF = 0.0
@@ -217,7 +218,7 @@ def test_numpy_replay_reproduces_logged_torque_and_estimates(short_run, index):
     scenario, result = short_run
     log = result.logs[scenario.robots[index].name]
     replay = _replay(scenario, index, log["q"])
-    held = reference_samples(scenario, index)[1][: log["t"].size, 10] > 0.5
+    held = plan_run(scenario).robots[index].samples[1][: log["t"].size, 10] > 0.5
     assert held.sum() > 100 and (~held).sum() > 100      # both forms are exercised
     # 1e-11 of each signal's largest magnitude: the replay and the systems are the same
     # equations in other operation orders (closed form vs Drake, NumPy vs plain floats), which
@@ -281,7 +282,7 @@ def test_the_block_diagram_of_every_source_combination_is_labelled():
         chosen = pairs[k:k + 2] + pairs[:max(0, k + 2 - len(pairs))]
         for robot, (v, f) in zip(scenario.robots, chosen):
             robot.velocity_source, robot.force_source = v.name, f.name
-        exp = build_experiment(scenario, log=False)
+        exp = build_experiment(plan_run(scenario), log=False)
         dot = paper_block_diagram(exp.diagram)
         labels = {}
         for label in re.findall(r"\[label=<(.*)>, fillcolor", dot):

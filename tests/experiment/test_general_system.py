@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from drake_coop.plant.arms import arm_model
+from drake_coop.experiment.plan import plan_run
 from drake_coop.control.reference_layout import ReferenceLayout
-from drake_coop.experiment.references import reference_samples
 from drake_coop.experiment.simulate import simulate
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario import ScenarioError, Task, load_scenario
@@ -95,7 +95,7 @@ def _replay(scenario, index, q_log):
     m = N.shape[0]
     xi = np.eye(m) * g.xi if g.xi_matrix is None else np.asarray(g.xi_matrix)
     Lam, KR, kd, kF, zeta, beta = g.Lambda, np.diag(g.K_R), g.k_d, g.k_F, g.zeta, g.beta
-    _, ref = reference_samples(scenario, index)
+    _, ref = plan_run(scenario).robots[index].samples
     q_hat, qdot_hat_o, DF = q_log[0].copy(), np.zeros(3), np.zeros(m)
     out = {"tau": [], "q_hat": [], "lambda_hat": []}
     for k, q in enumerate(q_log):
@@ -150,7 +150,7 @@ def test_numpy_replay_reproduces_the_run_for_m_constraints(multi_run, index, m):
     log = result.logs[scenario.robots[index].name]
     assert log["lambda_hat"].shape == (log["t"].size, m)
     replay = _replay(scenario, index, log["q"])
-    held = reference_samples(scenario, index)[1][: log["t"].size, 9 + m] > 0.5
+    held = plan_run(scenario).robots[index].samples[1][: log["t"].size, 9 + m] > 0.5
     assert held.sum() > 100 and (~held).sum() > 100
     # 1e-11 of each signal's largest magnitude (the same equations in other operation
     # orders: SVD vs the package's normal equations, closed-form vs Drake kinematics).
@@ -373,7 +373,6 @@ def test_controller_at_rest_on_the_constraint_is_gravity_minus_JT_lambda_d(m):
 @pytest.mark.slow
 def test_force_observer_22_equals_21_for_m_constraints_in_the_loop():
     """(22) is (21) with the controller's own torque substituted, for every row (m = 2, 3)."""
-    from drake_coop.experiment.plan import plan_run
 
     from tests.conftest import advance_to_tick
 

@@ -88,12 +88,7 @@ def test_the_pose_reference_holds_the_pads_orientation_and_material_point(name):
     from pydrake.multibody.plant import MultibodyPlant
 
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.references import (
-        cartesian_reference,
-        force_reference,
-        quintic,
-        reference_samples,
-    )
+    from drake_coop.scenario.task_path import cartesian_reference, force_reference, quintic
     from drake_coop.scenario.resources import model_urdf_path
 
     s = contact_estimated(name)
@@ -101,7 +96,7 @@ def test_the_pose_reference_holds_the_pads_orientation_and_material_point(name):
     h = plan.h
     for i, robot in enumerate(s.robots):
         assert plan.robots[i].pad_point_control == "pose"
-        t, r = reference_samples(s, i, plan=plan)
+        t, r = plan.robots[i].samples
         n_q = plan.arms[i].kinematics.n
         q = r[:, :n_q]
         plant = MultibodyPlant(0.0)

@@ -10,7 +10,6 @@ import pytest
 from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.experiment.object_blocks import couple_samples
 from drake_coop.experiment.plan import plan_run
-from drake_coop.experiment.references import reference_trajectory
 from drake_coop.scenario import load_scenario
 from drake_coop.scenario.resources import find_scenario
 
@@ -46,9 +45,9 @@ def test_each_arm_gets_its_part_of_the_moment_balance_along_the_references():
 
     s = load_scenario(data=CONTACT + "object_model: {mode: known}\n")
     plan = plan_run(s, 30.0)
-    trajectories = [reference_trajectory(s, i, 30.0, plan) for i in range(2)]
+    trajectories = [robot.reference for robot in plan.robots]
     t = np.linspace(10.0, 30.0, 81)
-    f = [couple_samples(plan, i, trajectories, t) for i in range(2)]
+    f = [couple_samples(plan, i, t) for i in range(2)]
     layout = ReferenceLayout(3, 1)
     r = [np.asarray(tr.vector_values(t)).T for tr in trajectories]
     E = [np.array([arm_model(arm, closed_form=False).ee_position(q)
@@ -70,7 +69,7 @@ def test_the_couple_source_feeds_both_blocks(couple, present):
     s = load_scenario(data=CONTACT + "object_model: {mode: estimated}\n")
     s.object_model.couple = couple
     s.task.t_end = 16.0
-    exp = build_experiment(s)
+    exp = build_experiment(plan_run(s))
     names = {system.get_name() for system in exp.diagram.GetSystems()}
     assert ("robot1_f_couple" in names) == present
     assert ("robot2_f_couple" in names) == present

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from drake_coop.cli import main
+from drake_coop.experiment.plan import plan_run
 from drake_coop.scenario import ObjectModelSettings, Scenario, load_scenario, validate
 from drake_coop.scenario.resources import shipped_scenarios
 from tests.conftest import short_scenario
@@ -58,7 +59,7 @@ def test_none_is_the_default_everywhere():
 
 def _blocks(scenario):
     from drake_coop.experiment.diagram import build_experiment
-    exp = build_experiment(scenario)
+    exp = build_experiment(plan_run(scenario))
     return {exp.diagram.GetSubsystemByName(n).get_name() for n in (
         s.get_name() for s in exp.diagram.GetSystems())}
 
@@ -91,7 +92,7 @@ def test_the_shared_block_is_one_block_between_the_arms_and_feeds_their_referenc
     from drake_coop.experiment.diagram import build_experiment
     s = load_scenario(data=CONTACT + "object_model: {mode: estimated, squeeze: friction, "
                       "shared: true}\n")
-    exp = build_experiment(s)
+    exp = build_experiment(plan_run(s))
     d = exp.diagram
     shared = exp.object_state_estimator
     assert shared is d.GetSubsystemByName("object_state_estimator")
@@ -116,14 +117,12 @@ def test_a_compliant_contact_presses_the_joint_references_in():
     with the pads' E = 5 MPa, r = 15 mm (urdf/README.md); the force profile is (29) in the
     circle, and never below it (the grasp's ramp, the least squeeze that holds the box,
     RunPlan.squeeze) outside the ramps (the pads' centres followed: control_point centre)."""
-    from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.references import reference_samples
     from drake_coop.control.reference_layout import ReferenceLayout
     base = load_scenario(data=CONTACT)
     known = load_scenario(data=CONTACT + "object_model: {mode: known, control_point: centre}\n")
     for i in range(2):
-        t, r0 = reference_samples(base, i, t_end=30.0)
-        _, r1 = reference_samples(known, i, t_end=30.0)
+        t, r0 = plan_run(base, 30.0).robots[i].samples
+        _, r1 = plan_run(known, 30.0).robots[i].samples
         layout = ReferenceLayout(3, 1)
         arm = plan_run(base).arms[i]
         lam = layout.column(r0, "lambda_d")[:, 0]
@@ -144,11 +143,10 @@ def test_a_compliant_contact_presses_the_joint_references_in():
 def test_friction_squeeze_is_the_cone_bound_times_the_margin():
     """squeeze: friction at the circle's start (zero acceleration): each pad carries m g / 2
     tangentially, so λ_d = margin · m g / (2 μ)."""
-    from drake_coop.experiment.references import reference_samples
     from drake_coop.control.reference_layout import ReferenceLayout
     s = load_scenario(data=CONTACT.replace("friction: 1.0", "friction: 0.6") +
                       "object_model: {mode: known, squeeze: friction, margin: 1.4}\n")
-    t, r = reference_samples(s, 0, t_end=26.0)
+    t, r = plan_run(s, 26.0).robots[0].samples
     lam = ReferenceLayout(3, 1).column(r, "lambda_d")[:, 0]
     k = int(np.argmin(abs(t - 25.0)))
     assert np.isclose(lam[k], 1.4 * 0.5 * 9.81 / (2 * 0.6), rtol=1e-9)
@@ -174,7 +172,6 @@ def test_the_squeeze_holds_the_box_by_the_ramps_end_pressing_the_pads_in_along_t
     δ(λ_hold) σ, the quintic itself (rate zero at the grasp, where a linear rise gives
     δ ∝ √t); with ``profile`` λ_d = max((29), λ_hold σ²). By the ramp's end λ_d holds the
     prior's weight in the cone; in the circle the shipped box's (29) is above the hold."""
-    from drake_coop.experiment.plan import plan_run
     from drake_coop.scenario.task_path import cartesian_reference, force_reference, quintic
 
     s = load_scenario(data=CONTACT.replace("friction: 1.0", "friction: 0.6")
@@ -213,7 +210,6 @@ def test_a_heavy_box_lifts_the_profile_squeeze_to_the_hold_and_no_model_keeps_29
     """On a box (29) cannot hold (2 kg at μ 0.4: the prior's 3 kg needs 1.5 · 3 · 9.81 /
     (2 · 0.4) = 55 N), λ_d is the hold wherever (29) is below it; without an object model,
     and in the rigid mode, λ_d stays (29) exactly (the paper's run)."""
-    from drake_coop.experiment.plan import plan_run
     from drake_coop.scenario.task_path import cartesian_reference, force_reference
 
     heavy = CONTACT.replace("object_mass: 0.5", "object_mass: 2.0").replace(
@@ -274,7 +270,7 @@ def test_a_short_shared_contact_run_against_the_plant():
     result = simulate(s, t_end=5.0)
     assert result.ok
     from drake_coop.experiment.diagram import build_experiment
-    coop = build_experiment(s, log=False).coop
+    coop = build_experiment(plan_run(s), log=False).coop
     plant = coop.plant
     box = coop.grasp.box
     m_true = box.default_mass() if hasattr(box, "default_mass") else box.get_default_mass()

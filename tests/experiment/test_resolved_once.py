@@ -6,6 +6,7 @@ to 6 ``Arm`` objects, 14 period checks)."""
 
 from collections import Counter
 
+import numpy as np
 import pytest
 
 import drake_coop.control.params as params
@@ -13,7 +14,6 @@ import drake_coop.experiment.plan as plan_module
 import drake_coop.scenario.resources as resources
 from drake_coop.experiment.diagram import build_experiment
 from drake_coop.experiment.plan import plan_run
-from drake_coop.experiment.references import reference_trajectory
 from drake_coop.plant.arms import Arm
 from drake_coop.scenario import load_scenario
 from drake_coop.scenario.resources import find_scenario
@@ -64,8 +64,8 @@ def _check(counts, robots):
     assert counts["period"] and set(counts["period"].values()) == {1}
 
 
-def test_building_a_diagram_from_the_scenario_resolves_each_thing_once(counted, scenario):
-    exp = build_experiment(scenario)
+def test_building_a_diagram_from_a_plan_alone_resolves_each_thing_once(counted, scenario):
+    exp = build_experiment(plan_run(scenario))
     _check(counted, scenario.robots)
     # What was read is what the blocks got: each pad's radius in its stiffness law.
     for resolved in exp.plan.robots:
@@ -76,13 +76,97 @@ def test_building_a_diagram_from_the_scenario_resolves_each_thing_once(counted, 
 
 
 def test_the_runners_path_resolves_each_thing_once(counted, scenario):
-    """:func:`~drake_coop.experiment.simulate.simulate`'s order: the plan, the references
-    from it, the Diagram from it."""
+    """:func:`~drake_coop.experiment.simulate.simulate`'s order: the plan, the squeeze check
+    on its references, the Diagram from it."""
+    from drake_coop.experiment.squeeze_check import check_squeeze_limits
+
     plan = plan_run(scenario, 2.0)
-    references = [reference_trajectory(scenario, i, 2.0, plan)
-                  for i in range(len(scenario.robots))]
-    build_experiment(plan, references=references)
+    check_squeeze_limits(plan)
+    build_experiment(plan)
     _check(counted, scenario.robots)
+
+
+@pytest.fixture
+def reference_computations(monkeypatch):
+    """Counts :func:`~drake_coop.experiment.references.reference_samples` calls per robot."""
+    import drake_coop.experiment.references as references
+
+    counts = Counter()
+    inner = references.reference_samples
+
+    def counting(robot):
+        counts[robot.name] += 1
+        return inner(robot)
+
+    monkeypatch.setattr(references, "reference_samples", counting)
+    return counts
+
+
+def test_the_diagrams_walk_computes_no_reference(reference_computations, scenario):
+    """``build_experiment`` only wires: with the plan's references read once before, its
+    walk computes none; and the plan computes each robot's once, however often it is read
+    (the squeeze check, the Diagram, the couple's samples)."""
+    from drake_coop.experiment.squeeze_check import check_squeeze_limits
+
+    plan = plan_run(scenario, 2.0)
+    for robot in plan.robots:
+        robot.reference
+    names = [r.name for r in scenario.robots]
+    assert reference_computations == Counter(names)
+    check_squeeze_limits(plan)
+    exp = build_experiment(plan)
+    assert reference_computations == Counter(names)          # nothing more
+    for robot, rs in zip(plan.robots, exp.robots):
+        source = exp.diagram.GetSubsystemByName(f"{rs.name}_reference")
+        assert source.get_output_port().size() == robot.layout.size
+    # A second plan computes again (the counter can fail).
+    build_experiment(plan_run(scenario, 2.0))
+    assert reference_computations == Counter({name: 2 for name in names})
+
+
+def test_a_plans_given_references_are_wired_and_none_computed(reference_computations,
+                                                              scenario):
+    """:meth:`~drake_coop.experiment.plan.RunPlan.with_references`: the Diagram follows the
+    given trajectories (a constant posture), the scenario's are never computed."""
+    from pydrake.trajectories import PiecewisePolynomial
+
+    plan = plan_run(scenario, 2.0)
+    given = [PiecewisePolynomial(np.arange(r.layout.size, dtype=float).reshape(-1, 1))
+             for r in plan.robots]
+    exp = build_experiment(plan.with_references(given))
+    assert not reference_computations
+    context = exp.diagram.CreateDefaultContext()
+    for rs, traj in zip(exp.robots, given):
+        port = exp.diagram.GetSubsystemByName(f"{rs.name}_reference").get_output_port()
+        np.testing.assert_array_equal(port.Eval(port.get_system().GetMyContextFromRoot(
+            context)), traj.value(0.0).ravel())
+    with pytest.raises(ValueError, match=r"references\[0\] \(robot1\): 11 rows"):
+        plan.with_references([PiecewisePolynomial(np.zeros((3, 1)))] * 2)
+
+
+def test_a_scenario_is_no_plan():
+    """``build_experiment`` takes the plan alone: a scenario is refused in one line."""
+    from drake_coop.scenario import default_scenario
+
+    with pytest.raises(TypeError, match="plan: a RunPlan .plan_run.scenario.. is needed, got "
+                                        "Scenario"):
+        build_experiment(default_scenario())
+
+
+def test_below_the_plan_no_builder_takes_a_scenario_beside_it():
+    """Every function below the planning floor takes its section of the plan, never a
+    scenario with it (a mismatch of the two cannot be written)."""
+    import inspect
+
+    from drake_coop.experiment import references, simulate, squeeze_check
+    from drake_coop.plant import cooperative
+    from drake_coop.stability import gains
+
+    for function in (build_experiment, cooperative.build_plant, cooperative.add_arms,
+                     references.reference_samples, squeeze_check.torque_limits,
+                     squeeze_check.check_squeeze_limits, gains.task_postures,
+                     simulate.rest_posture):
+        assert "scenario" not in inspect.signature(function).parameters, function.__name__
 
 
 def test_the_counters_see_a_second_resolution(counted, scenario):

@@ -4,7 +4,7 @@ plus determinism and the divergence guard on short runs."""
 import numpy as np
 import pytest
 
-from drake_coop.experiment.references import force_reference
+from drake_coop.scenario.task_path import force_reference
 from drake_coop.experiment.simulate import simulate
 from drake_coop.scenario import default_scenario
 from tests.conftest import short_scenario

@@ -27,7 +27,7 @@ from drake_coop.control.object import (
     mass_shares,
     squeeze_for_grasp,
 )
-from drake_coop.experiment.plan import grasp_object, time_grid
+from drake_coop.experiment.plan import grasp_object, plan_run
 from drake_coop.kinematics.rotations import pad_contact_components
 from drake_coop.plant.prism import prism_section
 from drake_coop.results.object_metrics import SLIP_DISTANCE, object_signals
@@ -161,7 +161,7 @@ def pressed():
 
     s = _three_arms()
     builder = DiagramBuilder()
-    coop = build_plant(builder, s, time_step=time_grid(s)[1])
+    coop = build_plant(builder, plan_run(s))
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     pc = coop.plant.GetMyMutableContextFromRoot(context)
@@ -299,7 +299,6 @@ def test_three_pads_rolling_is_not_slip_and_a_slide_on_its_face_is_counted():
 
 
 def test_the_plan_of_three_arms_splits_the_mass_in_thirds_without_the_couple():
-    from drake_coop.experiment.plan import plan_run
 
     s = _three_arms()
     s.object_model.mode, s.object_model.squeeze = "estimated", "friction"

@@ -20,10 +20,10 @@ from drake_coop.identification.regressor import (
 )
 from drake_coop.identification.report import (
     ESTIMATORS,
-    IdentifyInputError,
     closed_loop,
     identify_robot,
 )
+from drake_coop.identification.setup import IdentifyInputError
 from drake_coop.scenario.loading import load_scenario
 
 

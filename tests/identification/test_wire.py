@@ -21,7 +21,7 @@ from drake_coop.robot.wire_identify import Lockstep, WireRefusal, _Arm, drive, p
 from drake_coop.robot.driver_spec import driver_specs
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.model_check import check_models
-from drake_coop.scenario.schema import Driver
+from drake_coop.scenario.driver import Driver
 
 
 def status_bytes(q, v=None, utime=0):
@@ -52,7 +52,7 @@ def rest(s):
     from drake_coop.experiment.plan import plan_run
     from drake_coop.experiment.simulate import rest_posture
 
-    return rest_posture(s, list(plan_run(s).arms))[0]
+    return rest_posture(plan_run(s))[0]
 
 
 def test_robot_adds_is_refused_before_the_first_command():

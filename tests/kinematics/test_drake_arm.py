@@ -18,7 +18,8 @@ from pydrake.math import RigidTransform, RotationMatrix
 from pydrake.multibody.tree import RevoluteJoint
 
 from drake_coop.plant.arms import Arm
-from drake_coop.kinematics.drake_arm import SINGULAR_RATIO, DrakeArmKinematics
+from drake_coop.kinematics.drake_arm import DrakeArmKinematics
+from drake_coop.kinematics.redundant import SINGULAR_RATIO
 from drake_coop.scenario import paper_robots
 
 URDF = Path(__file__).resolve().parents[2] / "urdf"

@@ -15,8 +15,9 @@ import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from drake_coop.plant.arms import arm_model
-from drake_coop.experiment.references import cartesian_reference
-from drake_coop.plant.arms import GEOMETRY, Arm, urdf_dir, urdf_joint_limits
+from drake_coop.scenario.task_path import cartesian_reference
+from drake_coop.plant.arms import Arm, urdf_dir
+from drake_coop.kinematics.crs import GEOMETRY, urdf_joint_limits
 from drake_coop.scenario import default_scenario, paper_robots
 
 ROBOTS = paper_robots()

@@ -16,10 +16,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.experiment.plan import time_grid
 from drake_coop.plant.arms import arm_model
-from drake_coop.experiment.references import cartesian_reference, waypoints
+from drake_coop.scenario.task_path import cartesian_reference, waypoints
 from drake_coop.plant.arms import Arm
+from drake_coop.experiment.plan import plan_run
 from drake_coop.plant.cooperative import (
     CoopPlant,
     build_plant,
@@ -107,7 +107,7 @@ def build(mode: str, f: float, carry: float = 0.0, damping: float = 0.0, held: b
     s.plant.object_mode = mode
     s.plant.time_step = time_step
     builder = DiagramBuilder()
-    coop = build_plant(builder, s, time_step=time_grid(s)[1])
+    coop = build_plant(builder, plan_run(s))
     sensors = add_force_sensors(builder, coop)
     ctrls = []
     for i, h in enumerate(coop.arms):

@@ -22,9 +22,9 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import Context, DiagramBuilder, LeafSystem
 
 from drake_coop.control.arm_model import ArmModel
-from drake_coop.experiment.plan import time_grid
 from drake_coop.plant.arms import arm_model
-from drake_coop.experiment.references import cartesian_reference, quintic, waypoints
+from drake_coop.scenario.task_path import cartesian_reference, quintic, waypoints
+from drake_coop.experiment.plan import plan_run
 from drake_coop.plant.cooperative import (
     CoopPlant,
     build_plant,
@@ -130,7 +130,7 @@ def build_rig(task: Task, at: str = "grasp", squeeze: float = SQUEEZE,
     scenario.plant.time_step = time_step
     scenario.task = task
     builder = DiagramBuilder()
-    coop = build_plant(builder, scenario, time_step=time_grid(scenario)[1])
+    coop = build_plant(builder, plan_run(scenario))
     sensors = add_force_sensors(builder, coop)
     carry = 0.5 * scenario.plant.object_mass * G if squeeze > 0 else 0.0
     controllers = []

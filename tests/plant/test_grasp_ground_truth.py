@@ -7,6 +7,8 @@ clearance and the pads' material."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
@@ -15,10 +17,11 @@ from pydrake.systems.primitives import LogVectorOutput
 
 from drake_coop.kinematics.rotations import pad_contact_components
 from drake_coop.plant.arms import arm_model
+from drake_coop.experiment.plan import plan_run
 from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 from drake_coop.plant.ground_truth import add_pad_force_log
 from drake_coop.plant.wrist import add_force_sensors
-from drake_coop.experiment.references import waypoints
+from drake_coop.scenario.task_path import waypoints
 from drake_coop.scenario import default_scenario
 from drake_coop.scenario.schema import ForceSensorModel
 from drake_coop.sensing.force_sensor import FTModel, add_ft_sensor
@@ -39,6 +42,11 @@ def _contact_scenario(clearance: float = 0.0):
     return scenario
 
 
+def _plan(scenario):
+    """The scenario's plan on this test's own grid: plant steps of exactly ``TIME_STEP``."""
+    return replace(plan_run(scenario), dt=TIME_STEP)
+
+
 @pytest.fixture(scope="module")
 def squeezed():
     """Both arms squeeze the box on its stand (32 N) and lift it: Newton's-law sensors
@@ -47,7 +55,7 @@ def squeezed():
     logged."""
     scenario = _contact_scenario()
     builder = DiagramBuilder()
-    coop = build_plant(builder, scenario)
+    coop = build_plant(builder, _plan(scenario))
     newton = add_force_sensors(builder, coop)
     models = [FTModel.from_settings(FT_SETTINGS, H, 0, 1), FTModel.from_settings(None, H, 1, 1)]
     truth = add_pad_force_log(builder, coop, H, models)
@@ -172,7 +180,7 @@ def test_stand_clearance_lowers_the_stand_only_when_asked():
     scenario.plant.friction = 0.5
     scenario.plant.pad_modulus = 2e6
     builder = DiagramBuilder()
-    coop = build_plant(builder, scenario)
+    coop = build_plant(builder, _plan(scenario))
     z_grasp = TASK.circle_top_z - TASK.lift_height
     assert coop.grasp.X_WBox0.translation()[2] == pytest.approx(z_grasp)
     assert coop.grasp.stand.model_instance() != coop.grasp.box.model_instance()

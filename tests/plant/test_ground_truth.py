@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 
 from drake_coop.experiment.diagram import build_experiment
+
+from drake_coop.experiment.plan import plan_run
 from drake_coop.experiment.simulate import simulate
 from drake_coop.scenario import load_scenario
 from drake_coop.sensing.force_sensor import FTModel
@@ -73,7 +75,7 @@ def test_offline_ground_truth_equals_the_live_path_when_h_is_one_plant_step():
 
 
 def test_offline_path_has_no_python_ground_truth_in_the_diagram():
-    exp = build_experiment(load_scenario(SCENARIOS / "paper.yaml"))
+    exp = build_experiment(plan_run(load_scenario(SCENARIOS / "paper.yaml")))
     kinds = {type(s).__name__ for s in exp.diagram.GetSystems()}
     assert not kinds & {"WristDynamics", "WristKinematics", "ForceSensor", "FTSensor"}
     assert {"ZeroOrderHold", "Multiplexer"} <= kinds
@@ -87,10 +89,10 @@ def test_live_path_is_automatic_and_required_with_a_sensor_feedback_or_other_mod
         scenario.robots[1].force_source = "sensor"
     else:
         scenario.plant.object_mode = change
-    exp = build_experiment(scenario, log=False)
+    exp = build_experiment(plan_run(scenario), log=False)
     assert exp.ground_truth is None and all(rs.force_sensor is not None for rs in exp.robots)
     with pytest.raises(ValueError, match="live_ground_truth=False"):
-        build_experiment(scenario, log=False, live_ground_truth=False)
+        build_experiment(plan_run(scenario), log=False, live_ground_truth=False)
 
 
 @pytest.mark.parametrize("sensor", [False, True])
@@ -103,13 +105,13 @@ def test_contact_mode_takes_the_pads_forces_off_the_loop(sensor):
     scenario.plant.object_mode = "contact"
     if sensor:
         scenario.robots[1].force_source = "sensor"
-    exp = build_experiment(scenario)
+    exp = build_experiment(plan_run(scenario))
     kinds = [type(s).__name__ for s in exp.diagram.GetSystems()]
     assert not set(kinds) & {"WristDynamics", "WristKinematics", "ForceSensor"}
     assert kinds.count("PadForces") == 1 and exp.ground_truth.logger is not None
     assert all(rs.force_sensor is None for rs in exp.robots)
     assert [rs.ft_sensor is not None for rs in exp.robots] == [False, sensor]
-    live = build_experiment(scenario, log=False, live_ground_truth=True)
+    live = build_experiment(plan_run(scenario), log=False, live_ground_truth=True)
     assert live.ground_truth is None and all(rs.force_sensor is not None for rs in live.robots)
     assert "PadForces" not in {type(s).__name__ for s in live.diagram.GetSystems()}
 
@@ -121,7 +123,7 @@ def test_guard_reads_the_offline_force_of_the_step_before_the_tick():
     (a force the step before would have needed: ``a = Δv/Δt``) trips the guard on it."""
     from pydrake.systems.analysis import Simulator
 
-    from drake_coop.experiment.plan import grasp_ticks
+    from drake_coop.experiment.ticks import grasp_ticks
     from drake_coop.experiment.simulate import _check_guards, initialize
     from drake_coop.plant.wrist import add_force_sensors
     from drake_coop.scenario import aligned_periods
@@ -129,7 +131,7 @@ def test_guard_reads_the_offline_force_of_the_step_before_the_tick():
     scenario = short_scenario("planes", 0.001)
     h, dt = aligned_periods(scenario.control_period, scenario.plant.time_step)
     probes = []
-    exp = build_experiment(scenario, before_build=lambda b, coop: probes.extend(
+    exp = build_experiment(plan_run(scenario), before_build=lambda b, coop: probes.extend(
         add_force_sensors(b, coop)))
     sim = Simulator(exp.diagram)
     ctx = sim.get_mutable_context()

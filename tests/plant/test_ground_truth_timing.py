@@ -18,7 +18,8 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ZeroOrderHold
 
 from drake_coop.plant.arms import arm_model
-from drake_coop.experiment.references import waypoints
+from drake_coop.scenario.task_path import waypoints
+from drake_coop.experiment.plan import plan_run
 from drake_coop.plant.cooperative import build_plant, initialize_plant_context
 from drake_coop.plant.wrist import add_force_sensors
 from drake_coop.scenario import default_scenario
@@ -39,7 +40,7 @@ def run():
     s = default_scenario()
     s.plant.time_step = DT
     b = DiagramBuilder()
-    coop = build_plant(b, s, time_step=DT)
+    coop = build_plant(b, plan_run(s))
     sensors = add_force_sensors(b, coop, H)
     for h in coop.arms:
         src = b.AddSystem(TorqueSource(arm_model(h.arm), 30.0, damping=0.5))

@@ -20,6 +20,7 @@ from pydrake.systems.primitives import (
 )
 
 from drake_coop.results.graph import connected_graphviz
+from drake_coop.experiment.plan import plan_run
 
 
 def loop_diagram():
@@ -115,7 +116,7 @@ def test_experiment_picture_hides_the_plants_unconnected_ports():
     from drake_coop.experiment.diagram import build_experiment
     from drake_coop.scenario import default_scenario
 
-    exp = build_experiment(default_scenario(), log=True)
+    exp = build_experiment(plan_run(default_scenario()), log=True)
     plant = exp.coop.plant
     dot = connected_graphviz(exp.diagram)
     nodes, _ = parse(dot)
@@ -137,7 +138,7 @@ def _block_graph(scenario):
     from drake_coop.experiment.diagram import build_experiment
     from drake_coop.results.block_diagram import paper_block_diagram
 
-    dot = paper_block_diagram(build_experiment(scenario, log=True).diagram)
+    dot = paper_block_diagram(build_experiment(plan_run(scenario), log=True).diagram)
     names = {}
     for node, label in re.findall(r"^\s*(n\d+) \[label=<(.*)>, fillcolor", dot, re.M):
         system = re.search(r'COLOR="#667788">(.*?)</FONT>', label).group(1)

@@ -166,7 +166,7 @@ def test_scenarios_lists_whole_descriptions_without_issue_numbers(capsys):
 def test_run_warns_on_stderr_when_a_squeeze_turned_into_a_pull(capsys):
     from types import SimpleNamespace
 
-    from drake_coop.cli import _print_summary
+    from drake_coop.cli.run import _print_summary
 
     logs, meta = synthetic_run()
     logs["robot1"]["lambda_meas"][(logs["robot1"]["t"] > 30.0)] = -2.0   # dropped at 30 s

@@ -234,8 +234,7 @@ def test_every_byte_of_a_stop_message_reaches_the_reason_printable(byte):
 # ------------------------------------------------------------------ serve, in process
 
 SCENARIO = load_scenario()
-Q0 = [np.asarray(q, dtype=float) for q in rest_posture(SCENARIO,
-                                                       list(plan_run(SCENARIO).arms))[0]]
+Q0 = [np.asarray(q, dtype=float) for q in rest_posture(plan_run(SCENARIO))[0]]
 
 
 def played_cell(monkeypatch, lcm, partner=None, partner_until=None, shift=None, velocity=None,
@@ -470,7 +469,7 @@ def test_the_first_commands_are_ramped_in_from_the_hold_torque(tmp_path, monkeyp
         runs[ramp] = got
     scenario = load_scenario(tmp_path / "ramp0.yaml")
     specs = driver_specs(scenario, check_models(scenario))
-    loop = ServeLoop(scenario, plan_run(scenario, 0.2), DrakeLcm("memq://"), specs)
+    loop = ServeLoop(plan_run(scenario, 0.2), DrakeLcm("memq://"), specs)
     n = 5
     for i, name in enumerate(("robot1", "robot2")):
         plain, ramped = np.array(runs["0"][name]), np.array(runs["0.045"][name])

@@ -148,7 +148,7 @@ def played_driver(monkeypatch, lcm, stop_status_after=None, signal_after=None, j
     from drake_coop.scenario.loading import load_scenario
 
     scenario = load_scenario()
-    q0, _ = rest_posture(scenario, list(plan_run(scenario).arms))
+    q0, _ = rest_posture(plan_run(scenario))
     calls = {"n": 0}
 
     def pump(lcm_, deadline):

@@ -9,10 +9,12 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.lcm import LcmSubscriberSystem
 
 from drake import lcmt_panda_status
+from drake_coop.experiment.plan import plan_run
 from drake_coop.robot.drivers import add_driver_side
 from drake_coop.robot.torque_driver import DriverClock
 from drake_coop.scenario.loading import dump_scenario, load_scenario
-from drake_coop.scenario.schema import Driver, ScenarioError
+from drake_coop.scenario.driver import Driver
+from drake_coop.scenario.schema import ScenarioError
 
 
 def _scenario(phase=0.0, drift=0.0):
@@ -29,7 +31,7 @@ def _status_times(scenario, t_end):
     # No LcmInterfaceSystem: the Python handler below is pumped between the steps only
     # (drake 1.58 crashes on a Python handler pumped inside AdvanceTo: add_lcm_interface).
     origin = 1_700_000_000_000_000          # the driver's epoch clock at t = 0 (µs)
-    add_driver_side(builder, scenario, lcm, clock=DriverClock("epoch", origin=origin))
+    add_driver_side(builder, plan_run(scenario), lcm, clock=DriverClock("epoch", origin=origin))
     times = []
     lcm.Subscribe("PANDA_STATUS_robot2", lambda data: times.append(
         (lcmt_panda_status.decode(data).utime - origin) * 1e-6))

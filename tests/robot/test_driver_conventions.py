@@ -14,7 +14,8 @@ from drake_coop.robot.driver_spec import driver_specs
 from drake_coop.scenario.driver import FRANKA_DAMPING
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.model_check import check_models
-from drake_coop.scenario.schema import Driver, ScenarioError
+from drake_coop.scenario.driver import Driver
+from drake_coop.scenario.schema import ScenarioError
 
 
 def with_driver(**fields):

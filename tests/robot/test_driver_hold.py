@@ -17,7 +17,7 @@ from drake_coop.robot.drivers import add_driver_side
 from drake_coop.robot.loopback import initialize_sides
 from drake_coop.robot.torque_driver import DriverClock
 from drake_coop.scenario.loading import dump_scenario, load_scenario
-from drake_coop.scenario.schema import Driver
+from drake_coop.scenario.driver import Driver
 
 ORIGIN = 1_700_000_000_000_000
 
@@ -28,12 +28,12 @@ def driver_run(scenario, t_end, commands, v0=None):
     plan = plan_run(scenario, t_end)
     lcm = DrakeLcm("memq://")
     builder = DiagramBuilder()
-    side = add_driver_side(builder, scenario, lcm, clock=DriverClock("epoch", origin=ORIGIN))
+    side = add_driver_side(builder, plan, lcm, clock=DriverClock("epoch", origin=ORIGIN))
     logs = [LogVectorOutput(side.coop.plant.get_state_output_port(a.instance), builder,
                             publish_period=plan.h) for a in side.coop.arms]
     sim = Simulator(builder.Build())
     ctx = sim.get_mutable_context()
-    initialize_sides(scenario, plan, ctx, side, None)
+    initialize_sides(plan, ctx, side, None)
     plant = side.coop.plant
     pctx = plant.GetMyMutableContextFromRoot(ctx)
     if v0 is not None:

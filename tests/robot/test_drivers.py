@@ -20,7 +20,7 @@ from drake_coop.robot.drivers import COMMAND_OFFSET, add_controller_side
 from drake_coop.robot.driver_spec import safe_command_message
 from drake_coop.robot.loopback import initialize_sides
 from drake_coop.scenario.loading import dump_scenario, load_scenario
-from drake_coop.scenario.schema import Driver
+from drake_coop.scenario.driver import Driver
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +53,7 @@ def run_controller(scenario, positions, rng=None, ticks=6, stop_after=None, star
     plan = plan_run(scenario, 1.0)
     lcm = DrakeLcm("memq://")
     builder = DiagramBuilder()            # pumped here between ticks, as serve does
-    side = add_controller_side(builder, scenario, lcm, plan)
+    side = add_controller_side(builder, plan, lcm)
     commands = {a.spec.robot: [] for a in side.arms}
     for a in side.arms:
         lcm.Subscribe(a.spec.command_channel,
@@ -61,8 +61,8 @@ def run_controller(scenario, positions, rng=None, ticks=6, stop_after=None, star
                           lcmt_panda_command.decode(data)))
     sim = Simulator(builder.Build())
     ctx = sim.get_mutable_context()
-    q0, _ = rest_posture(scenario, list(plan.arms))
-    initialize_sides(scenario, plan, ctx, None, side, q0)
+    q0, _ = rest_posture(plan)
+    initialize_sides(plan, ctx, None, side, q0)
 
     def publish(k):
         for i, a in enumerate(side.arms):
@@ -151,8 +151,9 @@ def test_the_wire_carries_tau_minus_gravity_for_a_robot_that_adds_it(scenario):
     adds, _ = run_controller(scenario, moving)
     plain, _ = run_controller(with_driver(scenario, gravity="none", safe_command="hold"),
                               moving)
-    coop = build_plant(DiagramBuilder(), scenario, 1e-3)
-    q0, _ = rest_posture(scenario, list(plan_run(scenario, 1.0).arms))
+    plan = plan_run(scenario, 1.0)
+    coop = build_plant(DiagramBuilder(), plan)
+    q0, _ = rest_posture(plan)
     for i, name in enumerate(["robot1", "robot2"]):
         model = controller_arm_model(coop.arms[i].arm, None)
         plant = model.plant

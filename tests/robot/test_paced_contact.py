@@ -19,7 +19,8 @@ from drake_coop.robot.serve_loop import ServeLoop
 from drake_coop.robot.status import check_panda_status
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.model_check import check_models
-from drake_coop.scenario.schema import Driver, ScenarioError
+from drake_coop.scenario.driver import Driver
+from drake_coop.scenario.schema import ScenarioError
 
 
 def compressed(mode: str):
@@ -36,7 +37,7 @@ def wire_torques(s, logs, t_end):
     """``serve``'s commands when fed the run's readings ``logs[robot]["q"]`` tick by tick."""
     plan = plan_run(s, t_end)
     lcm = DrakeLcm("memq://")
-    loop = ServeLoop(s, plan, lcm, driver_specs(s, check_models(s)))
+    loop = ServeLoop(plan, lcm, driver_specs(s, check_models(s)))
     got = {spec.command_channel: [] for spec in loop.specs}
     for channel, out in got.items():
         lcm.Subscribe(channel, lambda d, out=out: out.append(
@@ -87,7 +88,7 @@ def test_serve_refuses_the_shared_object_block_naming_the_field():
     s.object_model.shared = True
     plan = plan_run(s, 1.0)
     with pytest.raises(ScenarioError, match=r"^object_model\.shared: "):
-        ServeLoop(s, plan, DrakeLcm("memq://"), driver_specs(s, check_models(s)))
+        ServeLoop(plan, DrakeLcm("memq://"), driver_specs(s, check_models(s)))
 
 
 @pytest.mark.parametrize("name, existing", [("truth.txt", False), ("truth.npz", True),

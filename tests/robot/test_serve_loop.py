@@ -51,7 +51,7 @@ def paper():
     scenario = load_scenario()
     plan = plan_run(scenario, 0.5)
     specs = driver_specs(scenario, check_models(scenario))
-    q0, _ = rest_posture(scenario, list(plan.arms))
+    q0, _ = rest_posture(plan)
     return scenario, plan, specs, [np.asarray(q, dtype=float) for q in q0]
 
 
@@ -78,7 +78,7 @@ def test_one_step_per_tick_gives_the_diagrams_torques(paper):
     for channel in got:
         lcm.Subscribe(channel, lambda d, c=channel: got[c].append(
             list(lcmt_panda_command.decode(d).joint_torque)))
-    loop = ServeLoop(scenario, plan, lcm, specs)
+    loop = ServeLoop(plan, lcm, specs)
     loop.start(q0)
     for k in range(ticks):                   # no status at tick 0 (as the Diagram below)
         for i in range(len(specs)):
@@ -93,11 +93,11 @@ def test_one_step_per_tick_gives_the_diagrams_torques(paper):
         lcm2.Subscribe(channel, lambda d, c=channel: ref[c].append(
             list(lcmt_panda_command.decode(d).joint_torque)))
     builder = DiagramBuilder()               # subscribers, receivers, periodic publishers
-    side = add_controller_side(builder, scenario, lcm2, plan, specs, status_input="subscriber")
+    side = add_controller_side(builder, plan, lcm2, specs, status_input="subscriber")
     diagram = builder.Build()
     sim = Simulator(diagram)
     ctx = sim.get_mutable_context()
-    initialize_sides(scenario, plan, ctx, None, side, q0)
+    initialize_sides(plan, ctx, None, side, q0)
     sim.Initialize()
     for k in range(ticks):
         for i, s in enumerate(specs):
@@ -156,7 +156,7 @@ def test_ticking_on_arrival_uses_a_status_that_arrived_after_the_grid_time(paper
     lcm = DrakeLcm("memq://")
     channels = [s.status_channel for s in specs]
     driver = ClockedDriver(lcm, q0, channels, time.perf_counter())
-    loop = ServeLoop(scenario, plan, lcm, specs)
+    loop = ServeLoop(plan, lcm, specs)
     arrivals = status_arrivals(lcm, specs)
     stamps = []
     feed = loop.feed
@@ -209,7 +209,7 @@ def test_one_serve_per_arm_a_trip_in_robot1_stops_robot2_before_its_next_tick(
     from drake_coop.robot import cli
 
     scenario = load_scenario()
-    q0, _ = rest_posture(scenario, list(plan_run(scenario).arms))
+    q0, _ = rest_posture(plan_run(scenario))
     trip_pump = 30
     # pump p precedes tick p - 4 (pumps 1-3: the wait, three heartbeats announced)
     k_trip = trip_pump - 1 - MIN_ANNOUNCEMENTS

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drake_coop.control.arm_model import description_packages
+from drake_coop.control.arm_plant import description_packages
 from drake_coop.scenario.lab_arms import LAB_ARMS, SENSOR_RPY_FOR_AXIS, arm_facts, lab_arm_robot
 from drake_coop.scenario.loading import load_scenario
 from drake_coop.scenario.resources import find_scenario
@@ -40,7 +40,6 @@ def test_the_howto_scenario_builds_and_places_each_pad_where_the_guide_says(path
 
     from drake_coop.experiment.diagram import build_experiment
     from drake_coop.experiment.plan import plan_run
-    from drake_coop.experiment.references import reference_samples
     from drake_coop.stability.gains_cli import load_for_gains
 
     s = load_for_gains(str(path))            # what `drake-coop gains` reads: no gains given
@@ -57,11 +56,10 @@ def test_the_howto_scenario_builds_and_places_each_pad_where_the_guide_says(path
     # At the grasp each pad's centre is on its contact point (its surface on the box's face)
     # and its approach axis (the pad's z) points into the box, along -normal.
     for i, r in enumerate(s.robots):
-        t, ref = reference_samples(s, i, s.task.t_grasp + 0.1, plan)
+        t, ref = plan.robots[i].samples
         k = int(np.argmin(np.abs(t - s.task.t_grasp)))
-        n = (ref.shape[1] - len(r.normals) - 1) // 3         # rows [q_d, q̇_d, q̈_d, λ_d, held]
         instance = exp.coop.arms[i].instance
-        plant.SetPositions(context, instance, ref[k, :n])
+        plant.SetPositions(context, instance, plan.robots[i].layout.column(ref, "q_d")[k])
         X = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName("pad", instance))
         assert isinstance(X, RigidTransform)
         expected = [*r.contact_xy, plan.z_grasp]

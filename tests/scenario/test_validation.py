@@ -12,8 +12,8 @@ import tracemalloc
 
 import pytest
 
-from drake_coop.experiment.plan import MAX_TICKS, check_run_size
-from drake_coop.experiment.references import reference_samples
+from drake_coop.experiment.ticks import MAX_TICKS, check_run_size
+from drake_coop.experiment.plan import plan_run
 from drake_coop.scenario import (
     BOUNDS,
     LENGTHS,
@@ -240,9 +240,9 @@ def test_long_task_is_valid_but_a_full_run_of_it_is_refused():
 def test_references_are_built_only_to_the_end_of_the_run():
     s = load_scenario(data="task: {t_end: 10000}")
     started = time.perf_counter()
-    t, r = reference_samples(s, 0, t_end=0.05)
+    t, r = plan_run(s, 0.05).robots[0].samples
     assert time.perf_counter() - started < 5.0 and t.size == 7   # ticks 0 .. 6 of h = 9 ms
-    t_full, r_full = reference_samples(load_scenario(), 0)
+    t_full, r_full = plan_run(load_scenario()).robots[0].samples
     assert (r == r_full[:7]).all() and (t == t_full[:7]).all()
 
 
@@ -330,3 +330,56 @@ def test_the_contact_point_is_refused_on_an_arm_that_cannot_follow_it(monkeypatc
     assert _refused(text).startswith(
         "object_model.control_point: contact needs arms whose references can follow the pad's "
         "material point: robots[0] (robot1) is redundant with a position-only task")
+
+
+@pytest.fixture
+def copied_momentum(monkeypatch):
+    """A copy of the momentum observer's registry entry under another name (how a user adds
+    an estimator): the registry is all that knows it."""
+    from dataclasses import replace
+
+    from drake_coop.control import registry
+
+    copy = replace(registry.source("force", "momentum"), name="momentum_copy")
+    monkeypatch.setattr(registry, "SOURCES", registry.SOURCES + (copy,))
+    return copy
+
+
+def test_a_copied_source_with_a_bad_option_is_refused_with_the_fields_path(copied_momentum):
+    """Validation asks the selected source's registry entry (its ``check``), not its name: a
+    copied estimator with ``momentum_gain: 5000`` (beyond 1/h) is refused at loading, naming
+    the field; within 1/h it loads."""
+    text = ("robots:\n- {name: robot1, force_source: momentum_copy, "
+            "gains: {momentum_gain: 5000.0}}\n" + f"- {ROBOT2}\n")
+    message = _refused(text)
+    assert message.startswith("robots[0].gains.momentum_gain must be at most 1/h = ")
+    assert "force_source: momentum_copy" in message and message.endswith("got 5000")
+    ok = load_scenario(data=text.replace("5000.0", "100.0"))
+    assert ok.robots[0].force_source == "momentum_copy"
+
+
+def test_an_option_of_a_source_not_selected_is_refused_by_the_registry():
+    """``difference_cutoff_hz`` is the difference source's option (its registry entry's
+    ``options``): set with another velocity source it is refused, naming the field."""
+    message = _refused(f"robots:\n- {{name: robot1, difference_cutoff_hz: 20.0}}\n- {ROBOT2}\n")
+    assert message == ("robots[0].difference_cutoff_hz applies to velocity_source: difference "
+                       "only; set it to null or use difference")
+    message = _refused("robots:\n- {name: robot1, velocity_source: difference, "
+                       f"difference_cutoff_hz: 1.0e4}}\n- {ROBOT2}\n")
+    assert message.startswith("robots[0].difference_cutoff_hz must be null or in (0, ")
+
+
+def test_the_registry_answers_which_inputs_a_robot_needs(copied_momentum):
+    """The inputs from outside the block each selected source declares (a real arm's driver
+    gives neither velocities nor a wrist force)."""
+    from drake_coop.control.registry import missing_inputs
+
+    s = load_scenario()
+    robot = s.robots[0]
+    assert missing_inputs(robot) == []                     # the paper's observers
+    robot.velocity_source, robot.force_source = "measured", "sensor"
+    assert missing_inputs(robot) == [("velocity_source", "measured", "state"),
+                                     ("force_source", "sensor", "lambda_sensor")]
+    assert missing_inputs(robot, available=("state", "lambda_sensor")) == []
+    robot.velocity_source, robot.force_source = "observer", "momentum_copy"
+    assert missing_inputs(robot) == []

@@ -14,6 +14,7 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from drake_coop.cli import main
 from drake_coop.experiment.diagram import build_experiment
+from drake_coop.experiment.plan import plan_run
 from drake_coop.scenario import ScenarioError, default_scenario, load_scenario
 from drake_coop.scenario.schema import Timing
 from drake_coop.control.timing import aligned_periods
@@ -76,7 +77,7 @@ def test_jitter_is_reproducible_and_depends_on_seed_and_robot():
 
 
 def test_defaults_add_no_block_to_the_papers_diagram():
-    exp = build_experiment(default_scenario(), log=False)
+    exp = build_experiment(plan_run(default_scenario()), log=False)
     names = {s.get_name() for s in exp.diagram.GetSystems()}
     assert not any(n.endswith("_latency") for n in names)
     assert all(rs.latency is None for rs in exp.robots)
@@ -85,7 +86,7 @@ def test_defaults_add_no_block_to_the_papers_diagram():
 def test_a_delay_inserts_the_block_between_controller_and_actuators():
     s = default_scenario()
     s.robots[1].timing.computation_delay = 0.002
-    exp = build_experiment(s, log=False)
+    exp = build_experiment(plan_run(s), log=False)
     assert exp.robots[0].latency is None and exp.robots[1].latency is not None
     assert exp.robots[1].latency.get_name() == "robot2_latency"
 

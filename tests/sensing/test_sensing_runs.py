@@ -17,7 +17,8 @@ import pytest
 
 from drake_coop.cli import main
 from drake_coop.experiment.diagram import build_experiment
-from drake_coop.experiment.plan import grasp_ticks
+from drake_coop.experiment.plan import plan_run
+from drake_coop.experiment.ticks import grasp_ticks
 from drake_coop.experiment.simulate import simulate
 from drake_coop.results.logs import COLUMNS, OPTIONAL_COLUMNS, load_logs, save_logs
 from drake_coop.results.metrics import compute_metrics
@@ -35,7 +36,7 @@ def _scenario(velocity_source, force_source, **encoders):
 
 
 def test_diagram_reads_plant_sensors_control_actuators_plant():
-    exp = build_experiment(_scenario("difference", "sensor"), log=False)
+    exp = build_experiment(plan_run(_scenario("difference", "sensor")), log=False)
     names = {s.get_name() for s in exp.diagram.GetSystems()}
     for n in ("robot1_encoders", "robot1_control", "robot1_actuators", "robot1_ft_sensor",
               "robot1_force_sensor"):
@@ -211,7 +212,8 @@ def test_ft_sensor_reads_the_low_pass_of_the_plant_step_before_every_tick():
     25 Hz filter are on) holds ``y(k) + b + v_k`` with ``y(k) = y(k−1) + α (λ_j − y(k−1))`` and
     ``λ_j`` the ground truth of the plant step ``j = N k − 1``, ``[t_k − Δt, t_k)`` (an
     event at ``t_k − Δt`` read the step after it on ~1 % of the ticks)."""
-    from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, lowpass_alpha, white_noise
+    from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, white_noise
+    from drake_coop.control.timing import lowpass_alpha
 
     scenario, h, dt, result, steps = _ft_readings_and_step_forces(16.5)
     N = int(round(h / dt))

@@ -29,7 +29,7 @@ def test_the_derived_gains_follow_their_rules_on_an_arm_they_were_not_tuned_on()
         model = arm_model(plan.arms[i])
         # J_j: the inertia joint j sees with the others free (the Schur complement of H),
         # smallest over the task's postures; it lies above min λ_min(H).
-        postures, grasp = rules.task_postures(s, i, plan)
+        postures, grasp = rules.task_postures(plan.robots[i])
         schur, lam_min = [], []
         for q in postures:
             H = model.H(q)

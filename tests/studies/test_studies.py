@@ -296,3 +296,23 @@ def test_the_shipped_model_mismatch_study_draws_its_published_cases():
         drawn = {k: v for k, v in case.values.items() if k.startswith("robots.")}
         assert len(drawn) == 12      # mass, inertia, damping per arm; friction per joint
         assert drawn == {k: float(row[k]) for k in drawn}
+
+
+def test_a_study_reach_checks_each_base_once(monkeypatch):
+    """The reachability check (every target through each arm's kinematics, the costly part of
+    validation) runs once per base geometry: the base's loading and every case share its
+    result, also the cases that go through the YAML loading (a variant value); a second
+    geometry is checked once more (the counter can fail)."""
+    import drake_coop.scenario.reach as validation
+
+    calls = []
+    inner = validation.check_reachable
+    monkeypatch.setattr(validation, "check_reachable",
+                        lambda scenario: (calls.append(1), inner(scenario))[1])
+    cases = expand(_study("grid: {robots.0.velocity_source: [observer, difference], "
+                          "robots.0.gains.k_d: [20, 40]}"))
+    assert len(cases) == 4 and len(calls) == 1
+    calls.clear()
+    cases = expand(_study("grid: {task.lift_height: [0.05, 0.06], "
+                          "robots.0.velocity_source: [observer, difference]}"))
+    assert len(cases) == 4 and len(calls) == 3          # the base and two lift heights

@@ -223,7 +223,7 @@ def test_workers_are_bounded(tmp_path, capsys, argv, message):
 
 def _run_message(scenario_text: str, t_end: float | None) -> str:
     """What `drake-coop run` says about a scenario: load_scenario, then the run size."""
-    from drake_coop.experiment.plan import check_run_size
+    from drake_coop.experiment.ticks import check_run_size
 
     try:
         check_run_size(load_scenario(data=scenario_text), t_end)
@@ -233,7 +233,7 @@ def _run_message(scenario_text: str, t_end: float | None) -> str:
 
 
 def test_a_case_over_the_run_size_limit_fails_validation_as_run_says(tmp_path):
-    from drake_coop.experiment.plan import MAX_TICKS
+    from drake_coop.experiment.ticks import MAX_TICKS
 
     text = "t_end: 300.0\nbase: {task: {t_end: 300.0, t_release: 290.0}}\n" \
            "grid: {control_period: [0.009, 0.001], plant.time_step: [0.001]}"

@@ -253,3 +253,38 @@ def _cmdline(pid: int) -> list[str]:
         return Path(f"/proc/{pid}/cmdline").read_text().split("\0")
     except OSError:
         return []
+
+
+def test_a_resume_reach_checks_nothing_it_stored(tmp_path, monkeypatch, capsys):
+    """The first run reach-checks each base geometry once and keeps the results in its
+    folder (``reach_checks.json``); the resume reads them and checks nothing again (the
+    check counted; a new folder checks again, so the counter can fail)."""
+    import drake_coop.scenario.reach as reach
+    from drake_coop.studies.engines import run_case
+    from drake_coop.studies.folder import REACH
+
+    path = ROOT / "studies" / "sampling_period.yaml"
+    study, first = apply_size(load_study(path), _size(path))
+    results = {c.hash: run_case(c.scenario_yaml, study.t_end)
+               for c in expand(study, first=first)}
+    checks: list = []
+    inner = reach.check_reachable
+    monkeypatch.setattr(reach, "check_reachable",
+                        lambda scenario: (checks.append(1), inner(scenario))[1])
+    out = tmp_path / "out"
+    argv = ["study", str(path), "--out", str(out), *_argv(_size(path)), "--quiet"]
+
+    def stop(i):
+        if i == 1:
+            raise Terminated()
+
+    calls: list = []
+    _engine(monkeypatch, results, calls, stop)
+    assert main(argv) == 143
+    assert len(checks) == 1 and (out / REACH).is_file()       # one base, one geometry
+    checks.clear()
+    _engine(monkeypatch, results, calls)
+    assert main(argv) == 0
+    assert checks == []                                        # the resume: nothing again
+    assert main(["study", str(path), "--out", str(tmp_path / "new"), *argv[4:]]) == 0
+    assert len(checks) == 1
