@@ -200,9 +200,13 @@ def test_huge_lengths_and_bad_frames_drop_that_client_only(hub, frame):
 
 def test_too_many_subscriptions_drop_that_client(hub):
     bad = Client(hub.port)
-    for k in range(300):
-        bad.subscribe(f"CH{k}")
-    assert bad.closed_by_hub()
+    try:
+        for k in range(300):
+            bad.subscribe(f"CH{k}")
+    except (ConnectionResetError, BrokenPipeError):
+        pass                         # dropped while still sending: what the test asks
+    else:
+        assert bad.closed_by_hub()
     roundtrip(hub)
 
 
