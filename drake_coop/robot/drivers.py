@@ -56,23 +56,23 @@ from pydrake.systems.primitives import PassThrough, TrajectorySource
 
 from drake import lcmt_panda_command
 from drake_coop.control.block import AddCooperativeController, ControllerHandles
+from drake_coop.control.deprecation import moved
 from drake_coop.control.watchdog import Watchdog
 from drake_coop.control.params import checked_period
 from drake_coop.experiment.object_blocks import ESTIMATOR_TICKS, add_object_blocks, couple_samples
 from drake_coop.experiment.plan import RunPlan
 from drake_coop.plant.cooperative import CoopPlant, build_plant
 from drake_coop.plant.model_error import controller_arm_model
-from drake_coop.robot.driver_spec import (  # noqa: F401 (re-exported)
-    DriverSpec,
-    SharedPandaCommand,
-    driver_specs,
-    safe_command_message,
-    shared_message_type,
-)
+from drake_coop.robot.driver_spec import DriverSpec, SharedPandaCommand, driver_specs
 from drake_coop.robot.status import CheckedStatusReceiver, RawMessage
 from drake_coop.robot.torque_driver import FRANKA_LOW_PASS_HZ, DriverClock, TorqueDriver
 from drake_coop.robot.wire import WireCommand
 from drake_coop.scenario.schema import ScenarioError
+
+#: Names this module no longer holds (found here until the removal date of
+#: :mod:`drake_coop.control.deprecation`).
+_MOVED = dict.fromkeys(("safe_command_message", "shared_message_type"),
+                       "drake_coop.robot.driver_spec")
 
 #: The command of tick ``k`` is published at ``t_k + COMMAND_OFFSET`` (simulated time): after
 #: the tick's updates, off the driver's 1 ms grid.
@@ -476,3 +476,8 @@ def add_driver_side(builder: DiagramBuilder, plan: RunPlan, lcm: DrakeLcm,
         builder.Connect(driver.get_output_port(0), plant.get_actuation_input_port(handles.instance))
         arms.append(ArmDriver(spec=spec, command_subscriber=cmd_sub, driver=driver))
     return DriverSide(coop=coop, arms=arms, clock=clock, keep=keep)
+
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)

@@ -34,12 +34,12 @@ from pathlib import Path
 
 import numpy as np
 
-from drake_coop.robot.realtime import (  # noqa: F401 (re-exported)
-    REALTIME_POLICIES,
-    missing_realtime,
-    realtime_settings,
-    unlock_memory,
-)
+from drake_coop.control.deprecation import moved
+
+#: Names this module no longer holds (found here until the removal date of
+#: :mod:`drake_coop.control.deprecation`).
+_MOVED = dict.fromkeys(("REALTIME_POLICIES", "missing_realtime", "realtime_settings",
+                        "unlock_memory"), "drake_coop.robot.realtime")
 
 #: Columns of ``pacing.csv``.
 PACING_COLUMNS = ("k", "t", "compute_s", "lateness_s", "status_age_s", "missed", "wait_s")
@@ -484,3 +484,8 @@ def write_pacing_csv(path: Path, record: PacingRecord) -> None:
                      f"{a['lateness_s'][i]:.9f},{a['status_age_s'][i]:.9f},{a['missed'][i]},"
                      f"{a['wait_s'][i]:.9f}")
     atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def __getattr__(name):
+    """A name that moved to its defining module (:data:`_MOVED`), with a warning."""
+    return moved(__name__, name, _MOVED)
