@@ -18,6 +18,7 @@ row's result), and the run to the circle's end (+1 s) measured by
     python -m bench.every_arm --out docs/results/every_arm.json              # every row
     python -m bench.every_arm jaco2 mixed --out docs/results/every_arm.json  # some rows
     python -m bench.every_arm --table --out docs/results/every_arm.json      # the table only
+    python -m bench.every_arm --buckling jaco2 --out docs/results/every_arm.json  # diagnosis
 
 A row already in the file is skipped (``--force`` runs it again); each row is written as soon
 as it ends (:func:`bench.lab_arms_object.write_case`), with its command, CPU and wall time,
@@ -29,6 +30,7 @@ the bars of :data:`BARS` on the circle phase (the worst arm), or its refusal.
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import math
 import sys
@@ -139,7 +141,8 @@ def run_row(key: str, out: Path) -> dict:
         case["gains"] = {
             "rho": report.rho, "stable": report.stable, "attempts": report.attempts,
             "cpu_seconds": round(time.process_time() - start, 1),
-            "task_checks": ({c.name: {"passes": c.passes, "message": c.message}
+            "task_checks": ({c.name: {"passes": c.passes, "message": c.message,
+                                      "values": c.values}
                              for c in report.task.checks} if report.task else {}),
             "robots": {d.name: {"K_R": [float(k) for k in d.gains.K_R],
                                 "Lambda": d.gains.Lambda, "xi": d.gains.xi}
@@ -154,6 +157,53 @@ def run_row(key: str, out: Path) -> dict:
     case.update(measure_with_lift(scenario))
     case["verdict"] = verdict(case)
     return case
+
+
+def buckling(key: str, out: Path, t_end: float = 24.0) -> dict:
+    """The grasp's buckling bound against the simulated truth on a pair (the row's setup and
+    derived gains, :func:`~drake_coop.stability.gains.derive_gains`, no checks): the task's
+    squeeze (``profile``) and the friction squeeze on a box of μ 2 (``friction_mu2``), each
+    run to ``t_end`` s (the lift): the bound's worst ``λ_d / λ_b`` before ``t_end``, the box's
+    rotation angle at the end and its largest, the pads' sideways error at the end."""
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.kinematics.rotations import quaternion_rotations
+    from drake_coop.stability.gains import derive_gains, gains_for_scenario
+    from drake_coop.stability.gains_cli import load_for_gains
+    from drake_coop.stability.grasp import check_grasp_buckling
+
+    arms = MIXED if key == "mixed" else (key, key)
+    places = [placement(a, out.parent)[0] for a in arms]
+    path = out.parent / f".{key}.buckling.yaml"
+    path.write_text(pair_yaml(arms, tuple(places)))
+    try:
+        base = load_for_gains(str(path))
+    finally:
+        path.unlink(missing_ok=True)
+    base = gains_for_scenario(base, derive_gains(base))
+    cases = {}
+    for name, squeeze, mu in (("profile", "profile", None), ("friction_mu2", "friction", 2.0)):
+        s = copy.deepcopy(base)
+        s.object_model.squeeze = squeeze
+        if mu is not None:
+            s.plant.friction = mu
+        bound = check_grasp_buckling(s, t_end=t_end)
+        start = time.process_time()
+        result = simulate(s, t_end=t_end)
+        log = next(iter(result.logs.values()))
+        R = quaternion_rotations(np.asarray(log["object_pose"])[:, :4])
+        angle = np.arccos(np.clip((np.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1))
+        err = np.asarray(log["x"]) - np.asarray(log["x_d"])
+        cases[name] = {"worst_ratio": bound.worst_ratio, "ratio_t": bound.t,
+                       "squeeze_N": bound.squeeze, "lambda_b_N": bound.lambda_b,
+                       "min_lambda_b_N": bound.min_lambda_b,
+                       "stiffness_N_per_m": bound.stiffness, "distance_m": bound.distance,
+                       "box_angle_end_rad": float(angle[-1]), "box_angle_max_rad":
+                       float(angle.max()), "pad_sideways_error_end_m":
+                       float(np.linalg.norm(err[-1, 1:3])),
+                       "squeeze_measured_end_N": float(np.ravel(log["lambda_meas"][-1])[0]),
+                       "squeeze_desired_end_N": float(np.ravel(log["lambda_d"][-1])[0]),
+                       "cpu_seconds": round(time.process_time() - start, 1)}
+    return {"arms": list(arms), "t_end": t_end, "runs": cases}
 
 
 def verdict(case: dict) -> dict:
@@ -194,6 +244,8 @@ def table(data: dict) -> str:
              "| slips | mass at the lift's end (%) | bars (0.3 N, 0.5 mm, 0 slips) |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     for key in sorted(data["cases"], key=lambda k: (k == "mixed", k)):
+        if "@" in key:
+            continue
         case = data["cases"][key]
         arms = " + ".join(case.get("arms", [key]))
         if "refusal" in case:
@@ -234,6 +286,9 @@ def main(argv=None) -> int:
     parser.add_argument("--out", required=True)
     parser.add_argument("--force", action="store_true", help="run rows already in the file")
     parser.add_argument("--table", action="store_true", help="only write the guide's table")
+    parser.add_argument("--buckling", action="store_true",
+                        help="instead of the rows: the buckling bound against the simulated "
+                             "truth on each named pair (:func:`buckling`), under ROW@buckling")
     args = parser.parse_args(argv)
     rows = args.rows or [*LAB_ARMS, "mixed"]
     for row in rows:
@@ -244,6 +299,14 @@ def main(argv=None) -> int:
 
     from bench.lab_arms_object import _cpu_name, write_case
 
+    if args.buckling:
+        for row in args.rows:
+            case = buckling(row, out)
+            case["command"] = f"python -m bench.every_arm --buckling {row} --out {args.out}"
+            case["drake"], case["cpu"] = version("drake"), _cpu_name()
+            write_case(out, f"{row}@buckling", case)
+            print(row, json.dumps(case), flush=True)
+        return 0
     if not args.table:
         for row in rows:
             done = json.loads(out.read_text())["cases"] if out.exists() else {}

@@ -34,7 +34,8 @@ postures along the lift and the circle, the torque limits along the path, and in
 mode the grasp's buckling under the squeeze, :mod:`drake_coop.stability.grasp`); a failing
 map backs ``κ`` off, a failing torque or grasp check refuses with its one line.
 A scenario in ``contact`` mode is checked on its ``planes`` copy (the map does not take a
-floating box), and a scenario with an object model on a copy without it (:func:`map_copy`).
+floating box), and a scenario with an object model on a copy without it
+(:func:`~drake_coop.stability.task_check.map_copy`).
 """
 
 from __future__ import annotations
@@ -47,10 +48,11 @@ from typing import Callable
 
 import numpy as np
 
-from drake_coop.scenario.schema import Gains, ObjectModelSettings, Scenario
+from drake_coop.scenario.schema import Gains, Scenario
+from drake_coop.stability.task_check import map_copy  # noqa: F401 (its home before)
 
 __all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_and_check", "derive_gains",
-           "derive_robot_gains", "gains_for_scenario", "map_copy", "task_postures"]
+           "derive_robot_gains", "gains_for_scenario", "task_postures"]
 
 #: Target ``h K_R,j / J_j`` (half the single-joint bound 2).
 KAPPA = 1.0
@@ -312,36 +314,6 @@ def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
         rho[point] = float(report.rho) if report.residual <= 1e-6 else math.inf
         progress(f"  {point}: rho = {rho[point]:.6g} ({time.perf_counter() - start:.1f} s)")
     return rho
-
-
-def map_copy(scenario: Scenario) -> tuple[Scenario, str]:
-    """The scenario the map is computed on: itself, or a copy in ``planes`` mode (for a
-    ``contact`` scenario) and without its object model (``object_model.mode: none``).
-
-    The gains are the paper's loop's, (13)–(16) and (22). An object model adds blocks outside
-    it, and an ``estimated`` one a parameter estimate that does not move while nothing excites
-    it (its mass estimator updates only while the object is held): an eigenvalue 1 of the map
-    at the free point whatever the gains, so every gain would be refused.
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario.
-
-    Returns
-    -------
-    scenario : Scenario
-        The scenario the map is computed on.
-    mode : str
-        Its object mode.
-    """
-    if scenario.plant.object_mode != "contact" and scenario.object_model.mode == "none":
-        return scenario, scenario.plant.object_mode
-    s = copy.deepcopy(scenario)
-    if s.plant.object_mode == "contact":
-        s.plant.object_mode = "planes"
-    s.object_model = ObjectModelSettings()          # mode none, the schema's defaults
-    return s, s.plant.object_mode
 
 
 def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 1e-5,

@@ -8,8 +8,8 @@
     sampled along the task: ``free`` at the pre-grasp, ``held`` at the lift's middle and at
     :data:`CIRCLE_SAMPLES` points of the circle (its start, a quarter, half and three
     quarters), each with the reference frozen there (:func:`~drake_coop.stability.operating.
-    operating_point`), on the map's copy of the scenario (:func:`~drake_coop.stability.gains.
-    map_copy`). Fails when one is not below 1, naming the posture.
+    operating_point`), on the map's copy of the scenario (:func:`map_copy`). Fails when one
+    is not below 1, naming the posture.
 ``torque``
     Every robot's torque along the whole reference within its limits (``actuators.
     torque_limits``, else the URDF's effort limits as Drake reads them): in ``contact`` mode
@@ -34,8 +34,10 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["CIRCLE_SAMPLES", "TaskCheck", "TaskReport", "check_task", "map_points",
-           "torque_path"]
+from drake_coop.scenario.schema import Scenario
+
+__all__ = ["CIRCLE_SAMPLES", "TaskCheck", "TaskReport", "check_task", "map_copy",
+           "map_points", "torque_path"]
 
 #: Fractions of the circle at which the held map is computed.
 CIRCLE_SAMPLES = (0.0, 0.25, 0.5, 0.75)
@@ -86,6 +88,40 @@ class TaskReport:
         return next((c.message for c in self.checks if not c.passes), "")
 
 
+def map_copy(scenario: Scenario) -> tuple[Scenario, str]:
+    """The scenario the map is computed on: itself, or a copy in ``planes`` mode (for a
+    ``contact`` scenario) and without its object model (``object_model.mode: none``).
+
+    The gains are the paper's loop's, (13)–(16) and (22). An object model adds blocks outside
+    it, and an ``estimated`` one a parameter estimate that does not move while nothing excites
+    it (its mass estimator updates only while the object is held): an eigenvalue 1 of the map
+    at the free point whatever the gains, so every gain would be refused.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+
+    Returns
+    -------
+    scenario : Scenario
+        The scenario the map is computed on.
+    mode : str
+        Its object mode.
+    """
+    if scenario.plant.object_mode != "contact" and scenario.object_model.mode == "none":
+        return scenario, scenario.plant.object_mode
+    import copy
+
+    from drake_coop.scenario.schema import ObjectModelSettings
+
+    s = copy.deepcopy(scenario)
+    if s.plant.object_mode == "contact":
+        s.plant.object_mode = "planes"
+    s.object_model = ObjectModelSettings()          # mode none, the schema's defaults
+    return s, s.plant.object_mode
+
+
 def map_points(task) -> list[tuple[str, str, float]]:
     """The map's postures along the task: ``(label, point, t_star)``.
 
@@ -108,7 +144,6 @@ def map_points(task) -> list[tuple[str, str, float]]:
 
 
 def _check_map(scenario, epsilon: float, progress) -> TaskCheck:
-    from drake_coop.stability.gains import map_copy
     from drake_coop.stability.operating import operating_point
     from drake_coop.stability.period_map import analyse
 
