@@ -19,6 +19,7 @@ row's result), and the run to the circle's end (+1 s) measured by
     python -m bench.every_arm jaco2 mixed --out docs/results/every_arm.json  # some rows
     python -m bench.every_arm --table --out docs/results/every_arm.json      # the table only
     python -m bench.every_arm --buckling jaco2 --out docs/results/every_arm.json  # diagnosis
+    python -m bench.every_arm jaco2 --squeeze friction --out docs/results/every_arm.json
 
 A row already in the file is skipped (``--force`` runs it again); each row is written as soon
 as it ends (:func:`bench.lab_arms_object.write_case`), with its command, CPU and wall time,
@@ -111,8 +112,10 @@ def placement(name: str, folder: Path) -> tuple[tuple[float, float] | None, str]
     return None, last
 
 
-def run_row(key: str, out: Path) -> dict:
-    """One row: the placement, the gains and their checks, the run (module docstring)."""
+def run_row(key: str, out: Path, squeeze: str | None = None) -> dict:
+    """One row: the placement, the gains and their checks, the run (module docstring);
+    ``squeeze`` (``profile`` or ``friction``) sets ``object_model.squeeze`` (None: the
+    how-to's default)."""
     from bench.lab_arms_object import contact_scenario
     from bench.unseen_arms import measure_with_lift
     from drake_coop.scenario.loading import dump_scenario
@@ -136,6 +139,8 @@ def run_row(key: str, out: Path) -> dict:
     path.write_text(text)
     try:
         scenario = load_for_gains(str(path))
+        if squeeze is not None:
+            scenario.object_model.squeeze = squeeze
         start = time.process_time()
         report = derive_and_check(scenario)
         case["gains"] = {
@@ -151,7 +156,7 @@ def run_row(key: str, out: Path) -> dict:
             case["refusal"] = f"drake-coop gains: {report.refusal}"
             return case
         path.write_text(dump_scenario(gains_for_scenario(scenario, report.robots)))
-        scenario = contact_scenario(str(path))
+        scenario = contact_scenario(str(path), squeeze=squeeze)
     finally:
         path.unlink(missing_ok=True)
     case.update(measure_with_lift(scenario))
@@ -244,10 +249,12 @@ def table(data: dict) -> str:
              "| slips | mass at the lift's end (%) | bars (0.3 N, 0.5 mm, 0 slips) |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     for key in sorted(data["cases"], key=lambda k: (k == "mixed", k)):
-        if "@" in key:
+        if key.endswith("@buckling"):
             continue
         case = data["cases"][key]
         arms = " + ".join(case.get("arms", [key]))
+        if "@sq" in key:
+            arms += f", `squeeze: {key.split('@sq')[1]}`"
         if "refusal" in case:
             reason = " ".join(case["refusal"].split()).replace("|", "/")
             lines.append(f"| {arms} | refused: {reason} | | | | | refused |")
@@ -286,6 +293,9 @@ def main(argv=None) -> int:
     parser.add_argument("--out", required=True)
     parser.add_argument("--force", action="store_true", help="run rows already in the file")
     parser.add_argument("--table", action="store_true", help="only write the guide's table")
+    parser.add_argument("--squeeze", choices=("profile", "friction"),
+                        help="the object model's squeeze source (the row is stored as "
+                             "ROW@sq<squeeze>)")
     parser.add_argument("--buckling", action="store_true",
                         help="instead of the rows: the buckling bound against the simulated "
                              "truth on each named pair (:func:`buckling`), under ROW@buckling")
@@ -309,19 +319,23 @@ def main(argv=None) -> int:
         return 0
     if not args.table:
         for row in rows:
+            key = row + (f"@sq{args.squeeze}" if args.squeeze else "")
             done = json.loads(out.read_text())["cases"] if out.exists() else {}
-            if row in done and not args.force:
-                print(f"{row}: in {out}, skipped (--force runs it again)", flush=True)
+            if key in done and not args.force:
+                print(f"{key}: in {out}, skipped (--force runs it again)", flush=True)
                 continue
             wall, cpu = time.perf_counter(), time.process_time()
-            case = run_row(row, out)
+            case = run_row(row, out, args.squeeze)
             case["cpu_seconds_row"] = round(time.process_time() - cpu, 1)
             case["wall_seconds_row"] = round(time.perf_counter() - wall, 1)
-            case["command"] = f"python -m bench.every_arm {row} --out {args.out}"
+            case["command"] = (f"python -m bench.every_arm {row} --out {args.out}"
+                               + (f" --squeeze {args.squeeze}" if args.squeeze else ""))
             case["drake"] = version("drake")
             case["cpu"] = _cpu_name()
-            write_case(out, row, case)
-            print(row, json.dumps({k: case.get(k) for k in
+            if args.squeeze:
+                case["squeeze"] = args.squeeze
+            write_case(out, key, case)
+            print(key, json.dumps({k: case.get(k) for k in
                                    ("refusal", "verdict", "cpu_seconds_row",
                                     "wall_seconds_row")}), flush=True)
     if out.exists():
