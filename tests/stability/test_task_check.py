@@ -98,8 +98,13 @@ def test_the_paper_arms_pass_every_task_check_with_their_gains():
         assert len(rho) == 6 and max(rho.values()) < 1.0
 
 
-@pytest.mark.slow
-def test_gains_refuses_a_task_beyond_the_torque_limits_in_one_line(tmp_path, capsys):
+def test_gains_refuses_a_task_beyond_the_torque_limits_in_one_line(tmp_path, capsys,
+                                                                    monkeypatch):
+    from drake_coop.stability import gains as rules
+
+    # The map at home and the held start passes (its computation is another test's): with
+    # 2 N·m the map's own loop saturates, and the refusal to test is the task's.
+    monkeypatch.setattr(rules, "check_gains_map", lambda *a, **k: {"free": 0.5, "held": 0.5})
     s = load_scenario(find_scenario("contact"))
     s.robots[0].actuators.torque_limits = [2.0, 2.0, 2.0]
     path = tmp_path / "weak.yaml"
