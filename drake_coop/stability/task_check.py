@@ -262,7 +262,7 @@ def check_task(scenario, epsilon: float = 1e-5, map_check: bool = True,
     Returns
     -------
     TaskReport
-        The checks.
+        Every task check (postures, torques, grasp) and the refusal, if any.
     """
     report = TaskReport()
     progress("task: torque limits along the path")
