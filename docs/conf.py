@@ -48,7 +48,7 @@ nb_execution_mode = "off"
 # as text (every API page did, before this order).
 source_suffix = {".rst": "restructuredtext", ".md": "myst-nb", ".ipynb": "myst-nb"}
 exclude_patterns = ["_build", "_ext", "_templates", "**.ipynb_checkpoints",
-                    "_generated/scenario_fields.md"]
+                    "_generated/scenario_fields.md", "results/*.md"]
 templates_path = ["_templates"]
 
 autosummary_generate = True

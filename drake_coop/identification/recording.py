@@ -131,7 +131,7 @@ def recording_from_data(robot: str, index: int, excitation: FourierExcitation,
     Returns
     -------
     WireRecording
-        The recording.
+        The simulated experiment's data in the wire recording's format.
     """
     stamps = np.round(np.asarray(data.t) * 1e6).astype(np.int64)
     return WireRecording(robot=robot, index=index, excitation=excitation, t=data.t, q=data.q,

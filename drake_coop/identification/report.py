@@ -138,7 +138,7 @@ def identify_robot(scenario: Scenario, index: int, duration: float = 10.0, seed:
     Returns
     -------
     RobotIdentification
-        The identification.
+        The estimate, the identified URDF's text and its validation.
 
     Raises
     ------
@@ -179,7 +179,7 @@ def identify_from_data(scenario: Scenario, setup: IdentificationSetup,
     Returns
     -------
     RobotIdentification
-        The identification.
+        The estimate, the identified URDF's text and its validation.
     """
     from drake_coop.identification.excitation import ExcitationError
 
@@ -252,7 +252,7 @@ def identify_recording(scenario, recording: WireRecording, seed: int = 0,
     Returns
     -------
     RobotIdentification
-        The identification.
+        The estimate, the identified URDF's text and its validation.
 
     Raises
     ------

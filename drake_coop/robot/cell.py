@@ -109,7 +109,7 @@ class Heartbeat:
         Returns
         -------
         bytes
-            The message.
+            The heartbeat as JSON text (session, pid, start, state, arms).
         """
         return json.dumps({"session": self.session, "pid": self.pid, "start_ns": self.start_ns,
                            "state": self.state, "robots": self.robots}).encode("utf-8")
@@ -127,7 +127,7 @@ def parse_heartbeat(data: bytes) -> Heartbeat | None:
     Returns
     -------
     Heartbeat or None
-        The heartbeat.
+        The heartbeat, or None when the bytes are not one (foreign or malformed).
     """
     try:
         if len(data) > MAX_HEARTBEAT:
@@ -238,7 +238,7 @@ class CellWatch:
         Returns
         -------
         list of str
-            Their names.
+            The partner arms no serve has announced yet.
         """
         return [r for r in self.partners if self.heard[r] is None]
 

@@ -245,7 +245,7 @@ def start_ramp(loop, q0, ramp_time: float, h: float) -> StartRamp:
     Returns
     -------
     StartRamp
-        The blend.
+        Each arm's blend from its hold torque at ``q0`` over the ramp's ticks.
     """
     ticks = int(math.ceil(ramp_time / h - 1e-9)) if ramp_time > 0 else 0
     return StartRamp([np.asarray(arm.hold_torque(np.asarray(q, dtype=float)), dtype=float)

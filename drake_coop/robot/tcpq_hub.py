@@ -132,7 +132,7 @@ class TcpqHub:
         Returns
         -------
         TcpqHub
-            The hub.
+            This hub, serving in its thread (for ``hub = TcpqHub(0).start()``).
         """
         self._thread = threading.Thread(target=self.serve_forever, daemon=True,
                                         name="tcpq-hub")

@@ -372,7 +372,7 @@ def drive(scenario, robots: list[int], lcm, clock, *, duration: float = 10.0, se
     Returns
     -------
     list of WireRecording
-        One per robot.
+        What the wire carried, one recording per excited robot.
 
     Raises
     ------

@@ -29,8 +29,13 @@ The check: ρ of the one-period map (:func:`~drake_coop.stability.period_map.ana
 ``free`` and ``held`` operating points is below 1 at the derived gains **and** with every
 ``K_R`` multiplied by :data:`GAIN_MARGIN` (a stated gain margin). When it fails, ``κ`` is
 scaled by :data:`BACKOFF` and the derivation repeated (at most :data:`MAX_ATTEMPTS` times).
+At gains that pass, the task is checked (:mod:`drake_coop.stability.task_check`: the map at
+postures along the lift and the circle, the torque limits along the path, and in ``contact``
+mode the grasp's buckling under the squeeze, :mod:`drake_coop.stability.grasp`); a failing
+map backs ``κ`` off, a failing torque or grasp check refuses with its one line.
 A scenario in ``contact`` mode is checked on its ``planes`` copy (the map does not take a
-floating box), and a scenario with an object model on a copy without it (:func:`map_copy`).
+floating box), and a scenario with an object model on a copy without it
+(:func:`~drake_coop.stability.task_check.map_copy`).
 """
 
 from __future__ import annotations
@@ -43,11 +48,12 @@ from typing import Callable
 
 import numpy as np
 
-from drake_coop.scenario.schema import ObjectModelSettings, Scenario
 from drake_coop.control.params import Gains
+from drake_coop.scenario.schema import Scenario
+from drake_coop.stability.task_check import map_copy
 
 __all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_and_check", "derive_gains",
-           "derive_robot_gains", "gains_for_scenario", "map_copy", "task_postures"]
+           "derive_robot_gains", "gains_for_scenario", "task_postures"]
 
 #: Target ``h K_R,j / J_j`` (half the single-joint bound 2).
 KAPPA = 1.0
@@ -113,6 +119,11 @@ class GainsReport:
         The object mode the map was computed in.
     messages : list of str
         What each attempt found.
+    task : TaskReport or None
+        The task's checks at the last gains that passed the map
+        (:func:`~drake_coop.stability.task_check.check_task`); None when none did.
+    refusal : str
+        Why no gains are given ('' when ``stable``): the failing check's one line.
     """
 
     robots: list[DerivedGains]
@@ -121,6 +132,8 @@ class GainsReport:
     stable: bool = False
     checked_on: str = "planes"
     messages: list[str] = field(default_factory=list)
+    task: object = None
+    refusal: str = ""
 
 
 def task_postures(robot, step: float = POSTURE_STEP) -> tuple[np.ndarray, np.ndarray]:
@@ -280,39 +293,13 @@ def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
     return rho
 
 
-def map_copy(scenario: Scenario) -> tuple[Scenario, str]:
-    """The scenario the map is computed on: itself, or a copy in ``planes`` mode (for a
-    ``contact`` scenario) and without its object model (``object_model.mode: none``).
-
-    The gains are the paper's loop's, (13)–(16) and (22). An object model adds blocks outside
-    it, and an ``estimated`` one a parameter estimate that does not move while nothing excites
-    it (its mass estimator updates only while the object is held): an eigenvalue 1 of the map
-    at the free point whatever the gains, so every gain would be refused.
-
-    Parameters
-    ----------
-    scenario : Scenario
-        The scenario.
-
-    Returns
-    -------
-    scenario : Scenario
-        The scenario the map is computed on.
-    mode : str
-        Its object mode.
-    """
-    if scenario.plant.object_mode != "contact" and scenario.object_model.mode == "none":
-        return scenario, scenario.plant.object_mode
-    s = copy.deepcopy(scenario)
-    if s.plant.object_mode == "contact":
-        s.plant.object_mode = "planes"
-    s.object_model = ObjectModelSettings()          # mode none, the schema's defaults
-    return s, s.plant.object_mode
-
-
 def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 1e-5,
                      progress: Callable[[str], None] = lambda m: None) -> GainsReport:
-    """Derive, check at the gains and at ``GAIN_MARGIN × K_R``; back off ``κ`` on failure.
+    """Derive, check at the gains and at ``GAIN_MARGIN × K_R``, then the task
+    (:func:`~drake_coop.stability.task_check.check_task`: the map along the task's postures,
+    the torque limits along the path, the grasp's buckling in ``contact`` mode); back off
+    ``κ`` when a map fails; refuse at once when the torque or the grasp fails (a lower ``κ``
+    does not mend them), ``report.refusal`` saying why and what to change.
 
     Parameters
     ----------
@@ -344,9 +331,33 @@ def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 
             rho.update({f"{k}_margin": v for k, v in margin.items()})
         report.robots, report.rho, report.attempts = derived, rho, attempt
         if max(rho.values()) < 1.0 and len(rho) == 4:
-            report.stable = True
-            return report
-        found = ", ".join(f"{k} {v:.4g}" for k, v in rho.items())
-        report.messages.append(f"kappa {kappa:.3g}: rho {found}")
+            if _task_verdict(scenario, derived, report, epsilon, progress):
+                return report
+            if report.task.refusal and not _map_failed(report.task):
+                return report            # torque or grasp: a lower κ does not mend them
+            found = report.task.refusal
+        else:
+            found = "rho " + ", ".join(f"{k} {v:.4g}" for k, v in rho.items())
+        report.messages.append(f"kappa {kappa:.3g}: {found}")
         kappa *= BACKOFF
+    report.refusal = report.refusal or (
+        f"no derived gains passed the stability check after {MAX_ATTEMPTS} attempts "
+        f"(last: {report.messages[-1] if report.messages else 'none'})")
     return report
+
+
+def _map_failed(task) -> bool:
+    """Whether the task's map check (the one a lower ``κ`` may mend) is what failed."""
+    return any(c.name == "map" and not c.passes for c in task.checks)
+
+
+def _task_verdict(scenario: Scenario, derived: list[DerivedGains], report: GainsReport,
+                  epsilon: float, progress: Callable[[str], None]) -> bool:
+    """The task's checks (:func:`~drake_coop.stability.task_check.check_task`) on
+    ``scenario`` with the derived gains: sets ``report.task``, ``stable`` and ``refusal``."""
+    from drake_coop.stability.task_check import check_task
+
+    report.task = check_task(gains_for_scenario(scenario, derived), epsilon, progress=progress)
+    report.stable = report.task.passes
+    report.refusal = report.task.refusal
+    return report.stable

@@ -6,11 +6,14 @@ its controller model at the task's postures and checked with the one-period map
 :class:`~drake_coop.results.run_folder.RunFolder`): ``scenario.yaml`` (the scenario with the
 derived gains), ``gains.csv`` (one row per robot: every gain, the inertias ``J_j`` and
 ``h p_f``), ``stability.csv`` (ρ at each operating point, at the gains and with the ``K_R``
-margin) and ``run.json`` (all of it, the rules' constants, the outcome, and the delay margin
-with the derived gains without and with delay compensation, or the line saying why there is
-none: :func:`gains_margins`). Exit codes: 0 the
-gains pass the check, 1 no gains passed it after the back-offs (the outputs are written: a
-result) or the derivation failed (one line, nothing written), 2 bad input (one line, before
+margin) and ``run.json`` (all of it, the rules' constants, the task's checks of
+:mod:`drake_coop.stability.task_check`, the outcome, and the delay margin with the derived
+gains without and with delay compensation, or the line saying why there is none:
+:func:`gains_margins`). Exit codes: 0 the gains pass the checks, 1 no gains passed them after
+the back-offs, or the task is refused (the torque limits along the path, the grasp's buckling
+under the squeeze; the outputs are written, a result, and the last line names the check, the
+posture and what to change) or the derivation failed (one line, nothing written), 2 bad input
+(one line, before
 any computation), 130 Ctrl-C, 143 SIGTERM.
 """
 
@@ -84,6 +87,7 @@ def _outputs(scenario, report, wall: float, margins: dict | None = None) -> dict
         "robots": gain_rows, "wall_time_s": wall,
         "delay_margin": margins,
     }
+    meta.update(_task_meta(report))
     return {"scenario.yaml": dump_scenario(out_scenario),
             "gains.csv": _csv_text(list(gain_rows[0]), gain_rows),
             "stability.csv": _csv_text(["point", "K_R_factor", "rho", "stable"], rho_rows),
@@ -335,4 +339,26 @@ def cmd_gains(args) -> int:
             print(line, file=sys.stderr)
         print(f"rho: {', '.join(f'{k} {v:.6g}' for k, v in report.rho.items())}; "
               f"wrote {args.out}", file=sys.stderr)
+    if report.refusal:
+        print(_refusal_line(report), file=sys.stderr)
     return 0 if report.stable else 1
+
+
+def _task_meta(report) -> dict:
+    """``run.json``'s task part: every task check (:mod:`drake_coop.stability.task_check`)
+    and the refusal; the status ``refused`` when a task check failed."""
+    task = getattr(report, "task", None)
+    out: dict = {"refusal": getattr(report, "refusal", "")}
+    if task is None:
+        return out
+    out["task_checks"] = [{"name": c.name, "passes": c.passes, "message": c.message,
+                           "values": c.values} for c in task.checks]
+    if not task.passes:
+        out["status"] = "refused"
+        out["message"] = task.refusal
+    return out
+
+
+def _refusal_line(report) -> str:
+    """The one line a refused derivation ends with."""
+    return f"drake-coop: gains: refused: {report.refusal}"

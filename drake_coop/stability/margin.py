@@ -229,7 +229,7 @@ def margin_line(margins: DelayMargins) -> str:
     Returns
     -------
     str
-        The line.
+        One line: the margins without and with compensation, or why there is none.
     """
     w, c = margins.without, margins.with_compensation
     if w.margin_s is None and c.margin_s is None and w.reason == c.reason:

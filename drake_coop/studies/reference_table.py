@@ -258,7 +258,7 @@ def compress(scenario: Scenario) -> Scenario:
     Returns
     -------
     Scenario
-        The copy.
+        A copy of the scenario with the task compressed to the table's segment.
     """
     out = copy.deepcopy(scenario)
     for key, value in SEGMENT.items():
@@ -467,7 +467,7 @@ def markdown_table(table: dict, key: str = "squeeze") -> str:
     Returns
     -------
     str
-        The table.
+        The table as Markdown, one row per force source.
     """
     rows, cols = table["rows"], table["columns"]
     labels = {r.name: r.label for r in ROWS}

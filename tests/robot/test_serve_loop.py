@@ -116,29 +116,51 @@ def test_one_step_per_tick_gives_the_diagrams_torques(paper):
     assert loop.tripped()["robot"] == specs[0].robot
 
 
+class FakeTime:
+    """A clock that moves only when slept on: ``perf_counter`` and ``time`` read it, ``sleep``
+    advances it. Patched into the loop's modules, the test runs in simulated time (a tick's
+    computation takes none), whatever the machine's load."""
+
+    def __init__(self, start: float = 1000.0):
+        self.now = start
+
+    def perf_counter(self) -> float:
+        return self.now
+
+    def monotonic(self) -> float:
+        return self.now
+
+    def time(self) -> float:
+        return 1.7e9 + self.now
+
+    def sleep(self, dt: float) -> None:
+        self.now += max(dt, 0.0)
+
+
 class ClockedDriver:
     """A scripted 1 kHz driver inside the LCM pump: every ``HandleSubscriptions`` first
     publishes the statuses that are due (its own clock from ``start``, stamp = cycle), so a
     status arrives when its time comes; ``log`` records each status and each grid time."""
 
-    def __init__(self, lcm, q0, channels, start, cycle=1e-3):
+    def __init__(self, lcm, q0, channels, start, cycle=1e-3, clock=time):
         self.lcm, self.q0, self.channels = lcm, q0, channels
         self.start, self.cycle, self.next = start, cycle, 0
+        self.clock = clock
         self.log = []
 
     def publish_due(self):
-        while time.perf_counter() >= self.start + self.next * self.cycle:
+        while self.clock.perf_counter() >= self.start + self.next * self.cycle:
             for q, c in zip(self.q0, self.channels):
                 self.lcm.Publish(c, status_bytes(q, self.next * 1000))
-            self.log.append(("status", time.perf_counter()))
+            self.log.append(("status", self.clock.perf_counter()))
             self.next += 1
 
     def HandleSubscriptions(self, timeout_ms):
         self.publish_due()
         due = self.start + self.next * self.cycle
-        wait = min(timeout_ms * 1e-3, due - time.perf_counter())
+        wait = min(timeout_ms * 1e-3, due - self.clock.perf_counter())
         if wait > 0:
-            time.sleep(wait)
+            self.clock.sleep(wait)
             self.publish_due()
         return self.lcm.HandleSubscriptions(0)
 
@@ -153,9 +175,14 @@ class ClockedDriver:
 def test_ticking_on_arrival_uses_a_status_that_arrived_after_the_grid_time(paper, monkeypatch,
                                                                            on_arrival):
     scenario, plan, specs, q0 = paper
+    clock = FakeTime()                      # simulated time: no dependence on the load
+    from drake_coop.robot import serve_loop as serve_loop_module
+
+    monkeypatch.setattr(pacing, "time", clock)
+    monkeypatch.setattr(serve_loop_module, "time", clock)
     lcm = DrakeLcm("memq://")
     channels = [s.status_channel for s in specs]
-    driver = ClockedDriver(lcm, q0, channels, time.perf_counter())
+    driver = ClockedDriver(lcm, q0, channels, clock.perf_counter(), clock=clock)
     loop = ServeLoop(plan, lcm, specs)
     arrivals = status_arrivals(lcm, specs)
     stamps = []

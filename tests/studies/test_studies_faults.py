@@ -148,10 +148,10 @@ f: [*e, *e, *e, *e, *e, *e, *e, *e, *e, *e]
 def test_study_files_are_read_like_scenario_files(tmp_path, raw, start):
     path = tmp_path / "s.yaml"
     path.write_bytes(raw)
-    started = time.perf_counter()
+    started = time.process_time()
     with pytest.raises(StudyError) as info:
         load_study(path)
-    assert time.perf_counter() - started < 2.0
+    assert time.process_time() - started < 2.0
     message = str(info.value)
     assert message.startswith(start) and "\n" not in message and len(message) < 400, message
     if raw.startswith(b"name: caf"):
@@ -189,10 +189,10 @@ def test_bad_study_names_are_refused_before_any_case(tmp_path, capsys, name):
      "perturb: {robots.0.gains.k_d: {uniform: [30, 50]}}}", 10 ** 30),
 ])
 def test_a_too_large_study_is_refused_before_it_is_expanded(text, cases):
-    started = time.perf_counter()
+    started = time.process_time()
     with pytest.raises(StudyError) as info:
         expand(load_study(data=text))
-    assert time.perf_counter() - started < 2.0
+    assert time.process_time() - started < 2.0
     assert str(info.value).startswith(f"the study has {cases} cases")
     assert "--max-cases" in str(info.value)
 
@@ -294,11 +294,12 @@ def test_a_thousand_cases_validate_in_seconds():
     values = [round(10.0 + 0.1 * i, 3) for i in range(100)]
     study = load_study(data=f"grid: {{robots.*.gains.k_d: {values}, "
                             f"robots.*.gains.K_R: [60, 70, 80, 90, 100, 110, 120, 130, 140, 150]}}")
-    started = time.perf_counter()
+    started = time.process_time()
     cases = expand(study)
-    elapsed = time.perf_counter() - started
+    elapsed = time.process_time() - started
     assert len(cases) == 1000 and len({c.hash for c in cases}) == 1000
     assert elapsed < 15.0, elapsed        # ~1 ms a case; the YAML round trip took ~60 ms
+    # (bounds of this file count this process's CPU time: blow-ups, not the machine's load)
 
 
 # --- overlapping paths: the table says what the case ran with ----------------------------------
@@ -471,9 +472,9 @@ def test_plot_refuses_a_run_json_with_400000_phases_quickly(tmp_path, capsys):
     phases = [[f"p{i}", i * 1e-3, (i + 1) * 1e-3] for i in range(400_000)]
     (run / "run.json").write_text(json.dumps({"robots": ["robot1", "robot2"],
                                               "phases": phases}))
-    started = time.perf_counter()
+    started = time.process_time()
     assert main(["plot", str(run)]) == 2
-    assert time.perf_counter() - started < 5.0
+    assert time.process_time() - started < 5.0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "'phases' lists 400000 phases, at most" in err[0]
 

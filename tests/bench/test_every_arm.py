@@ -1,0 +1,69 @@
+"""``bench.every_arm``: the pair set up as the how-to says (mirrored, the box between the pads),
+the row's bars on the worst arm, and the guide's table generated from the results file."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from bench.every_arm import BARS, CONTACT_X, TABLE, pair_yaml, table, verdict
+from drake_coop.control.arm_plant import description_packages
+
+RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results" / "every_arm.json"
+
+
+def _robot(squeeze, box, slips=0, tilt=1e-3):
+    return {"squeeze_error_rms_N": squeeze, "object_position_error_rms": box, "slips": slips,
+            "object_tilt_rms": tilt}
+
+
+def test_the_worst_arm_decides_each_bar():
+    case = {"robots": {"a": _robot(0.1, 0.2e-3), "b": _robot(0.31, 0.1e-3)}}
+    v = verdict(case)
+    assert v["squeeze_error_rms_N"] == {"value": 0.31, "bar": 0.3, "passes": False}
+    assert v["object_position_error_rms_m"]["passes"] and not v["passes"]
+    case["robots"]["b"]["squeeze_error_rms_N"] = 0.2
+    assert verdict(case)["passes"]
+    case["robots"]["a"]["slips"] = 1
+    assert verdict(case)["slips"] == {"value": 1, "bar": BARS["slips"], "passes": False}
+
+
+def test_the_table_shows_numbers_or_the_one_line_refusal():
+    data = {"cases": {
+        "ur5": {"arms": ["ur5", "ur5"], "robots": {"a": _robot(0.04, 0.16e-3, tilt=2e-3)},
+                "verdict": verdict({"robots": {"a": _robot(0.04, 0.16e-3)}}),
+                "mass_error_at_lift_end": -0.012},
+        "jaco2": {"arms": ["jaco2", "jaco2"], "refusal": "drake-coop gains: grasp buckling:\n "
+                                                         "the squeeze | buckles"},
+        "jaco2@buckling": {"arms": ["jaco2", "jaco2"], "runs": {}}}}
+    lines = table(data).splitlines()
+    rows = [line for line in lines if line.startswith("| jaco2") or line.startswith("| ur5")]
+    assert rows[0] == ("| jaco2 + jaco2 | refused: drake-coop gains: grasp buckling: the squeeze "
+                       "/ buckles | | | | | refused |")
+    assert rows[1] == "| ur5 + ur5 | 0.040 | 0.16 | 2.00 | 0 | -1.2 | pass |"
+    assert len(rows) == 2                               # the diagnosis is not a row
+
+
+def test_the_shipped_table_is_the_results_files():
+    assert TABLE.read_text() == table(json.loads(RESULTS.read_text()))
+
+
+@pytest.mark.skipif("example-robot-data" not in description_packages(),
+                    reason='example-robot-data is not installed (pip install -e ".[robots]")')
+def test_the_pair_is_the_hows_mirror_image():
+    from pydrake.common.yaml import yaml_load_typed
+
+    from drake_coop.scenario.schema import Scenario
+
+    s = yaml_load_typed(schema=Scenario, data=pair_yaml(("z1", "ur5"), ((0.4, 0.25),
+                                                                         (0.5, 0.1))))
+    r1, r2 = s.robots
+    assert (r1.name, r2.name) == ("z1_1", "ur5_2")
+    assert r1.contact_xy[0] == CONTACT_X[0] and r2.contact_xy[0] == CONTACT_X[1]
+    assert r1.base_xyz == pytest.approx([CONTACT_X[0] - 0.4, 0.0, 0.25])
+    assert r2.base_xyz == pytest.approx([CONTACT_X[1] + 0.5, 0.0, 0.1])
+    assert (r1.base_yaw_deg, r2.base_yaw_deg) == (0.0, 180.0)
+    assert r1.ee_rpy_deg == [0.0, 90.0, 0.0] and r2.ee_rpy_deg == [0.0, 90.0, 180.0]
+    assert r1.normals == [[-1.0, 0.0, 0.0]] and r2.normals == [[1.0, 0.0, 0.0]]
+    assert s.plant.object_mode == "contact" and s.object_model.mode == "estimated"
+    assert s.plant.object_mass == 0.5 and s.plant.friction == 1.0     # contact.yaml's box
