@@ -235,8 +235,8 @@ def identify_from_data(scenario: Scenario, setup: IdentificationSetup,
 
 def identify_recording(scenario, recording: WireRecording, seed: int = 0,
                        estimator: str = "map_sdp"):
-    """Identify the recording's arm (:func:`~drake_coop.identification.report.
-    identify_from_data`, the simulated experiment's path).
+    """Identify the recording's arm (:func:`identify_from_data`, the simulated experiment's
+    path).
 
     Parameters
     ----------

@@ -449,8 +449,9 @@ def delay_margin(scenario, *, epsilon: float = 1e-5) -> float:
     """The delay margin of ``scenario`` as it runs (its own delay compensation): the largest
     computation delay ``d`` (whole plant steps, up to ``h``) for which the stability map
     (:mod:`drake_coop.stability`, free operating point) gives ``ρ < 1`` at every delay from 0
-    to ``d``; NaN if not even the undelayed loop is stable (:func:`~drake_coop.stability.
-    margin.delay_margins` says why, and gives the margin with and without compensation).
+    to ``d``; NaN if not even the undelayed loop is stable
+    (:func:`~drake_coop.stability.margin.delay_margins` says why, and gives the margin with
+    and without compensation).
 
     Parameters
     ----------

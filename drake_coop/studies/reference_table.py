@@ -175,7 +175,7 @@ def _coulomb(scenario: Scenario, rng: np.random.Generator, draw: int) -> None:
 
 
 #: Torque limits of the saturation column: each joint's limit is this fraction of the peak
-#: |τ| the exact run commands over the lift (the calibration run of :func:`expand_table`),
+#: ``|τ|`` the exact run commands over the lift (the calibration run of :func:`expand_table`),
 #: times a draw's factor ``U(0.95, 1.05)``, but never below 1.02 times its peak outside the
 #: lift: only the lift saturates.
 SATURATION_FRACTION = 0.9
@@ -215,7 +215,7 @@ def columns(peaks: dict | None = None, models: dict | None = None) -> tuple[Colu
     Parameters
     ----------
     peaks : dict or None
-        ``peaks[robot]["lift" | "other"]``: the exact run's peak |τ| per joint (N·m) over the
+        ``peaks[robot]["lift" | "other"]``: the exact run's peak ``|τ|`` per joint (N·m) over the
         lift and outside it; None leaves the saturation column out.
     models : dict or None
         ``models[(column, draw)][robot]``: the identified URDF of each identified column's
@@ -339,7 +339,7 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
 
 
 def torque_peaks(logs: dict, meta: dict) -> dict:
-    """Per robot, the peak |τ| per joint over the lift and outside it (N·m).
+    """Per robot, the peak ``|τ|`` per joint over the lift and outside it (N·m).
 
     Parameters
     ----------
