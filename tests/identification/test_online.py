@@ -31,6 +31,9 @@ def _arm(mass_scale: float = 1.3):
     scenario = compress(load_scenario())
     robot = scenario.robots[0]
     robot.model_error.mass_scale = robot.model_error.inertia_scale = mass_scale
+    # the 30 % heavy model reads its error as force: the squeeze leaves its reference by
+    # 28 N (guards.max_squeeze_error, 20 N, would end the run at 3.5 s); measured past it
+    scenario.guards.max_squeeze_error = 100.0
     arm = Arm(robot, scenario.task)
     nominal = controller_arm_model(arm, robot.model_error)
     structure = load_structure(arm.urdf_path, arm.base_frame, sensor_joint=robot.sensor_joint)
