@@ -233,10 +233,11 @@ def test_paper_block_diagrams_labels_do_not_overlap():
     overlap, measured in a wider font. (That no edge runs through a label — the controller
     ⇄ velocity observer label did — is checked by eye on the rendered diagram.)"""
     from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
     from drake_coop.results.block_diagram import paper_block_diagram
     from drake_coop.scenario import default_scenario
 
-    dot = paper_block_diagram(build_experiment(default_scenario(), log=True).diagram)
+    dot = paper_block_diagram(build_experiment(plan_run(default_scenario()), log=True).diagram)
     assert "<SUB>" not in dot.split("fillcolor")[-1]       # edge labels: no separate pieces
     svg = subprocess.run(["dot", "-Tsvg"], input=dot, text=True, capture_output=True,
                          check=True).stdout
