@@ -185,11 +185,11 @@ def check_lcm_url(url) -> None:
 
 
 def _make_lcm(url):
-    from pydrake.lcm import DrakeLcm
+    from drake_coop.robot.hub_link import WatchedLcm   # tcpq://: the hub's death is caught
 
     check_lcm_url(url)
     try:
-        return DrakeLcm(url)
+        return WatchedLcm(url)
     except Exception as exc:
         raise ValueError(f"--lcm-url {url!r}: {' '.join(str(exc).split())[:200]}") from None
 
@@ -281,6 +281,7 @@ def _serve(args, specs, plan, lcm, folder, staging, realtime) -> int:
     )
     from drake_coop.robot.safe_start import arms_refusal, first_readings, start_ramp
     from drake_coop.robot.status import check_panda_status
+    from drake_coop.robot.hub_link import HUB_LOST_LINE, HubLost
     from drake_coop.scenario.cell import CellSettings
     from drake_coop.scenario.loading import dump_scenario
 
@@ -307,6 +308,7 @@ def _serve(args, specs, plan, lcm, folder, staging, realtime) -> int:
     status, message, code, trip = "ok", f"completed {plan.t_end:g} s", 0, None
     interrupted: BaseException | None = None
     started = False          # the loop has begun commanding the arms
+    hub_lost = False         # the tcpq hub died: nothing can be sent any more
     collector = ManagedCollector()
 
     try:
@@ -387,6 +389,8 @@ def _serve(args, specs, plan, lcm, folder, staging, realtime) -> int:
                                             stop=CellStops(stop, cell),
                                             on_arrival=args.tick == "arrival",
                                             collector=collector)
+        except HubLost:
+            raise
         except Exception as exc:       # a defect, not an input: the record is kept all the same
             status, code = "failed", 1
             message = (f"error at t = {loop.time():.3f} s: {type(exc).__name__}: "
@@ -414,8 +418,11 @@ def _serve(args, specs, plan, lcm, folder, staging, realtime) -> int:
     except KeyboardInterrupt as exc:    # Ctrl-C, or SIGTERM (raised as one by the command line)
         status, interrupted = "interrupted", exc
         message = f"interrupted at t = {loop.time():.3f} s"
+    except HubLost:                     # caught before LCM's C client aborts the process
+        status, code, hub_lost = "stopped", 1, True
+        message = f"stopped at t = {loop.time():.3f} s: {HUB_LOST_LINE}"
     finally:
-        if started:
+        if started and not hub_lost:
             loop.send_safe()
             cell.announce("done" if status == "ok" else "stopped")
             if status != "ok" and not (trip and trip["channel"] == STOP_CHANNEL):
@@ -424,6 +431,11 @@ def _serve(args, specs, plan, lcm, folder, staging, realtime) -> int:
                 StopListener.publish(lcm, trip["robot"] if trip else ",".join(served),
                                      trip["reason"] if trip else message,
                                      session=cell.session)
+    if not started and hub_lost:
+        folder.discard()
+        print(f"drake-coop: {HUB_LOST_LINE}, while waiting for the first status; nothing "
+              "written", file=sys.stderr)
+        return 1
     if not started:                     # interrupted while waiting: nothing to keep
         folder.discard()
         print("drake-coop: interrupted while waiting for the first status; nothing written",
@@ -453,7 +465,8 @@ def _serve(args, specs, plan, lcm, folder, staging, realtime) -> int:
     atomic_write_text(staging / "scenario.yaml", dump_scenario(scenario))
     atomic_write_text(staging / "run.json", json.dumps(meta, indent=1, default=float))
     folder.commit()
-    print(f"drake-coop: {message}; safe command sent", file=sys.stderr)
+    print(f"drake-coop: {message}" + ("" if hub_lost else "; safe command sent"),
+          file=sys.stderr)
     if record.k and not quiet:
         print(f"drake-coop: {summary_line(summary)}", file=sys.stderr)
     if interrupted is not None:

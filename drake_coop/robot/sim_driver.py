@@ -56,6 +56,7 @@ def cmd_sim_driver(args, load) -> int:
     from drake_coop.experiment.plan import plan_run
     from drake_coop.experiment.simulate import guard_chunks
     from drake_coop.robot.drivers import COMMAND_OFFSET, add_driver_side, add_lcm_interface
+    from drake_coop.robot.hub_link import HUB_LOST_LINE, HubLost, hub_monitor, is_hub_failure
     from drake_coop.robot.loopback import initialize_sides
     from drake_coop.robot.pacing import pump_until
     from drake_coop.robot.torque_driver import DriverClock
@@ -104,8 +105,11 @@ def cmd_sim_driver(args, load) -> int:
                 side.coop.set_held(plant_context, plan.switches[k])
             return side.fault(context)
 
-        reason = drive_lockstep(simulator, side, lcm, plan, args.command_wait,
-                                before_tick=at_tick, offset=COMMAND_OFFSET)
+        try:
+            reason = drive_lockstep(simulator, side, lcm, plan, args.command_wait,
+                                    before_tick=at_tick, offset=COMMAND_OFFSET)
+        except HubLost:
+            reason = HUB_LOST_LINE
         if reason:
             print(f"drake-coop: sim-driver stopped at t = {context.get_time():.3f} s: "
                   f"{reason}", file=sys.stderr)
@@ -120,22 +124,31 @@ def cmd_sim_driver(args, load) -> int:
         deadline = time.perf_counter() + args.command_wait
         # (the command subscribers' own counts: a plain Python handler must not be pumped by
         # the LcmInterfaceSystem inside AdvanceTo, see add_lcm_interface)
-        while not any(arm.command_subscriber.WaitForMessage(0, None, 1e-6) > 0
-                      for arm in side.arms):
-            if time.perf_counter() > deadline:
-                print(f"drake-coop: no command on "
-                      f"{', '.join(s.command_channel for s in specs)} within "
-                      f"{args.command_wait:g} s", file=sys.stderr)
-                return 1
-            for arm in side.arms:
-                arm.driver.ForcedPublish(arm.driver.GetMyContextFromRoot(context))
-            pump_until(lcm, time.perf_counter() + period)
+        simulator.set_monitor(hub_monitor(lcm))   # the hub's death: a failed step, not an abort
+        try:
+            while not any(arm.command_subscriber.WaitForMessage(0, None, 1e-6) > 0
+                          for arm in side.arms):
+                if time.perf_counter() > deadline:
+                    print(f"drake-coop: no command on "
+                          f"{', '.join(s.command_channel for s in specs)} within "
+                          f"{args.command_wait:g} s", file=sys.stderr)
+                    return 1
+                for arm in side.arms:
+                    arm.driver.ForcedPublish(arm.driver.GetMyContextFromRoot(context))
+                pump_until(lcm, time.perf_counter() + period)
+        except HubLost:
+            return _hub_lost(log, truth, context)
         simulator.set_target_realtime_rate(1.0)
         simulator.ResetStatistics()      # the wall clock starts now, not at Initialize()
         start = time.perf_counter()
         worst = 0.0          # how far the simulated time fell behind the wall clock (s)
         for k_stop in guard_chunks(plan, scenario.guards.check_period):
-            simulator.AdvanceTo(k_stop * plan.h)
+            try:
+                simulator.AdvanceTo(k_stop * plan.h)
+            except RuntimeError as exc:
+                if not is_hub_failure(exc):
+                    raise
+                return _hub_lost(log, truth, context)
             worst = max(worst, time.perf_counter() - start - context.get_time())
             fault = side.fault(context)
             if fault:
@@ -152,6 +165,17 @@ def cmd_sim_driver(args, load) -> int:
               + ("" if math.isnan(worst) else
                  f" (at most {worst * 1e3:.1f} ms behind the wall clock)"), file=sys.stderr)
     return 0
+
+
+def _hub_lost(log, truth, context) -> int:
+    """The hub's death in a paced run: one line, ``--log`` written up to it, exit 1."""
+    from drake_coop.robot.hub_link import HUB_LOST_LINE
+
+    print(f"drake-coop: sim-driver stopped at t = {context.get_time():.3f} s: "
+          f"{HUB_LOST_LINE}", file=sys.stderr)
+    if truth is not None:
+        write_truth_log(log, truth, context)
+    return 1
 
 
 def add_truth_log(builder, side, h: float, scenario=None) -> dict:
