@@ -2,22 +2,29 @@
 clients do their worst (500 nested groups, a catastrophic-backtracking pattern, a reader that
 never reads, a client flooding its own channel, garbage, 50 idle connections); one JSON::
 
-    python -m bench.tcpq_hub_hostile [--messages 2000] [--out hub.json]
+    python -m bench.tcpq_hub_hostile [--messages 2000] [--sched fifo] [--out hub.json]
 
-The hub runs as its own process (``drake-coop tcpq-hub --port 0``); the clients are plain
-sockets speaking LCM's tcpq protocol in this process. A round trip is a 200-byte publish by
-one client and its arrival at the other (both subscribed), timed with ``perf_counter``;
-p50/p99/max of each phase.
+The hub runs as its own process (``drake-coop tcpq-hub --port 0``); the two measuring
+clients are plain sockets speaking LCM's tcpq protocol in this process, the hostile clients
+in a child process of their own. A round trip is a 200-byte publish by one client and its
+arrival at the other (both subscribed), timed with ``perf_counter``; p50/p99/max of each
+phase. ``--sched fifo`` runs them as the cell runs them (``bench/paced_split.py``): the hub
+under ``chrt -f`` at the highest priority (70), the measuring clients (a serve's place) at
+60, the hostile clients at the default priority (a local process is given no real-time
+priority); ``default``: every process at the default priority.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
+import os
 import socket
 import struct
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 
@@ -103,6 +110,28 @@ def _hostile(port: int, stop: threading.Event) -> None:
         sock.close()
 
 
+def _hostile_process(port: int, stop) -> None:
+    """:func:`_hostile` in a child process at the default priority, until ``stop`` is set."""
+    if hasattr(os, "sched_setscheduler"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        except OSError:
+            pass
+    _hostile(port, stop)
+
+
+def _port(lines, hub) -> int:
+    """The hub's port, from its first line (``… --lcm-url tcpq://127.0.0.1:PORT)``)."""
+    deadline = time.perf_counter() + 60
+    while time.perf_counter() < deadline and hub.poll() is None:
+        lines.seek(0)
+        first = lines.readline()
+        if first.endswith("\n"):
+            return int(first.rsplit(":", 1)[1].rstrip(")\n"))
+        time.sleep(0.05)
+    raise RuntimeError("the hub did not start")
+
+
 def _stats(values: list[float]) -> dict:
     v = np.asarray(values) * 1e3
     return {"n": int(v.size), "p50_ms": float(np.percentile(v, 50)),
@@ -124,24 +153,40 @@ def main(argv=None) -> int:
     """
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--messages", type=int, default=2000)
+    parser.add_argument("--sched", choices=("fifo", "default"), default="default")
+    parser.add_argument("--hub-priority", type=int, default=70)
+    parser.add_argument("--client-priority", type=int, default=60)
     parser.add_argument("--out", default=None)
     args = parser.parse_args(argv)
-    hub = subprocess.Popen([sys.executable, "-m", "drake_coop", "tcpq-hub", "--port", "0"],
-                           stderr=subprocess.PIPE, text=True)
+    fifo = args.sched == "fifo"
+    prefix = ["chrt", "-f", str(args.hub_priority)] if fifo else []
+    # the hub's lines go to a file, not to a reading thread here: a thread that is not
+    # real-time holding Python's lock would delay the measuring one (priority inversion)
+    lines = tempfile.TemporaryFile("w+")
+    hub = subprocess.Popen(prefix + [sys.executable, "-m", "drake_coop", "tcpq-hub", "--port",
+                                     "0"], stderr=lines, text=True)
     try:
-        port = int(hub.stderr.readline().rsplit(":", 1)[1].rstrip(")\n"))
-        dropped = []
-        threading.Thread(target=lambda: dropped.extend(hub.stderr), daemon=True).start()
+        port = _port(lines, hub)
+        stop = multiprocessing.get_context("fork").Event()
+        attacker = multiprocessing.get_context("fork").Process(
+            target=_hostile_process, args=(port, stop), daemon=True)
+        if fifo:                    # the measuring clients: a serve's priority
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(args.client_priority))
         quiet = _relay(port, args.messages)
-        stop = threading.Event()
-        attacker = threading.Thread(target=_hostile, args=(port, stop), daemon=True)
         attacker.start()
         time.sleep(1.0)
         hostile = _relay(port, args.messages)
         stop.set()
         attacker.join(10)
+        if fifo:
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+        lines.seek(0)
         result = {"quiet": _stats(quiet), "hostile": _stats(hostile),
-                  "hub_alive": hub.poll() is None, "hub_lines": len(dropped),
+                  "hub_alive": hub.poll() is None, "hub_lines": len(lines.readlines()) - 1,
+                  "sched": args.sched,
+                  "priority": {"hub": args.hub_priority, "clients": args.client_priority,
+                               "hostile": "default"} if fifo else None,
+                  "cpus": len(os.sched_getaffinity(0)),
                   "loadavg": open("/proc/loadavg").read().split()[:3]}
     finally:
         hub.terminate()

@@ -18,7 +18,10 @@ The schedule is the loopback run's, tick ``k`` at ``t_k = k h``:
   own clock: within its expiry whatever the wall clocks say).
 
 A side that hears nothing for ``timeout`` wall seconds stops (one line): the other process
-has died or stopped.
+has died or stopped. A stop on the serves' stop channel (a serve tripped, or was stopped)
+ends the commands: the driver then runs :data:`HOLD_AFTER_STOP` s more without them, as a
+real driver does (the last command expires, gravity compensation and damping hold the
+arms), and stops (one line), its ground truth showing where the arms came to rest.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ from drake_coop.robot.status import check_panda_status
 
 #: µs of slack when matching a status's ``utime`` to the cycle it should come from.
 UTIME_SLACK = 2
+#: Simulated seconds the lockstep driver holds the arms without commands after a stop.
+HOLD_AFTER_STOP = 2.0
 
 
 def status_time(spec, t: float) -> float | None:
@@ -235,9 +240,12 @@ def drive_lockstep(simulator, side, lcm, plan, timeout: float, before_tick=None,
     if late:
         raise ValueError(f"--lockstep: the driver's clock_phase of {', '.join(late)} must be "
                          f"< {offset:g} s (its first status before the first command)")
+    from drake_coop.robot.serve_loop import STOP_CHANNEL, StopListener
+
     counts = {arm.spec.command_channel: 0 for arm in side.arms}
     for channel in counts:
         lcm.Subscribe(channel, lambda data, c=channel: counts.__setitem__(c, counts[c] + 1))
+    stop = StopListener(lcm, [])            # every serve's stop: the commands end
     for k in range(plan.k_end + 1):
         simulator.AdvanceTo(k * plan.h)
         if before_tick is not None:
@@ -248,6 +256,10 @@ def drive_lockstep(simulator, side, lcm, plan, timeout: float, before_tick=None,
         deadline = time.perf_counter() + timeout
         repeat = time.perf_counter()
         while any(n <= k for n in counts.values()):
+            if stop.reason is not None:     # no more commands: the drivers hold the arms
+                simulator.AdvanceTo(simulator.get_context().get_time() + HOLD_AFTER_STOP)
+                return (f"stop on {STOP_CHANNEL}: {stop.reason} (the arms held by their "
+                        f"drivers for {HOLD_AFTER_STOP:g} s)")
             if time.perf_counter() > deadline:
                 late = [c for c, n in counts.items() if n <= k]
                 return (f"no command of tick {k} on {', '.join(late)} within {timeout:g} s "
