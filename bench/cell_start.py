@@ -15,9 +15,10 @@ serves 60, driver 50); ``default`` at the default priority. From the driver's gr
   from the first row and the largest joint speed over the rows before the arm's first
   non-zero command (the ramp's tick 1: tick 0 carries the wire's hold torque, 0 where the
   robot adds its own gravity) — the driver's hold before its ``serve`` commands it;
-- ``ramp_bound_margin``: over the ramp's rows, the smallest ``(k/N)(|τ_hold| + τ_lim) −
-  |τ − τ_hold,wire|`` over the joints (≥ 0: the bound holds; ``k`` counted from the row of
-  the arm's first command, an upper bound of the tick it carries);
+- ``ramp_bound_use``: over the ramp's rows and the joints, the largest ``|τ − τ_hold,wire|
+  / ((k/N)(|τ_hold| + τ_lim))`` (≤ 1: the bound holds; ``k`` counted from the row of the
+  arm's first non-zero command, an upper bound of the tick it carries), the largest
+  command over those rows (``ramp_max_command_Nm``, on the wire) and the bound itself;
 - ``speed_end_rad_s`` / ``drift_after_stop_rad``: the largest joint speed at the driver's end
   and the largest joint motion between the stop and the end — the arms at rest, not fallen.
 
@@ -79,7 +80,7 @@ def run_case(out: Path, first: str, second: str, skew: float, stop_after: float,
     procs = {"hub": hub}
     truth = out / "truth.npz"
     lines: dict[str, list[str]] = {}
-    load = []
+    load: dict[str, float] = {}
     try:
         url = hub.stderr.readline().split("--lcm-url ")[1].rstrip(")\n")
         common = ["--lcm-url", url]
@@ -102,7 +103,7 @@ def run_case(out: Path, first: str, second: str, skew: float, stop_after: float,
                 if "drake-coop: serving" in line or "drake-coop: stopped" in line:
                     break
         time.sleep(stop_after)
-        load.append(open("/proc/loadavg").read().split()[0])
+        load["at_stop"] = float(open("/proc/loadavg").read().split()[0])
         operator = WatchedLcm(url)
         StopListener.publish(operator, "operator", "a stop sent by the benchmark",
                              session="be4c0001")
@@ -110,7 +111,7 @@ def run_case(out: Path, first: str, second: str, skew: float, stop_after: float,
         for name in (first, second, "driver"):
             codes[name] = procs[name].wait(t_end + 300)
             lines.setdefault(name, []).extend(procs[name].stderr.read().splitlines())
-        load.append(open("/proc/loadavg").read().split()[0])
+        load["at_end"] = float(open("/proc/loadavg").read().split()[0])
     finally:
         for proc in procs.values():
             if proc.poll() is None:
@@ -165,15 +166,17 @@ def arm_numbers(truth: dict, t_end: float) -> dict:
         hold = np.asarray(loop.side.arms[i].hold_torque(x[0, :n]))
         wire_hold = hold - (hold if spec.gravity == "robot_adds" else 0.0)
         bound = np.abs(hold) + np.asarray(spec.torque_limits)
-        margins = [float(np.min(min(r - r0 + 1, n_ramp) / n_ramp * bound
-                                - np.abs(tau[r] - wire_hold)))
-                   for r in range(r0, min(r0 + n_ramp, len(t)))]
+        use = [float(np.max(np.abs(tau[r] - wire_hold)
+                            / (min(r - r0 + 1, n_ramp) / n_ramp * bound)))
+               for r in range(r0, min(r0 + n_ramp, len(t)))]
         last_cmd = int(nonzero[-1]) if nonzero.size else 0
         out[spec.robot] = {
             "first_command_t_s": float(t[r0]) if r0 < len(t) else None,
             "moved_before_command_rad": float(np.max(np.abs(before[:, :n] - x[0, :n]))),
             "speed_before_command_rad_s": float(np.max(np.abs(before[:, n:]))),
-            "ramp_bound_margin_Nm": min(margins) if margins else None,
+            "ramp_bound_use": max(use) if use else None,
+            "ramp_max_command_Nm": float(np.max(np.abs(tau[r0:r0 + n_ramp]))) if use else None,
+            "bound_min_Nm": float(np.min(bound)),
             "last_command_t_s": float(t[last_cmd]),
             "speed_end_rad_s": float(np.max(np.abs(x[-1, n:]))),
             "drift_after_stop_rad": float(np.max(np.abs(x[-1, :n] - x[last_cmd, :n]))),
