@@ -36,7 +36,8 @@ import socket
 
 from pydrake.lcm import DrakeLcm
 
-__all__ = ["HUB_LOST_LINE", "HUB_LOST_MARK", "HubLink", "HubLost", "WatchedLcm", "hub_monitor", "is_hub_failure", "tcpq_port"]
+__all__ = ["HUB_LOST_LINE", "HUB_LOST_MARK", "HubLink", "HubLost", "WatchedLcm", "hub_monitor",
+           "is_hub_failure", "tcpq_port"]
 
 
 #: The text of :func:`hub_monitor`'s failure (found again in ``AdvanceTo``'s exception).
@@ -238,7 +239,6 @@ def hub_monitor(lcm):
         return EventStatus.Succeeded()
 
     return monitor
-
 
 
 def is_hub_failure(exc: BaseException) -> bool:
