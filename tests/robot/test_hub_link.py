@@ -137,6 +137,33 @@ def test_a_link_made_without_a_new_socket_is_not_found():
     assert link.after() is False and link.lost() is False
 
 
+def test_a_serve_waiting_when_the_hub_dies_stops_in_one_line(tmp_path, capsys, monkeypatch):
+    """``serve`` waiting for its first status (no driver) when the hub is killed, half a
+    second after it connected: exit 1, one line naming the lost hub, nothing written — not
+    an abort, not a traceback."""
+    import threading
+
+    from drake_coop.cli import main
+    from drake_coop.robot import cli
+
+    hub = Hub()
+    make = cli._make_lcm
+
+    def connect(url):
+        lcm = make(url)
+        threading.Timer(0.5, hub.kill).start()
+        return lcm
+
+    monkeypatch.setattr(cli, "_make_lcm", connect)
+    code = main(["serve", "paper", "--lcm-url", hub.url, "--out", str(tmp_path / "run"),
+                 "--quiet", "--t-end", "1", "--delay-margin", "0.002", "--status-wait", "60"])
+    err = capsys.readouterr().err
+    lines = [x for x in err.splitlines() if x.startswith("drake-coop:")]
+    assert code == 1, err
+    assert len(lines) == 1 and "hub connection lost" in lines[0], err
+    assert "nothing written" in lines[0] and not (tmp_path / "run").exists()
+
+
 # ------------------------------------------------------------------ processes, slow
 
 
