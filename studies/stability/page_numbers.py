@@ -2,7 +2,8 @@
 forward-Euler period limit ``2/p_f`` per robot and ``k_d``, the one-joint closed form with
 measured velocities (its crossing period and its ρ against a computation delay), the
 continuous arm's delay margin interpolated from the shipped delay-compensation map, and the
-clock-skew runs' largest relative change of the squeeze error.
+clock-skew runs' largest relative change of the squeeze error, and the mean and 99th percentile
+of the sampling lateness ``studies/timing.yaml`` draws (from the distributions' closed forms).
 
     python studies/stability/page_numbers.py docs/results/stability_page_numbers.json
 
@@ -78,11 +79,25 @@ def skew_changes() -> dict:
             group = [r for r in rows if r["object_mode"] == mode
                      and r["prediction_horizon"] == horizon]
             base = next(r for r in group if float(r["skew_s"]) == 0 and float(r["drift"]) == 0)
-            key = f"{mode}_{'p' + horizon if horizon else 'off'}"
+            key = f"{mode}_{'p%.0fms' % (1e3 * float(horizon)) if horizon else 'off'}"
             out[key] = {robot: max(abs(float(r[f"squeeze_rms_{robot}"])
                                        / float(base[f"squeeze_rms_{robot}"]) - 1.0)
                                    for r in group) for robot in ("robot1", "robot2")}
             out[key]["worst"] = max(out[key]["robot1"], out[key]["robot2"])
+    return out
+
+
+def jitter_lateness() -> dict:
+    """Mean and 99th percentile (s) of each lateness distribution of ``studies/timing.yaml``
+    (no computation delay, so the exponential is cut at ``h``)."""
+    out: dict = {}
+    scale = 0.0011
+    cut = 1.0 - np.exp(-H / scale)                  # the exponential's mass below h
+    out["exponential_1p1ms"] = {
+        "mean_s": scale - H * np.exp(-H / scale) / cut,
+        "p99_s": -scale * np.log(1.0 - 0.99 * cut)}
+    for ms in (3, 6, 9):
+        out[f"uniform_{ms}ms"] = {"mean_s": 0.5e-3 * ms, "p99_s": 0.99e-3 * ms}
     return out
 
 
@@ -91,7 +106,8 @@ def main(argv: list[str]) -> int:
     document = {"observer_period_limit": observer_limits(),
                 "one_joint_measured": one_joint_measured(),
                 "continuous_margin": continuous_margin(),
-                "clock_skew_change": skew_changes()}
+                "clock_skew_change": skew_changes(),
+                "jitter_lateness": jitter_lateness()}
     Path(argv[0]).write_text(json.dumps(document, indent=1) + "\n")
     return 0
 
