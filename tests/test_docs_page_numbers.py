@@ -90,3 +90,19 @@ def test_a_budget_median_is_the_worst_arms_median_over_the_draws():
     assert len(worst) == shipped["budgets"]["s2"]["didim"]["draws"] == 6
     assert shipped["budgets"]["s2"]["didim"]["torque_error_median"] == pytest.approx(
         float(np.median(worst)))
+
+
+def test_the_rank_table_is_the_regressors_rank_now():
+    """The shipped rank table's counts are what the regressor gives now (the lab arms only
+    where the robots extra is installed); its gaps are clear (round-off level, not compared)."""
+    module = _module("studies/identification/rank_table.py")
+    shipped = json.loads((RESULTS / "identification_rank_table.json").read_text())["arms"]
+    arms = module.scenario_arms()
+    assert {"crs_a465", "crs_a255"} <= set(arms)
+    for model, where in arms.items():
+        n, Y = module.regressor(*where)
+        now, row = module.row(n, Y), shipped[model.rsplit("/", 1)[-1].replace(".", "_")]
+        assert (now["joints"], now["base_parameters"], now["parameters"]) == (
+            row["joints"], row["base_parameters"], row["parameters"])
+        assert now["condition_number"] == pytest.approx(row["condition_number"], rel=1e-6)
+        assert row["gap_at_rank"] > 1e8
