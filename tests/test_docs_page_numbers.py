@@ -92,6 +92,7 @@ def test_a_budget_median_is_the_worst_arms_median_over_the_draws():
         float(np.median(worst)))
 
 
+@pytest.mark.slow
 def test_the_rank_table_is_the_regressors_rank_now():
     """The shipped rank table's counts are what the regressor gives now (the lab arms only
     where the robots extra is installed); its gaps are clear (round-off level, not compared)."""
