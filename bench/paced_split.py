@@ -170,7 +170,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
              margin: float = MARGIN, compute_bar: float = COMPUTE_BAR,
              robots: list[str] | None = None, priority: dict | None = None,
              driver_log: Path | None = None, serve_cpus: list[int] | None = None,
-             driver_cpu: int | None = None) -> dict:
+             driver_cpu: int | None = None, emulate: bool = False) -> dict:
     """One paced split run (hub, one ``serve`` per arm, sim-driver); its figures and bars.
 
     ``out`` gets ``<robot>/`` (each serve's run folder) and the processes' stderr
@@ -178,7 +178,11 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     ``hub``, ``serve`` and ``driver`` (default :data:`PRIORITY`); ``driver_log``: the
     sim-driver's ground truth file (``sim-driver --log``); ``serve_cpus``: the CPUs the
     serves are pinned to in turn (default: every CPU, round robin); ``driver_cpu``: pin the
-    driver too (FIFO only; default unpinned).
+    driver too (FIFO only; default unpinned); ``emulate``: the driver emulates
+    drake-franka-driver without its low-pass (``--low-pass-freq 1000``, as the robot guide
+    runs the real one), logging its ground truth (``out/truth.npz`` unless ``driver_log``),
+    and the result's ``emulation`` says what it did with the commands
+    (:func:`bench.franka_emulation.wire_check`).
     """
     from drake_coop.scenario.loading import load_scenario
 
@@ -194,6 +198,10 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
         raise ValueError("sched: fifo needs chrt -f to be granted (root or CAP_SYS_NICE)")
     priority = dict(PRIORITY if priority is None else priority)
     out.mkdir(parents=True, exist_ok=True)
+    if emulate and driver_log is None:
+        driver_log = out / "truth.npz"
+        driver_log.unlink(missing_ok=True)
+    truth_log = driver_log
     cpus = sorted(os.sched_getaffinity(0)) if not serve_cpus else list(serve_cpus)
     limit = t_end + 120.0          # every process is stopped by then, whatever happens
 
@@ -242,7 +250,9 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
             _wait_for_line(log, "waiting for the status", proc, 300)
         driver, driver_log = start("driver", prefix("driver", driver_cpu) + CLI + [
             "sim-driver", str(scenario), "--lcm-url", url, "--t-end", f"{t_end + 2.0:g}",
-            "--command-wait", "120"] + ([] if driver_log is None else ["--log", str(driver_log)]))
+            "--command-wait", "120"] + ([] if driver_log is None else ["--log", str(driver_log)])
+            + (["--emulate", "drake-franka-driver", "--low-pass-freq", "1000"] if emulate
+               else []))
         load.start()
         started = time.perf_counter()
         codes = {robot: proc.wait(limit + 30) for robot, (proc, _) in serves.items()}
@@ -273,6 +283,11 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     result["driver"] = {"returncode": driver.returncode,
                         "last_line": driver_lines[-1] if driver_lines else ""}
     result["driver"]["behind_max_s"] = driver_lag(result["driver"]["last_line"])
+    if emulate:
+        from bench.franka_emulation import wire_check
+
+        result["emulation"] = (wire_check(truth_log, scenario) if truth_log.exists()
+                               else None)
     result["robots"] = {}
     for robot in robots:
         folder = out / robot
@@ -294,6 +309,13 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
                                      for a in arms),
         "no_missed_deadline": all(a.get("missed_deadlines", 1) == 0 for a in arms),
     }
+    if emulate:
+        em = (result["emulation"] or {}).values()
+        result["bars"]["no_command_expired"] = bool(em) and all(
+            a["commands_expired_in_run"] == 0 for a in em)
+        result["bars"]["gravity_once_1e-9"] = bool(em) and all(
+            a["gravity_once_max_Nm"] is not None and a["gravity_once_max_Nm"] <= 1e-9
+            for a in em)
     result["bars"]["all"] = all(result["bars"][k] for k in (
         "completed", "compute_p99", "loop_delay_p99_half_margin", "no_missed_deadline"))
     return result
@@ -530,6 +552,10 @@ def main(argv=None) -> int:
                         help="instead of the runs: one arm's tick in this process, back to "
                              "back and after sleeping (tick_cost), as case 'tick_cost'")
     parser.add_argument("--case", help="the case's key (one tick and one sched only)")
+    parser.add_argument("--emulate", action="store_true",
+                        help="the driver emulates drake-franka-driver (no low-pass); the "
+                             "case says what it did with the commands (key <sched>_<tick>"
+                             "_emulated)")
     args = parser.parse_args(argv)
     if not (0 < args.t_end < math.inf):
         parser.error(f"--t-end must be a finite number > 0, got {args.t_end}")
@@ -577,17 +603,19 @@ def main(argv=None) -> int:
     scenario = compensated_scenario(args.scenario, args.horizon, out / "scenario.yaml")
     for sched in args.sched:
         for tick in args.tick:
-            key = args.case or f"{sched}_{tick}"
+            key = args.case or f"{sched}_{tick}" + ("_emulated" if args.emulate else "")
             case = run_case(scenario, out / key, t_end=args.t_end, tick=tick, sched=sched,
                             margin=args.margin, compute_bar=args.compute_bar,
                             priority=dict(zip(("hub", "serve", "driver"), args.priorities)),
-                            serve_cpus=args.serve_cpus, driver_cpu=args.driver_cpu)
+                            serve_cpus=args.serve_cpus, driver_cpu=args.driver_cpu,
+                            emulate=args.emulate)
             case.update(horizon_s=args.horizon, drake=version("drake"), cpu=_cpu_name(),
                         cpus=os.cpu_count(), date=time.strftime("%Y-%m-%d", time.gmtime()),
                         command=("python -m bench.paced_split " + " ".join(sys.argv[1:])
                                  if argv is None else ""))
             write_case(Path(args.results), key, case)
-            print(key, json.dumps({"bars": case["bars"], "robots": {
+            print(key, json.dumps({"bars": case["bars"], "emulation": case.get("emulation"),
+                                   "robots": {
                 r: {k: v for k, v in a.items() if k.endswith(("p50_s", "p99_s"))
                     or k in ("status", "missed_deadlines")}
                 for r, a in case["robots"].items()}}, default=float), flush=True)

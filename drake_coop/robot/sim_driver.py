@@ -84,6 +84,9 @@ def cmd_sim_driver(args, load) -> int:
     except ValueError as exc:
         return _error(str(exc))
     truth = add_truth_log(builder, side, plan.h, scenario) if log is not None else None
+    if truth is not None:
+        for arm in side.arms:          # each command as the driver took it
+            arm.driver.journal = []
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
@@ -147,10 +150,13 @@ def cmd_sim_driver(args, load) -> int:
     if truth is not None:
         write_truth_log(log, truth, context)
     if not args.quiet:
+        expired = sum(arm.driver.counts(arm.driver.GetMyContextFromRoot(context))["expired"]
+                      for arm in side.arms)
         print(f"drake-coop: sim-driver done at t = {context.get_time():.3f} s after "
               f"{time.perf_counter() - start:.3f} s of wall time"
               + ("" if math.isnan(worst) else
-                 f" (at most {worst * 1e3:.1f} ms behind the wall clock)"), file=sys.stderr)
+                 f" (at most {worst * 1e3:.1f} ms behind the wall clock)")
+              + f"; {expired} commands expired", file=sys.stderr)
     return 0
 
 
@@ -176,7 +182,8 @@ def add_truth_log(builder, side, h: float, scenario=None) -> dict:
     -------
     dict
         ``normals`` (each arm's constraint normals), ``arms`` (each arm's state logger),
-        ``commanded`` (each arm's held command's logger) and,
+        ``commanded`` (each arm's held command's logger), ``drivers`` (each arm's
+        :class:`~drake_coop.robot.torque_driver.TorqueDriver`) and,
         in contact mode, ``pads`` (the pads' forces) and ``box`` (the box's state logger);
         in ``planes`` and ``rigid`` modes ``squeeze`` (the ground truth's log).
     """
@@ -200,6 +207,7 @@ def add_truth_log(builder, side, h: float, scenario=None) -> dict:
                                         publish_period=h) for a in side.arms]
     out["arms"] = [LogVectorOutput(coop.plant.get_state_output_port(a.instance), builder,
                                    publish_period=h) for a in coop.arms]
+    out["drivers"] = [a.driver for a in side.arms]
     return out
 
 
@@ -208,7 +216,12 @@ def write_truth_log(path, truth: dict, context) -> None:
     ``N_i F_i`` in contact mode; in ``planes`` and ``rigid`` the loopback run's ground truth
     of each tick but the last); ``box_state`` (the box's positions and
     velocities, contact mode); ``arm<i>_state``; ``arm<i>_tau_commanded`` (the command the
-    driver held at each tick, as received).
+    driver held at each tick, as received); ``arm<i>_counts`` (the driver's counts of
+    expired commands and rate-limited cycles,
+    :meth:`~drake_coop.robot.torque_driver.TorqueDriver.counts`) and, when the driver kept
+    one, ``arm<i>_journal`` (a row per command taken,
+    :data:`~drake_coop.robot.torque_driver.JOURNAL`) and ``arm<i>_expiries`` (``[now,
+    utime]`` of each command dropped for its age).
 
     Parameters
     ----------
@@ -226,6 +239,7 @@ def write_truth_log(path, truth: dict, context) -> None:
     from drake_coop.results.io import atomic_write_bytes
 
     arms = [log.FindLog(context) for log in truth["arms"]]
+    drivers = truth.get("drivers", [])
     t = arms[0].sample_times()
     data = {"t": t}
     normals = truth["normals"]
@@ -243,6 +257,14 @@ def write_truth_log(path, truth: dict, context) -> None:
     for i, log in enumerate(arms):
         data[f"arm{i}_state"] = log.data().T
         data[f"arm{i}_tau_commanded"] = truth["commanded"][i].FindLog(context).data().T
+        if i < len(drivers):
+            driver = drivers[i]
+            counts = driver.counts(driver.GetMyContextFromRoot(context))
+            data[f"arm{i}_counts"] = np.array([counts["expired"], counts["rate_limited"]])
+            if driver.journal is not None:
+                data[f"arm{i}_journal"] = np.array(driver.journal, dtype=float).reshape(
+                    len(driver.journal), -1)
+                data[f"arm{i}_expiries"] = np.array(driver.expiries, dtype=float).reshape(-1, 2)
     buffer = io.BytesIO()
     np.savez(buffer, **data)
     atomic_write_bytes(path, buffer.getvalue())

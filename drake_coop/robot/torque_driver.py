@@ -67,6 +67,14 @@ FAULTS = {1: "control_mode_expected is not torque", 2: "num_joint_position is no
           5: "joint_torque is not finite"}
 
 
+#: The columns of :attr:`TorqueDriver.journal`'s rows, one row per command taken on the cycle
+#: it was taken (n values each but the first two): the driver's clock ``now`` and the
+#: command's ``utime`` (µs), the command's torque as received, ``τ_d`` after the driver's
+#: chain (emulation: low-pass, rate limit), the robot's ``g(q)``, the torque on the arm,
+#: ``q``.
+JOURNAL = ("now", "utime", "tau_wire", "tau_d", "gravity", "tau_applied", "q")
+
+
 class DriverClock:
     """A driver's clock in its time base (µs), as a function of the run's time ``t`` (s).
 
@@ -204,6 +212,12 @@ class TorqueDriver(LeafSystem):
                        FRANKA_CYCLE / (FRANKA_CYCLE + 1.0 / (2 * math.pi * low_pass_hz)))
         #: The bytes of the first status this driver published (None before).
         self.first_status: bytes | None = None
+        #: None, or a list that receives a row per command taken (:data:`JOURNAL`) and, while
+        #: it is a list, :attr:`expiries` one per command dropped for its age.
+        self.journal: list | None = None
+        #: ``[now, utime]`` (µs) of each command dropped for its age, while :attr:`journal` is
+        #: kept.
+        self.expiries: list = []
         self._msg = self.DeclareAbstractInputPort(
             "command", AbstractValue.Make(SharedPandaCommand()))
         self._state = self.DeclareVectorInputPort("state", 2 * n)
@@ -211,9 +225,9 @@ class TorqueDriver(LeafSystem):
         self._applied = self.DeclareDiscreteState(n)
         self._commanded = self.DeclareDiscreteState(n)
         # memory: τ_d sent (libfranka's tau_J_d), v of the cycle, [newest utime seen,
-        # held (0/1), fault code]
+        # held (0/1), fault code, commands expired, cycles the rate limit bound]
         self._memo = self.DeclareDiscreteState(np.concatenate(
-            [np.zeros(2 * n), [-math.inf, 0.0, 0.0]]))
+            [np.zeros(2 * n), [-math.inf, 0.0, 0.0, 0.0, 0.0]]))
         self._format = struct.Struct(f">8sqi{8 * n}ddbqb")
         self._fingerprint = lcmt_panda_status._get_packed_fingerprint()
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, spec.clock_phase, self._update)
@@ -236,7 +250,7 @@ class TorqueDriver(LeafSystem):
         str
             The one-line reason, or ``''``.
         """
-        code = int(context.get_discrete_state(self._memo).get_value()[-1])
+        code = int(context.get_discrete_state(self._memo).get_value()[2 * self._n + 2])
         return "" if code == 0 else f"{self._spec.command_channel}: {FAULTS[code]}"
 
     def _update(self, context: Context, state: State) -> None:
@@ -245,12 +259,15 @@ class TorqueDriver(LeafSystem):
         v = np.asarray(x[n:])
         msg = self._msg.Eval(context)
         memo = context.get_discrete_state(self._memo).get_value()
-        last, (seen, held, fault) = memo[:n], memo[2 * n:]
+        last, (seen, held, fault, expired, bound) = memo[:n], memo[2 * n:]
         now = self._clock.utime(context.get_time())
-        if fault == 0 and not _no_message(msg) and msg.utime != seen:
+        taken = fault == 0 and not _no_message(msg) and msg.utime != seen
+        if taken:
             seen, held = float(msg.utime), 1.0          # a new command: held
         if held and abs(now - int(seen)) > self._expire_us:
-            held = 0.0                                  # expired: dropped for good
+            held, expired = 0.0, expired + 1.0          # expired: dropped for good
+            if self.journal is not None:
+                self.expiries.append([float(now), seen])
         tau_cmd = np.zeros(n)
         g = np.asarray(self._gravity.Eval(context), dtype=float)
         if held and fault == 0:
@@ -269,13 +286,18 @@ class TorqueDriver(LeafSystem):
             if self._alpha is not None:
                 tau_d = self._alpha * tau_d + (1.0 - self._alpha) * last
             step = FRANKA_TORQUE_RATE * FRANKA_CYCLE
-            tau_d = last + np.clip(tau_d - last, -step, step)
+            limited = last + np.clip(tau_d - last, -step, step)
+            bound += float(np.any(np.abs(tau_d - last) > step))
+            tau_d = limited
         elif self._limits is not None:
             tau_d = np.clip(tau_d, -self._limits, self._limits)
         adds = not held or self._spec.gravity != "none"
         tau = tau_d + g if adds else tau_d
         state.get_mutable_discrete_state(self._memo).SetFromVector(
-            np.concatenate([tau_d, v, [seen, held, fault]]))
+            np.concatenate([tau_d, v, [seen, held, fault, expired, bound]]))
+        if taken and held and self.journal is not None:
+            self.journal.append(np.concatenate(
+                [[now, seen], tau_cmd, tau_d, g, tau, x[:n]]))
         state.get_mutable_discrete_state(self._applied).SetFromVector(tau)
         state.get_mutable_discrete_state(self._commanded).SetFromVector(tau_cmd)
 
@@ -301,9 +323,26 @@ class TorqueDriver(LeafSystem):
         return np.asarray(tau, dtype=float) - (
             m.H(q) @ ((v - v_prev) / self._period) + m.Cv(q, v) + m.g(q))
 
+    def counts(self, context: Context) -> dict[str, int]:
+        """What the driver did to the commands so far.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        dict
+            ``expired``: commands dropped for their age (each once); ``rate_limited``: cycles
+            on which the emulation's rate limit changed ``τ_d`` (0 for the plain driver).
+        """
+        memo = context.get_discrete_state(self._memo).get_value()
+        return {"expired": int(memo[2 * self._n + 3]), "rate_limited": int(memo[2 * self._n + 4])}
+
     def _publish(self, context: Context) -> None:
         memo = context.get_discrete_state(self._memo).get_value()
-        if memo[-1] != 0:
+        if memo[2 * self._n + 2] != 0:
             return                                      # the driver has stopped
         n = self._n
         x = np.asarray(self._state.Eval(context))
