@@ -9,7 +9,7 @@ once every arm's command of the tick has arrived (simulated time and clock;
 :mod:`drake_coop.robot.lockstep`), with ``serve --lockstep``. ``--emulate
 drake-franka-driver``: that driver's torque mode point by point (7-joint arms only; a command
 it throws on stops it: exit 1, one line). ``--log FILE``: the plant's ground truth at every
-tick (:func:`write_truth_log`).
+tick (:func:`write_truth_log`; written also when the paced driver is interrupted).
 """
 
 from __future__ import annotations
@@ -137,16 +137,21 @@ def cmd_sim_driver(args, load) -> int:
         simulator.ResetStatistics()      # the wall clock starts now, not at Initialize()
         start = time.perf_counter()
         worst = 0.0          # how far the simulated time fell behind the wall clock (s)
-        for k_stop in guard_chunks(plan, scenario.guards.check_period):
-            simulator.AdvanceTo(k_stop * plan.h)
-            worst = max(worst, time.perf_counter() - start - context.get_time())
-            fault = side.fault(context)
-            if fault:
-                print(f"drake-coop: sim-driver stopped at t = {context.get_time():.3f} s: "
-                      f"{emulate} threw on {fault}", file=sys.stderr)
-                return 1
-            if k_stop in plan.switches:
-                side.coop.set_held(plant_context, plan.switches[k_stop])
+        try:
+            for k_stop in guard_chunks(plan, scenario.guards.check_period):
+                simulator.AdvanceTo(k_stop * plan.h)
+                worst = max(worst, time.perf_counter() - start - context.get_time())
+                fault = side.fault(context)
+                if fault:
+                    print(f"drake-coop: sim-driver stopped at t = {context.get_time():.3f} s: "
+                          f"{emulate} threw on {fault}", file=sys.stderr)
+                    return 1
+                if k_stop in plan.switches:
+                    side.coop.set_held(plant_context, plan.switches[k_stop])
+        except KeyboardInterrupt:      # Ctrl-C or SIGTERM: the ground truth up to now kept
+            if truth is not None:
+                write_truth_log(log, truth, context)
+            raise
     if truth is not None:
         write_truth_log(log, truth, context)
     if not args.quiet:

@@ -288,3 +288,17 @@ def test_with_a_journal_each_expiry_is_kept_with_the_commands_stamp():
     rig.cycle(0.110)
     assert rig.driver.expiries == [[ORIGIN + 102_000, ORIGIN + 1000]]
     assert len(rig.driver.journal) == 1
+
+
+def test_an_expired_command_is_dropped_before_the_driver_checks_it():
+    """DoTorqueControl resets an expired command before its DRAKE_THROW_UNLESS checks: a
+    command in another mode that is too old is dropped, and the driver keeps running."""
+    rig = Rig()
+    rig.send(command(np.zeros(7), ORIGIN - 200_000, mode=lcmt_panda_status.CONTROL_MODE_POSITION))
+    applied = rig.cycle(0.03)
+    assert rig.driver.fault(rig.ctx) == ""
+    assert rig.driver.counts(rig.ctx)["expired"] == 1
+    np.testing.assert_allclose(applied, gravity(Q) - K_D * V, rtol=0, atol=1e-12)
+    count = len(rig.statuses)
+    rig.cycle(0.035)
+    assert len(rig.statuses) == count + 5                             # still publishing
