@@ -178,7 +178,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     ``hub``, ``serve`` and ``driver`` (default :data:`PRIORITY`); ``driver_log``: the
     sim-driver's ground truth file (``sim-driver --log``); ``serve_cpus``: the CPUs the
     serves are pinned to in turn (default: every CPU, round robin); ``driver_cpu``: pin the
-    driver too (FIFO only; default unpinned); ``emulate``: the driver emulates
+    driver too (FIFO only; default unpinned; the hub is then pinned to the first serve CPU); ``emulate``: the driver emulates
     drake-franka-driver without its low-pass (``--low-pass-freq 1000``, as the robot guide
     runs the real one), logging its ground truth (``out/truth.npz`` unless ``driver_log``),
     and the result's ``emulation`` says what it did with the commands
@@ -233,7 +233,9 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
                     "serve_cpus": cpus if sched == "fifo" else None,
                     "driver_cpu": driver_cpu if sched == "fifo" else None}
     try:
-        hub, hub_log = start("hub", prefix("hub") + CLI + ["tcpq-hub", "--port", "0"])
+        # a pinned driver gets its CPU to itself: the hub goes with the first serve
+        hub, hub_log = start("hub", prefix("hub", cpus[0] if driver_cpu is not None else None)
+                             + CLI + ["tcpq-hub", "--port", "0"])
         url = _wait_for_line(hub_log, "--lcm-url ", hub, 60).split("--lcm-url ")[1].rstrip(")")
         if not url.startswith("tcpq://127.0.0.1:"):
             raise RuntimeError(f"the hub is not on 127.0.0.1: {url}")
