@@ -164,12 +164,14 @@ class TorqueDriver(LeafSystem):
         output_ports:
         - tau_applied
         - tau_commanded
+        - tau_external
 
     ``command``: the newest ``lcmt_panda_command`` received (a subscriber's output);
     ``state``: the arm's ``[q, v]`` (2n); ``gravity``: the robot's ``g(q)`` at that state (n,
     N·m). ``tau_applied``: the torque on the arm from this
     cycle (gravity included), ``tau_commanded``: the held command's torque as received (0
-    while none is held).
+    while none is held); ``tau_external``: the status's external-torque estimate now (zeros
+    but in the emulation with a ``model``, and at ``t = 0``).
 
     Parameters
     ----------
@@ -236,6 +238,7 @@ class TorqueDriver(LeafSystem):
             self.DeclareForcedPublishEvent(self._publish)
         self.DeclareStateOutputPort("tau_applied", self._applied)
         self.DeclareStateOutputPort("tau_commanded", self._commanded)
+        self.DeclareVectorOutputPort("tau_external", n, self._calc_external)
 
     def fault(self, context: Context) -> str:
         """The emulated driver's stop (``"<channel>: <field> ..."``), or ``''``.
@@ -338,7 +341,18 @@ class TorqueDriver(LeafSystem):
             on which the emulation's rate limit changed ``τ_d`` (0 for the plain driver).
         """
         memo = context.get_discrete_state(self._memo).get_value()
-        return {"expired": int(memo[2 * self._n + 3]), "rate_limited": int(memo[2 * self._n + 4])}
+        n = self._n
+        return {"expired": int(memo[2 * n + 3]), "rate_limited": int(memo[2 * n + 4])}
+
+    def _calc_external(self, context: Context, output) -> None:
+        n = self._n
+        ext = np.zeros(n)
+        if self._emulate and self._model is not None and context.get_time() > 0:
+            memo = context.get_discrete_state(self._memo).get_value()
+            x = np.asarray(self._state.Eval(context))
+            ext = self.external_torque(x[:n], x[n:], memo[n:2 * n],
+                                       context.get_discrete_state(self._applied).get_value())
+        output.SetFromVector(ext)
 
     def _publish(self, context: Context) -> None:
         memo = context.get_discrete_state(self._memo).get_value()
@@ -348,9 +362,7 @@ class TorqueDriver(LeafSystem):
         x = np.asarray(self._state.Eval(context))
         q, v = x[:n], x[n:]
         tau = context.get_discrete_state(self._applied).get_value()
-        ext = np.zeros(n)
-        if self._emulate and self._model is not None and context.get_time() > 0:
-            ext = self.external_torque(q, v, memo[n:2 * n], tau)
+        ext = self.get_output_port(2).Eval(context)
         t = context.get_time()
         zeros = (0.0,) * n
         data = self._format.pack(
