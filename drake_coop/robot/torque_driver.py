@@ -33,7 +33,7 @@ last ``τ_d`` sent, ``y = a x + (1 − a) y₋``, ``a = T / (T + 1/(2π f_c))``,
 limit ``|Δτ_d| ≤ 1000 N·m/s · T`` (``T`` = 1 ms, libfranka's cycle); the status's
 ``joint_torque_external`` an estimate of the external torque from the arm's model with
 Franka's sign (``tau_ext_hat_filtered``, the negative of the environment's torque on the arm,
-as Drake's ``lcmt_panda_status`` says): ``τ₋ − (H(q)(v − v₋)/c + C(q, v)v + g(q))``.
+as Drake's ``lcmt_panda_status`` says): ``τ₋ − (H(q)(v − v₋)/c + C(q, v)v + D v + g(q))``.
 """
 
 from __future__ import annotations
@@ -306,7 +306,8 @@ class TorqueDriver(LeafSystem):
 
     def external_torque(self, q, v, v_prev, tau) -> np.ndarray:
         """The external-torque estimate with Franka's sign (``tau_ext_hat_filtered``):
-        ``τ − (H(q)(v − v₋)/c + C(q, v)v + g(q))``.
+        ``τ − (H(q)(v − v₋)/c + C(q, v)v + D v + g(q))`` (the model's inverse dynamics in one
+        evaluation, :meth:`~drake_coop.control.arm_model.ArmModel.inverse_dynamics_terms`).
 
         Parameters
         ----------
@@ -322,9 +323,8 @@ class TorqueDriver(LeafSystem):
         numpy.ndarray
             The estimate (n,), N·m.
         """
-        m = self._model
-        return np.asarray(tau, dtype=float) - (
-            m.H(q) @ ((v - v_prev) / self._period) + m.Cv(q, v) + m.g(q))
+        return np.asarray(tau, dtype=float) - self._model.inverse_dynamics_terms(
+            q, v, (v - v_prev) / self._period)
 
     def counts(self, context: Context) -> dict[str, int]:
         """What the driver did to the commands so far.

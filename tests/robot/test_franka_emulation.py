@@ -222,6 +222,9 @@ class StubModel:
     def g(self, q):
         return gravity(q)
 
+    def inverse_dynamics_terms(self, q, v, a):
+        return self.H(q) @ a + self.Cv(q, v) + self.g(q)
+
 
 def test_the_external_torque_has_frankas_sign():
     """An arm held still by its surroundings (its state fixed) while the driver applies
