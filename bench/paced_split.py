@@ -145,7 +145,8 @@ def _q(x, q: float) -> float:
 
 def arm_figures(folder: Path) -> dict:
     """One arm's outcome and pacing figures from its run folder (``run.json``,
-    ``pacing.csv``)."""
+    ``pacing.csv``), with ``run.json``'s collector counts (``collector``: its pauses over
+    1 ms, those during a tick)."""
     meta = json.loads((folder / "run.json").read_text())
     rows = np.genfromtxt(folder / "pacing.csv", delimiter=",", names=True, ndmin=1)
     pacing = meta["pacing"]
@@ -154,7 +155,8 @@ def arm_figures(folder: Path) -> dict:
            "t_reached_s": float(rows["t"][-1]) if rows.size else 0.0,
            "missed_deadlines": int(pacing["missed_deadlines"]),
            "realtime": meta.get("realtime"), "realtime_missing": meta.get("realtime_missing"),
-           "tick": meta.get("tick"), "lcm_url": meta.get("lcm_url")}
+           "tick": meta.get("tick"), "lcm_url": meta.get("lcm_url"),
+           "collector": pacing.get("collector")}
     if rows.size:
         delay = rows["status_age_s"] + rows["lateness_s"] + cycle
         for key, values in (("compute", rows["compute_s"]), ("lateness", rows["lateness_s"]),
@@ -556,8 +558,8 @@ def main(argv=None) -> int:
     parser.add_argument("--case", help="the case's key (one tick and one sched only)")
     parser.add_argument("--emulate", action="store_true",
                         help="the driver emulates drake-franka-driver (no low-pass); the "
-                             "case says what it did with the commands (key <sched>_<tick>"
-                             "_emulated)")
+                             "case says what it did with the commands (key emulated_<sched>_<tick>"
+                             ")")
     args = parser.parse_args(argv)
     if not (0 < args.t_end < math.inf):
         parser.error(f"--t-end must be a finite number > 0, got {args.t_end}")
@@ -605,7 +607,7 @@ def main(argv=None) -> int:
     scenario = compensated_scenario(args.scenario, args.horizon, out / "scenario.yaml")
     for sched in args.sched:
         for tick in args.tick:
-            key = args.case or f"{sched}_{tick}" + ("_emulated" if args.emulate else "")
+            key = args.case or ("emulated_" if args.emulate else "") + f"{sched}_{tick}"
             case = run_case(scenario, out / key, t_end=args.t_end, tick=tick, sched=sched,
                             margin=args.margin, compute_bar=args.compute_bar,
                             priority=dict(zip(("hub", "serve", "driver"), args.priorities)),
