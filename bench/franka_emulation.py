@@ -70,7 +70,8 @@ def wire_check(log, scenario) -> dict:
     cycles the rate limit changed ``τ_d``;
     ``chain_max_Nm``: ``max |τ_d − τ_wire|`` on the cycle each command was taken (the
     torque libfranka is given against the wire's: 0 without the low-pass, unless the rate
-    limit bound: more than 1e-12 N·m); ``gravity_once_max_Nm``: ``max |τ_applied − τ_wire − g(q)|`` over the
+    limit bound: more than 1e-12 N·m); ``gravity_once_max_Nm``:
+    ``max |τ_applied − τ_wire − g(q)|`` over the
     commands taken on a cycle the rate limit left alone, ``g`` the controller model's
     gravity (the arm's URDF: Drake's gravity generalized forces of a plant of the arm alone,
     computed here, not by the driver's ``InverseDynamics``) at the cycle's ``q``: the

@@ -180,7 +180,8 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     ``hub``, ``serve`` and ``driver`` (default :data:`PRIORITY`); ``driver_log``: the
     sim-driver's ground truth file (``sim-driver --log``); ``serve_cpus``: the CPUs the
     serves are pinned to in turn (default: every CPU, round robin); ``driver_cpu``: pin the
-    driver too (FIFO only; default unpinned; the hub is then pinned to the first serve CPU); ``emulate``: the driver emulates
+    driver too (FIFO only; default unpinned; the hub is then pinned to the first serve
+    CPU); ``emulate``: the driver emulates
     drake-franka-driver without its low-pass (``--low-pass-freq 1000``, as the robot guide
     runs the real one), logging its ground truth (``out/truth.npz`` unless ``driver_log``),
     and the result's ``emulation`` says what it did with the commands

@@ -43,7 +43,8 @@ class LoopbackResult:
     """Per robot ``t``, ``lambda_meas`` (the plant's squeeze), ``lambda_d``,
     ``tau_commanded`` (the command the driver held at ``t``: the wire's; zero before the
     first), ``tau_external`` (the status's external-torque estimate at ``t``: zeros but in the
-    emulation) and ``q`` (the arm's positions at ``t``); the status (``ok`` or ``stopped``, with the watchdog's one-line
+    emulation) and ``q`` (the arm's positions at ``t``); the status (``ok`` or ``stopped``,
+    with the watchdog's one-line
     reason) and the wall time.
 
     Attributes
