@@ -443,7 +443,8 @@ def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
                  driver_cpu: int | None = None, object_mode: str = "estimated") -> dict:
     """The lab-arm contact scenario ``name``
     (:func:`bench.lab_arms_object.contact_scenario`: contact.yaml's plant, an estimated
-    object model; compensation ``horizon``) over the cable (:func:`run_case`, the
+    object model; compensation ``horizon``; ``every_arm/<row>``: that row of the every-arm
+    benchmark with its derived gains, :func:`bench.delay_margins.every_arm_cases`) over the cable (:func:`run_case`, the
     sim-driver logging its ground truth), against the simulated run
     (:func:`~drake_coop.experiment.simulate.simulate`) with ``timing.computation_delay`` = the
     measured loop delay (the arms' median of the per-arm medians, at most ``h``): squeeze and
@@ -455,7 +456,15 @@ def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
     from drake_coop.experiment.simulate import phases, simulate
     from drake_coop.scenario.loading import dump_scenario
 
-    scenario = contact_scenario(name)
+    if name.startswith("every_arm/"):     # a lab pair as the every-arm benchmark set it up
+        from bench.delay_margins import every_arm_cases
+        from drake_coop.scenario.loading import dump_scenario as _dump
+
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "pair.yaml").write_text(_dump(every_arm_cases()[name]()))
+        scenario = contact_scenario(str(out / "pair.yaml"))
+    else:
+        scenario = contact_scenario(name)
     if object_mode not in ("estimated", "known"):
         raise ValueError(f"object_mode: 'estimated' or 'known', got {object_mode!r}")
     scenario.object_model.mode = object_mode
