@@ -145,7 +145,8 @@ def _q(x, q: float) -> float:
 
 def arm_figures(folder: Path) -> dict:
     """One arm's outcome and pacing figures from its run folder (``run.json``,
-    ``pacing.csv``)."""
+    ``pacing.csv``), with ``run.json``'s collector counts (``collector``: its pauses over
+    1 ms, those during a tick)."""
     meta = json.loads((folder / "run.json").read_text())
     rows = np.genfromtxt(folder / "pacing.csv", delimiter=",", names=True, ndmin=1)
     pacing = meta["pacing"]
@@ -154,7 +155,8 @@ def arm_figures(folder: Path) -> dict:
            "t_reached_s": float(rows["t"][-1]) if rows.size else 0.0,
            "missed_deadlines": int(pacing["missed_deadlines"]),
            "realtime": meta.get("realtime"), "realtime_missing": meta.get("realtime_missing"),
-           "tick": meta.get("tick"), "lcm_url": meta.get("lcm_url")}
+           "tick": meta.get("tick"), "lcm_url": meta.get("lcm_url"),
+           "collector": pacing.get("collector")}
     if rows.size:
         delay = rows["status_age_s"] + rows["lateness_s"] + cycle
         for key, values in (("compute", rows["compute_s"]), ("lateness", rows["lateness_s"]),
@@ -170,7 +172,7 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
              margin: float = MARGIN, compute_bar: float = COMPUTE_BAR,
              robots: list[str] | None = None, priority: dict | None = None,
              driver_log: Path | None = None, serve_cpus: list[int] | None = None,
-             driver_cpu: int | None = None) -> dict:
+             driver_cpu: int | None = None, emulate: bool = False) -> dict:
     """One paced split run (hub, one ``serve`` per arm, sim-driver); its figures and bars.
 
     ``out`` gets ``<robot>/`` (each serve's run folder) and the processes' stderr
@@ -178,7 +180,12 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     ``hub``, ``serve`` and ``driver`` (default :data:`PRIORITY`); ``driver_log``: the
     sim-driver's ground truth file (``sim-driver --log``); ``serve_cpus``: the CPUs the
     serves are pinned to in turn (default: every CPU, round robin); ``driver_cpu``: pin the
-    driver too (FIFO only; default unpinned).
+    driver too (FIFO only; default unpinned; the hub is then pinned to the first serve
+    CPU); ``emulate``: the driver emulates
+    drake-franka-driver without its low-pass (``--low-pass-freq 1000``, as the robot guide
+    runs the real one), logging its ground truth (``out/truth.npz`` unless ``driver_log``),
+    and the result's ``emulation`` says what it did with the commands
+    (:func:`bench.franka_emulation.wire_check`).
     """
     from drake_coop.scenario.loading import load_scenario
 
@@ -194,6 +201,10 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
         raise ValueError("sched: fifo needs chrt -f to be granted (root or CAP_SYS_NICE)")
     priority = dict(PRIORITY if priority is None else priority)
     out.mkdir(parents=True, exist_ok=True)
+    if emulate and driver_log is None:
+        driver_log = out / "truth.npz"
+        driver_log.unlink(missing_ok=True)
+    truth_log = driver_log
     cpus = sorted(os.sched_getaffinity(0)) if not serve_cpus else list(serve_cpus)
     limit = t_end + 120.0          # every process is stopped by then, whatever happens
 
@@ -225,7 +236,9 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
                     "serve_cpus": cpus if sched == "fifo" else None,
                     "driver_cpu": driver_cpu if sched == "fifo" else None}
     try:
-        hub, hub_log = start("hub", prefix("hub") + CLI + ["tcpq-hub", "--port", "0"])
+        # a pinned driver gets its CPU to itself: the hub goes with the first serve
+        hub, hub_log = start("hub", prefix("hub", cpus[0] if driver_cpu is not None else None)
+                             + CLI + ["tcpq-hub", "--port", "0"])
         url = _wait_for_line(hub_log, "--lcm-url ", hub, 60).split("--lcm-url ")[1].rstrip(")")
         if not url.startswith("tcpq://127.0.0.1:"):
             raise RuntimeError(f"the hub is not on 127.0.0.1: {url}")
@@ -242,7 +255,9 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
             _wait_for_line(log, "waiting for the status", proc, 300)
         driver, driver_log = start("driver", prefix("driver", driver_cpu) + CLI + [
             "sim-driver", str(scenario), "--lcm-url", url, "--t-end", f"{t_end + 2.0:g}",
-            "--command-wait", "120"] + ([] if driver_log is None else ["--log", str(driver_log)]))
+            "--command-wait", "120"] + ([] if driver_log is None else ["--log", str(driver_log)])
+            + (["--emulate", "drake-franka-driver", "--low-pass-freq", "1000"] if emulate
+               else []))
         load.start()
         started = time.perf_counter()
         codes = {robot: proc.wait(limit + 30) for robot, (proc, _) in serves.items()}
@@ -273,6 +288,11 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
     result["driver"] = {"returncode": driver.returncode,
                         "last_line": driver_lines[-1] if driver_lines else ""}
     result["driver"]["behind_max_s"] = driver_lag(result["driver"]["last_line"])
+    if emulate:
+        from bench.franka_emulation import wire_check
+
+        result["emulation"] = (wire_check(truth_log, scenario) if truth_log.exists()
+                               else None)
     result["robots"] = {}
     for robot in robots:
         folder = out / robot
@@ -294,6 +314,13 @@ def run_case(scenario: Path, out: Path, *, t_end: float, tick: str, sched: str,
                                      for a in arms),
         "no_missed_deadline": all(a.get("missed_deadlines", 1) == 0 for a in arms),
     }
+    if emulate:
+        em = (result["emulation"] or {}).values()
+        result["bars"]["no_command_expired"] = bool(em) and all(
+            a["commands_expired_in_run"] == 0 for a in em)
+        result["bars"]["gravity_once_1e-9"] = bool(em) and all(
+            a["gravity_once_max_Nm"] is not None and a["gravity_once_max_Nm"] <= 1e-9
+            for a in em)
     result["bars"]["all"] = all(result["bars"][k] for k in (
         "completed", "compute_p99", "loop_delay_p99_half_margin", "no_missed_deadline"))
     return result
@@ -416,7 +443,8 @@ def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
                  driver_cpu: int | None = None, object_mode: str = "estimated") -> dict:
     """The lab-arm contact scenario ``name``
     (:func:`bench.lab_arms_object.contact_scenario`: contact.yaml's plant, an estimated
-    object model; compensation ``horizon``) over the cable (:func:`run_case`, the
+    object model; compensation ``horizon``; ``every_arm/<row>``: that row of the every-arm
+    benchmark with its derived gains, :func:`bench.delay_margins.every_arm_cases`) over the cable (:func:`run_case`, the
     sim-driver logging its ground truth), against the simulated run
     (:func:`~drake_coop.experiment.simulate.simulate`) with ``timing.computation_delay`` = the
     measured loop delay (the arms' median of the per-arm medians, at most ``h``): squeeze and
@@ -428,7 +456,15 @@ def contact_case(name: str, out: Path, *, t_end: float, tick: str, sched: str,
     from drake_coop.experiment.simulate import phases, simulate
     from drake_coop.scenario.loading import dump_scenario
 
-    scenario = contact_scenario(name)
+    if name.startswith("every_arm/"):     # a lab pair as the every-arm benchmark set it up
+        from bench.delay_margins import every_arm_cases
+        from drake_coop.scenario.loading import dump_scenario as _dump
+
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "pair.yaml").write_text(_dump(every_arm_cases()[name]()))
+        scenario = contact_scenario(str(out / "pair.yaml"))
+    else:
+        scenario = contact_scenario(name)
     if object_mode not in ("estimated", "known"):
         raise ValueError(f"object_mode: 'estimated' or 'known', got {object_mode!r}")
     scenario.object_model.mode = object_mode
@@ -530,6 +566,10 @@ def main(argv=None) -> int:
                         help="instead of the runs: one arm's tick in this process, back to "
                              "back and after sleeping (tick_cost), as case 'tick_cost'")
     parser.add_argument("--case", help="the case's key (one tick and one sched only)")
+    parser.add_argument("--emulate", action="store_true",
+                        help="the driver emulates drake-franka-driver (no low-pass); the "
+                             "case says what it did with the commands (key emulated_<sched>_<tick>"
+                             ")")
     args = parser.parse_args(argv)
     if not (0 < args.t_end < math.inf):
         parser.error(f"--t-end must be a finite number > 0, got {args.t_end}")
@@ -577,17 +617,19 @@ def main(argv=None) -> int:
     scenario = compensated_scenario(args.scenario, args.horizon, out / "scenario.yaml")
     for sched in args.sched:
         for tick in args.tick:
-            key = args.case or f"{sched}_{tick}"
+            key = args.case or ("emulated_" if args.emulate else "") + f"{sched}_{tick}"
             case = run_case(scenario, out / key, t_end=args.t_end, tick=tick, sched=sched,
                             margin=args.margin, compute_bar=args.compute_bar,
                             priority=dict(zip(("hub", "serve", "driver"), args.priorities)),
-                            serve_cpus=args.serve_cpus, driver_cpu=args.driver_cpu)
+                            serve_cpus=args.serve_cpus, driver_cpu=args.driver_cpu,
+                            emulate=args.emulate)
             case.update(horizon_s=args.horizon, drake=version("drake"), cpu=_cpu_name(),
                         cpus=os.cpu_count(), date=time.strftime("%Y-%m-%d", time.gmtime()),
                         command=("python -m bench.paced_split " + " ".join(sys.argv[1:])
                                  if argv is None else ""))
             write_case(Path(args.results), key, case)
-            print(key, json.dumps({"bars": case["bars"], "robots": {
+            print(key, json.dumps({"bars": case["bars"], "emulation": case.get("emulation"),
+                                   "robots": {
                 r: {k: v for k, v in a.items() if k.endswith(("p50_s", "p99_s"))
                     or k in ("status", "missed_deadlines")}
                 for r, a in case["robots"].items()}}, default=float), flush=True)

@@ -131,6 +131,38 @@ class LockstepStatuses:
         return data, found
 
 
+def wait_for(lcm, ready, timeout: float, late, poll=None) -> str:
+    """Pump ``lcm`` until ``ready()`` holds: the one wait of both lockstep sides.
+
+    Parameters
+    ----------
+    lcm : DrakeLcm
+        The LCM connection (handled in slices of 10 ms).
+    ready : Callable[[], bool]
+        What is awaited; asked first, and again after every slice.
+    timeout : float
+        The longest wall-clock wait, s.
+    late : Callable[[], str]
+        The one line returned when ``timeout`` passes first.
+    poll : Callable[[], str] or None
+        Called before every slice: a non-empty string stops the wait (returned).
+
+    Returns
+    -------
+    str
+        ``''`` once ready, else why not.
+    """
+    deadline = time.perf_counter() + timeout
+    while not ready():
+        reason = poll() if poll is not None else ""
+        if reason:
+            return reason
+        if time.perf_counter() > deadline:
+            return late()
+        lcm.HandleSubscriptions(10)
+    return ""
+
+
 def run_lockstep(loop, lcm, statuses: LockstepStatuses, k_end: int, record, after_tick=None,
                  stop=None, timeout: float = 10.0) -> str:
     """Tick ``loop`` (a started :class:`~drake_coop.robot.serve_loop.ServeLoop`) from
@@ -164,6 +196,10 @@ def run_lockstep(loop, lcm, statuses: LockstepStatuses, k_end: int, record, afte
     senders = [arm.command_sender for arm in loop.side.arms]
     for i, sender in enumerate(senders):          # tick 0: the first status's clock
         sender.echo(statuses.origin[i] + int(round(specs[i].clock_phase * 1e6)))
+
+    def stopped() -> str:
+        return "" if stop is None or stop.reason is None else f"stop: {stop.reason}"
+
     for k in range(k_end + 1):
         t_k = k * loop.h
         taken = []
@@ -172,18 +208,19 @@ def run_lockstep(loop, lcm, statuses: LockstepStatuses, k_end: int, record, afte
             if t_s is None:
                 taken.append(None)
                 continue
-            deadline = time.perf_counter() + timeout
-            got = statuses.take(i, t_s)
-            while got is None:
-                if stop is not None and stop.reason is not None:
-                    return f"stop: {stop.reason}"
-                if time.perf_counter() > deadline:
-                    return (f"no status on {spec.status_channel} for t = {t_s:.4f} s within "
-                            f"{timeout:g} s (lockstep: is the driver running with "
-                            "--lockstep?)")
-                lcm.HandleSubscriptions(10)
-                got = statuses.take(i, t_s)
-            taken.append(got)
+            got: list = [None]
+
+            def arrived(i=i, t_s=t_s, got=got) -> bool:
+                got[0] = statuses.take(i, t_s)
+                return got[0] is not None
+
+            reason = wait_for(lcm, arrived, timeout, lambda spec=spec, t_s=t_s: (
+                f"no status on {spec.status_channel} for t = {t_s:.4f} s within "
+                f"{timeout:g} s (lockstep: is the driver running with --lockstep?)"),
+                poll=stopped)
+            if reason:
+                return reason
+            taken.append(got[0])
         lcm.HandleSubscriptions(0)
         if stop is not None and stop.reason is not None:
             return f"stop: {stop.reason}"
@@ -246,6 +283,24 @@ def drive_lockstep(simulator, side, lcm, plan, timeout: float, before_tick=None,
     for channel in counts:
         lcm.Subscribe(channel, lambda data, c=channel: counts.__setitem__(c, counts[c] + 1))
     stop = StopListener(lcm, [])            # every serve's stop: the commands end
+    repeat = [0.0]
+
+    def repeat_first_status() -> str:
+        if time.perf_counter() >= repeat[0]:
+            for arm in side.arms:
+                if arm.driver.first_status is not None:
+                    lcm.Publish(arm.spec.status_channel, arm.driver.first_status)
+            repeat[0] = time.perf_counter() + 0.05
+        return ""
+
+    def stopped() -> str:
+        if stop.reason is None:
+            return ""
+        # no more commands: the drivers hold the arms
+        simulator.AdvanceTo(simulator.get_context().get_time() + HOLD_AFTER_STOP)
+        return (f"stop on {STOP_CHANNEL}: {stop.reason} (the arms held by their "
+                f"drivers for {HOLD_AFTER_STOP:g} s)")
+
     for k in range(plan.k_end + 1):
         simulator.AdvanceTo(k * plan.h)
         if before_tick is not None:
@@ -253,22 +308,14 @@ def drive_lockstep(simulator, side, lcm, plan, timeout: float, before_tick=None,
             if reason:
                 return reason
         simulator.AdvanceTo(k * plan.h + offset)
-        deadline = time.perf_counter() + timeout
-        repeat = time.perf_counter()
-        while any(n <= k for n in counts.values()):
-            if stop.reason is not None:     # no more commands: the drivers hold the arms
-                simulator.AdvanceTo(simulator.get_context().get_time() + HOLD_AFTER_STOP)
-                return (f"stop on {STOP_CHANNEL}: {stop.reason} (the arms held by their "
-                        f"drivers for {HOLD_AFTER_STOP:g} s)")
-            if time.perf_counter() > deadline:
-                late = [c for c, n in counts.items() if n <= k]
-                return (f"no command of tick {k} on {', '.join(late)} within {timeout:g} s "
-                        "(lockstep: is serve running with --lockstep?)")
-            if k == 0 and time.perf_counter() >= repeat:    # a serve may start late
-                for arm in side.arms:
-                    if arm.driver.first_status is not None:
-                        lcm.Publish(arm.spec.status_channel, arm.driver.first_status)
-                repeat = time.perf_counter() + 0.05
-            lcm.HandleSubscriptions(10)
+        # a serve may start late: tick 0 repeats the first status
+        reason = wait_for(
+            lcm, lambda k=k: all(n > k for n in counts.values()), timeout,
+            lambda k=k: (f"no command of tick {k} on "
+                         f"{', '.join(c for c, n in counts.items() if n <= k)} within "
+                         f"{timeout:g} s (lockstep: is serve running with --lockstep?)"),
+            poll=lambda k=k: stopped() or (repeat_first_status() if k == 0 else ""))
+        if reason:
+            return reason
     simulator.AdvanceTo(max(plan.t_end, simulator.get_context().get_time()))
     return ""

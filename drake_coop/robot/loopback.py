@@ -42,14 +42,16 @@ from drake_coop.sensing.force_sensor import FTModel
 class LoopbackResult:
     """Per robot ``t``, ``lambda_meas`` (the plant's squeeze), ``lambda_d``,
     ``tau_commanded`` (the command the driver held at ``t``: the wire's; zero before the
-    first) and ``q`` (the arm's positions at ``t``); the status (``ok`` or ``stopped``, with the watchdog's one-line
+    first), ``tau_external`` (the status's external-torque estimate at ``t``: zeros but in the
+    emulation) and ``q`` (the arm's positions at ``t``); the status (``ok`` or ``stopped``,
+    with the watchdog's one-line
     reason) and the wall time.
 
     Attributes
     ----------
     logs : dict of str to dict of str to numpy.ndarray
         ``logs[robot][array]``: ``t`` (s), ``lambda_meas``, ``lambda_d`` (N),
-        ``tau_commanded`` (N·m), ``q`` (rad).
+        ``tau_commanded``, ``tau_external`` (N·m), ``q`` (rad).
     status : str
         ``ok`` or ``stopped``.
     message : str
@@ -222,6 +224,8 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     truth = add_squeeze_truth(builder, scenario, driver, plan.h)
     wire = [LogVectorOutput(arm.driver.get_output_port(1), builder,
                             publish_period=plan.h) for arm in driver.arms]
+    external = [LogVectorOutput(arm.driver.get_output_port(2), builder,
+                                publish_period=plan.h) for arm in driver.arms]
     states = [LogVectorOutput(driver.coop.plant.get_state_output_port(arm.instance), builder,
                               publish_period=plan.h) for arm in driver.coop.arms]
     diagram = builder.Build()
@@ -255,6 +259,7 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
         logs[robot.name] = {"t": t, "lambda_meas": lam[:, 0] if m == 1 else lam,
                             "lambda_d": lam_d[:, 0] if m == 1 else lam_d,
                             "tau_commanded": tau,
+                            "tau_external": external[i].FindLog(context).data().T[:n],
                             "q": states[i].FindLog(context).data().T[:n, :layout.n]}
     return LoopbackResult(logs=logs, status=status, message=message, wall_time=wall)
 

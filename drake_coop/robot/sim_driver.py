@@ -9,7 +9,7 @@ once every arm's command of the tick has arrived (simulated time and clock;
 :mod:`drake_coop.robot.lockstep`), with ``serve --lockstep``. ``--emulate
 drake-franka-driver``: that driver's torque mode point by point (7-joint arms only; a command
 it throws on stops it: exit 1, one line). ``--log FILE``: the plant's ground truth at every
-tick (:func:`write_truth_log`).
+tick (:func:`write_truth_log`; written also when the paced driver is interrupted).
 """
 
 from __future__ import annotations
@@ -85,6 +85,9 @@ def cmd_sim_driver(args, load) -> int:
     except ValueError as exc:
         return _error(str(exc))
     truth = add_truth_log(builder, side, plan.h, scenario) if log is not None else None
+    if truth is not None:
+        for arm in side.arms:          # each command as the driver took it
+            arm.driver.journal = []
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
@@ -142,28 +145,36 @@ def cmd_sim_driver(args, load) -> int:
         simulator.ResetStatistics()      # the wall clock starts now, not at Initialize()
         start = time.perf_counter()
         worst = 0.0          # how far the simulated time fell behind the wall clock (s)
-        for k_stop in guard_chunks(plan, scenario.guards.check_period):
-            try:
-                simulator.AdvanceTo(k_stop * plan.h)
-            except RuntimeError as exc:
-                if not is_hub_failure(exc):
-                    raise
-                return _hub_lost(log, truth, context)
-            worst = max(worst, time.perf_counter() - start - context.get_time())
-            fault = side.fault(context)
-            if fault:
-                print(f"drake-coop: sim-driver stopped at t = {context.get_time():.3f} s: "
-                      f"{emulate} threw on {fault}", file=sys.stderr)
-                return 1
-            if k_stop in plan.switches:
-                side.coop.set_held(plant_context, plan.switches[k_stop])
+        try:
+            for k_stop in guard_chunks(plan, scenario.guards.check_period):
+                try:
+                    simulator.AdvanceTo(k_stop * plan.h)
+                except RuntimeError as exc:
+                    if not is_hub_failure(exc):
+                        raise
+                    return _hub_lost(log, truth, context)
+                worst = max(worst, time.perf_counter() - start - context.get_time())
+                fault = side.fault(context)
+                if fault:
+                    print(f"drake-coop: sim-driver stopped at t = {context.get_time():.3f} s: "
+                          f"{emulate} threw on {fault}", file=sys.stderr)
+                    return 1
+                if k_stop in plan.switches:
+                    side.coop.set_held(plant_context, plan.switches[k_stop])
+        except KeyboardInterrupt:      # Ctrl-C or SIGTERM: the ground truth up to now kept
+            if truth is not None:
+                write_truth_log(log, truth, context)
+            raise
     if truth is not None:
         write_truth_log(log, truth, context)
     if not args.quiet:
+        expired = sum(arm.driver.counts(arm.driver.GetMyContextFromRoot(context))["expired"]
+                      for arm in side.arms)
         print(f"drake-coop: sim-driver done at t = {context.get_time():.3f} s after "
               f"{time.perf_counter() - start:.3f} s of wall time"
               + ("" if math.isnan(worst) else
-                 f" (at most {worst * 1e3:.1f} ms behind the wall clock)"), file=sys.stderr)
+                 f" (at most {worst * 1e3:.1f} ms behind the wall clock)")
+              + f"; {expired} commands expired", file=sys.stderr)
     return 0
 
 
@@ -200,7 +211,8 @@ def add_truth_log(builder, side, h: float, scenario=None) -> dict:
     -------
     dict
         ``normals`` (each arm's constraint normals), ``arms`` (each arm's state logger),
-        ``commanded`` (each arm's held command's logger) and,
+        ``commanded`` (each arm's held command's logger), ``drivers`` (each arm's
+        :class:`~drake_coop.robot.torque_driver.TorqueDriver`) and,
         in contact mode, ``pads`` (the pads' forces) and ``box`` (the box's state logger);
         in ``planes`` and ``rigid`` modes ``squeeze`` (the ground truth's log).
     """
@@ -224,6 +236,7 @@ def add_truth_log(builder, side, h: float, scenario=None) -> dict:
                                         publish_period=h) for a in side.arms]
     out["arms"] = [LogVectorOutput(coop.plant.get_state_output_port(a.instance), builder,
                                    publish_period=h) for a in coop.arms]
+    out["drivers"] = [a.driver for a in side.arms]
     return out
 
 
@@ -232,7 +245,12 @@ def write_truth_log(path, truth: dict, context) -> None:
     ``N_i F_i`` in contact mode; in ``planes`` and ``rigid`` the loopback run's ground truth
     of each tick but the last); ``box_state`` (the box's positions and
     velocities, contact mode); ``arm<i>_state``; ``arm<i>_tau_commanded`` (the command the
-    driver held at each tick, as received).
+    driver held at each tick, as received); ``arm<i>_counts`` (the driver's counts of
+    expired commands and rate-limited cycles,
+    :meth:`~drake_coop.robot.torque_driver.TorqueDriver.counts`) and, when the driver kept
+    one, ``arm<i>_journal`` (a row per command taken,
+    :data:`~drake_coop.robot.torque_driver.JOURNAL`) and ``arm<i>_expiries`` (``[now,
+    utime]`` of each command dropped for its age).
 
     Parameters
     ----------
@@ -250,6 +268,7 @@ def write_truth_log(path, truth: dict, context) -> None:
     from drake_coop.results.io import atomic_write_bytes
 
     arms = [log.FindLog(context) for log in truth["arms"]]
+    drivers = truth.get("drivers", [])
     t = arms[0].sample_times()
     data = {"t": t}
     normals = truth["normals"]
@@ -267,6 +286,14 @@ def write_truth_log(path, truth: dict, context) -> None:
     for i, log in enumerate(arms):
         data[f"arm{i}_state"] = log.data().T
         data[f"arm{i}_tau_commanded"] = truth["commanded"][i].FindLog(context).data().T
+        if i < len(drivers):
+            driver = drivers[i]
+            counts = driver.counts(driver.GetMyContextFromRoot(context))
+            data[f"arm{i}_counts"] = np.array([counts["expired"], counts["rate_limited"]])
+            if driver.journal is not None:
+                data[f"arm{i}_journal"] = np.array(driver.journal, dtype=float).reshape(
+                    len(driver.journal), -1)
+                data[f"arm{i}_expiries"] = np.array(driver.expiries, dtype=float).reshape(-1, 2)
     buffer = io.BytesIO()
     np.savez(buffer, **data)
     atomic_write_bytes(path, buffer.getvalue())

@@ -33,7 +33,7 @@ last ``τ_d`` sent, ``y = a x + (1 − a) y₋``, ``a = T / (T + 1/(2π f_c))``,
 limit ``|Δτ_d| ≤ 1000 N·m/s · T`` (``T`` = 1 ms, libfranka's cycle); the status's
 ``joint_torque_external`` an estimate of the external torque from the arm's model with
 Franka's sign (``tau_ext_hat_filtered``, the negative of the environment's torque on the arm,
-as Drake's ``lcmt_panda_status`` says): ``τ₋ − (H(q)(v − v₋)/c + C(q, v)v + g(q))``.
+as Drake's ``lcmt_panda_status`` says): ``τ₋ − (H(q)(v − v₋)/c + C(q, v)v + D v + g(q))``.
 """
 
 from __future__ import annotations
@@ -65,6 +65,14 @@ FRANKA_NO_FILTER_HZ = 1000.0
 FAULTS = {1: "control_mode_expected is not torque", 2: "num_joint_position is not 0",
           3: "num_joint_velocity is not 0", 4: "num_joint_torque is not 7",
           5: "joint_torque is not finite"}
+
+
+#: The columns of :attr:`TorqueDriver.journal`'s rows, one row per command taken on the cycle
+#: it was taken (n values each but the first two): the driver's clock ``now`` and the
+#: command's ``utime`` (µs), the command's torque as received, ``τ_d`` after the driver's
+#: chain (emulation: low-pass, rate limit), the robot's ``g(q)``, the torque on the arm,
+#: ``q``.
+JOURNAL = ("now", "utime", "tau_wire", "tau_d", "gravity", "tau_applied", "q")
 
 
 class DriverClock:
@@ -156,12 +164,14 @@ class TorqueDriver(LeafSystem):
         output_ports:
         - tau_applied
         - tau_commanded
+        - tau_external
 
     ``command``: the newest ``lcmt_panda_command`` received (a subscriber's output);
     ``state``: the arm's ``[q, v]`` (2n); ``gravity``: the robot's ``g(q)`` at that state (n,
     N·m). ``tau_applied``: the torque on the arm from this
     cycle (gravity included), ``tau_commanded``: the held command's torque as received (0
-    while none is held).
+    while none is held); ``tau_external``: the status's external-torque estimate now (zeros
+    but in the emulation with a ``model``, and at ``t = 0``).
 
     Parameters
     ----------
@@ -204,6 +214,12 @@ class TorqueDriver(LeafSystem):
                        FRANKA_CYCLE / (FRANKA_CYCLE + 1.0 / (2 * math.pi * low_pass_hz)))
         #: The bytes of the first status this driver published (None before).
         self.first_status: bytes | None = None
+        #: None, or a list that receives a row per command taken (:data:`JOURNAL`) and, while
+        #: it is a list, :attr:`expiries` one per command dropped for its age.
+        self.journal: list | None = None
+        #: ``[now, utime]`` (µs) of each command dropped for its age, while :attr:`journal` is
+        #: kept.
+        self.expiries: list = []
         self._msg = self.DeclareAbstractInputPort(
             "command", AbstractValue.Make(SharedPandaCommand()))
         self._state = self.DeclareVectorInputPort("state", 2 * n)
@@ -211,9 +227,9 @@ class TorqueDriver(LeafSystem):
         self._applied = self.DeclareDiscreteState(n)
         self._commanded = self.DeclareDiscreteState(n)
         # memory: τ_d sent (libfranka's tau_J_d), v of the cycle, [newest utime seen,
-        # held (0/1), fault code]
+        # held (0/1), fault code, commands expired, cycles the rate limit bound]
         self._memo = self.DeclareDiscreteState(np.concatenate(
-            [np.zeros(2 * n), [-math.inf, 0.0, 0.0]]))
+            [np.zeros(2 * n), [-math.inf, 0.0, 0.0, 0.0, 0.0]]))
         self._format = struct.Struct(f">8sqi{8 * n}ddbqb")
         self._fingerprint = lcmt_panda_status._get_packed_fingerprint()
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, spec.clock_phase, self._update)
@@ -222,6 +238,7 @@ class TorqueDriver(LeafSystem):
             self.DeclareForcedPublishEvent(self._publish)
         self.DeclareStateOutputPort("tau_applied", self._applied)
         self.DeclareStateOutputPort("tau_commanded", self._commanded)
+        self.DeclareVectorOutputPort("tau_external", n, self._calc_external)
 
     def fault(self, context: Context) -> str:
         """The emulated driver's stop (``"<channel>: <field> ..."``), or ``''``.
@@ -236,7 +253,7 @@ class TorqueDriver(LeafSystem):
         str
             The one-line reason, or ``''``.
         """
-        code = int(context.get_discrete_state(self._memo).get_value()[-1])
+        code = int(context.get_discrete_state(self._memo).get_value()[2 * self._n + 2])
         return "" if code == 0 else f"{self._spec.command_channel}: {FAULTS[code]}"
 
     def _update(self, context: Context, state: State) -> None:
@@ -245,12 +262,15 @@ class TorqueDriver(LeafSystem):
         v = np.asarray(x[n:])
         msg = self._msg.Eval(context)
         memo = context.get_discrete_state(self._memo).get_value()
-        last, (seen, held, fault) = memo[:n], memo[2 * n:]
+        last, (seen, held, fault, expired, bound) = memo[:n], memo[2 * n:]
         now = self._clock.utime(context.get_time())
-        if fault == 0 and not _no_message(msg) and msg.utime != seen:
+        taken = fault == 0 and not _no_message(msg) and msg.utime != seen
+        if taken:
             seen, held = float(msg.utime), 1.0          # a new command: held
         if held and abs(now - int(seen)) > self._expire_us:
-            held = 0.0                                  # expired: dropped for good
+            held, expired = 0.0, expired + 1.0          # expired: dropped for good
+            if self.journal is not None:
+                self.expiries.append([float(now), seen])
         tau_cmd = np.zeros(n)
         g = np.asarray(self._gravity.Eval(context), dtype=float)
         if held and fault == 0:
@@ -269,19 +289,25 @@ class TorqueDriver(LeafSystem):
             if self._alpha is not None:
                 tau_d = self._alpha * tau_d + (1.0 - self._alpha) * last
             step = FRANKA_TORQUE_RATE * FRANKA_CYCLE
-            tau_d = last + np.clip(tau_d - last, -step, step)
+            limited = last + np.clip(tau_d - last, -step, step)
+            bound += float(np.any(np.abs(tau_d - last) > step))
+            tau_d = limited
         elif self._limits is not None:
             tau_d = np.clip(tau_d, -self._limits, self._limits)
         adds = not held or self._spec.gravity != "none"
         tau = tau_d + g if adds else tau_d
         state.get_mutable_discrete_state(self._memo).SetFromVector(
-            np.concatenate([tau_d, v, [seen, held, fault]]))
+            np.concatenate([tau_d, v, [seen, held, fault, expired, bound]]))
+        if taken and held and self.journal is not None:
+            self.journal.append(np.concatenate(
+                [[now, seen], tau_cmd, tau_d, g, tau, x[:n]]))
         state.get_mutable_discrete_state(self._applied).SetFromVector(tau)
         state.get_mutable_discrete_state(self._commanded).SetFromVector(tau_cmd)
 
     def external_torque(self, q, v, v_prev, tau) -> np.ndarray:
         """The external-torque estimate with Franka's sign (``tau_ext_hat_filtered``):
-        ``τ − (H(q)(v − v₋)/c + C(q, v)v + g(q))``.
+        ``τ − (H(q)(v − v₋)/c + C(q, v)v + D v + g(q))`` (the model's inverse dynamics in one
+        evaluation, :meth:`~drake_coop.control.arm_model.ArmModel.inverse_dynamics_terms`).
 
         Parameters
         ----------
@@ -297,21 +323,46 @@ class TorqueDriver(LeafSystem):
         numpy.ndarray
             The estimate (n,), N·m.
         """
-        m = self._model
-        return np.asarray(tau, dtype=float) - (
-            m.H(q) @ ((v - v_prev) / self._period) + m.Cv(q, v) + m.g(q))
+        return np.asarray(tau, dtype=float) - self._model.inverse_dynamics_terms(
+            q, v, (v - v_prev) / self._period)
+
+    def counts(self, context: Context) -> dict[str, int]:
+        """What the driver did to the commands so far.
+
+        Parameters
+        ----------
+        context : Context
+            This system's context.
+
+        Returns
+        -------
+        dict
+            ``expired``: commands dropped for their age (each once); ``rate_limited``: cycles
+            on which the emulation's rate limit changed ``τ_d`` (0 for the plain driver).
+        """
+        memo = context.get_discrete_state(self._memo).get_value()
+        n = self._n
+        return {"expired": int(memo[2 * n + 3]), "rate_limited": int(memo[2 * n + 4])}
+
+    def _calc_external(self, context: Context, output) -> None:
+        n = self._n
+        ext = np.zeros(n)
+        if self._emulate and self._model is not None and context.get_time() > 0:
+            memo = context.get_discrete_state(self._memo).get_value()
+            x = np.asarray(self._state.Eval(context))
+            ext = self.external_torque(x[:n], x[n:], memo[n:2 * n],
+                                       context.get_discrete_state(self._applied).get_value())
+        output.SetFromVector(ext)
 
     def _publish(self, context: Context) -> None:
         memo = context.get_discrete_state(self._memo).get_value()
-        if memo[-1] != 0:
+        if memo[2 * self._n + 2] != 0:
             return                                      # the driver has stopped
         n = self._n
         x = np.asarray(self._state.Eval(context))
         q, v = x[:n], x[n:]
         tau = context.get_discrete_state(self._applied).get_value()
-        ext = np.zeros(n)
-        if self._emulate and self._model is not None and context.get_time() > 0:
-            ext = self.external_torque(q, v, memo[n:2 * n], tau)
+        ext = self.get_output_port(2).Eval(context)
         t = context.get_time()
         zeros = (0.0,) * n
         data = self._format.pack(

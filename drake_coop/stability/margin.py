@@ -17,7 +17,9 @@ horizon, else ``without``). The map models delays up to ``h`` only: a loop stabl
 a margin of *at least* ``h`` (``at_least``). When no margin can be given, :attr:`Margin.reason`
 says why in one line (the loop unstable with no delay, the map failing on this scenario)
 instead of a number. The delay is put on the arms named (``robots``; default every arm),
-the others kept at theirs.
+the others kept at theirs. The map is computed on the scenario ``drake-coop gains`` checks its
+gains on (:func:`~drake_coop.stability.task_check.map_copy`: a ``contact`` scenario's
+``planes`` copy, no object model): the free point's loop is the arms' alone.
 """
 
 from __future__ import annotations
@@ -183,6 +185,9 @@ def delay_margins(scenario, *, robots: list[str] | None = None, epsilon: float =
     if unknown:
         raise ValueError(f"robots: {', '.join(unknown)} not in the scenario "
                          f"({', '.join(names)})")
+    from drake_coop.stability.task_check import map_copy
+
+    scenario = map_copy(scenario)[0]      # the loop gains checks: contact → planes, no model
     if rows is None:
         from drake_coop.stability.grid import point_rows
 

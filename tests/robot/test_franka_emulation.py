@@ -222,6 +222,9 @@ class StubModel:
     def g(self, q):
         return gravity(q)
 
+    def inverse_dynamics_terms(self, q, v, a):
+        return self.H(q) @ a + self.Cv(q, v) + self.g(q)
+
 
 def test_the_external_torque_has_frankas_sign():
     """An arm held still by its surroundings (its state fixed) while the driver applies
@@ -243,3 +246,62 @@ def test_the_external_torque_has_frankas_sign():
     lcm.HandleSubscriptions(0)
     np.testing.assert_allclose(statuses[-1].joint_torque_external, tau, rtol=0, atol=1e-12)
     np.testing.assert_allclose(statuses[0].joint_torque_external, 0.0)   # t = 0: none yet
+
+
+def test_an_expired_command_is_counted_once_and_a_fresh_one_not_at_all():
+    rig = Rig()
+    rig.send(command(np.full(7, 0.5), ORIGIN + 1000))
+    rig.cycle(0.101)
+    assert rig.driver.counts(rig.ctx)["expired"] == 0          # 0.1 s old: still held
+    rig.cycle(0.110)                                            # dropped at 0.102 s, once
+    assert rig.driver.counts(rig.ctx)["expired"] == 1
+    rig.send(command(np.full(7, 0.5), ORIGIN + 111_000))        # a fresh one
+    rig.cycle(0.115)
+    assert rig.driver.counts(rig.ctx)["expired"] == 1
+
+
+def test_the_cycles_the_rate_limit_changes_the_torque_are_counted():
+    rig = Rig()
+    rig.send(command(np.zeros(7), ORIGIN))
+    rig.driver.get_input_port(1).FixValue(rig.ctx, np.concatenate([Q, np.zeros(7)]))
+    rig.cycle(0.003)                                            # 0 → 0: never bound
+    assert rig.driver.counts(rig.ctx)["rate_limited"] == 0
+    rig.send(command(np.full(7, 2.5), ORIGIN + 4000))           # 2.5 N·m: 3 cycles to reach
+    rig.cycle(0.008)
+    assert rig.driver.counts(rig.ctx)["rate_limited"] == 2
+
+
+def test_the_journal_holds_each_command_as_taken():
+    rig = Rig()
+    rig.driver.journal = []
+    tau = np.array([0.4, -0.3, 0.2, 0.1, -0.05, 0.02, 0.01])
+    rig.send(command(tau, ORIGIN + 2000))
+    rig.cycle(0.004)                                            # one command: one row
+    (row,) = rig.driver.journal
+    assert row[:2].tolist() == [ORIGIN, ORIGIN + 2000]          # taken at the cycle of t = 0
+    cols = row[2:].reshape(5, 7)
+    for got, want in zip(cols, [tau, tau, gravity(Q), tau + gravity(Q), Q]):
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+def test_with_a_journal_each_expiry_is_kept_with_the_commands_stamp():
+    rig = Rig()
+    rig.driver.journal = []
+    rig.send(command(np.full(7, 0.5), ORIGIN + 1000))
+    rig.cycle(0.110)
+    assert rig.driver.expiries == [[ORIGIN + 102_000, ORIGIN + 1000]]
+    assert len(rig.driver.journal) == 1
+
+
+def test_an_expired_command_is_dropped_before_the_driver_checks_it():
+    """DoTorqueControl resets an expired command before its DRAKE_THROW_UNLESS checks: a
+    command in another mode that is too old is dropped, and the driver keeps running."""
+    rig = Rig()
+    rig.send(command(np.zeros(7), ORIGIN - 200_000, mode=lcmt_panda_status.CONTROL_MODE_POSITION))
+    applied = rig.cycle(0.03)
+    assert rig.driver.fault(rig.ctx) == ""
+    assert rig.driver.counts(rig.ctx)["expired"] == 1
+    np.testing.assert_allclose(applied, gravity(Q) - K_D * V, rtol=0, atol=1e-12)
+    count = len(rig.statuses)
+    rig.cycle(0.035)
+    assert len(rig.statuses) == count + 5                             # still publishing

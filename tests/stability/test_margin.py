@@ -120,3 +120,24 @@ def test_a_lab_arm_with_its_derived_gains_has_a_margin():
     assert m.without.margin_s == pytest.approx(0.002)
     assert m.with_compensation.margin_s is not None
     assert m.with_compensation.margin_s >= m.without.margin_s
+
+
+def test_a_contact_scenario_is_mapped_on_its_planes_copy_as_gains_checks_it():
+    """The map takes no floating box: the margin of a ``contact`` scenario (every lab-arm
+    scenario of the guides) is computed on the copy ``drake-coop gains`` checks its gains on
+    (``planes``, no object model), not refused."""
+    texts = []
+    seen = []
+    rows = scripted({}, {}, seen)
+
+    def spy(text):
+        texts.append(load_scenario(data=text))
+        return rows(text)
+
+    s = load_scenario(find_scenario("contact"))
+    assert s.plant.object_mode == "contact"
+    m = delay_margins(s, rows=spy)
+    assert texts and all(t.plant.object_mode == "planes" for t in texts)
+    assert all(t.object_model.mode == "none" for t in texts)
+    assert m.without.margin_s is not None and m.with_compensation.at_least
+    assert s.plant.object_mode == "contact"                # the caller's scenario untouched
