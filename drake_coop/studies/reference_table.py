@@ -37,6 +37,7 @@ import numpy as np
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario
 from drake_coop.studies.expand import Case, case_hash
+from drake_coop.studies.reference_variants import variant_hash, variant_matters
 
 __all__ = ["ALL_COLUMNS", "COLUMNS", "IDENTIFIED", "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval",
            "cell_statistics", "compress", "expand_table", "identified_name", "markdown_table",
@@ -64,11 +65,15 @@ class Row:
         Its name in the table.
     apply : callable
         ``apply(scenario, draw)``: sets the source on every robot, in place.
+    variant : str or None
+        A force source no scenario field selects, built by the worker
+        (:mod:`~drake_coop.studies.reference_variants`); None: the scenario's own.
     """
 
     name: str
     label: str
     apply: Callable[[Scenario, int], None]
+    variant: str | None = None
 
 
 @dataclass(frozen=True)
@@ -144,6 +149,8 @@ ROWS: tuple[Row, ...] = (
     Row("sensor_0p3", "F/T sensor, σ = 0.3 N", _source("sensor", 0.3)),
     Row("sensor_3", "F/T sensor, σ = 3 N", _source("sensor", 3.0)),
     Row("none", "none (λ̂ = λ_d)", _source("none")),
+    Row("applied_torque", "applied-torque residual", _source("momentum"), "applied_torque"),
+    Row("online", "online identification + momentum", _source("momentum"), "online"),
 )
 
 
@@ -333,8 +340,12 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
                 validate(s, cache=cache)
                 check_run_size(s, t_end)
                 params = {"row": row, "column": col, "draw": draw}
+                key = case_hash(s, t_end)
+                variant = known_rows[row].variant
+                if variant_matters(s, variant):      # else the momentum row's own case
+                    key = variant_hash(key, variant)
                 cases.append(Case(index=len(cases), params=params, values=dict(params),
-                                  scenario=s, hash=case_hash(s, t_end)))
+                                  scenario=s, hash=key))
     return cases
 
 
