@@ -386,15 +386,18 @@ def per_draw(record: dict) -> dict[str, float]:
     Returns
     -------
     dict of str to float
-        ``squeeze``, ``estimate`` (N) and ``diverged`` (0 or 1).
+        ``squeeze``, ``estimate`` (N), ``squeeze_lift`` (the lift's RMS of ``λ − λ_d``, worst
+        robot, N) and ``diverged`` (0 or 1).
     """
-    out = {"squeeze": math.nan, "estimate": math.nan,
+    out = {"squeeze": math.nan, "estimate": math.nan, "squeeze_lift": math.nan,
            "diverged": float(record["status"] != "ok")}
     if record["status"] != "ok":
         return out
-    for key, error in (("squeeze", "force_error"), ("estimate", "estimate_error")):
-        values = [m["circle"][error]["rms"] for m in record["metrics"].values()
-                  if "circle" in m and error in m["circle"]]
+    for key, phase, error in (("squeeze", "circle", "force_error"),
+                              ("estimate", "circle", "estimate_error"),
+                              ("squeeze_lift", "lift", "force_error")):
+        values = [m[phase][error]["rms"] for m in record["metrics"].values()
+                  if phase in m and error in m[phase]]
         if values:
             out[key] = float(max(values))
     return out
@@ -445,11 +448,11 @@ def cell_statistics(records: list[dict]) -> dict:
     -------
     dict
         ``{"n", "diverged", "squeeze": {"median": [v, lo, hi], "p90": [...]},
-        "estimate": {...}}``.
+        "estimate": {...}, "squeeze_lift": {...}}``.
     """
     numbers = [per_draw(r) for r in records]
     out = {"n": len(numbers), "diverged": int(sum(v["diverged"] for v in numbers))}
-    for key in ("squeeze", "estimate"):
+    for key in ("squeeze", "estimate", "squeeze_lift"):
         x = np.array([v[key] for v in numbers])
         out[key] = {"median": list(bootstrap_interval(x, 0.5)),
                     "p90": list(bootstrap_interval(x, 0.9))}

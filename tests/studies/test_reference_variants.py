@@ -92,27 +92,24 @@ def _circle_rms(scenario, t_end, variant):
 
 
 @pytest.mark.slow
-def test_variant_cells_match_an_independent_run_and_the_residual_acts(tmp_path):
-    """The saturation cell of the residual row (the table's run) against a run built here
-    with the limits passed to the momentum observer, its numbers read from the logs; and
-    the residual integrates what the arm got: under the same saturation it differs from the
-    momentum row (which reads the clipped torque as contact force)."""
-    import json
+def test_the_residual_case_matches_an_independent_run_and_differs_under_saturation():
+    """Robot 1's elbow limited to 11.5 N·m (its lift peak is 11.7, its approach's 11.8 on
+    the short segment; saturated on 96 of the lift's ticks): the residual's case (what the table's worker runs) against the run
+    built here, its numbers read from the logs; and the residual integrates what the arm got,
+    so it differs from the momentum observer on the same limits (which reads the clipped
+    torque as contact force) during the lift."""
+    from drake_coop.scenario.loading import dump_scenario
+    from drake_coop.studies.reference_table import per_draw
+    from drake_coop.studies.reference_variants import run_variant_case
 
-    from drake_coop.studies.reference_engine import run_table
-
-    table = run_table(tmp_path, rows=["momentum", "applied_torque"], cols=["saturation"],
-                      draws=1, t_end=T_TINY, workers=1, quiet=True)
-    assert table["missing"] == []
-    cases = expand_table(load_scenario(), ["applied_torque"], ["saturation"], 1, t_end=T_TINY,
-                         peaks=json.loads((tmp_path / "calibration.json").read_text())["peaks"])
-    s = load_scenario(data=cases[0].scenario_yaml)
+    s = _momentum_scenario()
+    s.robots[0].actuators.torque_limits = [100.0, 100.0, 11.5]
     squeeze, estimate = _circle_rms(s, T_TINY, "applied_torque")
-    cell = table["cells"]["applied_torque"]["saturation"]
-    assert cell["squeeze"]["median"][0] == pytest.approx(squeeze, rel=1e-6)
-    assert cell["estimate"]["median"][0] == pytest.approx(estimate, rel=1e-6)
-    momentum = table["cells"]["momentum"]["saturation"]["squeeze"]["median"][0]
-    assert momentum != pytest.approx(squeeze, rel=1e-9)
+    numbers = per_draw(run_variant_case(dump_scenario(s), T_TINY, "applied_torque"))
+    assert numbers["squeeze"] == pytest.approx(squeeze, rel=1e-6)
+    assert numbers["estimate"] == pytest.approx(estimate, rel=1e-6)
+    momentum = per_draw(run_variant_case(dump_scenario(s), T_TINY, None))
+    assert momentum["squeeze_lift"] != pytest.approx(numbers["squeeze_lift"], rel=1e-6)
 
 
 @pytest.mark.slow
