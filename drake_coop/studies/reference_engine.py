@@ -332,7 +332,6 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
                                quiet=quiet) if id_cols else None)
     cases = expand_table(scenario, rows, cols, draws, seed=seed, t_end=t_end, peaks=peaks,
                          models=models)
-    variants = {r.name: r.variant for r in ROWS}
     store = ResultStore(out)
     records = store.load()
     todo, queued = [], set()       # a case two rows share (the applied-torque residual
@@ -358,7 +357,7 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
                   file=sys.stderr)
 
     _run(_batches(todo, batch), run_batch,
-         lambda b: ([(c.hash, c.scenario_yaml, variants[c.params["row"]]) for c in b.cases],
+         lambda b: ([(c.hash, c.scenario_yaml, c.values["variant"]) for c in b.cases],
                     t_end), on_result,
          _batch_died, ray=ray, workers=workers)
     table = write_table(out, cases, records, rows, cols)

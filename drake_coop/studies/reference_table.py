@@ -244,7 +244,22 @@ def columns(peaks: dict | None = None, models: dict | None = None) -> tuple[Colu
         cols += [Column(identified_name(m, b), f"identified, {m}, {b:g} s",
                         _identified(models, identified_name(m, b)), draws_like="model_30")
                  for m, b in IDENTIFIED]
+    cols.append(Column("open_loop", "open loop: beside the F/T loop (σ 0.3 N)", _exact))
     return tuple(cols)
+
+
+def _open_loop(scenario: Scenario, row: str, draw: int) -> str | None:
+    """The open-loop column's case of ``row`` (:mod:`~drake_coop.studies.reference_open_loop`):
+    every loop on the F/T sensor and the row's estimator beside it (its variant returned);
+    None for the F/T rows (their exact column's case)."""
+    from drake_coop.studies.reference_open_loop import BESIDE, LOOP_NOISE
+
+    if row not in BESIDE:
+        return None
+    if row == "applied_torque" and not any(r.actuators.torque_limits for r in scenario.robots):
+        row = "momentum"                        # the same system without limits
+    _source("sensor", LOOP_NOISE)(scenario, draw)
+    return f"open_loop:{row}"
 
 
 #: The column names of the default table (the saturation column included, the identified
@@ -298,7 +313,8 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
     Returns
     -------
     list of Case
-        ``params`` = ``{"row", "column", "draw"}``.
+        ``params`` = ``{"row", "column", "draw"}``; ``values`` also ``variant``: the force
+        source the worker builds (:mod:`~drake_coop.studies.reference_variants`), or None.
 
     Raises
     ------
@@ -337,15 +353,18 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
                 s = copy.deepcopy(short)
                 column.apply(s, np.random.default_rng([seed, k, draw]), draw)
                 known_rows[row].apply(s, draw)
+                variant = (_open_loop(s, row, draw) if col == "open_loop"
+                           else known_rows[row].variant)
                 validate(s, cache=cache)
                 check_run_size(s, t_end)
                 params = {"row": row, "column": col, "draw": draw}
                 key = case_hash(s, t_end)
-                variant = known_rows[row].variant
-                if variant_matters(s, variant):      # else the momentum row's own case
+                if variant_matters(s, variant):      # else the scenario's own case
                     key = variant_hash(key, variant)
-                cases.append(Case(index=len(cases), params=params, values=dict(params),
-                                  scenario=s, hash=key))
+                else:
+                    variant = None
+                cases.append(Case(index=len(cases), params=params,
+                                  values={**params, "variant": variant}, scenario=s, hash=key))
     return cases
 
 

@@ -45,7 +45,8 @@ def variant_matters(scenario: Scenario, variant: str | None) -> bool:
     scenario : Scenario
         The case's scenario.
     variant : str or None
-        A key of :data:`VARIANTS`, or None.
+        A key of :data:`VARIANTS`, ``open_loop:<row>``
+        (:mod:`~drake_coop.studies.reference_open_loop`), or None.
 
     Returns
     -------
@@ -60,6 +61,8 @@ def variant_matters(scenario: Scenario, variant: str | None) -> bool:
     """
     if variant is None:
         return False
+    if variant.startswith("open_loop:"):      # an estimator beside the sensor loop
+        return True
     if variant not in VARIANTS:
         raise ValueError(f"variant: unknown {variant!r}; allowed: {', '.join(VARIANTS)}")
     if variant == "applied_torque":
@@ -161,7 +164,7 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     t_end : float
         Its end, s.
     variant : str or None
-        The row's variant.
+        The case's variant (a row's, or ``open_loop:<row>``).
 
     Returns
     -------
@@ -172,5 +175,12 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.studies.engines import run_case
 
-    with variant_built(load_scenario(data=scenario_yaml), variant):
+    scenario = load_scenario(data=scenario_yaml)
+    if variant is not None and variant.startswith("open_loop:"):
+        from drake_coop.studies.reference_open_loop import open_loop_built
+
+        built = open_loop_built(scenario, variant.split(":", 1)[1])
+    else:
+        built = variant_built(scenario, variant)
+    with built:
         return run_case(scenario_yaml, t_end)

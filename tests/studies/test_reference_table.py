@@ -118,10 +118,11 @@ def test_every_cell_expands_and_the_saturation_limits_follow_the_peaks():
     cases = expand_table(load_scenario(), [r.name for r in ROWS], list(COLUMNS), 2,
                          t_end=T_TINY, peaks=peaks)
     assert len(cases) == len(ROWS) * len(COLUMNS) * 2
-    # every case its own, but the applied-torque residual's without torque limits: the
-    # momentum row's (the same system)
-    shared = [c for c in cases if c.params["row"] == "applied_torque"
-              and c.params["column"] != "saturation"]
+    # every case its own, but the applied-torque residual's without torque limits (the
+    # momentum row's: the same system) and the F/T rows' open-loop cases (their exact ones)
+    shared = [c for c in cases if (c.params["row"] == "applied_torque"
+                                   and c.params["column"] != "saturation")
+              or (c.params["row"].startswith("sensor") and c.params["column"] == "open_loop")]
     assert len({c.hash for c in cases}) == len(cases) - len(shared)
     for case in cases:
         if case.params["column"] != "saturation":

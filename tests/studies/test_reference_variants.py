@@ -131,3 +131,51 @@ def test_online_row_against_the_truth_beats_the_wrong_model(tmp_path):
     numbers = per_draw(record)
     assert numbers["squeeze"] == pytest.approx(squeeze, rel=1e-6)
     assert numbers["estimate"] == pytest.approx(online, rel=1e-6)
+
+
+def test_open_loop_refuses_what_it_cannot_build():
+    from drake_coop.studies.reference_open_loop import open_loop_built
+
+    s = _momentum_scenario()
+    with pytest.raises(ValueError, match="row: 'sensor_3' does not run beside"):
+        with open_loop_built(s, "sensor_3"):
+            pass
+    with pytest.raises(ValueError, match="scenario: the open-loop column closes"):
+        with open_loop_built(s, "observer"):
+            pass
+
+
+def test_open_loop_cases_share_the_sensor_loop_and_the_f_t_rows_are_their_own():
+    cases = expand_table(load_scenario(), ["observer", "applied_torque", "momentum",
+                                           "sensor_3"], ["open_loop", "exact"], 1,
+                         t_end=T_TINY)
+    by = {(c.params["row"], c.params["column"]): c for c in cases}
+    assert by[("observer", "open_loop")].values["variant"] == "open_loop:observer"
+    # the residual without torque limits is the momentum observer beside the loop
+    assert by[("applied_torque", "open_loop")].hash == by[("momentum", "open_loop")].hash
+    assert by[("sensor_3", "open_loop")].hash == by[("sensor_3", "exact")].hash
+    loop = load_scenario(data=by[("observer", "open_loop")].scenario_yaml)
+    assert all(r.force_source == "sensor" and r.force_sensor.noise_std == 0.3
+               for r in loop.robots)
+
+
+@pytest.mark.slow
+def test_open_loop_against_the_truth():
+    """Beside the F/T loop: every estimator leaves the loop as it is (the squeeze error of
+    each open-loop case is the plain σ = 0.3 N sensor run's, run here without any swap), and
+    λ̂ = λ_d beside it has the loop's own squeeze error as its estimate error (λ_d − λ)."""
+    from drake_coop.studies.reference_table import per_draw
+    from drake_coop.studies.reference_variants import run_variant_case
+
+    cases = expand_table(load_scenario(), ["observer", "none", "sensor_0p3"],
+                         ["open_loop", "exact"], 1, t_end=T_TINY)
+    by = {(c.params["row"], c.params["column"]): c for c in cases}
+    plain = _circle_rms(load_scenario(data=by[("sensor_0p3", "exact")].scenario_yaml),
+                        T_TINY, None)
+    numbers = {row: per_draw(run_variant_case(by[(row, "open_loop")].scenario_yaml, T_TINY,
+                                              by[(row, "open_loop")].values["variant"]))
+               for row in ("observer", "none")}
+    for v in numbers.values():
+        assert v["squeeze"] == pytest.approx(plain[0], rel=1e-9)
+    assert numbers["none"]["estimate"] == pytest.approx(plain[0], rel=1e-9)
+    assert numbers["observer"]["estimate"] < 0.5 * numbers["none"]["estimate"]
