@@ -64,15 +64,15 @@ class _BesideView:
         return getattr(self._diagram, attribute)
 
 
-def _estimator_factory(scenario: Scenario, row: str):
+def _estimator_factory(scenario: Scenario, row: str, online_build):
     """``make(law, h, options)`` of the row's estimator, robot by robot in the scenario's
     order."""
     from drake_coop.control.registry import source
-    from drake_coop.studies.reference_variants import _online_builder
 
     if row == "online":
-        build = _online_builder(scenario)
-        return lambda law, h, options: build(None, law, h, options)
+        if online_build is None:
+            raise ValueError("online_build: the online row needs its builder")
+        return lambda law, h, options: online_build(None, law, h, options)
     name = "momentum" if row == "applied_torque" else row
     limits = iter([r.actuators.torque_limits for r in scenario.robots])
     entry = source("force", name)
@@ -109,7 +109,7 @@ def _beside_entry(loop, row_inputs: tuple[str, ...], make_estimator):
 
 
 @contextlib.contextmanager
-def open_loop_built(scenario: Scenario, row: str) -> Iterator[None]:
+def open_loop_built(scenario: Scenario, row: str, online_build=None) -> Iterator[None]:
     """While inside, experiments of ``scenario`` (``force_source: sensor`` on every robot)
     are built with ``row``'s estimator beside the sensor loop.
 
@@ -119,6 +119,9 @@ def open_loop_built(scenario: Scenario, row: str) -> Iterator[None]:
         The case's scenario.
     row : str
         One of :data:`BESIDE`.
+    online_build : callable or None
+        ``online`` only: ``build(cls, law, h, options)`` making each robot's online block in
+        the scenario's order (the online row's, :mod:`~drake_coop.studies.reference_variants`).
 
     Yields
     ------
@@ -128,7 +131,8 @@ def open_loop_built(scenario: Scenario, row: str) -> Iterator[None]:
     Raises
     ------
     ValueError
-        A row not in :data:`BESIDE`, or a scenario whose robots are not on the sensor.
+        A row not in :data:`BESIDE`, a scenario whose robots are not on the sensor, or the
+        online row without ``online_build``.
     """
     if row not in BESIDE:
         raise ValueError(f"row: {row!r} does not run beside the loop; allowed: "
@@ -145,7 +149,7 @@ def open_loop_built(scenario: Scenario, row: str) -> Iterator[None]:
         estimator = registry.source("force", "momentum" if row in ("applied_torque", "online")
                                     else row)
         entry = _beside_entry(registry.source("force", "sensor"), estimator.inputs,
-                              _estimator_factory(scenario, row))
+                              _estimator_factory(scenario, row, online_build))
         registry.SOURCES = block.SOURCES = tuple(
             entry if (s.kind, s.name) == ("force", "sensor") else s for s in registry.SOURCES)
         original = diagram.AddCooperativeController

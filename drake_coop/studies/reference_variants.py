@@ -179,7 +179,9 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     if variant is not None and variant.startswith("open_loop:"):
         from drake_coop.studies.reference_open_loop import open_loop_built
 
-        built = open_loop_built(scenario, variant.split(":", 1)[1])
+        row = variant.split(":", 1)[1]
+        built = open_loop_built(scenario, row,
+                                _online_builder(scenario) if row == "online" else None)
     else:
         built = variant_built(scenario, variant)
     with built:
