@@ -134,12 +134,16 @@ def _identified(models: dict, name: str) -> Callable:
 
 
 def _source(name: str, noise: float | None = None) -> Callable[[Scenario, int], None]:
+    """The row's force source; the sensor's noise seed is the draw's for the rows that read
+    the sensor only (for the others the seed changes nothing the table reads: a column
+    without random values then runs one case per row, shared by its draws)."""
     def apply(scenario: Scenario, draw: int) -> None:
         for robot in scenario.robots:
             robot.force_source = name
             if noise is not None:
                 robot.force_sensor.noise_std = noise
-            robot.force_sensor.seed = draw
+            if name == "sensor":
+                robot.force_sensor.seed = draw
     return apply
 
 
