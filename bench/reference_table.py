@@ -14,8 +14,11 @@ sources' squeeze errors (median over the draws, worst robot, circle RMS of Î» âˆ
 For each pair of sources the verdict is ``agrees`` (the same order), ``tied`` (the orders
 differ but the short run's 95 % intervals of the two medians overlap, or the full run's do),
 or ``disagrees``. Writes ``DIR/agreement.json`` and prints the pairs. ``--cost`` prints instead
-the CPU seconds per case of the finished cases in ``DIR`` (``cases.csv``) and the extrapolated
-CPU and 2-core wall time of the full 20-draw table.
+the CPU seconds per case of the finished cases in ``DIR`` and the extrapolated CPU and 2-core
+wall time of the full 20-draw table; ``--table DIR`` writes the table of ``DIR``'s finished
+cases at ``--draws`` to ``--out`` (nothing runs); ``--rerun DIR`` runs some finished cases
+again and compares their numbers; ``--page JSON`` prints a table file's tables as Markdown
+with ``{result}`` roles.
 """
 
 from __future__ import annotations
@@ -181,14 +184,31 @@ def page_tables(source: str, table: dict, key: str) -> str:
                 cells.append("pending")
                 continue
             base = f"{source}:cells.{row}.{col}.{key}.median"
-            text = " ".join(f"{{result}}`{base}.{i} as .3f`" for i in range(3))
-            v, lo, hi = text.split(" ")
+            v, lo, hi = (f"{{result}}`{base}.{i} as .3f`" for i in range(3))
             n = f"{{result}}`{source}:cells.{row}.{col}.n as .0f`"
             diverged = (f", {{result}}`{source}:cells.{row}.{col}.diverged as .0f` diverged"
                         if cell["diverged"] else "")
             cells.append(f"{v} [{lo}, {hi}] (n = {n}{diverged})")
         lines.append(f"| {labels[row]} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def snapshot(folder: Path, draws: int) -> dict:
+    """The table of every default row and column at ``draws`` draws from the cases finished
+    in ``folder`` (nothing runs; ``folder``'s ``table.json`` and ``table.md`` rewritten), with
+    the draws asked for."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.studies.reference_engine import write_table
+    from drake_coop.studies.reference_table import expand_table
+    from drake_coop.studies.store import ResultStore
+
+    peaks = json.loads((folder / "calibration.json").read_text())["peaks"]
+    rows, cols = [r.name for r in ROWS], list(COLUMNS)
+    cases = expand_table(load_scenario(), rows, cols, draws, peaks=peaks)
+    table = write_table(folder, cases, ResultStore(folder).load(), rows, cols)
+    table["draws"] = draws
+    table["distinct_cases"] = len({c.hash for c in cases})
+    return table
 
 
 def main() -> None:
@@ -204,8 +224,15 @@ def main() -> None:
     parser.add_argument("--page", default=None, metavar="JSON",
                         help="print the tables of this table.json as Markdown with roles "
                              "(its name on the page: --out)")
+    parser.add_argument("--table", default=None, metavar="DIR",
+                        help="write the table of DIR's finished cases at --draws to --out")
     args = parser.parse_args()
     out = Path(args.out)
+    if args.table:
+        table = snapshot(Path(args.table), args.draws)
+        out.write_text(json.dumps(table, indent=1) + "\n")
+        print(f"{table['finished']} of {table['cases']} cases finished")
+        return
     if args.page:
         table = json.loads(Path(args.page).read_text())
         for key in ("squeeze", "estimate"):
