@@ -157,3 +157,26 @@ def test_identified_columns_take_their_models_and_refuse_without(tmp_path):
     assert all(r.model_error.mass_scale == 1.0 for r in robots)
     with pytest.raises(ValueError, match=f"columns: {col} needs its identified models"):
         expand_table(load_scenario(), ["observer"], [col], 2, t_end=T_TINY, models=models)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", ["scenarios/contact.yaml", "scenarios/two_pandas.yaml"])
+def test_the_friction_held_part_expands_on_the_paper_arms_and_a_lab_pair(path):
+    """The box held by friction (``object_mode: contact``): every row under the model-error
+    and friction columns validates as ``drake-coop run`` validates a scenario, the lab pair's
+    Coulomb draws one value per joint of its arm (seven on a Panda, three on the paper's)."""
+    from drake_coop.scenario.loading import dump_scenario
+    from drake_coop.studies.reference_table import ROWS
+
+    base = load_scenario(path)
+    base.plant.object_mode = "contact"
+    base = load_scenario(data=dump_scenario(base))
+    cases = expand_table(base, [r.name for r in ROWS], ["exact", "model_30", "coulomb"], 1,
+                         t_end=T_TINY)
+    assert len(cases) == len(ROWS) * 3
+    joints = 7 if "panda" in path else 3
+    for case in cases:
+        s = load_scenario(data=case.scenario_yaml)
+        assert s.plant.object_mode == "contact"
+        if case.params["column"] == "coulomb":
+            assert len(s.robots[0].model_error.coulomb_friction) == joints
