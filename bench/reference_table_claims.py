@@ -19,7 +19,8 @@
   ``λ − λ_d``, worst robot, over 10–13 s (the circle after 10 s of the task), read from the
   logs; the claim: the online row's median within 2× the batch identification's.
 
-Process CPU seconds of each part are written with its numbers.
+Process CPU seconds of each part are written with its numbers. ``--online-log LOG`` writes
+the online part from the draws a stopped run printed (its CPU seconds are then not known).
 """
 
 from __future__ import annotations
@@ -115,12 +116,16 @@ def online(draws: int, seed: int = 1) -> dict:
                          "batch_map_sdp_10s": rms(load_scenario(data=dump_scenario(batch)),
                                                   None, WINDOW[1], WINDOW)})
             print(json.dumps(rows[-1]), flush=True)
+    return summarize(rows)
 
+
+def summarize(rows: list[dict]) -> dict:
+    """The online part's medians over its draws (``rows``: one dict per draw)."""
     def median(key):
         v = [r[key]["squeeze"] for r in rows if key in r and "squeeze" in r[key]]
         return float(np.median(v)) if v else None
 
-    out = {"window": list(WINDOW), "draws": rows,
+    out = {"window": list(WINDOW), "draws": rows, "n": len(rows),
            "median_online": median("online"), "median_nominal": median("nominal"),
            "median_batch": median("batch_map_sdp_10s"),
            "failed": {key: sum(1 for r in rows if key in r and "squeeze" not in r[key])
@@ -137,9 +142,18 @@ def main() -> None:
     p.add_argument("--draws", type=int, default=6)
     p.add_argument("--parts", default="saturation,online")
     p.add_argument("--elbow-limit", type=float, default=11.5)
+    p.add_argument("--online-log", default=None, metavar="LOG",
+                   help="the online part from the draws a stopped run printed (one JSON line "
+                        "a draw) instead of running it")
     args = p.parse_args()
     path = Path(args.out)
     result = json.loads(path.read_text()) if path.exists() else {}
+    if args.online_log:
+        lines = [line for line in open(args.online_log) if line.startswith('{"draw"')]
+        result["online"] = {**summarize([json.loads(line) for line in lines]),
+                            "from_log": True}
+        path.write_text(json.dumps(result, indent=1) + "\n")
+        return
     for part in args.parts.split(","):
         start = time.process_time()
         result[part] = (saturation(args.elbow_limit) if part == "saturation"
