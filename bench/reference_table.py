@@ -141,15 +141,16 @@ def cost(folders: list[Path], draws: int = 20, batch: int = 5) -> dict:
 
 
 def rerun(folder: Path, count: int) -> dict:
-    """Run ``count`` finished cases of ``folder`` again (one per cell, cells spread over the
-    rows) in this process and compare their numbers with the stored ones."""
+    """Run ``count`` finished cases of ``folder`` again (one per row and variant, spread over
+    them; none of the slowest) in this process and compare their numbers with the stored
+    ones."""
     from drake_coop.studies.reference_engine import run_batch
     from drake_coop.studies.reference_table import per_draw
 
     chosen, seen = [], set()
     for path in sorted((folder / "cases").glob("*.json")):
         r = json.loads(path.read_text())
-        cell = (r["params"]["row"], r["params"]["column"])
+        cell = (r["params"]["row"], r["values"].get("variant"))    # rows and variants apart
         if r["status"] == "ok" and cell not in seen and (r.get("cpu_time_s") or 99) < 6:
             seen.add(cell)
             chosen.append(r)
