@@ -14,8 +14,11 @@ sources' squeeze errors (median over the draws, worst robot, circle RMS of Î» âˆ
 For each pair of sources the verdict is ``agrees`` (the same order), ``tied`` (the orders
 differ but the short run's 95 % intervals of the two medians overlap, or the full run's do),
 or ``disagrees``. Writes ``DIR/agreement.json`` and prints the pairs. ``--cost`` prints instead
-the CPU seconds per case of the finished cases in ``DIR`` (``cases.csv``) and the extrapolated
-CPU and 2-core wall time of the full 20-draw table.
+the CPU seconds per case of the finished cases in ``DIR`` and the extrapolated CPU and 2-core
+wall time of the full 20-draw table; ``--table DIR`` writes the table of ``DIR``'s finished
+cases at ``--draws`` to ``--out`` (nothing runs); ``--rerun DIR`` runs some finished cases
+again and compares their numbers; ``--page JSON`` prints a table file's tables as Markdown
+with ``{result}`` roles.
 """
 
 from __future__ import annotations
@@ -98,22 +101,115 @@ def import_cpu() -> float:
 
 def cost(folders: list[Path], draws: int = 20, batch: int = 5) -> dict:
     """CPU seconds per case (the finished cases of ``folders``) and the full table's CPU and
-    two-core wall time at ``draws`` draws, batches of ``batch`` cases."""
+    two-core wall time at ``draws`` draws, batches of ``batch`` cases.
+
+    The table's cases are counted as the command runs them: every row under every default
+    column, a case two cells share (the residual without torque limits, a column with
+    nothing random for a row, the F/T rows' open-loop cells) once. A case's CPU is the
+    measured mean of its row (the online row costs several times the others), else the
+    mean of all."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.studies.reference_table import expand_table
+
     per: dict = {}
+    peaks = None
     for out in folders:
+        if (out / "calibration.json").exists():
+            peaks = json.loads((out / "calibration.json").read_text())["peaks"]
         for path in sorted((out / "cases").glob("*.json")):
             r = json.loads(path.read_text())
             if r.get("cpu_time_s") is not None and r["status"] == "ok":
-                per.setdefault(r["params"]["column"], []).append(float(r["cpu_time_s"]))
+                per.setdefault((r["params"]["row"], r["params"]["column"]), []).append(
+                    float(r["cpu_time_s"]))
     values = [v for vs in per.values() for v in vs]
     mean = float(np.mean(values))
+    by_row: dict = {}
+    for (row, _), vs in per.items():
+        by_row.setdefault(row, []).extend(vs)
     overhead = import_cpu()
-    cases = len(ROWS) * len(COLUMNS) * draws
-    total = cases * (mean + overhead / batch)
+    cases = expand_table(load_scenario(), [r.name for r in ROWS], list(COLUMNS), draws,
+                         peaks=peaks or {})
+    unique = {c.hash: c.params["row"] for c in cases}
+    total = sum(float(np.mean(by_row[row])) if row in by_row else mean
+                for row in unique.values()) + len(unique) * overhead / batch
     return {"per_case_mean_cpu_s": mean, "cases_measured": len(values),
-            "per_column_mean_cpu_s": {c: float(np.mean(v)) for c, v in per.items()},
-            "import_cpu_s_per_batch": overhead, "batch": batch, "table_cases": cases,
+            "per_row_mean_cpu_s": {r: float(np.mean(v)) for r, v in by_row.items()},
+            "import_cpu_s_per_batch": overhead, "batch": batch, "draws": draws,
+            "table_cells": len(ROWS) * len(COLUMNS), "table_cases": len(cases),
+            "table_unique_cases": len(unique),
             "table_cpu_min": total / 60.0, "table_wall_min_2_cores": total / 120.0}
+
+
+def rerun(folder: Path, count: int) -> dict:
+    """Run ``count`` finished cases of ``folder`` again (one per row and variant, spread over
+    them; none of the slowest) in this process and compare their numbers with the stored
+    ones."""
+    from drake_coop.studies.reference_engine import run_batch
+    from drake_coop.studies.reference_table import per_draw
+
+    chosen, seen = [], set()
+    for path in sorted((folder / "cases").glob("*.json")):
+        r = json.loads(path.read_text())
+        cell = (r["params"]["row"], r["values"].get("variant"))    # rows and variants apart
+        if r["status"] == "ok" and cell not in seen and (r.get("cpu_time_s") or 99) < 6:
+            seen.add(cell)
+            chosen.append(r)
+    chosen = chosen[::max(1, len(chosen) // count)][:count]
+    out = []
+    for stored in chosen:
+        (_, record), = run_batch([(stored["hash"], stored["scenario_yaml"],
+                                   stored["values"].get("variant"))], stored["t_end"])
+        a, b = per_draw(stored), per_draw(record)
+        out.append({**stored["params"], "hash": stored["hash"], "stored": a, "rerun": b,
+                    "same": a == b})
+        print(json.dumps(out[-1]), flush=True)
+    return {"cases": out, "all_same": all(c["same"] for c in out)}
+
+
+def page_tables(source: str, table: dict, key: str) -> str:
+    """The table of ``key`` (``squeeze``, ``estimate``) as Markdown whose numbers are
+    ``{result}`` roles on ``source`` (the page's name of the table's JSON): median [95 %]
+    and n per cell, ``pending`` where no case finished."""
+    from drake_coop.studies.reference_table import columns
+
+    labels = {r.name: r.label for r in ROWS}
+    col_labels = {c.name: c.label for c in columns({}, {})}
+    cols = table["columns"]
+    lines = ["| force source | " + " | ".join(col_labels[c] for c in cols) + " |",
+             "|" + " --- |" * (len(cols) + 1)]
+    for row in table["rows"]:
+        cells = []
+        for col in cols:
+            cell = table["cells"].get(row, {}).get(col)
+            if cell is None:
+                cells.append("pending")
+                continue
+            base = f"{source}:cells.{row}.{col}.{key}.median"
+            v, lo, hi = (f"{{result}}`{base}.{i} as .3f`" for i in range(3))
+            n = f"{{result}}`{source}:cells.{row}.{col}.n as .0f`"
+            diverged = (f", {{result}}`{source}:cells.{row}.{col}.diverged as .0f` diverged"
+                        if cell["diverged"] else "")
+            cells.append(f"{v} [{lo}, {hi}] (n = {n}{diverged})")
+        lines.append(f"| {labels[row]} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def snapshot(folder: Path, draws: int) -> dict:
+    """The table of every default row and column at ``draws`` draws from the cases finished
+    in ``folder`` (nothing runs; ``folder``'s ``table.json`` and ``table.md`` rewritten), with
+    the draws asked for."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.studies.reference_engine import write_table
+    from drake_coop.studies.reference_table import expand_table
+    from drake_coop.studies.store import ResultStore
+
+    peaks = json.loads((folder / "calibration.json").read_text())["peaks"]
+    rows, cols = [r.name for r in ROWS], list(COLUMNS)
+    cases = expand_table(load_scenario(), rows, cols, draws, peaks=peaks)
+    table = write_table(folder, cases, ResultStore(folder).load(), rows, cols)
+    table["draws"] = draws
+    table["distinct_cases"] = len({c.hash for c in cases})
+    return table
 
 
 def main() -> None:
@@ -123,8 +219,30 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--cost", nargs="+", default=None, metavar="DIR",
                         help="extrapolate the full table's cost from these tables' cases")
+    parser.add_argument("--rerun", default=None, metavar="DIR",
+                        help="run some finished cases of DIR again; compare the numbers")
+    parser.add_argument("--count", type=int, default=4, help="--rerun: how many cases")
+    parser.add_argument("--page", default=None, metavar="JSON",
+                        help="print the tables of this table.json as Markdown with roles "
+                             "(its name on the page: --out)")
+    parser.add_argument("--table", default=None, metavar="DIR",
+                        help="write the table of DIR's finished cases at --draws to --out")
     args = parser.parse_args()
     out = Path(args.out)
+    if args.table:
+        table = snapshot(Path(args.table), args.draws)
+        out.write_text(json.dumps(table, indent=1) + "\n")
+        print(f"{table['finished']} of {table['cases']} cases finished")
+        return
+    if args.page:
+        table = json.loads(Path(args.page).read_text())
+        for key in ("squeeze", "estimate"):
+            print(page_tables(args.out, table, key))
+        return
+    if args.rerun:
+        result = rerun(Path(args.rerun), args.count)
+        out.write_text(json.dumps(result, indent=1) + "\n")
+        return
     if args.cost:
         result = cost([Path(d) for d in args.cost])
         out.write_text(json.dumps(result, indent=1) + "\n")

@@ -52,6 +52,68 @@ from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.params import check_momentum_gain, check_period
 
 
+def momentum_estimate(p: np.ndarray, sigma: np.ndarray, gain: float, J: np.ndarray | None,
+                      m: int) -> tuple[np.ndarray, np.ndarray]:
+    """The sampled observer's output at tick ``k``: ``r = K_O (p − σ)`` and
+    ``λ̂ = (J_φ J_φᵀ)⁻¹ J_φ r`` while held (module docstring).
+
+    Parameters
+    ----------
+    p : numpy.ndarray
+        The model's momentum ``Ĥ(q_k) q̇̂_k`` (n,), kg·m²/s.
+    sigma : numpy.ndarray
+        The state ``σ(k)`` (n,).
+    gain : float
+        ``K_O`` (1/s).
+    J : numpy.ndarray or None
+        ``J_φ(q_k)`` (m, n) while the object is held; None when it is not.
+    m : int
+        The number of constraints (``λ̂`` is ``m`` zeros when not held).
+
+    Returns
+    -------
+    r, lambda_hat : numpy.ndarray
+        The external joint torque estimate (n,), N·m, and the contact force (m,), N.
+    """
+    r = gain * (p - sigma)
+    lam = np.linalg.solve(J @ J.T, J @ r) if J is not None else np.zeros(m)
+    return r, lam
+
+
+def momentum_step(sigma: np.ndarray, DF: np.ndarray, tau: np.ndarray, beta: np.ndarray,
+                  r: np.ndarray, lam: np.ndarray, lambda_d: np.ndarray, held: bool,
+                  h: float) -> tuple[np.ndarray, np.ndarray]:
+    """One forward-Euler tick of the observer's state and of the integral (6):
+    ``σ(k+1) = σ(k) + h (τ(k) − β̂ + r(k))``, ``ΔF̃(k+1) = ΔF̃(k) + h (λ̂ − λ_d)`` while held,
+    else 0.
+
+    Parameters
+    ----------
+    sigma, DF : numpy.ndarray
+        ``σ(k)`` (n,) and ``ΔF̃(k)`` (m,).
+    tau : numpy.ndarray
+        The torque integrated at tick ``k`` (n,), N·m.
+    beta : numpy.ndarray
+        ``β̂(q_k, q̇̂_k)`` (n,), N·m.
+    r, lam : numpy.ndarray
+        :func:`momentum_estimate`'s output of tick ``k``.
+    lambda_d : numpy.ndarray
+        The desired contact force (m,), N.
+    held : bool
+        Whether the object is held at tick ``k``.
+    h : float
+        The sampling time (s).
+
+    Returns
+    -------
+    sigma_next, DF_next : numpy.ndarray
+        ``σ(k+1)`` and ``ΔF̃(k+1)``.
+    """
+    sigma_next = sigma + h * (tau - beta + r)
+    DF_next = DF + h * (lam - lambda_d) if held else np.zeros_like(DF)
+    return sigma_next, DF_next
+
+
 class MomentumObserver(ForceSource):
     """Generalized-momentum observer of one robot (module docstring).
 
@@ -253,13 +315,9 @@ class MomentumObserver(ForceSource):
         q = self._q.Eval(context)
         v = self._v.Eval(context)
         sigma = context.get_discrete_state(self._sigma).value()
-        r = self._gain * (self.momentum(q, v) - sigma)
         ref = self._layout.unpack(self._reference.Eval(context))
-        if ref.held:
-            J = self._model.J_phi(q)
-            lam = np.linalg.solve(J @ J.T, J @ r)
-        else:
-            lam = np.zeros(self._m)
+        r, lam = momentum_estimate(self.momentum(q, v), sigma, self._gain,
+                                   self._model.J_phi(q) if ref.held else None, self._m)
         F = np.linalg.lstsq(self._translational_jacobian(q).T, r, rcond=None)[0]
         value.set_value((r, lam, F, ref.lambda_d.copy(), bool(ref.held)))
 
@@ -278,8 +336,8 @@ class MomentumObserver(ForceSource):
         v = self._v.Eval(context)
         sigma = context.get_discrete_state(self._sigma).value()
         tau = self.applied_torque(self._tau.Eval(context))
-        discrete_state.set_value(self._sigma,
-                                 sigma + self._h * (tau - self.beta(q, v) + r))
         DF = context.get_discrete_state(self._DF).value()
-        discrete_state.set_value(self._DF, DF + self._h * (lam - lambda_d) if held
-                                 else np.zeros(self._m))
+        sigma, DF = momentum_step(sigma, DF, tau, self.beta(q, v), r, lam, lambda_d, held,
+                                  self._h)
+        discrete_state.set_value(self._sigma, sigma)
+        discrete_state.set_value(self._DF, DF)

@@ -47,6 +47,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, ValueProducer
 
 from drake_coop.control.interfaces import ForceSource
+from drake_coop.control.momentum import momentum_estimate, momentum_step
 from drake_coop.control.params import check_momentum_gain, check_period
 from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.identification.regressor import Regressor
@@ -225,10 +226,10 @@ class OnlineIdentification(ForceSource):
         q, v = self._q.Eval(context), self._v.Eval(context)
         theta = context.get_discrete_state(self._theta).value()
         Y_p, Y_b = momentum_rows(self._regressor, q, v)
-        r = self._gain * (Y_p @ theta - context.get_discrete_state(self._sigma).value())
         ref = self._layout.unpack(self._reference.Eval(context))
         J = self._J_phi(q)
-        lam = np.linalg.solve(J @ J.T, J @ r) if ref.held else np.zeros(self._m)
+        r, lam = momentum_estimate(Y_p @ theta, context.get_discrete_state(self._sigma).value(),
+                                   self._gain, J if ref.held else None, self._m)
         return q, v, theta, Y_p, Y_b, r, lam, ref, J
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
@@ -258,8 +259,8 @@ class OnlineIdentification(ForceSource):
         discrete_state.set_value(self._P, P.reshape(-1))
         discrete_state.set_value(self._prev, np.concatenate(
             [(-Y_p + h * Y_b).reshape(-1), h * tau, Pi.reshape(-1), [1.0]]))
-        sigma = context.get_discrete_state(self._sigma).value()
-        discrete_state.set_value(self._sigma, sigma + h * (tau - Y_b @ theta + r))
-        DF = context.get_discrete_state(self._DF).value()
-        discrete_state.set_value(self._DF, DF + h * (lam - ref.lambda_d) if ref.held
-                                 else np.zeros(self._m))
+        sigma, DF = momentum_step(context.get_discrete_state(self._sigma).value(),
+                                  context.get_discrete_state(self._DF).value(), tau,
+                                  Y_b @ theta, r, lam, ref.lambda_d, ref.held, h)
+        discrete_state.set_value(self._sigma, sigma)
+        discrete_state.set_value(self._DF, DF)

@@ -71,13 +71,14 @@ class Batch:
         self.index = cases[0].index
 
 
-def run_batch(items: list[tuple[str, str]], t_end: float) -> list[tuple[str, dict]]:
+def run_batch(items: list[tuple], t_end: float) -> list[tuple[str, dict]]:
     """Run cases one after another in this process; each record gets its CPU seconds.
 
     Parameters
     ----------
-    items : list of (str, str)
-        ``(hash, scenario YAML)`` of each case.
+    items : list of tuple
+        ``(hash, scenario YAML)`` or ``(hash, scenario YAML, variant)`` of each case (the
+        variant: :mod:`~drake_coop.studies.reference_variants`).
     t_end : float
         The cases' end, s.
 
@@ -87,12 +88,12 @@ def run_batch(items: list[tuple[str, str]], t_end: float) -> list[tuple[str, dic
         ``(hash, record)`` per case (:func:`~drake_coop.studies.engines.run_case`'s record
         with ``cpu_time_s``).
     """
-    from drake_coop.studies.engines import run_case
+    from drake_coop.studies.reference_variants import run_variant_case
 
     out = []
-    for key, text in items:
+    for key, text, *variant in items:
         start = time.process_time()
-        record = run_case(text, t_end)
+        record = run_variant_case(text, t_end, variant[0] if variant else None)
         record["cpu_time_s"] = time.process_time() - start
         out.append((key, record))
     return out
@@ -333,7 +334,11 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
                          models=models)
     store = ResultStore(out)
     records = store.load()
-    todo = [c for c in cases if c.hash not in records]
+    todo, queued = [], set()       # a case two rows share (the applied-torque residual
+    for c in cases:                # without torque limits is the momentum row's): once
+        if c.hash not in records and c.hash not in queued:
+            queued.add(c.hash)
+            todo.append(c)
     if not quiet:
         print(f"reference table: {len(cases)} cases, {len(cases) - len(todo)} already "
               f"finished, running {len(todo)} -> {out}", file=sys.stderr)
@@ -352,7 +357,8 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
                   file=sys.stderr)
 
     _run(_batches(todo, batch), run_batch,
-         lambda b: ([(c.hash, c.scenario_yaml) for c in b.cases], t_end), on_result,
+         lambda b: ([(c.hash, c.scenario_yaml, c.values["variant"]) for c in b.cases],
+                    t_end), on_result,
          _batch_died, ray=ray, workers=workers)
     table = write_table(out, cases, records, rows, cols)
     table["missing"] = [c.hash for c in cases if c.hash not in records]

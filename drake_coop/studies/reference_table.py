@@ -37,6 +37,7 @@ import numpy as np
 from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario
 from drake_coop.studies.expand import Case, case_hash
+from drake_coop.studies.reference_variants import variant_hash, variant_matters
 
 __all__ = ["ALL_COLUMNS", "COLUMNS", "IDENTIFIED", "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval",
            "cell_statistics", "compress", "expand_table", "identified_name", "markdown_table",
@@ -64,11 +65,15 @@ class Row:
         Its name in the table.
     apply : callable
         ``apply(scenario, draw)``: sets the source on every robot, in place.
+    variant : str or None
+        A force source no scenario field selects, built by the worker
+        (:mod:`~drake_coop.studies.reference_variants`); None: the scenario's own.
     """
 
     name: str
     label: str
     apply: Callable[[Scenario, int], None]
+    variant: str | None = None
 
 
 @dataclass(frozen=True)
@@ -129,12 +134,16 @@ def _identified(models: dict, name: str) -> Callable:
 
 
 def _source(name: str, noise: float | None = None) -> Callable[[Scenario, int], None]:
+    """The row's force source; the sensor's noise seed is the draw's for the rows that read
+    the sensor only (for the others the seed changes nothing the table reads: a column
+    without random values then runs one case per row, shared by its draws)."""
     def apply(scenario: Scenario, draw: int) -> None:
         for robot in scenario.robots:
             robot.force_source = name
             if noise is not None:
                 robot.force_sensor.noise_std = noise
-            robot.force_sensor.seed = draw
+            if name == "sensor":
+                robot.force_sensor.seed = draw
     return apply
 
 
@@ -144,6 +153,8 @@ ROWS: tuple[Row, ...] = (
     Row("sensor_0p3", "F/T sensor, σ = 0.3 N", _source("sensor", 0.3)),
     Row("sensor_3", "F/T sensor, σ = 3 N", _source("sensor", 3.0)),
     Row("none", "none (λ̂ = λ_d)", _source("none")),
+    Row("applied_torque", "applied-torque residual", _source("momentum"), "applied_torque"),
+    Row("online", "online identification + momentum", _source("momentum"), "online"),
 )
 
 
@@ -237,7 +248,22 @@ def columns(peaks: dict | None = None, models: dict | None = None) -> tuple[Colu
         cols += [Column(identified_name(m, b), f"identified, {m}, {b:g} s",
                         _identified(models, identified_name(m, b)), draws_like="model_30")
                  for m, b in IDENTIFIED]
+    cols.append(Column("open_loop", "open loop: beside the F/T loop (σ 0.3 N)", _exact))
     return tuple(cols)
+
+
+def _open_loop(scenario: Scenario, row: str, draw: int) -> str | None:
+    """The open-loop column's case of ``row`` (:mod:`~drake_coop.studies.reference_open_loop`):
+    every loop on the F/T sensor and the row's estimator beside it (its variant returned);
+    None for the F/T rows (their exact column's case)."""
+    from drake_coop.studies.reference_open_loop import BESIDE, LOOP_NOISE
+
+    if row not in BESIDE:
+        return None
+    if row == "applied_torque" and not any(r.actuators.torque_limits for r in scenario.robots):
+        row = "momentum"                        # the same system without limits
+    _source("sensor", LOOP_NOISE)(scenario, draw)
+    return f"open_loop:{row}"
 
 
 #: The column names of the default table (the saturation column included, the identified
@@ -291,7 +317,8 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
     Returns
     -------
     list of Case
-        ``params`` = ``{"row", "column", "draw"}``.
+        ``params`` = ``{"row", "column", "draw"}``; ``values`` also ``variant``: the force
+        source the worker builds (:mod:`~drake_coop.studies.reference_variants`), or None.
 
     Raises
     ------
@@ -330,11 +357,18 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
                 s = copy.deepcopy(short)
                 column.apply(s, np.random.default_rng([seed, k, draw]), draw)
                 known_rows[row].apply(s, draw)
+                variant = (_open_loop(s, row, draw) if col == "open_loop"
+                           else known_rows[row].variant)
                 validate(s, cache=cache)
                 check_run_size(s, t_end)
                 params = {"row": row, "column": col, "draw": draw}
-                cases.append(Case(index=len(cases), params=params, values=dict(params),
-                                  scenario=s, hash=case_hash(s, t_end)))
+                key = case_hash(s, t_end)
+                if variant_matters(s, variant):      # else the scenario's own case
+                    key = variant_hash(key, variant)
+                else:
+                    variant = None
+                cases.append(Case(index=len(cases), params=params,
+                                  values={**params, "variant": variant}, scenario=s, hash=key))
     return cases
 
 
@@ -375,15 +409,18 @@ def per_draw(record: dict) -> dict[str, float]:
     Returns
     -------
     dict of str to float
-        ``squeeze``, ``estimate`` (N) and ``diverged`` (0 or 1).
+        ``squeeze``, ``estimate`` (N), ``squeeze_lift`` (the lift's RMS of ``λ − λ_d``, worst
+        robot, N) and ``diverged`` (0 or 1).
     """
-    out = {"squeeze": math.nan, "estimate": math.nan,
+    out = {"squeeze": math.nan, "estimate": math.nan, "squeeze_lift": math.nan,
            "diverged": float(record["status"] != "ok")}
     if record["status"] != "ok":
         return out
-    for key, error in (("squeeze", "force_error"), ("estimate", "estimate_error")):
-        values = [m["circle"][error]["rms"] for m in record["metrics"].values()
-                  if "circle" in m and error in m["circle"]]
+    for key, phase, error in (("squeeze", "circle", "force_error"),
+                              ("estimate", "circle", "estimate_error"),
+                              ("squeeze_lift", "lift", "force_error")):
+        values = [m[phase][error]["rms"] for m in record["metrics"].values()
+                  if phase in m and error in m[phase]]
         if values:
             out[key] = float(max(values))
     return out
@@ -434,11 +471,11 @@ def cell_statistics(records: list[dict]) -> dict:
     -------
     dict
         ``{"n", "diverged", "squeeze": {"median": [v, lo, hi], "p90": [...]},
-        "estimate": {...}}``.
+        "estimate": {...}, "squeeze_lift": {...}}``.
     """
     numbers = [per_draw(r) for r in records]
     out = {"n": len(numbers), "diverged": int(sum(v["diverged"] for v in numbers))}
-    for key in ("squeeze", "estimate"):
+    for key in ("squeeze", "estimate", "squeeze_lift"):
         x = np.array([v[key] for v in numbers])
         out[key] = {"median": list(bootstrap_interval(x, 0.5)),
                     "p90": list(bootstrap_interval(x, 0.9))}

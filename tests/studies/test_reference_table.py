@@ -74,7 +74,9 @@ def test_table_end_to_end_resumes_and_matches_the_logs(tmp_path):
                       batch=2, quiet=True)
     assert table["missing"] == [] and table["finished"] == 4
     files = sorted((tmp_path / "cases").glob("*.json"))
-    assert len(files) == 4
+    # the observer under the exact model has nothing random: its two draws are one case
+    assert len(files) == 3
+    assert table["cells"]["observer"]["exact"]["n"] == 2
     # the numbers against the simulated truth (observer, exact model: deterministic)
     cell = table["cells"]["observer"]["exact"]
     squeeze, estimate = _circle_rms_from_logs(compress(load_scenario()), T_TINY)
@@ -118,7 +120,15 @@ def test_every_cell_expands_and_the_saturation_limits_follow_the_peaks():
     cases = expand_table(load_scenario(), [r.name for r in ROWS], list(COLUMNS), 2,
                          t_end=T_TINY, peaks=peaks)
     assert len(cases) == len(ROWS) * len(COLUMNS) * 2
-    assert len({c.hash for c in cases}) == len(cases)
+    # every case its own, but the applied-torque residual's without torque limits (the
+    # momentum row's: the same system), the F/T rows' open-loop cases (their exact ones)
+    # and the later draws of the exact model without a sensor (nothing random: one case)
+    shared = [c for c in cases if (c.params["row"] == "applied_torque"
+                                   and c.params["column"] != "saturation")
+              or (c.params["row"].startswith("sensor") and c.params["column"] == "open_loop")
+              or (c.params["column"] == "exact" and c.params["draw"] > 0
+                  and c.params["row"] not in ("sensor_0p3", "sensor_3", "applied_torque"))]
+    assert len({c.hash for c in cases}) == len(cases) - len(shared)
     for case in cases:
         if case.params["column"] != "saturation":
             continue
@@ -147,3 +157,26 @@ def test_identified_columns_take_their_models_and_refuse_without(tmp_path):
     assert all(r.model_error.mass_scale == 1.0 for r in robots)
     with pytest.raises(ValueError, match=f"columns: {col} needs its identified models"):
         expand_table(load_scenario(), ["observer"], [col], 2, t_end=T_TINY, models=models)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", ["scenarios/contact.yaml", "scenarios/two_pandas.yaml"])
+def test_the_friction_held_part_expands_on_the_paper_arms_and_a_lab_pair(path):
+    """The box held by friction (``object_mode: contact``): every row under the model-error
+    and friction columns validates as ``drake-coop run`` validates a scenario, the lab pair's
+    Coulomb draws one value per joint of its arm (seven on a Panda, three on the paper's)."""
+    from drake_coop.scenario.loading import dump_scenario
+    from drake_coop.studies.reference_table import ROWS
+
+    base = load_scenario(path)
+    base.plant.object_mode = "contact"
+    base = load_scenario(data=dump_scenario(base))
+    cases = expand_table(base, [r.name for r in ROWS], ["exact", "model_30", "coulomb"], 1,
+                         t_end=T_TINY)
+    assert len(cases) == len(ROWS) * 3
+    joints = 7 if "panda" in path else 3
+    for case in cases:
+        s = load_scenario(data=case.scenario_yaml)
+        assert s.plant.object_mode == "contact"
+        if case.params["column"] == "coulomb":
+            assert len(s.robots[0].model_error.coulomb_friction) == joints
