@@ -28,6 +28,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 _OUT_ENV = "SUITE_CPU_OUT"
 _PHASES = ("setup", "call", "teardown")
 
@@ -73,6 +75,12 @@ class _Recorder:
         elif report.skipped and entry["outcome"] == "passed":
             entry["outcome"] = "skipped"
 
+    @pytest.hookimpl(trylast=True)
+    def pytest_runtest_logfinish(self, nodeid, location) -> None:
+        # One line a test as it ends, so a long run can be read before it finishes.
+        with open(self.out.with_suffix(".partial.jsonl"), "a") as f:
+            f.write(json.dumps({nodeid: self._entry(nodeid)}) + "\n")
+
     def pytest_sessionfinish(self, session, exitstatus) -> None:
         for entry in self.tests.values():
             entry["cpu"] = sum(entry[p] for p in _PHASES) + entry["children"]
@@ -108,8 +116,6 @@ def pytest_configure(config) -> None:
 
 
 def _wrap(when: str):
-    import pytest
-
     @pytest.hookimpl(hookwrapper=True)
     def hook(item):
         if _RECORDER is None:
@@ -121,10 +127,9 @@ def _wrap(when: str):
     return hook
 
 
-if "pytest" in sys.modules:
-    pytest_runtest_setup = _wrap("setup")
-    pytest_runtest_call = _wrap("call")
-    pytest_runtest_teardown = _wrap("teardown")
+pytest_runtest_setup = _wrap("setup")
+pytest_runtest_call = _wrap("call")
+pytest_runtest_teardown = _wrap("teardown")
 
 
 def run(out: Path, repo: Path, python: str, extra: list[str]) -> int:
@@ -146,6 +151,7 @@ def run(out: Path, repo: Path, python: str, extra: list[str]) -> int:
     int
         pytest's exit status.
     """
+    out.with_suffix(".partial.jsonl").unlink(missing_ok=True)
     env = dict(os.environ, MPLBACKEND="Agg")
     env[_OUT_ENV] = str(out.resolve())
     env["PYTHONPATH"] = os.pathsep.join(
