@@ -10,8 +10,10 @@ falls on the test whose setup builds it (a module- or session-scoped fixture: th
 uses it) and its teardown on the test after which it is torn down, so the per-test values add up
 to the suite's test CPU. Collection (imports, parametrization) is recorded apart.
 
-``python bench/suite_cpu.py compare BASE.json NEW.json [--out RESULT.json]`` compares two such
-files by test id: the CPU of the ids both ran, the ids only one ran, the largest changes.
+``python bench/suite_cpu.py compare BASE.json NEW.json [--patch PART.json] [--out RESULT.json]``
+compares two such files by test id: the CPU of the ids both ran, the ids only one ran, the
+largest changes; ``--patch`` replaces the test files a partial run ran by that run's
+(:func:`merge`).
 
 CPU time, not wall time: the machine may be shared, and CPU time inflates less than wall time
 under load (cache and frequency effects still do: run two measurements back to back).
@@ -203,6 +205,31 @@ def compare(base: dict, new: dict, top: int = 25) -> dict:
     }
 
 
+def merge(full: dict, patch: dict) -> dict:
+    """A whole-suite file with the test files ``patch`` ran replaced by its run of them.
+
+    For a measurement after changing a few test files on a busy machine: the tests of the
+    files not changed keep their CPU from ``full`` (their code is the same), the changed
+    files' tests are taken whole from ``patch`` (tests added, removed or renamed there
+    included).
+
+    Parameters
+    ----------
+    full, patch : dict
+        Files written by :func:`run`: the whole fast suite, and a run of some of its files.
+
+    Returns
+    -------
+    dict
+        ``full`` with ``tests`` merged, and ``merged_files``: the files taken from ``patch``.
+    """
+    files = {test_id.split("::")[0] for test_id in patch["tests"]}
+    tests = {i: t for i, t in full["tests"].items() if i.split("::")[0] not in files}
+    tests.update(patch["tests"])
+    return {**{k: v for k, v in full.items() if k != "tests"}, "tests": tests,
+            "merged_files": sorted(files)}
+
+
 def _main(argv: list[str] | None = None) -> int:
     """Command line: ``run`` or ``compare`` (see the module's docstring)."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -218,10 +245,14 @@ def _main(argv: list[str] | None = None) -> int:
     c.add_argument("--top", type=int, default=25)
     c.add_argument("--out", type=Path, help="also write the comparison as JSON")
     c.add_argument("--about", default="", help="the JSON's 'about' text (with --out)")
+    c.add_argument("--patch", type=Path, action="append", default=[],
+                   help="a run of some test files whose tests replace those files' in NEW")
     a = p.parse_args(argv)
     if a.cmd == "run":
         return run(a.out, a.repo, a.python, a.pytest_args)
     base, new = (json.loads(f.read_text()) for f in (a.base, a.new))
+    for patch in a.patch:
+        new = merge(new, json.loads(patch.read_text()))
     result = compare(base, new, a.top)
     for key in ("common_tests", "base_cpu_s", "new_on_common_cpu_s", "common_ratio",
                 "base_total_cpu_s", "new_total_cpu_s", "base_tests", "new_tests"):
