@@ -247,9 +247,12 @@ def _main(argv: list[str] | None = None) -> int:
     c.add_argument("--about", default="", help="the JSON's 'about' text (with --out)")
     c.add_argument("--patch", type=Path, action="append", default=[],
                    help="a run of some test files whose tests replace those files' in NEW")
-    a = p.parse_args(argv)
+    a, rest = p.parse_known_args(argv)
     if a.cmd == "run":
-        return run(a.out, a.repo, a.python, a.pytest_args)
+        extra = [arg for arg in a.pytest_args + rest if arg != "--"]
+        return run(a.out, a.repo, a.python, extra)
+    if rest:
+        p.error(f"unrecognized arguments: {' '.join(rest)}")
     base, new = (json.loads(f.read_text()) for f in (a.base, a.new))
     for patch in a.patch:
         new = merge(new, json.loads(patch.read_text()))

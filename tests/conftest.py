@@ -18,6 +18,15 @@ def short_scenario(mode: str = "planes", time_step: float = 0.001, **task):
     return s
 
 
+def compress_phases(scenario):
+    """``scenario``'s task phases compressed as :func:`short_scenario`'s (free 1 s, lift 1 s,
+    circle 4 s, put-down 1 s, return 1 s: the grasp at 1 s), in place; returns it."""
+    for key, value in dict(t_pregrasp=0.6, t_grasp=1.0, t_circle_start=2.0, t_circle_end=6.0,
+                           t_release=7.0, t_end=8.0).items():
+        setattr(scenario.task, key, value)
+    return scenario
+
+
 @pytest.fixture
 def make_short_scenario():
     return short_scenario
