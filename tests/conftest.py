@@ -27,6 +27,29 @@ def compress_phases(scenario):
     return scenario
 
 
+@pytest.fixture(scope="session")
+def short_run_folder(tmp_path_factory):
+    """``drake-coop run SCENARIO --out OUT --quiet`` of :func:`short_scenario` (``planes``,
+    3 ms plant step), run once for the session (the command's outputs and its summary are
+    checked by ``tests/cli/test_cli.py`` and ``tests/results/test_summary.py``; one 8 s run
+    with every output serves both): ``(exit code, stdout, stderr, SCENARIO, OUT)``. A test may
+    redraw its figures, but leaves the folder as it found it."""
+    import contextlib
+    import io
+
+    from drake_coop.cli import main
+    from drake_coop.scenario import dump_scenario
+
+    tmp = tmp_path_factory.mktemp("short_run")
+    path = tmp / "scenario.yaml"
+    path.write_text(dump_scenario(short_scenario("planes", 0.003)))
+    out = tmp / "out"
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = main(["run", str(path), "--out", str(out), "--quiet"])
+    return code, stdout.getvalue(), stderr.getvalue(), path, out
+
+
 @pytest.fixture
 def make_short_scenario():
     return short_scenario

@@ -24,11 +24,9 @@ def _write(tmp_path, scenario, name="scenario.yaml"):
 
 
 @pytest.fixture(scope="module")
-def short_run_dir(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("run")
-    path = _write(tmp, short_scenario("planes", 0.003))
-    out = tmp / "out"
-    code = main(["run", str(path), "--out", str(out), "--quiet"])
+def short_run_dir(short_run_folder):
+    """The session's short run (:func:`tests.conftest.short_run_folder`): exit code, folder."""
+    code, _, _, _, out = short_run_folder
     return code, out
 
 

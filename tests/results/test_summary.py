@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -93,14 +92,11 @@ def test_each_constraint_row_is_checked_on_its_own():
 
 
 @pytest.fixture(scope="module")
-def short_run(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("summary")
-    path = tmp / "s.yaml"
-    path.write_text(dump_scenario(short_scenario("planes", 0.003)))
-    out = tmp / "out"
-    proc = subprocess.run([sys.executable, "-m", "drake_coop", "run", str(path), "--out",
-                           str(out), "--quiet", "--no-replay"], capture_output=True, text=True)
-    return proc, path, out
+def short_run(short_run_folder):
+    """The session's short run (:func:`tests.conftest.short_run_folder`, the same command in
+    this process): its exit code and output streams, scenario and folder."""
+    code, stdout, stderr, path, out = short_run_folder
+    return subprocess.CompletedProcess([], code, stdout, stderr), path, out
 
 
 def test_run_prints_the_summary_even_when_quiet(short_run):
