@@ -27,6 +27,19 @@ def compress_phases(scenario):
     return scenario
 
 
+def draw_only(monkeypatch, figure: str) -> None:
+    """``drake-coop run`` in this process draws only ``figure`` of the paper's figures (its
+    file name without suffix): for a test that checks that one figure is written, where
+    every figure is drawn and checked on the short run (``tests/cli/test_cli.py``); drawing
+    them is most of a short run's cost."""
+    import functools
+
+    import drake_coop.results
+
+    monkeypatch.setattr(drake_coop.results, "plot_figures",
+                        functools.partial(drake_coop.results.plot_figures, only=[figure]))
+
+
 @pytest.fixture(scope="session")
 def short_run_folder(tmp_path_factory):
     """``drake-coop run SCENARIO --out OUT --quiet`` of :func:`short_scenario` (``planes``,

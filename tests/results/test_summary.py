@@ -13,7 +13,7 @@ from drake_coop.results import compute_metrics, save_logs
 from drake_coop.results.run_folder import OutputFolderError, RunFolder
 from drake_coop.results.summary import sanity_warnings, summary_lines
 from drake_coop.scenario import dump_scenario
-from tests.conftest import short_scenario
+from tests.conftest import draw_only, short_scenario
 from tests.results.test_io import SINE_AMPLITUDE, Y_OFFSET, Z_OBS, synthetic_run
 
 # ---------------------------------------------------------------- the summary table
@@ -122,7 +122,10 @@ def test_run_over_a_previous_run_needs_force_and_keeps_it(short_run, capsys, mon
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
-def test_force_replaces_a_previous_run(tmp_path, capsys):
+def test_force_replaces_a_previous_run(tmp_path, capsys, monkeypatch):
+    """(Of the figures only one is drawn, :func:`tests.conftest.draw_only`: this checks the
+    folder's replacement, not the figures.)"""
+    draw_only(monkeypatch, "fig2_tracking_errors")
     out = tmp_path / "o"
     logs, meta = synthetic_run(t_end=0.09)
     save_logs(out, logs, meta)
