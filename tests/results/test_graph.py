@@ -251,9 +251,9 @@ def _edges_through_labels(svg: str, margin: float = 0.6) -> list[tuple[str, str]
     ``margin`` em inside the text's box from its left and its right end. Graphviz puts an
     edge's label against its edge at Helvetica's widths; measured in the wider DejaVu Sans a
     label may reach over its edge by a character (0.6 em), not more."""
-    found = []
+    found, boxes = [], _text_boxes(svg)
     for edge, points in _edge_points(svg):
-        for _, text, (x0, y0, x1, y1) in _text_boxes(svg):
+        for _, text, (x0, y0, x1, y1) in boxes:
             m = margin * (y1 - y0)                       # the box is 1 em high
             x, y = points[:, 0], points[:, 1]
             if np.any((x > x0 + m) & (x < x1 - m) & (y > y0) & (y < y1)):
