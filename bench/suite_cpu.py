@@ -266,7 +266,8 @@ def _main(argv: list[str] | None = None) -> int:
         for row in result[title]:
             print(f"  {row['base_cpu_s']:8.2f} -> {row['new_cpu_s']:8.2f}  {row['id']}")
     if a.out:
-        doc = {"about": a.about, **result,
+        # The ids only the new run has (tests added since the base) are counted, not listed.
+        doc = {"about": a.about, **result, "only_new": len(result["only_new"]),
                "base_meta": {k: v for k, v in base.items() if k != "tests"},
                "new_meta": {k: v for k, v in new.items() if k != "tests"}}
         a.out.write_text(json.dumps(doc, indent=1) + "\n")
