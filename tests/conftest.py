@@ -18,6 +18,51 @@ def short_scenario(mode: str = "planes", time_step: float = 0.001, **task):
     return s
 
 
+def compress_phases(scenario):
+    """``scenario``'s task phases compressed as :func:`short_scenario`'s (free 1 s, lift 1 s,
+    circle 4 s, put-down 1 s, return 1 s: the grasp at 1 s), in place; returns it."""
+    for key, value in dict(t_pregrasp=0.6, t_grasp=1.0, t_circle_start=2.0, t_circle_end=6.0,
+                           t_release=7.0, t_end=8.0).items():
+        setattr(scenario.task, key, value)
+    return scenario
+
+
+def draw_only(monkeypatch, figure: str) -> None:
+    """``drake-coop run`` in this process draws only ``figure`` of the paper's figures (its
+    file name without suffix): for a test that checks that one figure is written, where
+    every figure is drawn and checked on the short run (``tests/cli/test_cli.py``); drawing
+    them is most of a short run's cost."""
+    import functools
+
+    import drake_coop.results
+
+    monkeypatch.setattr(drake_coop.results, "plot_figures",
+                        functools.partial(drake_coop.results.plot_figures, only=[figure]))
+
+
+@pytest.fixture(scope="session")
+def short_run_folder(tmp_path_factory):
+    """``drake-coop run SCENARIO --out OUT --quiet`` of :func:`short_scenario` (``planes``,
+    3 ms plant step), run once for the session (the command's outputs and its summary are
+    checked by ``tests/cli/test_cli.py`` and ``tests/results/test_summary.py``; one 8 s run
+    with every output serves both): ``(exit code, stdout, stderr, SCENARIO, OUT)``. A test may
+    redraw its figures, but leaves the folder as it found it."""
+    import contextlib
+    import io
+
+    from drake_coop.cli import main
+    from drake_coop.scenario import dump_scenario
+
+    tmp = tmp_path_factory.mktemp("short_run")
+    path = tmp / "scenario.yaml"
+    path.write_text(dump_scenario(short_scenario("planes", 0.003)))
+    out = tmp / "out"
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = main(["run", str(path), "--out", str(out), "--quiet"])
+    return code, stdout.getvalue(), stderr.getvalue(), path, out
+
+
 @pytest.fixture
 def make_short_scenario():
     return short_scenario

@@ -283,14 +283,40 @@ def test_no_module_is_longer_than_the_limit():
 ISSUE_NUMBER = re.compile(r"\b[Ii]ssues? #?\d+|\b[A-Za-z_][\w-]* #\d{1,6}\b")
 
 
-def test_no_file_refers_to_an_issue_by_number():
-    files = subprocess.run(["git", "ls-files", "*.py", "*.md", "*.yaml", "*.yml", "*.toml",
-                            "*.cff", "*.ipynb"], cwd=ROOT, capture_output=True, text=True,
+def _issue_references(root: Path, names: list[str]) -> list[str]:
+    """``name:line: match`` for every reference by number in the text files ``names`` below
+    ``root`` (a file with a NUL byte, or not UTF-8, is an image: not read)."""
+    found = []
+    for name in names:
+        data = (root / name).read_bytes() if (root / name).is_file() else b""
+        if b"\0" in data:
+            continue
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError:
+            continue
+        found += [f"{name}:{n}: {m.group(0)}" for n, line in enumerate(text.splitlines(), 1)
+                  for m in ISSUE_NUMBER.finditer(line)]
+    return found
+
+
+def test_no_file_refers_to_an_issue_by_number(tmp_path):
+    """Every file git tracks that is text: code, pages, scenarios, the result files'
+    ``about`` texts (``docs/results/*.json``), the studies' files (``studies/``: their YAML,
+    JSON, CSV and text tables), the CI script."""
+    files = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True,
                            check=True).stdout.split()
-    found = [f"{name}:{n}: {m.group(0)}" for name in files if (ROOT / name).is_file()
-             for n, line in enumerate((ROOT / name).read_text(encoding="utf-8",
-                                                             errors="replace").splitlines(), 1)
-             for m in ISSUE_NUMBER.finditer(line)]
     assert ISSUE_NUMBER.search("as iss" + "ue 3 asks") and ISSUE_NUMBER.search("lib " + "#7")
     assert not ISSUE_NUMBER.search("colour #1f77b4, Fig. 3, (29)")
+    # the scan reads the kinds of file a reference was found in before
+    for kind in ("docs/results/", "studies/", "tests/", "docs/"):
+        assert any(f.startswith(kind) for f in files), kind
+    assert any(f.startswith("docs/results/") and f.endswith(".json") for f in files)
+    assert any(f.startswith("studies/") and not f.endswith((".py", ".yaml")) for f in files)
+    (tmp_path / "r.json").write_text('{"about": "measured for iss' + 'ue 12"}\n')
+    (tmp_path / "t.csv").write_text('case,note\n1,"lib #' + '7"\n')
+    (tmp_path / "p.png").write_bytes(b"\x89PNG\0issue 3")
+    assert _issue_references(tmp_path, ["r.json", "t.csv", "p.png"]) == [
+        "r.json:1: iss" + "ue 12", "t.csv:2: lib #" + "7"]
+    found = _issue_references(ROOT, files)
     assert not found, found

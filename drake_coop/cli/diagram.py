@@ -31,17 +31,13 @@ def _write_block_diagrams(experiment, out: Path, top: str, control: str, quiet: 
 
 
 def cmd_diagram(args: argparse.Namespace) -> int:
-    """Draw the experiment's block diagram (no loggers or visualizer) and one control block.
+    """The exit code of ``drake-coop diagram`` (0 drawn, 2 bad input), after drawing the
+    experiment's block diagram (no loggers or visualizer) and one control block.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line (:func:`build_parser`).
-
-    Returns
-    -------
-    int
-        The exit code: 0 drawn, 2 bad input.
     """
     from drake_coop.experiment.diagram import build_experiment
     from drake_coop.experiment.plan import plan_run

@@ -18,17 +18,13 @@ from drake_coop.scenario.resources import find_scenario
 
 
 def cmd_identify(args: argparse.Namespace) -> int:
-    """Identify the scenario's robots and write DIR (exit 2 on bad input, one line).
+    """The exit code of ``drake-coop identify`` (0 done, 1 an identification failed, 2 bad
+    input, one line): the scenario's robots identified, DIR written.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line (:func:`build_parser`).
-
-    Returns
-    -------
-    int
-        The exit code: 0 done, 1 an identification failed, 2 bad input.
     """
     import math
 

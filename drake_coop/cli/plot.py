@@ -10,17 +10,13 @@ from drake_coop.console import error as _error
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
-    """Redraw figures and metrics from a run directory.
+    """The exit code of ``drake-coop plot`` (0 done, 2 bad input): figures and metrics redrawn
+    from a run directory.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line (:func:`build_parser`).
-
-    Returns
-    -------
-    int
-        The exit code: 0 done, 2 bad input.
     """
     from drake_coop.results import replot
 

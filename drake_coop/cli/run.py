@@ -57,7 +57,9 @@ class ProgressBar:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    """Simulate, then write logs, metrics, figures, diagrams and the replay.
+    """The exit code of ``drake-coop run`` (0 completed, 1 diverged, 2 bad input or outputs not
+    written, 130/143 interrupted), after simulating and writing logs, metrics, figures,
+    diagrams and the replay.
 
     Everything before the simulation (imports, scenario, model files, run size, ``--out``)
     runs with signals deferred; the outputs are written into a staging folder that is renamed
@@ -67,12 +69,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     ----------
     args : argparse.Namespace
         The parsed command line (:func:`build_parser`).
-
-    Returns
-    -------
-    int
-        The exit code: 0 completed, 1 diverged, 2 bad input or outputs not written, 130/143
-        interrupted.
     """
     with _signals.SIGNALS.deferred():
         from drake_coop.experiment.simulate import simulate

@@ -10,17 +10,13 @@ from drake_coop.scenario.resources import scenario_summary, shipped_scenarios
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
-    """List the shipped scenarios, or print one.
+    """The exit code of ``drake-coop scenarios`` (0 listed, 2 an unknown name), after listing
+    the shipped scenarios or printing one.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line (:func:`build_parser`).
-
-    Returns
-    -------
-    int
-        The exit code: 0 listed, 2 an unknown name.
     """
     shipped = shipped_scenarios()
     if args.name is None:

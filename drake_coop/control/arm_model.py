@@ -235,21 +235,14 @@ class ArmModel:
         return phi, j
 
     def constraint_row_dot(self, q: np.ndarray, v: np.ndarray) -> list[float]:
-        """``J̇_φ`` along ``v`` of a one-constraint arm in closed form (plain floats); with
-        Drake's kinematics the first normal times :meth:`J_x_dot` (a serial chain), else
-        AutoDiff.
+        """``J̇_φ`` along ``v``, the row (n numbers), m/(rad·s), of a one-constraint arm in
+        closed form (plain floats); with Drake's kinematics the first normal times
+        :meth:`J_x_dot` (a serial chain), else AutoDiff.
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Joint positions (n,), rad.
-        v : numpy.ndarray
-            The direction (joint velocities) (n,), rad/s.
-
-        Returns
-        -------
-        list of float
-            The row ``J̇_φ`` (n numbers), m/(rad·s).
+        q, v : numpy.ndarray
+            As ``q, direction`` in :meth:`J_x_dot`.
         """
         if not self.closed_form:
             if self.serial_chain:
@@ -284,41 +277,29 @@ class ArmModel:
 
     # ------------------------------------------------------------------------- dynamics
     def H(self, q: np.ndarray) -> np.ndarray:
-        """Inertia matrix ``H(q)`` (n×n).
+        """``H(q)`` (n, n), kg·m²: the inertia matrix.
 
         Parameters
         ----------
         q : numpy.ndarray
             Joint positions (n,), rad.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``H(q)`` (n, n), kg·m².
         """
         self._set_q(q)
         return self.plant.CalcMassMatrix(self.context)
 
     def Cv(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """``C(q, v) v`` (n,).
+        """``C(q, v) v`` (n,), N·m.
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Joint positions (n,), rad.
-        v : numpy.ndarray
-            Joint velocities (n,), rad/s.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``C(q, v) v`` (n,), N·m.
+        q, v : numpy.ndarray
+            Joint positions (n,), rad, and velocities (n,), rad/s.
         """
         self._set(q, v)
         return self.plant.CalcBiasTerm(self.context)
 
     def g(self, q: np.ndarray) -> np.ndarray:
-        """The gravity vector ``g(q)`` of (1) (left-hand side), n-vector.
+        """The gravity vector ``g(q)`` of (1) (left-hand side), (n,), N·m.
 
         Parameters
         ----------
@@ -329,17 +310,13 @@ class ArmModel:
         return -self.plant.CalcGravityGeneralizedForces(self.context)
 
     def friction_torque(self, v: np.ndarray) -> np.ndarray:
-        """``F_c ⊙ tanh(v / v_c)``, the compensated Coulomb friction (zeros without it).
+        """``F_c ⊙ tanh(v / v_c)`` (n,), N·m, the compensated Coulomb friction (zeros without
+        it).
 
         Parameters
         ----------
         v : numpy.ndarray
             Joint velocities (n,), rad/s.
-
-        Returns
-        -------
-        numpy.ndarray
-            The friction torque (n,), N·m.
         """
         if self.coulomb is None:
             return np.zeros(self.n)
@@ -347,21 +324,12 @@ class ArmModel:
 
     def inverse_dynamics_terms(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """``H(q) a + C(q, v) v + D v + g(q)``: the model part of (13) and (21); plus
-        :meth:`friction_torque` when the model has Coulomb friction (``coulomb``).
+        :meth:`friction_torque` when the model has Coulomb friction (``coulomb``); (n,), N·m.
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Joint positions (n,), rad.
-        v : numpy.ndarray
-            Joint velocities (n,), rad/s.
-        a : numpy.ndarray
-            Joint accelerations (n,), rad/s².
-
-        Returns
-        -------
-        numpy.ndarray
-            The torque (n,), N·m.
+        q, v, a : numpy.ndarray
+            Joint positions (n,), rad, velocities, rad/s, and accelerations, rad/s².
         """
         self._set(q, v)
         # Drake's inverse dynamics is M a + C v − τ_app; the force elements give
@@ -410,53 +378,38 @@ class ArmModel:
 
     def ee_position(self, q: np.ndarray) -> np.ndarray:
         """The controlled point (the pad's centre E, or the ``point_offset`` point) in the
-        palm frame.
+        palm frame, (3,), m.
 
         Parameters
         ----------
         q : numpy.ndarray
             Joint positions (n,), rad.
-
-        Returns
-        -------
-        numpy.ndarray
-            The point (3,), m.
         """
         if self.closed_form:
             return self.kinematics.fk(q)
         return self.ee_kinematics(q)[0]
 
     def J_x(self, q: np.ndarray) -> np.ndarray:
-        """Translational Jacobian ``J_x = ∂x/∂q`` of the controlled point (3×n), world frame
-        (``J_φ = N J_x``); closed form when the arm has it.
+        """The translational Jacobian ``J_x = ∂x/∂q`` of the controlled point (3, n), m/rad,
+        world frame (``J_φ = N J_x``); closed form when the arm has it.
 
         Parameters
         ----------
         q : numpy.ndarray
             Joint positions (n,), rad.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``J_x`` (3, n), m/rad.
         """
         if self.closed_form:
             return self.kinematics.jacobian(q)
         return self.ee_kinematics(q)[2]
 
     def J_omega(self, q: np.ndarray) -> np.ndarray:
-        """Rotational Jacobian ``J_ω`` of the end-effector frame (3×n), world frame: its
-        angular velocity is ``J_ω q̇``.
+        """The rotational Jacobian ``J_ω`` of the end-effector frame (3, n), rad/rad, world
+        frame: its angular velocity is ``J_ω q̇``.
 
         Parameters
         ----------
         q : numpy.ndarray
             Joint positions (n,), rad.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``J_ω`` (3, n), rad/rad.
         """
         self._set_q(q)
         return self.plant.CalcJacobianSpatialVelocity(
@@ -464,7 +417,7 @@ class ArmModel:
             self.plant.world_frame(), self.plant.world_frame())[:3]
 
     def phi(self, q: np.ndarray) -> np.ndarray:
-        """The constraint (2), ``φ = N (x − c)`` (m), an m-vector.
+        """The constraint (2), ``φ = N (x − c)`` (m,), m.
 
         Parameters
         ----------
@@ -474,7 +427,7 @@ class ArmModel:
         return self._N @ (self.ee_position(q) - self._c)
 
     def J_phi(self, q: np.ndarray) -> np.ndarray:
-        """Constraint Jacobian ``J_φ = ∂φ/∂q = N J_x`` (m×n).
+        """The constraint Jacobian ``J_φ = ∂φ/∂q = N J_x`` (m, n), m/rad.
 
         Closed form: cached for the last ``q`` (the force observer and the controller evaluate
         it at the same sample of a tick); the caller must not modify the array.
@@ -483,11 +436,6 @@ class ArmModel:
         ----------
         q : numpy.ndarray
             Joint positions (n,), rad.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``J_φ`` (m, n), m/rad.
         """
         if self.closed_form:
             key = np.asarray(q, dtype=float).tobytes()
@@ -497,28 +445,23 @@ class ArmModel:
         return self._N @ self.ee_kinematics(q)[2]
 
     def J_x_dot(self, q: np.ndarray, direction: np.ndarray) -> np.ndarray:
-        """``J̇_x`` along ``direction`` (3×n) from the cached geometric Jacobian, in closed
-        form (module docstring: ``J̇_k = ω_k × J_k + a_k × s_k``); a serial chain only
-        (:attr:`serial_chain`).
+        """``J̇_x`` (3, n), m/(rad·s), along ``direction`` from the cached geometric Jacobian,
+        in closed form (module docstring: ``J̇_k = ω_k × J_k + a_k × s_k``); a serial chain
+        only (:attr:`serial_chain`).
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Joint positions (n,), rad.
-        direction : numpy.ndarray
-            The joint velocities along which to differentiate (n,), rad/s.
-
-        Returns
-        -------
-        numpy.ndarray
-            ``J̇_x`` (3, n), m/(rad·s).
+        q, direction : numpy.ndarray
+            Joint positions (n,), rad, and the joint velocities along which to
+            differentiate (n,), rad/s.
         """
         _, Jw, Jx = self.ee_kinematics(q)
         return jacobian_dot(Jw, Jx, direction)
 
     def J_phi_and_derivative(self, q: np.ndarray, direction: np.ndarray
                              ) -> tuple[np.ndarray, np.ndarray]:
-        """``J_φ(q)`` and its exact directional derivative ``Σ_k ∂J_φ/∂q_k · direction_k``.
+        """``J_φ(q)`` (m, n), m/rad, and its exact directional derivative
+        ``Σ_k ∂J_φ/∂q_k · direction_k`` (m, n), m/(rad·s).
 
         Closed form of the paper's arms (:meth:`Arm.jacobian_dot`) when it applies; else, on a
         serial chain, the closed-form derivative of the cached geometric Jacobian
@@ -527,17 +470,8 @@ class ArmModel:
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Joint positions (n,), rad.
-        direction : numpy.ndarray
-            The joint velocities along which to differentiate (n,), rad/s (``q̇_o`` in (7)).
-
-        Returns
-        -------
-        J_phi : numpy.ndarray
-            ``J_φ`` (m, n), m/rad.
-        J_phi_dot : numpy.ndarray
-            Its directional derivative (m, n), m/(rad·s).
+        q, direction : numpy.ndarray
+            As in :meth:`J_x_dot` (``direction``: ``q̇_o`` in (7)).
         """
         if self.closed_form:
             return (self.J_phi(q),
@@ -548,23 +482,15 @@ class ArmModel:
 
     def J_phi_and_derivative_autodiff(self, q: np.ndarray, direction: np.ndarray
                                       ) -> tuple[np.ndarray, np.ndarray]:
-        """``J_φ(q)`` and its directional derivative by forward-mode AutoDiff of Drake's
-        translational Jacobian, one derivative component seeded with ``direction`` (any
-        tree; the reference the closed form is checked against).
+        """``J_φ(q)`` and its directional derivative, as :meth:`J_phi_and_derivative` returns
+        them, by forward-mode AutoDiff of Drake's translational Jacobian, one derivative
+        component seeded with ``direction`` (any tree; the reference the closed form is
+        checked against).
 
         Parameters
         ----------
-        q : numpy.ndarray
-            Joint positions (n,), rad.
-        direction : numpy.ndarray
-            The joint velocities along which to differentiate (n,), rad/s.
-
-        Returns
-        -------
-        J_phi : numpy.ndarray
-            ``J_φ`` (m, n), m/rad.
-        J_phi_dot : numpy.ndarray
-            Its directional derivative (m, n), m/(rad·s).
+        q, direction : numpy.ndarray
+            As in :meth:`J_x_dot`.
         """
         q_ad = InitializeAutoDiff(np.asarray(q, float), np.asarray(direction, float).reshape(-1, 1))
         self.plant_ad.SetPositions(self.context_ad, q_ad.reshape(-1))

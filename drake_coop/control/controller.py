@@ -217,11 +217,6 @@ class Controller(LeafSystem):
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        int
-            The tick index, or -1.
         """
         return int(context.get_discrete_state(self._tick_state).value()[0])
 

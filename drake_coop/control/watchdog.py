@@ -296,11 +296,6 @@ class Watchdog(LeafSystem):
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        str
-            The reason, or ``''``.
         """
         flags = context.get_discrete_state(self._memory).get_value()
         code = int(flags[0])

@@ -347,12 +347,7 @@ def uses_live_ground_truth(scenario: Scenario) -> bool:
     Parameters
     ----------
     scenario : Scenario
-        The scenario.
-
-    Returns
-    -------
-    bool
-        True when the ground truth runs in the loop.
+        The scenario whose object mode and force sources decide.
     """
     mode = scenario.plant.object_mode
     return mode == "none" or (mode != "contact"

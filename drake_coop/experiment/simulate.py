@@ -83,17 +83,12 @@ class RunResult:
 
 
 def phases(scenario: Scenario) -> list[list]:
-    """``[name, t_start, t_end]`` of the five phases of Section IV.
+    """``[name, t_start, t_end]`` (s) of each of the five phases of Section IV.
 
     Parameters
     ----------
     scenario : Scenario
-        The scenario.
-
-    Returns
-    -------
-    list of list
-        ``[name, t_start, t_end]`` (s) per phase.
+        The scenario whose task times them.
     """
     t = scenario.task
     return [["free", 0.0, t.t_grasp], ["lift", t.t_grasp, t.t_circle_start],

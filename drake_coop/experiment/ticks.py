@@ -25,17 +25,12 @@ MAX_PLANT_STEPS = 20_000_000
 
 def time_grid(scenario: Scenario) -> tuple[float, float]:
     """``(h, dt)``: the scenario's control period and plant step on one exact grid
-    (``h = N dt``, :func:`~drake_coop.control.timing.aligned_periods`).
+    (``h = N dt``, :func:`~drake_coop.control.timing.aligned_periods`), s.
 
     Parameters
     ----------
     scenario : Scenario
-        The scenario.
-
-    Returns
-    -------
-    h, dt : float
-        The control period and the plant step, s.
+        The scenario whose ``control_period`` and ``plant.time_step`` are aligned.
     """
     return aligned_periods(scenario.control_period, scenario.plant.time_step)
 
@@ -45,19 +40,13 @@ def _run_end(scenario: Scenario, t_end: float | None) -> float:
 
 
 def run_size(scenario: Scenario, t_end: float | None = None) -> tuple[int, int]:
-    """Control ticks and plant steps of a run to ``min(t_end, task.t_end)``.
+    """The numbers ``(ticks, steps)`` of control ticks and plant steps of a run to
+    ``min(t_end, task.t_end)``.
 
     Parameters
     ----------
-    scenario : Scenario
-        The scenario.
-    t_end : float or None
-        The run's end, s; None for the task's.
-
-    Returns
-    -------
-    ticks, steps : int
-        The control ticks and plant steps.
+    scenario, t_end
+        As in :func:`check_run_size`.
     """
     h, dt = time_grid(scenario)
     T = _run_end(scenario, t_end)
@@ -71,7 +60,7 @@ def check_run_size(scenario: Scenario, t_end: float | None = None) -> None:
     Parameters
     ----------
     scenario : Scenario
-        The scenario.
+        The run's scenario (its task, control period and plant step).
     t_end : float or None
         The run's end, s; None for the task's.
 

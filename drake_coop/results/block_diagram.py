@@ -147,6 +147,9 @@ def paper_block_diagram(diagram: Diagram) -> str:
     robots = [s.get_name()[:-len("_control")] for s in diagram.GetSystems()
               if _is_control_block(s)]
     systems, edges = _flatten(diagram)
+    # The connection maps' order varies from process to process, and graphviz's layout with
+    # the edges' order: sorted, the drawing is the same on every run.
+    edges.sort(key=lambda e: (e[0].get_name(), e[1].get_name(), e[2]))
     systems = [s for s in systems if type(s).__name__ not in _SKIPPED_TYPES]
     keep = {id(s) for s in systems}
     edges = [(a, b, n) for a, b, n in edges if id(a) in keep and id(b) in keep]
@@ -225,6 +228,11 @@ def paper_block_diagram(diagram: Diagram) -> str:
         elif column[id(a)] > column[id(b)]:
             # Feedback: drawn from its target's side so the loop reads left to right.
             lines.append(f"  {node[id(b)]} -> {node[id(a)]} [dir=back, label=<{text}>];")
+        elif type(a).__name__ == "TrajectorySource" and type(b).__name__ != "Controller":
+            # The reference's other edges (to the force observer) do not pull it into line:
+            # lined up between them, it put a label where the controller ⇄ velocity observer
+            # arrow curves past.
+            lines.append(f"  {node[id(a)]} -> {node[id(b)]} [label=<{text}>, weight=0];")
         else:
             lines.append(f"  {node[id(a)]} -> {node[id(b)]} [label=<{text}>];")
     lines.append("}")

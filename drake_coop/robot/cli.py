@@ -195,17 +195,13 @@ def _make_lcm(url):
 
 
 def cmd_serve(args) -> int:
-    """``drake-coop serve``: see the module's docstring.
+    """``drake-coop serve``'s exit code: 0 done, 1 stopped by the watchdog (or no status), 2 bad
+    input (the command: see the module's docstring).
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line.
-
-    Returns
-    -------
-    int
-        The exit code: 0 done, 1 stopped by the watchdog (or no status), 2 bad input.
     """
     if args.delay_margin is not None and not (0 <= args.delay_margin < 1):
         return _error(f"--delay-margin must be a number in [0, 1) s, got {args.delay_margin}")
@@ -522,17 +518,13 @@ def serve_margin(scenario, served: list[str], given: float | None, quiet: bool =
 
 
 def cmd_sim_driver(args) -> int:
-    """``drake-coop sim-driver``: :func:`drake_coop.robot.sim_driver.cmd_sim_driver`.
+    """``drake-coop sim-driver``'s exit code, from
+    :func:`drake_coop.robot.sim_driver.cmd_sim_driver`.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line.
-
-    Returns
-    -------
-    int
-        The exit code.
     """
     from drake_coop.robot.sim_driver import cmd_sim_driver as run
 

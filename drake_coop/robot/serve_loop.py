@@ -314,18 +314,14 @@ class ServeLoop:
             arm.command_publisher.ForcedPublish(pub_context)
 
     def send_ramped(self, i: int) -> bool:
-        """Arm ``i``'s blended command of tick ``k`` (:class:`~drake_coop.robot.safe_start.
-        StartRamp`), stamped with the wall clock, unless its watchdog has tripped.
+        """Whether arm ``i``'s blended command of tick ``k`` (:class:`~drake_coop.robot.
+        safe_start.StartRamp`) was sent, stamped with the wall clock: False (nothing sent) when
+        its watchdog has tripped.
 
         Parameters
         ----------
         i : int
             The arm's index.
-
-        Returns
-        -------
-        bool
-            False (nothing sent) when the arm's watchdog has tripped.
         """
         wd, wd_context = self._wd[i][0], self._wd[i][1]
         if wd.is_tripped(wd_context):

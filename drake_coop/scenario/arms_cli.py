@@ -85,17 +85,13 @@ def _yaml(name: str) -> str:
 
 
 def cmd_arms(args) -> int:
-    """List the arms (see the module's docstring for the exit codes).
+    """The exit code of ``drake-coop arms`` (as the module's docstring lists them), after listing
+    the arms.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line.
-
-    Returns
-    -------
-    int
-        The process's exit code, as the module's docstring lists them.
     """
     from drake_coop.control.arm_plant import description_packages
     from drake_coop.scenario.description import ROBOTS_EXTRA

@@ -50,17 +50,13 @@ INERTIA_TOL = 1e-6
 
 
 def check_models(scenario: Scenario) -> list[int]:
-    """Check the simulated and the controller's model file of every robot.
+    """The number of joints ``n_i`` of every robot's arm, from checking the simulated and
+    the controller's model file of each.
 
     Parameters
     ----------
     scenario : Scenario
-        The scenario.
-
-    Returns
-    -------
-    list[int]
-        The number of joints ``n_i`` of every robot's arm.
+        The scenario whose robots' model files are read.
 
     Raises
     ------

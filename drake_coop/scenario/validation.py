@@ -355,19 +355,14 @@ def _validate_driver_joints(robot: Robot, n: int, where: str) -> None:
 
 
 def reach_inputs(scenario: Scenario) -> str:
-    """Everything the reachability check reads, as text: the task and each robot's model,
+    """The text of everything the reachability check reads: the task and each robot's model,
     frames, base pose, contact point, normals, orientation reference, IK seed and home
-    (:mod:`drake_coop.scenario.reach`, :mod:`drake_coop.scenario.task_path`).
+    (:mod:`drake_coop.scenario.reach`, :mod:`drake_coop.scenario.task_path`); a cache key.
 
     Parameters
     ----------
     scenario : Scenario
-        The scenario.
-
-    Returns
-    -------
-    str
-        The text (a cache key).
+        The scenario whose task and robots are written out.
     """
     import dataclasses
 

@@ -172,18 +172,14 @@ def _plot_only(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
-    """Run (or resume) a study, or redraw its figures with ``--plot``.
+    """The exit code of ``drake-coop study`` (see the module's docstring: 0 done, 1 a case
+    died or writing failed, 2 bad input, 130/143 interrupted), after running (or resuming) a
+    study, or redrawing its figures with ``--plot``.
 
     Parameters
     ----------
     args : argparse.Namespace
         The parsed command line.
-
-    Returns
-    -------
-    int
-        The exit code (see the module's docstring): 0 done, 1 a case died or writing failed,
-        2 bad input, 130/143 interrupted.
     """
     from drake_coop.studies.folder import StudyFolder, StudyFolderError
 

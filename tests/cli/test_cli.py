@@ -11,7 +11,7 @@ import pytest
 
 from drake_coop.cli import main
 from drake_coop.scenario import dump_scenario
-from tests.conftest import short_scenario, start_paper_run
+from tests.conftest import draw_only, short_scenario, start_paper_run
 
 FIGURES = ["fig2_tracking_errors", "fig3_force_tracking", "fig4_force_estimate",
            "fig5_aux_force_error", "fig6_observation_errors", "fig_force_errors"]
@@ -24,11 +24,9 @@ def _write(tmp_path, scenario, name="scenario.yaml"):
 
 
 @pytest.fixture(scope="module")
-def short_run_dir(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("run")
-    path = _write(tmp, short_scenario("planes", 0.003))
-    out = tmp / "out"
-    code = main(["run", str(path), "--out", str(out), "--quiet"])
+def short_run_dir(short_run_folder):
+    """The session's short run (:func:`tests.conftest.short_run_folder`): exit code, folder."""
+    code, _, _, _, out = short_run_folder
     return code, out
 
 
@@ -74,7 +72,10 @@ def test_bad_scenario_exits_2_with_one_line_naming_the_field(tmp_path, capsys):
     assert err.count("\n") == 0 and "plant.time_step" in err and "Traceback" not in err
 
 
-def test_diverging_run_exits_1_and_keeps_what_it_logged(tmp_path, capsys):
+def test_diverging_run_exits_1_and_keeps_what_it_logged(tmp_path, capsys, monkeypatch):
+    """The logs, run.json and a figure are still written (only the figure checked is drawn:
+    :func:`tests.conftest.draw_only`)."""
+    draw_only(monkeypatch, "fig3_force_tracking")
     s = short_scenario("none", 0.003)
     for r in s.robots:
         r.gains.K_R = [3000.0] * 3

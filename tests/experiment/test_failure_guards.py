@@ -140,14 +140,17 @@ def test_a_bad_guard_field_is_refused_in_one_line(field, value, text):
     assert text in str(err.value) and "\n" not in str(err.value)
 
 
-def test_a_run_whose_pads_leave_their_path_fails_exits_1_and_keeps_its_logs(tmp_path, capsys):
+def test_a_run_whose_pads_leave_their_path_fails_exits_1_and_keeps_its_logs(tmp_path, capsys,
+                                                                           monkeypatch):
     """The paper's arms, no object, each with an unknown 10 kg payload: they sag, and the run
     stops failed within a guard chunk of a pad passing 20 mm, exit 1, one line; logs,
-    run.json and figures written. The squeeze is not checked without an object."""
+    run.json and figures written (only the figure checked is drawn:
+    :func:`tests.conftest.draw_only`). The squeeze is not checked without an object."""
     from drake_coop.cli import main
     from drake_coop.scenario import dump_scenario
-    from tests.conftest import short_scenario
+    from tests.conftest import draw_only, short_scenario
 
+    draw_only(monkeypatch, "fig2_tracking_errors")
     s = short_scenario("none", 0.003)
     for r in s.robots:
         r.model_error.payload_mass = 10.0

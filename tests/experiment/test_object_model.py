@@ -269,8 +269,7 @@ def test_a_short_shared_contact_run_against_the_plant():
     validate(s)
     result = simulate(s, t_end=5.0)
     assert result.ok
-    from drake_coop.experiment.diagram import build_experiment
-    coop = build_experiment(plan_run(s), log=False).coop
+    coop = result.experiment.coop              # the plant that ran (not built a second time)
     plant = coop.plant
     box = coop.grasp.box
     m_true = box.default_mass() if hasattr(box, "default_mass") else box.get_default_mass()

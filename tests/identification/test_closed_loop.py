@@ -71,14 +71,23 @@ def test_model_dynamics_of_the_true_parameters_are_drakes_dynamics_of_the_arm():
                                    rtol=1e-9, atol=1e-9)
 
 
-def test_the_simulated_closed_loop_follows_drakes_simulation_of_the_experiment():
+@pytest.fixture(scope="module")
+def paper_two_seconds():
+    """Robot 1 of paper.yaml identified from 2 s of excitation (the MAP estimate) and its
+    closed loop: ``(identification, loop)``, computed once for the tests that read them
+    (none changes them)."""
+    sc = load_scenario("scenarios/paper.yaml")
+    ident = identify_robot(sc, 0, 2.0)
+    return ident, closed_loop(sc, 0, ident.excitation, _nominal(sc, 0), ident.data)
+
+
+def test_the_simulated_closed_loop_follows_drakes_simulation_of_the_experiment(
+        paper_two_seconds):
     """The instruments' closed loop (true parameters, the experiment's law, gains and
     feedforward) against the recorded experiment on Drake's discrete plant with ideal
     encoders: same positions within 2e-4 rad, same commanded torques within 1 % of their
     range (different integrators: semi-implicit Euler against SAP)."""
-    sc = load_scenario("scenarios/paper.yaml")
-    ident = identify_robot(sc, 0, 2.0)
-    loop = closed_loop(sc, 0, ident.excitation, _nominal(sc, 0), ident.data)
+    ident, loop = paper_two_seconds
     sim = simulate_tracking(ModelDynamics(ident.structure, ident.theta_true), loop.q_d,
                             loop.v_d, loop.feedforward, loop.kp, loop.kv, loop.h,
                             loop.substeps, loop.torque_limits, loop.encoder_delay)
@@ -94,17 +103,15 @@ def _nominal(sc, i):
     return controller_arm_model(Arm(sc.robots[i], sc.task), sc.robots[i].model_error)
 
 
-def test_didim_on_noiseless_closed_loop_data_finds_the_exact_torques():
+def test_didim_on_noiseless_closed_loop_data_finds_the_exact_torques(paper_two_seconds):
     """Data of the model's own closed loop (true parameters, no noise, no filter): DIDIM
     started from a 30 % heavy model converges (the simulated torques change by < 1e-8) to
     parameters whose torques along the trajectory are the truth's within 1e-4 of their RMS,
     and on 50 random states within 1e-3 (measured 7.7e-5: directions a 2 s trajectory hardly
     excites, and the pseudo-inertia margin ``PSD_MARGIN``), where the MAP estimate from the
     filtered measurements of the same 2 s is 2.7e-2 off (test below)."""
-    sc = load_scenario("scenarios/paper.yaml")
-    ident = identify_robot(sc, 0, 2.0)
+    ident, loop = paper_two_seconds
     s = ident.structure
-    loop = closed_loop(sc, 0, ident.excitation, _nominal(sc, 0), ident.data)
     theta_true = ident.theta_true
     truth = simulate_tracking(ModelDynamics(s, theta_true), loop.q_d, loop.v_d,
                               loop.feedforward, loop.kp, loop.kv, loop.h, loop.substeps)
@@ -182,15 +189,13 @@ def test_idim_iv_from_ten_seconds_matches_the_truth():
     assert len(ident.estimate.history) >= 2
 
 
-def test_a_failed_iteration_keeps_the_last_solved_iterate(monkeypatch):
+def test_a_failed_iteration_keeps_the_last_solved_iterate(monkeypatch, paper_two_seconds):
     """When the solver fails on an iteration's program, DIDIM stops with the previous
     iterate (here the second program fails: the estimate is the first DIDIM iterate, the
     same as a run limited to one iteration) and says why."""
     import drake_coop.identification.instrumental as instrumental
 
-    sc = load_scenario("scenarios/paper.yaml")
-    ident = identify_robot(sc, 0, 2.0)
-    loop = closed_loop(sc, 0, ident.excitation, _nominal(sc, 0), ident.data)
+    ident, loop = paper_two_seconds
     reg = Regressor(ident.structure)
     one = estimate_parameters_didim(reg, ident.data.tau, ident.theta_nominal, loop,
                                     iterations=1, start=ident.estimate)

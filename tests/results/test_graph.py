@@ -225,13 +225,83 @@ def _overlapping(boxes) -> list[tuple[str, str]]:
             and ax0 < bx1 and bx0 < ax1 and ay0 < by1 and by0 < ay1]
 
 
+def _edge_points(svg: str, samples: int = 40) -> list[tuple[str, np.ndarray]]:
+    """(edge title, points in points) along every edge path of a graphviz SVG: its cubic
+    Bézier pieces (``M p0 C p1 p2 p3 p4 p5 p6 …``) sampled at ``samples`` points each."""
+    import xml.etree.ElementTree as ET
+
+    ns = "{http://www.w3.org/2000/svg}"
+    t = np.linspace(0.0, 1.0, samples)[:, None]
+    paths = []
+    for group in ET.fromstring(svg).iter(f"{ns}g"):
+        if group.get("class") != "edge":
+            continue
+        for path in group.findall(f"{ns}path"):
+            p = np.array([float(v) for v in re.findall(r"-?\d+(?:\.\d+)?", path.get("d"))])
+            p = p.reshape(-1, 2)
+            pieces = [(1 - t) ** 3 * p[i] + 3 * (1 - t) ** 2 * t * p[i + 1]
+                      + 3 * (1 - t) * t ** 2 * p[i + 2] + t ** 3 * p[i + 3]
+                      for i in range(0, len(p) - 3, 3)]
+            paths.append((group.find(f"{ns}title").text, np.vstack(pieces)))
+    return paths
+
+
+def _edges_through_labels(svg: str, margin: float = 0.6) -> list[tuple[str, str]]:
+    """(edge, text) pairs where an edge runs through a text: a point of the edge more than
+    ``margin`` em inside the text's box from its left and its right end. Graphviz puts an
+    edge's label against its edge at Helvetica's widths; measured in the wider DejaVu Sans a
+    label may reach over its edge by a character (0.6 em), not more."""
+    found, boxes = [], _text_boxes(svg)
+    for edge, points in _edge_points(svg):
+        for _, text, (x0, y0, x1, y1) in boxes:
+            m = margin * (y1 - y0)                       # the box is 1 em high
+            x, y = points[:, 0], points[:, 1]
+            if np.any((x > x0 + m) & (x < x1 - m) & (y > y0) & (y < y1)):
+                found.append((edge, text))
+    return found
+
+
+#: An edge of the paper's block diagram as the generator drew it before its labels were
+#: fixed (graphviz 2.43's SVG, ``drake-coop diagram``): the controller ⇄ velocity observer
+#: double arrow, one label for both directions mid-way on the curve, each ``<SUB>`` index a
+#: text element of its own.
+_OLD_DOUBLE_ARROW = """<svg xmlns="http://www.w3.org/2000/svg"><g class="edge">
+<title>n1&#45;&gt;n3</title>
+<path fill="none" stroke="black" d="M265.68,-287.05C223.96,-292.92 173.97,-307.93 147,-345 \
+107.52,-399.27 216.68,-428.13 285.02,-440.5"/>
+<text text-anchor="start" x="123" y="-356.8" font-size="9.00">q̂, dq̂/dt, q̇</text>
+<text text-anchor="start" x="172" y="-356.8" baseline-shift="sub" font-size="9.00">o</text>
+<text text-anchor="start" x="177" y="-356.8" font-size="9.00"> to the controller</text>
+<text text-anchor="start" x="127.5" y="-347.8" font-size="9.00">q̈̂</text>
+<text text-anchor="start" x="134.5" y="-347.8" baseline-shift="sub" font-size="9.00">r</text>
+<text text-anchor="start" x="138.5" y="-347.8" font-size="9.00"> to the velocity observer</text>
+</g></svg>"""
+
+
+def test_the_label_checks_find_the_old_drawings_defects():
+    """The checks of the block diagram's labels fail on what the generator drew before its
+    labels were fixed: the double arrow's line through its own label, and texts that
+    overlap (two labels at one place, two pieces of one line)."""
+    crossed = _edges_through_labels(_OLD_DOUBLE_ARROW)
+    assert {text for _, text in crossed} == {"q̂, dq̂/dt, q̇", " to the velocity observer"}
+    assert len(_text_boxes(_OLD_DOUBLE_ARROW)) == 6
+    # a label touching its edge at one end is graphviz's placement, not a crossing
+    touching = _OLD_DOUBLE_ARROW.split("<text")[0] + (   # its right end 2 pt over the line
+        '<text text-anchor="start" x="126.5" y="-356.8" font-size="9.00">q, q̇</text></g></svg>')
+    assert not _edges_through_labels(touching)
+    assert _edges_through_labels(touching, margin=0.0) == [("n1->n3", "q, q̇")]
+    assert _overlapping([("a", "desired q", (0, 0, 40, 9)), ("b", "q̈̂ᵣ", (35, 5, 45, 14))])
+    assert _overlapping([("e", "q̇", (0, 0, 10, 9)), ("e", "o", (8, 0, 14, 9))])
+
+
 @pytest.mark.skipif(shutil.which("dot") is None, reason="graphviz's dot is not installed")
 def test_paper_block_diagrams_labels_do_not_overlap():
     """The docs index's diagram: edge labels are one text element per line (graphviz places
     a ``<SUB>`` as a text element of its own, at its own font's widths, which a browser's
-    wider font pushes over its neighbours), and no two text boxes of the rendered SVG
-    overlap, measured in a wider font. (That no edge runs through a label — the controller
-    ⇄ velocity observer label did — is checked by eye on the rendered diagram.)"""
+    wider font pushes over its neighbours), no two text boxes of the rendered SVG overlap,
+    and no edge runs through a text, measured in a wider font
+    (:func:`test_the_label_checks_find_the_old_drawings_defects`: the checks fail on the
+    drawing before its labels were fixed)."""
     from drake_coop.experiment.diagram import build_experiment
     from drake_coop.experiment.plan import plan_run
     from drake_coop.results.block_diagram import paper_block_diagram
@@ -244,6 +314,5 @@ def test_paper_block_diagrams_labels_do_not_overlap():
     boxes = _text_boxes(svg)
     assert len(boxes) > 40 and any("q̈̂ᵣ" in text for _, text, _ in boxes)
     assert not _overlapping(boxes)
-    # the check sees an overlap: two labels written at one place
-    assert _overlapping([("a", "desired q", (0, 0, 40, 9)), ("b", "q̈̂ᵣ", (35, 5, 45, 14))])
-    assert _overlapping([("e", "q̇", (0, 0, 10, 9)), ("e", "o", (8, 0, 14, 9))])
+    assert len(_edge_points(svg)) > 20
+    assert not _edges_through_labels(svg)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -14,7 +13,7 @@ from drake_coop.results import compute_metrics, save_logs
 from drake_coop.results.run_folder import OutputFolderError, RunFolder
 from drake_coop.results.summary import sanity_warnings, summary_lines
 from drake_coop.scenario import dump_scenario
-from tests.conftest import short_scenario
+from tests.conftest import draw_only, short_scenario
 from tests.results.test_io import SINE_AMPLITUDE, Y_OFFSET, Z_OBS, synthetic_run
 
 # ---------------------------------------------------------------- the summary table
@@ -93,14 +92,11 @@ def test_each_constraint_row_is_checked_on_its_own():
 
 
 @pytest.fixture(scope="module")
-def short_run(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("summary")
-    path = tmp / "s.yaml"
-    path.write_text(dump_scenario(short_scenario("planes", 0.003)))
-    out = tmp / "out"
-    proc = subprocess.run([sys.executable, "-m", "drake_coop", "run", str(path), "--out",
-                           str(out), "--quiet", "--no-replay"], capture_output=True, text=True)
-    return proc, path, out
+def short_run(short_run_folder):
+    """The session's short run (:func:`tests.conftest.short_run_folder`, the same command in
+    this process): its exit code and output streams, scenario and folder."""
+    code, stdout, stderr, path, out = short_run_folder
+    return subprocess.CompletedProcess([], code, stdout, stderr), path, out
 
 
 def test_run_prints_the_summary_even_when_quiet(short_run):
@@ -126,7 +122,10 @@ def test_run_over_a_previous_run_needs_force_and_keeps_it(short_run, capsys, mon
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
-def test_force_replaces_a_previous_run(tmp_path, capsys):
+def test_force_replaces_a_previous_run(tmp_path, capsys, monkeypatch):
+    """(Of the figures only one is drawn, :func:`tests.conftest.draw_only`: this checks the
+    folder's replacement, not the figures.)"""
+    draw_only(monkeypatch, "fig2_tracking_errors")
     out = tmp_path / "o"
     logs, meta = synthetic_run(t_end=0.09)
     save_logs(out, logs, meta)

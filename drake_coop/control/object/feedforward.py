@@ -163,19 +163,13 @@ class LoadFeedforward(LeafSystem):
         return self._f_out
 
     def load(self, context: Context) -> tuple[np.ndarray, np.ndarray]:
-        """``(τ_ff, f_i)`` at the current inputs (what a tick latches).
+        """``(τ_ff, f_i)`` at the current inputs (what a tick latches): the feed-forward torque
+        (n,), N·m, and the load the arm applies to the object (3,), N, world frame.
 
         Parameters
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        tau_ff : numpy.ndarray
-            The feed-forward torque (n,), N·m.
-        f : numpy.ndarray
-            The load ``f_i`` the arm applies to the object (3,), N, world frame.
         """
         reference = self._reference.Eval(context)
         if not self._layout.held(reference):

@@ -218,17 +218,12 @@ class ObjectStateEstimator(LeafSystem):
 
     # ----------------------------------------------------------------- ports
     def get_mass_share_input_port(self, i: int) -> InputPort:
-        """Arm ``i``'s share ``m̂_i``.
+        """The port of arm ``i``'s share ``m̂_i`` (1,), kg.
 
         Parameters
         ----------
         i : int
             The arm's index.
-
-        Returns
-        -------
-        InputPort
-            The port (1,), kg.
         """
         return self._mass_in[i]
 
@@ -270,19 +265,12 @@ class ObjectStateEstimator(LeafSystem):
 
     # ----------------------------------------------------------------- math
     def estimate(self, context: Context) -> tuple[float, np.ndarray]:
-        """``(m̂, ĉ)`` from the shares at the current inputs.
+        """``(m̂, ĉ)`` from the shares at the current inputs: kg, and (3,), m, world frame.
 
         Parameters
         ----------
         context : Context
             This system's context.
-
-        Returns
-        -------
-        m_hat : float
-            ``m̂``, kg.
-        c_hat : numpy.ndarray
-            ``ĉ`` (3,), m, world frame.
         """
         shares = np.array([float(p.Eval(context)[0]) for p in self._mass_in])
         return self.combine(shares)
