@@ -112,10 +112,12 @@ def placement(name: str, folder: Path) -> tuple[tuple[float, float] | None, str]
     return None, last
 
 
-def run_row(key: str, out: Path, squeeze: str | None = None) -> dict:
+def run_row(key: str, out: Path, squeeze: str | None = None,
+            past_refusal: bool = False) -> dict:
     """One row: the placement, the gains and their checks, the run (module docstring);
     ``squeeze`` (``profile`` or ``friction``) sets ``object_model.squeeze`` (None: the
-    how-to's default)."""
+    how-to's default); ``past_refusal`` runs the derived gains even when ``gains`` refuses
+    them (the refusal is kept beside the run as ``refused_by``: what the run says of it)."""
     from bench.lab_arms_object import contact_scenario
     from bench.unseen_arms import measure_with_lift
     from drake_coop.scenario.loading import dump_scenario
@@ -153,8 +155,10 @@ def run_row(key: str, out: Path, squeeze: str | None = None) -> dict:
                                 "Lambda": d.gains.Lambda, "xi": d.gains.xi}
                        for d in report.robots}}
         if not report.stable:
-            case["refusal"] = f"drake-coop gains: {report.refusal}"
-            return case
+            if not past_refusal:
+                case["refusal"] = f"drake-coop gains: {report.refusal}"
+                return case
+            case["refused_by"] = f"drake-coop gains: {report.refusal}"
         path.write_text(dump_scenario(gains_for_scenario(scenario, report.robots)))
         scenario = contact_scenario(str(path), squeeze=squeeze)
     finally:
@@ -249,7 +253,7 @@ def table(data: dict) -> str:
              "| slips | mass at the lift's end (%) | bars (0.3 N, 0.5 mm, 0 slips) |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     for key in sorted(data["cases"], key=lambda k: (k == "mixed", k)):
-        if key.endswith("@buckling"):
+        if key.endswith(("@buckling", "@past")):
             continue
         case = data["cases"][key]
         arms = " + ".join(case.get("arms", [key]))
@@ -296,6 +300,9 @@ def main(argv=None) -> int:
     parser.add_argument("--squeeze", choices=("profile", "friction"),
                         help="the object model's squeeze source (the row is stored as "
                              "ROW@sq<squeeze>)")
+    parser.add_argument("--past-refusal", action="store_true",
+                        help="run the derived gains even when gains refuses them, to test "
+                             "the refusal (the row is stored as ROW@past)")
     parser.add_argument("--buckling", action="store_true",
                         help="instead of the rows: the buckling bound against the simulated "
                              "truth on each named pair (:func:`buckling`), under ROW@buckling")
@@ -319,17 +326,19 @@ def main(argv=None) -> int:
         return 0
     if not args.table:
         for row in rows:
-            key = row + (f"@sq{args.squeeze}" if args.squeeze else "")
+            key = (row + (f"@sq{args.squeeze}" if args.squeeze else "")
+                   + ("@past" if args.past_refusal else ""))
             done = json.loads(out.read_text())["cases"] if out.exists() else {}
             if key in done and not args.force:
                 print(f"{key}: in {out}, skipped (--force runs it again)", flush=True)
                 continue
             wall, cpu = time.perf_counter(), time.process_time()
-            case = run_row(row, out, args.squeeze)
+            case = run_row(row, out, args.squeeze, args.past_refusal)
             case["cpu_seconds_row"] = round(time.process_time() - cpu, 1)
             case["wall_seconds_row"] = round(time.perf_counter() - wall, 1)
             case["command"] = (f"python -m bench.every_arm {row} --out {args.out}"
-                               + (f" --squeeze {args.squeeze}" if args.squeeze else ""))
+                               + (f" --squeeze {args.squeeze}" if args.squeeze else "")
+                               + (" --past-refusal" if args.past_refusal else ""))
             case["drake"] = version("drake")
             case["cpu"] = _cpu_name()
             if args.squeeze:
