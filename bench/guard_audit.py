@@ -19,6 +19,9 @@ Files read:
   stops at the trip, so its numbers after it would not exist);
 * every shipped study case file (``docs/figures/studies/*_cases/*.json``, each phase of its
   ``metrics``): the same rewrite of its ``status`` and ``message``;
+* every benchmark row in ``docs/results/*.json`` that says ``ok`` or ``completed`` and keeps
+  its circle's maxima per robot (``object_tilt_max``, ``object_position_error_max``: the rows
+  of :func:`bench.lab_arms_object.measure`): listed, to be run again (none is today);
 * every shipped run's ``docs/figures/run_results/*/metrics.json`` (each phase): there is no
   status to rewrite; a run past a guard is listed, and its page must say so
   (:data:`FAILED_RUNS` names those whose pages do).
@@ -42,6 +45,8 @@ STUDY_RESULTS = "docs/figures/studies/*_results.csv"
 STUDY_CASES = "docs/figures/studies/*_cases/*.json"
 #: The committed single runs' metrics.
 RUN_METRICS = "docs/figures/run_results/*/metrics.json"
+#: The committed benchmark results (rows of :func:`bench.lab_arms_object.measure`).
+BENCH_RESULTS = "docs/results/*.json"
 #: Shipped runs that a guard now stops, each with its page (which says so); the test
 #: ``tests/test_committed_results_guards.py`` holds the list to the files.
 FAILED_RUNS = {"heavy_none": "docs/claims/object_carry.md"}
@@ -134,6 +139,44 @@ def audit_metrics(metrics: dict) -> list:
     return out
 
 
+def audit_bench(data) -> list:
+    """A benchmark results file: ``(path in the file, Failure)`` of each row that says ``ok``
+    or ``completed`` while its circle's maxima pass a guard.
+
+    Parameters
+    ----------
+    data : dict or list
+        The file's JSON.
+
+    Returns
+    -------
+    list of tuple
+        ``(dotted path of the row, Failure)``.
+    """
+    from drake_coop.experiment.failure import summary_failure
+    from drake_coop.scenario.schema import Guards
+
+    out = []
+
+    def walk(node, path):
+        if isinstance(node, dict):
+            robots = node.get("robots")
+            if node.get("status") in ("ok", "completed") and isinstance(robots, dict):
+                maxima = {name: {e: r[f"{e}_max"] for e in _ERRORS[2:] if f"{e}_max" in r}
+                          for name, r in robots.items() if isinstance(r, dict)}
+                failure = summary_failure(maxima, Guards(), "circle")
+                if failure is not None:
+                    out.append((".".join(path), failure))
+            for key, value in node.items():
+                walk(value, [*path, str(key)])
+        elif isinstance(node, list):
+            for k, value in enumerate(node):
+                walk(value, [*path, str(k)])
+
+    walk(data, [])
+    return out
+
+
 def rewrite(path: Path, header: list[str], rows: list[dict], failures: list,
             phase: str = "circle") -> None:
     """Write ``path`` again with each failing row's status ``failed`` and its message.
@@ -200,6 +243,10 @@ def main(argv=None) -> int:
                 path.write_text(json.dumps(record, indent=1, allow_nan=False) + "\n")
             else:
                 left += 1
+    for path in sorted(ROOT.glob(BENCH_RESULTS)):
+        for where, failure in audit_bench(json.loads(path.read_text())):
+            print(f"{path.relative_to(ROOT)} {where}: ok, but {failure.who} {failure.text}")
+            left += 1
     for path in sorted(ROOT.glob(RUN_METRICS)):
         for phase, failure in audit_metrics(json.loads(path.read_text())):
             name = path.parent.name

@@ -25,6 +25,18 @@ def test_no_committed_study_case_file_says_ok_past_a_guard():
             assert not guard_audit.audit_metrics(record.get("metrics") or {}), path.name
 
 
+def test_no_committed_benchmark_row_says_ok_past_a_guard():
+    for path in sorted(guard_audit.ROOT.glob(guard_audit.BENCH_RESULTS)):
+        assert not guard_audit.audit_bench(json.loads(path.read_text())), path.name
+
+
+def test_the_benchmark_audit_sees_a_tilted_box_in_an_ok_row():
+    row = {"status": "ok", "robots": {"a": {"object_tilt_max": math.radians(12.0),
+                                            "object_position_error_max": 0.001}}}
+    found = guard_audit.audit_bench({"cases": {"ur3": row, "x": {**row, "status": "failed"}}})
+    assert [(where, f.guard) for where, f in found] == [("cases.ur3", "max_object_tilt_deg")]
+
+
 def test_a_shipped_run_past_a_guard_is_said_so_on_its_page():
     """Each run listed as past a guard is in FAILED_RUNS, whose page names the guard."""
     past = {p.parent.name for p in guard_audit.ROOT.glob(guard_audit.RUN_METRICS)
