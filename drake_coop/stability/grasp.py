@@ -39,8 +39,9 @@ It does not predict, on its own, which grasps hold: measured on the lab-arms gui
 (``docs/results/every_arm.json``, each run through the whole circle past ``gains``), the worst
 ``λ_d / λ_b`` of grasps that held was about 0.05 (UR5s), 0.46 (Pandas), 0.48 (UR10s), 0.99 (UR5 +
 Z1), 1.29 (Jaco2s at the friction squeeze) and 2.26 (xArm7s), and of grasps that were lost
-0.85 (UR3s: the pads sway vertically in opposite directions, joints 2–4, 3.5 s into the
-circle), 1.94 (Z1s) and 5.5 (Jaco2s). No threshold on the ratio separates the two sets; every
+0.85 (UR3s: the pads began to sway vertically in opposite directions, joints 2–4 of both
+arms growing at about 3 1/s without oscillating, 2.4 s into the circle at ``λ_d ≈ 42 N = 0.70
+λ_b``), 1.94 (Z1s) and 5.5 (Jaco2s). No threshold on the ratio separates the two sets; every
 threshold in (1.29, 1.94] misclassifies the fewest, two (the xArm7s refused though they carry,
 the UR3s passed though they lose the box). :func:`check_grasp_buckling` refuses a task whose
 ``λ_d`` exceeds :data:`GRASP_MARGIN` ``× λ_b`` at a held tick, with ``GRASP_MARGIN`` in that
