@@ -265,7 +265,7 @@ def table(data: dict) -> str:
     lines = ["| arms | squeeze error RMS (N) | box position error RMS (mm) | box tilt RMS (mrad) "
              "| slips | mass at the lift's end (%) | bars (0.3 N, 0.5 mm, 0 slips) |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
-    for key in sorted(data["cases"], key=lambda k: (k == "mixed", k)):
+    for key in sorted(data["cases"], key=lambda k: (k.split("@")[0] == "mixed", k)):
         if key.endswith(("@buckling", "@past")):
             continue
         case = data["cases"][key]
