@@ -273,9 +273,13 @@ def check_grasp_buckling(scenario, plan=None, step: float = 0.1,
                        f"{margin:g}")
     else:
         soft = "; ".join(f"{name}: {', '.join(js)}" for name, js in out.joints.items())
+        lower = ("the friction squeeze is the least that holds the box: a lighter box or a "
+                 "higher friction, plant.object_mass, plant.friction"
+                 if (scenario.object_model.mode != "none"
+                     and scenario.object_model.squeeze == "friction") else
+                 "task.force_mean, force_amplitude; object_model.squeeze: friction")
         out.message = (f"grasp buckling: the squeeze buckles the grasp {where}, ratio "
                        f"{ratio:.3g} > {margin:g}: keep the squeeze below "
-                       f"{out.min_lambda_b * margin:.3g} N (task."
-                       f"force_mean, force_amplitude; object_model.squeeze: friction), widen "
+                       f"{out.min_lambda_b * margin:.3g} N ({lower}), widen "
                        f"the grasp or stiffen the arms across it (K_R x Lambda of {soft})")
     return out
