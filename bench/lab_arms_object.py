@@ -74,7 +74,8 @@ def measure(scenario) -> dict:
     result = simulate(scenario, t_end=task.t_circle_end + 1.0)
     cpu = time.process_time() - start
     metrics = compute_metrics(result.logs, result.meta)
-    out: dict = {"status": result.meta["status"], "cpu_seconds": round(cpu, 1), "robots": {}}
+    out: dict = {"status": result.meta["status"], "message": result.meta.get("message", ""),
+                 "cpu_seconds": round(cpu, 1), "robots": {}}
     mass = float(scenario.plant.object_mass)
     for robot, log in result.logs.items():
         circle = metrics[robot]["circle"]

@@ -47,8 +47,8 @@ from drake_coop.kinematics.rotations import pad_contact_components, quaternion_r
 from drake_coop.scenario.schema import Guards
 
 __all__ = ["CONTACT_FORCE", "REST_HEIGHT", "SETTLE_TIME", "SQUEEZE_SETTLE", "Failure",
-           "FailureCheck", "GraspSample", "failure_check", "first_failure_in_logs",
-           "plant_sample", "tilt_about_line"]
+           "FailureCheck", "GraspSample", "SUMMARY_PHASES", "failure_check",
+           "first_failure_in_logs", "plant_sample", "summary_failure", "tilt_about_line"]
 
 #: A pad presses on the box when its normal force is at least this (N); as the ``drops``
 #: metric's.
@@ -503,3 +503,60 @@ def plant_sample(exp, context, forces: list | None) -> GraspSample:
         pose = np.concatenate([X.rotation().ToQuaternion().wxyz(), X.translation()])
     return GraspSample(t, x, x_d, lam if lam else None, lam_d if lam_d else None, pose,
                        None if pose is None else list(forces))
+
+
+#: The metrics' phases whose samples each guard reads: the pads' path the whole run, the
+#: squeeze from :data:`SQUEEZE_SETTLE` after the grasp (the circle and the put-down lie past
+#: it; the lift starts at the grasp), the box while held.
+SUMMARY_PHASES = {"max_pad_error": ("free", "lift", "circle", "put_down", "return"),
+                  "max_squeeze_error": ("circle", "put_down"),
+                  "max_object_tilt_deg": ("lift", "circle", "put_down"),
+                  "max_object_position_error": ("lift", "circle", "put_down")}
+
+
+def summary_failure(maxima: dict, guards: Guards, phase: str) -> Failure | None:
+    """The first guard that a phase's logged maxima prove tripped, without the logs.
+
+    A run's summary (a study's ``results.csv`` row, a ``metrics.json``) keeps each error's
+    largest value per phase; where that value is beyond a guard's bound and the guard reads
+    that phase (:data:`SUMMARY_PHASES`), the run would now end ``failed``. The pad's error is
+    summarised by its worst axis, ``max_j |x_j − x_d,j| ≤ ‖x − x_d‖``, so a worst axis beyond
+    ``max_pad_error`` proves the trip (a norm beyond it with every axis within is not seen
+    here). The time of the failure is not known (``t`` is NaN).
+
+    Parameters
+    ----------
+    maxima : dict
+        Per robot name, ``{error: largest value in the phase}`` with any of
+        ``position_error`` (worst axis, m), ``force_error`` (``‖λ − λ_d‖``, N),
+        ``object_tilt`` (rad) and ``object_position_error`` (m); missing ones are skipped.
+    guards : Guards
+        The bounds.
+    phase : str
+        The metrics' phase (``free``, ``lift``, ``circle``, ``put_down``, ``return``).
+
+    Returns
+    -------
+    Failure or None
+        The first guard proven tripped (robots in order: pad, squeeze, then the box), or None.
+    """
+    nan = float("nan")
+    g = guards
+    for name, m in maxima.items():
+        e = m.get("position_error")
+        if e is not None and phase in SUMMARY_PHASES["max_pad_error"] and e > g.max_pad_error:
+            return _pad_failure(g, name, nan, float(e))
+        e = m.get("force_error")
+        if (e is not None and phase in SUMMARY_PHASES["max_squeeze_error"]
+                and e > g.max_squeeze_error):
+            return _squeeze_failure(g, name, nan, float(e))
+    for m in maxima.values():
+        tilt = m.get("object_tilt")
+        if (tilt is not None and phase in SUMMARY_PHASES["max_object_tilt_deg"]
+                and math.degrees(tilt) > g.max_object_tilt_deg):
+            return _tilt_failure(g, nan, math.degrees(float(tilt)))
+        e = m.get("object_position_error")
+        if (e is not None and phase in SUMMARY_PHASES["max_object_position_error"]
+                and e > g.max_object_position_error):
+            return _position_failure(g, nan, float(e))
+    return None

@@ -53,6 +53,7 @@ from drake_coop.scenario.schema import Scenario
 from drake_coop.stability.task_check import map_copy
 
 __all__ = ["DerivedGains", "GainsReport", "check_gains_map", "derive_and_check", "derive_gains",
+           "map_failure_reason",
            "derive_robot_gains", "gains_for_scenario", "task_postures"]
 
 #: Target ``h K_R,j / J_j`` (half the single-joint bound 2).
@@ -264,7 +265,8 @@ def derive_gains(scenario: Scenario, kappa: float = KAPPA,
 
 
 def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
-                    progress: Callable[[str], None] = lambda m: None) -> dict[str, float]:
+                    progress: Callable[[str], None] = lambda m: None,
+                    why: dict | None = None) -> dict[str, float]:
     """ρ of the one-period map of ``scenario`` at the free and held operating points.
 
     Parameters
@@ -275,11 +277,14 @@ def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
         The central differences' step.
     progress : Callable[[str], None]
         Receives one line per step.
+    why : dict or None
+        When given, receives per operating point whose ρ is not below 1 one phrase saying
+        why (:func:`map_failure_reason`).
 
     Returns
     -------
     dict of str to float
-        ρ per operating point.
+        ρ per operating point (``inf`` where the map's equilibrium was not found).
     """
     from drake_coop.stability.operating import operating_point
     from drake_coop.stability.period_map import analyse
@@ -289,8 +294,37 @@ def check_gains_map(scenario: Scenario, epsilon: float = 1e-5,
         start = time.perf_counter()
         report = analyse(operating_point(scenario, point).map, epsilon=epsilon)
         rho[point] = float(report.rho) if report.residual <= 1e-6 else math.inf
+        if why is not None and rho[point] >= 1.0:
+            why[point] = map_failure_reason(report)
         progress(f"  {point}: rho = {rho[point]:.6g} ({time.perf_counter() - start:.1f} s)")
     return rho
+
+
+def map_failure_reason(report) -> str:
+    """Why a map's ρ is not below 1, in one phrase: its equilibrium not found (Newton's
+    residual), or its slowest mode (its eigenvalue and the state entries it lives in).
+
+    Parameters
+    ----------
+    report : MapReport
+        :func:`~drake_coop.stability.period_map.analyse`'s report.
+
+    Returns
+    -------
+    str
+        E.g. ``slowest mode mu = 2.36 (real: diverges without oscillating) in
+        so101_2::wrist_roll_w, ...``.
+    """
+    if report.residual > 1e-6:
+        return (f"no steady state of the loop found there (the one-period map's fixed point: "
+                f"residual {report.residual:.3g} > 1e-06), so no rho")
+    mode = report.slowest
+    if mode is None:
+        return f"rho {report.rho:.4g}"
+    kind = ("real: diverges without oscillating" if abs(complex(mode.mu).imag) < 1e-12
+            else f"oscillating at {mode.frequency_hz:.3g} Hz")
+    where = ", ".join(label.split(":", 1)[-1] for label in mode.dominant)
+    return f"slowest mode |mu| = {mode.magnitude:.3g} ({kind}) in {where}"
 
 
 def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 1e-5,
@@ -323,7 +357,8 @@ def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 
         progress(f"attempt {attempt}: kappa = h K_R / J = {kappa:.3g}")
         derived = derive_gains(target, kappa, progress)
         progress("stability map at the derived gains")
-        rho = check_gains_map(gains_for_scenario(target, derived), epsilon, progress)
+        why: dict = {}
+        rho = check_gains_map(gains_for_scenario(target, derived), epsilon, progress, why)
         if max(rho.values()) < 1.0:
             progress(f"stability map with K_R x {GAIN_MARGIN}")
             margin = check_gains_map(gains_for_scenario(target, derived, GAIN_MARGIN),
@@ -337,12 +372,17 @@ def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 
                 return report            # torque or grasp: a lower κ does not mend them
             found = report.task.refusal
         else:
-            found = "rho " + ", ".join(f"{k} {v:.4g}" for k, v in rho.items())
+            found = "rho " + ", ".join(f"{k} {v:.4g}" + (f" ({why[k]})" if k in why else "")
+                                       for k, v in rho.items())
         report.messages.append(f"kappa {kappa:.3g}: {found}")
         kappa *= BACKOFF
     report.refusal = report.refusal or (
-        f"no derived gains passed the stability check after {MAX_ATTEMPTS} attempts "
-        f"(last: {report.messages[-1] if report.messages else 'none'})")
+        f"no derived gains passed the stability check after {MAX_ATTEMPTS} attempts, "
+        f"lowering kappa each time (first: {report.messages[0] if report.messages else 'none'}"
+        f"; last: {report.messages[-1] if report.messages else 'none'}): the loop stays "
+        "unstable at every kappa tried; look at the named joints' "
+        "inertia and damping in the URDF (Drake ignores rotor inertia), the control period "
+        "or the posture")
     return report
 
 

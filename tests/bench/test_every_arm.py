@@ -44,6 +44,30 @@ def test_the_table_shows_numbers_or_the_one_line_refusal():
     assert len(rows) == 2                               # the diagnosis is not a row
 
 
+def test_a_row_says_what_its_run_past_the_refusal_did_and_a_miss_its_remedy():
+    ok = verdict({"robots": {"a": _robot(0.03, 0.1e-3)}})
+    miss = verdict({"robots": {"a": _robot(0.05, 1.9e-3)}})
+    data = {"cases": {
+        "z1": {"arms": ["z1", "z1"], "refusal": "drake-coop gains: grasp buckling"},
+        "z1@past": {"arms": ["z1", "z1"], "status": "failed", "verdict": miss,
+                    "message": "failed at t = 33.750 s: box tilted 10.6 deg"},
+        "xarm7": {"arms": ["xarm7", "xarm7"], "refusal": "drake-coop gains: grasp buckling"},
+        "xarm7@past": {"arms": ["xarm7", "xarm7"], "status": "ok", "verdict": ok},
+        "ur3": {"arms": ["ur3", "ur3"], "status": "failed", "message": "failed at t = 29 s",
+                "robots": {"a": _robot(0.05, 1.9e-3)}, "verdict": miss},
+        "ur3@sqfriction": {"arms": ["ur3", "ur3"], "status": "ok", "verdict": ok,
+                           "robots": {"a": _robot(0.03, 0.1e-3)}}}}
+    rows = {line.split(" |")[0]: line for line in table(data).splitlines()[3:]}
+    assert rows["| z1 + z1"].endswith("run past the refusal: failed at t = 33.750 s: box "
+                                      "tilted 10.6 deg | | | | | refused |")
+    assert "run past the refusal: carried (0.030 N, 0.10 mm): the refusal is wrong here" \
+        in rows["| xarm7 + xarm7"]
+    assert rows["| ur3 + ur3"].endswith("| miss (failed at t = 29 s; `squeeze: friction` "
+                                        "passes) |")
+    assert rows["| ur3 + ur3, `squeeze: friction`"].endswith("| pass |")
+    assert len(rows) == 4                               # the runs past a refusal are no rows
+
+
 def test_the_shipped_table_is_the_results_files():
     assert TABLE.read_text() == table(json.loads(RESULTS.read_text()))
 

@@ -55,6 +55,18 @@ def test_the_paper_arms_grasp_is_far_from_buckling():
     assert result.worst_ratio < 0.1          # λ_d 50 N against λ_b near 1 kN
 
 
+@pytest.mark.parametrize("squeeze, advice", [
+    ("profile", "task.force_mean, force_amplitude; object_model.squeeze: friction"),
+    ("friction", "a lighter box or a higher friction, plant.object_mass, plant.friction")])
+def test_a_refusal_advises_a_lower_squeeze_its_squeeze_source_can_give(squeeze, advice):
+    """A margin below the paper grasp's ratio makes it a refusal; already at the friction
+    squeeze, the advice is the box, not that field again."""
+    scenario = load_scenario(find_scenario("contact"))
+    scenario.object_model.mode, scenario.object_model.squeeze = "known", squeeze
+    result = check_grasp_buckling(scenario, margin=1e-4)
+    assert not result.passes and f"{advice}), widen the grasp" in result.message
+
+
 def test_three_robots_are_not_checked():
     result = check_grasp_buckling(load_scenario(find_scenario("three_arms")))
     assert not result.checked and result.passes and "not checked" in result.message
