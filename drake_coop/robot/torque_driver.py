@@ -60,6 +60,12 @@ FRANKA_TORQUE_RATE = 1000.0
 FRANKA_LOW_PASS_HZ = 30.0
 #: libfranka's "no filter" cutoff (``kMaxCutoffFrequency``, Hz).
 FRANKA_NO_FILTER_HZ = 1000.0
+#: Simulated seconds by which a cycle's status is published ahead of the cycle's time ``t``
+#: (stamped ``t``): one µs, the stamp's resolution. The status is the state at ``t`` before
+#: that instant's updates whatever the rounding of the plant's step times (``j Δt`` may fall
+#: an ulp before or after the cycle's ``c·1 ms``), and a controller's tick at ``t`` latches it
+#: before its own update whatever the rounding of ``k h``: its message arrives a µs earlier.
+STATUS_LEAD = 1e-6
 #: The faults of an emulated driver's loop (its ``DRAKE_THROW_UNLESS`` and libfranka's
 #: ``checkFinite``), by code.
 FAULTS = {1: "control_mode_expected is not torque", 2: "num_joint_position is not 0",
@@ -234,7 +240,16 @@ class TorqueDriver(LeafSystem):
         self._fingerprint = lcmt_panda_status._get_packed_fingerprint()
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, spec.clock_phase, self._update)
         if lcm is not None:
-            self.DeclarePeriodicPublishEvent(self._period, spec.clock_phase, self._publish)
+            # each cycle's status STATUS_LEAD ahead of the cycle, stamped with the cycle's time
+            # (a first cycle closer than that to t = 0: at initialization, before any update)
+            lead = spec.clock_phase - STATUS_LEAD
+            if lead < 0.0:
+                self.DeclareInitializationPublishEvent(
+                    lambda context: self._publish(context, spec.clock_phase))
+                lead += self._period
+            self.DeclarePeriodicPublishEvent(
+                self._period, lead,
+                lambda context: self._publish(context, context.get_time() + STATUS_LEAD))
             self.DeclareForcedPublishEvent(self._publish)
         self.DeclareStateOutputPort("tau_applied", self._applied)
         self.DeclareStateOutputPort("tau_commanded", self._commanded)
@@ -354,7 +369,7 @@ class TorqueDriver(LeafSystem):
                                        context.get_discrete_state(self._applied).get_value())
         output.SetFromVector(ext)
 
-    def _publish(self, context: Context) -> None:
+    def _publish(self, context: Context, t: float | None = None) -> None:
         memo = context.get_discrete_state(self._memo).get_value()
         if memo[2 * self._n + 2] != 0:
             return                                      # the driver has stopped
@@ -363,7 +378,7 @@ class TorqueDriver(LeafSystem):
         q, v = x[:n], x[n:]
         tau = context.get_discrete_state(self._applied).get_value()
         ext = self.get_output_port(2).Eval(context)
-        t = context.get_time()
+        t = context.get_time() if t is None else t
         zeros = (0.0,) * n
         data = self._format.pack(
             self._fingerprint, self._clock.utime(t), n, *q, *q, *v, *zeros, *zeros, *tau,
