@@ -29,10 +29,13 @@ against the driver's clock, the robot's ``g(q)`` added where the robot adds it, 
 compensation and damping before the arm's own first command and after an expiry.
 
 Timing in one Diagram on one ``DrakeLcm("memq://")`` (the messages are pumped by
-``LcmInterfaceSystem`` when the Simulator asks for its next event): the status the driver
-publishes at ``t`` (a publish event, at the end of the step that reaches ``t``) is latched by
-the controller's subscriber before that instant's updates (an unrestricted update, run before
-the discrete ones), so the tick at ``t_k`` reads ``q(t_k)``, and the command of ``t_k`` is
+``LcmInterfaceSystem`` when the Simulator asks for its next event, and latched by the
+subscriber in a zero-length step at that instant, after the updates already due there): the
+driver publishes the status of its cycle at ``t`` a µs ahead
+(:data:`~drake_coop.robot.torque_driver.STATUS_LEAD`, stamped ``t``), so it is latched before
+the tick at ``t_k`` and holds the state before the plant's update at ``t_k`` however ``k h``,
+the cycle's ``c·1 ms`` and the plant's ``j Δt`` round; the tick at ``t_k`` reads ``q(t_k)``,
+and the command of ``t_k`` is
 applied from the driver's next cycle, ``t_k + 1 ms``: the cable costs one driver cycle
 (checked: the lockstep run over two processes, which feeds each tick the status of its own
 cycle, gives the same doubles, :mod:`drake_coop.robot.lockstep`).

@@ -38,9 +38,11 @@ HOLD_AFTER_STOP = 2.0
 
 
 def status_time(spec, t: float) -> float | None:
-    """The time of the driver's newest cycle at or before ``t`` (its status is what the
-    loopback run's tick at ``t`` reads: published at the end of the step that reaches ``t``,
-    latched before the tick's updates), or None before the first.
+    """The time of the driver's newest cycle at or before ``t``, a cycle within ``1e-9``
+    of the cycle count counting as at ``t`` (its status is what the loopback run's tick at
+    ``t`` reads: published :data:`~drake_coop.robot.torque_driver.STATUS_LEAD` ahead of the
+    cycle, so latched before the tick's updates however ``t`` and the cycle's time round),
+    or None before the first.
 
     Parameters
     ----------

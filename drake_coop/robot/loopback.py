@@ -4,8 +4,10 @@ simulated driver in one Diagram, joined only through LCM publishers and subscrib
 
 :func:`run_loopback` reproduces a simulated run over the driver's messages; the ground truth
 of the squeeze (``lambda_meas``) comes from the plant's held data, as in
-:func:`~drake_coop.experiment.simulate.simulate` (:mod:`drake_coop.plant.ground_truth`), so
-:func:`squeeze_error` compares the two runs with one formula.
+:func:`~drake_coop.experiment.simulate.simulate` (:mod:`drake_coop.plant.ground_truth`): in
+``planes`` and ``rigid`` modes the offline ground truth, in ``contact`` mode the pads' contact
+forces along the constraint normals (:func:`pad_squeeze`); so :func:`squeeze_error` compares
+the two runs with one formula.
 """
 
 from __future__ import annotations
@@ -136,6 +138,53 @@ def add_squeeze_truth(builder: DiagramBuilder, scenario: Scenario, driver: Drive
         [arm.driver.get_output_port(0) for arm in driver.arms], tick_forces=False)
 
 
+def add_pad_truth(builder: DiagramBuilder, driver: DriverSide, h: float):
+    """The ``contact`` mode's ground truth of the squeeze on the driver's plant: each arm's
+    pad contact force of the plant step before every tick (the C++ hold of
+    :func:`~drake_coop.plant.ground_truth.add_pad_force_log`), logged every tick: the loopback
+    run's and ``sim-driver --log``'s (:func:`pad_squeeze`).
+
+    Parameters
+    ----------
+    builder : DiagramBuilder
+        The driver's builder.
+    driver : DriverSide
+        The simulated driver (its plant in ``contact`` mode).
+    h : float
+        The control period, s.
+
+    Returns
+    -------
+    VectorLogSink
+        The log of the pads' forces (ticks × 3 per arm, N, world frame).
+    """
+    from drake_coop.plant.ground_truth import add_pad_force_log
+
+    pads = add_pad_force_log(builder, driver.coop, h, [], log=False)
+    return LogVectorOutput(pads.hold, builder, publish_period=h)
+
+
+def pad_squeeze(forces: np.ndarray, normals: list) -> np.ndarray:
+    """``λ_i = N_i F_i`` of each tick from the pads' forces: the squeeze along each arm's
+    constraint normals.
+
+    Parameters
+    ----------
+    forces : numpy.ndarray
+        The pads' forces, (ticks, 3 per arm), N.
+    normals : list of numpy.ndarray
+        Each arm's constraint normals ``N_i``, (m, 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        (ticks, arms, m), N.
+    """
+    forces = np.atleast_2d(np.asarray(forces, dtype=float))
+    return np.stack([(np.atleast_2d(N) @ forces[:, 3 * i:3 * i + 3].T).T
+                     for i, N in enumerate(normals)], axis=1)
+
+
 def squeeze_truth(truth, context: Context) -> tuple[int, list]:
     """``(n, forces)``: the ticks logged and, per robot, the ground truth of each
     (``forces[i]["lambda_meas"]``, ``(n, m)`` N).
@@ -188,7 +237,7 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     Parameters
     ----------
     scenario : Scenario
-        The scenario (``planes`` or ``rigid``).
+        The scenario (any object mode).
     t_end : float or None
         The run's end, s; None for the task's.
     lcm_url : str
@@ -209,9 +258,6 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     ScenarioError
         A scenario the drivers cannot serve, or a run too large (as :func:`simulate`).
     """
-    if scenario.plant.object_mode not in ("planes", "rigid"):
-        raise ScenarioError("plant.object_mode: the loopback run's ground truth needs planes "
-                            f"or rigid, got {scenario.plant.object_mode!r}")
     plan = plan_run(scenario, t_end)
     check_run_size(scenario, plan.t_end)
     lcm = DrakeLcm(lcm_url)
@@ -221,7 +267,9 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
     extra = {} if low_pass_hz is None else {"low_pass_hz": low_pass_hz}
     driver = add_driver_side(builder, plan, lcm, clock=clock, emulate=emulate, **extra)
     controller = add_controller_side(builder, plan, lcm, clock=clock)
-    truth = add_squeeze_truth(builder, scenario, driver, plan.h)
+    contact = driver.coop.mode == "contact"
+    truth = (add_pad_truth(builder, driver, plan.h) if contact
+             else add_squeeze_truth(builder, scenario, driver, plan.h))
     wire = [LogVectorOutput(arm.driver.get_output_port(1), builder,
                             publish_period=plan.h) for arm in driver.arms]
     external = [LogVectorOutput(arm.driver.get_output_port(2), builder,
@@ -245,7 +293,13 @@ def run_loopback(scenario: Scenario, t_end: float | None = None, *,
         if k_stop in plan.switches:
             driver.coop.set_held(plant_context, plan.switches[k_stop])
     wall = time.perf_counter() - start
-    n, forces = squeeze_truth(truth, context)
+    if contact:          # the force of the step before each tick; the last tick's left out
+        n = max(truth.FindLog(context).sample_times().size - 1, 0)
+        lams = pad_squeeze(truth.FindLog(context).data().T[:n],
+                           [np.asarray(a.arm.N, dtype=float) for a in driver.coop.arms])
+        forces = [{"lambda_meas": lams[:, i]} for i in range(lams.shape[1])]
+    else:
+        n, forces = squeeze_truth(truth, context)
     logs = {}
     for i, robot in enumerate(scenario.robots):
         t = np.arange(n) * plan.h

@@ -222,10 +222,9 @@ def add_truth_log(builder, side, h: float, scenario=None) -> dict:
     coop = side.coop
     out: dict = {"normals": [np.asarray(a.arm.N, dtype=float) for a in coop.arms]}
     if coop.mode == "contact":
-        from drake_coop.plant.ground_truth import add_pad_force_log
+        from drake_coop.robot.loopback import add_pad_truth
 
-        pads = add_pad_force_log(builder, coop, h, [], log=False)
-        out["pads"] = LogVectorOutput(pads.hold, builder, publish_period=h)
+        out["pads"] = add_pad_truth(builder, side, h)
         out["box"] = LogVectorOutput(coop.plant.get_state_output_port(
             coop.grasp.box.model_instance()), builder, publish_period=h)
     elif scenario is not None and coop.mode in ("planes", "rigid"):
@@ -273,9 +272,9 @@ def write_truth_log(path, truth: dict, context) -> None:
     data = {"t": t}
     normals = truth["normals"]
     if "pads" in truth:
-        F = truth["pads"].FindLog(context).data().T          # ticks × 3·arms
-        lam = [np.atleast_2d(N) @ F[:, 3 * i:3 * i + 3].T for i, N in enumerate(normals)]
-        data["lambda"] = np.stack([x.T for x in lam], axis=1)
+        from drake_coop.robot.loopback import pad_squeeze
+
+        data["lambda"] = pad_squeeze(truth["pads"].FindLog(context).data().T, normals)
         data["box_state"] = truth["box"].FindLog(context).data().T
     elif "squeeze" in truth:
         from drake_coop.robot.loopback import squeeze_truth

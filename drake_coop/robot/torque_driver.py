@@ -5,8 +5,9 @@ command, and the status it publishes, by the arm's declared conventions
 :class:`TorqueDriver` runs, at every driver cycle ``t`` (the newest command ``c`` as received,
 the arm's state ``q, v`` at ``t``, ``now`` the driver's clock in its time base, µs)::
 
-    status published first: utime = now, q, v, τ_J = the torque on the arm (gravity
-        included), τ_ext = the external-torque estimate (emulation), τ_J_d = τ_d
+    status published first (:data:`STATUS_LEAD` ahead of t, stamped t): utime = now, q, v,
+        τ_J = the torque on the arm (gravity included), τ_ext = the external-torque
+        estimate (emulation), τ_J_d = τ_d
     c newer than the one held: held
     held and |now − c.utime| > expiry: dropped (not taken again)
     none held:   τ_d = −k_d v                       (gravity compensation and damping)

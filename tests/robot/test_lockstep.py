@@ -153,19 +153,15 @@ def test_a_lab_arm_pair_in_lockstep(tmp_path):
 
 def lab_pair(row):
     """A lab pair nothing here ships, set up as the lab-arms guide says: the every-arm
-    benchmark's row ``row`` (each arm's entry from ``drake-coop arms --yaml``, placed facing
-    the box, the gains ``drake-coop gains`` derived), in ``planes`` mode (each arm squeezing
-    its side of the box; the loopback run's ground truth needs it) without an object model,
-    the plant stepped at the driver's 1 kHz cycle as in the shipped scenarios. (With the box
-    scenario's 3 ms plant step the two runs part at the fourth tick, 9 ms · 3 falling an ulp
-    before the 27 ms cycle: an open difference, 3.4 mrad of joint angle after 2.6 s.)"""
+    benchmark's row ``row`` as it is (each arm's entry from ``drake-coop arms --yaml``, placed
+    facing the box, the gains ``drake-coop gains`` derived), carrying the box: ``contact``
+    mode, the row's own plant step (3 ms, a third of the tick: ``j Δt`` and ``k h`` round
+    differently on some ticks) and its object model (the mass estimated)."""
     from bench.delay_margins import every_arm_cases
-    from drake_coop.scenario.schema import ObjectModelSettings
 
     s = every_arm_cases()[f"every_arm/{row}"]()
-    s.plant.object_mode = "planes"
-    s.plant.time_step = 0.001
-    s.object_model = ObjectModelSettings()
+    assert s.plant.object_mode == "contact" and s.plant.time_step == pytest.approx(0.003)
+    assert s.object_model.mode == "estimated"
     return s
 
 
