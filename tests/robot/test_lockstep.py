@@ -100,6 +100,27 @@ def test_two_processes_in_lockstep_give_the_loopback_run(tmp_path):
     assert moved > 1e-6                        # the arms moved: a comparison that can fail
 
 
+def test_a_plant_step_of_three_driver_cycles_in_lockstep(tmp_path):
+    """The paper's scenario with the plant stepped every 3 ms, 0.1 s: the times of one
+    instant round apart (the tick ``2*0.009`` is an ulp short of the driver's cycle
+    ``18*0.001``, where the plant's update ``6*0.003`` falls), yet the two processes' run
+    equals the one-process run to the last bit. (With the status published at the cycle
+    itself, it held the state after that plant update in both runs; ``serve --lockstep`` fed
+    tick 2 that cycle's status, the one-process tick, an ulp earlier, the cycle before: the
+    runs parted there.)"""
+    s = load_scenario()
+    s.plant.time_step = 0.003
+    assert 2 * 0.009 < 18 * 0.001 and 18 * 0.001 == 6 * 0.003      # the premise
+    path = tmp_path / "paper3.yaml"
+    path.write_text(dump_scenario(s))
+    truth = two_processes(tmp_path, path, 0.1)
+    run = run_loopback(s, 0.1)
+    assert run.status == "ok", run.message
+    assert_same_run(run.logs, truth, rel=0.0)
+    moved = max(np.max(np.abs(log["q"] - log["q"][0])) for log in run.logs.values())
+    assert moved > 1e-9                        # the arms moved: a comparison that can fail
+
+
 def _circle(tmp_path, name, t_end=2.6, emulate=None, low_pass_hz=None, scenario=None):
     s = compressed(name, tmp_path / f"{name}.yaml", scenario)
     extra = [] if emulate is None else ["--emulate", emulate]
