@@ -214,7 +214,7 @@ class WatchedLcm(DrakeLcm):
         return count
 
 
-def hub_monitor(lcm):
+def hub_monitor(lcm, system):
     """A Simulator monitor that fails the step after which ``lcm``'s hub connection is gone
     (``AdvanceTo`` then raises; see :func:`is_hub_failure`), before the next step's
     ``LcmInterfaceSystem`` pump would reach LCM's abort.
@@ -223,6 +223,9 @@ def hub_monitor(lcm):
     ----------
     lcm : DrakeLcm
         The connection (a plain ``DrakeLcm``, not watched: the monitor never fails).
+    system : System
+        The system the failure is reported against (the Simulator's Diagram: newer Drake
+        refuses an ``EventStatus.Failed`` without one).
 
     Returns
     -------
@@ -235,7 +238,7 @@ def hub_monitor(lcm):
 
     def monitor(context):
         if link is not None and link.lost():
-            return EventStatus.Failed(None, HUB_LOST_MARK)
+            return EventStatus.Failed(system, HUB_LOST_MARK)
         return EventStatus.Succeeded()
 
     return monitor

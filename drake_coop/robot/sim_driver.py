@@ -127,7 +127,8 @@ def cmd_sim_driver(args, load) -> int:
         deadline = time.perf_counter() + args.command_wait
         # (the command subscribers' own counts: a plain Python handler must not be pumped by
         # the LcmInterfaceSystem inside AdvanceTo, see add_lcm_interface)
-        simulator.set_monitor(hub_monitor(lcm))   # the hub's death: a failed step, not an abort
+        # the hub's death: a failed step, not an abort
+        simulator.set_monitor(hub_monitor(lcm, simulator.get_system()))
         try:
             while not any(arm.command_subscriber.WaitForMessage(0, None, 1e-6) > 0
                           for arm in side.arms):

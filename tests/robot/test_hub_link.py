@@ -104,7 +104,7 @@ def test_a_simulator_pumping_lcm_fails_the_step_after_the_hubs_death():
     builder = DiagramBuilder()
     builder.AddSystem(LcmInterfaceSystem(lcm))
     sim = Simulator(builder.Build())
-    sim.set_monitor(hub_monitor(lcm))
+    sim.set_monitor(hub_monitor(lcm, sim.get_system()))
     sim.AdvanceTo(0.01)
     hub.kill()
     with pytest.raises(RuntimeError) as caught:
