@@ -178,6 +178,7 @@ def test_the_hubs_death_mid_run_in_lockstep_costs_no_record(tmp_path):
     import signal
     import subprocess
     import sys
+    import threading
     import time
 
     import numpy as np
@@ -186,29 +187,43 @@ def test_the_hubs_death_mid_run_in_lockstep_costs_no_record(tmp_path):
     hub = subprocess.Popen(cmd + ["tcpq-hub", "--port", "0"], stderr=subprocess.PIPE,
                            text=True)
     procs = {"hub": hub}
+    err: dict[str, list[str]] = {}
+    readers: dict = {}
     truth = tmp_path / "truth.npz"
+
+    def drain(name):             # every pipe read to its end: no process blocks on stderr
+        err[name] = []
+        readers[name] = threading.Thread(target=lambda: err[name].extend(procs[name].stderr),
+                                         daemon=True)
+        readers[name].start()
+
     try:
         url = hub.stderr.readline().split("--lcm-url ")[1].rstrip(")\n")
+        drain("hub")
         common = ["--lcm-url", url, "--lockstep", "--t-end", "60"]
         procs["driver"] = subprocess.Popen(
             cmd + ["sim-driver", "paper", *common, "--quiet", "--log", str(truth),
-                   "--command-wait", "120"], stderr=subprocess.PIPE, text=True)
+                   "--command-wait", "60"], stderr=subprocess.PIPE, text=True)
+        drain("driver")
         for robot in ("robot1", "robot2"):
             procs[robot] = subprocess.Popen(
                 cmd + ["serve", "paper", *common, "--out", str(tmp_path / robot), "--robot",
                        robot, "--delay-margin", "0.002", "--status-wait", "120"],
                 stderr=subprocess.PIPE, text=True)
-        for robot in ("robot1", "robot2"):           # wait until each says it is serving
-            for line in procs[robot].stderr:
-                if "drake-coop: serving" in line:
-                    break
+            drain(robot)
+        deadline = time.monotonic() + 240            # until each says it is serving
+        while not all(any("drake-coop: serving" in x for x in err[r])
+                      for r in ("robot1", "robot2")):
+            assert time.monotonic() < deadline, err
+            time.sleep(0.05)
         time.sleep(1.0)
         hub.send_signal(signal.SIGKILL)
         hub.wait(30)
         ends = {}
         for name in ("robot1", "robot2", "driver"):
             code = procs[name].wait(120)
-            ends[name] = (code, [x for x in procs[name].stderr.read().splitlines()
+            readers[name].join(30)                   # its pipe read to the end
+            ends[name] = (code, [x.rstrip("\n") for x in err[name]
                                  if x.startswith("drake-coop:")])
     finally:
         for proc in procs.values():
