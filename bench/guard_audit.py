@@ -9,6 +9,7 @@ This script reads each committed result's logged maxima and applies the guards' 
 
     python -m bench.guard_audit            # list what a guard would now stop
     python -m bench.guard_audit --write    # rewrite those rows' status and message
+    python -m bench.guard_audit --figures  # redraw every committed study figure
 
 Files read:
 
@@ -26,6 +27,13 @@ Files read:
   status to rewrite; a run past a guard is listed, and its page must say so
   (:data:`FAILED_RUNS` names those whose pages do).
 
+The committed study figures (``docs/figures/studies/<name>_*.png`` beside
+``<name>_results.csv``) are drawn from those files: ``--write`` redraws the figures of each
+study whose rows it rewrote, ``--figures`` every study's (:func:`redraw`, with
+:func:`drake_coop.studies.plots.plot_results` from the results and ``studies/<name>.yaml``),
+so a row rewritten ``failed`` is drawn ✕. A figure whose source (its PNG text field) is not
+its ``results.csv`` as committed is listed.
+
 Only what the maxima prove is seen: a guard tripped in a phase the file does not summarise,
 or a pad's error whose norm (not its worst axis) passes the bound, is not.
 """
@@ -36,6 +44,8 @@ import argparse
 import csv
 import io
 import json
+import shutil
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,6 +53,9 @@ ROOT = Path(__file__).resolve().parents[1]
 STUDY_RESULTS = "docs/figures/studies/*_results.csv"
 #: The committed studies' case files (a study's ``--out`` folder shipped with its cases).
 STUDY_CASES = "docs/figures/studies/*_cases/*.json"
+#: The folder of the committed studies' results and figures, and each study's file.
+STUDY_FIGURES = "docs/figures/studies"
+STUDY_FILE = "studies/{name}.yaml"
 #: The committed single runs' metrics.
 RUN_METRICS = "docs/figures/run_results/*/metrics.json"
 #: The committed benchmark results (rows of :func:`bench.lab_arms_object.measure`).
@@ -204,6 +217,83 @@ def rewrite(path: Path, header: list[str], rows: list[dict], failures: list,
     path.write_text(buffer.getvalue())
 
 
+def study_figures() -> dict[str, list[Path]]:
+    """Each committed study's figures: name → the PNGs in :data:`STUDY_FIGURES` named
+    ``<name>_*.png`` (the longest such name owns a figure: ``object_carry_lab_vs_base.png``
+    is ``object_carry_lab``'s, not ``object_carry``'s).
+
+    Returns
+    -------
+    dict of str to list of Path
+        Every study with a ``<name>_results.csv``, its figures sorted (maybe none).
+    """
+    names = sorted(p.name[:-len("_results.csv")] for p in ROOT.glob(STUDY_RESULTS))
+    out: dict[str, list[Path]] = {name: [] for name in names}
+    for png in sorted((ROOT / STUDY_FIGURES).glob("*.png")):
+        owner = max((n for n in names if png.name.startswith(n + "_")), key=len, default=None)
+        if owner is not None:
+            out[owner].append(png)
+    return out
+
+
+def stale_figures() -> list[Path]:
+    """The committed study figures not drawn from their ``results.csv`` as it is (their PNG
+    text field :data:`~drake_coop.studies.plots.SOURCE_KEY` missing or naming other bytes).
+
+    Returns
+    -------
+    list of Path
+        The stale figures.
+    """
+    from PIL import Image
+
+    from drake_coop.studies.plots import SOURCE_KEY, source_text
+
+    stale = []
+    for name, figures in study_figures().items():
+        source = source_text(ROOT / STUDY_FIGURES / f"{name}_results.csv")
+        for png in figures:
+            with Image.open(png) as image:
+                if image.text.get(SOURCE_KEY) != source:
+                    stale.append(png)
+    return stale
+
+
+def redraw(name: str, figures: list[Path]) -> list[Path]:
+    """Draw study ``name``'s committed ``figures`` again from its committed results and
+    study file (each figure the study draws is drawn; only those named are replaced).
+
+    Parameters
+    ----------
+    name : str
+        The study (``<name>_results.csv``, ``studies/<name>.yaml``).
+    figures : list of Path
+        The figures to replace.
+
+    Returns
+    -------
+    list of Path
+        ``figures``, rewritten.
+
+    Raises
+    ------
+    ValueError
+        If the results do not fit the study file, or a figure is not one the study draws.
+    """
+    from drake_coop.studies.plots import plot_results
+
+    with tempfile.TemporaryDirectory() as tmp:
+        drawn = {p.name: p for p in plot_results(ROOT / STUDY_FILE.format(name=name),
+                                                 ROOT / STUDY_FIGURES / f"{name}_results.csv",
+                                                 tmp)}
+        for png in figures:
+            if png.name not in drawn:
+                raise ValueError(f"{png}: study {name} draws no such figure "
+                                 f"(it draws {', '.join(sorted(drawn))})")
+            shutil.copyfile(drawn[png.name], png)
+    return figures
+
+
 def main(argv=None) -> int:
     """List (or with ``--write`` rewrite) the committed results past a guard.
 
@@ -219,9 +309,13 @@ def main(argv=None) -> int:
     """
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true",
-                        help="rewrite the failing rows' status and message in place")
+                        help="rewrite the failing rows' status and message in place, and "
+                             "redraw those studies' figures")
+    parser.add_argument("--figures", action="store_true",
+                        help="redraw every committed study's figures from its results")
     args = parser.parse_args(argv)
     left = 0
+    rewritten = set()
     for path in sorted(ROOT.glob(STUDY_RESULTS)):
         header, rows, failures = audit_csv(path)
         for k, failure in failures:
@@ -229,8 +323,17 @@ def main(argv=None) -> int:
                   f"{failure.who} {failure.text}")
         if failures and args.write:
             rewrite(path, header, rows, failures)
+            rewritten.add(path.name[:-len("_results.csv")])
         elif failures:
             left += len(failures)
+    for name, figures in study_figures().items():
+        if figures and (args.figures or name in rewritten):
+            for png in redraw(name, figures):
+                print(f"redrew {png.relative_to(ROOT)}")
+    for png in stale_figures():
+        print(f"{png.relative_to(ROOT)}: not drawn from its results.csv as committed "
+              "(redraw with --figures)")
+        left += 1
     for path in sorted(ROOT.glob(STUDY_CASES)):
         record = json.loads(path.read_text())
         found = audit_metrics(record.get("metrics") or {}) if record.get("status") == "ok" else []

@@ -74,3 +74,37 @@ def test_a_row_past_a_guard_is_rewritten_failed(tmp_path):
     _, rows, failures = guard_audit.audit_csv(path)
     assert failures == [] and [r["status"] for r in rows] == ["failed", "ok", "diverged"]
     assert rows[0]["message"].startswith("failed in the circle phase: robot1 squeeze 28.0 N")
+
+
+def test_every_committed_study_figure_is_drawn_from_its_results_as_committed():
+    """Each study figure names, in its PNG text field, the bytes of its ``results.csv`` as
+    committed: a row rewritten after the figure was drawn (``failed`` by a guard) fails here
+    until ``python -m bench.guard_audit --figures`` redraws it (and the redraw marks every
+    failed row: ``tests/studies/test_plots.py``)."""
+    figures = guard_audit.study_figures()
+    for name in ("model_mismatch", "object_carry", "object_carry_lab", "velocity_estimation"):
+        assert figures[name], name                # the studies the guards rewrote have figures
+    assert "object_carry_lab_vs_base.png" not in [p.name for p in figures["object_carry"]]
+    assert guard_audit.stale_figures() == []
+
+
+def test_a_figure_drawn_from_other_results_is_stale(tmp_path, monkeypatch):
+    """The check reads the source the figure names: a figure of an older results.csv, and one
+    that names none, are listed; one drawn from the file as it is is not."""
+    from matplotlib.figure import Figure
+
+    from drake_coop.studies.plots import SOURCE_KEY, source_text
+
+    folder = tmp_path / guard_audit.STUDY_FIGURES
+    folder.mkdir(parents=True)
+    csv = folder / "demo_results.csv"
+    csv.write_text("index,hash,status\n0,a,ok\n")
+    current = source_text(csv)
+    for png, source in (("demo_vs_a.png", current), ("demo_vs_b.png", None),
+                        ("demo_hist.png", current)):
+        Figure().savefig(folder / png, metadata={SOURCE_KEY: source} if source else None)
+    csv.write_text("index,hash,status\n0,a,failed\n")     # rewritten after demo_hist was drawn
+    Figure().savefig(folder / "demo_hist.png", metadata={SOURCE_KEY: current})
+    Figure().savefig(folder / "demo_vs_a.png", metadata={SOURCE_KEY: source_text(csv)})
+    monkeypatch.setattr(guard_audit, "ROOT", tmp_path)
+    assert [p.name for p in guard_audit.stale_figures()] == ["demo_hist.png", "demo_vs_b.png"]

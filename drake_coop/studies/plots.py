@@ -15,12 +15,25 @@ with the dotted paths of the study file: ``worst.force_error.rms`` reads "λ −
 robot [N]" (in mathtext), ``robots.*.gains.k_d`` reads "k_d, every robot [1/s]" (units
 from the scenario's bounds table). Lengths and angles are drawn in the unit a reader reads (µm or mm, µrad or
 mrad, mrad/s), chosen from the plotted values; the files keep SI values.
+
+A study whose ``study.json`` is not at hand (the shipped studies keep only their
+``results.csv``) is drawn by :func:`plot_results` from the ``results.csv`` and the study file
+it ran: :func:`results_document` rebuilds the document ``study.json`` would hold (each row's
+grid point and draw from the study file's expansion, checked against the row's own columns;
+its status, message and summary columns from the row). A row a guard rewrote to ``failed``
+after the run (``bench/guard_audit.py``) is then drawn ✕ like a case that failed at run time.
+Each such figure names its source in its PNG text field ``Results``
+(``<file name> sha256:<hex of its bytes>``), so a test can tell a figure drawn from an older
+``results.csv``.
 """
 
 from __future__ import annotations
 
+import csv
+import hashlib
 import json
 import math
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -31,9 +44,13 @@ from matplotlib.figure import Figure
 from drake_coop.results.io import atomic_path
 from drake_coop.studies.spec import file_stem
 
-__all__ = ["metric_label", "param_label", "plot_study"]
+__all__ = ["SOURCE_KEY", "metric_label", "param_label", "plot_results", "plot_study",
+           "results_document", "source_text"]
 
 DPI = 110
+#: The PNG text field that names the ``results.csv`` a figure was drawn from
+#: (:func:`plot_results`).
+SOURCE_KEY = "Results"
 #: A case's statuses drawn as ✕: a run that diverged or failed its task (a failure guard).
 _NOT_OK = ("diverged", "failed")
 
@@ -137,10 +154,12 @@ def _slug(path: str) -> str:
     return file_stem(path.replace("robots.*.", "").replace(".*", "").replace(".", "_"))
 
 
-def _save(fig: Figure, path: Path) -> Path:
-    """Write ``path`` (a file name made by :func:`file_stem`, directly in the study folder)."""
+def _save(fig: Figure, path: Path, source: str | None = None) -> Path:
+    """Write ``path`` (a file name made by :func:`file_stem`, directly in the study folder),
+    with ``source`` in its text field :data:`SOURCE_KEY` when given."""
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=DPI)
+        fig.savefig(tmp, format="png", dpi=DPI,
+                    metadata={SOURCE_KEY: source} if source else None)
     return path
 
 
@@ -248,13 +267,14 @@ def _figure_vs(doc: dict, param: str) -> Figure:
         axes[-1].set_xlim(xs.min() - pad, xs.max() + pad)
     axes[-1].set_xlabel(xlabel)
     what = "median (line) and min–max (band)" if numeric else "median (dot) and min–max (bar)"
-    fig.suptitle(f"{doc['name']}: {what} over the other parameters "
+    fig.suptitle(f"{doc['name']}: {what} over the other parameters\n"
                  f"(phase {doc['phase']}; ✕ n: n cases diverged or failed)", fontsize=9)
     return fig
 
 
 def _plot_vs(doc: dict, param: str, out: Path) -> Path:
-    return _save(_figure_vs(doc, param), out / f"{file_stem(doc['name'])}_vs_{_slug(param)}.png")
+    return _save(_figure_vs(doc, param), out / f"{file_stem(doc['name'])}_vs_{_slug(param)}.png",
+                 doc.get("source"))
 
 
 def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
@@ -311,10 +331,12 @@ def _plot_map(doc: dict, px: str, py: str, out: Path) -> Path:
             ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2)
     fig.suptitle(f"{doc['name']}: median over other parameters (phase {doc['phase']})",
                  fontsize=9)
-    return _save(fig, out / f"{file_stem(doc['name'])}_map.png")
+    return _save(fig, out / f"{file_stem(doc['name'])}_map.png", doc.get("source"))
 
 
-def _plot_hist(doc: dict, out: Path) -> Path:
+def _figure_hist(doc: dict) -> Figure:
+    """The Monte Carlo histograms of the ``ok`` cases, the count that diverged or failed in
+    the title."""
     cases, metrics = doc["cases"], doc["metrics"]
     n_div = sum(c["status"] in _NOT_OK for c in cases)
     n_done = sum(c["status"] in ("ok", *_NOT_OK, "error") for c in cases)
@@ -334,7 +356,12 @@ def _plot_hist(doc: dict, out: Path) -> Path:
         ax.set_ylabel("cases")
     fig.suptitle(f"{doc['name']}: {n_done} cases, {n_div} diverged or failed "
                  f"({100.0 * n_div / max(1, n_done):.0f} %), phase {doc['phase']}", fontsize=9)
-    return _save(fig, out / f"{file_stem(doc['name'])}_hist.png")
+    return fig
+
+
+def _plot_hist(doc: dict, out: Path) -> Path:
+    return _save(_figure_hist(doc), out / f"{file_stem(doc['name'])}_hist.png",
+                 doc.get("source"))
 
 
 #: Largest ``study.json`` read (bytes) and cases plotted.
@@ -408,6 +435,11 @@ def plot_study(out_dir: str | Path) -> list[Path]:
         raise ValueError(f"{path} is not valid JSON ({' '.join(str(exc).split())[:100]}); "
                          "rerun the study to rewrite it") from None
     _check_doc(doc, path)
+    return _draw(doc, path, out)
+
+
+def _draw(doc: dict, path: Path, out: Path) -> list[Path]:
+    """Every figure of the checked document ``doc`` (read from ``path``) into ``out``."""
     written = []
     try:
         swept = _swept(doc)
@@ -423,3 +455,140 @@ def plot_study(out_dir: str | Path) -> list[Path]:
                          f"{' '.join(str(exc).split())[:100]}); rerun the study to rewrite "
                          "it") from None
     return written
+
+
+#: Columns of ``results.csv`` around its parameters and summary (the store's layout:
+#: ``index, hash, <parameters>, status, t_reached, wall_time_s, <summary>, message``).
+_FIXED_COLUMNS = ("index", "hash", "status", "t_reached", "wall_time_s", "message")
+
+
+def source_text(path: str | Path) -> str:
+    """The source a figure drawn from ``path`` names: ``<file name> sha256:<hex>`` of its bytes.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``results.csv``.
+
+    Returns
+    -------
+    str
+        What :func:`plot_results` writes in the figure's :data:`SOURCE_KEY` field.
+    """
+    path = Path(path)
+    return f"{path.name} sha256:{hashlib.sha256(path.read_bytes()).hexdigest()}"
+
+
+def results_document(study_file: str | Path, results_csv: str | Path) -> dict:
+    """The document ``study.json`` would hold, rebuilt from a study's ``results.csv`` and the
+    study file it ran.
+
+    The cases are the study file's expansion, sized as the run was: as many Monte Carlo
+    draws as the ``sample`` column holds, as many cases as the file has rows (a
+    ``--draws``/``--cases`` run). Each row must be its case: the same ``index``, and each of
+    its parameter columns the text the store writes for the case's value; the row gives the
+    case's ``status``, ``message`` and summary columns (an empty cell: no value).
+
+    Parameters
+    ----------
+    study_file : str or Path
+        The study's YAML file (its name, grid, Monte Carlo block, phase, metrics and guides).
+    results_csv : str or Path
+        The study's ``results.csv`` (a shipped copy may have another name).
+
+    Returns
+    -------
+    dict
+        The study document (:func:`plot_study`'s ``study.json``), with ``source``:
+        :func:`source_text` of ``results_csv``.
+
+    Raises
+    ------
+    ValueError
+        One line naming the file and the field: a study file the loader refuses, a
+        ``results.csv`` without the store's columns, more rows than the study has cases, a row
+        that is not its case (the study file changed since the run), a summary cell that is
+        not a number.
+    OSError
+        If a file cannot be read.
+    """
+    from drake_coop.studies.expand import expand
+    from drake_coop.studies.size import apply_size
+    from drake_coop.studies.spec import load_study
+    from drake_coop.studies.store import _cell
+
+    results_csv = Path(results_csv)
+    with open(results_csv, newline="", encoding="utf-8") as f:
+        reader = csv.DictReader(f)
+        header, rows = list(reader.fieldnames or []), list(reader)
+    missing = [c for c in _FIXED_COLUMNS if c not in header]
+    if missing or not rows:
+        raise ValueError(f"{results_csv}: not a study's results.csv (needs rows and the columns "
+                         f"{', '.join(_FIXED_COLUMNS)}; missing {', '.join(missing) or 'rows'})")
+    study = load_study(study_file)
+    size = {}
+    if study.monte_carlo is not None and "sample" in header:
+        try:
+            size["draws"] = 1 + max(int(r["sample"]) for r in rows)
+        except ValueError:
+            raise ValueError(f"{results_csv}: column sample must hold integers >= 0") from None
+    study, _ = apply_size(study, size)
+    cases = expand(study)
+    if len(rows) > len(cases):
+        raise ValueError(f"{results_csv}: {len(rows)} rows, but {study_file} has {len(cases)} "
+                         "cases at this size")
+    summary_columns = header[header.index("wall_time_s") + 1:header.index("message")]
+    out = []
+    for case, row in zip(cases, rows):
+        given = {"index": case.index, **case.values}
+        wrong = next((k for k, v in given.items() if row.get(k) != _cell(v)), None)
+        if wrong is not None:
+            raise ValueError(f"{results_csv} row {row['index']!r}: {wrong} is "
+                             f"{row.get(wrong)!r}, the study file {study_file} gives "
+                             f"{_cell(given[wrong])!r} (the study file changed since the run)")
+        try:
+            summary = {k: float(row[k]) for k in summary_columns if row[k] not in ("", None)}
+        except ValueError:
+            raise ValueError(f"{results_csv} row {row['index']!r}: a summary column holds a "
+                             "value that is not a number") from None
+        out.append({"index": case.index, "hash": row["hash"], "params": case.params,
+                    "values": case.values, "status": row["status"],
+                    "message": row["message"], "summary": summary})
+    return {"name": study.name, "description": study.description, "t_end": study.t_end,
+            "phase": study.phase, "grid": study.grid,
+            "monte_carlo": asdict(study.monte_carlo) if study.monte_carlo else None,
+            "metrics": study.metrics, "guides": [asdict(g) for g in study.guides],
+            "cases": out, "source": source_text(results_csv)}
+
+
+def plot_results(study_file: str | Path, results_csv: str | Path,
+                 out_dir: str | Path) -> list[Path]:
+    """Draw every figure of a study from its ``results.csv`` and study file (no ``study.json``).
+
+    The figures are those :func:`plot_study` draws, named the same, each naming its source
+    (:func:`source_text`) in its text field :data:`SOURCE_KEY`.
+
+    Parameters
+    ----------
+    study_file : str or Path
+        The study's YAML file.
+    results_csv : str or Path
+        Its ``results.csv`` (:func:`results_document`).
+    out_dir : str or Path
+        The existing folder the figures are written into.
+
+    Returns
+    -------
+    list of Path
+        The files written.
+
+    Raises
+    ------
+    ValueError
+        As :func:`results_document` (one line).
+    OSError
+        If a file cannot be read or a figure written.
+    """
+    doc = results_document(study_file, results_csv)
+    _check_doc(doc, Path(results_csv))
+    return _draw(doc, Path(results_csv), Path(out_dir))

@@ -1,9 +1,15 @@
 """A study figure against a categorical parameter (names, variants) draws categories: no line
-or band joins two categories, and no tick label overlaps another."""
+or band joins two categories, and no tick label overlaps another. A shipped study's figures,
+redrawn from its ``results.csv`` and study file, mark ✕ every row that diverged or failed
+(counted in the figure's artists against the CSV), and a ``results.csv`` that is not its study
+file's is refused."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
+import pytest
 from matplotlib.collections import PolyCollection
 
 from drake_coop.studies.plots import _figure_vs
@@ -70,3 +76,103 @@ def test_a_numeric_parameter_keeps_its_line_and_band():
     doc = _doc({"control_period": [0.003, 0.006, 0.009, 0.012]})
     fig = _figure_vs(doc, "control_period")
     assert _joins_categories(fig)                   # a numeric axis is a line, on purpose
+
+
+# --- the shipped studies' figures, redrawn from their results.csv and study file -------------
+
+ROOT = Path(__file__).resolve().parents[2]
+NOT_OK = ("diverged", "failed")
+
+
+def _rows(name: str) -> list[dict]:
+    import csv
+
+    with open(ROOT / "docs/figures/studies" / f"{name}_results.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _shipped(name: str) -> dict:
+    from drake_coop.studies.plots import results_document
+
+    return results_document(ROOT / "studies" / f"{name}.yaml",
+                            ROOT / "docs/figures/studies" / f"{name}_results.csv")
+
+
+def _marks(ax) -> dict[float, int]:
+    """x → the count written under the ✕ marks at x (the axes' ``x`` markers, each with its
+    count as the text just below it)."""
+    marks = [line for line in ax.get_lines() if line.get_marker() == "x"]
+    counts: dict[float, int] = {}
+    for line in marks:
+        (x,), (level,) = line.get_xdata(), line.get_ydata()
+        text = next(t for t in ax.texts if t.xy == (x, level - 0.03))
+        counts[float(x)] = counts.get(float(x), 0) + int(text.get_text())
+    return counts
+
+
+def test_the_redraw_of_a_shipped_study_marks_every_row_that_diverged_or_failed():
+    """velocity_estimation's figures drawn from its shipped results.csv: over each metric's
+    axes, the ✕ counts at each encoder resolution add up to the rows there that diverged or
+    failed, the rows a guard rewrote ``failed`` after the run included (counted from the CSV
+    itself, not from the document the figure reads)."""
+    rows = _rows("velocity_estimation")
+    rewritten = [r for r in rows if r["status"] == "failed"]
+    assert len(rewritten) == 6                    # the rows bench.guard_audit rewrote
+    want: dict[float, int] = {}
+    for r in rows:
+        x = float(r["robots.*.encoders.counts_per_rev"])
+        want[x] = want.get(x, 0) + (r["status"] in NOT_OK)
+    want = {x: n for x, n in want.items() if n}
+    doc = _shipped("velocity_estimation")
+    fig = _figure_vs(doc, "robots.*.encoders.counts_per_rev")
+    assert len(fig.axes) == len(doc["metrics"]) == 3
+    for ax in fig.axes:
+        assert _marks(ax) == want
+    # One ✕ per curve and resolution with such a row: the source (observer, measured, ...).
+    sources = {(r["robots.*"], r["robots.*.encoders.counts_per_rev"]) for r in rows
+               if r["status"] in NOT_OK}
+    assert sum(line.get_marker() == "x" for line in fig.axes[0].get_lines()) == len(sources)
+    # Against the categorical axis (the velocity source): the same rows, per source.
+    fig = _figure_vs(doc, "robots.*")
+    names = list(dict.fromkeys(r["robots.*"] for r in rows))
+    per_source = {float(k): sum(r["status"] in NOT_OK for r in rows if r["robots.*"] == name)
+                  for k, name in enumerate(names)}
+    for ax in fig.axes:
+        assert _marks(ax) == {x: n for x, n in per_source.items() if n}
+
+
+def test_the_redraw_of_a_shipped_monte_carlo_study_counts_its_failed_rows():
+    """model_mismatch's histogram (its only figure): the title counts the rows a guard
+    rewrote ``failed``, and each histogram holds only the ``ok`` rows."""
+    from drake_coop.studies.plots import _figure_hist
+
+    rows = _rows("model_mismatch")
+    n_bad = sum(r["status"] in NOT_OK for r in rows)
+    assert n_bad == 11
+    fig = _figure_hist(_shipped("model_mismatch"))
+    assert f"{len(rows)} cases, {n_bad} diverged or failed" in fig._suptitle.get_text()
+    for ax in fig.axes:
+        assert sum(p.get_height() for p in ax.patches) == len(rows) - n_bad
+
+
+def test_a_results_csv_that_is_not_its_study_file_is_refused_in_one_line(tmp_path):
+    """A row whose parameter is not what the study file gives for its index, and a file
+    without the store's columns: one line naming the row and the column."""
+    from drake_coop.studies.plots import plot_results, results_document
+
+    text = (ROOT / "docs/figures/studies/velocity_estimation_results.csv").read_text()
+    lines = text.splitlines(keepends=True)
+    lines[5] = lines[5].replace(",1048576,", ",2048,", 1)
+    assert lines[5] != text.splitlines(keepends=True)[5]
+    changed = tmp_path / "results.csv"
+    changed.write_text("".join(lines))
+    study = ROOT / "studies/velocity_estimation.yaml"
+    with pytest.raises(ValueError, match=r"row '4': robots\.\*\.encoders\.counts_per_rev is "
+                                         r"'2048', the study file .* gives '1048576'") as err:
+        results_document(study, changed)
+    assert "\n" not in str(err.value)
+    bare = tmp_path / "bare.csv"
+    bare.write_text("index,status\n0,ok\n")
+    with pytest.raises(ValueError, match="not a study's results.csv .* missing hash"):
+        plot_results(study, bare, tmp_path)
+    assert not list(tmp_path.glob("*.png"))
