@@ -16,6 +16,11 @@ compressed task (grasp 1.5 s, circle 2–4 s, as the robot tests compress it), w
 Per case: the run's status and message, the circle's RMS squeeze error per arm (N), the
 wall time and the load average. Simulated time only: the figures do not depend on the
 machine's load (the wall time does).
+
+``--external-torque`` adds the external-torque estimate's accuracy
+(:func:`external_torque_accuracy`): against the contact's torque while squeezed, and in free
+motion at every driver cycle against the plant's discretization
+(:func:`free_motion_cycles`, :func:`discretization_term`).
 """
 
 from __future__ import annotations
@@ -175,6 +180,110 @@ def external_torque_accuracy(name: str = "two_pandas", t_end: float = 2.6) -> di
                       "squeezed_ratio": err / scale,
                       "squeezed_truth_max_Nm": float(np.abs(truth[held]).max()),
                       "free_estimate_max_Nm": float(np.abs(est[free]).max())}
+    cycles = free_motion_cycles(name)
+    term = discretization_term(cycles["model"], cycles["x"], cycles["period"])
+    est = cycles["tau_external"]
+    out["free_cycles_robot1"] = {
+        "cycles": int(len(cycles["t"]) - 2),
+        "estimate_max_Nm": float(np.abs(est[2:]).max()),
+        "discretization_max_Nm": float(np.abs(term[2:]).max()),
+        "estimate_minus_discretization_max_Nm": float(np.abs(est[2:] - term[2:]).max()),
+        "tick_estimate_max_Nm": float(np.abs(cycles["tau_external_tick"]).max())}
+    return out
+
+
+def free_motion_cycles(name: str = "two_pandas", t_end: float = 1.45) -> dict:
+    """Robot 1 at every driver cycle of the loopback run of ``name``'s compressed task
+    behind the unfiltered emulation, in free motion (before the grasp): what the cycle's
+    status reads.
+
+    Parameters
+    ----------
+    name : str
+        The shipped scenario (two Pandas).
+    t_end : float
+        The run's end, s (before the grasp at 1.5 s).
+
+    Returns
+    -------
+    dict
+        ``t`` (K,), s, the driver's cycles; ``x`` (K, 2n), the arm's state at each (before
+        that instant's updates: what the status publishes); ``tau_applied`` (K, n), the torque
+        on the arm from the cycle before; ``tau_external`` (K, n), the estimate the cycle's
+        status publishes; ``t_tick``, ``tau_external_tick``: the estimate as read at the
+        controller's ticks (the loopback run's log), N·m; ``period``, the driver's cycle, s;
+        ``model``, the arm's exact model.
+    """
+    from pydrake.lcm import DrakeLcm
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import LogVectorOutput
+
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.plant.model_error import controller_arm_model
+    from drake_coop.robot.drivers import add_controller_side, add_driver_side, add_lcm_interface
+    from drake_coop.robot.loopback import initialize_sides
+    from drake_coop.robot.torque_driver import DriverClock
+
+    plan = plan_run(compressed(name), t_end)
+    lcm = DrakeLcm("memq://")
+    builder = DiagramBuilder()
+    add_lcm_interface(builder, lcm)
+    clock = DriverClock("epoch")
+    driver = add_driver_side(builder, plan, lcm, clock=clock, emulate="drake-franka-driver",
+                             low_pass_hz=1000.0)
+    controller = add_controller_side(builder, plan, lcm, clock=clock)
+    arm, plant = driver.arms[0], driver.coop.plant
+    period = driver.arms[0].spec.period
+    state = plant.get_state_output_port(driver.coop.arms[0].instance)
+    logs = {"x": LogVectorOutput(state, builder, publish_period=period),
+            "tau_applied": LogVectorOutput(arm.driver.get_output_port(0), builder,
+                                           publish_period=period),
+            "tau_external": LogVectorOutput(arm.driver.get_output_port(2), builder,
+                                            publish_period=period),
+            "tau_external_tick": LogVectorOutput(arm.driver.get_output_port(2), builder,
+                                                 publish_period=plan.h)}
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    initialize_sides(plan, context, driver, controller)
+    simulator.Initialize()
+    simulator.AdvanceTo(t_end)
+    out = {key: log.FindLog(context).data().T for key, log in logs.items()}
+    out["t"] = logs["x"].FindLog(context).sample_times()
+    out["t_tick"] = logs["tau_external_tick"].FindLog(context).sample_times()
+    out["period"] = period
+    out["model"] = controller_arm_model(driver.coop.arms[0].arm, None)
+    return out
+
+
+def discretization_term(model, x: np.ndarray, period: float) -> np.ndarray:
+    """What the estimate reads in free motion with the exact model, from the plant's step:
+    ``ID(q₋, v₋, a) − ID(q, v, a)`` at each cycle (``a = (v − v₋)/period``, ``ID`` the model's
+    inverse dynamics). The plant's step is ``ID(q₋, v₋, a) = τ`` (its dynamics at the step's
+    start), the estimate ``τ − ID(q, v, a)`` (at its end); their difference is the change of
+    the model's terms over one step, about ``period·(∂g/∂q·v + …)``.
+
+    Parameters
+    ----------
+    model : ArmModel
+        The arm's exact model.
+    x : numpy.ndarray
+        (K, 2n) the state at each cycle.
+    period : float
+        The cycle, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        (K, n), N·m; row 0 zeros (no cycle before it).
+    """
+    n = x.shape[1] // 2
+    out = np.zeros((x.shape[0], n))
+    for k in range(1, x.shape[0]):
+        (q0, v0), (q1, v1) = (x[k - 1, :n], x[k - 1, n:]), (x[k, :n], x[k, n:])
+        a = (v1 - v0) / period
+        out[k] = model.inverse_dynamics_terms(q0, v0, a) - model.inverse_dynamics_terms(q1, v1, a)
     return out
 
 

@@ -248,6 +248,38 @@ def test_the_external_torque_has_frankas_sign():
     np.testing.assert_allclose(statuses[0].joint_torque_external, 0.0)   # t = 0: none yet
 
 
+def test_the_estimate_read_between_the_drivers_cycle_and_the_plants_step_is_the_statuss():
+    """The arm's velocity steps from V to V + δ between the cycles at 1 and 2 ms (the plant's
+    step). Read just after the driver's cycle at 2 ms, before any later step (where a
+    controller's tick an ulp after the cycle reads it), the port holds what the status of
+    that cycle published: τ₋ − (H δ / 1 ms + g(q)), with τ₋ the torque on the arm over the
+    cycle before (H = 2 I, no Coriolis, no damping). Computed at the reading instant instead,
+    the driver's own fresh velocity made the acceleration 0: τ₋ − g(q), off by 2 δ / 1 ms."""
+    lcm = DrakeLcm("memq://")
+    statuses = []
+    lcm.Subscribe("PANDA_STATUS", lambda d: statuses.append(lcmt_panda_status.decode(d)))
+    driver = TorqueDriver(spec(), DriverClock("epoch", origin=ORIGIN), lcm, model=StubModel(),
+                          emulate=EMULATE, low_pass_hz=FRANKA_NO_FILTER_HZ)
+    sim = Simulator(driver)
+    ctx = sim.get_mutable_context()
+    state = driver.get_input_port(1).FixValue(ctx, np.concatenate([Q, V]))
+    driver.get_input_port(2).FixValue(ctx, gravity(Q))
+    driver.get_input_port(0).FixValue(ctx, AbstractValue.Make(command(np.zeros(7), ORIGIN)))
+    sim.Initialize()
+    sim.AdvanceTo(0.0015)
+    tau_before = driver.get_output_port(0).Eval(ctx).copy()         # on the arm from 1 ms
+    delta = np.array([2e-4, -1e-4, 3e-4, 0.0, 1e-4, -2e-4, 1e-4])   # rad/s
+    state.GetMutableData().set_value(np.concatenate([Q, V + delta]))   # the plant's step
+    sim.AdvanceTo(0.002 + 1e-9)                                     # just after the cycle
+    lcm.HandleSubscriptions(0)
+    want = tau_before - (2.0 * delta / 1e-3 + gravity(Q))
+    read = driver.get_output_port(2).Eval(ctx)
+    np.testing.assert_allclose(read, want, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(statuses[-1].joint_torque_external, want, rtol=0, atol=1e-9)
+    assert statuses[-1].utime == ORIGIN + 2000                      # that cycle's status
+    assert np.abs(read - (tau_before - gravity(Q))).max() > 0.5     # not the stale reading
+
+
 def test_an_expired_command_is_counted_once_and_a_fresh_one_not_at_all():
     rig = Rig()
     rig.send(command(np.full(7, 0.5), ORIGIN + 1000))
