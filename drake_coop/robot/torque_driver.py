@@ -261,13 +261,12 @@ class TorqueDriver(LeafSystem):
         self._fingerprint = lcmt_panda_status._get_packed_fingerprint()
         self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, spec.clock_phase, self._update)
         if emulate and model is not None:
-            # each cycle's estimate latched EXTERNAL_LEAD ahead of the cycle (a first cycle
-            # closer than that to t = 0: v latched at initialization, the estimate zeros)
+            # each cycle's estimate latched EXTERNAL_LEAD ahead of the cycle; v latched at
+            # initialization too (the estimate zeros), so the first estimate has a v₋
+            self.DeclareInitializationUnrestrictedUpdateEvent(self._latch_first)
             lead = spec.clock_phase - EXTERNAL_LEAD
-            if lead < 0.0:
-                self.DeclareInitializationUnrestrictedUpdateEvent(self._latch_first)
-                lead += self._period
-            self.DeclarePeriodicUnrestrictedUpdateEvent(self._period, lead, self._latch)
+            self.DeclarePeriodicUnrestrictedUpdateEvent(
+                self._period, lead + self._period if lead < 0.0 else lead, self._latch)
         if lcm is not None:
             # each cycle's status STATUS_LEAD ahead of the cycle, stamped with the cycle's time
             # (a first cycle closer than that to t = 0: at initialization, before any update)

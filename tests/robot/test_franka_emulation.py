@@ -280,6 +280,28 @@ def test_the_estimate_read_between_the_drivers_cycle_and_the_plants_step_is_the_
     assert np.abs(read - (tau_before - gravity(Q))).max() > 0.5     # not the stale reading
 
 
+def test_the_first_estimate_of_a_phased_clock_has_the_velocity_of_initialization():
+    """A driver whose cycles start at 0.5 ms (``clock_phase``), the arm moving at a constant
+    V: the first estimate (latched before the first cycle, the arm not yet driven: no torque
+    on it) reads no acceleration, −g(q); against a v₋ of zeros it would read −(2 V / 1 ms +
+    g(q))."""
+    import dataclasses
+
+    lcm = DrakeLcm("memq://")
+    phased = dataclasses.replace(spec(), clock_phase=5e-4)
+    driver = TorqueDriver(phased, DriverClock("epoch", origin=ORIGIN), lcm, model=StubModel(),
+                          emulate=EMULATE, low_pass_hz=FRANKA_NO_FILTER_HZ)
+    sim = Simulator(driver)
+    ctx = sim.get_mutable_context()
+    driver.get_input_port(1).FixValue(ctx, np.concatenate([Q, V]))
+    driver.get_input_port(2).FixValue(ctx, gravity(Q))
+    driver.get_input_port(0).FixValue(ctx, AbstractValue.Make(SharedPandaCommand()))
+    sim.Initialize()
+    sim.AdvanceTo(4.99e-4)                                  # after the first latch only
+    np.testing.assert_allclose(driver.get_output_port(2).Eval(ctx), -gravity(Q), rtol=0,
+                               atol=1e-12)
+
+
 def test_an_expired_command_is_counted_once_and_a_fresh_one_not_at_all():
     rig = Rig()
     rig.send(command(np.full(7, 0.5), ORIGIN + 1000))
