@@ -99,10 +99,12 @@ def test_console_script_entry_point_reports_errors_without_traceback(tmp_path):
 
 
 def test_ctrl_c_stops_the_run_and_still_writes_the_logs(tmp_path):
+    """The run draws one figure (:func:`tests.conftest.start_paper_run`): every figure is
+    drawn and checked on the short run."""
     import signal
 
     out = tmp_path / "o"
-    proc, lines = start_paper_run(out)   # interrupted once the simulation is under way
+    proc, lines = start_paper_run(out, "fig3_force_tracking")   # interrupted once under way
     proc.send_signal(signal.SIGINT)
     rest = proc.stderr.read()
     proc.wait(timeout=120)
@@ -113,6 +115,7 @@ def test_ctrl_c_stops_the_run_and_still_writes_the_logs(tmp_path):
     assert meta["status"] == "interrupted"
     t = np.load(out / "robot1.npz")["t"]
     assert 0.0 < t[-1] < 90.0
+    assert (out / "fig3_force_tracking.png").exists()
 
 
 def test_the_argument_parser_loads_no_pydrake():
