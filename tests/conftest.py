@@ -98,15 +98,27 @@ def advance_to_tick(scenario, k: int, live_ground_truth: bool | None = None):
     return exp, sim, ctx
 
 
-def start_paper_run(out) -> tuple:
+def start_paper_run(out, figure: str | None = None) -> tuple:
     """The paper's run (``drake-coop run --out OUT --no-replay --force``: it may replace a
     previous run) in a subprocess, returned once its simulation is under way (its first
-    progress line): ``(process, stderr lines)``."""
+    progress line): ``(process, stderr lines)``. With ``figure`` (a paper figure's file name
+    without suffix), the run draws only that figure, as :func:`draw_only` (the reference
+    figure not at all): ``python -m drake_coop`` run through :mod:`runpy` after that patch,
+    for a test that checks no other figure (drawing them is most of an interrupted run's
+    cost)."""
     import subprocess
     import sys
 
-    proc = subprocess.Popen([sys.executable, "-m", "drake_coop", "run", "--out", str(out),
-                             "--no-replay", "--force"], stderr=subprocess.PIPE, text=True)
+    if figure is None:
+        cmd = [sys.executable, "-m", "drake_coop"]
+    else:
+        cmd = [sys.executable, "-c",
+               "import functools, runpy; import drake_coop.results as r; "
+               f"r.plot_figures = functools.partial(r.plot_figures, only=[{figure!r}]); "
+               "r.fig_references = lambda *args, **kwargs: []; "
+               "runpy.run_module('drake_coop', run_name='__main__')"]
+    proc = subprocess.Popen([*cmd, "run", "--out", str(out), "--no-replay", "--force"],
+                            stderr=subprocess.PIPE, text=True)
     lines = []
     for line in proc.stderr:
         lines.append(line)

@@ -96,9 +96,11 @@ def test_a_budget_median_is_the_worst_arms_median_over_the_draws():
 def test_the_rank_table_is_the_regressors_rank_now():
     """The shipped rank table's counts are what the regressor gives now (the lab arms only
     where the robots extra is installed); its gaps are clear (round-off level, not compared)."""
+    from drake_coop.plant.arms import shipped_arm_models
+
     module = _module("studies/identification/rank_table.py")
     shipped = json.loads((RESULTS / "identification_rank_table.json").read_text())["arms"]
-    arms = module.scenario_arms()
+    arms = shipped_arm_models()
     assert {"crs_a465", "crs_a255"} <= set(arms)
     for model, where in arms.items():
         n, Y = module.regressor(*where)

@@ -34,8 +34,8 @@ from drake_coop.scenario.reach import has_closed_form, robot_kinematics
 from drake_coop.scenario.resources import controller_urdf_path, model_urdf_path
 from drake_coop.scenario.schema import Robot, Task
 
-__all__ = ["GEOMETRY", "Arm", "ArmGeometry", "CrsKinematics", "arm_model", "urdf_dir",
-           "urdf_joint_limits"]
+__all__ = ["GEOMETRY", "Arm", "ArmGeometry", "CrsKinematics", "arm_model",
+           "shipped_arm_models", "urdf_dir", "urdf_joint_limits"]
 
 
 def urdf_dir() -> Path:
@@ -275,3 +275,36 @@ def arm_model(arm: Arm, urdf: str | Path | None = None, closed_form: bool | None
                          "kinematics")
     return ArmModel(plant, arm.ee_frame, arm.N, arm.c,
                     closed_form=arm.kinematics if use else None)
+
+
+def shipped_arm_models() -> dict[str, tuple[str, str, str | None]]:
+    """Every robot model of the shipped scenarios, once, from the first scenario using it.
+
+    The scenarios are read in :func:`~drake_coop.scenario.resources.shipped_scenarios`'
+    order (by name); those that need the lab arms' descriptions are left out when the
+    ``robots`` extra is not installed (any other refusal is raised).
+
+    Returns
+    -------
+    dict[str, tuple[str, str, str or None]]
+        ``robot.model -> (URDF path, base frame name, sensor joint name or None)``, in the
+        order first met.
+    """
+    from drake_coop.scenario.description import ROBOTS_EXTRA
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import shipped_scenarios
+    from drake_coop.scenario.schema import ScenarioError
+
+    seen: dict[str, tuple[str, str, str | None]] = {}
+    for path in shipped_scenarios().values():
+        try:
+            scenario = load_scenario(path)
+        except ScenarioError as error:      # a scenario that needs the robots extra, only
+            if ROBOTS_EXTRA not in str(error):
+                raise
+            continue
+        for robot in scenario.robots:
+            if robot.model not in seen:
+                arm = Arm(robot, scenario.task)
+                seen[robot.model] = (str(arm.urdf_path), arm.base_frame, robot.sensor_joint)
+    return seen

@@ -275,7 +275,7 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
         print(f"drake-coop study: {study.name}: {len(cases)} cases ({unique} distinct), "
               f"{unique - len(todo)} already finished, running {len(todo)}{again} on {engine} "
               f"({args.workers} workers) -> {out}", file=sys.stderr)
-        warning = phase_warning(study, cases[0]) if todo else ""
+        warning = phase_warning(study, cases[0], folder.stored_reach()) if todo else ""
         if warning:
             print(f"drake-coop study: warning: {warning}", file=sys.stderr)
     progress = None if args.quiet else CaseProgress(unique, unique - len(todo))
@@ -389,7 +389,7 @@ def _reload(store: ResultStore) -> dict[str, dict]:
         return {}
 
 
-def phase_warning(study, case: Case) -> str:
+def phase_warning(study, case: Case, cache: dict | None = None) -> str:
     """A warning when the study's ``t_end`` stops its cases before the phase it measures.
 
     Parameters
@@ -398,6 +398,10 @@ def phase_warning(study, case: Case) -> str:
         The study (its ``phase`` and ``t_end``; None: the scenario's own).
     case : Case
         A case (its scenario's phase times).
+    cache : dict or None
+        The study's reachability checks (its folder's
+        :meth:`~drake_coop.studies.folder.StudyFolder.stored_reach`): reading the case
+        checks nothing the study already checked. None: checked again.
 
     Returns
     -------
@@ -410,7 +414,8 @@ def phase_warning(study, case: Case) -> str:
 
     if study.phase == "all" or study.t_end is None:
         return ""
-    spans = {name: a for name, a, _ in phases(load_scenario(data=case.scenario_yaml))}
+    spans = {name: a for name, a, _ in phases(load_scenario(data=case.scenario_yaml,
+                                                            cache=cache))}
     start = spans.get(study.phase)
     if start is None or study.t_end > start:
         return ""

@@ -19,27 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from drake_coop.identification.regressor import Regressor, condition_number, load_structure
-from drake_coop.plant.arms import Arm
-from drake_coop.scenario.description import ROBOTS_EXTRA
-from drake_coop.scenario.loading import load_scenario
-from drake_coop.scenario.resources import find_scenario, shipped_scenarios
-from drake_coop.scenario.schema import ScenarioError
-
-
-def scenario_arms() -> dict:
-    """``model -> (urdf, base frame, sensor joint)`` of every robot of the shipped scenarios."""
-    seen: dict = {}
-    for name in shipped_scenarios():
-        try:
-            s = load_scenario(find_scenario(name))
-        except ScenarioError as error:      # a scenario that needs the robots extra, only
-            if ROBOTS_EXTRA not in str(error):
-                raise
-            continue
-        for robot in s.robots:
-            arm = Arm(robot, s.task)
-            seen.setdefault(robot.model, (str(arm.urdf_path), arm.base_frame, robot.sensor_joint))
-    return seen
+from drake_coop.plant.arms import shipped_arm_models
 
 
 def regressor(urdf: str, base: str, sensor) -> tuple[int, np.ndarray]:
@@ -62,7 +42,7 @@ def row(n: int, Y: np.ndarray) -> dict:
 def main(argv: list[str]) -> int:
     """Write the document to ``argv[0]``."""
     out: dict = {"arms": {}}
-    for model, where in sorted(scenario_arms().items()):
+    for model, where in sorted(shipped_arm_models().items()):
         n, Y = regressor(*where)
         out["arms"][model.rsplit("/", 1)[-1].replace(".", "_")] = row(n, Y)
         if model == "crs_a465":

@@ -69,25 +69,10 @@ def test_the_crs_arms_have_22_base_parameters_and_a_round_off_column_is_not_one(
 
 def _scenario_arms():
     """Every robot model of the shipped scenarios (the lab arms when the robots extra is
-    installed), once each: (id, urdf path, base frame, sensor joint)."""
-    from drake_coop.plant.arms import Arm
-    from drake_coop.scenario.loading import load_scenario
-    from drake_coop.scenario.description import ROBOTS_EXTRA
-    from drake_coop.scenario.resources import find_scenario, shipped_scenarios
-    from drake_coop.scenario.schema import ScenarioError
+    installed), once each: (model, (urdf path, base frame, sensor joint))."""
+    from drake_coop.plant.arms import shipped_arm_models
 
-    seen = {}
-    for name in shipped_scenarios():
-        try:
-            s = load_scenario(find_scenario(name))
-        except ScenarioError as error:      # a scenario that needs the robots extra, only
-            if ROBOTS_EXTRA not in str(error):
-                raise
-            continue
-        for robot in s.robots:
-            arm = Arm(robot, s.task)
-            seen.setdefault(robot.model, (str(arm.urdf_path), arm.base_frame, robot.sensor_joint))
-    return sorted(seen.items())
+    return sorted(shipped_arm_models().items())
 
 
 @pytest.mark.parametrize("where", [pytest.param(w, id=m.rsplit("/", 1)[-1])

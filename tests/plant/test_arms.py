@@ -308,3 +308,33 @@ def test_one_sample_on_plain_floats_equals_the_batched_closed_form():
             np.testing.assert_allclose(arm.fk(Q[k]), fk[k], rtol=0, atol=1e-15)
             np.testing.assert_allclose(arm.jacobian(Q[k]), J[k], rtol=0, atol=1e-15)
             np.testing.assert_allclose(arm.jacobian_dot(Q[k], V[k]), Jd[k], rtol=0, atol=1e-14)
+
+
+def test_shipped_arm_models_are_the_models_the_scenario_files_name_each_once():
+    """Every ``model:`` of the shipped scenario files (read as plain YAML; a file without
+    ``robots`` has the paper's, ``paper.yaml``'s), first met in name order, the lab arms'
+    only with the robots extra; each URDF has the base link and the sensor joint it is
+    given with."""
+    import xml.etree.ElementTree as ET
+
+    import yaml
+
+    from drake_coop.control.arm_plant import description_packages
+    from drake_coop.plant.arms import shipped_arm_models
+
+    root = Path(__file__).resolve().parents[2]
+    have_robots = "example-robot-data" in description_packages()
+    paper = yaml.safe_load((root / "scenarios" / "paper.yaml").read_text())["robots"]
+    expected: list[str] = []
+    for path in sorted((root / "scenarios").glob("*.yaml")):
+        for robot in yaml.safe_load(path.read_text()).get("robots", paper):
+            model = robot.get("model", "crs_a465")        # a robot's default model
+            if model not in expected and (have_robots or "://" not in model):
+                expected.append(model)
+    models = shipped_arm_models()
+    assert list(models) == expected
+    assert {"crs_a465", "crs_a255", "coop6"} <= set(models)
+    for model, (urdf, base, sensor) in models.items():
+        tree = ET.parse(urdf).getroot()
+        assert base in {link.get("name") for link in tree.iter("link")}, model
+        assert sensor in {joint.get("name") for joint in tree.iter("joint")}, model

@@ -7,7 +7,13 @@ The cases' results are real (each shipped study shrunk with ``--t-end``/``--draw
 a stand-in engine that hands those results back and stops where the test says (a signal
 between two cases, after a case's file is written, before its tables are), so that every
 point is reached without racing a real signal. One test sends a real SIGTERM to a real
-rerun of the object carry on the local pool."""
+rerun of the object carry on the local pool.
+
+Each shrunk study is expanded once for the module (:func:`_expand_once`, keyed on the study
+and its size; the expansion and its reachability checks are deterministic in them), and
+the ``study`` command gets those cases on every run here: these tests are about what a run
+keeps and what a resume runs again, not about expanding (the expansion's own tests, and the
+last test here, which counts a resume's reachability checks without this memo)."""
 
 import csv
 import json
@@ -23,6 +29,7 @@ import pytest
 from drake_coop.cli import main
 from drake_coop.control.arm_plant import description_packages
 from drake_coop.studies import expand, load_study
+from drake_coop.studies.expand import MAX_CASES
 from drake_coop.studies.cli import Terminated
 from drake_coop.studies.size import apply_size
 from drake_coop.studies.store import FINISHED, ResultStore
@@ -50,6 +57,34 @@ def _argv(size: dict) -> list[str]:
     return [x for k, v in size.items() for x in (f"--{k.replace('_', '-')}", str(v))]
 
 
+#: (the study's repr, max_cases, first) -> (its cases, its reachability checks' cache).
+_EXPANDED: dict = {}
+
+
+def _expand_once(study, *, max_cases: int = MAX_CASES, first=None, cache=None):
+    """:func:`expand`, once per study and size in this module: a later call gets the
+    same cases (a new list) and, in ``cache``, the reachability checks the first made."""
+    key = (repr(study), max_cases, first)
+    if key not in _EXPANDED:
+        reach: dict = {}
+        _EXPANDED[key] = (expand(study, max_cases=max_cases, first=first, cache=reach), reach)
+    cases, reach = _EXPANDED[key]
+    if cache is not None:
+        cache.update(reach)
+    return list(cases)
+
+
+@pytest.fixture
+def expanded_once():
+    """The ``study`` command expands through :func:`_expand_once` during the test (a
+    patch of its own, kept when the test undoes ``monkeypatch``)."""
+    import drake_coop.studies.cli as study_cli
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(study_cli, "expand", _expand_once)
+        yield
+
+
 @pytest.fixture(scope="module")
 def real_results() -> dict[str, dict[str, dict]]:
     """study name -> case hash -> the case's real result (``run_case``)."""
@@ -61,7 +96,7 @@ def real_results() -> dict[str, dict[str, dict]]:
             continue
         study, first = apply_size(load_study(path), _size(path))
         out[path.stem] = {c.hash: run_case(c.scenario_yaml, study.t_end)
-                          for c in expand(study, first=first)}
+                          for c in _expand_once(study, first=first)}
     return out
 
 
@@ -151,7 +186,7 @@ def _interrupt_and_resume(tmp_path, monkeypatch, capsys, path: Path, results: di
 @pytest.mark.parametrize("path", [pytest.param(p, marks=needs_robots) if p.stem in NEEDS_ROBOTS
                                   else p for p in STUDIES], ids=[p.stem for p in STUDIES])
 def test_every_shipped_study_resumes_after_an_interruption(tmp_path, monkeypatch, capsys,
-                                                            real_results, path):
+                                                            real_results, expanded_once, path):
     results = real_results[path.stem]
     assert all(r["status"] in FINISHED for r in results.values())
     _interrupt_and_resume(tmp_path, monkeypatch, capsys, path, results, "between", 1)
@@ -161,7 +196,7 @@ def test_every_shipped_study_resumes_after_an_interruption(tmp_path, monkeypatch
                                       ("saved", 0), ("saved", 2), ("tables", 1),
                                       ("tables", 3)])
 def test_the_object_carry_resumes_from_any_point(tmp_path, monkeypatch, capsys,
-                                                 real_results, where, k):
+                                                 real_results, expanded_once, where, k):
     results = real_results["object_carry"]
     phases = [p for r in results.values() for m in r["metrics"].values() for p in m.values()]
     assert any(p.get("mass_convergence_time", {}).get("time", 0) is None for p in phases)
@@ -174,7 +209,7 @@ def test_the_object_carry_resumes_from_any_point(tmp_path, monkeypatch, capsys,
 @pytest.mark.parametrize("where, k", [("between", 2), ("saved", 1), ("tables", 2)])
 def test_the_lab_arms_carry_resumes_with_its_arm_sets_in_one_table(tmp_path, monkeypatch,
                                                                    capsys, real_results,
-                                                                   where, k):
+                                                                   expanded_once, where, k):
     """studies/object_carry_lab.yaml (a grid over base scenarios): two- and three-arm cases
     in one folder, interrupted anywhere, resume to one table naming each case's base."""
     path = ROOT / "studies" / "object_carry_lab.yaml"
@@ -193,7 +228,7 @@ def test_a_finished_contact_case_is_kept_by_the_store(tmp_path, real_results):
     write them, and still refuses a count that is not a count."""
     study, first = apply_size(load_study(ROOT / "studies" / "object_carry.yaml"),
                               SIZES["object_carry"])
-    cases = expand(study, first=first)
+    cases = _expand_once(study, first=first)
     store = ResultStore(tmp_path)
     for case in cases:
         store.save(case, real_results["object_carry"][case.hash], study.t_end)
@@ -257,8 +292,9 @@ def _cmdline(pid: int) -> list[str]:
 
 def test_a_resume_reach_checks_nothing_it_stored(tmp_path, monkeypatch, capsys):
     """The first run reach-checks each base geometry once and keeps the results in its
-    folder (``reach_checks.json``); the resume reads them and checks nothing again (the
-    check counted; a new folder checks again, so the counter can fail)."""
+    folder (``reach_checks.json``); the resume reads them and checks nothing again, its
+    warning about the measured phase included (the check counted; a new folder checks
+    again, so the counter can fail)."""
     import drake_coop.scenario.reach as reach
     from drake_coop.studies.engines import run_case
     from drake_coop.studies.folder import REACH
@@ -284,7 +320,7 @@ def test_a_resume_reach_checks_nothing_it_stored(tmp_path, monkeypatch, capsys):
     assert len(checks) == 1 and (out / REACH).is_file()       # one base, one geometry
     checks.clear()
     _engine(monkeypatch, results, calls)
-    assert main(argv) == 0
+    assert main(argv[:-1]) == 0             # not quiet: the phase warning reads a case too
     assert checks == []                                        # the resume: nothing again
     assert main(["study", str(path), "--out", str(tmp_path / "new"), *argv[4:]]) == 0
     assert len(checks) == 1

@@ -109,8 +109,23 @@ def _kill_after_first_case(path: Path, out: Path, signum: int) -> int:
     return proc.returncode
 
 
+def _cases_in_this_process(monkeypatch) -> None:
+    """The local pool runs each case with :func:`run_case` in this process, in order (not
+    one fresh process per case: the pool itself is run by :func:`local_run`)."""
+    import drake_coop.studies.engines as engines
+
+    def run_local(cases, t_end, on_result, *, workers=2):
+        for case in cases:
+            on_result(case, engines.run_case(case.scenario_yaml, t_end))
+
+    monkeypatch.setattr(engines, "run_local", run_local)
+
+
 @pytest.mark.parametrize("signum, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
-def test_killed_study_keeps_finished_cases_and_resumes(tmp_path, capsys, signum, code):
+def test_killed_study_keeps_finished_cases_and_resumes(tmp_path, capsys, monkeypatch, signum,
+                                                       code):
+    """A real study process killed after its first case keeps what finished; the resume
+    (its cases run in this process, :func:`_cases_in_this_process`) runs only the rest."""
     path = _write(tmp_path, t_end=1.0)
     out = tmp_path / "out"
     assert _kill_after_first_case(path, out, signum) == code
@@ -119,6 +134,7 @@ def test_killed_study_keeps_finished_cases_and_resumes(tmp_path, capsys, signum,
     doc = json.loads((out / "study.json").read_text())
     assert doc["counts"].get("pending", 0) == 4 - len(kept)
     assert not list(out.rglob("*.tmp"))
+    _cases_in_this_process(monkeypatch)
     assert main(["study", str(path), "--out", str(out)]) == 0
     assert f"{len(kept)} already finished, running {4 - len(kept)}" in capsys.readouterr().err
     for p, (stamp, text) in kept.items():            # no finished case was run again
