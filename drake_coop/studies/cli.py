@@ -28,6 +28,7 @@ import contextlib
 import os
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -117,11 +118,34 @@ _PENDING: int | None = None
 _STOPPING = False
 
 
+#: Where an exception raised by a signal handler is printed ("Exception ignored in ...") and
+#: dropped by Python instead of propagating: an object's ``__del__`` and the finalizers that
+#: ``weakref`` and ``multiprocessing.util`` run when an object is collected.
+_FINALIZER_FILES = (os.path.join("multiprocessing", "util.py"), "weakref.py")
+
+
+def _in_finalizer(frame) -> bool:
+    """Whether ``frame`` (the one a signal interrupted) runs inside a finalizer."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name == "__del__" or (code.co_name in ("__call__", "_run_finalizers")
+                                         and code.co_filename.endswith(_FINALIZER_FILES)):
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _on_signal(signum, frame):
     global _SIGTERM_SEEN, _PENDING, _STOPPING
     _SIGTERM_SEEN = _SIGTERM_SEEN or signum == signal.SIGTERM
     if _DEFER or _STOPPING:
         _PENDING = _PENDING or signum
+        return
+    if _in_finalizer(frame):
+        # Raised here, the stop would be printed and dropped, and the study would run on
+        # (a case's process collected while the signal arrived did just that): the signal is
+        # sent again once the finalizer has returned.
+        threading.Timer(0.01, os.kill, (os.getpid(), signum)).start()
         return
     _STOPPING = True
     raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()

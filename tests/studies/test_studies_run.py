@@ -159,3 +159,25 @@ def test_ray_engine_gives_the_local_engine_metrics(local_run, tmp_path):
     for name, record in local.items():
         for key in ("status", "message", "t_reached", "metrics"):
             assert remote[name][key] == record[key], (name, key)
+
+
+def test_a_signal_that_arrives_in_a_finalizer_still_stops_the_study(monkeypatch):
+    """A Ctrl-C whose handler runs inside a finalizer (here a ``__del__``; in a study, a
+    case's process object being collected) is not printed and dropped: it stops the study."""
+    import drake_coop.studies.cli as cli
+
+    for name, value in (("_STOPPING", False), ("_DEFER", 0), ("_PENDING", None)):
+        monkeypatch.setattr(cli, name, value)
+
+    class Collected:
+        def __del__(self):
+            signal.raise_signal(signal.SIGINT)     # Python runs the handler in here
+
+    previous = signal.signal(signal.SIGINT, cli._on_signal)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            Collected()
+            for _ in range(200):
+                time.sleep(0.01)
+    finally:
+        signal.signal(signal.SIGINT, previous)
