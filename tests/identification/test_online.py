@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from drake_coop.control.reference_layout import ReferenceLayout
-from drake_coop.identification.online import OnlineIdentification, momentum_rows
+from drake_coop.identification.online import (OnlineIdentification, apply_parameters,
+                                              momentum_rows)
 from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
 from drake_coop.plant.arms import Arm
 from drake_coop.plant.model_error import controller_arm_model
@@ -61,6 +62,8 @@ def test_momentum_rows_against_the_model():
     ({"theta0": np.zeros(2)}, "theta0: 39 finite parameters"),
     ({"forgetting": 1.5}, "forgetting: must be in"),
     ({"prior_relative": 0.0}, "prior_relative: must be > 0"),
+    ({"torque_noise": 0.0}, "torque_noise: must be a finite number > 0"),
+    ({"torque_noise": np.nan}, "torque_noise: must be a finite number > 0"),
 ])
 def test_bad_arguments_are_one_line(kwargs, message):
     _, nominal, structure = _arm()
@@ -127,3 +130,61 @@ def test_the_force_estimate_does_not_read_the_torque():
     feeds = {block.get_input_port(i).get_name(): block.HasDirectFeedthrough(i, out)
              for i in range(block.num_input_ports())}
     assert feeds == {"q": True, "qdot_hat": True, "tau": False, "reference": True}
+
+
+def test_apply_parameters_gives_the_dynamics_of_the_true_model():
+    """A controller model 30 % heavy given the truth's parameters has the truth's dynamics:
+    against Drake's own model of the unscaled arm (an independent plant)."""
+    scenario, wrong, structure = _arm(1.3)
+    truth = _arm(1.0)[1]
+    theta = true_parameters(structure)          # the URDF's own: the simulated arm's
+    q, v, a = np.array([0.2, -0.5, 0.9]), np.array([0.4, -0.3, 0.6]), np.array([1.0, 2.0, -1.5])
+    assert not np.allclose(wrong.H(q), truth.H(q), rtol=1e-3)
+    apply_parameters(wrong, structure, theta)
+    np.testing.assert_allclose(wrong.H(q), truth.H(q), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(wrong.g(q), truth.g(q), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(wrong.inverse_dynamics_terms(q, v, a),
+                               truth.inverse_dynamics_terms(q, v, a), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(wrong.D, truth.D, rtol=1e-12)
+
+
+def test_without_forgetting_the_update_is_the_batch_least_squares():
+    """μ = 1: after every tick ``θ̂`` is the batch MAP estimate of the same rows, built here
+    from the module docstring's equation and solved by ``numpy.linalg.lstsq`` (the rows
+    weighted by ``1/(h σ_τ)``, the prior by ``P_0^{-1/2}``). Random positions, velocities and
+    torques (the answer is a least-squares one whatever the data), the object held on the
+    second half (the rows projected), one tick at rest (no row)."""
+    _, nominal, structure = _arm()
+    regressor = Regressor(structure)
+    theta0 = true_parameters(structure, nominal.plant)
+    layout, h, sigma = ReferenceLayout(n=3, m=1), 0.009, 0.05
+    block = OnlineIdentification(regressor, theta0, nominal.J_phi, layout, h, 25.0,
+                                 forgetting=1.0, torque_noise=sigma, v_min=0.01)
+    rng = np.random.default_rng(7)
+    K = 40
+    q = np.cumsum(rng.uniform(-0.05, 0.05, (K, 3)), axis=0) + [0.1, -0.6, 1.0]
+    v = rng.uniform(-1.0, 1.0, (K, 3))
+    v[17] = 0.0
+    tau = rng.uniform(-5.0, 5.0, (K, 3))
+    held = np.arange(K) >= K // 2
+    log = {"t": np.arange(K) * h, "q": q, "qdot_hat": v, "tau": tau,
+           "lambda_d": np.where(held, 10.0, 0.0)}
+    context, _ = _feed(block, log, layout, h)
+    theta_hat = context.get_discrete_state(0).value()
+    rows, ys = [], []
+    for k in range(1, K):
+        if np.linalg.norm(v[k]) < 0.01:
+            continue
+        Yp1, Yb1 = momentum_rows(regressor, q[k], v[k])
+        Yp0, Yb0 = momentum_rows(regressor, q[k - 1], v[k - 1])
+        J = nominal.J_phi(q[k - 1])
+        Pi = np.eye(3) - J.T @ np.linalg.solve(J @ J.T, J) if held[k - 1] else np.eye(3)
+        rows.append(Pi @ (Yp1 - Yp0 + h * Yb0) / (h * sigma))
+        ys.append(Pi @ (h * tau[k - 1]) / (h * sigma))
+    assert len(rows) == K - 2
+    s = np.abs(theta0) + 1e-5 * max(np.abs(theta0).max(), 1.0)      # P_0 = diag(s²)
+    A = np.vstack([*rows, np.diag(1.0 / s)])
+    b = np.concatenate([*ys, theta0 / s])
+    batch = np.linalg.lstsq(A, b, rcond=None)[0]
+    assert not np.allclose(batch, theta0, rtol=1e-3)
+    np.testing.assert_allclose(theta_hat, batch, rtol=1e-6, atol=1e-9 * np.abs(theta0).max())
