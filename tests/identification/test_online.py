@@ -113,11 +113,61 @@ def test_online_identification_against_the_simulated_truth(run):
             zip(log["q"][circle][::10], log["qdot"][circle][::10])]
     err = [np.sqrt(np.mean([(Y @ (th - theta_true)) ** 2 for Y in rows]))
            for th in (theta_hat, theta0)]
-    assert err[0] < 0.3 * err[1]      # measured: 0.58 against 3.19
+    print("momentum rows' error", err)
+    assert err[0] < 0.05 * err[1]      # measured: 0.016 against 3.19
+    # the contact direction's share of the model's torque error over the circle, the
+    # inverse dynamics with the simulated acceleration: what the squeeze reads as force
+    a = np.gradient(log["qdot"], h, axis=0)
+    lam_err = []
+    for th in (theta_hat, theta0):
+        e = []
+        for k in np.nonzero(circle)[0][::10]:
+            Y = regressor.matrix(log["q"][k:k + 1], log["qdot"][k:k + 1], a[k:k + 1])
+            J = nominal.J_phi(log["q"][k])
+            e.append(np.linalg.solve(J @ J.T, J @ (Y @ (th - theta_true))))
+        lam_err.append(float(np.sqrt(np.mean(np.square(e)))))
+    print("contact-direction model error (N)", lam_err)
+    assert lam_err[0] < 0.02 * lam_err[1]   # measured: 0.13 N against 24.3 N
+    # the excited directions (the rows' right singular vectors, rows built here as the module
+    # docstring says) converge to the truth; their equation error with the true parameters
+    # is of the size of the default σ_τ
+    Phi, y = _task_rows(regressor, log, nominal.J_phi, h)
+    _, sv, Vt = np.linalg.svd(Phi, full_matrices=False)
+    excited = Vt[sv >= 0.05 * sv[0]]              # measured: 6 of the 15 nonzero
+    after, before = (np.abs(excited @ (th - theta_true)) for th in (theta_hat, theta0))
+    print("singular values / largest", sv[:16] / sv[0], "excited", after, before)
+    assert len(excited) >= 3
+    assert np.all(after[:3] < 0.02 * before[:3])   # measured: 0.001, 0.005, 0.013
+    assert np.all(after < 0.3 * before + 1e-9)     # measured: 0.27 at most (the fourth);
+    # one of them the ±30 % error does not touch (1e-16 before and after)
+    noise = np.sqrt(np.mean((Phi @ theta_true - y) ** 2)) / h
+    print("row equation error with the truth (N m)", noise)
+    assert 0.01 < noise < 0.3      # measured: 0.15 (the velocity observer on the wrong model)
     # and the force estimate over the circle against the simulated contact force
     truth = log["lambda_meas"][circle]
     rms = [np.sqrt(np.mean((lam[circle] - truth) ** 2)) for lam in (lam_online, lam_frozen)]
-    assert rms[0] < 0.3 * rms[1]      # measured: 4.4 N against 24.2 N
+    print("force estimate error (N)", rms)
+    assert rms[0] < 0.05 * rms[1]      # measured: 4.4 N against 24.2 N
+
+
+def _task_rows(regressor, log, J_phi, h, v_min=0.01):
+    """The momentum rows of a logged run (module docstring's equation with the encoder's
+    central differences, projected while held, none at rest): ``Φ`` (N n, p), ``y`` (N n,)."""
+    q = log["q"]
+    vc = np.full_like(q, np.nan)
+    vc[1:-1] = (q[2:] - q[:-2]) / (2 * h)
+    rows, ys = [], []
+    for k in range(2, len(log["t"]) - 1):
+        if np.linalg.norm(vc[k]) < v_min:
+            continue
+        Yp1, _ = momentum_rows(regressor, q[k], vc[k])
+        Yp0, Yb0 = momentum_rows(regressor, q[k - 1], vc[k - 1])
+        J = J_phi(q[k - 1])
+        held = log["lambda_d"][k - 1] != 0
+        Pi = np.eye(3) - J.T @ np.linalg.solve(J @ J.T, J) if held else np.eye(3)
+        rows.append(Pi @ (Yp1 - Yp0 + h * Yb0))
+        ys.append(Pi @ (h * log["tau"][k - 1]))
+    return np.vstack(rows), np.concatenate(ys)
 
 
 def test_the_force_estimate_does_not_read_the_torque():
@@ -153,7 +203,8 @@ def test_without_forgetting_the_update_is_the_batch_least_squares():
     from the module docstring's equation and solved by ``numpy.linalg.lstsq`` (the rows
     weighted by ``1/(h σ_τ)``, the prior by ``P_0^{-1/2}``). Random positions, velocities and
     torques (the answer is a least-squares one whatever the data), the object held on the
-    second half (the rows projected), one tick at rest (no row)."""
+    second half (the rows projected), one tick at rest (no row); the rows' velocities are
+    the encoder's central differences."""
     _, nominal, structure = _arm()
     regressor = Regressor(structure)
     theta0 = true_parameters(structure, nominal.plant)
@@ -163,8 +214,8 @@ def test_without_forgetting_the_update_is_the_batch_least_squares():
     rng = np.random.default_rng(7)
     K = 40
     q = np.cumsum(rng.uniform(-0.05, 0.05, (K, 3)), axis=0) + [0.1, -0.6, 1.0]
-    v = rng.uniform(-1.0, 1.0, (K, 3))
-    v[17] = 0.0
+    v = rng.uniform(-1.0, 1.0, (K, 3))               # q̇̂: the force estimate's only
+    q[18] = q[16]                                    # at rest at tick 17 (no row)
     tau = rng.uniform(-5.0, 5.0, (K, 3))
     held = np.arange(K) >= K // 2
     log = {"t": np.arange(K) * h, "q": q, "qdot_hat": v, "tau": tau,
@@ -172,16 +223,18 @@ def test_without_forgetting_the_update_is_the_batch_least_squares():
     context, _ = _feed(block, log, layout, h)
     theta_hat = context.get_discrete_state(0).value()
     rows, ys = [], []
-    for k in range(1, K):
-        if np.linalg.norm(v[k]) < 0.01:
+    vc = np.full_like(q, np.nan)
+    vc[1:-1] = (q[2:] - q[:-2]) / (2 * h)            # the encoder's central difference
+    for k in range(2, K - 1):                        # the row from k - 1 to k, built at k + 1
+        if np.linalg.norm(vc[k]) < 0.01:
             continue
-        Yp1, Yb1 = momentum_rows(regressor, q[k], v[k])
-        Yp0, Yb0 = momentum_rows(regressor, q[k - 1], v[k - 1])
+        Yp1, _ = momentum_rows(regressor, q[k], vc[k])
+        Yp0, Yb0 = momentum_rows(regressor, q[k - 1], vc[k - 1])
         J = nominal.J_phi(q[k - 1])
         Pi = np.eye(3) - J.T @ np.linalg.solve(J @ J.T, J) if held[k - 1] else np.eye(3)
         rows.append(Pi @ (Yp1 - Yp0 + h * Yb0) / (h * sigma))
         ys.append(Pi @ (h * tau[k - 1]) / (h * sigma))
-    assert len(rows) == K - 2
+    assert len(rows) == K - 4
     s = np.abs(theta0) + 1e-5 * max(np.abs(theta0).max(), 1.0)      # P_0 = diag(s²)
     A = np.vstack([*rows, np.diag(1.0 / s)])
     b = np.concatenate([*ys, theta0 / s])
