@@ -19,13 +19,16 @@ Euler, as the observers):
     \big(Y_p(k) - Y_p(k-1) + h\,Y_\beta(k-1)\big)\,\theta = h\,\tau(k-1) + h\,J_\varphi^T\lambda ,
 
 with ``Y_p(k) = Y_p(q_k, v_k)`` at the central difference of the encoder,
-``v_k = (q_{k+1} − q_{k−1}) / 2h``: the rows lag the tick by one (the row from ``k − 2`` to
+``v(k) = (q(k+1) − q(k−1)) / 2h``: the rows lag the tick by one (the row from ``k − 2`` to
 ``k − 1`` is built at tick ``k``). Not the velocity estimate ``q̇̂``: its error biases the rows
 (with the exact model as the prior, the batch solution of 10 s of task rows moved the
 contact direction's share of the model away from the truth by 0.10 N with ``q̇̂`` and by
 0.011 N with the central difference; in the loop the estimate went from 0.03 to 0.13 N of
-squeeze error with ``q̇̂``). Encoder noise enters the difference amplified by ``1/(√2 h)``
-(not measured here: the table's noise column).
+squeeze error with ``q̇̂``). It is not better everywhere: fed the log of a run whose loop
+ran on a 30 % heavy model (a rough motion, 24 N of force error), the difference's rows left
+1.3 N of that contact-direction error where ``q̇̂``'s left 0.13 N
+(``tests/identification/test_online.py``); in the loop the block smooths its own motion.
+Encoder noise enters the difference amplified by ``1/(√2 h)`` (not measured here).
 
 While the object is held ``λ`` is unknown: the rows are projected onto the complement of
 ``J_φᵀ``'s range, ``Π = I − J_φᵀ(J_φJ_φᵀ)⁻¹J_φ`` (the contact force drops out; on the ideal
@@ -202,8 +205,8 @@ class OnlineIdentification(ForceSource):
         the data against the prior: the update is the Kalman filter of ``θ`` (with
         ``μ = 1`` exactly the batch least squares with the prior, ``σ_τ⁻²``-weighted rows).
         The default, 0.03 N·m, is of the size of the rows' equation error with the exact
-        parameters on the compressed task (0.02–0.15 N·m measured, mostly the velocity
-        estimate's error); 0.01 and 0.1 gave the same contact-direction error within 10 %.
+        parameters on the compressed task (0.02–0.35 N·m measured, mostly the velocity's
+        error); 0.01 and 0.1 gave the same contact-direction error within 10 %.
     model : ArmModel or None
         The controller's model (:class:`~drake_coop.control.arm_model.ArmModel`, the one its
         control law (13) and velocity observer evaluate). Given, each update writes ``θ̂``
