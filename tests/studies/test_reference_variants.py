@@ -9,6 +9,7 @@ import pytest
 
 from drake_coop.scenario.loading import load_scenario
 from drake_coop.studies.reference_table import _source, compress, expand_table
+import drake_coop.studies.reference_variants as variants
 from drake_coop.studies.reference_variants import variant_built, variant_matters
 
 T_TINY = 5.3     # 0.3 s of the circle
@@ -260,3 +261,33 @@ def test_online_row_after_10_s_within_2x_of_the_batch_on_the_same_segment(monkey
     print(errors)
     assert errors["online"] < 2.0 * errors["batch"]
     assert errors["online"] < 0.1 * errors["nominal"]
+
+
+def test_the_online_row_refines_the_controllers_model_and_beside_the_sensor_loop_does_not():
+    """In its row the online block holds the control law's own model (it writes its
+    parameters into it); beside the F/T loop (the open-loop column) it holds none, so the
+    loop stays the sensor's."""
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.studies.reference_open_loop import open_loop_built
+
+    s = _momentum_scenario()
+    with variant_built(s, "online"):
+        exp = build_experiment(plan_run(s), log=False)
+    for rs in exp.robots:
+        assert rs.force_observer._model is rs.law.model
+    cases = expand_table(load_scenario(), ["online"], ["open_loop"], 1, t_end=T_TINY)
+    loop = load_scenario(data=cases[0].scenario_yaml)
+    with open_loop_built(loop, "online", variants._online_builder(loop, feed_controller=False)):
+        exp = build_experiment(plan_run(loop), log=False)
+    from pydrake.systems.framework import Diagram
+    from drake_coop.identification.online import OnlineIdentification
+
+    def systems(diagram):
+        for system in diagram.GetSystems():
+            yield system
+            if isinstance(system, Diagram):
+                yield from systems(system)
+    blocks = [b for b in systems(exp.diagram) if isinstance(b, OnlineIdentification)]
+    assert len(blocks) == len(loop.robots)
+    assert all(block._model is None for block in blocks)
