@@ -16,21 +16,51 @@ Cᵀ`` makes ``β = g + D q̇ + f_c − Cᵀ q̇ = Y(q, q̇, 0)θ − Ḣ q̇``)
 Euler, as the observers):
 
 .. math::
-    \big(Y_p(k) - Y_p(k-1) + h\,Y_\beta(k-1)\big)\,\theta = h\,\tau(k-1) + h\,J_\varphi^T\lambda .
+    \big(Y_p(k) - Y_p(k-1) + h\,Y_\beta(k-1)\big)\,\theta = h\,\tau(k-1) + h\,J_\varphi^T\lambda ,
+
+with ``Y_p(k) = Y_p(q_k, v_k)`` at the central difference of the encoder,
+``v(k) = (q(k+1) − q(k−1)) / 2h``: the rows lag the tick by one (the row from ``k − 2`` to
+``k − 1`` is built at tick ``k``). Not the velocity estimate ``q̇̂``: its error biases the rows
+(with the exact model as the prior, the batch solution of 10 s of task rows moved the
+contact direction's share of the model away from the truth by 0.10 N with ``q̇̂`` and by
+0.011 N with the central difference; in the loop the estimate went from 0.03 to 0.13 N of
+squeeze error with ``q̇̂``). It is not better everywhere: fed the log of a run whose loop
+ran on a 30 % heavy model (a rough motion, 24 N of force error), the difference's rows left
+1.3 N of that contact-direction error where ``q̇̂``'s left 0.13 N
+(``tests/identification/test_online.py``); in the loop the block smooths its own motion.
+Encoder noise enters the difference amplified by ``1/(√2 h)`` (not measured here).
 
 While the object is held ``λ`` is unknown: the rows are projected onto the complement of
 ``J_φᵀ``'s range, ``Π = I − J_φᵀ(J_φJ_φᵀ)⁻¹J_φ`` (the contact force drops out; on the ideal
-constraint exactly). Each tick's (projected) rows update ``θ̂`` by recursive least squares with
-forgetting factor ``μ``:
-``K = PΦᵀ(μI + ΦPΦᵀ)⁻¹``, ``θ̂ ← θ̂ + K(y − Φθ̂)``, ``P ← (P − KΦP)/μ``, with ``trace P`` held
+constraint exactly). Each tick's (projected) rows ``Φ``, ``y`` update ``θ̂`` by recursive least
+squares, i.e. the Kalman filter of a constant ``θ`` with the rows' noise variance
+``R = (h σ_τ)²`` and a forgetting factor ``μ``:
+``K = PΦᵀ(μR I + ΦPΦᵀ)⁻¹``, ``θ̂ ← θ̂ + K(y − Φθ̂)``, ``P ← (P − KΦP)/μ``, with ``trace P`` held
 at most its initial value (no wind-up in the directions the motion does not excite).
-The prior is the controller's model ``θ_0`` with ``P_0 = diag((r|θ_0| + ε)²)``.
+The prior is the controller's model ``θ_0`` with ``P_0 = diag((r|θ_0| + ε)²)``. With ``μ = 1``
+(the default) ``θ̂`` after any tick is exactly the batch MAP estimate of the same rows,
+``argmin ‖Φθ − y‖²/R + (θ − θ_0)ᵀP_0⁻¹(θ − θ_0)``. ``R`` matters: the rows are a torque
+times ``h`` (about 10⁻² N·m·s), so with ``R = 1`` the prior outweighs the data by orders of
+magnitude, and the estimate stays near the prior in all but the strongest directions (on
+the ±30 % model draws of the compressed task, the contact direction's share of the model
+error over the circle stayed at about 2.3 N where the same rows' batch solution had 0.1 N).
 
-**Excitation condition.** ``θ̂`` converges in the directions spanned by the rows over the
-forgetting window (about ``1/(1 − μ)`` ticks, 5 s at the default): the identifiable
-combinations of :func:`~drake_coop.identification.regressor.identifiable_basis` that the task's
-motion excites; the others stay at the prior. A tick updates only when the arm moves
-(``‖q̇̂‖ ≥ v_min``): at rest the rows carry only noise and the Coulomb column's sign.
+**Excitation condition.** ``θ̂`` converges in the directions spanned by the rows (over the
+forgetting window, about ``1/(1 − μ)`` ticks, when ``μ < 1``): the identifiable combinations
+of :func:`~drake_coop.identification.regressor.identifiable_basis` that the motion excites;
+the others stay at the prior. On the paper's arm, 10 s of the compressed task (free motion,
+approach, lift, circle; the contact projected out while held) span 15 of the 39 parameters'
+directions, the rows' singular values falling from 1 to about 2·10⁻³ of the largest; the
+squeeze needs the contact direction's share of ``Y θ``, which the free motion before the
+grasp excites (measured, ``tests/identification/test_online.py``). A tick updates only when
+the arm moves (``‖q̇̂‖ ≥ v_min``): at rest the rows carry only noise and the Coulomb column's
+sign.
+
+**Feeding the controller.** The squeeze error under a model error comes mostly from the
+control law's model, not from the force estimate (with the F/T sensor in the loop the ±30 %
+model's squeeze error stays at several newtons): given the controller's model, the block
+writes ``θ̂`` into it after each update (:func:`apply_parameters`), so the control law and
+the velocity observer run on the refined parameters too.
 
 The force estimate is the momentum observer's, with the model ``Y θ̂``:
 ``r(k) = K_O(Y_p(k)θ̂ − σ(k))``, ``σ(k+1) = σ(k) + h(τ(k) − Y_β(k)θ̂ + r(k))``,
@@ -50,9 +80,10 @@ from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.momentum import momentum_estimate, momentum_step
 from drake_coop.control.params import check_momentum_gain, check_period
 from drake_coop.control.reference_layout import ReferenceLayout
-from drake_coop.identification.regressor import Regressor
+from drake_coop.identification.regressor import (ArmStructure, Regressor,
+                                                 spatial_inertia_from_theta)
 
-__all__ = ["OnlineIdentification", "momentum_rows"]
+__all__ = ["OnlineIdentification", "apply_parameters", "momentum_rows"]
 
 #: Step of the central difference along ``q̇`` (s): ``q ± ε q̇``.
 DIFFERENCE_STEP = 1e-4
@@ -89,6 +120,42 @@ def momentum_rows(regressor: Regressor, q: np.ndarray, v: np.ndarray,
     return Y_p, Y[2] - Hdot_v
 
 
+def apply_parameters(model, structure: ArmStructure, theta: np.ndarray) -> None:
+    """Write ``θ`` into a controller's model: each composite link's ten parameters as its
+    body's spatial inertia (the bodies welded to it carry none), each joint's reflected rotor
+    inertia and viscous damping. Coulomb friction is not written (the model keeps its own).
+
+    The model's dynamics (``H``, ``C q̇``, ``g``, ``D``, :meth:`inverse_dynamics_terms`) are
+    then those of ``θ``; its kinematics do not change.
+
+    Parameters
+    ----------
+    model : ArmModel
+        The controller's model (:class:`~drake_coop.control.arm_model.ArmModel`): its own
+        plant's context is changed.
+    structure : ArmStructure
+        The parameter layout (the same arm: body and joint names of ``model.plant``).
+    theta : numpy.ndarray
+        The parameters (p,). Negative damping is written as 0 (Drake refuses it).
+    """
+    plant, context = model.plant, model.context
+    for i, link in enumerate(structure.links):
+        for name in structure.members[link]:
+            if plant.HasBodyNamed(name):
+                plant.GetBodyByName(name).SetSpatialInertiaInBodyFrame(
+                    context, spatial_inertia_from_theta(
+                        theta[10 * i:10 * i + 10] if name == link else np.zeros(10)))
+    rotor = theta[structure.joint_slice("rotor_inertia")]
+    damping = np.maximum(theta[structure.joint_slice("viscous")], 0.0)
+    for a in plant.GetJointActuatorIndices():
+        actuator = plant.get_joint_actuator(a)
+        k = structure.joints.index(actuator.joint().name())
+        actuator.SetRotorInertia(context, rotor[k] / actuator.default_gear_ratio() ** 2)
+    for k, joint in enumerate(structure.joints):
+        plant.GetJointByName(joint).SetDamping(context, float(damping[k]))
+    model.D = np.diag(damping)
+
+
 class OnlineIdentification(ForceSource):
     """Recursive identification of the arm's parameters and the force estimate they give
     (module docstring), a force source at ``h``.
@@ -121,14 +188,34 @@ class OnlineIdentification(ForceSource):
     gain : float
         ``K_O`` (1/s), ``0 < h K_O ≤ 1``.
     forgetting : float
-        ``μ`` in (0, 1].
+        ``μ`` in (0, 1]; 1 (the default): no forgetting, the batch estimate of every row
+        so far. Below 1 old rows fade (0.998, a 5 s window, gave a contact-direction error
+        within 40 % of the default's on a ±30 % draw's 10 s log), for parameters that change during the run.
     prior_relative : float
         ``r``: the prior's relative standard deviation (> 0). The default 1 lets the data
-        move a parameter by its own size; 0.3 (the size of a ±30 % model error as one
-        standard deviation) held the estimate near the prior: on the test's 10 s the
-        momentum rows' error fell by 45 % instead of 82 %.
+        move a parameter by its own size. With ``σ_τ`` weighing the rows the data dominate
+        the excited directions whatever ``r`` (0.3 gave the same contact-direction error
+        within a few per cent on the ±30 % draws).
     v_min : float
         Least ``‖q̇̂‖`` (rad/s) at which a tick updates ``θ̂``.
+    torque_noise : float
+        ``σ_τ`` (N·m, > 0): the standard deviation of a row's equation error as a torque
+        (encoder and velocity-estimate error, the forward-Euler step, unmodelled effects);
+        the rows' noise variance is ``(h σ_τ)²`` (a row is a torque times ``h``). It weighs
+        the data against the prior: the update is the Kalman filter of ``θ`` (with
+        ``μ = 1`` exactly the batch least squares with the prior, ``σ_τ⁻²``-weighted rows).
+        The default, 0.03 N·m, is of the size of the rows' equation error with the exact
+        parameters on the compressed task (0.02–0.35 N·m measured, mostly the velocity's
+        error); 0.01 and 0.1 gave the same contact-direction error within 10 %.
+    model : ArmModel or None
+        The controller's model (:class:`~drake_coop.control.arm_model.ArmModel`, the one its
+        control law (13) and velocity observer evaluate). Given, each update writes ``θ̂``
+        into it (:func:`apply_parameters`), and so does each evaluation of the force
+        estimate (the state's ``θ̂``: a new run of the diagram starts from ``θ̂(0)``, not from
+        the last run's): the control law runs on the refined parameters from the next tick
+        on. This changes an object outside the Drake context: two simulations of one
+        diagram must not run at once.
+        None (the default): only this block's force estimate uses ``θ̂``.
 
     Input ports
     -----------
@@ -145,8 +232,9 @@ class OnlineIdentification(ForceSource):
     """
 
     def __init__(self, regressor: Regressor, theta0, J_phi: Callable, layout: ReferenceLayout,
-                 period: float, gain: float, forgetting: float = 0.998,
-                 prior_relative: float = 1.0, v_min: float = 0.01):
+                 period: float, gain: float, forgetting: float = 1.0,
+                 prior_relative: float = 1.0, v_min: float = 0.01,
+                 torque_noise: float = 0.03, model=None):
         super().__init__()
         self._regressor = regressor
         self._layout = layout = ReferenceLayout.check(layout)
@@ -161,7 +249,13 @@ class OnlineIdentification(ForceSource):
             raise ValueError(f"forgetting: must be in (0, 1], got {forgetting}")
         if not prior_relative > 0.0:
             raise ValueError(f"prior_relative: must be > 0, got {prior_relative}")
+        if not (np.isfinite(torque_noise) and torque_noise > 0.0):
+            raise ValueError(f"torque_noise: must be a finite number > 0 (N·m), got "
+                             f"{torque_noise}")
         self._J_phi, self._mu, self._v_min = J_phi, float(forgetting), float(v_min)
+        self._R = (period * float(torque_noise)) ** 2
+        self._model = model
+        self._written = b""      # the parameters last written into the model
         n, m = layout.n, layout.m
         self._n, self._m, self._p = n, m, p
         scale = prior_relative * np.abs(theta0) + 1e-5 * max(np.abs(theta0).max(), 1.0)
@@ -178,6 +272,8 @@ class OnlineIdentification(ForceSource):
         self._DF = self.DeclareDiscreteState(m)
         # the previous tick's  -Y_p + h Y_beta  (n p), h tau (n), its projector (n n), valid
         self._prev = self.DeclareDiscreteState(n * p + n + n * n + 1)
+        # q(k-1), q(k-2), tau(k-1), held(k-1), ticks seen (at most 2)
+        self._history = self.DeclareDiscreteState(3 * n + 2)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
         self.DeclareForcedDiscreteUpdateEvent(self._update)
         # The tick's rows and estimate, computed once for the output and the update; they
@@ -211,6 +307,8 @@ class OnlineIdentification(ForceSource):
         context.SetDiscreteState(self._sigma, Y_p @ self._theta0)
         context.SetDiscreteState(self._DF, np.zeros(self._m))
         context.SetDiscreteState(self._prev, np.zeros(self._prev_size))
+        context.SetDiscreteState(self._history, np.zeros(3 * self._n + 2))
+        self._write(self._theta0)
 
     @property
     def _prev_size(self) -> int:
@@ -225,6 +323,7 @@ class OnlineIdentification(ForceSource):
     def _compute(self, context: Context):
         q, v = self._q.Eval(context), self._v.Eval(context)
         theta = context.get_discrete_state(self._theta).value()
+        self._write(theta)          # a new run of the diagram starts from its own θ̂(0)
         Y_p, Y_b = momentum_rows(self._regressor, q, v)
         ref = self._layout.unpack(self._reference.Eval(context))
         J = self._J_phi(q)
@@ -235,30 +334,52 @@ class OnlineIdentification(ForceSource):
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(self._estimate(context)[6])
 
+    def _write(self, theta: np.ndarray) -> None:
+        """``θ`` into the controller's model, if one was given and it holds other values."""
+        if self._model is not None and theta.tobytes() != self._written:
+            apply_parameters(self._model, self._regressor.structure, theta)
+            self._written = theta.tobytes()
+
+    def _rls(self, theta: np.ndarray, P: np.ndarray, Phi: np.ndarray, y: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+        """One recursive least-squares step (module docstring) with the rows ``Φ``, ``y``."""
+        S = self._mu * self._R * np.eye(self._n) + Phi @ P @ Phi.T
+        K = np.linalg.solve(S, Phi @ P).T
+        theta = theta + K @ (y - Phi @ theta)
+        P = (P - K @ Phi @ P) / self._mu
+        P = 0.5 * (P + P.T)
+        trace = float(np.trace(P))
+        if trace > self._trace0:
+            P *= self._trace0 / trace
+        return theta, P
+
     def _update(self, context: Context, discrete_state: DiscreteValues) -> None:
         q, v, theta, Y_p, Y_b, r, lam, ref, J = self._estimate(context)
         n, p, h = self._n, self._p, self._h
         tau = self._tau.Eval(context)
         prev = context.get_discrete_state(self._prev).value()
         P = context.get_discrete_state(self._P).value().reshape(p, p)
-        if prev[-1] > 0.5 and np.linalg.norm(v) >= self._v_min:
-            A = prev[:n * p].reshape(n, p)
-            b = prev[n * p:n * p + n]
-            Pi = prev[n * p + n:-1].reshape(n, n)
-            Phi, y = Pi @ (Y_p + A), Pi @ b
-            S = self._mu * np.eye(n) + Phi @ P @ Phi.T
-            K = np.linalg.solve(S, Phi @ P).T
-            theta = theta + K @ (y - Phi @ theta)
-            P = (P - K @ Phi @ P) / self._mu
-            P = 0.5 * (P + P.T)
-            trace = float(np.trace(P))
-            if trace > self._trace0:
-                P *= self._trace0 / trace
-        Pi = (np.eye(n) - J.T @ np.linalg.solve(J @ J.T, J)) if ref.held else np.eye(n)
+        history = context.get_discrete_state(self._history).value()
+        q1, q2, tau1 = history[:n], history[n:2 * n], history[2 * n:3 * n]
+        held1, seen = history[-2] > 0.5, int(history[-1])
+        if seen >= 2:
+            # the row of the tick from k-2 to k-1, with the central difference at k-1
+            v1 = (q - q2) / (2.0 * h)
+            Y_p1, Y_b1 = momentum_rows(self._regressor, q1, v1)
+            if prev[-1] > 0.5 and np.linalg.norm(v1) >= self._v_min:
+                A = prev[:n * p].reshape(n, p)
+                b = prev[n * p:n * p + n]
+                Pi = prev[n * p + n:-1].reshape(n, n)
+                theta, P = self._rls(theta, P, Pi @ (Y_p1 + A), Pi @ b)
+                self._write(theta)
+            J1 = self._J_phi(q1)
+            Pi1 = (np.eye(n) - J1.T @ np.linalg.solve(J1 @ J1.T, J1)) if held1 else np.eye(n)
+            discrete_state.set_value(self._prev, np.concatenate(
+                [(-Y_p1 + h * Y_b1).reshape(-1), h * tau1, Pi1.reshape(-1), [1.0]]))
+        discrete_state.set_value(self._history, np.concatenate(
+            [q, q1, tau, [float(ref.held), min(seen + 1, 2)]]))
         discrete_state.set_value(self._theta, theta)
         discrete_state.set_value(self._P, P.reshape(-1))
-        discrete_state.set_value(self._prev, np.concatenate(
-            [(-Y_p + h * Y_b).reshape(-1), h * tau, Pi.reshape(-1), [1.0]]))
         sigma, DF = momentum_step(context.get_discrete_state(self._sigma).value(),
                                   context.get_discrete_state(self._DF).value(), tau,
                                   Y_b @ theta, r, lam, ref.lambda_d, ref.held, h)

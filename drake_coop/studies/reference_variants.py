@@ -10,7 +10,8 @@ name (the experiment's diagram passes neither option):
   two are the same system: the case is the momentum row's own (the same hash, run once).
 * ``online`` — the online identification (:class:`~drake_coop.identification.online.
   OnlineIdentification`): recursive least squares on the arm's regressor from the prior of
-  the controller's model, feeding the momentum observer with its refined parameters.
+  the controller's model, feeding the momentum observer and the controller's model (the
+  control law) with its refined parameters.
 
 A case of such a row is its scenario with ``force_source: momentum`` and a *variant*
 (:func:`variant_hash` keeps its hash apart from the momentum row's). The worker builds the
@@ -89,9 +90,11 @@ def variant_hash(base_hash: str, variant: str) -> str:
     return hashlib.sha256(f"{base_hash}\n# variant: {variant}\n".encode()).hexdigest()[:16]
 
 
-def _online_builder(scenario: Scenario):
+def _online_builder(scenario: Scenario, feed_controller: bool = True):
     """``build(cls, law, h, options)`` making each robot's online identification block (the
-    robots' blocks are built in the scenario's order: the i-th call is robot i)."""
+    robots' blocks are built in the scenario's order: the i-th call is robot i); with
+    ``feed_controller`` the block writes its parameters into the controller's model too (the
+    row), without it only its own estimate uses them (beside a loop closed on the sensor)."""
     from drake_coop.identification.online import OnlineIdentification
     from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
     from drake_coop.plant.arms import Arm
@@ -105,7 +108,8 @@ def _online_builder(scenario: Scenario):
                                    sensor_joint=robot.sensor_joint)
         theta0 = true_parameters(structure, law.model.plant)   # the controller's model's
         return OnlineIdentification(Regressor(structure), theta0, law.model.J_phi,
-                                    law.layout, h, law.momentum_gain)
+                                    law.layout, h, law.momentum_gain,
+                                    model=law.model if feed_controller else None)
     return build
 
 
@@ -181,7 +185,8 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
 
         row = variant.split(":", 1)[1]
         built = open_loop_built(scenario, row,
-                                _online_builder(scenario) if row == "online" else None)
+                                _online_builder(scenario, feed_controller=False)
+                                if row == "online" else None)
     else:
         built = variant_built(scenario, variant)
     with built:
