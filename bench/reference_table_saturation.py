@@ -91,8 +91,20 @@ def measure(row: str, noise: float | None, limit: float | None, variant: str | N
             after = grasped & (t > (t[sat].max() if sat.any() else np.inf))
             lift_after = after & (t < LIFT[1] - 1e-9)
             out["estimate_lift_after_saturation"] = _rms(estimate[lift_after])
+            # The observer's own lag: (15)'s momentum balance in the observer's forward-Euler
+            # tick gives λ̂(k+1) ≈ λ̂(k) + K_O h (λ(k) − λ̂(k)); this low-pass of the simulated
+            # λ is what an observer integrating the right torque estimates.
+            alpha = s.robots[0].gains.momentum_gain * (t[1] - t[0])
+            lam = np.asarray(log["lambda_meas"], float).reshape(t.size, -1)
+            lp = np.zeros_like(lam)
+            for k in range(1, t.size):
+                lp[k] = lp[k - 1] + alpha * (lam[k - 1] - lp[k - 1]) if grasped[k - 1] else 0.0
+            off = np.asarray(log["lambda_hat"], float).reshape(t.size, -1) - lp
+            free_lift = grasped & (t < LIFT[1] - 1e-9)
+            out["lowpass_saturated"] = _rms(off[sat & grasped])
+            out["lowpass_lift"] = _rms(off[free_lift & ~sat])
             if keep:
-                _FREE.update(t=t, error=np.abs(estimate).max(axis=1))
+                _FREE.update(t=t, error=np.abs(estimate).reshape(t.size, -1).max(axis=1))
     out.update({k: max(v) for k, v in numbers.items()})
     return out
 
@@ -125,7 +137,7 @@ KEYS = ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift",
         "estimate_saturated", "estimate_approach", "saturated_ticks",
         "estimate_lift_after_saturation", "squeeze_lift_robot1", "squeeze_lift_robot2",
         "estimate_lift_robot1", "estimate_lift_robot2", "squeeze_circle_robot1",
-        "squeeze_circle_robot2")
+        "squeeze_circle_robot2", "lowpass_saturated", "lowpass_lift")
 
 
 def summarize(draws: list[dict], free: dict) -> dict:
