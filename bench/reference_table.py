@@ -238,6 +238,35 @@ def snapshot(folder: Path, draws: int, rows: list[str] | None = None,
     return table
 
 
+def per_robot(folder: Path, draws: int, column: str = "clock") -> dict:
+    """Each robot's own circle RMS of ``λ − λ_d`` and ``λ̂ − λ`` per row, median and range
+    over the draws, under ``column`` and under the exact model: the table's cells take the
+    worst robot, which hides a change on the other one (the clock column skews robot 2)."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.studies.reference_table import expand_table
+    from drake_coop.studies.store import ResultStore
+
+    records = ResultStore(folder).load()
+    out: dict = {"column": column, "draws": draws, "rows": {}}
+    for row in [r.name for r in ROWS]:
+        cells = {}
+        for col in ("exact", column):
+            found: dict = {}
+            for case in expand_table(load_scenario(), [row], [col], draws):
+                r = records.get(case.hash)
+                if r is None or r["status"] != "ok":
+                    continue
+                for robot, m in r["metrics"].items():
+                    for key, error in (("squeeze", "force_error"), ("estimate", "estimate_error")):
+                        found.setdefault(robot, {}).setdefault(key, []).append(
+                            m["circle"][error]["rms"])
+            cells[col] = {robot: {key: {"median": float(np.median(v)), "min": float(min(v)),
+                                        "max": float(max(v)), "n": len(v)}
+                                  for key, v in keys.items()} for robot, keys in found.items()}
+        out["rows"][row] = cells
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", required=True)
@@ -254,6 +283,9 @@ def main() -> None:
     parser.add_argument("--table", default=None, metavar="DIR",
                         help="write the table of DIR's finished cases at --draws to --out")
     parser.add_argument("--rows", default=None, help="--table: comma-separated rows")
+    parser.add_argument("--per-robot", default=None, metavar="DIR",
+                        help="write each robot's own numbers under the clock column and the "
+                             "exact model, from DIR's finished cases, to --out")
     parser.add_argument("--columns", default=None, help="--table: comma-separated columns")
     parser.add_argument("--time-logs", nargs="+", default=None, metavar="LOG",
                         help="--table: /usr/bin/time -v logs of the runs that filled DIR "
@@ -268,6 +300,9 @@ def main() -> None:
             table["runs"] = [time_log(Path(p)) for p in args.time_logs]
         out.write_text(json.dumps(table, indent=1) + "\n")
         print(f"{table['finished']} of {table['cases']} cases finished")
+        return
+    if args.per_robot:
+        out.write_text(json.dumps(per_robot(Path(args.per_robot), args.draws), indent=1) + "\n")
         return
     if args.page:
         table = json.loads(Path(args.page).read_text())
