@@ -220,7 +220,8 @@ def clock_built(scenario: Scenario, clock: ArmClock | None) -> Iterator[None]:
     hold = force_sensor.ZeroOrderHold
 
     def zero_order_hold(period, size, offset=0.0):
-        return hold(*warp(period, offset)[:1], size, warp(period, offset)[1])
+        on_clock_period, on_clock_offset = warp(period, offset)
+        return hold(on_clock_period, size, on_clock_offset)
 
     try:
         for n in names:

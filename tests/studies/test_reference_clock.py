@@ -115,3 +115,36 @@ def test_the_column_draws_one_clock_per_draw_shared_by_the_rows_and_kept_exactly
     drawn = draw_clock(np.random.default_rng(0), H)
     assert split_clock(clock_variant(drawn, "online")) == (drawn, "online")
     assert split_clock("applied_torque") == (None, "applied_torque")
+
+
+def test_the_ideal_ft_sensors_hold_of_robot_2_samples_on_its_clock():
+    """The ideal sensor is Drake's ``ZeroOrderHold`` (offset ``h − Δt/2``): robot 2's, built
+    with the clock, samples a ramp ``λ = t`` at the clock's instants; robot 1's on the grid."""
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import TrajectorySource, VectorLogSink
+    from pydrake.trajectories import PiecewisePolynomial
+
+    import drake_coop.experiment.diagram as diagram
+
+    clock, dt = ArmClock(0.0021, 5000.0), 0.001
+    b = DiagramBuilder()
+    ramp = b.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(
+        [0.0, 1.0], np.array([[0.0, 1.0]]))))
+    with clock_built(_scenario(), clock):
+        holds = [diagram.add_ft_sensor(b, name, H, dt, None, i, 1, ramp.get_output_port(),
+                                       ramp.get_output_port())[1]
+                 for i, name in enumerate(("robot1", "robot2"))]
+    sinks = [b.AddSystem(VectorLogSink(1)) for _ in holds]
+    for port, sink in zip(holds, sinks):
+        b.Connect(port, sink.get_input_port())
+    built = b.Build()
+    simulator = Simulator(built)
+    simulator.AdvanceTo(0.2)
+    for k, sink in enumerate(sinks):
+        log = sink.GetLog(sink.GetMyContextFromRoot(simulator.get_context()))
+        held = np.unique(log.data()[0])
+        held = held[held > 0]                  # the samples taken: λ = t at each sampling
+        local = np.arange(1, len(held) + 1) * H - 0.5 * dt
+        expected = clock.true_time(local) if k == 1 else local
+        np.testing.assert_allclose(held, expected, rtol=0, atol=1e-12)
+        assert len(held) > 15
