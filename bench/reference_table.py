@@ -240,8 +240,10 @@ def snapshot(folder: Path, draws: int, rows: list[str] | None = None,
 
 def per_robot(folder: Path, draws: int, column: str = "clock") -> dict:
     """Each robot's own circle RMS of ``λ − λ_d`` and ``λ̂ − λ`` per row, median and range
-    over the draws, under ``column`` and under the exact model: the table's cells take the
-    worst robot, which hides a change on the other one (the clock column skews robot 2)."""
+    over the draws, under ``column`` and under the exact model, and ``max_change``: the
+    largest change of a draw's squeeze error from the same draw's exact-model case (the
+    same noise seeds). The table's cells take the worst robot, which hides a change on the
+    other one (the clock column skews robot 2)."""
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.studies.reference_table import expand_table
     from drake_coop.studies.store import ResultStore
@@ -249,7 +251,7 @@ def per_robot(folder: Path, draws: int, column: str = "clock") -> dict:
     records = ResultStore(folder).load()
     out: dict = {"column": column, "draws": draws, "rows": {}}
     for row in [r.name for r in ROWS]:
-        cells = {}
+        cells, per_draw_ = {}, {}
         for col in ("exact", column):
             found: dict = {}
             for case in expand_table(load_scenario(), [row], [col], draws):
@@ -260,9 +262,15 @@ def per_robot(folder: Path, draws: int, column: str = "clock") -> dict:
                     for key, error in (("squeeze", "force_error"), ("estimate", "estimate_error")):
                         found.setdefault(robot, {}).setdefault(key, []).append(
                             m["circle"][error]["rms"])
+            per_draw_[col] = found
             cells[col] = {robot: {key: {"median": float(np.median(v)), "min": float(min(v)),
                                         "max": float(max(v)), "n": len(v)}
                                   for key, v in keys.items()} for robot, keys in found.items()}
+        for robot, keys in cells.get(column, {}).items():
+            a = per_draw_[column][robot]["squeeze"]
+            b = per_draw_["exact"].get(robot, {}).get("squeeze", [])
+            if len(a) == len(b) == draws:  # the largest change of a draw from the same draw's
+                keys["squeeze"]["max_change"] = float(max(abs(x - y) for x, y in zip(a, b)))
         out["rows"][row] = cells
     return out
 
