@@ -194,22 +194,85 @@ def page_tables(source: str, table: dict, key: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def snapshot(folder: Path, draws: int) -> dict:
-    """The table of every default row and column at ``draws`` draws from the cases finished
-    in ``folder`` (nothing runs; ``folder``'s ``table.json`` and ``table.md`` rewritten), with
-    the draws asked for."""
+def time_log(path: Path) -> dict:
+    """The process CPU (user + system, waited-for children included) and wall time a
+    ``/usr/bin/time -v`` log reports, with the run's last progress line."""
+    text = Path(path).read_text()
+    found = {}
+    for line in text.splitlines():
+        key, _, value = line.strip().partition(": ")
+        if key in ("User time (seconds)", "System time (seconds)"):
+            found[key.split()[0].lower()] = float(value)
+        elif key.startswith("Elapsed (wall clock) time"):
+            parts = [float(p) for p in value.split(":")]
+            found["wall_s"] = sum(p * 60 ** i for i, p in enumerate(reversed(parts)))
+        elif line.startswith("reference table:"):
+            found["last_progress"] = line.strip()
+    if "user" in found:
+        found["cpu_s"] = found["user"] + found["system"]
+    return {"log": Path(path).name, **found}
+
+
+def snapshot(folder: Path, draws: int, rows: list[str] | None = None,
+             cols: list[str] | None = None) -> dict:
+    """The table of ``rows`` × ``cols`` (default: every default row and column) at ``draws``
+    draws from the cases finished in ``folder`` (nothing runs; ``folder``'s ``table.json``
+    and ``table.md`` rewritten), with the draws asked for. An identified column reads its
+    models from ``folder/identified/<column>/<draw>/models.json``."""
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.studies.reference_engine import write_table
     from drake_coop.studies.reference_table import expand_table
     from drake_coop.studies.store import ResultStore
 
     peaks = json.loads((folder / "calibration.json").read_text())["peaks"]
-    rows, cols = [r.name for r in ROWS], list(COLUMNS)
-    cases = expand_table(load_scenario(), rows, cols, draws, peaks=peaks)
-    table = write_table(folder, cases, ResultStore(folder).load(), rows, cols)
+    rows, cols = rows or [r.name for r in ROWS], cols or list(COLUMNS)
+    models = {(c, d): json.loads((folder / "identified" / c / str(d) / "models.json")
+                                 .read_text())
+              for c in cols if c.startswith("id_") for d in range(draws)}
+    cases = expand_table(load_scenario(), rows, cols, draws, peaks=peaks, models=models)
+    records = ResultStore(folder).load()
+    table = write_table(folder, cases, records, rows, cols)
     table["draws"] = draws
     table["distinct_cases"] = len({c.hash for c in cases})
+    table["distinct_finished"] = len({c.hash for c in cases if c.hash in records})
     return table
+
+
+def per_robot(folder: Path, draws: int, column: str = "clock") -> dict:
+    """Each robot's own circle RMS of ``λ − λ_d`` and ``λ̂ − λ`` per row, median and range
+    over the draws, under ``column`` and under the exact model, and ``max_change``: the
+    largest change of a draw's squeeze error from the same draw's exact-model case (the
+    same noise seeds). The table's cells take the worst robot, which hides a change on the
+    other one (the clock column skews robot 2)."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.studies.reference_table import expand_table
+    from drake_coop.studies.store import ResultStore
+
+    records = ResultStore(folder).load()
+    out: dict = {"column": column, "draws": draws, "rows": {}}
+    for row in [r.name for r in ROWS]:
+        cells, per_draw_ = {}, {}
+        for col in ("exact", column):
+            found: dict = {}
+            for case in expand_table(load_scenario(), [row], [col], draws):
+                r = records.get(case.hash)
+                if r is None or r["status"] != "ok":
+                    continue
+                for robot, m in r["metrics"].items():
+                    for key, error in (("squeeze", "force_error"), ("estimate", "estimate_error")):
+                        found.setdefault(robot, {}).setdefault(key, []).append(
+                            m["circle"][error]["rms"])
+            per_draw_[col] = found
+            cells[col] = {robot: {key: {"median": float(np.median(v)), "min": float(min(v)),
+                                        "max": float(max(v)), "n": len(v)}
+                                  for key, v in keys.items()} for robot, keys in found.items()}
+        for robot, keys in cells.get(column, {}).items():
+            a = per_draw_[column][robot]["squeeze"]
+            b = per_draw_["exact"].get(robot, {}).get("squeeze", [])
+            if len(a) == len(b) == draws:  # the largest change of a draw from the same draw's
+                keys["squeeze"]["max_change"] = float(max(abs(x - y) for x, y in zip(a, b)))
+        out["rows"][row] = cells
+    return out
 
 
 def main() -> None:
@@ -227,12 +290,27 @@ def main() -> None:
                              "(its name on the page: --out)")
     parser.add_argument("--table", default=None, metavar="DIR",
                         help="write the table of DIR's finished cases at --draws to --out")
+    parser.add_argument("--rows", default=None, help="--table: comma-separated rows")
+    parser.add_argument("--per-robot", default=None, metavar="DIR",
+                        help="write each robot's own numbers under the clock column and the "
+                             "exact model, from DIR's finished cases, to --out")
+    parser.add_argument("--columns", default=None, help="--table: comma-separated columns")
+    parser.add_argument("--time-logs", nargs="+", default=None, metavar="LOG",
+                        help="--table: /usr/bin/time -v logs of the runs that filled DIR "
+                             "(their process CPU recorded)")
     args = parser.parse_args()
     out = Path(args.out)
     if args.table:
-        table = snapshot(Path(args.table), args.draws)
+        table = snapshot(Path(args.table), args.draws,
+                         args.rows.split(",") if args.rows else None,
+                         args.columns.split(",") if args.columns else None)
+        if args.time_logs:
+            table["runs"] = [time_log(Path(p)) for p in args.time_logs]
         out.write_text(json.dumps(table, indent=1) + "\n")
         print(f"{table['finished']} of {table['cases']} cases finished")
+        return
+    if args.per_robot:
+        out.write_text(json.dumps(per_robot(Path(args.per_robot), args.draws), indent=1) + "\n")
         return
     if args.page:
         table = json.loads(Path(args.page).read_text())

@@ -243,7 +243,8 @@ def columns(peaks: dict | None = None, models: dict | None = None) -> tuple[Colu
     if peaks is not None:
         cols.append(Column("saturation", "torque saturation (lift)", _saturation(peaks)))
     cols += [Column("encoders", "encoders 31 µrad, noise 0.05–0.2 mrad", _encoders),
-             Column("timing", "delay 0.5–2 ms, jitter 1.1 ms", _timing)]
+             Column("timing", "delay 0.5–2 ms, jitter 1.1 ms", _timing),
+             Column("clock", "clock skew: robot 2 at phase U(0, h), rate ±100 ppm", _exact)]
     if models is not None:
         cols += [Column(identified_name(m, b), f"identified, {m}, {b:g} s",
                         _identified(models, identified_name(m, b)), draws_like="model_30")
@@ -325,7 +326,8 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
     ValueError
         An unknown row or column, a count below 1, the saturation column without ``peaks``.
     """
-    from drake_coop.experiment.ticks import check_run_size
+    from drake_coop.experiment.ticks import check_run_size, time_grid
+    from drake_coop.studies.reference_clock import clock_variant, draw_clock
     from drake_coop.scenario.validation import validate
 
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
@@ -363,10 +365,13 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
                 check_run_size(s, t_end)
                 params = {"row": row, "column": col, "draw": draw}
                 key = case_hash(s, t_end)
-                if variant_matters(s, variant):      # else the scenario's own case
-                    key = variant_hash(key, variant)
-                else:
+                if not variant_matters(s, variant):  # the scenario's own case
                     variant = None
+                if col == "clock":                   # robot 2 on its own clock
+                    variant = clock_variant(draw_clock(np.random.default_rng(
+                        [seed, k, draw]), time_grid(s)[0]), variant)
+                if variant is not None:
+                    key = variant_hash(key, variant)
                 cases.append(Case(index=len(cases), params=params,
                                   values={**params, "variant": variant}, scenario=s, hash=key))
     return cases

@@ -47,7 +47,8 @@ def variant_matters(scenario: Scenario, variant: str | None) -> bool:
         The case's scenario.
     variant : str or None
         A key of :data:`VARIANTS`, ``open_loop:<row>``
-        (:mod:`~drake_coop.studies.reference_open_loop`), or None.
+        (:mod:`~drake_coop.studies.reference_open_loop`), a clock
+        (:func:`~drake_coop.studies.reference_clock.clock_variant`), or None.
 
     Returns
     -------
@@ -62,7 +63,7 @@ def variant_matters(scenario: Scenario, variant: str | None) -> bool:
     """
     if variant is None:
         return False
-    if variant.startswith("open_loop:"):      # an estimator beside the sensor loop
+    if variant.startswith(("open_loop:", "clock:")):   # beside the sensor loop; a clock
         return True
     if variant not in VARIANTS:
         raise ValueError(f"variant: unknown {variant!r}; allowed: {', '.join(VARIANTS)}")
@@ -168,7 +169,8 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     t_end : float
         Its end, s.
     variant : str or None
-        The case's variant (a row's, or ``open_loop:<row>``).
+        The case's variant (a row's, or ``open_loop:<row>``), possibly after a clock
+        (:func:`~drake_coop.studies.reference_clock.clock_variant`).
 
     Returns
     -------
@@ -178,8 +180,10 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     """
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.studies.engines import run_case
+    from drake_coop.studies.reference_clock import clock_built, split_clock
 
     scenario = load_scenario(data=scenario_yaml)
+    clock, variant = split_clock(variant)
     if variant is not None and variant.startswith("open_loop:"):
         from drake_coop.studies.reference_open_loop import open_loop_built
 
@@ -189,5 +193,5 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
                                 if row == "online" else None)
     else:
         built = variant_built(scenario, variant)
-    with built:
+    with clock_built(scenario, clock), built:
         return run_case(scenario_yaml, t_end)

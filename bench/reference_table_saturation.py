@@ -1,0 +1,214 @@
+"""Torque saturation at the lift: what each force source's estimate and squeeze error do
+during and after it, on paired draws (the reference table's short segment, 8 s).
+
+``python bench/reference_table_saturation.py --out docs/results/reference_table_saturation.json
+[--draws 20]`` (resumable: each finished draw is kept in ``OUT.draws.jsonl``).
+
+The saturation: robot 1's elbow limited at ``11.5 × U(0.98, 1.02)`` N·m per draw (its peak
+on the lift is 11.7 N·m, on the approach 11.8: saturated on the approach and the lift, not
+after; a lower limit ends the grasp). Per draw, one run each, exact model:
+
+* ``momentum`` — the momentum observer integrating the commanded torque;
+* ``residual`` — the applied-torque residual: the momentum observer integrating the clipped
+  torque (:mod:`drake_coop.studies.reference_variants`);
+* ``sensor`` — the loop closed on the F/T sensor (σ = 0.3 N, seed = the draw): the floor no
+  estimator can beat, since its estimate is the measurement;
+* ``sensor_free`` — the same sensor without the limit (the draw's noise), and once
+  ``momentum_free``: the momentum observer without the limit (deterministic).
+
+Numbers per run, from the logs (worst robot unless said): ``squeeze_circle`` and
+``estimate_circle`` — the RMS of ``λ − λ_d`` and ``λ̂ − λ`` over the circle 5–8 s;
+``squeeze_lift`` and ``estimate_lift`` — over the lift 3–5 s; ``estimate_saturated`` —
+robot 1's RMS of ``λ̂ − λ`` over its saturated ticks (``τ ≠ τ_cmd``), from the grasp on
+(before it ``λ = 0``: ``estimate_approach``, robot 1's over its saturated ticks before the
+grasp); ``saturated_ticks``. The summary: per number, the median over the draws of each
+run and of the paired ratios ``residual / momentum_free`` and ``momentum / momentum_free``,
+with their range. Process CPU seconds are recorded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from drake_coop.experiment.simulate import simulate
+from drake_coop.scenario.loading import load_scenario
+from drake_coop.studies.reference_table import _source, compress
+from drake_coop.studies.reference_variants import variant_built
+
+ELBOW = 11.5
+CIRCLE, LIFT = (5.0, 8.0), (3.0, 5.0)
+T_END = 8.0
+RUNS = ("momentum", "residual", "sensor", "sensor_free")
+
+
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
+
+
+#: The unsaturated momentum observer's robot-1 estimate error per logged tick: ``(t, |λ̂ − λ|)``
+#: (its run is deterministic: run once a process).
+_FREE: dict = {}
+
+
+def measure(row: str, noise: float | None, limit: float | None, variant: str | None,
+            draw: int, keep: bool = False) -> dict:
+    """One run's numbers (the module's docstring); ``keep``: also robot 1's estimate error
+    per tick (``_FREE``); ``saturated_times``: robot 1's saturated ticks after the grasp (not
+    written)."""
+    s = compress(load_scenario())
+    _source(row, noise)(s, draw)
+    if limit is not None:
+        s.robots[0].actuators.torque_limits = [100.0, 100.0, limit]
+    with variant_built(s, variant):
+        result = simulate(s, t_end=T_END)
+    out = {"status": result.meta["status"], "message": result.meta["message"]}
+    if not result.ok:
+        return out
+    numbers: dict = {k: [] for k in ("squeeze_circle", "estimate_circle", "squeeze_lift",
+                                     "estimate_lift")}
+    for name, log in result.logs.items():
+        t = log["t"]
+        squeeze = log["lambda_meas"] - log["lambda_d"]
+        estimate = log["lambda_hat"] - log["lambda_meas"]
+        for key, (t0, t1) in (("circle", CIRCLE), ("lift", LIFT)):
+            w = (t >= t0 - 1e-9) & (t < t1 - 1e-9)
+            numbers[f"squeeze_{key}"].append(_rms(squeeze[w]))
+            numbers[f"estimate_{key}"].append(_rms(estimate[w]))
+            out[f"squeeze_{key}_{name}"] = numbers[f"squeeze_{key}"][-1]
+            out[f"estimate_{key}_{name}"] = numbers[f"estimate_{key}"][-1]
+        if name == "robot1":
+            sat = np.any(np.abs(log["tau_cmd"] - log["tau"]) > 1e-12, axis=1)
+            grasped = t >= s.task.t_grasp - 1e-9
+            out["saturated_ticks"] = int(sat.sum())
+            out["estimate_saturated"] = _rms(estimate[sat & grasped])
+            out["estimate_approach"] = _rms(estimate[sat & ~grasped])
+            out["saturated_times"] = t[sat & grasped]
+            after = grasped & (t > (t[sat].max() if sat.any() else np.inf))
+            lift_after = after & (t < LIFT[1] - 1e-9)
+            out["estimate_lift_after_saturation"] = _rms(estimate[lift_after])
+            # The observer's own lag: (15)'s momentum balance in the observer's forward-Euler
+            # tick gives λ̂(k+1) ≈ λ̂(k) + K_O h (λ(k) − λ̂(k)); this low-pass of the simulated
+            # λ is what an observer integrating the right torque estimates.
+            alpha = s.robots[0].gains.momentum_gain * (t[1] - t[0])
+            lam = np.asarray(log["lambda_meas"], float).reshape(t.size, -1)
+            lp = np.zeros_like(lam)
+            for k in range(1, t.size):
+                lp[k] = lp[k - 1] + alpha * (lam[k - 1] - lp[k - 1]) if grasped[k - 1] else 0.0
+            off = np.asarray(log["lambda_hat"], float).reshape(t.size, -1) - lp
+            free_lift = grasped & (t < LIFT[1] - 1e-9)
+            out["lowpass_saturated"] = _rms(off[sat & grasped])
+            out["lowpass_lift"] = _rms(off[free_lift & ~sat])
+            if keep:
+                _FREE.update(t=t, error=np.abs(estimate).reshape(t.size, -1).max(axis=1))
+    out.update({k: max(v) for k, v in numbers.items()})
+    return out
+
+
+def _free_over(times: np.ndarray) -> float:
+    """The unsaturated run's robot-1 RMS estimate error over the given tick times."""
+    if "t" not in _FREE:
+        measure("momentum", None, None, None, 0, keep=True)
+    idx = np.searchsorted(_FREE["t"], np.asarray(times) - 1e-9)
+    return _rms(_FREE["error"][idx])
+
+
+def run_draw(draw: int, seed: int = 1) -> dict:
+    """The paired runs of one draw; ``free_over_saturated``: the unsaturated momentum
+    observer's robot-1 estimate error over the ticks the draw's residual run saturated."""
+    limit = ELBOW * float(np.random.default_rng([seed, draw]).uniform(0.98, 1.02))
+    out = {"draw": draw, "elbow_limit": limit,
+           "momentum": measure("momentum", None, limit, None, draw),
+           "residual": measure("momentum", None, limit, "applied_torque", draw),
+           "sensor": measure("sensor", 0.3, limit, None, draw),
+           "sensor_free": measure("sensor", 0.3, None, None, draw)}
+    times = out["residual"].get("saturated_times")
+    out["free_over_saturated"] = _free_over(times) if times is not None else None
+    for run in RUNS:
+        out[run].pop("saturated_times", None)
+    return out
+
+
+KEYS = ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift",
+        "estimate_saturated", "estimate_approach", "saturated_ticks",
+        "estimate_lift_after_saturation", "squeeze_lift_robot1", "squeeze_lift_robot2",
+        "estimate_lift_robot1", "estimate_lift_robot2", "squeeze_circle_robot1",
+        "squeeze_circle_robot2", "lowpass_saturated", "lowpass_lift")
+
+
+def summarize(draws: list[dict], free: dict) -> dict:
+    """Medians and ranges over the draws; the paired ratios against the unsaturated run."""
+    def stats(values):
+        v = np.array([x for x in values if x is not None and np.isfinite(x)])
+        if not v.size:
+            return None
+        return {"median": float(np.median(v)), "min": float(v.min()), "max": float(v.max()),
+                "n": int(v.size)}
+
+    out: dict = {"n": len(draws)}
+    for run in RUNS:
+        ok = [d[run] for d in draws if d[run]["status"] == "ok"]
+        out[run] = {"completed": len(ok), **{k: stats([r.get(k) for r in ok]) for k in KEYS}}
+    for run in ("residual", "momentum"):
+        out[f"{run}_over_free"] = {
+            k: stats([d[run][k] / free[k] for d in draws if d[run]["status"] == "ok"])
+            for k in ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift")}
+    out["residual_over_momentum"] = {
+        k: stats([d["residual"][k] / d["momentum"][k] for d in draws
+                  if d["residual"]["status"] == d["momentum"]["status"] == "ok"])
+        for k in ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift",
+                  "estimate_saturated")}
+    for run in ("residual", "momentum", "sensor"):
+        out[f"{run}_saturated_over_free_same_ticks"] = stats(
+            [d[run]["estimate_saturated"] / d["free_over_saturated"] for d in draws
+             if d[run]["status"] == "ok" and d["free_over_saturated"]])
+    out["free_over_saturated"] = stats([d["free_over_saturated"] for d in draws])
+    out["sensor_over_sensor_free_squeeze_lift"] = stats(
+        [d["sensor"]["squeeze_lift"] / d["sensor_free"]["squeeze_lift"] for d in draws
+         if d["sensor"]["status"] == d["sensor_free"]["status"] == "ok"])
+    return out
+
+
+def main() -> None:
+    """Run (or resume) the draws and write the summary."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--out", required=True)
+    p.add_argument("--draws", type=int, default=20)
+    args = p.parse_args()
+    path = Path(args.out)
+    lines = path.with_suffix(".draws.jsonl")
+    done = ([json.loads(x) for x in lines.read_text().splitlines() if x.strip()]
+            if lines.exists() else [])
+    start = time.process_time()
+    free = next((d["momentum_free"] for d in done if "momentum_free" in d), None)
+    if free is None:
+        free = measure("momentum", None, None, None, 0, keep=True)
+        free.pop("saturated_times", None)
+        done.append({"momentum_free": free})
+        with lines.open("a") as f:
+            f.write(json.dumps(done[-1]) + "\n")
+    have = {d["draw"] for d in done if "draw" in d}
+    for draw in range(args.draws):
+        if draw in have:
+            continue
+        done.append(run_draw(draw))
+        with lines.open("a") as f:
+            f.write(json.dumps(done[-1]) + "\n")
+        print(f"draw {draw}", flush=True)
+    cpu = time.process_time() - start
+    draws = sorted((d for d in done if "draw" in d), key=lambda d: d["draw"])[:args.draws]
+    previous = json.loads(path.read_text()) if path.exists() else {}
+    result = {"elbow_nominal": ELBOW, "circle": list(CIRCLE), "lift": list(LIFT),
+              "momentum_free": free, "summary": summarize(draws, free), "draws": draws,
+              "cpu_s": previous.get("cpu_s", 0.0) + cpu,
+              "runs": 1 + len(RUNS) * len(draws)}
+    path.write_text(json.dumps(result, indent=1) + "\n")
+    print(json.dumps(result["summary"], indent=1))
+
+
+if __name__ == "__main__":
+    main()
