@@ -29,18 +29,22 @@ from pathlib import Path
 
 ROWS, COLS, T_END = "observer,sensor_3", "exact,model_30", "6"
 BIN = Path(sys.executable).parent
+#: Ray 2.59 and later turn token authentication on for a head started on this machine; a
+#: worker node (and the driver) must then run with it too, or the head refuses them
+#: ("InvalidAuthToken"). Older Rays ignore the variable.
+ENV = {**os.environ, "RAY_AUTH_MODE": "token"}
 
 
 def _start(args: list[str], log: Path) -> subprocess.Popen:
     return subprocess.Popen([str(BIN / "ray"), "start", *args, "--block"],
                             stdout=open(log, "w"), stderr=subprocess.STDOUT,
-                            start_new_session=True)
+                            start_new_session=True, env=ENV)
 
 
 def _table(out: Path, extra: list[str]) -> subprocess.Popen:
     return subprocess.Popen([str(BIN / "drake-coop"), "reference-table", "--out", str(out),
                              "--rows", ROWS, "--columns", COLS, "--t-end", T_END, "--batch",
-                             "1", "--quiet", *extra])
+                             "1", "--quiet", *extra], env=ENV)
 
 
 def _descendants(roots: list[int]) -> list[int]:
