@@ -4,10 +4,11 @@ The ideal object modes (``planes``, ``rigid``) replace the box by constraints th
 turn, so neither the stability map (:mod:`~drake_coop.stability.task_check`) nor a ``planes``
 run sees what a real box between two compliant pads does. The quasi-static buckling bound of
 :mod:`~drake_coop.stability.grasp` (the squeeze against the arms' stiffness across the pads'
-line) misses physics that decide it — the pads' contact patches resist the box's rotation,
-the box's inertia, the force loop's and the observers' reaction to a tilted box, the squeeze
-reference's feedforward — and no threshold on its ratio separates the grasps that hold from
-those that are lost (the lab-arms guide's table: held at ratios up to 2.26, lost at 0.85).
+line) leaves out the pads' contact patches (which resist the box's rotation), the box's
+inertia, the object model's feedforward and the force loop's and observers' reaction to a
+tilted box; no threshold on its ratio separates the grasps that hold from those that are lost
+(the lab-arms guide's table: held at ratios up to 2.26, lost at 0.85). Which of these left-out
+parts decides was not isolated: this check includes them all.
 
 This module measures the grasp's dynamics on the **actual** ``contact``-mode closed loop — both
 arms, their controllers and observers, the object model, the free box on the pads' hydroelastic
@@ -20,8 +21,8 @@ patches — frozen at a posture of the task (:func:`frozen_grasp`):
 * a **twin** of the settled loop, its joints displaced by :data:`PERTURBATION` rad in a fixed
   pseudo-random direction, runs beside it for :data:`WINDOW` s; the difference of the two,
   ``δ(t)``, obeys the loop's linearization about the equilibrium, so
-  ``‖δ(t)‖ ∝ e^{σ t}`` once the faster modes have died out, ``σ`` the largest real part of the
-  linearized loop's exponents (``ρ = e^{σ h}`` of the one-period map: ``σ > 0`` iff ``ρ > 1``);
+  :math:`\|\delta(t)\| \propto e^{\sigma t}` once the faster modes have died out, ``σ`` the largest real part of the
+  linearized loop's exponents (:math:`\rho = e^{\sigma h}` of the one-period map: ``σ > 0`` iff ``ρ > 1``);
   :func:`growth_rate` fits ``σ`` to ``ln ‖δ‖`` over the window's second half.
 
 This is the dominant eigenvalue found by simulation (a power iteration run by the loop itself)
