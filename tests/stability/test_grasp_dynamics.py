@@ -70,3 +70,72 @@ def test_growth_rate_is_the_slope_of_the_logarithm_over_the_second_half():
     assert growth_rate(t, np.where(t > 1.5, 0.0, 1.0)) == math.inf
     with pytest.raises(ValueError, match="t, deviation"):
         growth_rate(t[:3], d[:3])
+
+
+def test_only_a_two_pad_contact_grasp_is_checked():
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import find_scenario
+    from drake_coop.stability.grasp_dynamics import check_grasp_dynamics
+
+    for name in ("paper", "three_arms"):        # planes mode; three robots
+        result = check_grasp_dynamics(load_scenario(find_scenario(name)))
+        assert not result.checked and result.passes and "not checked" in result.message
+
+
+def _pair(name: str, squeeze: str):
+    """A pair of ``name`` as the lab-arms how-to sets it up (bench.every_arm), with the
+    derived gains and the squeeze source ``squeeze``."""
+    import tempfile
+    from pathlib import Path
+
+    from bench.every_arm import pair_yaml, placement
+    from drake_coop.stability.gains import derive_gains, gains_for_scenario
+    from drake_coop.stability.gains_cli import load_for_gains
+
+    with tempfile.TemporaryDirectory() as folder:
+        place, why = placement(name, Path(folder))
+        assert place is not None, why
+        path = Path(folder) / f"{name}.yaml"
+        path.write_text(pair_yaml((name, name), (place, place)))
+        scenario = load_for_gains(str(path))
+    scenario.object_model.squeeze = squeeze
+    return gains_for_scenario(scenario, derive_gains(scenario))
+
+
+@pytest.mark.slow
+@robots_extra
+@pytest.mark.parametrize("squeeze, refused", [("profile", True), ("friction", False)])
+def test_the_check_refuses_the_ur3_grasp_the_run_loses_and_passes_the_one_it_carries(
+        squeeze, refused):
+    """The simulated truth, 10 s into the circle: two UR3s with the task's squeeze (the
+    check, at the postures before that time, finds a mode growing: the run past it ends
+    ``failed`` on the box's tilt) and with the friction squeeze (the check passes: the run
+    carries the box, its tilt small)."""
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.stability.grasp_dynamics import (
+        GROWTH_BAR,
+        check_grasp_dynamics,
+        grasp_points,
+    )
+
+    scenario = _pair("ur3", squeeze)
+    t_end = scenario.task.t_circle_start + 10.0
+    points = [p for p in grasp_points(scenario.task) if p[1] <= t_end]
+    assert len(points) == 2
+    check = check_grasp_dynamics(scenario, points=points)
+    assert check.passes is not refused, check.message
+    if refused:
+        assert max(check.sigma.values()) > 3 * GROWTH_BAR      # not a marginal call
+        assert "pads against each other along z" in check.message
+    result = simulate(scenario, t_end=t_end)
+    if refused:
+        assert result.meta["status"] == "failed", result.meta
+        assert "tilted" in result.meta["message"]
+    else:
+        assert result.meta["status"] == "ok", result.meta
+        log = next(iter(result.logs.values()))
+        from drake_coop.kinematics.rotations import quaternion_rotations
+
+        R = quaternion_rotations(np.asarray(log["object_pose"])[:, :4])
+        angle = np.arccos(np.clip((np.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1))
+        assert angle.max() < 0.05, angle.max()
