@@ -91,3 +91,41 @@ def test_the_pair_is_the_hows_mirror_image():
     assert r1.normals == [[-1.0, 0.0, 0.0]] and r2.normals == [[1.0, 0.0, 0.0]]
     assert s.plant.object_mode == "contact" and s.object_model.mode == "estimated"
     assert s.plant.object_mass == 0.5 and s.plant.friction == 1.0     # contact.yaml's box
+
+
+def _grasp_checks(cases: dict) -> dict:
+    """Per row key (``ur3``, ``ur3@sqfriction``, ``ur3@scale0.5``): the grasp dynamics check's
+    verdict, from the row's own ``gains`` checks (a run past the refusal included) or its
+    ``@grasp`` case (the check run alone)."""
+    out = {}
+    for key, case in cases.items():
+        if key.endswith("@grasp"):
+            out[key[: -len("@grasp")]] = case["passes"]
+            continue
+        grasp = case.get("gains", {}).get("task_checks", {}).get("grasp", {})
+        if "growth_rate_per_s" in grasp.get("values", {}):
+            out[key[: -len("@past")] if key.endswith("@past") else key] = grasp["passes"]
+    return out
+
+
+def _run_outcomes(cases: dict) -> dict:
+    """Per row key: True when its run (or its run past the refusal) carried the box through
+    the circle, False when the run ended failed or diverged."""
+    out = {}
+    for key, case in cases.items():
+        base = key[: -len("@past")] if key.endswith("@past") else key
+        if "verdict" not in case:
+            continue
+        out[base] = case.get("status") == "ok"
+    return out
+
+
+def test_the_grasp_check_agrees_with_every_run_in_the_file():
+    """The simulated truth in the results file: every row whose run carried the box passes the
+    grasp's dynamics check, every row whose run (past a refusal) lost it is refused by it."""
+    cases = json.loads(RESULTS.read_text())["cases"]
+    checks, runs = _grasp_checks(cases), _run_outcomes(cases)
+    both = sorted(set(checks) & set(runs))
+    assert {"ur3", "z1", "xarm7", "ur5", "panda"} <= set(both), both
+    wrong = {k: (checks[k], runs[k]) for k in both if checks[k] != runs[k]}
+    assert not wrong, wrong
