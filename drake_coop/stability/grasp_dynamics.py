@@ -21,9 +21,10 @@ patches — frozen at a posture of the task (:func:`frozen_grasp`):
 * a **twin** of the settled loop, its joints displaced by :data:`PERTURBATION` rad in a fixed
   pseudo-random direction, runs beside it for :data:`WINDOW` s; the difference of the two,
   ``δ(t)``, obeys the loop's linearization about the equilibrium, so
-  :math:`\|\delta(t)\| \propto e^{\sigma t}` once the faster modes have died out, ``σ`` the largest real part of the
-  linearized loop's exponents (:math:`\rho = e^{\sigma h}` of the one-period map: ``σ > 0`` iff ``ρ > 1``);
-  :func:`growth_rate` fits ``σ`` to ``ln ‖δ‖`` over the window's second half.
+  :math:`\|\delta(t)\| \propto e^{\sigma t}` once the faster modes have died out, ``σ`` the
+  largest real part of the linearized loop's exponents (:math:`\rho = e^{\sigma h}` of the
+  one-period map: ``σ > 0`` iff ``ρ > 1``); :func:`growth_rate` fits ``σ`` to ``ln ‖δ‖``
+  over the window's second half.
 
 This is the dominant eigenvalue found by simulation (a power iteration run by the loop itself)
 rather than a Jacobian of the one-period map: the box's quaternion and the hydroelastic
@@ -34,9 +35,10 @@ deviation stops shrinking without growing), so the bar is :data:`GROWTH_BAR`, no
 :func:`check_grasp_dynamics` does this at the postures of :func:`grasp_points` (the lift's end
 and three points of the circle) and refuses a task where ``σ`` exceeds the bar, naming the
 posture, ``σ`` (1/s), the mode's shape (which joints, the pads moving together or against each
-other, the box's rotation) and what to change. Its cost: 4 s of simulated time a posture (the settling, the loop and its twin),
-measured at about 6 s of CPU a posture for two six-joint UR3s and 14 s for two seven-joint
-xArm7s on a loaded 2-core machine; done only in ``contact`` mode.
+other, the box's rotation) and what to change. Its cost: 4 s of simulated time a posture (the
+settling, the loop and its twin), measured at about 6 s of CPU a posture for two six-joint
+UR3s and 14 s for two seven-joint xArm7s on a loaded 2-core machine; done only in ``contact``
+mode.
 """
 
 from __future__ import annotations

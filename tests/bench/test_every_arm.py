@@ -2,6 +2,7 @@
 the row's bars on the worst arm, and the guide's table generated from the results file."""
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -110,9 +111,15 @@ def _grasp_checks(cases: dict) -> dict:
 
 def _run_outcomes(cases: dict) -> dict:
     """Per row key: True when its run (or its run past the refusal) carried the box through
-    the circle, False when the run ended failed or diverged."""
+    the circle, False when the run ended failed or diverged, or when the buckling diagnosis
+    run (``@buckling``, the task's squeeze) tilted the box past the tilt guard's default."""
     out = {}
     for key, case in cases.items():
+        if key.endswith("@buckling"):      # the diagnosis run to the lift's end: lost if tilted
+            angle = case["runs"]["profile"]["box_angle_max_rad"]
+            if angle > math.radians(10.0):          # guards.max_object_tilt_deg's default
+                out[key[: -len("@buckling")]] = False
+            continue
         base = key[: -len("@past")] if key.endswith("@past") else key
         if "verdict" not in case:
             continue
@@ -126,6 +133,6 @@ def test_the_grasp_check_agrees_with_every_run_in_the_file():
     cases = json.loads(RESULTS.read_text())["cases"]
     checks, runs = _grasp_checks(cases), _run_outcomes(cases)
     both = sorted(set(checks) & set(runs))
-    assert {"ur3", "z1", "xarm7", "ur5", "panda"} <= set(both), both
+    assert {"ur3", "z1", "jaco2", "xarm7", "ur5", "panda"} <= set(both), both
     wrong = {k: (checks[k], runs[k]) for k in both if checks[k] != runs[k]}
     assert not wrong, wrong
