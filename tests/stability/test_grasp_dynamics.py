@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import LeafSystem
 
 from drake_coop.control.arm_plant import description_packages
 from drake_coop.stability.grasp_dynamics import growth_rate, twin_run
