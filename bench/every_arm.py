@@ -19,7 +19,9 @@ row's result), and the run to the circle's end (+1 s) measured by
     python -m bench.every_arm jaco2 mixed --out docs/results/every_arm.json  # some rows
     python -m bench.every_arm --table --out docs/results/every_arm.json      # the table only
     python -m bench.every_arm --buckling jaco2 --out docs/results/every_arm.json  # diagnosis
+    python -m bench.every_arm --grasp-dynamics ur5 --out docs/results/every_arm.json  # check
     python -m bench.every_arm jaco2 --squeeze friction --out docs/results/every_arm.json
+    python -m bench.every_arm ur3 --squeeze-scale 0.5 --out docs/results/every_arm.json
 
 A row already in the file is skipped (``--force`` runs it again); each row is written as soon
 as it ends (:func:`bench.lab_arms_object.write_case`), with its command, CPU and wall time,
@@ -113,11 +115,13 @@ def placement(name: str, folder: Path) -> tuple[tuple[float, float] | None, str]
 
 
 def run_row(key: str, out: Path, squeeze: str | None = None,
-            past_refusal: bool = False) -> dict:
+            past_refusal: bool = False, squeeze_scale: float | None = None) -> dict:
     """One row: the placement, the gains and their checks, the run (module docstring);
     ``squeeze`` (``profile`` or ``friction``) sets ``object_model.squeeze`` (None: the
     how-to's default); ``past_refusal`` runs the derived gains even when ``gains`` refuses
-    them (the refusal is kept beside the run as ``refused_by``: what the run says of it)."""
+    them (the refusal is kept beside the run as ``refused_by``: what the run says of it);
+    ``squeeze_scale`` multiplies the task's squeeze profile (``task.force_mean`` and
+    ``force_amplitude``: a case the checks were not designed on)."""
     from bench.lab_arms_object import contact_scenario
     from bench.unseen_arms import measure_with_lift
     from drake_coop.scenario.loading import dump_scenario
@@ -143,6 +147,10 @@ def run_row(key: str, out: Path, squeeze: str | None = None,
         scenario = load_for_gains(str(path))
         if squeeze is not None:
             scenario.object_model.squeeze = squeeze
+        if squeeze_scale is not None:
+            scenario.task.force_mean *= squeeze_scale
+            scenario.task.force_amplitude *= squeeze_scale
+            case["squeeze_scale"] = squeeze_scale
         start = time.process_time()
         report = derive_and_check(scenario)
         case["gains"] = {
@@ -160,12 +168,41 @@ def run_row(key: str, out: Path, squeeze: str | None = None,
                 return case
             case["refused_by"] = f"drake-coop gains: {report.refusal}"
         path.write_text(dump_scenario(gains_for_scenario(scenario, report.robots)))
-        scenario = contact_scenario(str(path), squeeze=squeeze)
+        scenario = contact_scenario(str(path), squeeze=squeeze)   # the scaled task written
     finally:
         path.unlink(missing_ok=True)
     case.update(measure_with_lift(scenario))
     case["verdict"] = verdict(case)
     return case
+
+
+def grasp_row(key: str, out: Path, squeeze: str | None = None) -> dict:
+    """The grasp's dynamics check of ``drake-coop gains`` alone
+    (:func:`~drake_coop.stability.grasp_dynamics.check_grasp_dynamics`) on a row's setup, at
+    the gains derived at the first attempt (:func:`~drake_coop.stability.gains.derive_gains`;
+    a row whose gains ``gains`` backed off is not checked here): what the check says of a row
+    whose run is in the file, without running the rest of ``gains`` or the task again."""
+    from drake_coop.stability.gains import derive_gains, gains_for_scenario
+    from drake_coop.stability.gains_cli import load_for_gains
+    from drake_coop.stability.grasp_dynamics import check_grasp_dynamics
+
+    arms = MIXED if key == "mixed" else (key, key)
+    places = [placement(a, out.parent)[0] for a in dict.fromkeys(arms)]
+    places = places * 2 if arms[0] == arms[1] else places
+    path = out.parent / f".{key}.grasp.yaml"
+    path.write_text(pair_yaml(arms, tuple(places)))
+    try:
+        scenario = load_for_gains(str(path))
+    finally:
+        path.unlink(missing_ok=True)
+    if squeeze is not None:
+        scenario.object_model.squeeze = squeeze
+    derived = derive_gains(scenario)
+    result = check_grasp_dynamics(gains_for_scenario(scenario, derived))
+    return {"arms": list(arms), "passes": result.passes, "message": result.message,
+            "growth_rate_per_s": result.sigma, "worst": result.worst, "joints": result.joints,
+            "pads": result.pads, "cpu_seconds": result.cpu_seconds,
+            "K_R": {d.name: [float(k) for k in d.gains.K_R] for d in derived}}
 
 
 def buckling(key: str, out: Path, t_end: float = 24.0) -> dict:
@@ -266,7 +303,7 @@ def table(data: dict) -> str:
              "| slips | mass at the lift's end (%) | bars (0.3 N, 0.5 mm, 0 slips) |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     for key in sorted(data["cases"], key=lambda k: (k.split("@")[0] == "mixed", k)):
-        if key.endswith(("@buckling", "@past")):
+        if key.endswith(("@buckling", "@past", "@grasp")) or "@scale" in key:
             continue
         case = data["cases"][key]
         arms = " + ".join(case.get("arms", [key]))
@@ -323,6 +360,12 @@ def main(argv=None) -> int:
     parser.add_argument("--past-refusal", action="store_true",
                         help="run the derived gains even when gains refuses them, to test "
                              "the refusal (the row is stored as ROW@past)")
+    parser.add_argument("--squeeze-scale", type=float, metavar="S",
+                        help="multiply the task's squeeze profile by S (the row is stored as "
+                             "ROW@scaleS; not in the guide's table)")
+    parser.add_argument("--grasp-dynamics", action="store_true",
+                        help="instead of the rows: only the grasp's dynamics check of gains "
+                             "on each named pair (:func:`grasp_row`), under ROW[@sqS]@grasp")
     parser.add_argument("--buckling", action="store_true",
                         help="instead of the rows: the buckling bound against the simulated "
                              "truth on each named pair (:func:`buckling`), under ROW@buckling")
@@ -331,11 +374,28 @@ def main(argv=None) -> int:
     for row in rows:
         if row not in LAB_ARMS and row != "mixed":
             parser.error(f"rows: {row!r} is not an arm of drake-coop arms nor mixed")
+    if args.squeeze_scale is not None and not args.squeeze_scale > 0:
+        parser.error(f"--squeeze-scale: must be > 0, got {args.squeeze_scale:g}")
     out = Path(args.out)
     from importlib.metadata import version
 
     from bench.lab_arms_object import _cpu_name, write_case
 
+    if args.grasp_dynamics:
+        for row in args.rows:
+            key = row + (f"@sq{args.squeeze}" if args.squeeze else "") + "@grasp"
+            done = json.loads(out.read_text())["cases"] if out.exists() else {}
+            if key in done and not args.force:
+                print(f"{key}: in {out}, skipped (--force runs it again)", flush=True)
+                continue
+            case = grasp_row(row, out, args.squeeze)
+            case["command"] = (f"python -m bench.every_arm --grasp-dynamics {row} --out "
+                               f"{args.out}" + (f" --squeeze {args.squeeze}"
+                                                if args.squeeze else ""))
+            case["drake"], case["cpu"] = version("drake"), _cpu_name()
+            write_case(out, key, case)
+            print(key, case["message"], flush=True)
+        return 0
     if args.buckling:
         for row in args.rows:
             case = buckling(row, out)
@@ -347,17 +407,20 @@ def main(argv=None) -> int:
     if not args.table:
         for row in rows:
             key = (row + (f"@sq{args.squeeze}" if args.squeeze else "")
+                   + (f"@scale{args.squeeze_scale:g}" if args.squeeze_scale else "")
                    + ("@past" if args.past_refusal else ""))
             done = json.loads(out.read_text())["cases"] if out.exists() else {}
             if key in done and not args.force:
                 print(f"{key}: in {out}, skipped (--force runs it again)", flush=True)
                 continue
             wall, cpu = time.perf_counter(), time.process_time()
-            case = run_row(row, out, args.squeeze, args.past_refusal)
+            case = run_row(row, out, args.squeeze, args.past_refusal, args.squeeze_scale)
             case["cpu_seconds_row"] = round(time.process_time() - cpu, 1)
             case["wall_seconds_row"] = round(time.perf_counter() - wall, 1)
             case["command"] = (f"python -m bench.every_arm {row} --out {args.out}"
                                + (f" --squeeze {args.squeeze}" if args.squeeze else "")
+                               + (f" --squeeze-scale {args.squeeze_scale:g}"
+                                  if args.squeeze_scale else "")
                                + (" --past-refusal" if args.past_refusal else ""))
             case["drake"] = version("drake")
             case["cpu"] = _cpu_name()

@@ -31,7 +31,7 @@ The check: ρ of the one-period map (:func:`~drake_coop.stability.period_map.ana
 scaled by :data:`BACKOFF` and the derivation repeated (at most :data:`MAX_ATTEMPTS` times).
 At gains that pass, the task is checked (:mod:`drake_coop.stability.task_check`: the map at
 postures along the lift and the circle, the torque limits along the path, and in ``contact``
-mode the grasp's buckling under the squeeze, :mod:`drake_coop.stability.grasp`); a failing
+mode the grasp's own dynamics, :mod:`drake_coop.stability.grasp_dynamics`); a failing
 map backs ``κ`` off, a failing torque or grasp check refuses with its one line.
 A scenario in ``contact`` mode is checked on its ``planes`` copy (the map does not take a
 floating box), and a scenario with an object model on a copy without it
@@ -331,7 +331,7 @@ def derive_and_check(scenario: Scenario, kappa: float = KAPPA, epsilon: float = 
                      progress: Callable[[str], None] = lambda m: None) -> GainsReport:
     """Derive, check at the gains and at ``GAIN_MARGIN × K_R``, then the task
     (:func:`~drake_coop.stability.task_check.check_task`: the map along the task's postures,
-    the torque limits along the path, the grasp's buckling in ``contact`` mode); back off
+    the torque limits along the path, the grasp's own dynamics in ``contact`` mode); back off
     ``κ`` when a map fails; refuse at once when the torque or the grasp fails (a lower ``κ``
     does not mend them), ``report.refusal`` saying why and what to change.
 

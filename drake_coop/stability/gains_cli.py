@@ -10,8 +10,8 @@ margin) and ``run.json`` (all of it, the rules' constants, the task's checks of
 :mod:`drake_coop.stability.task_check`, the outcome, and the delay margin with the derived
 gains without and with delay compensation, or the line saying why there is none:
 :func:`gains_margins`). Exit codes: 0 the gains pass the checks, 1 no gains passed them after
-the back-offs, or the task is refused (the torque limits along the path, the grasp's buckling
-under the squeeze; the outputs are written, a result, and the last line names the check, the
+the back-offs, or the task is refused (the torque limits along the path, the grasp's own
+dynamics in ``contact`` mode; the outputs are written, a result, and the last line names the check, the
 posture and what to change) or the derivation failed (one line, nothing written), 2 bad input
 (one line, before
 any computation), 130 Ctrl-C, 143 SIGTERM.

@@ -43,11 +43,16 @@ Z1), 1.29 (Jaco2s at the friction squeeze) and 2.26 (xArm7s), and of grasps that
 arms growing at about 3 1/s without oscillating, 2.4 s into the circle at ``λ_d ≈ 42 N = 0.70
 λ_b``), 1.94 (Z1s) and 5.5 (Jaco2s). No threshold on the ratio separates the two sets; every
 threshold in (1.29, 1.94] misclassifies the fewest, two (the xArm7s refused though they carry,
-the UR3s passed though they lose the box). :func:`check_grasp_buckling` refuses a task whose
-``λ_d`` exceeds :data:`GRASP_MARGIN` ``× λ_b`` at a held tick, with ``GRASP_MARGIN`` in that
-interval: an empirical factor, neither necessary nor sufficient. A run that loses the grasp
-anyway ends ``failed`` on its failure guards. :func:`buckling_squeeze` computes
-``λ_b`` per posture. Two robots with one contact row each only
+the UR3s passed though they lose the box). The bound leaves out the pads' hydroelastic
+patches (a sphere pressed into a face resists the box's rotation), the box's inertia, the
+object model's feedforward and the force loop's and observers' reaction to a tilted box (which
+of these decides was not isolated). So
+``drake-coop gains`` no longer refuses on it: its grasp check is the frozen ``contact`` loop's
+own growth rate (:mod:`drake_coop.stability.grasp_dynamics`), which separates the held from
+the lost grasps above, and the ratio is recorded beside it. :func:`check_grasp_buckling`
+(``λ_d ≤`` :data:`GRASP_MARGIN` ``× λ_b`` at every held tick, an empirical factor in that
+interval) and :func:`buckling_squeeze` (``λ_b`` per posture) remain for that record and for
+diagnosis. Two robots with one contact row each only
 (the grasp of a box between two pads); other grasps are not checked.
 """
 

@@ -139,8 +139,8 @@ def test_the_jaco2_pair_carries_the_box_or_is_refused_with_the_reason():
         case = run_row("jaco2", Path(folder) / "every_arm.json")
     if "refusal" in case:
         refusal = case["refusal"]
-        assert "buckles the grasp" in refusal and "lambda_b" in refusal
-        assert "keep the squeeze below" in refusal
+        assert "grasp dynamics: the grasp is unstable at" in refusal and "1/s" in refusal
+        assert "object_model.squeeze: friction" in refusal
         assert case["gains"]["task_checks"]["grasp"]["passes"] is False
     else:
         assert case["verdict"]["passes"], case["verdict"]

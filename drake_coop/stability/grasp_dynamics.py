@@ -1,0 +1,392 @@
+r"""The grasp's own closed-loop dynamics in ``contact`` mode: does a small disturbance grow?
+
+The ideal object modes (``planes``, ``rigid``) replace the box by constraints that do not
+turn, so neither the stability map (:mod:`~drake_coop.stability.task_check`) nor a ``planes``
+run sees what a real box between two compliant pads does. The quasi-static buckling bound of
+:mod:`~drake_coop.stability.grasp` (the squeeze against the arms' stiffness across the pads'
+line) leaves out the pads' contact patches (which resist the box's rotation), the box's
+inertia, the object model's feedforward and the force loop's and observers' reaction to a
+tilted box; no threshold on its ratio separates the grasps that hold from those that are lost
+(the lab-arms guide's table: held at ratios up to 2.26, lost at 0.85). Which of these left-out
+parts decides was not isolated: this check includes them all.
+
+This module measures the grasp's dynamics on the **actual** ``contact``-mode closed loop — both
+arms, their controllers and observers, the object model, the free box on the pads' hydroelastic
+patches — frozen at a posture of the task (:func:`frozen_grasp`):
+
+* the reference held at its value at ``t*`` (``q̇_d = q̈_d = 0``, the squeeze ``λ_d(t*)``),
+  the arms at ``q_d(t*)``, the box between the pads (its centre midway, its x axis along the
+  pads' line), the stand lowered; the loop then *settles* for :data:`SETTLE` s to its
+  equilibrium;
+* a **twin** of the settled loop, its joints displaced by :data:`PERTURBATION` rad in a fixed
+  pseudo-random direction, runs beside it for :data:`WINDOW` s; the difference of the two,
+  ``δ(t)``, obeys the loop's linearization about the equilibrium, so
+  :math:`\|\delta(t)\| \propto e^{\sigma t}` once the faster modes have died out, ``σ`` the
+  largest real part of the linearized loop's exponents (:math:`\rho = e^{\sigma h}` of the
+  one-period map: ``σ > 0`` iff ``ρ > 1``); :func:`growth_rate` fits ``σ`` to ``ln ‖δ‖``
+  over the window's second half.
+
+This is the dominant eigenvalue found by simulation (a power iteration run by the loop itself)
+rather than a Jacobian of the one-period map: the box's quaternion and the hydroelastic
+contacts make central differences of the whole state delicate, and only the dominant mode is
+needed. A friction contact that sticks keeps a displaced grasp where it is (an exponent 0: the
+deviation stops shrinking without growing), so the bar is :data:`GROWTH_BAR`, not 0.
+
+Its limits, measured: a frozen posture cannot tell how long the moving loop stays where a mode
+grows — a slow growth at one posture the circle passes in a few seconds does not lose the box
+(the Jaco2s at the friction squeeze: refused, and they carry it) — and a grasp lost through
+the pads slipping on the box is not a small growing displacement (the Jaco2s at the task's
+squeeze lose the box in the lift, where the frozen loop is stable; they are refused, barely,
+at the lift's end).
+
+:func:`check_grasp_dynamics` does this at the postures of :func:`grasp_points` (the lift's end
+and three points of the circle) and refuses a task where ``σ`` exceeds the bar, naming the
+posture, ``σ`` (1/s), the mode's shape (which joints, the pads moving together or against each
+other, the box's rotation) and what to change. Its cost: 4 s of simulated time a posture (the
+settling, the loop and its twin), measured at about 6 s of CPU a posture for two six-joint
+UR3s and 14 s for two seven-joint xArm7s on a loaded 2-core machine; done only in ``contact``
+mode.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["GROWTH_BAR", "PERTURBATION", "SETTLE", "WINDOW", "GraspDynamics", "TwinRun",
+           "check_grasp_dynamics", "frozen_grasp", "grasp_points", "growth_rate", "twin_run"]
+
+#: The frozen loop's settling time before the twin starts (s).
+SETTLE = 1.0
+#: The twin's run (s): ``σ`` is fitted over its second half.
+WINDOW = 1.5
+#: The twin's joint displacement (rad, the norm over both arms' joints).
+PERTURBATION = 1e-5
+#: The largest growth rate ``σ`` accepted (1/s). A sticking friction contact keeps a
+#: displacement (an exponent 0), so the bar is above 0, with room for the fit's spread (the
+#: UR3s' lift end gave 0.30 and 0.22 1/s in two computations: a direct call and the one
+#: inside ``gains``). Set from the UR3, Z1, xArm7 and Panda pairs of the lab-arms guide's table
+#: (``docs/results/every_arm.json``): the grasps that held had a worst ``σ`` of about
+#: −0.4 … −0.1 1/s, the UR3s and Z1s, lost, 2.3 and 1.6 1/s. Measured after it was set: the
+#: other held grasps −0.5 … −0.1 1/s, the SO-ARM100s 5.9 1/s and the Jaco2s, lost in the lift,
+#: only 0.38 1/s at the lift's end (a close call); and one wrong verdict: the Jaco2s at the
+#: friction squeeze, 0.78 1/s at the circle's bottom only, carry the box (the module
+#: docstring's limits).
+GROWTH_BAR = 0.3
+
+
+def growth_rate(t: np.ndarray, deviation: np.ndarray) -> float:
+    """``σ``: the least-squares slope of ``ln ‖δ(t)‖`` over the second half of the samples.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        The sample times (K,), s, increasing, K ≥ 4.
+    deviation : numpy.ndarray
+        ``‖δ‖`` at those times (K,), positive.
+
+    Returns
+    -------
+    float
+        ``σ``, 1/s (``inf`` when the deviation is not finite or not positive).
+    """
+    t = np.asarray(t, dtype=float)
+    d = np.asarray(deviation, dtype=float)
+    if len(t) < 4 or len(t) != len(d):
+        raise ValueError(f"t, deviation: need at least 4 samples of equal length, got "
+                         f"{len(t)} and {len(d)}")
+    if not np.all(np.isfinite(d)) or np.any(d <= 0.0):
+        return math.inf
+    half = len(t) // 2
+    return float(np.polyfit(t[half:], np.log(d[half:]), 1)[0])
+
+
+@dataclass
+class TwinRun:
+    """The twin's samples: the times and the deviation's parts.
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        (K,), s.
+    deviation : numpy.ndarray
+        ``‖δ‖`` of what ``read`` returned (K,).
+    last : numpy.ndarray
+        ``δ`` at the last sample (what ``read`` returns).
+    sigma : float
+        :func:`growth_rate` of the deviation, 1/s.
+    """
+
+    t: np.ndarray
+    deviation: np.ndarray
+    last: np.ndarray
+    sigma: float
+
+
+def twin_run(nominal, twin, read, t_start: float, window: float = WINDOW,
+             samples: int = 30) -> TwinRun:
+    """Advance two Simulators of the same system side by side and fit the growth of their
+    difference.
+
+    Parameters
+    ----------
+    nominal, twin : pydrake.systems.analysis.Simulator
+        The two simulators, initialized, at ``t_start`` (the twin displaced).
+    read : Callable[[Context], numpy.ndarray]
+        What the deviation is measured on, from a root context.
+    t_start : float
+        Their time, s.
+    window : float
+        How long to run them, s.
+    samples : int
+        Samples of the deviation over the window.
+
+    Returns
+    -------
+    TwinRun
+        The samples and ``σ``.
+    """
+    times = t_start + window * np.arange(1, samples + 1) / samples
+    deviation, delta = [], None
+    for t in times:
+        nominal.AdvanceTo(t)
+        twin.AdvanceTo(t)
+        delta = read(twin.get_context()) - read(nominal.get_context())
+        deviation.append(float(np.linalg.norm(delta)))
+    deviation = np.array(deviation)
+    return TwinRun(times, deviation, delta, growth_rate(times, deviation))
+
+
+def grasp_points(task) -> list[tuple[str, float]]:
+    """The postures the grasp is checked at: ``(label, t*)``.
+
+    Parameters
+    ----------
+    task : Task
+        The scenario's task.
+
+    Returns
+    -------
+    list of tuple
+        The lift's end (the circle's start) and a quarter, half and three quarters of the
+        circle.
+    """
+    circle = task.t_circle_end - task.t_circle_start
+    return [("lift end", task.t_circle_start)] + [
+        (f"circle {int(round(100 * f))} %", task.t_circle_start + f * circle)
+        for f in (0.25, 0.5, 0.75)]
+
+
+def frozen_grasp(scenario, t_star: float):
+    """The ``contact``-mode loop with its reference frozen at ``t*`` and the box placed in the
+    grasp (module docstring), initialized at ``t = 0``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated ``contact``-mode scenario with gains.
+    t_star : float
+        The frozen tick's time, s (a held tick).
+
+    Returns
+    -------
+    experiment : Experiment
+        The built loop.
+    simulator : pydrake.systems.analysis.Simulator
+        Its simulator, initialized.
+    """
+    from pydrake.common.eigen_geometry import AngleAxis
+    from pydrake.math import RigidTransform, RotationMatrix
+    from pydrake.multibody.math import SpatialVelocity
+    from pydrake.systems.analysis import Simulator
+
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.experiment.simulate import set_rest_state
+    from drake_coop.experiment.ticks import time_grid
+    from drake_coop.stability.operating import _frozen, linearizable
+
+    scenario = linearizable(scenario)
+    h = time_grid(scenario)[0]
+    k = int(round(t_star / h))
+    plan = plan_run(scenario, k * h + h)
+    refs, q_star = [], []
+    for robot in plan.robots:
+        row = robot.samples[1][min(k, len(robot.samples[1]) - 1)]
+        refs.append(_frozen(row, robot.layout, True))
+        q_star.append(np.array(robot.layout.column(row[None, :], "q_d")[0]))
+    exp = build_experiment(plan.with_references(refs), log=False)
+    context = exp.diagram.CreateDefaultContext()
+    set_rest_state(exp, context, q_star, plan.z_grasp)
+    coop, box = exp.coop, exp.coop.grasp
+    pc = coop.plant.GetMyMutableContextFromRoot(context)
+    p = [coop.ee_position(pc, i) for i in range(2)]
+    u = (p[1] - p[0]) / np.linalg.norm(p[1] - p[0])
+    rest = box.X_WBox0.rotation()
+    x_axis = rest.matrix()[:, 0]
+    axis = np.cross(x_axis, u)
+    turn = (RotationMatrix(AngleAxis(math.atan2(np.linalg.norm(axis), x_axis @ u),
+                                     axis / np.linalg.norm(axis)))
+            if np.linalg.norm(axis) > 1e-12 else RotationMatrix())
+    coop.plant.SetFreeBodyPose(pc, box.box, RigidTransform(turn.multiply(rest),
+                                                           0.5 * (p[0] + p[1])))
+    coop.plant.SetFreeBodySpatialVelocity(pc, box.box, SpatialVelocity.Zero())
+    box.set_stand_lowered(pc, True)
+    simulator = Simulator(exp.diagram, context)
+    simulator.Initialize()
+    return exp, simulator
+
+
+@dataclass
+class GraspDynamics:
+    """The grasp's dynamics check along the task.
+
+    Attributes
+    ----------
+    checked : bool
+        False when the scenario's grasp is not two pads in ``contact`` mode.
+    passes : bool
+        ``σ ≤ GROWTH_BAR`` at every posture (True when not checked).
+    sigma : dict of str to float
+        ``σ`` per posture (label with its time), 1/s.
+    worst : str
+        The posture of the largest ``σ``.
+    joints : dict of str to list of str
+        There, per robot, the joints that move most in the mode (largest first).
+    pads : str
+        There, how the pads move in the mode: ``together`` or ``against each other`` and
+        along which axis.
+    box_turn_axis : list of float
+        There, the box's rotation axis in the mode (world, unit; zeros when it does not turn).
+    cpu_seconds : float
+        The check's CPU time, s.
+    message : str
+        One line: what was found and, on failure, what to change.
+    """
+
+    checked: bool
+    passes: bool = True
+    sigma: dict = field(default_factory=dict)
+    worst: str = ""
+    joints: dict = field(default_factory=dict)
+    pads: str = ""
+    box_turn_axis: list = field(default_factory=list)
+    cpu_seconds: float = 0.0
+    message: str = ""
+
+
+_AXES = "xyz"
+
+
+def _posture(scenario, t_star: float) -> dict:
+    """σ and the mode's shape at one frozen posture (module docstring)."""
+    exp, nominal = frozen_grasp(scenario, t_star)
+    nominal.AdvanceTo(SETTLE)
+    coop, plant = exp.coop, exp.coop.plant
+    twin_context = nominal.get_context().Clone()
+    pc = plant.GetMyMutableContextFromRoot(twin_context)
+    sizes = [len(coop.arm_positions(pc, i)) for i in range(2)]
+    push = np.random.default_rng(0).standard_normal(sum(sizes))
+    push *= PERTURBATION / np.linalg.norm(push)
+    for i in range(2):
+        part = push[sum(sizes[:i]): sum(sizes[:i + 1])]
+        plant.SetPositions(pc, coop.arms[i].instance, coop.arm_positions(pc, i) + part)
+    from pydrake.systems.analysis import Simulator
+
+    twin = Simulator(exp.diagram, twin_context)
+    twin.Initialize()
+
+    def joints(context):
+        c = plant.GetMyContextFromRoot(context)
+        return np.concatenate([coop.arm_positions(c, i) for i in range(2)])
+
+    run = twin_run(nominal, twin, joints, SETTLE)
+    ca = plant.GetMyContextFromRoot(nominal.get_context())
+    cb = plant.GetMyContextFromRoot(twin.get_context())
+    pads = [coop.ee_position(cb, i) - coop.ee_position(ca, i) for i in range(2)]
+    Ra = plant.GetFreeBodyPose(ca, coop.grasp.box).rotation()
+    Rb = plant.GetFreeBodyPose(cb, coop.grasp.box).rotation()
+    turn = Ra.inverse().multiply(Rb).ToAngleAxis()
+    axis = Ra.matrix() @ turn.axis() if turn.angle() > 0 else np.zeros(3)
+    names = [[plant.get_joint(j).name() for j in plant.GetJointIndices(coop.arms[i].instance)
+              if plant.get_joint(j).num_velocities() == 1] for i in range(2)]
+    return {"sigma": run.sigma, "delta": run.last, "sizes": sizes, "pads": pads, "names": names,
+            "box_axis": axis, "box_angle": float(turn.angle())}
+
+
+def _shape(found: dict, names: list[list[str]]) -> tuple[dict, str]:
+    """The mode's joints per robot and the pads' relative motion."""
+    delta, sizes = found["delta"], found["sizes"]
+    joints = {}
+    for i, robot_names in enumerate(names):
+        part = np.abs(delta[sum(sizes[:i]): sum(sizes[:i + 1])])
+        order = [j for j in np.argsort(part)[::-1][:3] if part[j] > 0.3 * part.max()]
+        joints[i] = [robot_names[j] for j in order]
+    p1, p2 = found["pads"]
+    mean = p1 + p2
+    axis = int(np.argmax(np.abs(p1) + np.abs(p2)))
+    sense = "together" if np.linalg.norm(mean) > np.linalg.norm(p1 - p2) else "against each other"
+    return joints, f"{sense} along {_AXES[axis]}"
+
+
+def check_grasp_dynamics(scenario, bar: float = GROWTH_BAR,
+                         points: list[tuple[str, float]] | None = None) -> GraspDynamics:
+    """The grasp's growth rate ``σ`` at the postures of :func:`grasp_points` (module
+    docstring): refuse when one exceeds ``bar``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated scenario with gains; checked only in ``contact`` mode with two robots
+        of one contact row each (the box between two pads).
+    bar : float
+        The largest ``σ`` accepted, 1/s.
+    points : list of tuple or None
+        ``(label, t*)`` postures; None: :func:`grasp_points`.
+
+    Returns
+    -------
+    GraspDynamics
+        The verdict, ``σ`` per posture and the worst mode's shape.
+    """
+    import time
+
+    if (scenario.plant.object_mode != "contact" or len(scenario.robots) != 2
+            or any(len(r.normals) != 1 for r in scenario.robots)):
+        return GraspDynamics(False, message="grasp dynamics: not checked (contact mode, two "
+                                            "robots with one contact row each only)")
+    start = time.process_time()
+    out = GraspDynamics(True)
+    worst = None
+    for label, t_star in points or grasp_points(scenario.task):
+        found = _posture(scenario, t_star)
+        key = f"{label} (t = {t_star:.2f} s)"
+        out.sigma[key] = found["sigma"]
+        if worst is None or found["sigma"] > worst[1]["sigma"]:
+            worst = (key, found)
+    out.cpu_seconds = round(time.process_time() - start, 1)
+    out.worst, found = worst
+    joints, out.pads = _shape(found, found["names"])
+    out.joints = {scenario.robots[i].name: js for i, js in joints.items()}
+    out.box_turn_axis = [float(a) for a in found["box_axis"]]
+    sigma = out.sigma[out.worst]
+    out.passes = bool(sigma <= bar)
+    if out.passes:
+        out.message = (f"grasp dynamics: passes, the frozen contact loop's largest growth rate "
+                       f"{sigma:.3g} 1/s <= {bar:g} ({out.worst}; {len(out.sigma)} postures)")
+        return out
+    turn = (f", the box turning about {_AXES[int(np.argmax(np.abs(found['box_axis'])))]}"
+            if found["box_angle"] > 0 else "")
+    soft = "; ".join(f"{name}: {', '.join(js)}" for name, js in out.joints.items())
+    friction = (scenario.object_model.mode != "none"
+                and scenario.object_model.squeeze == "friction")
+    remedy = ("a lighter box or a higher friction (plant.object_mass, plant.friction), a "
+              "wider grasp or stiffer arms across it (K_R x Lambda)" if friction else
+              "object_model.squeeze: friction, or a lower squeeze (task.force_mean, "
+              "force_amplitude), a wider grasp or stiffer arms across it (K_R x Lambda)")
+    out.message = (f"grasp dynamics: the grasp is unstable at {out.worst}: a mode grows at "
+                   f"{sigma:.3g} 1/s > {bar:g} (joints {soft}; pads {out.pads}{turn}); "
+                   f"use {remedy}")
+    return out

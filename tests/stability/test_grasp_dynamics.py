@@ -1,0 +1,137 @@
+"""The grasp's dynamics check (:mod:`drake_coop.stability.grasp_dynamics`): the twin-run growth
+rate against the closed form of a toy (a mass between two preloaded springs, the buckling
+geometry of a squeezed grasp), and the check against the simulated truth (slow)."""
+
+import math
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import LeafSystem
+
+from drake_coop.control.arm_plant import description_packages
+from drake_coop.stability.grasp_dynamics import growth_rate, twin_run
+
+robots_extra = pytest.mark.skipif("example-robot-data" not in description_packages(),
+                                  reason='example-robot-data is not installed '
+                                         '(pip install -e ".[robots]")')
+
+
+class _PreloadedMass(LeafSystem):
+    """A mass ``m`` at ``(0, y)`` between two springs from walls at ``(±L, 0)``, each of
+    stiffness ``k_s`` and rest length ``L_0 > L`` (compressed: the preload ``P = k_s (L_0 −
+    L)``), held sideways by a spring ``k`` and a damper ``c``: the exact geometry, not its
+    linearization."""
+
+    def __init__(self, m, k, c, k_s, L, L0):
+        super().__init__()
+        self.p = (m, k, c, k_s, L, L0)
+        self.DeclareContinuousState(2)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        m, k, c, k_s, L, L0 = self.p
+        y, v = context.get_continuous_state_vector().CopyToVector()
+        length = math.hypot(L, y)
+        push = 2.0 * k_s * (L0 - length) * y / length      # both springs' sideways part
+        derivatives.get_mutable_vector().SetFromVector([v, (push - k * y - c * v) / m])
+
+
+def _sigma_closed_form(m, k, c, k_s, L, L0):
+    """The largest real part of the roots of m s² + c s + (k − 2P/L), P = k_s (L0 − L)."""
+    return max(np.roots([m, c, k - 2.0 * k_s * (L0 - L) / L]).real)
+
+
+# k below and above the preload's 2P/L = 100 N/m (real roots both); the displacement small
+# enough for the deviation to stay linear over the window
+@pytest.mark.parametrize("k, y0", [(40.0, 1e-6), (150.0, 1e-3)])
+def test_the_twin_run_finds_the_preloaded_mass_growth_rate_of_its_closed_form(k, y0):
+    m, c, k_s, L, L0 = 0.5, 12.0, 1000.0, 0.1, 0.105
+    system = _PreloadedMass(m, k, c, k_s, L, L0)
+    sims = []
+    for start in (0.0, y0):
+        sim = Simulator(system)
+        sim.get_mutable_context().SetContinuousState([start, 0.0])
+        sim.get_mutable_integrator().set_target_accuracy(1e-10)
+        sim.Initialize()
+        sims.append(sim)
+    run = twin_run(sims[0], sims[1], lambda ctx: ctx.get_continuous_state_vector()
+                   .CopyToVector(), 0.0, window=1.0, samples=40)
+    expected = _sigma_closed_form(m, k, c, k_s, L, L0)
+    assert (expected > 0) == (k < 100.0)
+    assert run.sigma == pytest.approx(expected, rel=0.02, abs=0.02)
+
+
+def test_growth_rate_is_the_slope_of_the_logarithm_over_the_second_half():
+    t = np.linspace(0.0, 2.0, 21)
+    # a fast transient in the first half, e^{1.3 t} in the second
+    d = np.where(t < 1.0, 5.0, 1.0) * np.exp(1.3 * t)
+    assert growth_rate(t, d) == pytest.approx(1.3, rel=1e-12)
+    assert growth_rate(t, np.full_like(t, 2e-6)) == pytest.approx(0.0, abs=1e-12)
+    assert growth_rate(t, np.where(t > 1.5, 0.0, 1.0)) == math.inf
+    with pytest.raises(ValueError, match="t, deviation"):
+        growth_rate(t[:3], d[:3])
+
+
+def test_only_a_two_pad_contact_grasp_is_checked():
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import find_scenario
+    from drake_coop.stability.grasp_dynamics import check_grasp_dynamics
+
+    for name in ("paper", "three_arms"):        # planes mode; three robots
+        result = check_grasp_dynamics(load_scenario(find_scenario(name)))
+        assert not result.checked and result.passes and "not checked" in result.message
+
+
+def _pair(name: str, squeeze: str):
+    """A pair of ``name`` as the lab-arms how-to sets it up (bench.every_arm), with the
+    derived gains and the squeeze source ``squeeze``."""
+    import tempfile
+    from pathlib import Path
+
+    from bench.every_arm import pair_yaml, placement
+    from drake_coop.stability.gains import derive_gains, gains_for_scenario
+    from drake_coop.stability.gains_cli import load_for_gains
+
+    with tempfile.TemporaryDirectory() as folder:
+        place, why = placement(name, Path(folder))
+        assert place is not None, why
+        path = Path(folder) / f"{name}.yaml"
+        path.write_text(pair_yaml((name, name), (place, place)))
+        scenario = load_for_gains(str(path))
+    scenario.object_model.squeeze = squeeze
+    return gains_for_scenario(scenario, derive_gains(scenario))
+
+
+@pytest.mark.slow
+@robots_extra
+@pytest.mark.parametrize("squeeze, refused", [("profile", True), ("friction", False)])
+def test_the_check_refuses_the_ur3_grasp_the_run_loses_and_passes_the_one_it_carries(
+        squeeze, refused):
+    """The simulated truth, 6 s into the circle: two UR3s with the task's squeeze (the check,
+    at the lift's end and 2 s into the circle, finds a mode growing: the run past it ends
+    ``failed`` on the box's tilt) and with the friction squeeze (the check passes: the run
+    carries the box, its tilt small)."""
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.stability.grasp_dynamics import GROWTH_BAR, check_grasp_dynamics
+
+    scenario = _pair("ur3", squeeze)
+    task = scenario.task
+    t_end = task.t_circle_start + 6.0
+    points = [("lift end", task.t_circle_start), ("circle", task.t_circle_start + 2.0)]
+    check = check_grasp_dynamics(scenario, points=points)
+    assert check.passes is not refused, check.message
+    if refused:
+        assert max(check.sigma.values()) > 3 * GROWTH_BAR      # not a marginal call
+        assert "ur3_1: " in check.message and "object_model.squeeze: friction" in check.message
+    result = simulate(scenario, t_end=t_end)
+    if refused:
+        assert result.meta["status"] == "failed", result.meta
+        assert "tilted" in result.meta["message"]
+    else:
+        assert result.meta["status"] == "ok", result.meta
+        log = next(iter(result.logs.values()))
+        from drake_coop.kinematics.rotations import quaternion_rotations
+
+        R = quaternion_rotations(np.asarray(log["object_pose"])[:, :4])
+        angle = np.arccos(np.clip((np.trace(R, axis1=1, axis2=2) - 1) / 2, -1, 1))
+        assert angle.max() < 0.05, angle.max()
