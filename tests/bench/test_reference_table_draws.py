@@ -1,0 +1,46 @@
+"""The more-draws comparison of the reference table (``bench/reference_table_draws.py``)."""
+
+import json
+
+from bench.reference_table_draws import compare, main
+
+
+def _cell(n, diverged, median, lo, hi):
+    return {"n": n, "diverged": diverged, "squeeze": {"median": [median, lo, hi]}}
+
+
+def _table(cells):
+    return {"rows": sorted(cells), "columns": ["a", "b", "c"], "cells": cells, "cases": 3,
+            "finished": 3, "cpu_time_s": {"per_case_mean": 1.0}}
+
+
+def test_a_median_inside_outside_or_against_a_point_interval():
+    many = _table({"r": {"a": _cell(100, 30, 1.0, 0.9, 1.1), "b": _cell(100, 0, 2.5, 2.4, 2.6),
+                         "c": _cell(100, 0, 0.5, 0.5, 0.5), "d": _cell(100, 0, 1, 1, 1)}})
+    twenty = _table({"r": {"a": _cell(20, 6, 1.05, 0.8, 1.3), "b": _cell(20, 0, 2.0, 1.9, 2.1),
+                           "c": _cell(20, 0, 0.5, 0.5, 0.5)}})
+    result = compare(many, twenty)
+    a, b, c = (result["cells"]["r"][k] for k in "abc")
+    assert a["inside_20_interval"] is True and abs(a["width_ratio"] - 0.2 / 0.5) < 1e-12
+    assert a["diverged_fraction"] == 0.3 and a["diverged_fraction_20"] == 0.3
+    assert b["inside_20_interval"] is False
+    assert c["inside_20_interval"] is None and c["width_ratio"] is None
+    assert "d" not in result["cells"]["r"]            # a cell the 20-draw table lacks
+    assert (result["inside"], result["compared"]) == (1, 2)
+
+
+def test_a_missing_store_is_one_line_and_exit_2(tmp_path, capsys):
+    assert main([str(tmp_path / "nowhere")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "table.json" in err
+
+
+def test_written_file_names_its_command(tmp_path, monkeypatch):
+    store = tmp_path / "store"
+    store.mkdir()
+    (store / "table.json").write_text(json.dumps(
+        _table({"observer": {"model_30": _cell(100, 1, 1.0, 0.9, 1.1)}})))
+    out = tmp_path / "cmp.json"
+    assert main([str(store), "--write", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert "--draws 100" in doc["command"] and doc["cases"] == 3
