@@ -60,15 +60,19 @@ def ramp(target, cycles, start=0.0):
 
 
 class Rig:
-    """The driver alone: the arm's state fixed at (Q, V); statuses collected."""
+    """The driver alone: the arm's state fixed at (Q, V); statuses collected. With a
+    ``model`` the emulation estimates the external torque; ``phase`` is its clock's."""
 
-    def __init__(self, convention="robot_adds", low_pass_hz=FRANKA_NO_FILTER_HZ, n=7):
+    def __init__(self, convention="robot_adds", low_pass_hz=FRANKA_NO_FILTER_HZ, n=7,
+                 model=None, phase=0.0):
+        import dataclasses
+
         self.lcm = DrakeLcm("memq://")
         self.statuses = []
         self.lcm.Subscribe("PANDA_STATUS", lambda d: self.statuses.append(
             lcmt_panda_status.decode(d)))
-        self.driver = TorqueDriver(spec(n, convention), DriverClock("epoch", origin=ORIGIN),
-                                   self.lcm,
+        self.driver = TorqueDriver(dataclasses.replace(spec(n, convention), clock_phase=phase),
+                                   DriverClock("epoch", origin=ORIGIN), self.lcm, model=model,
                                    emulate=EMULATE, low_pass_hz=low_pass_hz)
         self.sim = Simulator(self.driver)
         self.ctx = self.sim.get_mutable_context()
@@ -255,28 +259,20 @@ def test_the_estimate_read_between_the_drivers_cycle_and_the_plants_step_is_the_
     that cycle published: τ₋ − (H δ / 1 ms + g(q)), with τ₋ the torque on the arm over the
     cycle before (H = 2 I, no Coriolis, no damping). Computed at the reading instant instead,
     the driver's own fresh velocity made the acceleration 0: τ₋ − g(q), off by 2 δ / 1 ms."""
-    lcm = DrakeLcm("memq://")
-    statuses = []
-    lcm.Subscribe("PANDA_STATUS", lambda d: statuses.append(lcmt_panda_status.decode(d)))
-    driver = TorqueDriver(spec(), DriverClock("epoch", origin=ORIGIN), lcm, model=StubModel(),
-                          emulate=EMULATE, low_pass_hz=FRANKA_NO_FILTER_HZ)
-    sim = Simulator(driver)
-    ctx = sim.get_mutable_context()
-    state = driver.get_input_port(1).FixValue(ctx, np.concatenate([Q, V]))
-    driver.get_input_port(2).FixValue(ctx, gravity(Q))
-    driver.get_input_port(0).FixValue(ctx, AbstractValue.Make(command(np.zeros(7), ORIGIN)))
-    sim.Initialize()
-    sim.AdvanceTo(0.0015)
+    rig = Rig(model=StubModel())
+    driver, ctx = rig.driver, rig.ctx
+    rig.send(command(np.zeros(7), ORIGIN))
+    rig.sim.AdvanceTo(0.0015)
     tau_before = driver.get_output_port(0).Eval(ctx).copy()         # on the arm from 1 ms
     delta = np.array([2e-4, -1e-4, 3e-4, 0.0, 1e-4, -2e-4, 1e-4])   # rad/s
-    state.GetMutableData().set_value(np.concatenate([Q, V + delta]))   # the plant's step
-    sim.AdvanceTo(0.002 + 1e-9)                                     # just after the cycle
-    lcm.HandleSubscriptions(0)
+    rig.state.GetMutableData().set_value(np.concatenate([Q, V + delta]))   # the plant's step
+    rig.sim.AdvanceTo(0.002 + 1e-9)                                 # just after the cycle
+    rig.lcm.HandleSubscriptions(0)
     want = tau_before - (2.0 * delta / 1e-3 + gravity(Q))
     read = driver.get_output_port(2).Eval(ctx)
     np.testing.assert_allclose(read, want, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(statuses[-1].joint_torque_external, want, rtol=0, atol=1e-9)
-    assert statuses[-1].utime == ORIGIN + 2000                      # that cycle's status
+    np.testing.assert_allclose(rig.statuses[-1].joint_torque_external, want, rtol=0, atol=1e-9)
+    assert rig.statuses[-1].utime == ORIGIN + 2000                      # that cycle's status
     assert np.abs(read - (tau_before - gravity(Q))).max() > 0.5     # not the stale reading
 
 
@@ -285,21 +281,10 @@ def test_the_first_estimate_of_a_phased_clock_has_the_velocity_of_initialization
     V: the first estimate (latched before the first cycle, the arm not yet driven: no torque
     on it) reads no acceleration, −g(q); against a v₋ of zeros it would read −(2 V / 1 ms +
     g(q))."""
-    import dataclasses
-
-    lcm = DrakeLcm("memq://")
-    phased = dataclasses.replace(spec(), clock_phase=5e-4)
-    driver = TorqueDriver(phased, DriverClock("epoch", origin=ORIGIN), lcm, model=StubModel(),
-                          emulate=EMULATE, low_pass_hz=FRANKA_NO_FILTER_HZ)
-    sim = Simulator(driver)
-    ctx = sim.get_mutable_context()
-    driver.get_input_port(1).FixValue(ctx, np.concatenate([Q, V]))
-    driver.get_input_port(2).FixValue(ctx, gravity(Q))
-    driver.get_input_port(0).FixValue(ctx, AbstractValue.Make(SharedPandaCommand()))
-    sim.Initialize()
-    sim.AdvanceTo(4.99e-4)                                  # after the first latch only
-    np.testing.assert_allclose(driver.get_output_port(2).Eval(ctx), -gravity(Q), rtol=0,
-                               atol=1e-12)
+    rig = Rig(model=StubModel(), phase=5e-4)
+    rig.sim.AdvanceTo(4.99e-4)                              # after the first latch only
+    np.testing.assert_allclose(rig.driver.get_output_port(2).Eval(rig.ctx), -gravity(Q),
+                               rtol=0, atol=1e-12)
 
 
 def test_an_expired_command_is_counted_once_and_a_fresh_one_not_at_all():
