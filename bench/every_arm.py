@@ -94,23 +94,30 @@ def pair_yaml(arms: tuple[str, str], places: tuple[tuple[float, float], ...]) ->
                             enumerate(zip(arms, places))) + "\n"
 
 
+def load_pair(arms: tuple[str, str], places: tuple, path: Path):
+    """The pair's scenario (:func:`pair_yaml`) written to ``path``, loaded as ``gains``
+    loads it, the file removed again (also when the load refuses: its error propagates)."""
+    from drake_coop.stability.gains_cli import load_for_gains
+
+    path.write_text(pair_yaml(arms, tuple(places)))
+    try:
+        return load_for_gains(str(path))
+    finally:
+        path.unlink(missing_ok=True)
+
+
 def placement(name: str, folder: Path) -> tuple[tuple[float, float] | None, str]:
     """The first of :data:`PLACEMENTS` whose mirrored pair of ``name`` validates, or None and
     the validation's last refusal."""
     from drake_coop.scenario.schema import ScenarioError
-    from drake_coop.stability.gains_cli import load_for_gains
 
     last = ""
     for place in PLACEMENTS:
-        path = folder / f".{name}.placement.yaml"
-        path.write_text(pair_yaml((name, name), (place, place)))
         try:
-            load_for_gains(str(path))
+            load_pair((name, name), (place, place), folder / f".{name}.placement.yaml")
             return place, ""
         except (ScenarioError, ValueError) as exc:
             last = str(exc)
-        finally:
-            path.unlink(missing_ok=True)
     return None, last
 
 
@@ -183,18 +190,12 @@ def grasp_row(key: str, out: Path, squeeze: str | None = None) -> dict:
     a row whose gains ``gains`` backed off is not checked here): what the check says of a row
     whose run is in the file, without running the rest of ``gains`` or the task again."""
     from drake_coop.stability.gains import derive_gains, gains_for_scenario
-    from drake_coop.stability.gains_cli import load_for_gains
     from drake_coop.stability.grasp_dynamics import check_grasp_dynamics
 
     arms = MIXED if key == "mixed" else (key, key)
     places = [placement(a, out.parent)[0] for a in dict.fromkeys(arms)]
     places = places * 2 if arms[0] == arms[1] else places
-    path = out.parent / f".{key}.grasp.yaml"
-    path.write_text(pair_yaml(arms, tuple(places)))
-    try:
-        scenario = load_for_gains(str(path))
-    finally:
-        path.unlink(missing_ok=True)
+    scenario = load_pair(arms, places, out.parent / f".{key}.grasp.yaml")
     if squeeze is not None:
         scenario.object_model.squeeze = squeeze
     derived = derive_gains(scenario)
@@ -214,17 +215,11 @@ def buckling(key: str, out: Path, t_end: float = 24.0) -> dict:
     from drake_coop.experiment.simulate import simulate
     from drake_coop.kinematics.rotations import quaternion_rotations
     from drake_coop.stability.gains import derive_gains, gains_for_scenario
-    from drake_coop.stability.gains_cli import load_for_gains
     from drake_coop.stability.grasp import check_grasp_buckling
 
     arms = MIXED if key == "mixed" else (key, key)
     places = [placement(a, out.parent)[0] for a in arms]
-    path = out.parent / f".{key}.buckling.yaml"
-    path.write_text(pair_yaml(arms, tuple(places)))
-    try:
-        base = load_for_gains(str(path))
-    finally:
-        path.unlink(missing_ok=True)
+    base = load_pair(arms, places, out.parent / f".{key}.buckling.yaml")
     base = gains_for_scenario(base, derive_gains(base))
     cases = {}
     for name, squeeze, mu in (("profile", "profile", None), ("friction_mu2", "friction", 2.0)):
