@@ -223,10 +223,11 @@ def identify_columns(out: Path, base, cols: list[str], draws: int, seed: int, *,
     import numpy as np
 
     from drake_coop.scenario.loading import dump_scenario
-    from drake_coop.studies.reference_table import _model_30, compress
+    from drake_coop.studies.reference_table import _encoders, _model_30, compress
 
     spec = {identified_name(m, b): (m, b) for m, b in IDENTIFIED}
     k = list(ALL_COLUMNS).index("model_30")
+    k_enc = list(ALL_COLUMNS).index("encoders")
     models, tasks = {}, []
     for col in cols:
         for draw in range(draws):
@@ -236,6 +237,8 @@ def identify_columns(out: Path, base, cols: list[str], draws: int, seed: int, *,
                 continue
             s = compress(base)
             _model_30(s, np.random.default_rng([seed, k, draw]), draw)
+            # the excitation read as the encoders column's draw reads the arm
+            _encoders(s, np.random.default_rng([seed, k_enc, draw]), draw)
             tasks.append(_Task((col, draw), (dump_scenario(s), str(folder), *spec[col],
                                              draw)))
     failed = []

@@ -231,9 +231,9 @@ def test_the_hubs_death_mid_run_in_lockstep_costs_no_record(tmp_path):
                 proc.kill()
                 proc.wait(30)
     for name, (code, lines) in ends.items():
-        assert code == 1, (name, lines)
+        assert code == 1, "\n".join([name, *lines])
         lost = [x for x in lines if "hub connection lost" in x]
-        assert len(lost) == 1 and "stopped at t = " in lost[0], (name, lines)
+        assert len(lost) == 1 and "stopped at t = " in lost[0], "\n".join([name, *lines])
     for robot in ("robot1", "robot2"):
         meta = json.loads((tmp_path / robot / "run.json").read_text())
         assert meta["status"] == "stopped" and "hub connection lost" in meta["message"]

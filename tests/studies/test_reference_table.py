@@ -180,3 +180,40 @@ def test_the_friction_held_part_expands_on_the_paper_arms_and_a_lab_pair(path):
         assert s.plant.object_mode == "contact"
         if case.params["column"] == "coulomb":
             assert len(s.robots[0].model_error.coulomb_friction) == joints
+
+
+def test_identified_columns_identify_from_the_encoders_columns_readings(tmp_path, monkeypatch):
+    """Each identified column's draw identifies from data read as the encoders column's draw
+    of the same index reads the arm (31 µrad counts, its noise), on the ±30 % column's prior;
+    the run then reads exact encoders (the column's only error is the identified model)."""
+    from pathlib import Path
+
+    from drake_coop.studies import reference_engine
+    from drake_coop.studies.reference_table import ALL_COLUMNS, identified_name
+
+    seen = []
+    monkeypatch.setattr(reference_engine, "_run", lambda tasks, *a, **k: seen.extend(tasks))
+    col = identified_name("idim_iv", 2.0)
+    reference_engine.identify_columns(tmp_path, load_scenario(), [col], 2, 7, workers=1,
+                                      ray=None, quiet=True)
+    assert [t.key for t in seen] == [(col, 0), (col, 1)]
+    for task in seen:
+        draw = task.key[1]
+        robots = load_scenario(data=task.args[0]).robots
+        rng = np.random.default_rng([7, ALL_COLUMNS.index("encoders"), draw])
+        for robot in robots:                     # one draw per arm, in the arms' order
+            assert robot.encoders.counts_per_rev == 200000
+            assert robot.encoders.noise_std == pytest.approx(rng.uniform(0.5e-4, 2e-4),
+                                                             rel=1e-12)
+            assert robot.encoders.seed == draw
+            assert robot.model_error.mass_scale != 1.0          # the ±30 % prior
+        assert task.args[2:] == ("idim_iv", 2.0, draw)
+    urdf = Path(__file__).resolve().parents[2] / "urdf"
+    models = {(col, 0): {"robot1": str(urdf / "crs_a465_3dof.urdf"),
+                         "robot2": str(urdf / "crs_a255_3dof.urdf")}}
+    (case,) = expand_table(load_scenario(), ["observer"], [col], 1, t_end=T_TINY,
+                           models=models)
+    base = load_scenario().robots
+    for robot, ref in zip(load_scenario(data=case.scenario_yaml).robots, base):
+        assert robot.encoders.noise_std == ref.encoders.noise_std
+        assert robot.encoders.counts_per_rev == ref.encoders.counts_per_rev
