@@ -32,7 +32,8 @@ exceeds the limit, where the applied one differs from it). The summary: per numb
 median over the draws of each run and of the paired ratios ``<run> / momentum_free``, with
 their range, and for the circle's squeeze ratio the median's 95 % bootstrap interval
 (:func:`~drake_coop.studies.reference_table.bootstrap_interval`); the paired ratios
-``<run>_aw / <run>``. Strict JSON: a number undefined in a run (an RMS over no tick) is
+``<run>_aw / <run>``; ``unsaturated_lift_draws``, the draws whose limit clips only on the
+approach, before the grasp. Strict JSON: a number undefined in a run (an RMS over no tick) is
 null. Process CPU seconds are recorded.
 """
 
@@ -203,7 +204,8 @@ def summarize(draws: list[dict], free: dict) -> dict:
             for k in ("squeeze_circle", "squeeze_lift", "estimate_circle", "DF_lift_end")}
     out["residual_over_momentum"] = {
         k: stats([d["residual"][k] / d["momentum"][k] for d in draws
-                  if d["residual"]["status"] == d["momentum"]["status"] == "ok"])
+                  if d["residual"]["status"] == d["momentum"]["status"] == "ok"
+                  and d["residual"].get(k) is not None and d["momentum"].get(k)])
         for k in ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift",
                   "estimate_saturated")}
     for run in PAIRED:
@@ -212,6 +214,9 @@ def summarize(draws: list[dict], free: dict) -> dict:
              if d[run]["status"] == "ok" and d["free_over_saturated"]
              and d[run]["estimate_saturated"] is not None])
     out["free_over_saturated"] = stats([d["free_over_saturated"] for d in draws])
+    # Draws whose limit clips only on the approach (no saturated tick after the grasp).
+    out["unsaturated_lift_draws"] = sum(1 for d in draws if d["residual"]["status"] == "ok"
+                                        and d["residual"].get("estimate_saturated") is None)
     out["sensor_over_sensor_free_squeeze_lift"] = stats(
         [d["sensor"]["squeeze_lift"] / d["sensor_free"]["squeeze_lift"] for d in draws
          if d["sensor"]["status"] == d["sensor_free"]["status"] == "ok"])
@@ -249,7 +254,7 @@ def main() -> None:
     previous = json.loads(path.read_text()) if path.exists() else {}
     result = {"elbow_nominal": ELBOW, "circle": list(CIRCLE), "lift": list(LIFT),
               "momentum_free": free, "summary": summarize(draws, free), "draws": draws,
-              "cpu_s": previous.get("cpu_s", 0.0) + cpu,
+              "cpu_s": (previous.get("cpu_s") or 0.0) + cpu,
               "runs": 1 + len(RUNS) * len(draws)}
     path.write_text(json.dumps(result, indent=1, allow_nan=False) + "\n")
     print(json.dumps(result["summary"], indent=1))

@@ -198,3 +198,21 @@ def test_the_scenario_check_allows_the_modules_schemes():
     for scheme in anti_windup.ANTI_WINDUP_SCHEMES:
         robot.anti_windup = scheme
         registry.source("force", "sensor").check(robot, H)
+
+
+@pytest.mark.parametrize("force_source", ["sensor", "momentum"])
+def test_the_scenario_field_reaches_the_experiments_force_source(force_source):
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
+    from tests.conftest import short_scenario
+
+    scenario = short_scenario()
+    for robot in scenario.robots:
+        robot.force_source = force_source
+    scenario.robots[0].actuators.torque_limits = [30.0, 30.0, 30.0]
+    scenario.robots[0].anti_windup = "conditional"
+    exp = build_experiment(plan_run(scenario), log=False)
+    with_option, without = (rs.force_observer for rs in exp.robots)
+    assert with_option._windup_limits.tolist() == [30.0, 30.0, 30.0]
+    assert without._windup_limits is None
+    assert with_option.HasInputPort("tau")
