@@ -34,6 +34,12 @@ the bit (``c ≡ 0``). Back-calculation (``ΔF̃`` driven back by the torque exc
 sat(τ)``) would need that excess mapped into the constraint's force space through
 ``J_φ⁺ᵀ`` and a tracking time constant: a second gain, and a scheme that differs from (6)
 whenever the mapping does.
+
+What it does not do: restore the unsaturated run. Held through a saturated lift, ``ΔF̃``
+also misses the integration the unsaturated loop does there, and ends the lift short of it;
+for the momentum observer integrating the *commanded* torque, whose ``ΔF̃`` does not wind
+up there, it is then worse than the paper's (6). The reference-table page's saturation
+claim gives the numbers, loop by loop.
 """
 
 from __future__ import annotations

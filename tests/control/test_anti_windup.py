@@ -216,3 +216,23 @@ def test_the_scenario_field_reaches_the_experiments_force_source(force_source):
     assert with_option._windup_limits.tolist() == [30.0, 30.0, 30.0]
     assert without._windup_limits is None
     assert with_option.HasInputPort("tau")
+
+
+def test_a_real_arms_controller_side_uses_the_drivers_limits():
+    from pydrake.lcm import DrakeLcm
+    from pydrake.systems.framework import DiagramBuilder
+
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.robot.drivers import add_controller_side
+
+    scenario = load_scenario()
+    for robot in scenario.robots:      # (a real arm's driver gives no F/T reading)
+        robot.force_source = "momentum"
+    scenario.robots[0].actuators.torque_limits = [30.0, 25.0, 20.0]
+    scenario.robots[0].anti_windup = "conditional"
+    side = add_controller_side(DiagramBuilder(), plan_run(scenario, 1.0), DrakeLcm("memq://"))
+    first, second = side.arms
+    np.testing.assert_array_equal(first.block.force_source._windup_limits,
+                                  first.spec.torque_limits)
+    np.testing.assert_array_equal(first.spec.torque_limits, [30.0, 25.0, 20.0])
+    assert second.block.force_source._windup_limits is None
