@@ -14,16 +14,27 @@ after; a lower limit ends the grasp). Per draw, one run each, exact model:
 * ``sensor`` — the loop closed on the F/T sensor (σ = 0.3 N, seed = the draw): the floor no
   estimator can beat, since its estimate is the measurement;
 * ``sensor_free`` — the same sensor without the limit (the draw's noise), and once
-  ``momentum_free``: the momentum observer without the limit (deterministic).
+  ``momentum_free``: the momentum observer without the limit (deterministic);
+* ``momentum_aw``, ``residual_aw``, ``sensor_aw`` — the first three with the anti-windup of
+  the force integral (6) on robot 1 (``anti_windup: conditional``,
+  :mod:`drake_coop.control.anti_windup`; robot 2 has no limit and never clips).
 
 Numbers per run, from the logs (worst robot unless said): ``squeeze_circle`` and
 ``estimate_circle`` — the RMS of ``λ − λ_d`` and ``λ̂ − λ`` over the circle 5–8 s;
 ``squeeze_lift`` and ``estimate_lift`` — over the lift 3–5 s; ``estimate_saturated`` —
 robot 1's RMS of ``λ̂ − λ`` over its saturated ticks (``τ ≠ τ_cmd``), from the grasp on
 (before it ``λ = 0``: ``estimate_approach``, robot 1's over its saturated ticks before the
-grasp); ``saturated_ticks``. The summary: per number, the median over the draws of each
-run and of the paired ratios ``residual / momentum_free`` and ``momentum / momentum_free``,
-with their range. Process CPU seconds are recorded.
+grasp); ``saturated_ticks``; ``DF_lift_end``, ``DF_lift_max``, ``DF_circle`` — robot 1's
+force integral ``ΔF̃`` (6) at the lift's end, its largest magnitude over the lift and its
+mean over the circle, rebuilt from the logged ``λ̂ − λ_d`` by (6)'s closed form (held from
+the grasp on; with anti-windup not integrated at the ticks whose logged commanded torque
+exceeds the limit, where the applied one differs from it). The summary: per number, the
+median over the draws of each run and of the paired ratios ``<run> / momentum_free``, with
+their range, and for the circle's squeeze ratio the median's 95 % bootstrap interval
+(:func:`~drake_coop.studies.reference_table.bootstrap_interval`); the paired ratios
+``<run>_aw / <run>``; ``unsaturated_lift_draws``, the draws whose limit clips only on the
+approach, before the grasp. Strict JSON: a number undefined in a run (an RMS over no tick) is
+null. Process CPU seconds are recorded.
 """
 
 from __future__ import annotations
@@ -37,17 +48,20 @@ import numpy as np
 
 from drake_coop.experiment.simulate import simulate
 from drake_coop.scenario.loading import load_scenario
-from drake_coop.studies.reference_table import _source, compress
+from drake_coop.studies.reference_table import _source, bootstrap_interval, compress
 from drake_coop.studies.reference_variants import variant_built
 
 ELBOW = 11.5
 CIRCLE, LIFT = (5.0, 8.0), (3.0, 5.0)
 T_END = 8.0
-RUNS = ("momentum", "residual", "sensor", "sensor_free")
+RUNS = ("momentum", "residual", "sensor", "momentum_aw", "residual_aw", "sensor_aw",
+        "sensor_free")
+#: The saturated runs, each without and with the anti-windup of (6).
+PAIRED = ("momentum", "residual", "sensor")
 
 
-def _rms(x: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
+def _rms(x: np.ndarray) -> float | None:
+    return float(np.sqrt(np.mean(x ** 2))) if x.size else None
 
 
 #: The unsaturated momentum observer's robot-1 estimate error per logged tick: ``(t, |λ̂ − λ|)``
@@ -56,14 +70,16 @@ _FREE: dict = {}
 
 
 def measure(row: str, noise: float | None, limit: float | None, variant: str | None,
-            draw: int, keep: bool = False) -> dict:
+            draw: int, keep: bool = False, anti_windup: bool = False) -> dict:
     """One run's numbers (the module's docstring); ``keep``: also robot 1's estimate error
     per tick (``_FREE``); ``saturated_times``: robot 1's saturated ticks after the grasp (not
-    written)."""
+    written); ``anti_windup``: robot 1 with ``anti_windup: conditional``."""
     s = compress(load_scenario())
     _source(row, noise)(s, draw)
     if limit is not None:
         s.robots[0].actuators.torque_limits = [100.0, 100.0, limit]
+    if anti_windup:
+        s.robots[0].anti_windup = "conditional"
     with variant_built(s, variant):
         result = simulate(s, t_end=T_END)
     out = {"status": result.meta["status"], "message": result.meta["message"]}
@@ -103,6 +119,18 @@ def measure(row: str, noise: float | None, limit: float | None, variant: str | N
             free_lift = grasped & (t < LIFT[1] - 1e-9)
             out["lowpass_saturated"] = _rms(off[sat & grasped])
             out["lowpass_lift"] = _rms(off[free_lift & ~sat])
+            # ΔF̃ (6) rebuilt from the logged λ̂ − λ_d (held from the grasp on).
+            error = np.asarray(log["lambda_hat"] - log["lambda_d"], float).reshape(t.size, -1)
+            DF = np.zeros_like(error)
+            frozen = sat if anti_windup else np.zeros_like(sat)
+            for k in range(1, t.size):
+                DF[k] = (DF[k - 1] + (0.0 if frozen[k - 1] else (t[1] - t[0]) * error[k - 1])
+                         if grasped[k - 1] else 0.0)
+            size = np.linalg.norm(DF, axis=1)
+            lift = grasped & (t < LIFT[1] - 1e-9)
+            out["DF_lift_end"] = float(size[np.searchsorted(t, LIFT[1] - 1e-9)])
+            out["DF_lift_max"] = float(size[lift].max())
+            out["DF_circle"] = float(size[(t >= CIRCLE[0] - 1e-9)].mean())
             if keep:
                 _FREE.update(t=t, error=np.abs(estimate).reshape(t.size, -1).max(axis=1))
     out.update({k: max(v) for k, v in numbers.items()})
@@ -121,11 +149,14 @@ def run_draw(draw: int, seed: int = 1) -> dict:
     """The paired runs of one draw; ``free_over_saturated``: the unsaturated momentum
     observer's robot-1 estimate error over the ticks the draw's residual run saturated."""
     limit = ELBOW * float(np.random.default_rng([seed, draw]).uniform(0.98, 1.02))
-    out = {"draw": draw, "elbow_limit": limit,
-           "momentum": measure("momentum", None, limit, None, draw),
-           "residual": measure("momentum", None, limit, "applied_torque", draw),
-           "sensor": measure("sensor", 0.3, limit, None, draw),
-           "sensor_free": measure("sensor", 0.3, None, None, draw)}
+    out = {"draw": draw, "elbow_limit": limit}
+    for aw in (False, True):
+        tail = "_aw" if aw else ""
+        out["momentum" + tail] = measure("momentum", None, limit, None, draw, anti_windup=aw)
+        out["residual" + tail] = measure("momentum", None, limit, "applied_torque", draw,
+                                         anti_windup=aw)
+        out["sensor" + tail] = measure("sensor", 0.3, limit, None, draw, anti_windup=aw)
+    out["sensor_free"] = measure("sensor", 0.3, None, None, draw)
     times = out["residual"].get("saturated_times")
     out["free_over_saturated"] = _free_over(times) if times is not None else None
     for run in RUNS:
@@ -137,7 +168,8 @@ KEYS = ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift",
         "estimate_saturated", "estimate_approach", "saturated_ticks",
         "estimate_lift_after_saturation", "squeeze_lift_robot1", "squeeze_lift_robot2",
         "estimate_lift_robot1", "estimate_lift_robot2", "squeeze_circle_robot1",
-        "squeeze_circle_robot2", "lowpass_saturated", "lowpass_lift")
+        "squeeze_circle_robot2", "lowpass_saturated", "lowpass_lift", "DF_lift_end",
+        "DF_lift_max", "DF_circle")
 
 
 def summarize(draws: list[dict], free: dict) -> dict:
@@ -153,20 +185,38 @@ def summarize(draws: list[dict], free: dict) -> dict:
     for run in RUNS:
         ok = [d[run] for d in draws if d[run]["status"] == "ok"]
         out[run] = {"completed": len(ok), **{k: stats([r.get(k) for r in ok]) for k in KEYS}}
-    for run in ("residual", "momentum"):
+    for run in PAIRED + tuple(f"{r}_aw" for r in PAIRED):
+        free_run = free if not run.startswith("sensor") else None
         out[f"{run}_over_free"] = {
-            k: stats([d[run][k] / free[k] for d in draws if d[run]["status"] == "ok"])
+            k: stats([d[run][k] / (free_run or d["sensor_free"])[k] for d in draws
+                      if d[run]["status"] == "ok" and d["sensor_free"]["status"] == "ok"])
             for k in ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift")}
+        ratios = np.array([d[run]["squeeze_circle"] / (free_run or d["sensor_free"])[
+            "squeeze_circle"] for d in draws
+            if d[run]["status"] == "ok" and d["sensor_free"]["status"] == "ok"])
+        median, low, high = bootstrap_interval(ratios, 0.5)
+        out[f"{run}_over_free"]["squeeze_circle_interval"] = (
+            {"median": median, "low": low, "high": high} if ratios.size else None)
+    for run in PAIRED:
+        out[f"{run}_aw_over_{run}"] = {
+            k: stats([d[f"{run}_aw"][k] / d[run][k] for d in draws
+                      if d[run]["status"] == d[f"{run}_aw"]["status"] == "ok"])
+            for k in ("squeeze_circle", "squeeze_lift", "estimate_circle", "DF_lift_end")}
     out["residual_over_momentum"] = {
         k: stats([d["residual"][k] / d["momentum"][k] for d in draws
-                  if d["residual"]["status"] == d["momentum"]["status"] == "ok"])
+                  if d["residual"]["status"] == d["momentum"]["status"] == "ok"
+                  and d["residual"].get(k) is not None and d["momentum"].get(k)])
         for k in ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift",
                   "estimate_saturated")}
-    for run in ("residual", "momentum", "sensor"):
+    for run in PAIRED:
         out[f"{run}_saturated_over_free_same_ticks"] = stats(
             [d[run]["estimate_saturated"] / d["free_over_saturated"] for d in draws
-             if d[run]["status"] == "ok" and d["free_over_saturated"]])
+             if d[run]["status"] == "ok" and d["free_over_saturated"]
+             and d[run]["estimate_saturated"] is not None])
     out["free_over_saturated"] = stats([d["free_over_saturated"] for d in draws])
+    # Draws whose limit clips only on the approach (no saturated tick after the grasp).
+    out["unsaturated_lift_draws"] = sum(1 for d in draws if d["residual"]["status"] == "ok"
+                                        and d["residual"].get("estimate_saturated") is None)
     out["sensor_over_sensor_free_squeeze_lift"] = stats(
         [d["sensor"]["squeeze_lift"] / d["sensor_free"]["squeeze_lift"] for d in draws
          if d["sensor"]["status"] == d["sensor_free"]["status"] == "ok"])
@@ -204,9 +254,9 @@ def main() -> None:
     previous = json.loads(path.read_text()) if path.exists() else {}
     result = {"elbow_nominal": ELBOW, "circle": list(CIRCLE), "lift": list(LIFT),
               "momentum_free": free, "summary": summarize(draws, free), "draws": draws,
-              "cpu_s": previous.get("cpu_s", 0.0) + cpu,
+              "cpu_s": (previous.get("cpu_s") or 0.0) + cpu,
               "runs": 1 + len(RUNS) * len(draws)}
-    path.write_text(json.dumps(result, indent=1) + "\n")
+    path.write_text(json.dumps(result, indent=1, allow_nan=False) + "\n")
     print(json.dumps(result["summary"], indent=1))
 
 

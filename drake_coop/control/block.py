@@ -70,7 +70,8 @@ def _check_sources(velocity_source, force_source, difference_cutoff_hz) -> None:
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
                         difference_cutoff_hz: float | None = None,
-                        momentum_torque_limits=None, prediction_horizon: float | None = None
+                        momentum_torque_limits=None, prediction_horizon: float | None = None,
+                        anti_windup_limits=None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -102,6 +103,12 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         ``<name>_predictor`` with this horizon (s) between the sources and the controller;
         the force observer (22) reads the predicted values too. None (default): the paper's
         block, unchanged.
+    anti_windup_limits : array_like, optional
+        Anti-windup of the force integral (6) (opt-in, for the force sources whose registry
+        entry declares the ``anti_windup`` option): the arm's torque limits (n,), N·m; the
+        force source reads the controller's ``tau`` and holds ``ΔF̃`` at a tick whose
+        commanded torque exceeds them (:mod:`~drake_coop.control.anti_windup`). None
+        (default): the paper's (6).
 
     Returns
     -------
@@ -115,8 +122,14 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     """
     check_period(period)
     _check_sources(velocity_source, force_source, difference_cutoff_hz)
+    if anti_windup_limits is not None and "anti_windup" not in source("force",
+                                                                      force_source).options:
+        users = " or ".join(repr(s.name) for s in SOURCES if "anti_windup" in s.options)
+        raise ValueError(f"anti_windup_limits: only for force_source {users} (got "
+                         f"force_source={force_source!r})")
     options = {"difference_cutoff_hz": difference_cutoff_hz,
-               "momentum_torque_limits": momentum_torque_limits}
+               "momentum_torque_limits": momentum_torque_limits,
+               "anti_windup_limits": anti_windup_limits}
     specs = (source("velocity", velocity_source), source("force", force_source))
     b = DiagramBuilder()
     vel, force = (b.AddNamedSystem(f"{name}_{spec.suffix}", spec.make(law, period, options))
@@ -165,7 +178,9 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     for spec, system in zip(specs, (vel, force)):
         if spec.kind == "force":
             b.ExportInput(ctrl.get_reference_input_port(), "reference")
-        for port in spec.inputs:
+        # The registry's inputs, then any a block option added (anti-windup: ``tau``).
+        extra = [system.get_input_port(i).get_name() for i in range(system.num_input_ports())]
+        for port in spec.inputs + tuple(p for p in extra if p not in spec.inputs):
             if port in EXTERNAL_INPUTS:
                 b.ExportInput(system.GetInputPort(port), port)
                 continue
@@ -343,7 +358,7 @@ def AddCooperativeController(
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
         name: str | None = None, allow_sampled_output_ports: bool = False,
         pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None,
-        prediction_horizon: float | None = None
+        prediction_horizon: float | None = None, anti_windup_limits=None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -426,6 +441,10 @@ def AddCooperativeController(
     prediction_horizon : float, optional
         Delay compensation over this horizon (s, ``0 < p <= period``; see
         :func:`build_control_block`). None (default): off.
+    anti_windup_limits : array_like, optional
+        ``force_source = "momentum"`` or ``"sensor"``: the arm's torque limits, so the force
+        integral (6) is not integrated while the commanded torque exceeds them (opt-in; see
+        :func:`build_control_block`). None (default): the paper's (6).
 
     Returns
     -------
@@ -530,7 +549,8 @@ def AddCooperativeController(
     law = FingerLaw(model, gains, contact_stiffness, pinv_damping=pinv_damping)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
                                                   force_source, difference_cutoff_hz,
-                                                  momentum_torque_limits, prediction_horizon)
+                                                  momentum_torque_limits, prediction_horizon,
+                                                  anti_windup_limits)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
                                     lambda_sensor, connect_actuation)

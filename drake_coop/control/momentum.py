@@ -46,6 +46,7 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
+from drake_coop.control.anti_windup import check_limits, clipped, force_integral_step
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.reference_layout import ReferenceLayout
@@ -82,10 +83,10 @@ def momentum_estimate(p: np.ndarray, sigma: np.ndarray, gain: float, J: np.ndarr
 
 def momentum_step(sigma: np.ndarray, DF: np.ndarray, tau: np.ndarray, beta: np.ndarray,
                   r: np.ndarray, lam: np.ndarray, lambda_d: np.ndarray, held: bool,
-                  h: float) -> tuple[np.ndarray, np.ndarray]:
+                  h: float, frozen: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """One forward-Euler tick of the observer's state and of the integral (6):
     ``σ(k+1) = σ(k) + h (τ(k) − β̂ + r(k))``, ``ΔF̃(k+1) = ΔF̃(k) + h (λ̂ − λ_d)`` while held,
-    else 0.
+    else 0 (held at ``ΔF̃(k)`` when ``frozen``: :mod:`~drake_coop.control.anti_windup`).
 
     Parameters
     ----------
@@ -103,6 +104,9 @@ def momentum_step(sigma: np.ndarray, DF: np.ndarray, tau: np.ndarray, beta: np.n
         Whether the object is held at tick ``k``.
     h : float
         The sampling time (s).
+    frozen : bool
+        An actuator is clipped at tick ``k`` and anti-windup is on: ``ΔF̃`` is not
+        integrated (:func:`~drake_coop.control.anti_windup.force_integral_step`).
 
     Returns
     -------
@@ -110,8 +114,7 @@ def momentum_step(sigma: np.ndarray, DF: np.ndarray, tau: np.ndarray, beta: np.n
         ``σ(k+1)`` and ``ΔF̃(k+1)``.
     """
     sigma_next = sigma + h * (tau - beta + r)
-    DF_next = DF + h * (lam - lambda_d) if held else np.zeros_like(DF)
-    return sigma_next, DF_next
+    return sigma_next, force_integral_step(DF, lam - lambda_d, held, h, frozen)
 
 
 class MomentumObserver(ForceSource):
@@ -146,6 +149,10 @@ class MomentumObserver(ForceSource):
         actually applied, ``clip(τ, −τ_max, τ_max)`` (what Drake's ``Saturation`` in front of
         the plant passes), instead of the commanded ``τ``: a saturated command is then not
         read as external torque. None (the default): the commanded torque.
+    anti_windup_limits : array_like, shape (n,), optional
+        The arm's torque limits for the anti-windup of (6) (opt-in,
+        :mod:`~drake_coop.control.anti_windup`): ``ΔF̃`` is not integrated at a tick whose
+        commanded ``τ`` exceeds them at some joint. None (the default): the paper's (6).
 
     Input ports
     -----------
@@ -155,7 +162,7 @@ class MomentumObserver(ForceSource):
         The velocity estimate of tick ``k``.
     tau : n-vector
         The commanded torque ``τ(k)`` (read by the update only: no algebraic loop); clipped
-        at ``torque_limits`` when given.
+        at ``torque_limits`` when given; compared with ``anti_windup_limits`` when given.
     reference : (3n + m + 1)-vector
         ``[q_d, q̇_d, q̈_d, λ_d, held]``.
 
@@ -173,7 +180,7 @@ class MomentumObserver(ForceSource):
     """
 
     def __init__(self, model: ArmModel, layout: ReferenceLayout, period: float, gain: float,
-                 torque_limits=None):
+                 torque_limits=None, anti_windup_limits=None):
         super().__init__()
         self._model = model
         self._layout = layout = ReferenceLayout.check(layout)
@@ -187,6 +194,8 @@ class MomentumObserver(ForceSource):
                 raise ValueError(f"torque_limits: {layout.n} finite torques > 0 are required "
                                  f"(got {np.shape(torque_limits)})")
             self._limits = limits
+        self._windup_limits = (None if anti_windup_limits is None
+                               else check_limits(anti_windup_limits, layout.n))
         n, m = layout.n, layout.m
         self._n, self._m = n, m
         self._q = self.DeclareVectorInputPort("q", n)
@@ -335,9 +344,10 @@ class MomentumObserver(ForceSource):
         q = self._q.Eval(context)
         v = self._v.Eval(context)
         sigma = context.get_discrete_state(self._sigma).value()
-        tau = self.applied_torque(self._tau.Eval(context))
+        commanded = self._tau.Eval(context)
         DF = context.get_discrete_state(self._DF).value()
-        sigma, DF = momentum_step(sigma, DF, tau, self.beta(q, v), r, lam, lambda_d, held,
-                                  self._h)
+        sigma, DF = momentum_step(sigma, DF, self.applied_torque(commanded), self.beta(q, v),
+                                  r, lam, lambda_d, held, self._h,
+                                  clipped(commanded, self._windup_limits))
         discrete_state.set_value(self._sigma, sigma)
         discrete_state.set_value(self._DF, DF)

@@ -69,7 +69,8 @@ class Source:
     build : callable
         ``build(cls, law, period, options)``: the system from its class, the robot's
         :class:`~drake_coop.control.finger.FingerLaw`, the period ``h`` and the block's
-        options (``difference_cutoff_hz``, ``momentum_torque_limits``).
+        options (``difference_cutoff_hz``, ``momentum_torque_limits``,
+        ``anti_windup_limits``).
     outputs : tuple of str
         Outputs of its own the block exports besides :data:`KIND_OUTPUTS`.
     options : tuple of str
@@ -168,6 +169,22 @@ def _check_momentum_gain(robot, h: float) -> None:
                          f"shrinks by 1 - h K_O per tick), got {gain:g}")
 
 
+def _check_anti_windup(robot, h: float) -> None:
+    """``anti_windup``: null (the paper's (6)) or a scheme of
+    :data:`~drake_coop.control.anti_windup.ANTI_WINDUP_SCHEMES`, which needs the arm's
+    ``actuators.torque_limits`` (the clipping it reacts to)."""
+    allowed = ("conditional",)      # anti_windup.ANTI_WINDUP_SCHEMES (no import here)
+    value = getattr(robot, "anti_windup", None)
+    if value is None:
+        return
+    if value not in allowed:
+        raise ValueError(f"anti_windup must be null or one of {', '.join(allowed)}, "
+                         f"got {value!r}")
+    if robot.actuators.torque_limits is None:
+        raise ValueError(f"anti_windup: {value} needs actuators.torque_limits (the clipping "
+                         "it reacts to); set them or set anti_windup to null")
+
+
 SOURCES: tuple[Source, ...] = (
     Source("observer", "velocity", "observers.VelocityObserver", "velocity_observer",
            "velocity observer", "(15)–(16)", ("q", "qddot_r_hat"),
@@ -184,16 +201,21 @@ SOURCES: tuple[Source, ...] = (
            lambda cls, law, h, o: cls(law, h)),
     Source("sensor", "force", "sources.SensedForce", "sensed_force",
            "force feedback", "F/T sensor in (13)", ("lambda_sensor", "reference"),
-           lambda cls, law, h, o: cls(h, law.layout)),
+           lambda cls, law, h, o: cls(h, law.layout,
+                                      anti_windup_limits=o.get("anti_windup_limits")),
+           options=("anti_windup",), checks=_check_anti_windup),
     Source("none", "force", "sources.NoForceEstimate", "no_force_estimate",
            "no force estimate", "λ̂ = λ_d", ("reference",),
            lambda cls, law, h, o: cls(law.layout)),
     Source("momentum", "force", "momentum.MomentumObserver", "momentum_observer",
            "momentum observer", "generalized momentum", ("q", "qdot_hat", "tau", "reference"),
            lambda cls, law, h, o: cls(law.model, law.layout, h, law.momentum_gain,
-                                      torque_limits=o.get("momentum_torque_limits")),
-           outputs=("tau_ext_hat", "O_F_ext_hat"), options=("gains.momentum_gain",),
-           checks=_check_momentum_gain),
+                                      torque_limits=o.get("momentum_torque_limits"),
+                                      anti_windup_limits=o.get("anti_windup_limits")),
+           outputs=("tau_ext_hat", "O_F_ext_hat"),
+           options=("gains.momentum_gain", "anti_windup"),
+           checks=lambda robot, h: (_check_momentum_gain(robot, h),
+                                    _check_anti_windup(robot, h))),
 )
 
 #: The scenario field that selects each kind's source in a robot's entry.

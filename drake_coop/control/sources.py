@@ -34,6 +34,7 @@ from pydrake.systems.framework import (
     State,
 )
 
+from drake_coop.control.anti_windup import check_limits, clipped, force_integral_step
 from drake_coop.control.interfaces import ForceSource, VelocitySource
 from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.params import check_count, check_optional_positive, check_period
@@ -244,6 +245,11 @@ class SensedForce(ForceSource):
         Sampling time ``h`` (s).
     layout : ReferenceLayout
         The robot's reference layout (``n`` joints, ``m`` constraints).
+    anti_windup_limits : array_like, shape (n,), optional
+        The arm's torque limits for the anti-windup of (6) (opt-in,
+        :mod:`~drake_coop.control.anti_windup`): the system then has an input ``tau`` (the
+        commanded torque) and does not integrate ``ΔF̃`` at a tick whose ``τ`` exceeds them
+        at some joint. None (the default): the paper's (6), no ``tau`` input.
 
     Input ports
     -----------
@@ -251,6 +257,9 @@ class SensedForce(ForceSource):
         The F/T sensor model's reading.
     reference : (3n + m + 1)-vector
         ``[q_d, q̇_d, q̈_d, λ_d, held]``.
+    tau : n-vector
+        With ``anti_windup_limits`` only: the commanded torque ``τ(k)`` (read by the update
+        only).
 
     Output ports
     ------------
@@ -259,7 +268,7 @@ class SensedForce(ForceSource):
         State only.
     """
 
-    def __init__(self, period: float, layout: ReferenceLayout):
+    def __init__(self, period: float, layout: ReferenceLayout, anti_windup_limits=None):
         super().__init__()
         self._h = period = check_period(period)
         self._layout = layout = ReferenceLayout.check(layout)
@@ -267,6 +276,10 @@ class SensedForce(ForceSource):
         self._zero = np.zeros(m)
         self._lambda = self.DeclareVectorInputPort("lambda_sensor", m)
         self._reference = self.DeclareVectorInputPort("reference", layout.size)
+        self._windup_limits = self._tau = None
+        if anti_windup_limits is not None:
+            self._windup_limits = check_limits(anti_windup_limits, layout.n)
+            self._tau = self.DeclareVectorInputPort("tau", layout.n)
         self._state = self.DeclareDiscreteState(m)
         self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
         self.DeclareForcedDiscreteUpdateEvent(self._update_integral)
@@ -306,8 +319,9 @@ class SensedForce(ForceSource):
     def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
         lam, ref = self._lambda_hat(context)
         DF = context.get_discrete_state(self._state).CopyToVector()
-        discrete_state.set_value(self._state,
-                                 DF + self._h * (lam - ref.lambda_d) if ref.held else self._zero)
+        frozen = self._tau is not None and clipped(self._tau.Eval(context), self._windup_limits)
+        discrete_state.set_value(self._state, force_integral_step(DF, lam - ref.lambda_d,
+                                                                  ref.held, self._h, frozen))
 
 
 class NoForceEstimate(ForceSource):

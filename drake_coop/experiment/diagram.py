@@ -462,6 +462,7 @@ def build_experiment(plan: RunPlan, *, builder: DiagramBuilder | None = None,
             connect_actuation=False,
             contact_stiffness=plan.robots[i].stiffness,
             prediction_horizon=robot.timing.prediction_horizon,
+            anti_windup_limits=robot.actuators.torque_limits if robot.anti_windup else None,
             name=name)
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(plan.robots[i].reference))
         parts.append((name, robot, state, encoder, q_port, ft, lambda_sensor, block))

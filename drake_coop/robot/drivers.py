@@ -376,6 +376,7 @@ def add_controller_side(builder: DiagramBuilder, plan: RunPlan, lcm: DrakeLcm,
             controller_model=model, velocity_source=robot.velocity_source,
             force_source=robot.force_source, difference_cutoff_hz=robot.difference_cutoff_hz,
             prediction_horizon=robot.timing.prediction_horizon,
+            anti_windup_limits=spec.torque_limits if robot.anti_windup else None,
             contact_stiffness=resolved.stiffness,
             q=q, connect_actuation=False, name=name)
         ref = builder.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectories[i]))

@@ -295,6 +295,11 @@ class Robot:
         or ``none`` (``λ̂ := λ_d``, ``ΔF̃ ≡ 0``: the implicit force control of reference [9]),
         or ``momentum`` (the generalized-momentum observer's ``J⁺ᵀ τ̂_ext``, gain
         ``gains.momentum_gain``).
+    anti_windup : str or None
+        ``force_source: sensor`` or ``momentum`` only: ``conditional`` holds the force
+        integral (6) at ticks whose commanded torque exceeds ``actuators.torque_limits``
+        (required) at some joint (:mod:`drake_coop.control.anti_windup`); null (the default):
+        the paper's (6).
     encoders : Encoders
         The joint-position sensors.
     force_sensor : ForceSensorModel
@@ -341,6 +346,7 @@ class Robot:
     velocity_source: str = "observer"
     difference_cutoff_hz: Optional[float] = None
     force_source: str = "observer"
+    anti_windup: Optional[str] = None
     encoders: Encoders = field(default_factory=Encoders)
     force_sensor: ForceSensorModel = field(default_factory=ForceSensorModel)
     actuators: Actuators = field(default_factory=Actuators)

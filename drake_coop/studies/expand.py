@@ -132,9 +132,16 @@ class Case:
         return f"Case(index={self.index}, hash={self.hash!r}, params={self.params!r})"
 
 
+#: Robot fields added as opt-ins after cases were stored: at their null default (off) they
+#: change nothing in a run and are left out of :func:`case_hash`, so a stored case keeps the
+#: hash it had before the field existed.
+HASH_OMITS_NULL = ("anti_windup",)
+
+
 def case_hash(scenario: Scenario | str, t_end: float | None) -> str:
-    """16 hex digits of SHA-256 over the validated scenario (every field, canonical JSON) and
-    the study's ``t_end``; ``scenario`` may also be its YAML text (loaded and validated).
+    """16 hex digits of SHA-256 over the validated scenario (every field but those of
+    :data:`HASH_OMITS_NULL` at null, canonical JSON) and the study's ``t_end``; ``scenario``
+    may also be its YAML text (loaded and validated).
 
     Parameters
     ----------
@@ -145,7 +152,12 @@ def case_hash(scenario: Scenario | str, t_end: float | None) -> str:
     """
     if isinstance(scenario, str):
         scenario = load_scenario(data=scenario)
-    text = json.dumps(dataclasses.asdict(scenario), sort_keys=True, separators=(",", ":"))
+    data = dataclasses.asdict(scenario)
+    for robot in data["robots"]:
+        for name in HASH_OMITS_NULL:
+            if robot.get(name) is None:
+                robot.pop(name, None)
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"))
     text += f"\n# t_end: {t_end!r}\n"
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
