@@ -47,6 +47,7 @@ from drake_coop.control.delay import DelayPredictor
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.registry import EXTERNAL_INPUTS, SOURCES, source
 from drake_coop.control.sources import MeasuredVelocity
+from drake_coop.control.timing import Clock, on_clock
 from drake_coop.control.params import (
     FORCE_SOURCES,
     VELOCITY_SOURCES,
@@ -70,7 +71,8 @@ def _check_sources(velocity_source, force_source, difference_cutoff_hz) -> None:
 def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
                         difference_cutoff_hz: float | None = None,
-                        momentum_torque_limits=None, prediction_horizon: float | None = None
+                        momentum_torque_limits=None, prediction_horizon: float | None = None,
+                        clock: Clock | None = None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -102,6 +104,10 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         ``<name>_predictor`` with this horizon (s) between the sources and the controller;
         the force observer (22) reads the predicted values too. None (default): the paper's
         block, unchanged.
+    clock : Clock or None
+        The controller's own clock (:class:`~drake_coop.control.timing.Clock`, its
+        computer's): every system of the block with periodic updates ticks on it, each
+        keeping ``h`` in its equations. None (default): the run's grid.
 
     Returns
     -------
@@ -115,19 +121,21 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     """
     check_period(period)
     _check_sources(velocity_source, force_source, difference_cutoff_hz)
+    on_clock(clock, period)                  # a Clock or None, refused by name otherwise
     options = {"difference_cutoff_hz": difference_cutoff_hz,
-               "momentum_torque_limits": momentum_torque_limits}
+               "momentum_torque_limits": momentum_torque_limits, "clock": clock}
     specs = (source("velocity", velocity_source), source("force", force_source))
     b = DiagramBuilder()
     vel, force = (b.AddNamedSystem(f"{name}_{spec.suffix}", spec.make(law, period, options))
                   for spec in specs)
-    ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
+    ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period, clock=clock))
     # What the controller and the force observer read: the sources' values, or predicted.
     inputs = {port: vel.GetOutputPort(port) for port in ("q_hat", "qdot_hat", "qdot_o")}
     predictor = None
     if prediction_horizon is not None:
         predictor = b.AddNamedSystem(f"{name}_predictor",
-                                     DelayPredictor(law, period, prediction_horizon))
+                                     DelayPredictor(law, period, prediction_horizon,
+                                                    clock=clock))
         for port in ("q_hat", "qdot_hat", "qdot_o"):
             b.Connect(vel.GetOutputPort(port), predictor.GetInputPort(port))
             inputs[port] = predictor.GetOutputPort(f"{port}_p")
@@ -343,7 +351,7 @@ def AddCooperativeController(
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
         name: str | None = None, allow_sampled_output_ports: bool = False,
         pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None,
-        prediction_horizon: float | None = None
+        prediction_horizon: float | None = None, clock: Clock | None = None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -426,6 +434,10 @@ def AddCooperativeController(
     prediction_horizon : float, optional
         Delay compensation over this horizon (s, ``0 < p <= period``; see
         :func:`build_control_block`). None (default): off.
+    clock : Clock or None
+        The controller's own clock (phase and rate against the plant's time,
+        :class:`~drake_coop.control.timing.Clock`): the block's periodic updates tick on it
+        (see :func:`build_control_block`). None (default): the run's grid.
 
     Returns
     -------
@@ -530,7 +542,8 @@ def AddCooperativeController(
     law = FingerLaw(model, gains, contact_stiffness, pinv_damping=pinv_damping)
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
                                                   force_source, difference_cutoff_hz,
-                                                  momentum_torque_limits, prediction_horizon)
+                                                  momentum_torque_limits, prediction_horizon,
+                                                  clock)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
                                     lambda_sensor, connect_actuation)

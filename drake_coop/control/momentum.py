@@ -46,6 +46,7 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
+from drake_coop.control.timing import Clock, on_clock
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.reference_layout import ReferenceLayout
@@ -146,6 +147,10 @@ class MomentumObserver(ForceSource):
         actually applied, ``clip(τ, −τ_max, τ_max)`` (what Drake's ``Saturation`` in front of
         the plant passes), instead of the commanded ``τ``: a saturated command is then not
         read as external torque. None (the default): the commanded torque.
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -173,7 +178,7 @@ class MomentumObserver(ForceSource):
     """
 
     def __init__(self, model: ArmModel, layout: ReferenceLayout, period: float, gain: float,
-                 torque_limits=None):
+                 torque_limits=None, clock: Clock | None = None):
         super().__init__()
         self._model = model
         self._layout = layout = ReferenceLayout.check(layout)
@@ -195,7 +200,7 @@ class MomentumObserver(ForceSource):
         self._reference = self.DeclareVectorInputPort("reference", layout.size)
         self._sigma = self.DeclareDiscreteState(n)
         self._DF = self.DeclareDiscreteState(m)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update)
         self.DeclareForcedDiscreteUpdateEvent(self._update)   # one tick in a unit test
         inputs = {self.xd_ticket(), self._q.ticket(), self._v.ticket(),
                   self._reference.ticket()}

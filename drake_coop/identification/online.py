@@ -76,6 +76,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, ValueProducer
 
+from drake_coop.control.timing import Clock, on_clock
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.momentum import momentum_estimate, momentum_step
 from drake_coop.control.params import check_momentum_gain, check_period
@@ -216,6 +217,10 @@ class OnlineIdentification(ForceSource):
         on. This changes an object outside the Drake context: two simulations of one
         diagram must not run at once.
         None (the default): only this block's force estimate uses ``θ̂``.
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -234,7 +239,7 @@ class OnlineIdentification(ForceSource):
     def __init__(self, regressor: Regressor, theta0, J_phi: Callable, layout: ReferenceLayout,
                  period: float, gain: float, forgetting: float = 1.0,
                  prior_relative: float = 1.0, v_min: float = 0.01,
-                 torque_noise: float = 0.03, model=None):
+                 torque_noise: float = 0.03, model=None, clock: Clock | None = None):
         super().__init__()
         self._regressor = regressor
         self._layout = layout = ReferenceLayout.check(layout)
@@ -274,7 +279,7 @@ class OnlineIdentification(ForceSource):
         self._prev = self.DeclareDiscreteState(n * p + n + n * n + 1)
         # q(k-1), q(k-2), tau(k-1), held(k-1), ticks seen (at most 2)
         self._history = self.DeclareDiscreteState(3 * n + 2)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update)
         self.DeclareForcedDiscreteUpdateEvent(self._update)
         # The tick's rows and estimate, computed once for the output and the update; they
         # do not read the torque (read by the update only: no algebraic loop with (13)).

@@ -110,7 +110,8 @@ def _online_builder(scenario: Scenario, feed_controller: bool = True):
         theta0 = true_parameters(structure, law.model.plant)   # the controller's model's
         return OnlineIdentification(Regressor(structure), theta0, law.model.J_phi,
                                     law.layout, h, law.momentum_gain,
-                                    model=law.model if feed_controller else None)
+                                    model=law.model if feed_controller else None,
+                                    clock=options.get("clock"))
     return build
 
 
@@ -180,7 +181,7 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     """
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.studies.engines import run_case
-    from drake_coop.studies.reference_clock import clock_built, split_clock
+    from drake_coop.studies.reference_clock import arm_clocks, split_clock
 
     scenario = load_scenario(data=scenario_yaml)
     clock, variant = split_clock(variant)
@@ -193,5 +194,5 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
                                 if row == "online" else None)
     else:
         built = variant_built(scenario, variant)
-    with clock_built(scenario, clock), built:
-        return run_case(scenario_yaml, t_end)
+    with built:
+        return run_case(scenario_yaml, t_end, arm_clocks(scenario, clock))
