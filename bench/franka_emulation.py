@@ -17,6 +17,10 @@ Per case: the run's status and message, the circle's RMS squeeze error per arm (
 wall time and the load average. Simulated time only: the figures do not depend on the
 machine's load (the wall time does).
 
+``--driver-cpu`` adds what the simulated driver costs (:func:`driver_cpu`): the CPU time of
+the driver's side alone (plant, drivers, statuses) per simulated second, plain and emulated,
+in alternated pairs.
+
 ``--external-torque`` adds the external-torque estimate's accuracy
 (:func:`external_torque_accuracy`): against the contact's torque while squeezed, and in free
 motion at every driver cycle against the plant's discretization
@@ -287,6 +291,90 @@ def discretization_term(model, x: np.ndarray, period: float) -> np.ndarray:
     return out
 
 
+def _driver_side_cpu(scenario, t_end: float, emulate: str | None) -> dict:
+    """The CPU seconds (this process's, ``time.process_time``) of ``t_end`` simulated
+    seconds of the driver's side alone: the plant and each arm's simulated driver publishing
+    its statuses on ``memq://``, no controller (no command arrives: the arms are held by
+    gravity compensation and damping), building left out."""
+    from pydrake.lcm import DrakeLcm
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.robot.drivers import add_driver_side, add_lcm_interface
+    from drake_coop.robot.loopback import initialize_sides
+    from drake_coop.robot.torque_driver import DriverClock
+
+    plan = plan_run(scenario, t_end)
+    lcm = DrakeLcm("memq://")
+    builder = DiagramBuilder()
+    add_lcm_interface(builder, lcm)
+    driver = add_driver_side(builder, plan, lcm, clock=DriverClock("epoch"), emulate=emulate)
+    simulator = Simulator(builder.Build())
+    context = simulator.get_mutable_context()
+    initialize_sides(plan, context, driver, None)
+    simulator.Initialize()
+    start = time.process_time()
+    simulator.AdvanceTo(plan.t_end)
+    cpu = time.process_time() - start
+    return {"cpu_s": cpu, "t_end_s": float(context.get_time()),
+            "fault": driver.fault(context)}
+
+
+def driver_cpu(name: str = "two_pandas", t_end: float = 2.0, pairs: int = 5) -> dict:
+    """The simulated driver's CPU time per simulated second, plain and emulated
+    (drake-franka-driver at its default cutoff): the share of one CPU it takes at real
+    time.
+
+    The driver's side runs alone in this process (:func:`_driver_side_cpu`: the plant at
+    its step, each arm's driver, every status encoded and published; no command arrives,
+    so decoding the commands is not counted). The two drivers alternate (plain first in
+    even pairs, emulated first in odd ones) after one discarded run of each, so that a change
+    of the machine's load falls on both; CPU time, not wall time.
+
+    Parameters
+    ----------
+    name : str
+        The shipped scenario.
+    t_end : float
+        Simulated seconds per run, s.
+    pairs : int
+        Alternated pairs.
+
+    Returns
+    -------
+    dict
+        Per driver (``plain``, ``emulated``) the runs' CPU s per simulated s and their
+        median; ``emulated_minus_plain``: the median of the pairs' differences; the load
+        average before and after.
+    """
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.scenario.resources import find_scenario
+
+    scenario = load_scenario(find_scenario(name))
+    drivers = {"plain": None, "emulated": "drake-franka-driver"}
+    out = {"scenario": name, "t_end_s": t_end, "pairs": pairs,
+           "method": "driver side alone in one process (plant, drivers, statuses on memq, "
+                     "no command), time.process_time per simulated second, alternated pairs "
+                     "after one discarded run of each",
+           "load_before": list(os.getloadavg()),
+           **{key: {"per_run": [], "faults": []} for key in drivers}}
+    for emulate in drivers.values():
+        _driver_side_cpu(scenario, t_end, emulate)          # warm-up, discarded
+    for i in range(pairs):
+        for key in (("plain", "emulated") if i % 2 == 0 else ("emulated", "plain")):
+            run = _driver_side_cpu(scenario, t_end, drivers[key])
+            out[key]["per_run"].append(run["cpu_s"] / run["t_end_s"])
+            out[key]["faults"].append(run["fault"])
+            print(key, i, run, flush=True)
+    for key in drivers:
+        out[key]["median"] = float(np.median(out[key]["per_run"]))
+    out["emulated_minus_plain"] = float(np.median(
+        np.subtract(out["emulated"]["per_run"], out["plain"]["per_run"])))
+    out["load_after"] = list(os.getloadavg())
+    return out
+
+
 def main(argv=None) -> int:
     """Run the cases and write the JSON.
 
@@ -307,7 +395,16 @@ def main(argv=None) -> int:
     parser.add_argument("--external-torque", action="store_true",
                         help="only the external-torque estimate's accuracy "
                              "(external_torque_accuracy), added to --out as external_torque")
+    parser.add_argument("--driver-cpu", action="store_true",
+                        help="only the simulated driver's CPU time per simulated second, "
+                             "plain and emulated (driver_cpu), added to --out as driver_cpu")
     args = parser.parse_args(argv)
+    if args.driver_cpu:
+        data = json.loads(Path(args.out).read_text()) if Path(args.out).exists() else {}
+        data["driver_cpu"] = driver_cpu(args.scenario)
+        Path(args.out).write_text(json.dumps(data, indent=1) + "\n")
+        print(json.dumps(data["driver_cpu"]), flush=True)
+        return 0
     if args.external_torque:
         data = json.loads(Path(args.out).read_text()) if Path(args.out).exists() else {}
         data["external_torque"] = external_torque_accuracy(args.scenario)

@@ -3,7 +3,10 @@
 ``python bench/reference_table_cluster.py --out DIR [--draws 2] [--port 6391]`` starts a head
 node and a worker node with Ray's own command (``ray start --head --port P --num-cpus 1
 --block`` and ``ray start --address 127.0.0.1:P --num-cpus 1 --block``, each in its own
-process group, ended by its group id when the run is over), then:
+process group, ended by its group id when the run is over; both with ``--temp-dir`` a folder
+of the run's own, removed after, so that Ray's address file ``ray_current_cluster``, which
+``ray start`` writes into its temporary folder, is not left in the shared ``/tmp/ray`` for a
+later ``ray.init()`` to look for a dead cluster), then:
 
 1. runs ``drake-coop reference-table --ray 127.0.0.1:P`` (2 rows × 2 columns, ``--draws``
    draws, a 6 s segment, batches of 1 case) and kills one Ray worker process (SIGKILL, the
@@ -21,9 +24,11 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -35,10 +40,49 @@ BIN = Path(sys.executable).parent
 ENV = {**os.environ, "RAY_AUTH_MODE": "token"}
 
 
-def _start(args: list[str], log: Path) -> subprocess.Popen:
-    return subprocess.Popen([str(BIN / "ray"), "start", *args, "--block"],
-                            stdout=open(log, "w"), stderr=subprocess.STDOUT,
-                            start_new_session=True, env=ENV)
+def _start(args: list[str], log: Path, temp_dir: Path) -> subprocess.Popen:
+    """One Ray node (``ray start ARGS --temp-dir TEMP_DIR --block``) in its own process
+    group, its output into ``log``."""
+    with open(log, "w") as output:
+        return subprocess.Popen([str(BIN / "ray"), "start", *args, "--temp-dir",
+                                 str(temp_dir), "--block"], stdout=output,
+                                stderr=subprocess.STDOUT, start_new_session=True, env=ENV)
+
+
+def _temp_dir() -> Path:
+    """The nodes' temporary folder: a new one, short (Ray's socket paths live under it)."""
+    return Path(tempfile.mkdtemp(prefix="ray_bench_", dir="/tmp"))
+
+
+def _group_alive(pgid: int) -> bool:
+    """Whether a process of the group ``pgid`` still exists."""
+    try:
+        os.killpg(pgid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def _stop(nodes: list[subprocess.Popen], temp_dir: Path, grace: float = 30.0) -> None:
+    """End the nodes by their process groups — SIGTERM, then SIGKILL to a group still there
+    after ``grace`` seconds — wait until no process of the groups is left (Ray's own
+    processes outlive ``ray start`` by a moment), and remove their temporary folder."""
+    for p in nodes:
+        try:
+            os.killpg(p.pid, signal.SIGTERM)
+        except ProcessLookupError:
+            pass
+    for sig, wait in ((None, grace), (signal.SIGKILL, grace)):
+        end = time.monotonic() + wait
+        for p in nodes:
+            if sig is not None and _group_alive(p.pid):
+                os.killpg(p.pid, sig)
+            while _group_alive(p.pid) and time.monotonic() < end:
+                p.poll()                   # reaps ``ray start`` itself
+                time.sleep(0.2)
+    for p in nodes:
+        p.wait()
+    shutil.rmtree(temp_dir, ignore_errors=True)
 
 
 def _table(out: Path, extra: list[str]) -> subprocess.Popen:
@@ -98,11 +142,13 @@ def main() -> int:
     out.mkdir(parents=True, exist_ok=True)
     address = f"127.0.0.1:{args.port}"
     draws = ["--draws", str(args.draws)]
+    temp_dir = _temp_dir()
     nodes = [_start(["--head", "--port", str(args.port), "--num-cpus", "1",
-                     "--include-dashboard", "false"], out / "head.log")]
+                     "--include-dashboard", "false"], out / "head.log", temp_dir)]
     try:
         time.sleep(15.0)
-        nodes.append(_start(["--address", address, "--num-cpus", "1"], out / "worker.log"))
+        nodes.append(_start(["--address", address, "--num-cpus", "1"], out / "worker.log",
+                            temp_dir))
         time.sleep(15.0)
         groups = [p.pid for p in nodes]
         run = _table(out / "cluster", ["--ray", address, *draws])
@@ -112,16 +158,7 @@ def main() -> int:
         second = _table(out / "cluster", ["--ray", address, *draws]).wait()
         print(f"resumed: exit {second}")
     finally:
-        for p in nodes:
-            try:
-                os.killpg(p.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-        for p in nodes:
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
+        _stop(nodes, temp_dir)
     local = _table(out / "local", ["--workers", "1", *draws]).wait()
     print(f"local run: exit {local}")
     a, b = _numbers(out / "cluster"), _numbers(out / "local")

@@ -47,6 +47,7 @@ from drake_coop.control.delay import DelayPredictor
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.registry import EXTERNAL_INPUTS, SOURCES, source
 from drake_coop.control.sources import MeasuredVelocity
+from drake_coop.control.timing import Clock, on_clock
 from drake_coop.control.params import (
     FORCE_SOURCES,
     VELOCITY_SOURCES,
@@ -71,7 +72,7 @@ def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
                         difference_cutoff_hz: float | None = None,
                         momentum_torque_limits=None, prediction_horizon: float | None = None,
-                        anti_windup_limits=None
+                        anti_windup_limits=None, clock: Clock | None = None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -109,6 +110,10 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         force source reads the controller's ``tau`` and holds ``ΔF̃`` at a tick whose
         commanded torque exceeds them (:mod:`~drake_coop.control.anti_windup`). None
         (default): the paper's (6).
+    clock : Clock or None
+        The controller's own clock (:class:`~drake_coop.control.timing.Clock`, its
+        computer's): every system of the block with periodic updates ticks on it, each
+        keeping ``h`` in its equations. None (default): the run's grid.
 
     Returns
     -------
@@ -127,20 +132,22 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         users = " or ".join(repr(s.name) for s in SOURCES if "anti_windup" in s.options)
         raise ValueError(f"anti_windup_limits: only for force_source {users} (got "
                          f"force_source={force_source!r})")
+    on_clock(clock, period)                  # a Clock or None, refused by name otherwise
     options = {"difference_cutoff_hz": difference_cutoff_hz,
                "momentum_torque_limits": momentum_torque_limits,
-               "anti_windup_limits": anti_windup_limits}
+               "anti_windup_limits": anti_windup_limits, "clock": clock}
     specs = (source("velocity", velocity_source), source("force", force_source))
     b = DiagramBuilder()
     vel, force = (b.AddNamedSystem(f"{name}_{spec.suffix}", spec.make(law, period, options))
                   for spec in specs)
-    ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period))
+    ctrl = b.AddNamedSystem(f"{name}_controller", Controller(law, period, clock=clock))
     # What the controller and the force observer read: the sources' values, or predicted.
     inputs = {port: vel.GetOutputPort(port) for port in ("q_hat", "qdot_hat", "qdot_o")}
     predictor = None
     if prediction_horizon is not None:
         predictor = b.AddNamedSystem(f"{name}_predictor",
-                                     DelayPredictor(law, period, prediction_horizon))
+                                     DelayPredictor(law, period, prediction_horizon,
+                                                    clock=clock))
         for port in ("q_hat", "qdot_hat", "qdot_o"):
             b.Connect(vel.GetOutputPort(port), predictor.GetInputPort(port))
             inputs[port] = predictor.GetOutputPort(f"{port}_p")
@@ -358,7 +365,8 @@ def AddCooperativeController(
         lambda_sensor: OutputPort | None = None, connect_actuation: bool = True,
         name: str | None = None, allow_sampled_output_ports: bool = False,
         pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None,
-        prediction_horizon: float | None = None, anti_windup_limits=None
+        prediction_horizon: float | None = None, anti_windup_limits=None,
+        clock: Clock | None = None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -445,6 +453,10 @@ def AddCooperativeController(
         ``force_source = "momentum"`` or ``"sensor"``: the arm's torque limits, so the force
         integral (6) is not integrated while the commanded torque exceeds them (opt-in; see
         :func:`build_control_block`). None (default): the paper's (6).
+    clock : Clock or None
+        The controller's own clock (phase and rate against the plant's time,
+        :class:`~drake_coop.control.timing.Clock`): the block's periodic updates tick on it
+        (see :func:`build_control_block`). None (default): the run's grid.
 
     Returns
     -------
@@ -550,7 +562,8 @@ def AddCooperativeController(
     block, vel, force, ctrl = build_control_block(name, law, period, velocity_source,
                                                   force_source, difference_cutoff_hz,
                                                   momentum_torque_limits, prediction_horizon,
-                                                  anti_windup_limits)
+                                                  anti_windup_limits,
+                                                  clock)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
                                     lambda_sensor, connect_actuation)

@@ -37,6 +37,7 @@ from pydrake.systems.framework import (
     State,
 )
 
+from drake_coop.control.timing import Clock, on_clock
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.params import check_period
 from drake_coop.control.timing import tick_of
@@ -73,6 +74,10 @@ class Controller(LeafSystem):
         Sampling time ``h`` (s), > 0.
     tau0 : array_like, optional
         The torque held before the first tick (default zero); n entries.
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -97,7 +102,7 @@ class Controller(LeafSystem):
         the same tick (state only).
     """
 
-    def __init__(self, law: FingerLaw, period: float, tau0: np.ndarray | None = None):
+    def __init__(self, law: FingerLaw, period: float, tau0: np.ndarray | None = None, clock: Clock | None = None):
         super().__init__()
         check_period(period)
         self._law = law
@@ -119,7 +124,7 @@ class Controller(LeafSystem):
                                                     else np.asarray(tau0, dtype=float))
         self._qddot_state = self.DeclareDiscreteState(np.zeros(n))
         self._tick_state = self.DeclareDiscreteState([-1.0])
-        self.DeclarePeriodicUnrestrictedUpdateEvent(period, 0.0, self._update_latch)
+        self.DeclarePeriodicUnrestrictedUpdateEvent(*on_clock(clock, period), self._update_latch)
         self.DeclareForcedDiscreteUpdateEvent(self._latch)
         self._tau_out = self.DeclareStateOutputPort("tau", self._tau_state)
         self._qddot_out = self.DeclareStateOutputPort("qddot_r_hat", self._qddot_state)

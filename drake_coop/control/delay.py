@@ -40,6 +40,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import BasicVector, Context, DiscreteValues, InputPort, LeafSystem
 
+from drake_coop.control.timing import Clock, on_clock
 from drake_coop.control.finger import FingerLaw
 from drake_coop.control.params import check_period
 
@@ -100,6 +101,10 @@ class DelayPredictor(LeafSystem):
         The control period ``h`` (s).
     horizon : float
         The prediction horizon ``p`` (s), ``0 < p <= h``.
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -124,7 +129,7 @@ class DelayPredictor(LeafSystem):
         The model's ``a`` above.
     """
 
-    def __init__(self, law: FingerLaw, period: float, horizon: float):
+    def __init__(self, law: FingerLaw, period: float, horizon: float, clock: Clock | None = None):
         super().__init__()
         h = check_period(period)
         self._p = check_horizon(horizon, h)
@@ -143,7 +148,7 @@ class DelayPredictor(LeafSystem):
         self._tau_state = self.DeclareDiscreteState(n)
         self._lambda_state = self.DeclareDiscreteState(m)
         self._valid_state = self.DeclareDiscreteState(1)
-        self.DeclarePeriodicDiscreteUpdateEvent(h, 0.0, self._latch)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, h), self._latch)
         self.DeclareForcedDiscreteUpdateEvent(self._latch)
         xd = self.xd_ticket()
         acc_deps = {xd, self._q.ticket(), self._qdot_hat.ticket()}

@@ -51,6 +51,7 @@ from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.params import check_momentum_gain, check_period
+from drake_coop.control.timing import Clock, on_clock
 
 
 def momentum_estimate(p: np.ndarray, sigma: np.ndarray, gain: float, J: np.ndarray | None,
@@ -153,6 +154,10 @@ class MomentumObserver(ForceSource):
         The arm's torque limits for the anti-windup of (6) (opt-in,
         :mod:`~drake_coop.control.anti_windup`): ``ΔF̃`` is not integrated at a tick whose
         commanded ``τ`` exceeds them at some joint. None (the default): the paper's (6).
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -180,7 +185,8 @@ class MomentumObserver(ForceSource):
     """
 
     def __init__(self, model: ArmModel, layout: ReferenceLayout, period: float, gain: float,
-                 torque_limits=None, anti_windup_limits=None):
+                 torque_limits=None, anti_windup_limits=None,
+                 clock: Clock | None = None):
         super().__init__()
         self._model = model
         self._layout = layout = ReferenceLayout.check(layout)
@@ -204,7 +210,7 @@ class MomentumObserver(ForceSource):
         self._reference = self.DeclareVectorInputPort("reference", layout.size)
         self._sigma = self.DeclareDiscreteState(n)
         self._DF = self.DeclareDiscreteState(m)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update)
         self.DeclareForcedDiscreteUpdateEvent(self._update)   # one tick in a unit test
         inputs = {self.xd_ticket(), self._q.ticket(), self._v.ticket(),
                   self._reference.ticket()}

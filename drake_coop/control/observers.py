@@ -21,6 +21,7 @@ from pydrake.systems.framework import (
     State,
 )
 
+from drake_coop.control.timing import Clock, on_clock
 from drake_coop.control.interfaces import ForceSource, VelocitySource
 from drake_coop.control.finger import (
     FingerLaw,
@@ -82,6 +83,10 @@ class VelocityObserver(VelocitySource):
         The observer gain ``k_d`` of (15)–(16) (1/s), > 0.
     period : float
         Sampling time ``h`` (s).
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Raises
     ------
@@ -105,7 +110,7 @@ class VelocityObserver(VelocitySource):
         ``q̇_o = d/dt q̂ − Λ z`` of (8) (depends on ``q``).
     """
 
-    def __init__(self, n: int, Lambda: float, k_d: float, period: float):
+    def __init__(self, n: int, Lambda: float, k_d: float, period: float, clock: Clock | None = None):
         super().__init__()
         n = check_count(n, "n")
         Lambda = check_positive(Lambda, "Lambda")
@@ -123,7 +128,7 @@ class VelocityObserver(VelocitySource):
         # Whether the context holds an initial state given by the user (set_initial_state) or
         # already taken from q: then the initialization event leaves it alone.
         self._given = self.DeclareAbstractState(AbstractValue.Make(False))
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_observer)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update_observer)
         self.DeclareForcedDiscreteUpdateEvent(self._update_observer)
         self.DeclareInitializationUnrestrictedUpdateEvent(self._initialize_from_q)
         # The outputs depend on q and the state only (not on time or q̈̂_r): Drake caches each
@@ -224,6 +229,10 @@ class ForceObserver(ForceSource):
         The robot's law (model, gains, ``n``, ``m``).
     period : float
         Sampling time ``h`` (s), > 0.
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -240,7 +249,7 @@ class ForceObserver(ForceSource):
         ``ΔF̃(k)`` (state only).
     """
 
-    def __init__(self, law: FingerLaw, period: float):
+    def __init__(self, law: FingerLaw, period: float, clock: Clock | None = None):
         super().__init__()
         check_period(period)
         self._law = law
@@ -254,7 +263,7 @@ class ForceObserver(ForceSource):
         self._qdot_o = self.DeclareVectorInputPort("qdot_o", n)
         self._reference = self.DeclareVectorInputPort("reference", law.layout.size)
         self._state = self.DeclareDiscreteState(m)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update_integral)
         self.DeclareForcedDiscreteUpdateEvent(self._update_integral)
         # λ̂(k) is computed once per tick: the update reads the output port, whose value
         # Drake caches (it depends on this system's state and inputs only).

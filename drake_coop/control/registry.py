@@ -70,7 +70,9 @@ class Source:
         ``build(cls, law, period, options)``: the system from its class, the robot's
         :class:`~drake_coop.control.finger.FingerLaw`, the period ``h`` and the block's
         options (``difference_cutoff_hz``, ``momentum_torque_limits``,
-        ``anti_windup_limits``).
+        ``anti_windup_limits``, and ``clock``: the
+        :class:`~drake_coop.control.timing.Clock` a source with periodic updates ticks on,
+        None for the run's grid).
     outputs : tuple of str
         Outputs of its own the block exports besides :data:`KIND_OUTPUTS`.
     options : tuple of str
@@ -188,21 +190,23 @@ def _check_anti_windup(robot, h: float) -> None:
 SOURCES: tuple[Source, ...] = (
     Source("observer", "velocity", "observers.VelocityObserver", "velocity_observer",
            "velocity observer", "(15)–(16)", ("q", "qddot_r_hat"),
-           lambda cls, law, h, o: cls(law.n, law.Lambda, law.k_d, h)),
+           lambda cls, law, h, o: cls(law.n, law.Lambda, law.k_d, h, clock=o.get("clock"))),
     Source("measured", "velocity", "sources.MeasuredVelocity", "measured_velocity",
            "measured velocity", "baseline", ("state", "q"),
            lambda cls, law, h, o: cls(law.n)),
     Source("difference", "velocity", "sources.DifferenceVelocity", "difference_velocity",
            "backward difference", "of the encoders", ("q",),
-           lambda cls, law, h, o: cls(law.n, h, o.get("difference_cutoff_hz")),
+           lambda cls, law, h, o: cls(law.n, h, o.get("difference_cutoff_hz"),
+                                      clock=o.get("clock")),
            options=("difference_cutoff_hz",), checks=_check_cutoff),
     Source("observer", "force", "observers.ForceObserver", "force_observer",
            "force observer", "(22)", ("q", "q_hat", "qdot_o", "reference"),
-           lambda cls, law, h, o: cls(law, h)),
+           lambda cls, law, h, o: cls(law, h, clock=o.get("clock"))),
     Source("sensor", "force", "sources.SensedForce", "sensed_force",
            "force feedback", "F/T sensor in (13)", ("lambda_sensor", "reference"),
            lambda cls, law, h, o: cls(h, law.layout,
-                                      anti_windup_limits=o.get("anti_windup_limits")),
+                                      anti_windup_limits=o.get("anti_windup_limits"),
+                                      clock=o.get("clock")),
            options=("anti_windup",), checks=_check_anti_windup),
     Source("none", "force", "sources.NoForceEstimate", "no_force_estimate",
            "no force estimate", "λ̂ = λ_d", ("reference",),
@@ -211,7 +215,8 @@ SOURCES: tuple[Source, ...] = (
            "momentum observer", "generalized momentum", ("q", "qdot_hat", "tau", "reference"),
            lambda cls, law, h, o: cls(law.model, law.layout, h, law.momentum_gain,
                                       torque_limits=o.get("momentum_torque_limits"),
-                                      anti_windup_limits=o.get("anti_windup_limits")),
+                                      anti_windup_limits=o.get("anti_windup_limits"),
+                                      clock=o.get("clock")),
            outputs=("tau_ext_hat", "O_F_ext_hat"),
            options=("gains.momentum_gain", "anti_windup"),
            checks=lambda robot, h: (_check_momentum_gain(robot, h),

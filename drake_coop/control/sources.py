@@ -38,7 +38,7 @@ from drake_coop.control.anti_windup import check_limits, clipped, force_integral
 from drake_coop.control.interfaces import ForceSource, VelocitySource
 from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.params import check_count, check_optional_positive, check_period
-from drake_coop.control.timing import lowpass_alpha
+from drake_coop.control.timing import Clock, lowpass_alpha, on_clock
 
 
 class MeasuredVelocity(VelocitySource):
@@ -144,6 +144,10 @@ class DifferenceVelocity(VelocitySource):
         Sampling time ``h`` (s), > 0.
     cutoff_hz : float, optional
         Low-pass cutoff ``f_c`` (Hz), > 0; none: the raw difference.
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -158,7 +162,7 @@ class DifferenceVelocity(VelocitySource):
         ``q̇̂(k)``.
     """
 
-    def __init__(self, n: int, period: float, cutoff_hz: float | None = None):
+    def __init__(self, n: int, period: float, cutoff_hz: float | None = None, clock: Clock | None = None):
         super().__init__()
         self._n = n = check_count(n, "n")
         self._h = period = check_period(period)
@@ -167,7 +171,7 @@ class DifferenceVelocity(VelocitySource):
         self._q = self.DeclareVectorInputPort("q", n)
         self._state = self.DeclareDiscreteState(2 * n)
         self._given = self.DeclareAbstractState(AbstractValue.Make(False))
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_difference)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update_difference)
         self.DeclareForcedDiscreteUpdateEvent(self._update_difference)
         self.DeclareInitializationUnrestrictedUpdateEvent(self._initialize_from_q)
         self._q_hat_out = self.DeclareVectorOutputPort(
@@ -250,6 +254,10 @@ class SensedForce(ForceSource):
         :mod:`~drake_coop.control.anti_windup`): the system then has an input ``tau`` (the
         commanded torque) and does not integrate ``ΔF̃`` at a tick whose ``τ`` exceeds them
         at some joint. None (the default): the paper's (6), no ``tau`` input.
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -268,7 +276,8 @@ class SensedForce(ForceSource):
         State only.
     """
 
-    def __init__(self, period: float, layout: ReferenceLayout, anti_windup_limits=None):
+    def __init__(self, period: float, layout: ReferenceLayout, anti_windup_limits=None,
+                 clock: Clock | None = None):
         super().__init__()
         self._h = period = check_period(period)
         self._layout = layout = ReferenceLayout.check(layout)
@@ -281,7 +290,7 @@ class SensedForce(ForceSource):
             self._windup_limits = check_limits(anti_windup_limits, layout.n)
             self._tau = self.DeclareVectorInputPort("tau", layout.n)
         self._state = self.DeclareDiscreteState(m)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update_integral)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update_integral)
         self.DeclareForcedDiscreteUpdateEvent(self._update_integral)
         self._lambda_hat_out = self.DeclareVectorOutputPort("lambda_hat", m,
                                                             self._calc_lambda_hat)

@@ -3,14 +3,106 @@
 Every block of :mod:`drake_coop.control` is sampled at the control period ``h``; a simulated
 plant steps at ``dt``. :func:`aligned_periods` puts both on one exact grid (the only place the
 periods are aligned), :func:`tick_of` converts a time to a tick index, :func:`lowpass_alpha`
-is the gain of the first-order filter the sources share.
+is the gain of the first-order filter the sources share. A block may tick on a :class:`Clock`
+of its own (a controller's computer, with its phase and rate against the plant's time):
+:func:`on_clock` gives the period and offset of its periodic events.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
-__all__ = ["aligned_periods", "tick_of", "lowpass_alpha"]
+__all__ = ["Clock", "aligned_periods", "on_clock", "tick_of", "lowpass_alpha"]
+
+
+@dataclass(frozen=True)
+class Clock:
+    """A controller's own clock against the run's (the plant's) time.
+
+    Its tick ``k`` comes at the run's time ``t_k = φ + k h / (1 + ε)``: phase ``φ`` and a rate
+    offset ``ε`` (the clock runs ``ε`` fast). A block given a clock keeps ``h`` in its
+    equations (it believes its ticks ``h`` apart) and only declares its periodic events on the
+    clock (:func:`on_clock`). The default, ``Clock()``, is the run's own grid.
+
+    Attributes
+    ----------
+    phase : float
+        ``φ``, s (``>= 0``, finite).
+    ppm : float
+        ``ε`` in parts per million (finite, ``> −1e6``).
+
+    Raises
+    ------
+    ValueError
+        A phase or rate outside those ranges, naming the field.
+    """
+
+    phase: float = 0.0
+    ppm: float = 0.0
+
+    def __post_init__(self):
+        for field in ("phase", "ppm"):
+            value = getattr(self, field)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError(f"clock.{field}: a number is required, got {value!r}")
+        if not (math.isfinite(self.phase) and self.phase >= 0.0):
+            raise ValueError(f"clock.phase: a finite time >= 0 s is required, got "
+                             f"{self.phase!r}")
+        if not (math.isfinite(self.ppm) and self.ppm > -1e6):
+            raise ValueError(f"clock.ppm: a finite rate offset > -1e6 ppm is required, got "
+                             f"{self.ppm!r}")
+
+    @property
+    def scale(self) -> float:
+        """``1 / (1 + ε)``: a span of the clock in the run's time, per second."""
+        return 1.0 / (1.0 + 1e-6 * self.ppm)
+
+    def true_time(self, local):
+        """The run's time at which the clock reads ``local``.
+
+        Parameters
+        ----------
+        local : float or numpy.ndarray
+            Times on the clock, s (its tick ``k`` at ``k h``).
+
+        Returns
+        -------
+        float or numpy.ndarray
+            ``φ + local / (1 + ε)``, s.
+        """
+        return self.phase + local * self.scale
+
+
+def on_clock(clock: Clock | None, period: float, offset: float = 0.0) -> tuple[float, float]:
+    """The period and offset, in the run's time, of a periodic event declared ``(period,
+    offset)`` on ``clock``: ``(h / (1 + ε), φ + o / (1 + ε))``; unchanged for None.
+
+    Parameters
+    ----------
+    clock : Clock or None
+        The block's clock; None: the run's grid.
+    period : float
+        The event's period on the clock, s.
+    offset : float
+        Its offset on the clock, s.
+
+    Returns
+    -------
+    tuple of float
+        ``(period, offset)`` for Drake's ``DeclarePeriodic*Event``.
+
+    Raises
+    ------
+    TypeError
+        ``clock`` is neither a :class:`Clock` nor None.
+    """
+    if clock is None:
+        return period, offset
+    if not isinstance(clock, Clock):
+        raise TypeError(f"clock: a Clock or None is required, got {type(clock).__name__}")
+    scale = clock.scale
+    return period * scale, clock.phase + offset * scale
 
 
 def aligned_periods(control_period: float, time_step: float) -> tuple[float, float]:

@@ -439,17 +439,18 @@ def build_experiment(plan: RunPlan, *, builder: DiagramBuilder | None = None,
         robot = scenario.robots[i]
         model = plan.robots[i].controller_model
         state = plant.get_state_output_port(handles.instance)
+        clock = plan.robots[i].clock         # its controller's clock (None: the run's grid)
         # Sensors: plant → encoders → control block; ground truth → F/T sensor model.
         encoder, q_port = add_encoders(b, name, model.n, h, robot.encoders, i, state)
         ft = lambda_sensor = None
         if pads is not None and reads_sensor(robot):
             last_step = pads.add_lambda_last_step(b, i, name)
             ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
-                                              last_step, last_step)
+                                              last_step, last_step, clock=clock)
         elif live_ground_truth:
             ft, lambda_sensor = add_ft_sensor(b, name, h, dt, robot.force_sensor, i, model.m,
                                               sensors[i].GetOutputPort("lambda_meas"),
-                                              sensors[i].lambda_last_step)
+                                              sensors[i].lambda_last_step, clock=clock)
         # The control block, through the public API (the same path as a user's diagram): the
         # encoders' q in; the F/T reading for classical force feedback; tau left to the
         # actuators below. The measured-velocity baseline reads the plant's state.
@@ -463,7 +464,7 @@ def build_experiment(plan: RunPlan, *, builder: DiagramBuilder | None = None,
             contact_stiffness=plan.robots[i].stiffness,
             prediction_horizon=robot.timing.prediction_horizon,
             anti_windup_limits=robot.actuators.torque_limits if robot.anti_windup else None,
-            name=name)
+            name=name, clock=clock)
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(plan.robots[i].reference))
         parts.append((name, robot, state, encoder, q_port, ft, lambda_sensor, block))
         arms.append(ArmSignals(q=q_port, reference=ref.get_output_port(), control=block.system))

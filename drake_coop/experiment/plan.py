@@ -14,7 +14,9 @@ floor (the builders take their section of it; the stability map and the benchmar
   arm: its :class:`~drake_coop.plant.arms.Arm` (base, constraints, kinematics), the
   controller's model, the pad's geometry and stiffness (read once, by Drake's parser), the
   control point, the load's mass share, ``λ_d``, the references; ``arms`` are their arms;
-* ``object`` — the controllers' object model (:class:`ObjectPlan`), None without one.
+* ``object`` — the controllers' object model (:class:`ObjectPlan`), None without one;
+* ``clocks`` — per robot the :class:`~drake_coop.control.timing.Clock` its controller side
+  ticks on (its computer's clock, :meth:`RunPlan.with_clocks`), None for the run's grid.
 
 Every rule of the ``object_model`` section (``auto`` and ``null`` values) is decided here, once;
 the builders read the plan, never the rule again. What is expensive (the pads' files, the
@@ -236,6 +238,13 @@ class RobotPlan:
         """The plant's ``object_mode``."""
         return self._run.scenario.plant.object_mode
 
+    @property
+    def clock(self):
+        """The :class:`~drake_coop.control.timing.Clock` its controller side ticks on
+        (:meth:`RunPlan.with_clocks`), None for the run's grid."""
+        clocks = self._run.clocks
+        return None if clocks is None else clocks[self.index]
+
     @cached_property
     def pad(self) -> Pad:
         """The pad's sphere and modulus in the simulated arm's model file (read once)."""
@@ -421,6 +430,9 @@ class RunPlan:
     references : tuple of Trajectory or None
         One trajectory per robot instead of the scenario's (e.g. a constant posture for
         Theorem 1), set by :meth:`with_references`; None for :attr:`RobotPlan.reference`.
+    clocks : tuple of (Clock or None) or None
+        One per robot: the clock its controller side ticks on (:meth:`with_clocks`); None:
+        every robot on the run's grid.
     """
 
     scenario: Scenario
@@ -433,6 +445,57 @@ class RunPlan:
     z_grasp: float
     arms: tuple[Arm, ...]
     references: tuple | None = None
+    clocks: tuple | None = None
+
+    def with_clocks(self, clocks) -> "RunPlan":
+        """The same run with each robot's controller side on its own clock.
+
+        A robot's clock moves every periodic event of its control block (sources,
+        controller, predictor) and of its F/T sensor model; its encoders, its computation
+        delay and the object layer stay on the run's grid, so a clock is refused with any of
+        them.
+
+        Parameters
+        ----------
+        clocks : sequence of (Clock or None)
+            One per robot, in the scenario's order
+            (:class:`~drake_coop.control.timing.Clock`; None: the run's grid).
+
+        Returns
+        -------
+        RunPlan
+            The new plan.
+
+        Raises
+        ------
+        ValueError
+            Not one entry per robot, or a clock on a robot with sampled encoders, a
+            computation delay or jitter, or in a run with an object model (naming the field).
+        TypeError
+            An entry neither a Clock nor None.
+        """
+        from drake_coop.control.timing import Clock
+
+        clocks = tuple(clocks)
+        if len(clocks) != len(self.arms):
+            raise ValueError(f"clocks: one entry per robot ({len(self.arms)}), got "
+                             f"{len(clocks)}")
+        for i, (robot, clock) in enumerate(zip(self.scenario.robots, clocks)):
+            if clock is None:
+                continue
+            if not isinstance(clock, Clock):
+                raise TypeError(f"clocks[{i}]: a Clock or None is required, got "
+                                f"{type(clock).__name__}")
+            e, t = robot.encoders, robot.timing
+            if (e.noise_std or e.delay_samples or e.counts_per_rev is not None
+                    or t.computation_delay > 0.0 or t.jitter != "none"):
+                raise ValueError(f"clocks[{i}]: robot {robot.name} must have ideal encoders "
+                                 "and no computation delay or jitter (neither follows its "
+                                 "clock)")
+            if self.scenario.object_model.mode != "none":
+                raise ValueError(f"clocks[{i}]: object_model.mode must be none (the object "
+                                 "layer does not follow the arm's clock)")
+        return replace(self, clocks=clocks)
 
     def with_references(self, trajectories) -> "RunPlan":
         """The same run following ``trajectories`` instead of the scenario's references.

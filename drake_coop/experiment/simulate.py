@@ -365,7 +365,7 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
              progress: Callable[[float, float, float], None] | None = None,
              before_build=None, on_start=None,
              hold_signals: Callable[[], ContextManager] | None = None,
-             live_ground_truth: bool | None = None) -> RunResult:
+             live_ground_truth: bool | None = None, clocks=None) -> RunResult:
     """Simulate the experiment and return its logs.
 
     Parameters
@@ -391,6 +391,10 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         truth and the F/T sensor model are computed (None: inside the loop only when a
         controller reads the sensor or outside the ``planes`` and ``rigid`` modes; otherwise
         after the run).
+    clocks : sequence of (Clock or None), optional
+        Each robot's controller-side clock (:meth:`RunPlan.with_clocks
+        <drake_coop.experiment.plan.RunPlan.with_clocks>`); None: every robot on the run's
+        grid.
 
     Returns
     -------
@@ -409,6 +413,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
         somewhere along the path (:mod:`drake_coop.experiment.squeeze_check`, also before).
     """
     plan = plan_run(scenario, t_end)
+    if clocks is not None:
+        plan = plan.with_clocks(clocks)
     T = plan.t_end
     check_run_size(scenario, T)
     # The plan's references run only to the run's end: a long task stopped early stays cheap.

@@ -74,8 +74,15 @@ from typing import Callable
 
 import numpy as np
 from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import BasicVector, Context, DiscreteValues, ValueProducer
+from pydrake.systems.framework import (
+    BasicVector,
+    Context,
+    DiscreteValues,
+    EventStatus,
+    ValueProducer,
+)
 
+from drake_coop.control.timing import Clock, on_clock
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.momentum import momentum_estimate, momentum_step
 from drake_coop.control.params import check_momentum_gain, check_period
@@ -209,13 +216,18 @@ class OnlineIdentification(ForceSource):
         error); 0.01 and 0.1 gave the same contact-direction error within 10 %.
     model : ArmModel or None
         The controller's model (:class:`~drake_coop.control.arm_model.ArmModel`, the one its
-        control law (13) and velocity observer evaluate). Given, each update writes ``θ̂``
-        into it (:func:`apply_parameters`), and so does each evaluation of the force
-        estimate (the state's ``θ̂``: a new run of the diagram starts from ``θ̂(0)``, not from
-        the last run's): the control law runs on the refined parameters from the next tick
-        on. This changes an object outside the Drake context: two simulations of one
-        diagram must not run at once.
+        control law (13) and velocity observer evaluate). Given, each update that changes
+        ``θ̂`` writes it into the model (:func:`apply_parameters`), and so do
+        :meth:`set_initial_state` and ``Simulator.Initialize`` (an initialization publish of
+        the context's ``θ̂``: a new run of the diagram starts from its own ``θ̂(0)``, not from
+        the last run's); evaluating the force estimate writes nothing. The control law runs
+        on the refined parameters from the next tick on. This changes an object outside the
+        Drake context: two simulations of one diagram must not run at once.
         None (the default): only this block's force estimate uses ``θ̂``.
+    clock : Clock or None
+        The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
+        e.g. a controller's computer's); ``h`` stays the period of its equations. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -234,7 +246,7 @@ class OnlineIdentification(ForceSource):
     def __init__(self, regressor: Regressor, theta0, J_phi: Callable, layout: ReferenceLayout,
                  period: float, gain: float, forgetting: float = 1.0,
                  prior_relative: float = 1.0, v_min: float = 0.01,
-                 torque_noise: float = 0.03, model=None):
+                 torque_noise: float = 0.03, model=None, clock: Clock | None = None):
         super().__init__()
         self._regressor = regressor
         self._layout = layout = ReferenceLayout.check(layout)
@@ -274,8 +286,11 @@ class OnlineIdentification(ForceSource):
         self._prev = self.DeclareDiscreteState(n * p + n + n * n + 1)
         # q(k-1), q(k-2), tau(k-1), held(k-1), ticks seen (at most 2)
         self._history = self.DeclareDiscreteState(3 * n + 2)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, 0.0, self._update)
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update)
         self.DeclareForcedDiscreteUpdateEvent(self._update)
+        # A new run of the diagram starts the model from its own θ̂(0); later only the
+        # update changes θ̂ and writes it.
+        self.DeclareInitializationPublishEvent(self._write_initial)
         # The tick's rows and estimate, computed once for the output and the update; they
         # do not read the torque (read by the update only: no algebraic loop with (13)).
         self._cache = self.DeclareCacheEntry(
@@ -323,7 +338,6 @@ class OnlineIdentification(ForceSource):
     def _compute(self, context: Context):
         q, v = self._q.Eval(context), self._v.Eval(context)
         theta = context.get_discrete_state(self._theta).value()
-        self._write(theta)          # a new run of the diagram starts from its own θ̂(0)
         Y_p, Y_b = momentum_rows(self._regressor, q, v)
         ref = self._layout.unpack(self._reference.Eval(context))
         J = self._J_phi(q)
@@ -333,6 +347,11 @@ class OnlineIdentification(ForceSource):
 
     def _calc_lambda_hat(self, context: Context, output: BasicVector) -> None:
         output.SetFromVector(self._estimate(context)[6])
+
+    def _write_initial(self, context: Context) -> EventStatus:
+        """At ``Simulator.Initialize``: the context's ``θ̂`` into the controller's model."""
+        self._write(context.get_discrete_state(self._theta).value())
+        return EventStatus.Succeeded()
 
     def _write(self, theta: np.ndarray) -> None:
         """``θ`` into the controller's model, if one was given and it holds other values."""

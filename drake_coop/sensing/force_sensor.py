@@ -65,7 +65,7 @@ from pydrake.systems.primitives import ZeroOrderHold
 
 from drake_coop.scenario.schema import ForceSensorModel
 from drake_coop.sensing.sampling import FORCE_SENSOR_STREAM, white_noise
-from drake_coop.control.timing import lowpass_alpha
+from drake_coop.control.timing import Clock, lowpass_alpha, on_clock
 
 
 @dataclass(frozen=True)
@@ -204,6 +204,10 @@ class FTSensor(LeafSystem):
         Time from the read to the tick it serves. Default: ``3Δt/2`` (``h`` when ``h = Δt``),
         for a live input; ``Δt/2`` for the ground truth's ``lambda_last_step``
         (:func:`add_ft_sensor`).
+    clock : Clock or None
+        The clock its reads tick on (:class:`~drake_coop.control.timing.Clock`: the arm's
+        controller's); the read serving the clock's tick ``k h`` at its ``k h − lead``. None
+        (default): the run's grid.
 
     Input ports
     -----------
@@ -220,7 +224,7 @@ class FTSensor(LeafSystem):
 
     def __init__(self, period: float, plant_step: float,
                  settings: ForceSensorModel | None = None, robot_index: int = 0, m: int = 1,
-                 read_lead: float | None = None):
+                 read_lead: float | None = None, clock: Clock | None = None):
         super().__init__()
         self._h = period
         self._dt = plant_step
@@ -233,7 +237,7 @@ class FTSensor(LeafSystem):
         if read_lead is None:
             read_lead = 1.5 * plant_step if steps >= 2 else period
         self._lead = float(read_lead)
-        self.DeclarePeriodicDiscreteUpdateEvent(period, period - self._lead,
+        self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period, period - self._lead),
                                                 self._update_reading)
         self.DeclareStateOutputPort("lambda_sensor", self._reading)
 
@@ -261,10 +265,16 @@ class FTSensor(LeafSystem):
         discrete_state.set_value(self._reading, reading)
 
 
+def _hold(clock: Clock | None, period: float, m: int, plant_step: float):
+    """``ZeroOrderHold``'s ``(period, size, offset)``: offset ``h − Δt/2`` on ``clock``."""
+    held_period, offset = on_clock(clock, period, period - 0.5 * plant_step)
+    return held_period, m, offset
+
+
 def add_ft_sensor(builder: DiagramBuilder, name: str, period: float, plant_step: float,
                   settings: ForceSensorModel | None, robot_index: int, m: int,
-                  lambda_live: OutputPort, lambda_last_step: OutputPort | None = None
-                  ) -> tuple[LeafSystem, OutputPort]:
+                  lambda_live: OutputPort, lambda_last_step: OutputPort | None = None,
+                  clock: Clock | None = None) -> tuple[LeafSystem, OutputPort]:
     """``<name>_ft_sensor`` wired to the ground truth; returns it and its ``lambda_sensor``.
 
     With ``lambda_last_step`` (the ground truth's step before the tick, see the module's
@@ -292,6 +302,9 @@ def add_ft_sensor(builder: DiagramBuilder, name: str, period: float, plant_step:
         The ground truth's live ``λ`` (m,), N.
     lambda_last_step : OutputPort or None
         The ground truth's ``λ`` of the step before the tick, if any.
+    clock : Clock or None
+        The arm's controller's clock (:class:`~drake_coop.control.timing.Clock`): the model
+        (the ``ZeroOrderHold`` too) samples on it. None (default): the run's grid.
 
     Returns
     -------
@@ -303,15 +316,16 @@ def add_ft_sensor(builder: DiagramBuilder, name: str, period: float, plant_step:
     if lambda_last_step is not None:
         if FTModel.from_settings(settings, period, robot_index, m).ideal:
             ft = builder.AddNamedSystem(f"{name}_ft_sensor",
-                                        ZeroOrderHold(period, m, period - 0.5 * plant_step))
+                                        ZeroOrderHold(*_hold(clock, period, m, plant_step)))
             builder.Connect(lambda_last_step, ft.get_input_port())
             return ft, ft.get_output_port()
         ft = builder.AddNamedSystem(f"{name}_ft_sensor",
                                     FTSensor(period, plant_step, settings, robot_index, m,
-                                             read_lead=0.5 * plant_step))
+                                             read_lead=0.5 * plant_step, clock=clock))
         builder.Connect(lambda_last_step, ft.GetInputPort("lambda_true"))
     else:
         ft = builder.AddNamedSystem(f"{name}_ft_sensor",
-                                    FTSensor(period, plant_step, settings, robot_index, m))
+                                    FTSensor(period, plant_step, settings, robot_index, m,
+                                             clock=clock))
         builder.Connect(lambda_live, ft.GetInputPort("lambda_true"))
     return ft, ft.GetOutputPort("lambda_sensor")

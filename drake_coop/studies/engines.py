@@ -42,7 +42,7 @@ __all__ = ["died", "die_with_parent", "run_case", "run_in_processes", "run_local
 OnResult = Callable[[Case, dict], None]
 
 
-def run_case(scenario_yaml: str, t_end: float | None) -> dict:
+def run_case(scenario_yaml: str, t_end: float | None, clocks=None) -> dict:
     """Simulate one case and return its record (never raises).
 
     Parameters
@@ -51,6 +51,9 @@ def run_case(scenario_yaml: str, t_end: float | None) -> dict:
         The case's scenario, YAML text.
     t_end : float or None
         The run's end, s; None for the task's.
+    clocks : sequence of (Clock or None), optional
+        Each robot's controller-side clock (:func:`~drake_coop.studies.sweep.run_one`);
+        None: the run's grid.
 
     Returns
     -------
@@ -63,7 +66,7 @@ def run_case(scenario_yaml: str, t_end: float | None) -> dict:
 
     start = time.perf_counter()
     try:
-        result = run_one(scenario_yaml, t_end)
+        result = run_one(scenario_yaml, t_end, clocks)
     except MemoryError:
         return died("the case ran out of memory (MemoryError)")
     except Exception as exc:          # a failure to build or run: recorded, not fatal

@@ -22,24 +22,23 @@ computer's clock runs on (tens of ppm for frequency, temperature and ageing toge
 Over the cell's 8 s that rate moves the phase by at most 0.8 ms (a tenth of a 9 ms tick): the
 phase dominates.
 
-How it is built: :func:`clock_built` wraps, while the arm's systems are constructed, the
-periodic-event declarations of Drake's ``LeafSystem`` and the F/T sensor's C++
-``ZeroOrderHold`` so that a declaration ``(period h, offset o)`` — on the arm's own clock —
-becomes ``(h / (1 + ε), φ + o / (1 + ε))`` of the run's time. The blocks themselves are the
-library's, unchanged.
+How it is built: :func:`arm_clocks` gives the run's plan one
+:class:`~drake_coop.control.timing.Clock` per robot (the arm's, the others None;
+:meth:`~drake_coop.experiment.plan.RunPlan.with_clocks`), and every block of that arm's
+controller side declares its periodic events on it: a declaration ``(period h, offset o)`` on
+the arm's clock is ``(h / (1 + ε), φ + o / (1 + ε))`` of the run's time
+(:func:`~drake_coop.control.timing.on_clock`); each block keeps ``h`` in its equations.
 """
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
-from typing import Iterator
 
 import numpy as np
 
 from drake_coop.scenario.schema import Scenario
 
-__all__ = ["PPM_BOUND", "ArmClock", "clock_built", "clock_variant", "draw_clock", "split_clock"]
+__all__ = ["PPM_BOUND", "ArmClock", "arm_clocks", "clock_variant", "draw_clock", "split_clock"]
 
 #: The rate offsets' bound (ppm): ``ε ~ U(−PPM_BOUND, PPM_BOUND) × 1e-6``.
 PPM_BOUND = 100.0
@@ -64,21 +63,6 @@ class ArmClock:
     offset: float
     ppm: float
     robot: int = 1
-
-    def true_time(self, local: float | np.ndarray) -> float | np.ndarray:
-        """The run's time at which the arm's clock reads ``local``.
-
-        Parameters
-        ----------
-        local : float or numpy.ndarray
-            Times on the arm's clock, s (its tick ``k`` at ``k h``).
-
-        Returns
-        -------
-        float or numpy.ndarray
-            ``φ + local / (1 + ε)``, s.
-        """
-        return self.offset + np.asarray(local) / (1.0 + 1e-6 * self.ppm)
 
 
 def draw_clock(rng: np.random.Generator, h: float, robot: int = 1) -> ArmClock:
@@ -143,96 +127,33 @@ def split_clock(variant: str | None) -> tuple[ArmClock | None, str | None]:
     return ArmClock(float(offset), float(ppm), int(robot)), rest or None
 
 
-def _on_clock(clock: ArmClock, active: list):
-    """``(period, offset) → (period', offset')`` on the clock while ``active[0]``."""
-    scale = 1.0 / (1.0 + 1e-6 * clock.ppm)
-
-    def warp(period: float, offset: float) -> tuple[float, float]:
-        if not active[0]:
-            return period, offset
-        return period * scale, clock.offset + offset * scale
-    return warp
-
-
-@contextlib.contextmanager
-def clock_built(scenario: Scenario, clock: ArmClock | None) -> Iterator[None]:
-    """While inside, experiments of ``scenario`` are built with arm ``clock.robot``'s
-    controller side on ``clock`` (the module's docstring); None changes nothing.
+def arm_clocks(scenario: Scenario, clock: ArmClock | None) -> tuple | None:
+    """The plan's clocks (:meth:`~drake_coop.experiment.plan.RunPlan.with_clocks`) of a case
+    with ``clock``: the arm's :class:`~drake_coop.control.timing.Clock`, None for the others.
 
     Parameters
     ----------
     scenario : Scenario
         The case's scenario.
     clock : ArmClock or None
-        The arm's clock.
+        The arm's clock; None: no clock at all.
 
-    Yields
-    ------
-    None
-        The wrapping holds until the block exits.
+    Returns
+    -------
+    tuple of (Clock or None), or None
+        One entry per robot; None when ``clock`` is None.
 
     Raises
     ------
     ValueError
-        The arm does not exist, its offset is negative, or it has sampled encoders or a
-        computation delay (not moved to its clock).
+        The arm does not exist, or its phase is negative.
     """
+    from drake_coop.control.timing import Clock
+
     if clock is None:
-        yield
-        return
+        return None
     if not 0 <= clock.robot < len(scenario.robots):
         raise ValueError(f"clock.robot: an index of the scenario's {len(scenario.robots)} "
                          f"robots, got {clock.robot}")
-    if not clock.offset >= 0.0:
-        raise ValueError(f"clock.offset: must be >= 0 s, got {clock.offset!r}")
-    robot = scenario.robots[clock.robot]
-    e, t = robot.encoders, robot.timing
-    if e.noise_std or e.delay_samples or getattr(e, "counts_per_rev", None) or \
-            t.computation_delay > 0.0 or t.jitter != "none":
-        raise ValueError(f"clock: robot {robot.name} must have ideal encoders and no "
-                         "computation delay (neither is moved to its clock)")
-    from pydrake.systems.framework import LeafSystem
-
-    import drake_coop.experiment.diagram as diagram
-    import drake_coop.sensing.force_sensor as force_sensor
-
-    active = [False]
-    warp = _on_clock(clock, active)
-    names = ("DeclarePeriodicDiscreteUpdateEvent", "DeclarePeriodicUnrestrictedUpdateEvent",
-             "DeclarePeriodicPublishEvent")
-    saved_leaf = {n: LeafSystem.__dict__[n] for n in names}
-    saved = (diagram.AddCooperativeController, diagram.add_ft_sensor, force_sensor.ZeroOrderHold)
-
-    def declare(original):
-        def on_clock(self, period, offset, *args, **kwargs):
-            return original(self, *warp(period, offset), *args, **kwargs)
-        return on_clock
-
-    def during(function, is_arm):
-        def wrapped(*args, **kwargs):
-            active[0] = is_arm(args, kwargs)
-            try:
-                return function(*args, **kwargs)
-            finally:
-                active[0] = False
-        return wrapped
-
-    hold = force_sensor.ZeroOrderHold
-
-    def zero_order_hold(period, size, offset=0.0):
-        on_clock_period, on_clock_offset = warp(period, offset)
-        return hold(on_clock_period, size, on_clock_offset)
-
-    try:
-        for n in names:
-            setattr(LeafSystem, n, declare(saved_leaf[n]))
-        diagram.AddCooperativeController = during(
-            saved[0], lambda a, k: k.get("name") == robot.name)
-        diagram.add_ft_sensor = during(saved[1], lambda a, k: a[1] == robot.name)
-        force_sensor.ZeroOrderHold = zero_order_hold
-        yield
-    finally:
-        for n in names:
-            setattr(LeafSystem, n, saved_leaf[n])
-        diagram.AddCooperativeController, diagram.add_ft_sensor, force_sensor.ZeroOrderHold \
-            = saved
+    arm = Clock(phase=clock.offset, ppm=clock.ppm)
+    return tuple(arm if i == clock.robot else None for i in range(len(scenario.robots)))

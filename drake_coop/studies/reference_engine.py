@@ -313,7 +313,9 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     Returns
     -------
     dict
-        The table (:func:`write_table`), with ``"missing"``: cases not finished.
+        The table (:func:`write_table`), with ``"missing"``: the cases not finished,
+        ``"errored"``: those whose record is an error, and ``"diverged"``: how many cases
+        diverged or were stopped by a failure guard.
     """
     out = Path(out)
     rows = list(rows or [r.name for r in ROWS])
@@ -365,6 +367,9 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
          _batch_died, ray=ray, workers=workers)
     table = write_table(out, cases, records, rows, cols)
     table["missing"] = [c.hash for c in cases if c.hash not in records]
+    status = {c.hash: records[c.hash]["status"] for c in cases if c.hash in records}
+    table["errored"] = [c.hash for c in cases if status.get(c.hash) == "error"]
+    table["diverged"] = sum(status.get(c.hash) in ("diverged", "failed") for c in cases)
     return table
 
 
@@ -462,8 +467,11 @@ def cmd_reference_table(args: argparse.Namespace) -> int:
     Returns
     -------
     int
-        0 every case finished and completed; 1 a case diverged or did not finish; 2 bad
-        input.
+        0 every case finished: a diverged (or guard-stopped) draw is data, counted in its
+        cell, and the summary line says how many; 1 cases did not finish (a worker died:
+        the same command resumes them) or ended in an error (a case that could not be built
+        or run), said in one line, or the calibration or an identification failed; 2 bad
+        input. As ``drake-coop study``, whose diverged cases are results too.
     """
     def split(text):
         return [s for s in text.split(",") if s] if text else None
@@ -481,13 +489,18 @@ def cmd_reference_table(args: argparse.Namespace) -> int:
         return 1
     if not args.quiet:
         print((Path(args.out) / "table.md").read_text())
-    diverged = sum(s["diverged"] for r in table["cells"].values() for s in r.values())
-    if table["missing"]:
-        print(f"drake-coop reference-table: {len(table['missing'])} of {table['cases']} cases "
-              "did not finish (a worker died); run the same command again to resume",
+        print(f"drake-coop reference-table: {table['finished']} of {table['cases']} cases "
+              f"finished, {table['diverged']} of them diverged (counted in their cells)",
               file=sys.stderr)
+    missing, errored = len(table["missing"]), len(table["errored"])
+    if missing or errored:
+        what = [f"{missing} did not finish (a worker died)"] if missing else []
+        what += [f"{errored} ended in an error (their records in {Path(args.out) / 'cases'} "
+                 "say why)"] if errored else []
+        print(f"drake-coop reference-table: of {table['cases']} cases {' and '.join(what)}; "
+              "run the same command again to resume the unfinished ones", file=sys.stderr)
         return 1
-    return 1 if diverged else 0
+    return 0
 
 
 def add_reference_table_parser(sub) -> None:

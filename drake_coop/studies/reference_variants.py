@@ -91,26 +91,36 @@ def variant_hash(base_hash: str, variant: str) -> str:
     return hashlib.sha256(f"{base_hash}\n# variant: {variant}\n".encode()).hexdigest()[:16]
 
 
-def _online_builder(scenario: Scenario, feed_controller: bool = True):
+def _online_builder(scenario: Scenario, feed_controller: bool = True,
+                    prior: dict | None = None, options: dict | None = None):
     """``build(cls, law, h, options)`` making each robot's online identification block (the
-    robots' blocks are built in the scenario's order: the i-th call is robot i); with
-    ``feed_controller`` the block writes its parameters into the controller's model too (the
-    row), without it only its own estimate uses them (beside a loop closed on the sensor)."""
+    robots' blocks are built in the scenario's order: the i-th call is robot i).
+
+    With ``feed_controller`` the block writes its parameters into the controller's model too
+    (the row), without it only its own estimate uses them (beside a loop closed on the
+    sensor). ``prior`` maps a robot's name to its block's ``θ_0`` (default, and for a robot
+    it leaves out: the controller's model's parameters); ``options`` are further keyword
+    arguments of every block (e.g. ``v_min=inf``: no update, the prior held).
+    """
     from drake_coop.identification.online import OnlineIdentification
     from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
     from drake_coop.plant.arms import Arm
 
     robots = iter(scenario.robots)
+    prior, extra = prior or {}, options or {}
 
-    def build(cls, law, h, options):
+    def build(cls, law, h, block_options):
         robot = next(robots)
         arm = Arm(robot, scenario.task)
         structure = load_structure(arm.urdf_path, arm.base_frame,
                                    sensor_joint=robot.sensor_joint)
-        theta0 = true_parameters(structure, law.model.plant)   # the controller's model's
+        theta0 = prior.get(robot.name)
+        if theta0 is None:
+            theta0 = true_parameters(structure, law.model.plant)   # the controller's model's
         return OnlineIdentification(Regressor(structure), theta0, law.model.J_phi,
                                     law.layout, h, law.momentum_gain,
-                                    model=law.model if feed_controller else None)
+                                    model=law.model if feed_controller else None,
+                                    clock=block_options.get("clock"), **extra)
     return build
 
 
@@ -180,7 +190,7 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     """
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.studies.engines import run_case
-    from drake_coop.studies.reference_clock import clock_built, split_clock
+    from drake_coop.studies.reference_clock import arm_clocks, split_clock
 
     scenario = load_scenario(data=scenario_yaml)
     clock, variant = split_clock(variant)
@@ -193,5 +203,5 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
                                 if row == "online" else None)
     else:
         built = variant_built(scenario, variant)
-    with clock_built(scenario, clock), built:
-        return run_case(scenario_yaml, t_end)
+    with built:
+        return run_case(scenario_yaml, t_end, arm_clocks(scenario, clock))

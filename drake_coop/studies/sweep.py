@@ -24,7 +24,7 @@ from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario
 
 
-def run_one(scenario_yaml: str, t_end: float | None = None) -> dict:
+def run_one(scenario_yaml: str, t_end: float | None = None, clocks=None) -> dict:
     """Simulate one scenario (given as YAML) and return its metadata and metrics.
 
     Parameters
@@ -33,6 +33,9 @@ def run_one(scenario_yaml: str, t_end: float | None = None) -> dict:
         The scenario, YAML text.
     t_end : float or None
         The run's end, s; None for the task's.
+    clocks : sequence of (Clock or None), optional
+        Each robot's controller-side clock (passed to
+        :func:`~drake_coop.experiment.simulate.simulate`); None: the run's grid.
 
     Returns
     -------
@@ -43,7 +46,7 @@ def run_one(scenario_yaml: str, t_end: float | None = None) -> dict:
     from drake_coop.results.metrics import compute_metrics
 
     scenario = load_scenario(data=scenario_yaml)
-    result = simulate(scenario, t_end=t_end)
+    result = simulate(scenario, t_end=t_end, clocks=clocks)
     meta = {k: v for k, v in result.meta.items() if k != "scenario_yaml"}
     return {"scenario_yaml": scenario_yaml, "meta": meta,
             "metrics": compute_metrics(result.logs, result.meta)}

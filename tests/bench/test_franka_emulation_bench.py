@@ -67,3 +67,26 @@ def test_an_expiry_in_the_run_is_told_from_the_last_commands(tmp_path):
     assert all(a["commands_expired_in_run"] == 0 and a["commands_expired"] == 1
                and a["last_command_expired_after_s"] == pytest.approx(0.100001)
                for a in last.values())
+
+
+def test_the_driver_cpu_measurement_runs_each_driver_alone_in_alternated_pairs(monkeypatch):
+    """``driver_cpu`` runs the driver's side alone to its end with no fault, plain and
+    emulated, alternating which goes first; the figures are CPU seconds per simulated
+    second of each run (here on a few cycles: the numbers themselves are the bench's)."""
+    import bench.franka_emulation as bench
+
+    order, real = [], bench._driver_side_cpu
+
+    def recorded(scenario, t_end, emulate):
+        run = real(scenario, t_end, emulate)
+        order.append(emulate)
+        assert run["t_end_s"] == pytest.approx(t_end) and run["fault"] == ""
+        return run
+    monkeypatch.setattr(bench, "_driver_side_cpu", recorded)
+    result = bench.driver_cpu(t_end=0.01, pairs=2)
+    emulated = "drake-franka-driver"
+    assert order == [None, emulated, None, emulated, emulated, None]   # warm-ups, then pairs
+    for key in ("plain", "emulated"):
+        assert len(result[key]["per_run"]) == 2 and result[key]["faults"] == ["", ""]
+        assert all(v > 0 for v in result[key]["per_run"])
+        assert result[key]["median"] == pytest.approx(np.median(result[key]["per_run"]))

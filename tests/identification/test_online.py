@@ -241,3 +241,63 @@ def test_without_forgetting_the_update_is_the_batch_least_squares():
     batch = np.linalg.lstsq(A, b, rcond=None)[0]
     assert not np.allclose(batch, theta0, rtol=1e-3)
     np.testing.assert_allclose(theta_hat, batch, rtol=1e-6, atol=1e-9 * np.abs(theta0).max())
+
+
+def test_the_model_is_written_at_initialization_and_by_updates_never_by_the_estimate(
+        monkeypatch):
+    """The controller's model receives ``θ̂`` from ``Simulator.Initialize`` (the context's
+    own, not the last run's) and from each update that changes it; evaluating the force
+    estimate writes nothing. Counted by wrapping :func:`apply_parameters`; the updates that
+    change ``θ̂`` are read from the context's state after every tick."""
+    from pydrake.systems.analysis import Simulator
+
+    import drake_coop.identification.online as online
+
+    writes = []
+    real = online.apply_parameters
+    monkeypatch.setattr(online, "apply_parameters",
+                        lambda model, structure, theta: (writes.append(np.array(theta)),
+                                                         real(model, structure, theta)))
+    _, nominal, structure = _arm()
+    h, layout = 0.009, ReferenceLayout(n=3, m=1)
+    theta0 = true_parameters(structure, nominal.plant)
+    block = OnlineIdentification(Regressor(structure), theta0, nominal.J_phi, layout, h, 25.0,
+                                 model=nominal)
+    ref = layout.pack(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 1)),
+                      np.array([False]))[0]
+    t = np.arange(30) * h
+    q = np.column_stack([0.3 * np.sin(2.0 * t + j) for j in range(3)])
+    v = np.column_stack([0.6 * np.cos(2.0 * t + j) for j in range(3)])
+    tau = np.column_stack([np.cos(3.0 * t + j) for j in range(3)])
+    for run in range(2):
+        writes.clear()
+        context = block.CreateDefaultContext()
+        start = theta0 * (1.1 if run == 0 else 1.0)
+        context.SetDiscreteState(0, start)
+        for port, value in zip((block.get_input_port(i) for i in range(4)),
+                               (q[0], v[0], tau[0], ref)):
+            port.FixValue(context, value)
+        for _ in range(3):
+            block.GetOutputPort("lambda_hat").Eval(context)
+        assert writes == []
+        simulator = Simulator(block, context)
+        simulator.Initialize()
+        if run == 0:          # the context's θ̂(0), which the model did not hold
+            assert len(writes) == 1 and np.array_equal(writes[0], start)
+        else:                 # the last run's θ̂ is in the model: its own θ̂(0) written back
+            assert len(writes) == 1 and np.array_equal(writes[0], theta0)
+        thetas, count = [context.get_discrete_state(0).value().copy()], len(writes)
+        for k in range(1, len(t)):
+            for port, value in zip((block.get_input_port(i) for i in range(3)),
+                                   (q[k], v[k], tau[k])):
+                port.FixValue(context, value)
+            simulator.AdvanceTo(t[k] + 0.5 * h)
+            for _ in range(3):
+                block.GetOutputPort("lambda_hat").Eval(context)
+            thetas.append(context.get_discrete_state(0).value().copy())
+            changed = not np.array_equal(thetas[-1], thetas[-2])
+            assert len(writes) == count + changed
+            if changed:
+                assert np.array_equal(writes[-1], thetas[-1])
+            count = len(writes)
+        assert count >= 20       # the updates ran: most ticks changed θ̂

@@ -217,3 +217,46 @@ def test_identified_columns_identify_from_the_encoders_columns_readings(tmp_path
     for robot, ref in zip(load_scenario(data=case.scenario_yaml).robots, base):
         assert robot.encoders.noise_std == ref.encoders.noise_std
         assert robot.encoders.counts_per_rev == ref.encoders.counts_per_rev
+
+
+def _record(status: str) -> dict:
+    """A case's result of ``status``; an ``ok`` one with the circle's two errors."""
+    metrics = ({"robot1": {"circle": {"force_error": {"rms": 0.1},
+                                      "estimate_error": {"rms": 0.2}}}}
+               if status == "ok" else {})
+    return {"status": status, "message": f"a {status} case", "t_reached": 1.0,
+            "wall_time_s": 0.1, "metrics": metrics}
+
+
+@pytest.mark.parametrize("statuses, quiet, code, line", [
+    (("ok", "diverged"), False, 0, "2 of 2 cases finished, 1 of them diverged"),
+    (("diverged", "failed"), False, 0, "2 of 2 cases finished, 2 of them diverged"),
+    (("ok", "error"), True, 1, "of 2 cases 1 ended in an error"),
+    (("died", "diverged"), True, 1, "of 2 cases 1 did not finish (a worker died); run the "
+                                    "same command again"),
+])
+def test_command_exits_0_with_diverged_draws_and_1_with_unfinished_or_errored_cases(
+        tmp_path, capsys, monkeypatch, statuses, quiet, code, line):
+    """A diverged draw is data (counted in its cell): the command exits 0 and says how many;
+    a case that did not finish or ended in an error exits 1 in one line. The cases' results
+    come from a dispatcher standing in for the workers; the store, the table and the exit
+    are the command's own."""
+    import drake_coop.studies.reference_engine as engine
+    from drake_coop.cli.parser import main
+
+    def dispatch(batches, work, args_of, on_result, on_death, **kwargs):
+        cases = [c for b in batches for c in b.cases]
+        for b in batches:
+            on_result(b, [(c.hash, _record(statuses[cases.index(c)])) for c in b.cases])
+    monkeypatch.setattr(engine, "_run", dispatch)
+    out = tmp_path / "t"
+    args = ["reference-table", "--out", str(out), "--rows", "sensor_3", "--columns", "exact",
+            "--draws", "2", "--batch", "1", *(["--quiet"] if quiet else [])]
+    assert main(args) == code
+    err = capsys.readouterr().err.strip()
+    assert line in err and "Traceback" not in err
+    if quiet:
+        assert "\n" not in err
+    table = json.loads((out / "table.json").read_text())
+    assert table["cells"]["sensor_3"]["exact"]["diverged"] == sum(
+        s in ("diverged", "failed", "error") for s in statuses)

@@ -4,6 +4,8 @@ truth computed here from the logs of an independent run."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -191,7 +193,7 @@ def test_online_row_after_10_s_within_2x_of_the_batch_on_the_same_segment(monkey
     unrefined model's."""
     import drake_coop.studies.reference_variants as variants
     from drake_coop.experiment.simulate import simulate
-    from drake_coop.identification.online import OnlineIdentification, momentum_rows
+    from drake_coop.identification.online import momentum_rows
     from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
     from drake_coop.plant.arms import Arm
     from drake_coop.plant.model_error import controller_arm_model
@@ -240,20 +242,9 @@ def test_online_row_after_10_s_within_2x_of_the_batch_on_the_same_segment(monkey
                                             np.concatenate([*ys, theta0 / scale]),
                                             rcond=None)[0]
 
-    def frozen_builder(scenario, feed_controller=True):
-        robots = iter(scenario.robots)
-
-        def build(cls, law, h, options):
-            robot = next(robots)
-            arm = Arm(robot, scenario.task)
-            structure = load_structure(arm.urdf_path, arm.base_frame,
-                                       sensor_joint=robot.sensor_joint)
-            return OnlineIdentification(Regressor(structure), batch[robot.name],
-                                        law.model.J_phi, law.layout, h, law.momentum_gain,
-                                        v_min=np.inf, model=law.model)
-        return build
-
-    monkeypatch.setattr(variants, "_online_builder", frozen_builder)
+    # the row's own builder with the batch θ as each robot's prior, held (no update)
+    monkeypatch.setattr(variants, "_online_builder", functools.partial(
+        variants._online_builder, prior=batch, options={"v_min": np.inf}))
     with variant_built(s, "online"):
         fixed = simulate(s, t_end=13.0)
     assert fixed.ok
@@ -291,3 +282,28 @@ def test_the_online_row_refines_the_controllers_model_and_beside_the_sensor_loop
     blocks = [b for b in systems(exp.diagram) if isinstance(b, OnlineIdentification)]
     assert len(blocks) == len(loop.robots)
     assert all(block._model is None for block in blocks)
+
+
+def test_the_online_builders_prior_and_options_reach_each_robots_block(monkeypatch):
+    """``_online_builder``'s per-robot prior and block options (what the batch comparison
+    passes): robot 1's block starts from the given θ and holds it (``v_min = inf``); robot 2,
+    left out of the prior, starts from its controller model's parameters."""
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.identification.regressor import load_structure, true_parameters
+    from drake_coop.plant.arms import Arm
+
+    s = _momentum_scenario()
+    arm = Arm(s.robots[0], s.task)
+    structure = load_structure(arm.urdf_path, arm.base_frame,
+                               sensor_joint=s.robots[0].sensor_joint)
+    given = 1.1 * true_parameters(structure)
+    monkeypatch.setattr(variants, "_online_builder", functools.partial(
+        variants._online_builder, prior={"robot1": given}, options={"v_min": np.inf}))
+    with variant_built(s, "online"):
+        exp = build_experiment(plan_run(s), log=False)
+    first, second = (rs.force_observer for rs in exp.robots)
+    np.testing.assert_array_equal(first._theta0, given)
+    assert first._v_min == second._v_min == np.inf
+    np.testing.assert_array_equal(second._theta0, true_parameters(
+        structure, exp.robots[1].law.model.plant))
