@@ -37,7 +37,11 @@ squares, i.e. the Kalman filter of a constant ``θ`` with the rows' noise varian
 ``R = (h σ_τ)²`` and a forgetting factor ``μ``:
 ``K = PΦᵀ(μR I + ΦPΦᵀ)⁻¹``, ``θ̂ ← θ̂ + K(y − Φθ̂)``, ``P ← (P − KΦP)/μ``, with ``trace P`` held
 at most its initial value (no wind-up in the directions the motion does not excite).
-The prior is the controller's model ``θ_0`` with ``P_0 = diag((r|θ_0| + ε)²)``. With ``μ = 1``
+The prior is the controller's model ``θ_0`` with ``P_0 = diag((r|θ_0| + ε)²)``, each
+joint's Coulomb friction's standard deviation at least ``coulomb_prior`` (a model without
+friction has ``f_c0 = 0``: ``r|θ_0|`` alone would hold the friction at zero, and the data would
+move the inertial parameters to explain it instead — on the reference table's Coulomb column
+they did: link masses off by up to 0.6 kg, the squeeze error 1.8 N). With ``μ = 1``
 (the default) ``θ̂`` after any tick is exactly the batch MAP estimate of the same rows,
 ``argmin ‖Φθ − y‖²/R + (θ − θ_0)ᵀP_0⁻¹(θ − θ_0)``. ``R`` matters: the rows are a torque
 times ``h`` (about 10⁻² N·m·s), so with ``R = 1`` the prior outweighs the data by orders of
@@ -59,8 +63,9 @@ sign.
 **Feeding the controller.** The squeeze error under a model error comes mostly from the
 control law's model, not from the force estimate (with the F/T sensor in the loop the ±30 %
 model's squeeze error stays at several newtons): given the controller's model, the block
-writes ``θ̂`` into it after each update (:func:`apply_parameters`), so the control law and
-the velocity observer run on the refined parameters too.
+writes ``θ̂`` into it after each update (:func:`apply_parameters`), Coulomb friction included
+(the model's ``F_c tanh(q̇ / v_c)`` with the regressor's ``v_c``), so the control law and the
+velocity observer run on the refined parameters too.
 
 The force estimate is the momentum observer's, with the model ``Y θ̂``:
 ``r(k) = K_O(Y_p(k)θ̂ − σ(k))``, ``σ(k+1) = σ(k) + h(τ(k) − Y_β(k)θ̂ + r(k))``,
@@ -80,6 +85,7 @@ from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.momentum import momentum_estimate, momentum_step
 from drake_coop.control.params import check_momentum_gain, check_period
 from drake_coop.control.reference_layout import ReferenceLayout
+from drake_coop.identification.estimate import PRIOR_FLOORS
 from drake_coop.identification.regressor import (ArmStructure, Regressor,
                                                  spatial_inertia_from_theta)
 
@@ -120,13 +126,17 @@ def momentum_rows(regressor: Regressor, q: np.ndarray, v: np.ndarray,
     return Y_p, Y[2] - Hdot_v
 
 
-def apply_parameters(model, structure: ArmStructure, theta: np.ndarray) -> None:
+def apply_parameters(model, structure: ArmStructure, theta: np.ndarray,
+                     coulomb_velocity: float | None = None) -> None:
     """Write ``θ`` into a controller's model: each composite link's ten parameters as its
     body's spatial inertia (the bodies welded to it carry none), each joint's reflected rotor
-    inertia and viscous damping. Coulomb friction is not written (the model keeps its own).
+    inertia and viscous damping, and, given ``coulomb_velocity``, each joint's Coulomb
+    friction (the model's ``coulomb``, compensated by its control law and observers as
+    ``F_c tanh(q̇ / v_c)``).
 
     The model's dynamics (``H``, ``C q̇``, ``g``, ``D``, :meth:`inverse_dynamics_terms`) are
-    then those of ``θ``; its kinematics do not change.
+    then those of ``θ`` (with the regressor's friction column when ``coulomb_velocity`` is the
+    regressor's); its kinematics do not change.
 
     Parameters
     ----------
@@ -136,7 +146,12 @@ def apply_parameters(model, structure: ArmStructure, theta: np.ndarray) -> None:
     structure : ArmStructure
         The parameter layout (the same arm: body and joint names of ``model.plant``).
     theta : numpy.ndarray
-        The parameters (p,). Negative damping is written as 0 (Drake refuses it).
+        The parameters (p,). Negative damping and negative Coulomb friction are written as 0
+        (Drake refuses the one, :class:`~drake_coop.control.arm_model.ArmModel` the other).
+    coulomb_velocity : float or None
+        ``v_c`` (rad/s, > 0) of the written friction: the regressor's
+        (:attr:`~drake_coop.identification.regressor.Regressor.coulomb_velocity`). None (the
+        default): the model's Coulomb friction is left as it is.
     """
     plant, context = model.plant, model.context
     for i, link in enumerate(structure.links):
@@ -154,6 +169,12 @@ def apply_parameters(model, structure: ArmStructure, theta: np.ndarray) -> None:
     for k, joint in enumerate(structure.joints):
         plant.GetJointByName(joint).SetDamping(context, float(damping[k]))
     model.D = np.diag(damping)
+    if coulomb_velocity is not None:
+        if not (np.isfinite(coulomb_velocity) and coulomb_velocity > 0.0):
+            raise ValueError(f"coulomb_velocity: must be a finite number > 0 (rad/s), got "
+                             f"{coulomb_velocity}")
+        model.coulomb = np.maximum(theta[structure.joint_slice("coulomb")], 0.0)
+        model.coulomb_velocity = float(coulomb_velocity)
 
 
 class OnlineIdentification(ForceSource):
@@ -216,6 +237,13 @@ class OnlineIdentification(ForceSource):
         on. This changes an object outside the Drake context: two simulations of one
         diagram must not run at once.
         None (the default): only this block's force estimate uses ``θ̂``.
+    coulomb_prior : float
+        The prior's standard deviation of each joint's Coulomb friction at least (N·m,
+        ``≥ 0``): ``max(r|f_c0|, coulomb_prior)``. A model without friction (``f_c0 = 0``)
+        does not know the friction is zero; with ``r|θ_0|`` alone its prior would pin the
+        friction at zero and the data would move the inertial parameters instead. The
+        default is the batch identification's floor
+        (:data:`~drake_coop.identification.estimate.PRIOR_FLOORS`); 0 keeps ``r|θ_0|``.
 
     Input ports
     -----------
@@ -234,7 +262,8 @@ class OnlineIdentification(ForceSource):
     def __init__(self, regressor: Regressor, theta0, J_phi: Callable, layout: ReferenceLayout,
                  period: float, gain: float, forgetting: float = 1.0,
                  prior_relative: float = 1.0, v_min: float = 0.01,
-                 torque_noise: float = 0.03, model=None):
+                 torque_noise: float = 0.03, model=None,
+                 coulomb_prior: float = PRIOR_FLOORS["coulomb"]):
         super().__init__()
         self._regressor = regressor
         self._layout = layout = ReferenceLayout.check(layout)
@@ -252,6 +281,9 @@ class OnlineIdentification(ForceSource):
         if not (np.isfinite(torque_noise) and torque_noise > 0.0):
             raise ValueError(f"torque_noise: must be a finite number > 0 (N·m), got "
                              f"{torque_noise}")
+        if not (np.isfinite(coulomb_prior) and coulomb_prior >= 0.0):
+            raise ValueError(f"coulomb_prior: must be a finite number >= 0 (N·m), got "
+                             f"{coulomb_prior}")
         self._J_phi, self._mu, self._v_min = J_phi, float(forgetting), float(v_min)
         self._R = (period * float(torque_noise)) ** 2
         self._model = model
@@ -259,6 +291,8 @@ class OnlineIdentification(ForceSource):
         n, m = layout.n, layout.m
         self._n, self._m, self._p = n, m, p
         scale = prior_relative * np.abs(theta0) + 1e-5 * max(np.abs(theta0).max(), 1.0)
+        coulomb = regressor.structure.joint_slice("coulomb")
+        scale[coulomb] = np.maximum(scale[coulomb], coulomb_prior)
         self._P0 = np.diag(scale ** 2)
         self._trace0 = float(np.trace(self._P0))
         self._theta0 = theta0
@@ -337,7 +371,8 @@ class OnlineIdentification(ForceSource):
     def _write(self, theta: np.ndarray) -> None:
         """``θ`` into the controller's model, if one was given and it holds other values."""
         if self._model is not None and theta.tobytes() != self._written:
-            apply_parameters(self._model, self._regressor.structure, theta)
+            apply_parameters(self._model, self._regressor.structure, theta,
+                             self._regressor.coulomb_velocity)
             self._written = theta.tobytes()
 
     def _rls(self, theta: np.ndarray, P: np.ndarray, Phi: np.ndarray, y: np.ndarray
