@@ -18,6 +18,12 @@ estimate then runs open loop, on the same motion for every variant):
 Per draw and robot it records the drawn friction, the identified friction, the largest link
 mass error (kg) and the circle's RMS of ``λ̂ − λ`` (N) of each variant, and the momentum
 observer's own (its model has no friction).
+
+``--merge DIR --out docs/results/reference_table_run.json`` puts the online row's exact,
+±30 % and Coulomb cells of a finished ``drake-coop reference-table --rows online --columns
+exact,model_30,coulomb --draws 20 --out DIR`` into the table's results file (from its finished
+cases: a cell of fewer draws says so by its ``n``), the replaced cells kept under
+``replaced``.
 """
 
 from __future__ import annotations
@@ -102,13 +108,53 @@ def summary(draws: list[dict]) -> dict:
                                             for r in d["robots"].values())) for k in VARIANTS}}
 
 
+#: The online row's cells run again with the friction prior (``--merge``).
+MERGED = ("exact", "model_30", "coulomb")
+
+
+def merge(folder: Path, table_file: Path, draws: int = 20) -> dict:
+    """Replace the online row's :data:`MERGED` cells of ``table_file`` (the reference table's
+    results) by the cells of the cases finished in ``folder`` (``drake-coop reference-table
+    --rows online --columns exact,model_30,coulomb --draws 20 --out folder``; a cell of fewer
+    finished draws says so by its ``n``), keeping each replaced cell under
+    ``replaced.online_<column>_before_friction_prior`` and the run's CPU under ``runs``."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.studies.reference_table import cell_statistics, expand_table
+    from drake_coop.studies.store import ResultStore
+
+    records = ResultStore(folder).load()
+    table = json.loads(table_file.read_text())
+    replaced = table.setdefault("replaced", {})
+    cases = expand_table(load_scenario(), ["online"], list(MERGED), draws)
+    for col in MERGED:
+        done = [records[c.hash] for c in cases
+                if c.params["column"] == col and c.hash in records]
+        if not done:
+            continue
+        replaced.setdefault(f"online_{col}_before_friction_prior", table["cells"]["online"][col])
+        table["cells"]["online"][col] = cell_statistics(done)
+    distinct = {c.hash for c in cases if c.hash in records}
+    table["runs"].append({"log": "online row, friction prior (exact, model_30, coulomb)",
+                          "last_progress": f"{len(distinct)} distinct cases finished",
+                          "cpu_s": float(sum(records[h].get("cpu_time_s", 0.0)
+                                             for h in distinct))})
+    table_file.write_text(json.dumps(table, indent=1) + "\n")
+    return {col: table["cells"]["online"][col]["squeeze"]["median"] for col in MERGED}
+
+
 def main() -> None:
-    """Run the draws and write the results file."""
+    """Run the draws and write the results file (or merge a rerun of the online row)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--draws", type=int, default=3, help="draws of the Coulomb column")
     parser.add_argument("--workers", type=int, default=2, help="parallel processes")
     parser.add_argument("--out", required=True, help="the results file (JSON)")
+    parser.add_argument("--merge", default=None, metavar="DIR",
+                        help="put the online row's exact, ±30 %% and Coulomb cells of DIR's "
+                             "finished cases (20 draws) into --out (the table's results file)")
     args = parser.parse_args()
+    if args.merge:
+        print(json.dumps(merge(Path(args.merge), Path(args.out))))
+        return
     with ProcessPoolExecutor(args.workers) as pool:
         draws = list(pool.map(one_draw, range(args.draws)))
     Path(args.out).write_text(json.dumps({"draws": draws, **summary(draws)}, indent=1) + "\n")
