@@ -26,8 +26,10 @@ contact direction's share of the model away from the truth by 0.10 N with ``q̇�
 0.011 N with the central difference; in the loop the estimate went from 0.03 to 0.13 N of
 squeeze error with ``q̇̂``). It is not better everywhere: fed the log of a run whose loop
 ran on a 30 % heavy model (a rough motion, 24 N of force error), the difference's rows left
-1.3 N of that contact-direction error where ``q̇̂``'s left 0.13 N
-(``tests/identification/test_online.py``); in the loop the block smooths its own motion.
+1.3 N of that contact-direction error where ``q̇̂``'s left 0.13 N (measured with the friction
+held at zero; with the friction's prior floor 1.9 N, the friction columns taking part of the
+rough motion's row error) (``tests/identification/test_online.py``); in the loop the block
+smooths its own motion.
 Encoder noise enters the difference amplified by ``1/(√2 h)`` (not measured here).
 
 While the object is held ``λ`` is unknown: the rows are projected onto the complement of

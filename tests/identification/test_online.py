@@ -115,7 +115,8 @@ def test_online_identification_against_the_simulated_truth(run):
     err = [np.sqrt(np.mean([(Y @ (th - theta_true)) ** 2 for Y in rows]))
            for th in (theta_hat, theta0)]
     print("momentum rows' error", err)
-    assert err[0] < 0.1 * err[1]       # measured: 0.17 against 3.19
+    assert err[0] < 0.1 * err[1]       # measured: 0.26 against 3.19 (0.17 with the friction's
+    # prior at zero: the friction columns now take part of this rough motion's row error)
     # the contact direction's share of the model's torque error over the circle, the
     # inverse dynamics with the simulated acceleration: what the squeeze reads as force
     a = np.gradient(log["qdot"], h, axis=0)
@@ -128,7 +129,7 @@ def test_online_identification_against_the_simulated_truth(run):
             e.append(np.linalg.solve(J @ J.T, J @ (Y @ (th - theta_true))))
         lam_err.append(float(np.sqrt(np.mean(np.square(e)))))
     print("contact-direction model error (N)", lam_err)
-    assert lam_err[0] < 0.1 * lam_err[1]    # measured: 1.31 N against 24.3 N
+    assert lam_err[0] < 0.1 * lam_err[1]    # measured: 1.90 N against 24.3 N (1.31 N before)
     # the excited directions (the rows' right singular vectors, rows built here as the module
     # docstring says) converge to the truth (the strongest one to 0.6 %: the others carry the
     # rows' error, large on this run whose loop ran on the 30 % heavy model)
@@ -138,8 +139,8 @@ def test_online_identification_against_the_simulated_truth(run):
     after, before = (np.abs(excited @ (th - theta_true)) for th in (theta_hat, theta0))
     print("singular values / largest", sv[:16] / sv[0], "excited", after, before)
     assert len(excited) >= 3
-    assert after[0] < 0.02 * before[0]             # measured: 0.0023 against 0.41
-    assert np.linalg.norm(after) < 0.4 * np.linalg.norm(before)    # measured: 0.28×
+    assert after[0] < 0.02 * before[0]             # measured: 0.0020 against 0.41
+    assert np.linalg.norm(after) < 0.4 * np.linalg.norm(before)    # measured: 0.25×
     noise = np.sqrt(np.mean((Phi @ theta_true - y) ** 2)) / h
     print("row equation error with the truth (N m)", noise)
     assert 0.01 < noise < 0.5      # measured: 0.35 (the loop on the wrong model: a rough
@@ -148,7 +149,7 @@ def test_online_identification_against_the_simulated_truth(run):
     truth = log["lambda_meas"][circle]
     rms = [np.sqrt(np.mean((lam[circle] - truth) ** 2)) for lam in (lam_online, lam_frozen)]
     print("force estimate error (N)", rms)
-    assert rms[0] < 0.1 * rms[1]       # measured: 1.2 N against 24.2 N
+    assert rms[0] < 0.1 * rms[1]       # measured: 1.78 N against 24.2 N (1.2 N before)
 
 
 def _task_rows(regressor, log, J_phi, h, v_min=0.01):
