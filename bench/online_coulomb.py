@@ -112,14 +112,16 @@ def summary(draws: list[dict]) -> dict:
 MERGED = ("exact", "model_30", "coulomb")
 
 
-def merge(folder: Path, table_file: Path, draws: int = 20) -> dict:
+def merge(folder: Path, table_file: Path, draws: int = 20, before: Path | None = None) -> dict:
     """Replace the online row's :data:`MERGED` cells of ``table_file`` (the reference table's
     results) by the cells of the cases finished in ``folder`` (``drake-coop reference-table
     --rows online --columns exact,model_30,coulomb --draws 20 --out folder``; a cell of fewer
     finished draws says so by its ``n``), keeping each replaced cell under
-    ``replaced.online_<column>_before_friction_prior`` and the run's CPU under ``runs``."""
+    ``replaced.online_<column>_before_friction_prior`` and the run's CPU under ``runs``; with
+    ``before`` (the store of the earlier block's run), each column's squeeze error paired by
+    draw under ``paired.online_<column>``."""
     from drake_coop.scenario.loading import load_scenario
-    from drake_coop.studies.reference_table import cell_statistics, expand_table
+    from drake_coop.studies.reference_table import cell_statistics, expand_table, per_draw
     from drake_coop.studies.store import ResultStore
 
     records = ResultStore(folder).load()
@@ -133,6 +135,16 @@ def merge(folder: Path, table_file: Path, draws: int = 20) -> dict:
             continue
         replaced.setdefault(f"online_{col}_before_friction_prior", table["cells"]["online"][col])
         table["cells"]["online"][col] = cell_statistics(done)
+        if before is not None:
+            earlier = ResultStore(before).load()
+            pairs = [(per_draw(earlier[c.hash])["squeeze"], per_draw(records[c.hash])["squeeze"])
+                     for c in cases if c.params["column"] == col and c.hash in records
+                     and c.hash in earlier]
+            old, new = (np.array(v) for v in zip(*pairs))
+            table.setdefault("paired", {})[f"online_{col}"] = {
+                "n": len(pairs), "before": old.tolist(), "after": new.tolist(),
+                "worse": int(np.sum(new > old)), "largest_increase": float(np.max(new - old)),
+                "largest_after": float(np.max(new)), "median_ratio": float(np.median(new / old))}
     distinct = {c.hash for c in cases if c.hash in records}
     table["runs"].append({"log": "online row, friction prior (exact, model_30, coulomb)",
                           "last_progress": f"{len(distinct)} distinct cases finished",
@@ -151,9 +163,12 @@ def main() -> None:
     parser.add_argument("--merge", default=None, metavar="DIR",
                         help="put the online row's exact, ±30 %% and Coulomb cells of DIR's "
                              "finished cases (20 draws) into --out (the table's results file)")
+    parser.add_argument("--before", default=None, metavar="DIR",
+                        help="--merge: the earlier block's store, to pair the draws with")
     args = parser.parse_args()
     if args.merge:
-        print(json.dumps(merge(Path(args.merge), Path(args.out))))
+        print(json.dumps(merge(Path(args.merge), Path(args.out),
+                               before=Path(args.before) if args.before else None)))
         return
     with ProcessPoolExecutor(args.workers) as pool:
         draws = list(pool.map(one_draw, range(args.draws)))
