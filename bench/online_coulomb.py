@@ -8,10 +8,10 @@ controller's model has none), then feeds each robot's logged ``q``, ``q̇̂``, `
 reference through :class:`~drake_coop.identification.online.OnlineIdentification` (the
 estimate then runs open loop, on the same motion for every variant):
 
-* ``no_friction_prior``: ``coulomb_prior = 0``, the block before the friction prior (the
-  friction's prior standard deviation ``r|f_c0| = 0``);
-* ``friction_prior``: the block as shipped;
-* ``plant_smoothing``: as shipped, with the regressor's friction column smoothed as the
+* ``no_friction_prior``: ``coulomb_prior = 0``, the block's default (the friction's prior
+  standard deviation ``r|f_c0| = 0``);
+* ``friction_prior``: ``coulomb_prior = 0.5`` N·m (the batch identification's floor);
+* ``plant_smoothing``: as ``friction_prior``, with the regressor's friction column smoothed as the
   simulated plant's (``v_c = 0.01`` rad/s instead of the identification's 0.02): the share of
   what is left that is the friction's shape, which no controller knows.
 
@@ -19,11 +19,13 @@ Per draw and robot it records the drawn friction, the identified friction, the l
 mass error (kg) and the circle's RMS of ``λ̂ − λ`` (N) of each variant, and the momentum
 observer's own (its model has no friction).
 
-``--merge DIR --out docs/results/reference_table_run.json`` puts the online row's exact,
-±30 % and Coulomb cells of a finished ``drake-coop reference-table --rows online --columns
-exact,model_30,coulomb --draws 20 --out DIR`` into the table's results file (from its finished
-cases: a cell of fewer draws says so by its ``n``), the replaced cells kept under
-``replaced``.
+``--merge DIR --out docs/results/reference_table_online_prior.json`` puts the online row's
+exact, ±30 % and Coulomb cells of a finished ``drake-coop reference-table --rows online
+--columns exact,model_30,coulomb --draws 20 --out DIR`` into a copy of the table's results
+file (from its finished cases: a cell of fewer draws says so by its ``n``), the table's own
+cells kept under ``replaced``. The committed file's cells were run with the block's
+``coulomb_prior`` at 0.5 N·m (its default when they ran; the command line has no switch for
+it, the table's online row runs the default 0).
 """
 
 from __future__ import annotations
