@@ -238,7 +238,8 @@ def _check_grasp(scenario) -> TaskCheck:
     result = check_grasp_dynamics(scenario)
     values = {"checked": result.checked}
     if result.checked:
-        values.update(growth_rate_per_s=result.sigma, worst=result.worst,
+        values.update(growth_rate_per_s=result.sigma, amplification=result.amplification,
+                      tilt_deg=result.tilt_deg, worst=result.worst,
                       joints=result.joints, pads=result.pads,
                       box_turn_axis=result.box_turn_axis, cpu_seconds=result.cpu_seconds)
         buckling = check_grasp_buckling(scenario)      # the static bound, for the record

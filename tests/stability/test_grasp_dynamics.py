@@ -10,7 +10,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import LeafSystem
 
 from drake_coop.control.arm_plant import description_packages
-from drake_coop.stability.grasp_dynamics import growth_rate, twin_run
+from drake_coop.stability.grasp_dynamics import (PASSAGE, SETTLE, amplification, growth_rate,
+                                                 passages, twin_run)
 
 robots_extra = pytest.mark.skipif("example-robot-data" not in description_packages(),
                                   reason='example-robot-data is not installed '
@@ -70,6 +71,76 @@ def test_growth_rate_is_the_slope_of_the_logarithm_over_the_second_half():
     assert growth_rate(t, np.where(t > 1.5, 0.0, 1.0)) == math.inf
     with pytest.raises(ValueError, match="t, deviation"):
         growth_rate(t[:3], d[:3])
+
+
+class _TimeVaryingTracker(LeafSystem):
+    """``ẋ = σ(t) (x − r(t)) + ṙ(t)``, ``r(t) = 0.3 sin t``: the nominal from ``x(0) = r(0)``
+    follows the moving reference exactly, and a twin's deviation obeys ``δ̇ = σ(t) δ``, whose
+    amplification from ``t_a`` to ``t_b`` is ``exp(∫_a^b σ dt)``."""
+
+    def __init__(self, sigma):
+        super().__init__()
+        self.sigma = sigma
+        self.DeclareContinuousState(1)
+
+    def DoCalcTimeDerivatives(self, context, derivatives):
+        t = context.get_time()
+        x = context.get_continuous_state_vector()[0]
+        derivatives.get_mutable_vector().SetFromVector(
+            [self.sigma(t) * (x - 0.3 * math.sin(t)) + 0.3 * math.cos(t)])
+
+
+def _largest_rise(F, t):
+    """``max_{a ≤ b} F(t_b) − F(t_a)`` over the samples (the closed form's integral ``F``)."""
+    values = np.array([F(x) for x in t])
+    return max(values[b] - values[: b + 1].min() for b in range(len(values)))
+
+
+# a growth that ends (σ = 2 − t: the deviation grows until t = 2, then decays), and one that
+# comes and goes (σ = 1.5 sin 2πt/2: the largest stretch is one positive half-period, however
+# many there are)
+@pytest.mark.parametrize("sigma, F", [
+    (lambda t: 2.0 - t, lambda t: 2.0 * t - 0.5 * t * t),
+    (lambda t: 1.5 * math.sin(math.pi * t), lambda t: -1.5 / math.pi * math.cos(math.pi * t))])
+def test_the_amplification_along_a_moving_reference_is_the_closed_forms(sigma, F):
+    system = _TimeVaryingTracker(sigma)
+    sims = []
+    for start in (0.0, 1e-6):
+        sim = Simulator(system)
+        sim.get_mutable_context().SetContinuousState([start])
+        sim.get_mutable_integrator().set_target_accuracy(1e-10)
+        sim.Initialize()
+        sims.append(sim)
+    run = twin_run(sims[0], sims[1], lambda ctx: ctx.get_continuous_state_vector()
+                   .CopyToVector(), 0.0, window=4.0, samples=80)
+    factor, a, b = amplification(run.deviation)
+    expected = _largest_rise(F, run.t)
+    assert math.log(factor) == pytest.approx(expected, rel=1e-4)
+    assert F(run.t[b]) - F(run.t[a]) == pytest.approx(expected, rel=1e-9)
+    # the same loop frozen at its worst instant would grow without end: the dwell decides
+    assert max(sigma(t) for t in run.t) > 0.9
+
+
+def test_the_amplification_is_the_largest_rise_over_any_stretch():
+    assert amplification(np.array([1.0, 0.5, 2.0, 1.0, 8.0])) == (16.0, 1, 4)
+    assert amplification(np.array([3.0, 2.0, 1.0]))[0] == 1.0        # never grows
+    assert amplification(np.array([1.0, 4.0, 0.1, 0.2]))[:2] == (4.0, 0)
+    assert amplification(np.array([1.0, math.nan]))[0] == math.inf
+    with pytest.raises(ValueError, match="deviation"):
+        amplification(np.zeros((2, 2)))
+
+
+def test_the_stretches_followed_are_the_lift_or_the_circle_around_a_growing_posture():
+    from drake_coop.scenario.schema import Task
+
+    task = Task()                       # grasp 15 s, circle 25 … 65 s
+    lift = (task.t_grasp + SETTLE, task.t_circle_start)
+    assert passages(task, []) == []
+    assert passages(task, [17.0]) == [lift]             # the whole lift, the box on its stand
+    assert passages(task, [35.0, 45.0]) == [(35.0 - PASSAGE, 45.0 + PASSAGE)]   # joined
+    assert passages(task, [17.0, 25.0, 55.0]) == [lift, (25.0, 25.0 + PASSAGE),
+                                                   (55.0 - PASSAGE, 55.0 + PASSAGE)]
+    assert passages(task, [65.0]) == [(65.0 - PASSAGE, 65.0)]
 
 
 def test_only_a_two_pad_contact_grasp_is_checked():
