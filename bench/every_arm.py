@@ -463,6 +463,10 @@ def main(argv=None) -> int:
             if key not in data["cases"]:
                 print(f"{key}: not in {out}, run it first", flush=True)
                 continue
+            if "grasp_recheck" in data["cases"][key] and not args.force:
+                print(f"{key}: rechecked in {out}, skipped (--force checks it again)",
+                      flush=True)
+                continue
             written = recheck(key, data, out)
             if key not in written and "refusal" not in data["cases"][key] \
                     and "gains" in data["cases"][key]:

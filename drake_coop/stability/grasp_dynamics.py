@@ -176,13 +176,13 @@ def twin_run(nominal, twin, read, t_start: float, window: float = WINDOW,
 
 
 def amplification(deviation: np.ndarray) -> tuple[float, int, int]:
-    """The largest factor by which a deviation grew over any stretch of its samples:
-    ``max_{a ≤ b} ‖δ_b‖ / ‖δ_a‖`` (1 when it never grows).
+    r"""The largest factor by which a deviation grew over any stretch of its samples:
+    :math:`\max_{a \le b} \|\delta_b\| / \|\delta_a\|` (1 when it never grows).
 
     Of a linear time-varying loop ``δ̇ = A(t) δ`` followed along its reference, this is what
     a disturbance entering at ``t_a`` has become at ``t_b``, the worst pair; for a scalar
-    ``δ̇ = σ(t) δ`` it is ``exp(max_{a ≤ b} ∫_a^b σ dt)``: the growth weighed by how long
-    the loop stays where it grows.
+    ``δ̇ = σ(t) δ`` it is :math:`\exp(\max_{a \le b} \int_a^b \sigma\, dt)`: the growth
+    weighed by how long the loop stays where it grows.
 
     Parameters
     ----------
@@ -370,6 +370,8 @@ class GraspDynamics:
     amplification : dict of str to float
         Per stretch followed along the moving reference (``"a–b s"``): the largest
         amplification of a disturbance there (:func:`amplification`).
+    tilt_deg : dict of str to float
+        Per stretch followed: the box's largest tilt in the loop itself, degrees.
     worst : str
         The posture of the largest ``σ``, or the stretch of the largest amplification
         when one was followed.
