@@ -20,6 +20,8 @@ row's result), and the run to the circle's end (+1 s) measured by
     python -m bench.every_arm --table --out docs/results/every_arm.json      # the table only
     python -m bench.every_arm --buckling jaco2 --out docs/results/every_arm.json  # diagnosis
     python -m bench.every_arm --grasp-dynamics ur5 --out docs/results/every_arm.json  # check
+    python -m bench.every_arm --recheck ur5 --out docs/results/every_arm.json  # verdict again
+    python -m bench.every_arm --lift jaco2 --out docs/results/every_arm.json  # the lift's truth
     python -m bench.every_arm jaco2 --squeeze friction --out docs/results/every_arm.json
     python -m bench.every_arm ur3 --squeeze-scale 0.5 --out docs/results/every_arm.json
 
@@ -267,6 +269,44 @@ def recheck(key: str, data: dict, out: Path) -> dict:
     return written
 
 
+def lift_row(key: str, out: Path, squeeze: str | None = None) -> dict:
+    """The row's pair (its setup and the gains ``gains`` derives, no checks) run to the
+    lift's end, from the plant's truth (:func:`~drake_coop.results.object_metrics.
+    object_signals`): the run's status and message, the box's largest tilt (degrees) and the
+    first time it passes the tilt guard, the pads' largest friction use ``f_t / (μ f_n)`` and
+    slide on the box (m) before that time: whether a grasp lost in the lift slid or turned."""
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.results.object_metrics import object_signals
+    from drake_coop.stability.gains import derive_gains, gains_for_scenario
+
+    arms = MIXED if key == "mixed" else (key, key)
+    places = [placement(a, out.parent)[0] for a in dict.fromkeys(arms)]
+    places = places * 2 if arms[0] == arms[1] else places
+    scenario = load_pair(arms, places, out.parent / f".{key}.lift.yaml")
+    if squeeze is not None:
+        scenario.object_model.squeeze = squeeze
+    scenario = gains_for_scenario(scenario, derive_gains(scenario))
+    start = time.process_time()
+    result = simulate(scenario, t_end=scenario.task.t_circle_start)
+    signals = object_signals(result.logs, result.meta)
+    robots = list(result.logs)
+    t = np.asarray(result.logs[robots[0]]["t"], dtype=float)
+    tilt = np.degrees(np.nan_to_num(signals[robots[0]]["object_tilt"]))
+    guard = scenario.guards.max_object_tilt_deg
+    past = np.flatnonzero(tilt > guard)
+    end = int(past[0]) if past.size else len(t)
+    use = max(float(np.nanmax(np.append(signals[r]["friction_use"][:end], 0.0)))
+              for r in robots)
+    slide = max(float(np.nanmax(np.append(np.abs(signals[r]["slip"][:end]), 0.0)))
+                for r in robots)
+    return {"arms": list(arms), "status": result.meta["status"],
+            "message": result.meta.get("message"), "t_end": float(t[-1]),
+            "tilt_max_deg": float(tilt.max()), "tilt_guard_deg": guard,
+            "t_tilt_guard": float(t[past[0]]) if past.size else None,
+            "friction_use_max": use, "slide_max_m": slide,
+            "cpu_seconds": round(time.process_time() - start, 1)}
+
+
 def buckling(key: str, out: Path, t_end: float = 24.0) -> dict:
     """The grasp's buckling bound against the simulated truth on a pair (the row's setup and
     derived gains, :func:`~drake_coop.stability.gains.derive_gains`, no checks): the task's
@@ -359,7 +399,7 @@ def table(data: dict) -> str:
              "| slips | mass at the lift's end (%) | bars (0.3 N, 0.5 mm, 0 slips) |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     for key in sorted(data["cases"], key=lambda k: (k.split("@")[0] == "mixed", k)):
-        if key.endswith(("@buckling", "@past", "@grasp")) or "@scale" in key:
+        if key.endswith(("@buckling", "@past", "@grasp", "@lift")) or "@scale" in key:
             continue
         case = data["cases"][key]
         arms = " + ".join(case.get("arms", [key]))
@@ -422,6 +462,10 @@ def main(argv=None) -> int:
     parser.add_argument("--grasp-dynamics", action="store_true",
                         help="instead of the rows: only the grasp's dynamics check of gains "
                              "on each named pair (:func:`grasp_row`), under ROW[@sqS]@grasp")
+    parser.add_argument("--lift", action="store_true",
+                        help="instead of the rows: each named pair run to the lift's end, "
+                             "its tilt, friction use and slide (:func:`lift_row`), under "
+                             "ROW[@sqS]@lift")
     parser.add_argument("--recheck", action="store_true",
                         help="instead of the rows: check each named row of the file again "
                              "with the grasp's dynamics check and rewrite its verdict "
@@ -455,6 +499,16 @@ def main(argv=None) -> int:
             case["drake"], case["cpu"] = version("drake"), _cpu_name()
             write_case(out, key, case)
             print(key, case["message"], flush=True)
+        return 0
+    if args.lift:
+        for row in args.rows:
+            key = row + (f"@sq{args.squeeze}" if args.squeeze else "") + "@lift"
+            case = lift_row(row, out, args.squeeze)
+            case["command"] = (f"python -m bench.every_arm --lift {row} --out {args.out}"
+                               + (f" --squeeze {args.squeeze}" if args.squeeze else ""))
+            case["drake"], case["cpu"] = version("drake"), _cpu_name()
+            write_case(out, key, case)
+            print(key, json.dumps(case), flush=True)
         return 0
     if args.recheck:
         for row in args.rows:

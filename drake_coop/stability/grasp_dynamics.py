@@ -32,20 +32,36 @@ contacts make central differences of the whole state delicate, and only the domi
 needed. A friction contact that sticks keeps a displaced grasp where it is (an exponent 0: the
 deviation stops shrinking without growing), so the bar is :data:`GROWTH_BAR`, not 0.
 
-Its limits, measured: a frozen posture cannot tell how long the moving loop stays where a mode
-grows — a slow growth at one posture the circle passes in a few seconds does not lose the box
-(the Jaco2s at the friction squeeze: refused, and they carry it) — and a grasp lost through
-the pads slipping on the box is not a small growing displacement (the Jaco2s at the task's
-squeeze lose the box in the lift, where the frozen loop is stable; they are refused, barely,
-at the lift's end).
+A frozen posture is a screen, not the verdict: it cannot tell how long the moving loop stays
+where a mode grows (the Jaco2s at the friction squeeze grow at 0.78 1/s frozen at the circle's
+bottom, which the circle passes, and carry the box), nor see what the reference's own motion
+does (the same Jaco2s at the task's squeeze lose the box early in the lift, where the pads
+take its weight off the stand while the squeeze ramps up: the box tilts, the pads do not slide
+— their friction use stays below 0.6). So where the frozen ``σ`` exceeds :data:`GROWTH_BAR`,
+the loop is **followed along the task's own reference** (:func:`moving_grasp`) through that
+stretch (:func:`passages`: the whole lift from the box on its stand, or :data:`PASSAGE` s on
+each side of a posture of the circle), the twin beside it, and two things are read:
 
-:func:`check_grasp_dynamics` does this at the postures of :func:`grasp_points` (the lift's end
-and three points of the circle) and refuses a task where ``σ`` exceeds the bar, naming the
-posture, ``σ`` (1/s), the mode's shape (which joints, the pads moving together or against each
-other, the box's rotation) and what to change. Its cost: 4 s of simulated time a posture (the
-settling, the loop and its twin), measured at about 6 s of CPU a posture for two six-joint
-UR3s and 14 s for two seven-joint xArm7s on a loaded 2-core machine; done only in ``contact``
-mode.
+* the **amplification** of a disturbance, :func:`amplification` of ``‖δ‖`` sampled every
+  :data:`PASSAGE_SAMPLE` s: the largest factor by which it grew over any stretch — for a
+  scalar ``δ̇ = σ(t) δ``, :math:`\exp(\max_{a \le b} \int_a^b \sigma\, dt)`, the growth
+  weighed by the time the moving loop spends where it grows; refused above
+  :data:`AMPLIFICATION_BAR`;
+* the **box's tilt** in the followed loop itself, against the run's tilt guard
+  (``guards.max_object_tilt_deg``): a loop that loses the box while following the reference
+  is refused whatever the twin says.
+
+:func:`check_grasp_dynamics` runs the frozen screen at the postures of :func:`grasp_points`
+(a fifth into the lift, the lift's end and three points of the circle), follows the stretches
+where it grows, and refuses in one line: the stretch and its times, the amplification or the
+tilt, the frozen ``σ`` (1/s), the mode's shape (which joints, the pads moving together or
+against each other, the box's rotation) and what to change. The physics it sees is that of the
+``contact`` run (hydroelastic pads, the free box, the stand, both controllers, observers and
+the object model), without the encoders' quantization and noise. Its cost: 4 s of simulated
+time a posture (about 6 s of CPU for two six-joint arms, 14 s for two seven-joint xArm7s on a
+loaded 2-core machine), and twice the stretch's length for each stretch followed (10 s for a
+posture of the circle, 9 s for the paper's lift), stopped as soon as it refuses; done only in
+``contact`` mode.
 """
 
 from __future__ import annotations
@@ -82,7 +98,10 @@ GROWTH_BAR = 0.3
 PASSAGE = 5.0
 #: The deviation's sampling along the moving reference (s).
 PASSAGE_SAMPLE = 0.25
-#: The largest amplification of a disturbance accepted along the moving reference.
+#: The largest amplification of a disturbance accepted along the moving reference: a chosen
+#: factor, two decades, not fitted to a pair. Measured: the grasps carried through a growing stretch amplify it about 20-fold
+#: (the Jaco2s at the friction squeeze, around the circle's bottom), the lost ones by more than
+#: the bar within seconds, or tilt the box past its guard first.
 AMPLIFICATION_BAR = 100.0
 
 

@@ -18,8 +18,10 @@
     feedforward ``H q̈_d + C q̇_d + g − J_φᵀ λ_d`` on the reference (:func:`torque_path`).
 ``grasp``
     ``contact`` mode only: the grasp's own closed-loop dynamics, the ``contact`` loop frozen at
-    postures of the task (:func:`~drake_coop.stability.grasp_dynamics.check_grasp_dynamics`):
-    fails when a disturbance of the grasp grows. The ideal modes have no such mode. The
+    postures of the task and, where one grows, followed along the task's moving reference
+    (:func:`~drake_coop.stability.grasp_dynamics.check_grasp_dynamics`): fails when a
+    disturbance of the grasp grows there beyond its bar or the followed loop tilts the box past
+    its guard. The ideal modes have no such mode. The
     squeeze's static buckling ratio (:func:`~drake_coop.stability.grasp.check_grasp_buckling`)
     is recorded beside it, not checked: it does not separate held from lost grasps.
 

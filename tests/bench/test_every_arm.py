@@ -114,13 +114,18 @@ def _grasp_checks(cases: dict) -> dict:
 def _run_outcomes(cases: dict) -> dict:
     """Per row key: True when its run (or its run past the refusal) carried the box through
     the circle, False when the run ended failed or diverged, or when the buckling diagnosis
-    run (``@buckling``, the task's squeeze) tilted the box past the tilt guard's default."""
+    run (``@buckling``, the task's squeeze) tilted the box past the tilt guard's default, or
+    the run to the lift's end (``@lift``) ended failed."""
     out = {}
     for key, case in cases.items():
         if key.endswith("@buckling"):      # the diagnosis run to the lift's end: lost if tilted
             angle = case["runs"]["profile"]["box_angle_max_rad"]
             if angle > math.radians(10.0):          # guards.max_object_tilt_deg's default
                 out[key[: -len("@buckling")]] = False
+            continue
+        if key.endswith("@lift"):          # the run to the lift's end: lost if it failed
+            if case["status"] != "ok":
+                out[key[: -len("@lift")]] = False
             continue
         base = key[: -len("@past")] if key.endswith("@past") else key
         if "verdict" not in case:

@@ -186,11 +186,11 @@ def _tilt_max(result) -> float:
 @pytest.mark.slow
 @robots_extra
 @pytest.mark.parametrize("name, squeeze, points, t_end, refused", [
-    # the UR3s at the task's squeeze: the frozen loop grows 2 s into the circle, the moving
-    # loop through it loses the box; the run past the refusal fails on the box's tilt
-    ("ur3", "profile", [("circle", 27.0)], 31.0, True),
+    # the UR3s at the task's squeeze: the frozen loop grows a quarter into the circle, the
+    # moving loop through it loses the box; the run past the refusal fails on the tilt
+    ("ur3", "profile", [("circle 25 %", 35.0)], 31.0, True),
     # the UR3s at the friction squeeze: nothing grows, the run carries the box
-    ("ur3", "friction", [("circle", 27.0)], 31.0, False),
+    ("ur3", "friction", [("circle 25 %", 35.0)], 31.0, False),
     # the Jaco2s at the task's squeeze: the frozen loop grows a fifth into the lift, the
     # loop lifting the box off its stand tilts it past the guard; so does the run
     ("jaco2", "profile", [("lift", 17.0)], 20.0, True),
