@@ -82,16 +82,13 @@ SETTLE = 1.0
 WINDOW = 1.5
 #: The twin's joint displacement (rad, the norm over both arms' joints).
 PERTURBATION = 1e-5
-#: The largest growth rate ``σ`` accepted (1/s). A sticking friction contact keeps a
-#: displacement (an exponent 0), so the bar is above 0, with room for the fit's spread (the
-#: UR3s' lift end gave 0.30 and 0.22 1/s in two computations: a direct call and the one
-#: inside ``gains``). Set from the UR3, Z1, xArm7 and Panda pairs of the lab-arms guide's table
-#: (``docs/results/every_arm.json``): the grasps that held had a worst ``σ`` of about
-#: −0.4 … −0.1 1/s, the UR3s and Z1s, lost, 2.3 and 1.6 1/s. Measured after it was set: the
-#: other held grasps −0.5 … −0.1 1/s, the SO-ARM100s 5.9 1/s and the Jaco2s, lost in the lift,
-#: only 0.38 1/s at the lift's end (a close call); and one wrong verdict: the Jaco2s at the
-#: friction squeeze, 0.78 1/s at the circle's bottom only, carry the box (the module
-#: docstring's limits).
+#: The frozen loop's largest growth rate ``σ`` that needs no following (1/s): the screen's
+#: bar. A sticking friction contact keeps a displacement (an exponent 0), so the bar is above
+#: 0, with room for the fit's spread (the UR3s' lift end gave 0.30 and 0.22 1/s in two
+#: computations). Set from the UR3, Z1, xArm7 and Panda pairs of the lab-arms guide's table
+#: (``docs/results/every_arm.json``): the grasps that held had a worst frozen ``σ`` of about
+#: −0.4 … −0.1 1/s, the UR3s and Z1s, lost, 2.3 and 1.6 1/s. A posture above it is not a
+#: verdict: the loop is then followed along the moving reference (module docstring).
 GROWTH_BAR = 0.3
 #: How far the moving reference is followed on each side of a posture whose frozen loop
 #: grows (s): half the circle's posture spacing, so the stretches of two neighbours join.
@@ -99,9 +96,10 @@ PASSAGE = 5.0
 #: The deviation's sampling along the moving reference (s).
 PASSAGE_SAMPLE = 0.25
 #: The largest amplification of a disturbance accepted along the moving reference: a chosen
-#: factor, two decades, not fitted to a pair. Measured: the grasps carried through a growing stretch amplify it about 20-fold
-#: (the Jaco2s at the friction squeeze, around the circle's bottom), the lost ones by more than
-#: the bar within seconds, or tilt the box past its guard first.
+#: factor, two decades, not fitted to a pair. Measured: the Jaco2s at the friction squeeze,
+#: which carry the box, amplify it about 20-fold through the circle's bottom and 4-fold
+#: through the lift; the grasps that are lost pass the bar within seconds of the stretch, or
+#: tilt the box past its guard first.
 AMPLIFICATION_BAR = 100.0
 
 
