@@ -128,6 +128,9 @@ def _run_outcomes(cases: dict) -> dict:
                 out[key[: -len("@lift")]] = False
             continue
         base = key[: -len("@past")] if key.endswith("@past") else key
+        if case.get("status") in ("failed", "diverged"):     # lost, in the circle or before
+            out[base] = False
+            continue
         if "verdict" not in case:
             continue
         out[base] = case.get("status") == "ok"
