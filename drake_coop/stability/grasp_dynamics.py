@@ -37,7 +37,8 @@ where a mode grows (the Jaco2s at the friction squeeze grow at 0.78 1/s frozen a
 bottom, which the circle passes, and carry the box), nor see what the reference's own motion
 does (the same Jaco2s at the task's squeeze lose the box early in the lift, where the pads
 take its weight off the stand while the squeeze ramps up: the box tilts, the pads do not slide
-— their friction use stays below 0.6). So where the frozen ``σ`` exceeds :data:`GROWTH_BAR`,
+— their friction use stays inside the cone, their slide on the box a few µm, until the
+box has tilted past the guard). So where the frozen ``σ`` exceeds :data:`GROWTH_BAR`,
 the loop is **followed along the task's own reference** (:func:`moving_grasp`) through that
 stretch (:func:`passages`: the whole lift from the box on its stand, or :data:`PASSAGE` s on
 each side of a posture of the circle), the twin beside it, and two things are read:
@@ -579,14 +580,17 @@ def check_grasp_dynamics(scenario, bar: float = GROWTH_BAR,
         key = f"{label} (t = {t_star:.2f} s)"
         out.sigma[key] = found["sigma"]
         if found["sigma"] > bar:
-            growing.append(t_star)
+            growing.append((t_star, key))
         if worst is None or found["sigma"] > worst[1]["sigma"]:
             worst = (key, found)
     frozen_worst = worst[0]
     followed = None
-    for t_a, t_b in passages(scenario.task, growing):
+    for t_a, t_b in passages(scenario.task, [t for t, _ in growing]):
         found = _passage(scenario, t_a, t_b, amplification_bar)
         key = f"{t_a:.2f}–{t_b:.2f} s"
+        inside = [k for t, k in growing if any(t_a <= a and b <= t_b for a, b
+                                               in passages(scenario.task, [t]))]
+        found["posture"] = max(inside, key=lambda k: out.sigma[k]) if inside else frozen_worst
         out.amplification[key] = found["amplification"]
         out.tilt_deg[key] = math.degrees(found["tilt"])
         lost = found["tilt"] > found["tilt_bar"]
@@ -632,7 +636,7 @@ def check_grasp_dynamics(scenario, bar: float = GROWTH_BAR,
         what = (f"a disturbance grows {grown} x{amplification_bar:g} between t = "
                 f"{found['t_from']:.2f} and {found['t_to']:.2f} s on the moving reference")
     out.message = (f"grasp dynamics: the grasp is unstable along the task: {what} (the frozen "
-                   f"loop at "
-                   f"{frozen_worst} grows at {sigma:.3g} 1/s; joints {soft}; pads "
+                   f"loop at {found['posture']} grows at {out.sigma[found['posture']]:.3g} "
+                   f"1/s; joints {soft}; pads "
                    f"{out.pads}{turn}); use {remedy}")
     return out
