@@ -100,7 +100,8 @@ PASSAGE_SAMPLE = 0.25
 #: factor, two decades, not fitted to a pair. Measured: the Jaco2s at the friction squeeze,
 #: which carry the box, amplify it about 20-fold through the circle's bottom and 4-fold
 #: through the lift; the grasps that are lost pass the bar within seconds of the stretch, or
-#: tilt the box past its guard first.
+#: tilt the box past its guard first — but for one close call, the Jaco2s at half the task's
+#: squeeze, past the bar only at the lift's last samples (their run loses the box there).
 AMPLIFICATION_BAR = 100.0
 
 
