@@ -20,6 +20,8 @@ row's result), and the run to the circle's end (+1 s) measured by
     python -m bench.every_arm --table --out docs/results/every_arm.json      # the table only
     python -m bench.every_arm --buckling jaco2 --out docs/results/every_arm.json  # diagnosis
     python -m bench.every_arm --grasp-dynamics ur5 --out docs/results/every_arm.json  # check
+    python -m bench.every_arm --recheck ur5 --out docs/results/every_arm.json  # verdict again
+    python -m bench.every_arm --lift jaco2 --out docs/results/every_arm.json  # the lift's truth
     python -m bench.every_arm jaco2 --squeeze friction --out docs/results/every_arm.json
     python -m bench.every_arm ur3 --squeeze-scale 0.5 --out docs/results/every_arm.json
 
@@ -178,7 +180,14 @@ def run_row(key: str, out: Path, squeeze: str | None = None,
         scenario = contact_scenario(str(path), squeeze=squeeze)   # the scaled task written
     finally:
         path.unlink(missing_ok=True)
-    case.update(measure_with_lift(scenario))
+    try:
+        case.update(measure_with_lift(scenario))
+    except KeyError as exc:          # the run ended before the circle: no circle to measure
+        if exc.args != ("circle",):
+            raise
+        case["lift"] = lift_truth(scenario, list(arms))
+        case["status"], case["message"] = case["lift"]["status"], case["lift"]["message"]
+        return case
     case["verdict"] = verdict(case)
     return case
 
@@ -201,9 +210,113 @@ def grasp_row(key: str, out: Path, squeeze: str | None = None) -> dict:
     derived = derive_gains(scenario)
     result = check_grasp_dynamics(gains_for_scenario(scenario, derived))
     return {"arms": list(arms), "passes": result.passes, "message": result.message,
-            "growth_rate_per_s": result.sigma, "worst": result.worst, "joints": result.joints,
-            "pads": result.pads, "cpu_seconds": result.cpu_seconds,
+            "growth_rate_per_s": result.sigma, "amplification": result.amplification,
+            "worst": result.worst, "joints": result.joints, "pads": result.pads,
+            "cpu_seconds": result.cpu_seconds, "values": grasp_values(result),
             "K_R": {d.name: [float(k) for k in d.gains.K_R] for d in derived}}
+
+
+def grasp_values(result) -> dict:
+    """The grasp check's record in a row's ``gains.task_checks.grasp.values``."""
+    return {"checked": result.checked, "growth_rate_per_s": result.sigma,
+            "amplification": result.amplification, "tilt_deg": result.tilt_deg,
+            "worst": result.worst, "joints": result.joints, "pads": result.pads,
+            "box_turn_axis": result.box_turn_axis, "cpu_seconds": result.cpu_seconds}
+
+
+#: A row's keys that hold its run (what :func:`bench.unseen_arms.measure_with_lift` adds).
+RUN_KEYS = ("robots", "verdict", "status", "message", "mass_at_lift_end_kg",
+            "mass_error_at_lift_end", "object_mass_kg", "friction", "time_step_s",
+            "turn_sources", "cpu_seconds", "squeeze")
+
+
+def recheck(key: str, data: dict, out: Path) -> dict:
+    """A row of the file (``ROW`` or ``ROW@sqS``) checked again by the grasp's dynamics
+    check alone at the gains ``gains`` derives (:func:`grasp_row`), its verdict rewritten from
+    it and from the runs in the file: refused, with the row's run (if any) kept as its run
+    past the refusal (``ROW@past``); passed, with its run, or the run past the old refusal
+    (which followed the same gains) as its run. Returns the cases to write (key to case); a
+    row the check now passes with no run in the file is run (:func:`run_row`)."""
+    cases = data["cases"]
+    case = copy.deepcopy(cases[key])
+    if "gains" not in case or "grasp" not in case["gains"].get("task_checks", {}):
+        return {}                     # refused before the grasp check (placement, the map)
+    other = [n for n, c in case["gains"]["task_checks"].items()
+             if n != "grasp" and not c["passes"]]
+    if other:
+        return {}
+    squeeze = key.split("@sq")[1] if "@sq" in key else None
+    found = grasp_row(key.split("@")[0], out, squeeze)
+    grasp = case["gains"]["task_checks"]["grasp"]
+    grasp.update(passes=found["passes"], message=found["message"],
+                 values={**grasp.get("values", {}), **found["values"]})
+    case["grasp_recheck"] = {"cpu_seconds": found["cpu_seconds"], "K_R": found["K_R"]}
+    case["gains"]["stable"] = found["passes"]
+    past_key = f"{key}@past"
+    past = copy.deepcopy(cases.get(past_key))
+    written = {key: case}
+    if found["passes"]:
+        case.pop("refusal", None)
+        if "verdict" not in case:
+            if past is None or "verdict" not in past:
+                return {}             # a run is needed: the caller runs the row
+            case.update({k: past[k] for k in RUN_KEYS if k in past})
+            case["run_command"] = past.get("command")
+        case.pop("refused_by", None)
+        return written
+    case["refusal"] = f"drake-coop gains: {found['message']}"
+    if "verdict" in case:             # its run goes on as the run past the refusal
+        past = {k: case.pop(k) for k in RUN_KEYS if k in case}
+        past.update(arms=case["arms"], command=case.get("command", "") + " --past-refusal",
+                    refused_by=case["refusal"])
+        written[past_key] = past
+    elif past is not None:
+        past["refused_by"] = case["refusal"]
+        written[past_key] = past
+    return written
+
+
+def lift_row(key: str, out: Path, squeeze: str | None = None) -> dict:
+    """The row's pair (its setup and the gains ``gains`` derives, no checks) run to the
+    lift's end, from the plant's truth (:func:`~drake_coop.results.object_metrics.
+    object_signals`): the run's status and message, the box's largest tilt (degrees) and the
+    first time it passes the tilt guard, the pads' largest friction use ``f_t / (μ f_n)`` and
+    slide on the box (m) before that time: whether a grasp lost in the lift slid or turned."""
+    from drake_coop.stability.gains import derive_gains, gains_for_scenario
+
+    arms = MIXED if key == "mixed" else (key, key)
+    places = [placement(a, out.parent)[0] for a in dict.fromkeys(arms)]
+    places = places * 2 if arms[0] == arms[1] else places
+    scenario = load_pair(arms, places, out.parent / f".{key}.lift.yaml")
+    if squeeze is not None:
+        scenario.object_model.squeeze = squeeze
+    return lift_truth(gains_for_scenario(scenario, derive_gains(scenario)), list(arms))
+
+
+def lift_truth(scenario, arms: list) -> dict:
+    """:func:`lift_row`'s run of a scenario with its gains, to the lift's end."""
+    from drake_coop.experiment.simulate import simulate
+    from drake_coop.results.object_metrics import object_signals
+
+    start = time.process_time()
+    result = simulate(scenario, t_end=scenario.task.t_circle_start)
+    signals = object_signals(result.logs, result.meta)
+    robots = list(result.logs)
+    t = np.asarray(result.logs[robots[0]]["t"], dtype=float)
+    tilt = np.degrees(np.nan_to_num(signals[robots[0]]["object_tilt"]))
+    guard = scenario.guards.max_object_tilt_deg
+    past = np.flatnonzero(tilt > guard)
+    end = int(past[0]) if past.size else len(t)
+    use = max(float(np.nanmax(np.append(signals[r]["friction_use"][:end], 0.0)))
+              for r in robots)
+    slide = max(float(np.nanmax(np.append(np.abs(signals[r]["slip"][:end]), 0.0)))
+                for r in robots)
+    return {"arms": list(arms), "status": result.meta["status"],
+            "message": result.meta.get("message"), "t_end": float(t[-1]),
+            "tilt_max_deg": float(tilt.max()), "tilt_guard_deg": guard,
+            "t_tilt_guard": float(t[past[0]]) if past.size else None,
+            "friction_use_max": use, "slide_max_m": slide,
+            "cpu_seconds": round(time.process_time() - start, 1)}
 
 
 def buckling(key: str, out: Path, t_end: float = 24.0) -> dict:
@@ -298,7 +411,7 @@ def table(data: dict) -> str:
              "| slips | mass at the lift's end (%) | bars (0.3 N, 0.5 mm, 0 slips) |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     for key in sorted(data["cases"], key=lambda k: (k.split("@")[0] == "mixed", k)):
-        if key.endswith(("@buckling", "@past", "@grasp")) or "@scale" in key:
+        if key.endswith(("@buckling", "@past", "@grasp", "@lift")) or "@scale" in key:
             continue
         case = data["cases"][key]
         arms = " + ".join(case.get("arms", [key]))
@@ -361,6 +474,14 @@ def main(argv=None) -> int:
     parser.add_argument("--grasp-dynamics", action="store_true",
                         help="instead of the rows: only the grasp's dynamics check of gains "
                              "on each named pair (:func:`grasp_row`), under ROW[@sqS]@grasp")
+    parser.add_argument("--lift", action="store_true",
+                        help="instead of the rows: each named pair run to the lift's end, "
+                             "its tilt, friction use and slide (:func:`lift_row`), under "
+                             "ROW[@sqS]@lift")
+    parser.add_argument("--recheck", action="store_true",
+                        help="instead of the rows: check each named row of the file again "
+                             "with the grasp's dynamics check and rewrite its verdict "
+                             "(:func:`recheck`; ROW or ROW@sqS with --squeeze)")
     parser.add_argument("--buckling", action="store_true",
                         help="instead of the rows: the buckling bound against the simulated "
                              "truth on each named pair (:func:`buckling`), under ROW@buckling")
@@ -390,6 +511,46 @@ def main(argv=None) -> int:
             case["drake"], case["cpu"] = version("drake"), _cpu_name()
             write_case(out, key, case)
             print(key, case["message"], flush=True)
+        return 0
+    if args.lift:
+        for row in args.rows:
+            key = row + (f"@sq{args.squeeze}" if args.squeeze else "") + "@lift"
+            case = lift_row(row, out, args.squeeze)
+            case["command"] = (f"python -m bench.every_arm --lift {row} --out {args.out}"
+                               + (f" --squeeze {args.squeeze}" if args.squeeze else ""))
+            case["drake"], case["cpu"] = version("drake"), _cpu_name()
+            write_case(out, key, case)
+            print(key, json.dumps(case), flush=True)
+        return 0
+    if args.recheck:
+        for row in args.rows:
+            key = row + (f"@sq{args.squeeze}" if args.squeeze else "")
+            data = json.loads(out.read_text())
+            if key not in data["cases"]:
+                print(f"{key}: not in {out}, run it first", flush=True)
+                continue
+            if "grasp_recheck" in data["cases"][key] and not args.force:
+                print(f"{key}: rechecked in {out}, skipped (--force checks it again)",
+                      flush=True)
+                continue
+            written = recheck(key, data, out)
+            if key not in written and "refusal" not in data["cases"][key] \
+                    and "gains" in data["cases"][key]:
+                print(f"{key}: nothing rechecked", flush=True)
+            elif not written:
+                print(f"{key}: the check now passes it and no run is in the file: run "
+                      f"python -m bench.every_arm {row} --force --out {args.out}", flush=True)
+            for name, case in written.items():
+                if name == key:
+                    case["grasp_recheck"]["command"] = (
+                        f"python -m bench.every_arm --recheck {row} --out {args.out}"
+                        + (f" --squeeze {args.squeeze}" if args.squeeze else ""))
+                    case["grasp_recheck"]["drake"] = version("drake")
+                    case["grasp_recheck"]["cpu"] = _cpu_name()
+                write_case(out, name, case)
+            print(key, written.get(key, {}).get("gains", {}).get("task_checks", {})
+                  .get("grasp", {}).get("message"), flush=True)
+        TABLE.write_text(table(json.loads(out.read_text())))
         return 0
     if args.buckling:
         for row in args.rows:

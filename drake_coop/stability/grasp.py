@@ -47,10 +47,10 @@ the UR3s passed though they lose the box). The bound leaves out the pads' hydroe
 patches (a sphere pressed into a face resists the box's rotation), the box's inertia, the
 object model's feedforward and the force loop's and observers' reaction to a tilted box (which
 of these decides was not isolated). So
-``drake-coop gains`` no longer refuses on it: its grasp check is the frozen ``contact`` loop's
-own growth rate (:mod:`drake_coop.stability.grasp_dynamics`), which gets every grasp above
-right but one (the Jaco2s at the friction squeeze: refused, and they carry the box), and the
-ratio is recorded beside it. :func:`check_grasp_buckling`
+``drake-coop gains`` no longer refuses on it: its grasp check is the ``contact`` loop's
+own dynamics (:mod:`drake_coop.stability.grasp_dynamics`: frozen postures, and the moving
+reference followed where one grows), which gets every one of them right, and the ratio is
+recorded beside it. :func:`check_grasp_buckling`
 (``λ_d ≤`` :data:`GRASP_MARGIN` ``× λ_b`` at every held tick, an empirical factor in that
 interval) and :func:`buckling_squeeze` (``λ_b`` per posture) remain for that record and for
 diagnosis. Two robots with one contact row each only

@@ -18,8 +18,10 @@
     feedforward ``H q̈_d + C q̇_d + g − J_φᵀ λ_d`` on the reference (:func:`torque_path`).
 ``grasp``
     ``contact`` mode only: the grasp's own closed-loop dynamics, the ``contact`` loop frozen at
-    postures of the task (:func:`~drake_coop.stability.grasp_dynamics.check_grasp_dynamics`):
-    fails when a disturbance of the grasp grows. The ideal modes have no such mode. The
+    postures of the task and, where one grows, followed along the task's moving reference
+    (:func:`~drake_coop.stability.grasp_dynamics.check_grasp_dynamics`): fails when a
+    disturbance of the grasp grows there beyond its bar or the followed loop tilts the box past
+    its guard. The ideal modes have no such mode. The
     squeeze's static buckling ratio (:func:`~drake_coop.stability.grasp.check_grasp_buckling`)
     is recorded beside it, not checked: it does not separate held from lost grasps.
 
@@ -238,7 +240,8 @@ def _check_grasp(scenario) -> TaskCheck:
     result = check_grasp_dynamics(scenario)
     values = {"checked": result.checked}
     if result.checked:
-        values.update(growth_rate_per_s=result.sigma, worst=result.worst,
+        values.update(growth_rate_per_s=result.sigma, amplification=result.amplification,
+                      tilt_deg=result.tilt_deg, worst=result.worst,
                       joints=result.joints, pads=result.pads,
                       box_turn_axis=result.box_turn_axis, cpu_seconds=result.cpu_seconds)
         buckling = check_grasp_buckling(scenario)      # the static bound, for the record

@@ -97,14 +97,16 @@ def test_the_pair_is_the_hows_mirror_image():
 def _grasp_checks(cases: dict) -> dict:
     """Per row key (``ur3``, ``ur3@sqfriction``, ``ur3@scale0.5``): the grasp dynamics check's
     verdict, from the row's own ``gains`` checks (a run past the refusal included) or its
-    ``@grasp`` case (the check run alone)."""
+    ``@grasp`` case (the check run alone) — the check that follows the moving reference only
+    (its record has ``amplification``)."""
     out = {}
     for key, case in cases.items():
         if key.endswith("@grasp"):
-            out[key[: -len("@grasp")]] = case["passes"]
+            if "amplification" in case:
+                out[key[: -len("@grasp")]] = case["passes"]
             continue
         grasp = case.get("gains", {}).get("task_checks", {}).get("grasp", {})
-        if "growth_rate_per_s" in grasp.get("values", {}):
+        if "amplification" in grasp.get("values", {}):
             out[key[: -len("@past")] if key.endswith("@past") else key] = grasp["passes"]
     return out
 
@@ -112,7 +114,8 @@ def _grasp_checks(cases: dict) -> dict:
 def _run_outcomes(cases: dict) -> dict:
     """Per row key: True when its run (or its run past the refusal) carried the box through
     the circle, False when the run ended failed or diverged, or when the buckling diagnosis
-    run (``@buckling``, the task's squeeze) tilted the box past the tilt guard's default."""
+    run (``@buckling``, the task's squeeze) tilted the box past the tilt guard's default, or
+    the run to the lift's end (``@lift``) ended failed."""
     out = {}
     for key, case in cases.items():
         if key.endswith("@buckling"):      # the diagnosis run to the lift's end: lost if tilted
@@ -120,26 +123,26 @@ def _run_outcomes(cases: dict) -> dict:
             if angle > math.radians(10.0):          # guards.max_object_tilt_deg's default
                 out[key[: -len("@buckling")]] = False
             continue
+        if key.endswith("@lift"):          # the run to the lift's end: lost if it failed
+            if case["status"] != "ok":
+                out[key[: -len("@lift")]] = False
+            continue
         base = key[: -len("@past")] if key.endswith("@past") else key
+        if case.get("status") in ("failed", "diverged"):     # lost, in the circle or before
+            out[base] = False
+            continue
         if "verdict" not in case:
             continue
         out[base] = case.get("status") == "ok"
     return out
 
 
-#: Rows where the grasp's dynamics check and the run disagree, known and shown in the guide:
-#: the Jaco2s at the friction squeeze are refused (a mode growing at the circle's bottom, the
-#: wrists' joints 4 and 6) and carry the box.
-CHECK_WRONG = {"jaco2@sqfriction": (False, True)}
-
-
 def test_the_grasp_check_agrees_with_every_run_in_the_file():
     """The simulated truth in the results file: every row whose run carried the box passes the
-    grasp's dynamics check, every row whose run (past a refusal) lost it is refused by it —
-    but for the rows of :data:`CHECK_WRONG`, exactly."""
+    grasp's dynamics check, every row whose run (past a refusal) lost it is refused by it."""
     cases = json.loads(RESULTS.read_text())["cases"]
     checks, runs = _grasp_checks(cases), _run_outcomes(cases)
     both = sorted(set(checks) & set(runs))
-    assert {"ur3", "z1", "jaco2", "xarm7", "ur5", "panda"} <= set(both), both
+    assert {"ur3", "z1", "jaco2", "jaco2@sqfriction"} <= set(both), both
     wrong = {k: (checks[k], runs[k]) for k in both if checks[k] != runs[k]}
-    assert wrong == CHECK_WRONG
+    assert wrong == {}
