@@ -76,7 +76,7 @@ def write_bases(folder: Path) -> dict[str, Path]:
 
 
 #: The overlap check's rows (each source the shipped contact studies report) and their draws.
-FULL_ROWS = {"observer": 1, "momentum": 1, "sensor_0p3": 3, "none": 1}
+FULL_ROWS = {"observer": 1, "momentum": 1, "none": 1}
 
 
 def full_runs(base: Path, rows: dict[str, int] = FULL_ROWS) -> dict:
@@ -101,6 +101,19 @@ def full_runs(base: Path, rows: dict[str, int] = FULL_ROWS) -> dict:
             out["rows"].setdefault(row, []).append(entry)
             print(row, draw, json.dumps(entry), flush=True)
     return out
+
+
+def paper_control() -> dict:
+    """One short case (exact model, observer (22)) of ``scenarios/contact.yaml`` as shipped
+    (``object_model: none``, the paper's control): why the bases estimate the box."""
+    from drake_coop.scenario.loading import dump_scenario, load_scenario
+    from drake_coop.studies.reference_engine import run_batch
+    from drake_coop.studies.reference_table import T_SHORT, compress, per_draw
+
+    scenario = compress(load_scenario(ROOT / "scenarios" / "contact.yaml"))
+    (_, record), = run_batch([("paper_control", dump_scenario(scenario), None)], T_SHORT)
+    return {**per_draw(record), "status": record["status"], "cpu_time_s": record["cpu_time_s"],
+            "object_model": scenario.object_model.mode}
 
 
 def overlap(short: dict, full: dict) -> list[dict]:
@@ -130,9 +143,10 @@ def snapshot(folder: Path, base: Path, rows: list[str], cols: list[str], draws: 
     calibration = folder / "calibration.json"
     peaks = json.loads(calibration.read_text())["peaks"] if calibration.is_file() else None
     cols = [c for c in cols if c != "saturation" or peaks is not None]
-    models = {(c, d): json.loads((folder / "identified" / c / str(d) / "models.json")
-                                 .read_text())
-              for c in cols if c.startswith("id_") for d in range(draws)}
+    found = {(c, d): folder / "identified" / c / str(d) / "models.json"
+             for c in cols if c.startswith("id_") for d in range(draws)}
+    cols = [c for c in cols if all(f.is_file() for (k, _), f in found.items() if k == c)]
+    models = {key: json.loads(f.read_text()) for key, f in found.items() if key[0] in cols}
     cases = expand_table(load_scenario(base), rows, cols, draws, peaks=peaks, models=models)
     records = ResultStore(folder).load()
     table = write_table(folder, cases, records, rows, cols)
@@ -153,6 +167,19 @@ def snapshot(folder: Path, base: Path, rows: list[str], cols: list[str], draws: 
 BASES = {"paper_contact": "paper", "ur10_pair": "ur10"}
 
 
+def saturating_joints(peaks: dict) -> dict[str, list[int]]:
+    """Per robot, the joints whose saturation-column limit can fall below the lift's peak
+    torque (``SATURATION_FRACTION × U(0.95, 1.05) × lift`` above the floor ``1.02 × other``
+    for some draw): none means the column cannot saturate on that base."""
+    from drake_coop.studies.reference_table import SATURATION_FRACTION
+
+    out = {}
+    for robot, p in peaks.items():
+        out[robot] = [j for j, (lift, other) in enumerate(zip(p["lift"], p["other"]))
+                      if SATURATION_FRACTION * 1.05 * lift > 1.02 * other]
+    return out
+
+
 def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
     """The results file's content from ``folder`` (as the commands on the page leave it:
     ``bases/``, one table folder per base, ``logs/`` of ``/usr/bin/time -v``,
@@ -171,6 +198,10 @@ def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
             for col in [c for c, s in cells.items() if s["n"] < draws]:
                 del cells[col]
         out["bases"][name] = table
+        calibration = folder / sub / "calibration.json"
+        if calibration.is_file():
+            table["saturating_joints"] = saturating_joints(
+                json.loads(calibration.read_text())["peaks"])
     logs = sorted((folder / "logs").glob("*.log"))
     out["runs"] = [time_log(p) for p in logs]
     out["cpu_s"] = sum(r.get("cpu_s", 0.0) for r in out["runs"])
@@ -178,10 +209,62 @@ def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
     if full.is_file() and "paper_contact" in out["bases"]:
         out["full"] = json.loads(full.read_text())
         out["overlap"] = overlap(out["bases"]["paper_contact"], out["full"])
+    control = folder / "paper_control.json"
+    if control.is_file():
+        out["paper_control"] = json.loads(control.read_text())
     rerun = folder / "rerun.json"
     if rerun.is_file():
         out["rerun"] = json.loads(rerun.read_text())
     return out
+
+
+def page_tables(data: dict, base: str, source: str = "reference_table_friction") -> str:
+    """The tables of one base as Markdown whose numbers are ``{result}`` roles on ``source``:
+    the squeeze error and the estimate's error (median [95 %], p90), then slips, drops and the
+    worst slide per cell; ``pending`` where a cell has not all its draws."""
+    from drake_coop.studies.reference_table import ROWS, columns
+
+    table = data["bases"][base]
+    labels = {r.name: r.label for r in ROWS}
+    col_labels = {c.name: c.label for c in columns({}, {})}
+    rows = [r for r in table["rows"] if r in table["cells"]]
+    cols = [c for c in table["columns"] if any(c in table["cells"][r] for r in rows)]
+    head = "| force source | " + " | ".join(col_labels[c] for c in cols) + " |\n" \
+        + "|" + " --- |" * (len(cols) + 1) + "\n"
+
+    def role(path: str, fmt: str = ".3f") -> str:
+        return f"{{result}}`{source}:bases.{base}.cells.{path} as {fmt}`"
+
+    def grid(cell_text) -> str:
+        lines = []
+        for row in rows:
+            cells = [cell_text(row, col) if col in table["cells"][row] else "pending"
+                     for col in cols]
+            lines.append(f"| {labels[row]} | " + " | ".join(cells) + " |")
+        return head + "\n".join(lines) + "\n"
+
+    def error(key: str):
+        def text(row: str, col: str) -> str:
+            c = f"{row}.{col}.{key}"
+            out = (f"{role(c + '.median.0')} [{role(c + '.median.1')}, {role(c + '.median.2')}]"
+                   f" / {role(c + '.p90.0')}")
+            if table["cells"][row][col]["diverged"]:
+                out += f" ({role(f'{row}.{col}.diverged', '.0f')} diverged)"
+            return out
+        return text
+
+    def held(row: str, col: str) -> str:
+        c = f"{row}.{col}"
+        return (f"{role(c + '.slips', '.0f')} ({role(c + '.slipped', '.0f')} draws) / "
+                f"{role(c + '.dropped', '.0f')} / {role(c + '.slide.median.0', '.3g [µm]')} µm "
+                f"[{role(c + '.slide.p90.0', '.3g [µm]')}]")
+
+    return ("**Squeeze error λ − λ_d** (circle RMS, worst robot, N): median [95 %] / p90\n\n"
+            + grid(error("squeeze"))
+            + "\n**Estimate error λ̂ − λ** (circle RMS, worst robot, N): median [95 %] / p90\n\n"
+            + grid(error("estimate"))
+            + "\n**Slips (draws with one) / draws with a drop / the worst pad's slide since the "
+              "grasp, median [p90]**\n\n" + grid(held))
 
 
 def main() -> None:
@@ -194,6 +277,10 @@ def main() -> None:
     parser.add_argument("--rerun", default=None, metavar="DIR",
                         help="run --count finished cases of DIR again, compare, into --out")
     parser.add_argument("--count", type=int, default=4)
+    parser.add_argument("--paper-control", action="store_true",
+                        help="one short case of contact.yaml as shipped (object_model none)")
+    parser.add_argument("--page", default=None, metavar="JSON",
+                        help="print the results file's tables with {result} roles")
     parser.add_argument("--draws", type=int, default=20)
     parser.add_argument("--rows", default=None, help="--results: comma-separated rows")
     parser.add_argument("--columns", default=None, help="--results: comma-separated columns")
@@ -206,6 +293,12 @@ def main() -> None:
         cols = args.columns.split(",") if args.columns else list(FRICTION_COLUMNS)
         data = results(Path(args.results), args.draws, rows, cols)
         Path(args.out).write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+    if args.paper_control:
+        Path(args.out).write_text(json.dumps(paper_control(), indent=1) + "\n")
+    if args.page:
+        data = json.loads(Path(args.page).read_text())
+        for base in data["bases"]:
+            print(f"<!-- {base} -->\n" + page_tables(data, base))
     if args.rerun:
         from bench.reference_table import rerun
 
