@@ -151,7 +151,9 @@ def snapshot(folder: Path, base: Path, rows: list[str], cols: list[str], draws: 
     records = ResultStore(folder).load()
     table = write_table(folder, cases, records, rows, cols)
     table["draws"] = draws
-    distinct = {c.hash: c for c in cases}
+    distinct: dict = {}
+    for c in cases:                    # a shared case counted in the first row that has it
+        distinct.setdefault(c.hash, c)
     table["distinct_cases"] = len(distinct)
     table["distinct_finished"] = sum(h in records for h in distinct)
     cpu: dict = {}
@@ -180,6 +182,26 @@ def saturating_joints(peaks: dict) -> dict[str, list[int]]:
     return out
 
 
+def planned_cases(base: Path, draws: int) -> int:
+    """The distinct cases of the whole friction-held table on ``base`` (every row under
+    :data:`~drake_coop.studies.reference_table.FRICTION_COLUMNS`, ``draws`` a cell): the
+    identified column has the ±30 % column's structure (every row's draw its own, the
+    applied-torque residual the momentum observer's), so it is counted as that column."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.studies.reference_table import ROWS, expand_table
+
+    from drake_coop.scenario.model_check import check_models
+
+    scenario = load_scenario(base)
+    peaks = {r.name: {"lift": [1.0] * n, "other": [0.5] * n}
+             for r, n in zip(scenario.robots, check_models(scenario))}
+    rows = [r.name for r in ROWS]
+    count = 0
+    for cols in (["exact"], ["model_30"], ["model_30"], ["coulomb"], ["saturation"]):
+        count += len({c.hash for c in expand_table(scenario, rows, cols, draws, peaks=peaks)})
+    return count
+
+
 def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
     """The results file's content from ``folder`` (as the commands on the page leave it:
     ``bases/``, one table folder per base, ``logs/`` of ``/usr/bin/time -v``,
@@ -198,6 +220,11 @@ def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
             for col in [c for c, s in cells.items() if s["n"] < draws]:
                 del cells[col]
         out["bases"][name] = table
+        cpu = [v for v in table["cpu_per_case_s"].values()]
+        table["planned_cases"] = planned_cases(folder / "bases" / f"{name}.yaml", draws)
+        if cpu:
+            table["cpu_per_case_mean_s"] = sum(cpu) / len(cpu)
+            table["planned_cpu_s"] = table["planned_cases"] * table["cpu_per_case_mean_s"]
         calibration = folder / sub / "calibration.json"
         if calibration.is_file():
             table["saturating_joints"] = saturating_joints(
