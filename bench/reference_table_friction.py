@@ -220,6 +220,7 @@ def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
             for col in [c for c, s in cells.items() if s["n"] < draws]:
                 del cells[col]
         out["bases"][name] = table
+        table["scenario_yaml"] = (folder / "bases" / f"{name}.yaml").read_text()
         cpu = [v for v in table["cpu_per_case_s"].values()]
         table["planned_cases"] = planned_cases(folder / "bases" / f"{name}.yaml", draws)
         if cpu:
@@ -229,6 +230,8 @@ def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
         if calibration.is_file():
             table["saturating_joints"] = saturating_joints(
                 json.loads(calibration.read_text())["peaks"])
+    planned = [b["planned_cpu_s"] for b in out["bases"].values() if "planned_cpu_s" in b]
+    out["planned_wall_min_2_cores"] = sum(planned) / 2.0 / 60.0
     logs = sorted((folder / "logs").glob("*.log"))
     out["runs"] = [time_log(p) for p in logs]
     out["cpu_s"] = sum(r.get("cpu_s", 0.0) for r in out["runs"])
