@@ -161,6 +161,13 @@ def snapshot(folder: Path, base: Path, rows: list[str], cols: list[str], draws: 
         if h in records and records[h].get("cpu_time_s") is not None:
             cpu.setdefault(c.params["row"], []).append(records[h]["cpu_time_s"])
     table["cpu_per_case_s"] = {row: sum(v) / len(v) for row, v in cpu.items()}
+    refused: dict = {}                 # cases the scenario's checks refused before running
+    for c in cases:
+        r = records.get(c.hash)
+        if r is not None and r["status"] == "error":
+            entry = refused.setdefault(c.params["column"], {"cases": 0, "message": r["message"]})
+            entry["cases"] += 1
+    table["refused"] = refused
     table["cpu_distinct_s"] = sum(sum(v) for v in cpu.values())
     return table
 
@@ -228,8 +235,8 @@ def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
             table["planned_cpu_s"] = table["planned_cases"] * table["cpu_per_case_mean_s"]
         calibration = folder / sub / "calibration.json"
         if calibration.is_file():
-            table["saturating_joints"] = saturating_joints(
-                json.loads(calibration.read_text())["peaks"])
+            table["peaks"] = json.loads(calibration.read_text())["peaks"]
+            table["saturating_joints"] = saturating_joints(table["peaks"])
     planned = [b["planned_cpu_s"] for b in out["bases"].values() if "planned_cpu_s" in b]
     out["planned_wall_min_2_cores"] = sum(planned) / 2.0 / 60.0
     logs = sorted((folder / "logs").glob("*.log"))
@@ -258,7 +265,8 @@ def page_tables(data: dict, base: str, source: str = "reference_table_friction")
     labels = {r.name: r.label for r in ROWS}
     col_labels = {c.name: c.label for c in columns({}, {})}
     rows = [r for r in table["rows"] if r in table["cells"]]
-    cols = [c for c in table["columns"] if any(c in table["cells"][r] for r in rows)]
+    cols = [c for c in table["columns"] if c not in table.get("refused", {})
+            and any(c in table["cells"][r] for r in rows)]
     head = "| force source | " + " | ".join(col_labels[c] for c in cols) + " |\n" \
         + "|" + " --- |" * (len(cols) + 1) + "\n"
 
