@@ -16,7 +16,11 @@ Each base then runs with ``drake-coop reference-table --base FILE`` (a base in `
 mode takes :data:`~drake_coop.studies.reference_table.FRICTION_COLUMNS` by default).
 ``--full BASE --out JSON`` runs the overlap check: the exact-model cases of a few rows on the
 whole task (to the circle's end), to compare the short segment's order of the sources with the
-full run's. ``--results DIR ... --out JSON`` writes the results file from finished tables.
+full run's. ``--paper-control --out JSON`` runs one short case of ``contact.yaml`` as shipped
+(the paper's control, no object model). ``--rerun DIR --out JSON`` runs finished cases of a
+table again and compares their numbers. ``--results DIR --out JSON`` writes the results file
+from the tables and logs in ``DIR``; ``--page JSON`` prints its tables with ``{result}``
+roles for ``docs/reference_table.md``.
 """
 
 from __future__ import annotations
