@@ -298,8 +298,8 @@ def page_tables(data: dict, base: str, source: str = "reference_table_friction")
     def held(row: str, col: str) -> str:
         c = f"{row}.{col}"
         return (f"{role(c + '.slips', '.0f')} ({role(c + '.slipped', '.0f')} draws) / "
-                f"{role(c + '.dropped', '.0f')} / {role(c + '.slide.median.0', '.3g [µm]')} µm "
-                f"[{role(c + '.slide.p90.0', '.3g [µm]')}]")
+                f"{role(c + '.dropped', '.0f')} / {role(c + '.slide.median.0', '.3f [mm]')} mm "
+                f"[{role(c + '.slide.p90.0', '.3f [mm]')}]")
 
     return ("**Squeeze error λ − λ_d** (circle RMS, worst robot, N): median [95 %] / p90\n\n"
             + grid(error("squeeze"))
