@@ -39,11 +39,13 @@ from drake_coop.studies.expand import Case
 from drake_coop.studies.reference_table import (
     ALL_COLUMNS,
     COLUMNS,
+    FRICTION_COLUMNS,
     IDENTIFIED,
     ROWS,
     T_SHORT,
     base_scenario,
     cell_statistics,
+    default_columns,
     expand_table,
     identified_name,
     markdown_table,
@@ -292,7 +294,9 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     out : str or Path
         The table's folder (new, or this table's: resumed).
     rows, cols : list of str or None
-        Rows and columns; None for all.
+        Rows and columns; None for all rows and the base's default columns
+        (:func:`~drake_coop.studies.reference_table.default_columns`: a base holding the box
+        by friction takes the friction-held part's).
     draws : int
         Draws per cell.
     seed : int
@@ -319,7 +323,8 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     """
     out = Path(out)
     rows = list(rows or [r.name for r in ROWS])
-    cols = list(cols or COLUMNS)
+    scenario = base_scenario(base)
+    cols = list(cols or default_columns(scenario))
     if batch < 1 or workers < 1:
         raise ValueError(f"batch and workers: must be >= 1, got {batch} and {workers}")
     for given, known, what in ((rows, [r.name for r in ROWS], "rows"),
@@ -330,7 +335,6 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
         raise ValueError(f"draws: must be an integer >= 1, got {draws!r}")
     out.mkdir(parents=True, exist_ok=True)
-    scenario = base_scenario(base)
     peaks = calibrate(out, scenario, t_end) if "saturation" in cols else None
     id_cols = [c for c in cols if c.startswith("id_")]
     models = (identify_columns(out, scenario, id_cols, draws, seed, workers=workers, ray=ray,
@@ -518,7 +522,8 @@ def add_reference_table_parser(sub) -> None:
     p.add_argument("--rows", default=None, help="comma-separated rows (default: all: "
                    + ",".join(r.name for r in ROWS) + ")")
     p.add_argument("--columns", default=None, help="comma-separated columns (default: "
-                   + ",".join(COLUMNS) + "; also " + ",".join(
+                   + ",".join(COLUMNS) + "; on a base in contact mode "
+                   + ",".join(FRICTION_COLUMNS) + "; also " + ",".join(
                        c for c in ALL_COLUMNS if c not in COLUMNS) + ")")
     p.add_argument("--seed", type=int, default=1, help="the draws' seed (default 1)")
     p.add_argument("--t-end", type=float, default=T_SHORT, metavar="S",

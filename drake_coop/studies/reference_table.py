@@ -23,6 +23,19 @@ Per cell and number: the median and the 90th percentile over the draws, each wit
 bootstrap interval (:func:`bootstrap_interval`: 2 000 resamples of the draws, a fixed seed:
 the same numbers on every machine). The dominant error source of a row is the column, other
 than the exact model, with the largest median squeeze error.
+
+The box held by friction
+------------------------
+On a base in ``contact`` mode (the box held at two hydroelastic pads, ``scenarios/contact.yaml``
+or a lab pair) the default columns are :data:`FRICTION_COLUMNS` (the error sources that matter
+there: model error, identification, friction, saturation), and a cell also counts what the
+run's object metrics (:mod:`drake_coop.results.object_metrics`) report over the whole case,
+grasp and lift included: ``slips`` (the pads' slides of
+:data:`~drake_coop.results.object_metrics.SLIP_DISTANCE` on the box's faces, both robots,
+summed over the draws), ``slipped`` and ``dropped`` (draws with at least one slip, one drop:
+the box off its path or a pad letting go) and ``slide`` (the worst pad's largest slide since
+the grasp, m: median and 90th percentile). A case whose grasp guard stopped it is a diverged
+draw, its drop counted when its metrics show one.
 """
 
 from __future__ import annotations
@@ -39,9 +52,9 @@ from drake_coop.scenario.schema import Scenario
 from drake_coop.studies.expand import Case, case_hash
 from drake_coop.studies.reference_variants import variant_hash, variant_matters
 
-__all__ = ["ALL_COLUMNS", "COLUMNS", "IDENTIFIED", "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval",
-           "cell_statistics", "compress", "expand_table", "identified_name", "markdown_table",
-           "per_draw"]
+__all__ = ["ALL_COLUMNS", "COLUMNS", "FRICTION_COLUMNS", "IDENTIFIED", "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval",
+           "cell_statistics", "compress", "default_columns", "expand_table", "identified_name",
+           "markdown_table", "per_draw"]
 
 #: The compressed task: the paper's phases shortened before the circle (s).
 SEGMENT = {"t_pregrasp": 2.0, "t_grasp": 3.0, "t_circle_start": 5.0, "t_circle_end": 45.0,
@@ -276,6 +289,26 @@ def _open_loop(scenario: Scenario, row: str, draw: int) -> str | None:
 COLUMNS = tuple(c.name for c in columns({}))
 #: Every column name.
 ALL_COLUMNS = tuple(c.name for c in columns({}, {}))
+#: The default columns of a base in ``contact`` mode (the box held by friction): model error,
+#: identification (MAP-SDP from 5 s, the cheapest estimator that holds its consistency
+#: constraints), Coulomb friction and saturation.
+FRICTION_COLUMNS = ("exact", "model_30", "coulomb", "saturation", identified_name("map_sdp", 5.0))
+
+
+def default_columns(base: Scenario) -> tuple[str, ...]:
+    """The columns a table on ``base`` runs when none are named.
+
+    Parameters
+    ----------
+    base : Scenario
+        The base scenario.
+
+    Returns
+    -------
+    tuple of str
+        :data:`FRICTION_COLUMNS` for a base in ``contact`` mode, else :data:`COLUMNS`.
+    """
+    return FRICTION_COLUMNS if base.plant.object_mode == "contact" else COLUMNS
 
 
 def compress(scenario: Scenario) -> Scenario:
@@ -419,10 +452,13 @@ def per_draw(record: dict) -> dict[str, float]:
     -------
     dict of str to float
         ``squeeze``, ``estimate`` (N), ``squeeze_lift`` (the lift's RMS of ``λ − λ_d``, worst
-        robot, N) and ``diverged`` (0 or 1).
+        robot, N) and ``diverged`` (0 or 1); for a run holding the box by friction also
+        ``slips`` (both robots' counts over the run), ``drops`` (0 or 1) and ``slide`` (the
+        worst pad's largest slide since the grasp, m), also when it did not complete.
     """
     out = {"squeeze": math.nan, "estimate": math.nan, "squeeze_lift": math.nan,
            "diverged": float(record["status"] != "ok")}
+    out.update(_held(record.get("metrics") or {}))
     if record["status"] != "ok":
         return out
     for key, phase, error in (("squeeze", "circle", "force_error"),
@@ -433,6 +469,18 @@ def per_draw(record: dict) -> dict[str, float]:
         if values:
             out[key] = float(max(values))
     return out
+
+
+def _held(metrics: dict) -> dict[str, float]:
+    """Slips, drops and the largest slide of a contact run's whole-run (``all``) metrics;
+    empty for a run without an object held by friction."""
+    runs = [m["all"] for m in metrics.values() if "slips" in m.get("all", {})]
+    if not runs:
+        return {}
+    slides = [a["slip"]["max"] for a in runs if "slip" in a and a["slip"].get("max") is not None]
+    return {"slips": float(sum(a["slips"]["count"] for a in runs)),
+            "drops": float(max(a["drops"]["count"] for a in runs) > 0),
+            "slide": float(max(slides)) if slides else math.nan}
 
 
 def bootstrap_interval(values: np.ndarray, q: float, *, level: float = 0.95,
@@ -480,14 +528,22 @@ def cell_statistics(records: list[dict]) -> dict:
     -------
     dict
         ``{"n", "diverged", "squeeze": {"median": [v, lo, hi], "p90": [...]},
-        "estimate": {...}, "squeeze_lift": {...}}``.
+        "estimate": {...}, "squeeze_lift": {...}}``; with the box held by friction also
+        ``slide`` (as those, m), ``slips`` (summed over the draws), ``slipped`` and
+        ``dropped`` (draws with a slip, with a drop).
     """
     numbers = [per_draw(r) for r in records]
     out = {"n": len(numbers), "diverged": int(sum(v["diverged"] for v in numbers))}
-    for key in ("squeeze", "estimate", "squeeze_lift"):
-        x = np.array([v[key] for v in numbers])
+    held = [v for v in numbers if "slips" in v]
+    keys = ("squeeze", "estimate", "squeeze_lift") + (("slide",) if held else ())
+    for key in keys:
+        x = np.array([v.get(key, math.nan) for v in numbers])
         out[key] = {"median": list(bootstrap_interval(x, 0.5)),
                     "p90": list(bootstrap_interval(x, 0.9))}
+    if held:
+        out["slips"] = int(sum(v["slips"] for v in held))
+        out["slipped"] = int(sum(v["slips"] > 0 for v in held))
+        out["dropped"] = int(sum(v["drops"] for v in held))
     return out
 
 
@@ -530,6 +586,8 @@ def markdown_table(table: dict, key: str = "squeeze") -> str:
             text = f"{_fmt(s[key]['median'])} / {_fmt(s[key]['p90'])}"
             if s["diverged"]:
                 text += f" ({s['diverged']} of {s['n']} diverged)"
+            if "slips" in s:
+                text += f"; slips {s['slips']} ({s['slipped']} draws), drops {s['dropped']}"
             cells.append(text)
             median = s["squeeze"]["median"][0]
             if col != "exact" and (s["diverged"] or (math.isfinite(median)

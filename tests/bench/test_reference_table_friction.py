@@ -1,0 +1,48 @@
+"""bench.reference_table_friction: its bases, the saturation column's reach, the overlap."""
+
+from __future__ import annotations
+
+import json
+
+from bench.reference_table_friction import ROOT, overlap, saturating_joints, write_bases
+from drake_coop.scenario.loading import load_scenario
+from drake_coop.studies.reference_table import default_columns, FRICTION_COLUMNS
+
+
+def test_the_bases_are_the_contact_scenario_and_the_every_arm_ur10_row(tmp_path):
+    """The paper's arms: contact.yaml's plant with an estimated box; the lab pair: the UR10
+    row of every_arm.json, its placement and its derived gains, the box held by friction."""
+    paths = write_bases(tmp_path)
+    paper = load_scenario(paths["paper_contact"])
+    shipped = load_scenario(ROOT / "scenarios" / "contact.yaml")
+    assert paper.plant == shipped.plant and paper.plant.object_mode == "contact"
+    assert (shipped.object_model.mode, paper.object_model.mode) == ("none", "estimated")
+    pair = load_scenario(paths["ur10_pair"])
+    row = json.loads((ROOT / "docs" / "results" / "every_arm.json").read_text())["cases"]["ur10"]
+    assert pair.plant.object_mode == "contact" and pair.object_model.mode == "estimated"
+    for robot in pair.robots:
+        gains = row["gains"]["robots"][robot.name]
+        assert robot.gains.K_R == gains["K_R"] and robot.gains.Lambda == gains["Lambda"]
+        assert "ur10_robot.urdf" in robot.model
+    assert default_columns(pair) == FRICTION_COLUMNS
+    assert not list(tmp_path.glob(".*"))             # the loader's file removed
+
+
+def test_the_saturation_column_reaches_a_joint_only_above_the_floor():
+    """The limit is max(0.9 × U(0.95, 1.05) × lift, 1.02 × other): below the lift's peak on
+    some draw only where 0.945 × lift > 1.02 × other."""
+    peaks = {"robot1": {"lift": [10.0, 10.0, 10.0], "other": [9.0, 9.4, 1.0]}}
+    # 0.945 × 10 = 9.45: above 1.02 × 9.0 = 9.18, below 1.02 × 9.4 = 9.588
+    assert saturating_joints(peaks) == {"robot1": [0, 2]}
+
+
+def test_the_overlap_compares_the_order_of_the_medians():
+    short = {"cells": {"observer": {"exact": {"squeeze": {"median": [0.2, 0.2, 0.2]}}},
+                       "momentum": {"exact": {"squeeze": {"median": [0.1, 0.1, 0.1]}}},
+                       "none": {"exact": {"squeeze": {"median": [0.3, 0.3, 0.3]}}}}}
+    full = {"rows": {"observer": [{"squeeze": 0.08}], "momentum": [{"squeeze": 0.03}],
+                     "none": [{"squeeze": 0.02}]}}
+    verdicts = {tuple(v["pair"]): v["verdict"] for v in overlap(short, full)}
+    assert verdicts[("momentum", "observer")] == "agrees"
+    assert verdicts[("momentum", "none")] == "disagrees"
+    assert verdicts[("none", "observer")] == "disagrees"
