@@ -238,6 +238,48 @@ def snapshot(folder: Path, draws: int, rows: list[str] | None = None,
     return table
 
 
+def paired_identified(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
+    """Each identified column against the MAP-SDP column of the same budget, row by row,
+    paired by draw (the same prior, the same excitation's noise): ``n`` draws finished in
+    both, ``worse`` (squeeze error above the SDP's), ``median_ratio`` and ``max_ratio`` of the
+    two squeeze errors. Columns whose SDP column is not in ``cols`` are left out."""
+    from drake_coop.scenario.loading import load_scenario
+    from drake_coop.studies.reference_table import expand_table, per_draw
+    from drake_coop.studies.store import ResultStore
+
+    records = ResultStore(folder).load()
+    models = {(c, d): json.loads((folder / "identified" / c / str(d) / "models.json")
+                                 .read_text())
+              for c in cols if c.startswith("id_") for d in range(draws)}
+
+    def squeeze(row: str, col: str) -> dict[int, float]:
+        out = {}
+        for draw, case in enumerate(expand_table(load_scenario(), [row], [col], draws,
+                                                 models=models)):
+            record = records.get(case.hash)
+            if record is not None and record["status"] == "ok":
+                out[draw] = per_draw(record)["squeeze"]
+        return out
+
+    paired: dict = {}
+    for col in cols:
+        if not col.startswith("id_") or col.startswith("id_map_sdp_"):
+            continue
+        sdp = "id_map_sdp_" + col.rsplit("_", 1)[1]
+        if sdp not in cols:
+            continue
+        for row in rows:
+            a, b = squeeze(row, col), squeeze(row, sdp)
+            common = sorted(set(a) & set(b))
+            if not common:
+                continue
+            ratio = np.array([a[d] / b[d] for d in common])
+            paired.setdefault(row, {})[col] = {
+                "against": sdp, "n": len(common), "worse": int(np.sum(ratio > 1.0)),
+                "median_ratio": float(np.median(ratio)), "max_ratio": float(ratio.max())}
+    return paired
+
+
 def per_robot(folder: Path, draws: int, column: str = "clock") -> dict:
     """Each robot's own circle RMS of ``λ − λ_d`` and ``λ̂ − λ`` per row, median and range
     over the draws, under ``column`` and under the exact model, and ``max_change``: the
@@ -306,6 +348,10 @@ def main() -> None:
                          args.columns.split(",") if args.columns else None)
         if args.time_logs:
             table["runs"] = [time_log(Path(p)) for p in args.time_logs]
+        paired = paired_identified(Path(args.table), args.draws, table["rows"],
+                                   table["columns"])
+        if paired:
+            table["paired_with_map_sdp"] = paired
         out.write_text(json.dumps(table, indent=1) + "\n")
         print(f"{table['finished']} of {table['cases']} cases finished")
         return
