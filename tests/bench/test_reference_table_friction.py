@@ -4,11 +4,16 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from bench.reference_table_friction import ROOT, overlap, saturating_joints, write_bases
 from drake_coop.scenario.loading import load_scenario
+from drake_coop.control.arm_plant import description_packages
 from drake_coop.studies.reference_table import default_columns, FRICTION_COLUMNS
 
 
+@pytest.mark.skipif("example-robot-data" not in description_packages(),
+                    reason='example-robot-data is not installed (pip install -e ".[robots]")')
 def test_the_bases_are_the_contact_scenario_and_the_every_arm_ur10_row(tmp_path):
     """The paper's arms: contact.yaml's plant with an estimated box; the lab pair: the UR10
     row of every_arm.json, its placement and its derived gains, the box held by friction."""
