@@ -172,10 +172,12 @@ RESULTS = Path(__file__).resolve().parents[2] / "docs" / "results" / "reference_
 @pytest.mark.slow
 @pytest.mark.parametrize("row, draw, stat", [("observer", 0, "max"), ("observer", 8, "min"),
                                              ("momentum", 0, "max"), ("momentum", 2, "min")])
-def test_the_columns_results_file_is_reproduced_bit_for_bit_on_its_extreme_draws(row, draw, stat):
+def test_the_columns_results_file_is_reproduced_on_its_extreme_draws(row, draw, stat):
     """The column's results file (20 draws, built when robot 2's clock was put on by wrapping
     Drake's event declarations) gives robot 2's smallest and largest circle squeeze error per
-    row: the draws that gave them, run again with the plan's clocks, give them to the bit."""
+    row: the draws that gave them, run again with the plan's clocks, give them again, to the
+    golden runs' 1e-6 relative (on the Drake that wrote the file, to the bit; another Drake
+    rounds differently: 2e-9 relative measured on 1.58)."""
     from drake_coop.studies.reference_table import T_SHORT, scenario_text
     from drake_coop.studies.reference_variants import run_variant_case
 
@@ -184,4 +186,5 @@ def test_the_columns_results_file_is_reproduced_bit_for_bit_on_its_extreme_draws
                if c.params["draw"] == draw]
     record = run_variant_case(scenario_text(case), T_SHORT, case.values["variant"])
     assert record["status"] == "ok", record["message"]
-    assert record["metrics"]["robot2"]["circle"]["force_error"]["rms"] == expected
+    assert record["metrics"]["robot2"]["circle"]["force_error"]["rms"] == pytest.approx(
+        expected, rel=1e-6, abs=0.0)
