@@ -201,12 +201,7 @@ def grasp_row(key: str, out: Path, squeeze: str | None = None) -> dict:
     from drake_coop.stability.gains import derive_gains, gains_for_scenario
     from drake_coop.stability.grasp_dynamics import check_grasp_dynamics
 
-    arms = MIXED if key == "mixed" else (key, key)
-    places = [placement(a, out.parent)[0] for a in dict.fromkeys(arms)]
-    places = places * 2 if arms[0] == arms[1] else places
-    scenario = load_pair(arms, places, out.parent / f".{key}.grasp.yaml")
-    if squeeze is not None:
-        scenario.object_model.squeeze = squeeze
+    arms, scenario = _placed_pair(key, out, "grasp", squeeze)
     derived = derive_gains(scenario)
     result = check_grasp_dynamics(gains_for_scenario(scenario, derived))
     return {"arms": list(arms), "passes": result.passes, "message": result.message,
@@ -214,6 +209,18 @@ def grasp_row(key: str, out: Path, squeeze: str | None = None) -> dict:
             "worst": result.worst, "joints": result.joints, "pads": result.pads,
             "cpu_seconds": result.cpu_seconds, "values": grasp_values(result),
             "K_R": {d.name: [float(k) for k in d.gains.K_R] for d in derived}}
+
+
+def _placed_pair(key: str, out: Path, purpose: str, squeeze) -> tuple:
+    """Row ``key``'s two arms at their stored placements, loaded as ``gains`` loads them
+    (through ``.{key}.{purpose}.yaml`` beside ``out``), its squeeze set when given."""
+    arms = MIXED if key == "mixed" else (key, key)
+    places = [placement(a, out.parent)[0] for a in dict.fromkeys(arms)]
+    places = places * 2 if arms[0] == arms[1] else places
+    scenario = load_pair(arms, places, out.parent / f".{key}.{purpose}.yaml")
+    if squeeze is not None:
+        scenario.object_model.squeeze = squeeze
+    return arms, scenario
 
 
 def grasp_values(result) -> dict:
@@ -284,12 +291,7 @@ def lift_row(key: str, out: Path, squeeze: str | None = None) -> dict:
     slide on the box (m) before that time: whether a grasp lost in the lift slid or turned."""
     from drake_coop.stability.gains import derive_gains, gains_for_scenario
 
-    arms = MIXED if key == "mixed" else (key, key)
-    places = [placement(a, out.parent)[0] for a in dict.fromkeys(arms)]
-    places = places * 2 if arms[0] == arms[1] else places
-    scenario = load_pair(arms, places, out.parent / f".{key}.lift.yaml")
-    if squeeze is not None:
-        scenario.object_model.squeeze = squeeze
+    arms, scenario = _placed_pair(key, out, "lift", squeeze)
     return lift_truth(gains_for_scenario(scenario, derive_gains(scenario)), list(arms))
 
 

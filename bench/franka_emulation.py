@@ -375,6 +375,16 @@ def driver_cpu(name: str = "two_pandas", t_end: float = 2.0, pairs: int = 5) -> 
     return out
 
 
+def _add_result(out: Path, key: str, value) -> int:
+    """``value`` stored under ``key`` in the results file ``out`` (kept or created), and
+    printed; the exit code 0."""
+    data = json.loads(out.read_text()) if out.exists() else {}
+    data[key] = value
+    out.write_text(json.dumps(data, indent=1) + "\n")
+    print(json.dumps(value), flush=True)
+    return 0
+
+
 def main(argv=None) -> int:
     """Run the cases and write the JSON.
 
@@ -400,17 +410,9 @@ def main(argv=None) -> int:
                              "plain and emulated (driver_cpu), added to --out as driver_cpu")
     args = parser.parse_args(argv)
     if args.driver_cpu:
-        data = json.loads(Path(args.out).read_text()) if Path(args.out).exists() else {}
-        data["driver_cpu"] = driver_cpu(args.scenario)
-        Path(args.out).write_text(json.dumps(data, indent=1) + "\n")
-        print(json.dumps(data["driver_cpu"]), flush=True)
-        return 0
+        return _add_result(Path(args.out), "driver_cpu", driver_cpu(args.scenario))
     if args.external_torque:
-        data = json.loads(Path(args.out).read_text()) if Path(args.out).exists() else {}
-        data["external_torque"] = external_torque_accuracy(args.scenario)
-        Path(args.out).write_text(json.dumps(data, indent=1) + "\n")
-        print(json.dumps(data["external_torque"]), flush=True)
-        return 0
+        return _add_result(Path(args.out), "external_torque", external_torque_accuracy(args.scenario))
     scenario = compressed(args.scenario)
     result = {"scenario": args.scenario, "t_end_s": args.t_end,
               "task": "compressed: grasp 1.5 s, circle 2-4 s", "load_before":
