@@ -250,15 +250,38 @@ class CellWatch:
             self.heard[r] = self.k
 
     def tick(self) -> str | None:
-        """After each of this process's ticks: its heartbeat, then each partner's silence.
+        """After each of this process's ticks: its heartbeat (:meth:`beat`), then each
+        partner's silence (:meth:`watch`).
 
         Returns
         -------
         str or None
             Why this process must stop (:attr:`reason`), or None.
         """
+        self.beat()
+        return self.watch()
+
+    def beat(self) -> None:
+        """This process's tick is counted and its heartbeat published.
+
+        In lockstep the heartbeat of a tick is published *before* the tick's command (see
+        :func:`~drake_coop.robot.lockstep.run_lockstep`): the driver advances only on every
+        arm's command, so a partner's tick ``m`` then always follows the heartbeat of this
+        process's tick ``m - 1`` on the wire, and a partner counts at most 2 ticks of silence
+        however the processes are scheduled. Sent after the command, a heartbeat can trail
+        it (TCP's Nagle delay, a process descheduled between the two sends) while the lockstep
+        runs on: 3 ticks, the stop's bound, were seen under load."""
         self.k += 1
         self.announce("serving")
+
+    def watch(self) -> str | None:
+        """Each partner's silence after this process's tick (:meth:`beat` counted it).
+
+        Returns
+        -------
+        str or None
+            Why this process must stop (:attr:`reason`), or None.
+        """
         self.check()
         for r in self.partners:
             if self.reason is not None:

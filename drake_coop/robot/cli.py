@@ -377,8 +377,12 @@ def _serve(args, specs, plan, lcm, folder, staging, realtime) -> int:
             if lockstep is not None:    # simulated time: no deadline for the collector to miss
                 from drake_coop.robot.lockstep import run_lockstep
 
-                reason = run_lockstep(loop, lcm, lockstep, plan.k_end, record, after_tick,
-                                      stop=CellStops(stop, cell), timeout=args.status_wait)
+                def after_lockstep_tick(k):   # the heartbeat went out before the command
+                    return "tripped" if loop.tripped() else (cell.watch() or "")
+
+                reason = run_lockstep(loop, lcm, lockstep, plan.k_end, record,
+                                      after_lockstep_tick, stop=CellStops(stop, cell),
+                                      timeout=args.status_wait, before_send=cell.beat)
             else:
                 with collector:          # Python's collector only in the slack after a command
                     reason = run_on_arrival(loop, lcm, arrivals, plan.k_end, record, after_tick,

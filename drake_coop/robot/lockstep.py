@@ -15,7 +15,9 @@ The schedule is the loopback run's, tick ``k`` at ``t_k = k h``:
 * ``serve`` (:func:`run_lockstep`) feeds tick ``k`` each arm's status of the driver's newest
   cycle at or before ``t_k`` (:func:`status_time`), found by its ``utime`` in the driver's clock (the first status gives the
   clock's origin), and stamps each command with that status's ``utime`` + 1 µs (the driver's
-  own clock: within its expiry whatever the wall clocks say).
+  own clock: within its expiry whatever the wall clocks say); the cell's heartbeat of the
+  tick goes out just before its command (``before_send``: a partner never ticks past a
+  command whose heartbeat it has not had).
 
 A side that hears nothing for ``timeout`` wall seconds stops (one line): the other process
 has died or stopped. A stop on the serves' stop channel (a serve tripped, or was stopped)
@@ -166,7 +168,7 @@ def wait_for(lcm, ready, timeout: float, late, poll=None) -> str:
 
 
 def run_lockstep(loop, lcm, statuses: LockstepStatuses, k_end: int, record, after_tick=None,
-                 stop=None, timeout: float = 10.0) -> str:
+                 stop=None, timeout: float = 10.0, before_send=None) -> str:
     """Tick ``loop`` (a started :class:`~drake_coop.robot.serve_loop.ServeLoop`) from
     ``k = 0`` to ``k_end`` in lockstep with the driver (see the module).
 
@@ -188,6 +190,10 @@ def run_lockstep(loop, lcm, statuses: LockstepStatuses, k_end: int, record, afte
         Another ``serve``'s stop.
     timeout : float
         The longest wall-clock wait for a status, s.
+    before_send : Callable[[], None] or None
+        Called in each tick after its updates and watchdog check, before its commands are
+        sent (the cell's heartbeat, :meth:`~drake_coop.robot.cell.CellWatch.beat`: on the
+        wire ahead of the command the driver waits for).
 
     Returns
     -------
@@ -231,7 +237,11 @@ def run_lockstep(loop, lcm, statuses: LockstepStatuses, k_end: int, record, afte
             if got is not None:
                 loop.feed(i, check_panda_status(got[0], specs[i].n))
                 senders[i].echo(got[1])
-        loop.tick()
+        loop.step()                    # loop.tick(), with the heartbeat before the command
+        loop.check()
+        if before_send is not None:
+            before_send()
+        loop.send()
         end = time.perf_counter()
         record.add(k, end - start, end - start, 0.0, 0.0)
         if after_tick is not None:

@@ -26,7 +26,8 @@ class CellSettings:
         ``ceil(start_ramp / control_period)`` ticks (0: none).
     partner_silence_ticks : int
         A ``serve`` that has not heard another arm's ``serve`` for this many of its own ticks
-        in a row stops, naming that arm.
+        in a row stops, naming that arm (3 to 1000: in lockstep a partner's heartbeat can
+        trail this serve's ticks by 2 however the processes are scheduled).
     """
 
     start_max_offset: float = 0.05

@@ -112,7 +112,8 @@ BOUNDS: dict[str, Bound] = {
     "cell.start_max_offset": Bound(0.0, 3.2, "rad", **_POS),
     "cell.start_max_speed": Bound(0.0, 10.0, "rad/s", **_POS),
     "cell.start_ramp": Bound(0.0, 10.0, "s"),
-    "cell.partner_silence_ticks": Bound(1, 1000, "ticks"),
+    # 3 at least: in lockstep a partner's heartbeat can trail by 2 ticks (CellWatch.beat)
+    "cell.partner_silence_ticks": Bound(3, 1000, "ticks"),
     "guards.max_pad_error": Bound(0.0, 10.0, "m", **_POS),
     "guards.max_squeeze_error": Bound(0.0, 1e5, "N", **_POS),
     "guards.max_object_tilt_deg": Bound(0.0, 180.0, "deg", **_POS),

@@ -288,6 +288,66 @@ def serve(tmp_path, *extra, scenario="paper", t_end="1"):
     return code, out
 
 
+class PlayedLockstepDriver(DrakeLcm):
+    """``memq://`` whose pump plays the lockstep driver and robot1's serve for robot2's
+    ``serve --lockstep``: both arms' statuses of every driver cycle (``period``) up to tick
+    ``k``'s time (``k h``) once tick ``k - 1``'s command of robot2 came (cycle 0 until the
+    first), and robot1's ``serving`` heartbeat; :attr:`sent` records what robot2's serve
+    published, in order: ``command``, or its heartbeat's state."""
+
+    def __init__(self, period: float, h: float):
+        super().__init__("memq://")
+        self.period, self.h, self.cycle, self.commands, self.sent = period, h, -1, 0, []
+        self.Subscribe("PANDA_COMMAND_robot2", self._command)
+        self.Subscribe(CELL_CHANNEL, self._beat)
+
+    def _command(self, data) -> None:
+        self.sent.append("command")
+        self.commands += 1
+
+    def _beat(self, data) -> None:
+        beat = parse_heartbeat(bytes(data))
+        if beat is not None and beat.session != OTHER:
+            self.sent.append(beat.state)
+
+    def HandleSubscriptions(self, timeout_millis: int) -> int:  # noqa: N802 (Drake's name)
+        self.Publish(CELL_CHANNEL, Heartbeat(OTHER, 999999, 0, "serving", ["robot1"]).encode())
+        while (self.cycle + 1) * self.period <= self.commands * self.h + 1e-9:
+            self.cycle += 1
+            utime = 10**6 + round(self.cycle * self.period * 1e6)
+            for i, name in enumerate(("robot1", "robot2")):
+                self.Publish(f"PANDA_STATUS_{name}", status_message(Q0[i], utime).encode())
+        if self.cycle == 0:                         # before tick 0: the first status again
+            for i, name in enumerate(("robot1", "robot2")):
+                self.Publish(f"PANDA_STATUS_{name}", status_message(Q0[i], 10**6).encode())
+        return super().HandleSubscriptions(0)
+
+
+def test_in_lockstep_each_ticks_heartbeat_goes_out_before_its_command(tmp_path, monkeypatch):
+    """``serve --lockstep``: every tick's heartbeat is on the wire before the tick's command.
+    The driver advances only on every arm's command, so a partner cannot tick past a command
+    whose heartbeat it has not had: its count of this serve's silence stays below 3 however
+    the processes are scheduled (sent after the command, a heartbeat can trail it while the
+    lockstep runs on, and 3 ticks were seen under load)."""
+    from drake_coop.robot.driver_spec import driver_specs
+    from drake_coop.scenario.model_check import check_models
+
+    period = driver_specs(SCENARIO, check_models(SCENARIO))[1].period
+    h = plan_run(SCENARIO).h
+    lcm = PlayedLockstepDriver(period, h)
+    monkeypatch.setattr(cli, "_make_lcm", lambda url: lcm)
+    code, out = serve(tmp_path, "--robot", "robot2", "--lockstep", "--status-wait", "5",
+                      t_end="0.03")
+    assert code == 0, json.loads((out / "run.json").read_text())["message"]
+    lcm.HandleSubscriptions(0)
+    assert lcm.sent[-2:] == ["command", "done"]          # the safe command, then done
+    ticks = [i for i, x in enumerate(lcm.sent[:-2]) if x == "command"]
+    assert len(ticks) == math.floor(0.03 / h + 1e-9) + 1 >= 3
+    for i in ticks:                       # each command right after its tick's heartbeat
+        assert lcm.sent[i - 1] == "serving", lcm.sent[max(i - 3, 0):i + 1]
+    assert lcm.sent.count("serving") == len(ticks)
+
+
 def test_killed_partner_serve_stops_this_one_within_three_ticks_naming_the_dead_arm(
         tmp_path, monkeypatch, capsys):
     """robot2's serve, robot1's serve played by its heartbeats in the pump until it is killed
