@@ -72,7 +72,8 @@ def build_control_block(name: str, law: FingerLaw, period: float,
                         velocity_source: str = "observer", force_source: str = "observer",
                         difference_cutoff_hz: float | None = None,
                         momentum_torque_limits=None, prediction_horizon: float | None = None,
-                        anti_windup_limits=None, clock: Clock | None = None
+                        anti_windup_limits=None, clock: Clock | None = None,
+                        anti_windup_gain: float | None = None
                         ) -> tuple[Diagram, LeafSystem, LeafSystem, Controller]:
     """One robot's velocity source, force source and controller, wired as in the paper.
 
@@ -114,6 +115,11 @@ def build_control_block(name: str, law: FingerLaw, period: float,
         The controller's own clock (:class:`~drake_coop.control.timing.Clock`, its
         computer's): every system of the block with periodic updates ticks on it, each
         keeping ``h`` in its equations. None (default): the run's grid.
+    anti_windup_gain : float, optional
+        With ``anti_windup_limits``: back-calculation at this tracking rate ``K_aw`` (1/s,
+        ``0 < h K_aw ≤ 1``) instead of conditional integration; the force source then also
+        reads ``q`` (:func:`~drake_coop.control.anti_windup.back_calculation`). None
+        (default): conditional integration.
 
     Returns
     -------
@@ -135,7 +141,8 @@ def build_control_block(name: str, law: FingerLaw, period: float,
     on_clock(clock, period)                  # a Clock or None, refused by name otherwise
     options = {"difference_cutoff_hz": difference_cutoff_hz,
                "momentum_torque_limits": momentum_torque_limits,
-               "anti_windup_limits": anti_windup_limits, "clock": clock}
+               "anti_windup_limits": anti_windup_limits, "clock": clock,
+               "anti_windup_gain": anti_windup_gain}
     specs = (source("velocity", velocity_source), source("force", force_source))
     b = DiagramBuilder()
     vel, force = (b.AddNamedSystem(f"{name}_{spec.suffix}", spec.make(law, period, options))
@@ -366,7 +373,7 @@ def AddCooperativeController(
         name: str | None = None, allow_sampled_output_ports: bool = False,
         pinv_damping: float = 0.0, momentum_torque_limits=None, contact_stiffness=None,
         prediction_horizon: float | None = None, anti_windup_limits=None,
-        clock: Clock | None = None
+        clock: Clock | None = None, anti_windup_gain: float | None = None
 ) -> ControllerHandles:
     """Add one arm's observers (15)–(16), (22) and controller (13) to ``builder``.
 
@@ -453,6 +460,9 @@ def AddCooperativeController(
         ``force_source = "momentum"`` or ``"sensor"``: the arm's torque limits, so the force
         integral (6) is not integrated while the commanded torque exceeds them (opt-in; see
         :func:`build_control_block`). None (default): the paper's (6).
+    anti_windup_gain : float, optional
+        With ``anti_windup_limits``: back-calculation at this tracking rate (1/s; see
+        :func:`build_control_block`). None (default): conditional integration.
     clock : Clock or None
         The controller's own clock (phase and rate against the plant's time,
         :class:`~drake_coop.control.timing.Clock`): the block's periodic updates tick on it
@@ -563,7 +573,7 @@ def AddCooperativeController(
                                                   force_source, difference_cutoff_hz,
                                                   momentum_torque_limits, prediction_horizon,
                                                   anti_windup_limits,
-                                                  clock)
+                                                  clock, anti_windup_gain)
     try:
         selector, lambda_in = _wire(builder, plant, model_instance, block, name, q,
                                     lambda_sensor, connect_actuation)

@@ -46,7 +46,13 @@ from pydrake.systems.framework import (
     ValueProducer,
 )
 
-from drake_coop.control.anti_windup import check_limits, clipped, force_integral_step
+from drake_coop.control.anti_windup import (
+    back_calculation,
+    back_calculation_gains,
+    check_limits,
+    clipped,
+    force_integral_step,
+)
 from drake_coop.control.interfaces import ForceSource
 from drake_coop.control.arm_model import ArmModel
 from drake_coop.control.reference_layout import ReferenceLayout
@@ -84,7 +90,8 @@ def momentum_estimate(p: np.ndarray, sigma: np.ndarray, gain: float, J: np.ndarr
 
 def momentum_step(sigma: np.ndarray, DF: np.ndarray, tau: np.ndarray, beta: np.ndarray,
                   r: np.ndarray, lam: np.ndarray, lambda_d: np.ndarray, held: bool,
-                  h: float, frozen: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                  h: float, frozen: bool = False, correction: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """One forward-Euler tick of the observer's state and of the integral (6):
     ``σ(k+1) = σ(k) + h (τ(k) − β̂ + r(k))``, ``ΔF̃(k+1) = ΔF̃(k) + h (λ̂ − λ_d)`` while held,
     else 0 (held at ``ΔF̃(k)`` when ``frozen``: :mod:`~drake_coop.control.anti_windup`).
@@ -108,6 +115,9 @@ def momentum_step(sigma: np.ndarray, DF: np.ndarray, tau: np.ndarray, beta: np.n
     frozen : bool
         An actuator is clipped at tick ``k`` and anti-windup is on: ``ΔF̃`` is not
         integrated (:func:`~drake_coop.control.anti_windup.force_integral_step`).
+    correction : numpy.ndarray or None
+        The back-calculation term of tick ``k`` (m,), N
+        (:func:`~drake_coop.control.anti_windup.back_calculation`); None: none.
 
     Returns
     -------
@@ -115,7 +125,7 @@ def momentum_step(sigma: np.ndarray, DF: np.ndarray, tau: np.ndarray, beta: np.n
         ``σ(k+1)`` and ``ΔF̃(k+1)``.
     """
     sigma_next = sigma + h * (tau - beta + r)
-    return sigma_next, force_integral_step(DF, lam - lambda_d, held, h, frozen)
+    return sigma_next, force_integral_step(DF, lam - lambda_d, held, h, frozen, correction)
 
 
 class MomentumObserver(ForceSource):
@@ -154,6 +164,13 @@ class MomentumObserver(ForceSource):
         The arm's torque limits for the anti-windup of (6) (opt-in,
         :mod:`~drake_coop.control.anti_windup`): ``ΔF̃`` is not integrated at a tick whose
         commanded ``τ`` exceeds them at some joint. None (the default): the paper's (6).
+    anti_windup_gain : float, optional
+        With ``anti_windup_limits``: back-calculation instead of conditional integration,
+        at this tracking rate ``K_aw`` (1/s, ``0 < h K_aw ≤ 1``;
+        :func:`~drake_coop.control.anti_windup.back_calculation`). None: conditional.
+    force_gain : float, optional
+        ``k_F`` of (13) (1/s, > 0), which back-calculation's ``P = (J_φᵀ)⁺ / k_F`` needs
+        (required with ``anti_windup_gain``).
     clock : Clock or None
         The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
         e.g. a controller's computer's); ``h`` stays the period of its equations. None
@@ -186,7 +203,8 @@ class MomentumObserver(ForceSource):
 
     def __init__(self, model: ArmModel, layout: ReferenceLayout, period: float, gain: float,
                  torque_limits=None, anti_windup_limits=None,
-                 clock: Clock | None = None):
+                 clock: Clock | None = None, anti_windup_gain: float | None = None,
+                 force_gain: float | None = None):
         super().__init__()
         self._model = model
         self._layout = layout = ReferenceLayout.check(layout)
@@ -202,6 +220,8 @@ class MomentumObserver(ForceSource):
             self._limits = limits
         self._windup_limits = (None if anti_windup_limits is None
                                else check_limits(anti_windup_limits, layout.n))
+        self._back = back_calculation_gains(self._windup_limits, anti_windup_gain, force_gain,
+                                            period)
         n, m = layout.n, layout.m
         self._n, self._m = n, m
         self._q = self.DeclareVectorInputPort("q", n)
@@ -352,8 +372,14 @@ class MomentumObserver(ForceSource):
         sigma = context.get_discrete_state(self._sigma).value()
         commanded = self._tau.Eval(context)
         DF = context.get_discrete_state(self._DF).value()
+        correction = None
+        if self._back is not None and held:
+            correction = back_calculation(commanded, self._windup_limits, self._model.J_phi(q),
+                                          *self._back)
         sigma, DF = momentum_step(sigma, DF, self.applied_torque(commanded), self.beta(q, v),
                                   r, lam, lambda_d, held, self._h,
-                                  clipped(commanded, self._windup_limits))
+                                  self._back is None and clipped(commanded,
+                                                                 self._windup_limits),
+                                  correction)
         discrete_state.set_value(self._sigma, sigma)
         discrete_state.set_value(self._DF, DF)

@@ -70,7 +70,7 @@ class Source:
         ``build(cls, law, period, options)``: the system from its class, the robot's
         :class:`~drake_coop.control.finger.FingerLaw`, the period ``h`` and the block's
         options (``difference_cutoff_hz``, ``momentum_torque_limits``,
-        ``anti_windup_limits``, and ``clock``: the
+        ``anti_windup_limits``, ``anti_windup_gain``, and ``clock``: the
         :class:`~drake_coop.control.timing.Clock` a source with periodic updates ticks on,
         None for the run's grid).
     outputs : tuple of str
@@ -174,9 +174,15 @@ def _check_momentum_gain(robot, h: float) -> None:
 def _check_anti_windup(robot, h: float) -> None:
     """``anti_windup``: null (the paper's (6)) or a scheme of
     :data:`~drake_coop.control.anti_windup.ANTI_WINDUP_SCHEMES`, which needs the arm's
-    ``actuators.torque_limits`` (the clipping it reacts to)."""
-    allowed = ("conditional",)      # anti_windup.ANTI_WINDUP_SCHEMES (no import here)
+    ``actuators.torque_limits`` (the clipping it reacts to); ``anti_windup_gain``: the
+    tracking rate ``K_aw`` in ``(0, 1/h]`` 1/s, with ``back_calculation`` only (required
+    there)."""
+    allowed = ("conditional", "back_calculation")   # anti_windup.ANTI_WINDUP_SCHEMES
     value = getattr(robot, "anti_windup", None)
+    gain = getattr(robot, "anti_windup_gain", None)
+    if gain is not None and value != "back_calculation":
+        raise ValueError(f"anti_windup_gain: only with anti_windup: back_calculation (got "
+                         f"anti_windup: {value}); set it to null")
     if value is None:
         return
     if value not in allowed:
@@ -185,6 +191,11 @@ def _check_anti_windup(robot, h: float) -> None:
     if robot.actuators.torque_limits is None:
         raise ValueError(f"anti_windup: {value} needs actuators.torque_limits (the clipping "
                          "it reacts to); set them or set anti_windup to null")
+    if value == "back_calculation" and (
+            gain is None or isinstance(gain, bool) or not isinstance(gain, (int, float))
+            or not 0.0 < gain <= 1.0 / h):
+        raise ValueError(f"anti_windup_gain: a tracking rate in (0, 1/h = {1.0 / h:g}] 1/s is "
+                         f"required with anti_windup: back_calculation (got {gain!r})")
 
 
 SOURCES: tuple[Source, ...] = (
@@ -206,8 +217,10 @@ SOURCES: tuple[Source, ...] = (
            "force feedback", "F/T sensor in (13)", ("lambda_sensor", "reference"),
            lambda cls, law, h, o: cls(h, law.layout,
                                       anti_windup_limits=o.get("anti_windup_limits"),
-                                      clock=o.get("clock")),
-           options=("anti_windup",), checks=_check_anti_windup),
+                                      clock=o.get("clock"),
+                                      anti_windup_gain=o.get("anti_windup_gain"),
+                                      model=law.model, force_gain=law.k_F),
+           options=("anti_windup", "anti_windup_gain"), checks=_check_anti_windup),
     Source("none", "force", "sources.NoForceEstimate", "no_force_estimate",
            "no force estimate", "λ̂ = λ_d", ("reference",),
            lambda cls, law, h, o: cls(law.layout)),
@@ -216,9 +229,11 @@ SOURCES: tuple[Source, ...] = (
            lambda cls, law, h, o: cls(law.model, law.layout, h, law.momentum_gain,
                                       torque_limits=o.get("momentum_torque_limits"),
                                       anti_windup_limits=o.get("anti_windup_limits"),
-                                      clock=o.get("clock")),
+                                      clock=o.get("clock"),
+                                      anti_windup_gain=o.get("anti_windup_gain"),
+                                      force_gain=law.k_F),
            outputs=("tau_ext_hat", "O_F_ext_hat"),
-           options=("gains.momentum_gain", "anti_windup"),
+           options=("gains.momentum_gain", "anti_windup", "anti_windup_gain"),
            checks=lambda robot, h: (_check_momentum_gain(robot, h),
                                     _check_anti_windup(robot, h))),
 )

@@ -34,7 +34,13 @@ from pydrake.systems.framework import (
     State,
 )
 
-from drake_coop.control.anti_windup import check_limits, clipped, force_integral_step
+from drake_coop.control.anti_windup import (
+    back_calculation,
+    back_calculation_gains,
+    check_limits,
+    clipped,
+    force_integral_step,
+)
 from drake_coop.control.interfaces import ForceSource, VelocitySource
 from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.control.params import check_count, check_optional_positive, check_period
@@ -258,6 +264,15 @@ class SensedForce(ForceSource):
         The clock its periodic update ticks on (:class:`~drake_coop.control.timing.Clock`,
         e.g. a controller's computer's); ``h`` stays the period of its equations. None
         (default): the run's grid.
+    anti_windup_gain : float, optional
+        With ``anti_windup_limits``: back-calculation instead of conditional integration at
+        this tracking rate ``K_aw`` (1/s, ``0 < h K_aw ≤ 1``;
+        :func:`~drake_coop.control.anti_windup.back_calculation`); the system then also
+        reads ``q``. None: conditional.
+    model : ArmModel, optional
+        The arm's model, for ``J_φ(q)`` (required with ``anti_windup_gain``).
+    force_gain : float, optional
+        ``k_F`` of (13), 1/s (required with ``anti_windup_gain``).
 
     Input ports
     -----------
@@ -268,6 +283,9 @@ class SensedForce(ForceSource):
     tau : n-vector
         With ``anti_windup_limits`` only: the commanded torque ``τ(k)`` (read by the update
         only).
+    q : n-vector
+        With ``anti_windup_gain`` only: the encoder reading ``q(k)`` (read by the update
+        only).
 
     Output ports
     ------------
@@ -277,7 +295,8 @@ class SensedForce(ForceSource):
     """
 
     def __init__(self, period: float, layout: ReferenceLayout, anti_windup_limits=None,
-                 clock: Clock | None = None):
+                 clock: Clock | None = None, anti_windup_gain: float | None = None,
+                 model=None, force_gain: float | None = None):
         super().__init__()
         self._h = period = check_period(period)
         self._layout = layout = ReferenceLayout.check(layout)
@@ -289,6 +308,15 @@ class SensedForce(ForceSource):
         if anti_windup_limits is not None:
             self._windup_limits = check_limits(anti_windup_limits, layout.n)
             self._tau = self.DeclareVectorInputPort("tau", layout.n)
+        self._back = back_calculation_gains(self._windup_limits, anti_windup_gain, force_gain,
+                                            period)
+        self._model = self._q = None
+        if self._back is not None:
+            if model is None or not callable(getattr(model, "J_phi", None)):
+                raise ValueError(f"model: an arm model with J_phi is required with "
+                                 f"anti_windup_gain (got {model!r})")
+            self._model = model
+            self._q = self.DeclareVectorInputPort("q", layout.n)
         self._state = self.DeclareDiscreteState(m)
         self.DeclarePeriodicDiscreteUpdateEvent(*on_clock(clock, period), self._update_integral)
         self.DeclareForcedDiscreteUpdateEvent(self._update_integral)
@@ -328,9 +356,14 @@ class SensedForce(ForceSource):
     def _update_integral(self, context: Context, discrete_state: DiscreteValues) -> None:
         lam, ref = self._lambda_hat(context)
         DF = context.get_discrete_state(self._state).CopyToVector()
-        frozen = self._tau is not None and clipped(self._tau.Eval(context), self._windup_limits)
-        discrete_state.set_value(self._state, force_integral_step(DF, lam - ref.lambda_d,
-                                                                  ref.held, self._h, frozen))
+        frozen, correction = False, None
+        if self._back is not None and ref.held:
+            correction = back_calculation(self._tau.Eval(context), self._windup_limits,
+                                          self._model.J_phi(self._q.Eval(context)), *self._back)
+        elif self._back is None and self._tau is not None:
+            frozen = clipped(self._tau.Eval(context), self._windup_limits)
+        discrete_state.set_value(self._state, force_integral_step(
+            DF, lam - ref.lambda_d, ref.held, self._h, frozen, correction))
 
 
 class NoForceEstimate(ForceSource):

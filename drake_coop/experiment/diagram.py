@@ -464,7 +464,7 @@ def build_experiment(plan: RunPlan, *, builder: DiagramBuilder | None = None,
             contact_stiffness=plan.robots[i].stiffness,
             prediction_horizon=robot.timing.prediction_horizon,
             anti_windup_limits=robot.actuators.torque_limits if robot.anti_windup else None,
-            name=name, clock=clock)
+            anti_windup_gain=robot.anti_windup_gain, name=name, clock=clock)
         ref = b.AddNamedSystem(f"{name}_reference", TrajectorySource(plan.robots[i].reference))
         parts.append((name, robot, state, encoder, q_port, ft, lambda_sensor, block))
         arms.append(ArmSignals(q=q_port, reference=ref.get_output_port(), control=block.system))

@@ -377,6 +377,7 @@ def add_controller_side(builder: DiagramBuilder, plan: RunPlan, lcm: DrakeLcm,
             force_source=robot.force_source, difference_cutoff_hz=robot.difference_cutoff_hz,
             prediction_horizon=robot.timing.prediction_horizon,
             anti_windup_limits=spec.torque_limits if robot.anti_windup else None,
+            anti_windup_gain=robot.anti_windup_gain,
             contact_stiffness=resolved.stiffness,
             q=q, connect_actuation=False, name=name)
         ref = builder.AddNamedSystem(f"{name}_reference", TrajectorySource(trajectories[i]))

@@ -298,8 +298,13 @@ class Robot:
     anti_windup : str or None
         ``force_source: sensor`` or ``momentum`` only: ``conditional`` holds the force
         integral (6) at ticks whose commanded torque exceeds ``actuators.torque_limits``
-        (required) at some joint (:mod:`drake_coop.control.anti_windup`); null (the default):
-        the paper's (6).
+        (required) at some joint (:mod:`drake_coop.control.anti_windup`); ``back_calculation``
+        drives it back by the torque the actuators did not apply, mapped into the
+        constraint's force space, at the rate ``anti_windup_gain``; null (the default): the
+        paper's (6).
+    anti_windup_gain : float or None
+        ``anti_windup: back_calculation`` only (required there): the tracking rate ``K_aw``,
+        1/s, in ``(0, 1/h]``; null otherwise.
     encoders : Encoders
         The joint-position sensors.
     force_sensor : ForceSensorModel
@@ -347,6 +352,7 @@ class Robot:
     difference_cutoff_hz: Optional[float] = None
     force_source: str = "observer"
     anti_windup: Optional[str] = None
+    anti_windup_gain: Optional[float] = None
     encoders: Encoders = field(default_factory=Encoders)
     force_sensor: ForceSensorModel = field(default_factory=ForceSensorModel)
     actuators: Actuators = field(default_factory=Actuators)

@@ -135,7 +135,7 @@ class Case:
 #: Robot fields added as opt-ins after cases were stored: at their null default (off) they
 #: change nothing in a run and are left out of :func:`case_hash`, so a stored case keeps the
 #: hash it had before the field existed.
-HASH_OMITS_NULL = ("anti_windup",)
+HASH_OMITS_NULL = ("anti_windup", "anti_windup_gain")
 
 
 def case_hash(scenario: Scenario | str, t_end: float | None) -> str:

@@ -164,7 +164,8 @@ ROBOT2 = ("- {name: robot2, model: crs_a255, base_xyz: [1.16, 0, 0], base_yaw_de
 
 @pytest.mark.parametrize("entry, message", [
     ("force_source: momentum, anti_windup: windup, actuators: {torque_limits: [9, 9, 9]}",
-     r"^robots\[0\]\.anti_windup must be null or one of conditional, got 'windup'$"),
+     r"^robots\[0\]\.anti_windup must be null or one of conditional, back_calculation, "
+     r"got 'windup'$"),
     ("force_source: sensor, anti_windup: conditional",
      r"^robots\[0\]\.anti_windup: conditional needs actuators\.torque_limits"),
     ("force_source: observer, anti_windup: conditional, actuators: {torque_limits: [9, 9, 9]}",
@@ -181,7 +182,8 @@ def test_the_option_off_leaves_every_case_hash_as_before_the_field():
     s = default_scenario()
     data = dataclasses.asdict(s)
     for robot in data["robots"]:
-        del robot["anti_windup"]          # the scenario as it was before the field existed
+        del robot["anti_windup"]          # the scenario as it was before the fields existed
+        del robot["anti_windup_gain"]
     text = json.dumps(data, sort_keys=True, separators=(",", ":")) + "\n# t_end: 8.0\n"
     assert case_hash(s, 8.0) == hashlib.sha256(text.encode()).hexdigest()[:16]
     s.robots[0].actuators.torque_limits = [9.0, 9.0, 9.0]
@@ -197,6 +199,7 @@ def test_the_scenario_check_allows_the_modules_schemes():
     robot.actuators.torque_limits = [9.0, 9.0, 9.0]
     for scheme in anti_windup.ANTI_WINDUP_SCHEMES:
         robot.anti_windup = scheme
+        robot.anti_windup_gain = 10.0 if scheme == "back_calculation" else None
         registry.source("force", "sensor").check(robot, H)
 
 
