@@ -57,6 +57,19 @@ constant: with ``(13)``'s ``k_F`` term alone, the excess along ``J_φᵀ`` shrin
 (and so ``K_R`` and ``q̈_r`` in (13)) is left out of ``P``: it changes the excess's scale
 along the same directions, which ``K_aw`` takes up. With nothing clipped the added term is
 not computed and the tick is (6)'s floating-point operations, to the bit.
+
+The natural gain is ``K_aw = k_F``: the term is then ``(J_φᵀ)⁺ (sat(τ) − τ)``, the unapplied
+torque read as a constraint force, in newtons like ``λ̂ − λ_d``. For the applied-torque
+residual (the momentum observer integrating ``sat(τ)``) that is, up to the observer's
+first-order lag, what an observer integrating the *commanded* torque adds to its estimate
+(it reads the torque the arm did not receive as external torque): (6) then integrates the
+commanded-torque observer's force error while (13) keeps the residual's estimate. For the
+observer that already integrates the commanded torque, the same term counts the excess a
+second time. The excess on a saturated lift is the lift's load, not the force loop's: at a
+tracking rate well above ``k_F`` back-calculation makes ``ΔF̃`` carry it (``1/k_F`` times
+the excess's constraint component), gives up the squeeze to relieve the joint, and (6)
+sheds that afterwards only at the rate ``k_F``. The reference-table page's saturation claim
+gives the numbers, gain by gain.
 """
 
 from __future__ import annotations
@@ -123,7 +136,7 @@ def check_gain(gain, period: float) -> float:
     """
     bound = 1.0 / period
     if (isinstance(gain, bool) or not isinstance(gain, (int, float, np.floating))
-            or not 0.0 < gain <= bound):
+            or not (gain > 0.0 and gain * period <= 1.0 + 1e-12)):    # 1/h itself passes
         raise ValueError(f"anti_windup_gain: a tracking rate in (0, 1/h = {bound:g}] 1/s is "
                          f"required (got {gain!r})")
     return float(gain)

@@ -193,7 +193,7 @@ def _check_anti_windup(robot, h: float) -> None:
                          "it reacts to); set them or set anti_windup to null")
     if value == "back_calculation" and (
             gain is None or isinstance(gain, bool) or not isinstance(gain, (int, float))
-            or not 0.0 < gain <= 1.0 / h):
+            or not (gain > 0.0 and gain * h <= 1.0 + 1e-12)):
         raise ValueError(f"anti_windup_gain: a tracking rate in (0, 1/h = {1.0 / h:g}] 1/s is "
                          f"required with anti_windup: back_calculation (got {gain!r})")
 

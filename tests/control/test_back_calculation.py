@@ -181,6 +181,11 @@ def test_a_bad_gain_is_refused_by_name(gain, message):
         check_gain(gain, H)
 
 
+def test_the_gain_may_be_one_over_h():
+    assert check_gain(1.0 / H, H) == 1.0 / H
+    assert check_gain(1.0 / 0.009, 0.009) == 1.0 / 0.009
+
+
 def test_the_sources_refuse_a_gain_without_what_it_needs():
     with pytest.raises(ValueError, match="^anti_windup_gain: needs anti_windup_limits"):
         back_calculation_gains(None, 10.0, K_F, H)
