@@ -25,8 +25,18 @@ def test_the_results_file_is_strict_json_with_every_run():
     for run in RUNS:
         assert summary[run]["completed"] == summary["n"]
     for run in PAIRED:
-        interval = summary[f"{run}_aw_over_free"]["squeeze_circle_interval"]
-        assert interval["low"] <= interval["median"] <= interval["high"]
+        for tail in ("_aw", "_bc"):
+            interval = summary[f"{run}{tail}_over_free"]["squeeze_circle_interval"]
+            assert interval["low"] <= interval["median"] <= interval["high"]
+    # The diagnosis: the sweep's runs (a lost grasp kept with its message) and its line
+    # through those that finished.
+    sweep = data["sweep"]
+    failed = [run for run in sweep["runs"] if run["status"] != "ok"]
+    assert sweep["failed"] == len(failed) and all(run["message"] for run in failed)
+    assert sweep["runs"][0]["status"] == "ok" and sweep["runs"][0]["draw"] is None
+    fit = sweep["fit"]
+    assert fit["n"] == len(sweep["runs"]) - len(failed)
+    assert fit["a_over_k_F"] == pytest.approx(fit["a"] / fit["k_F"])
 
 
 def _run(squeeze, saturated=None):
@@ -65,3 +75,18 @@ def test_anti_windup_recovers_the_squeeze_after_a_saturated_lift(row, noise, var
     assert plain["saturated_ticks"] > 100 and held["saturated_ticks"] > 100
     assert held["DF_lift_end"] < plain["DF_lift_end"]
     assert held["squeeze_circle"] <= plain["squeeze_circle"]
+
+
+@pytest.mark.slow
+def test_back_calculation_drives_the_command_back_to_the_limit_on_the_simulated_lift():
+    """Robot 1's elbow limited as in the bench's draw 0, the applied-torque residual: with
+    back-calculation at K_aw = 10 1/s the commanded torque's excess over the applied one
+    (the plant's, after Drake's saturation) over the saturated ticks after the grasp is
+    at most half of that with the paper's (6)."""
+    limit = 11.5 * float(np.random.default_rng([1, 0]).uniform(0.98, 1.02))
+    plain = measure("momentum", None, limit, "applied_torque", 0)
+    back = measure("momentum", None, limit, "applied_torque", 0,
+                   anti_windup="back_calculation", gain=10.0)
+    assert plain["status"] == back["status"] == "ok"
+    assert plain["saturated_ticks"] > 100 and back["saturated_ticks"] > 0
+    assert back["excess_saturated"] < 0.5 * plain["excess_saturated"]
