@@ -52,6 +52,7 @@ BOUNDS: dict[str, Bound] = {
     "robots[].gains.beta": Bound(0.0, 1e3, "1/s", **_POS),
     "robots[].gains.momentum_gain": Bound(0.0, 1e4, "1/s", **_POS),
     "robots[].difference_cutoff_hz": Bound(0.0, 1e6, "Hz", **_POS),
+    "robots[].anti_windup_gain": Bound(0.0, 1e6, "1/s", **_POS),
     "robots[].encoders.counts_per_rev": Bound(1, 1e12, "counts"),
     "robots[].encoders.noise_std": Bound(0.0, 1.0, "rad"),
     "robots[].encoders.delay_samples": Bound(0, 1000, "samples"),
