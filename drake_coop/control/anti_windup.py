@@ -14,7 +14,7 @@ saturation the loop unwinds it only at the rate of its remaining force error, wh
 the squeeze off ``λ_d`` for seconds (``bench/reference_table_saturation.py``).
 
 **Conditional integration** (also called clamping; Åström & Hägglund, *Advanced PID
-Control*, ISA 2006, section 3.5), the scheme chosen here:
+Control*, ISA 2006, section 3.5), the first scheme:
 
 .. math::
     \Delta\tilde F(k+1) = \Delta\tilde F(k)
@@ -50,8 +50,8 @@ scheme: the integral is driven by the part of the command the actuator did not a
 while held (0 otherwise). ``P`` is derived from (13): ``ΔF̃`` enters the torque through
 ``+k_F J_φᵀ ΔF̃``, so a change ``δ`` of ``ΔF̃`` changes ``τ`` by ``k_F J_φᵀ δ``, and the change
 that best removes a joint-torque excess ``e`` (least squares) is ``δ = (J_φᵀ)⁺ e / k_F``
-(``(J_φᵀ)⁺ = (J_φ J_φᵀ)⁻¹ J_φ``, the map (21) also uses to read joint torques as constraint
-forces). ``K_aw`` (1/s) is the tracking rate, the inverse of the classic tracking time
+(``(J_φᵀ)⁺ = (J_φ J_φᵀ)⁻¹ J_φ``, the undamped form of the map (21) uses to read joint
+torques as constraint forces). ``K_aw`` (1/s) is the tracking rate, the inverse of the classic tracking time
 constant: with ``(13)``'s ``k_F`` term alone, the excess along ``J_φᵀ`` shrinks by
 ``1 − h K_aw`` a tick, so ``0 < K_aw ≤ 1/h``. The path of ``ΔF̃`` through ``ξ ΔF̃`` in (4)
 (and so ``K_R`` and ``q̈_r`` in (13)) is left out of ``P``: it changes the excess's scale
@@ -76,8 +76,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["ANTI_WINDUP_SCHEMES", "back_calculation", "back_calculation_gains", "check_gain", "check_limits", "clipped",
-           "force_integral_step"]
+__all__ = ["ANTI_WINDUP_SCHEMES", "back_calculation", "back_calculation_gains", "check_gain",
+           "check_limits", "clipped", "force_integral_step"]
 
 #: The values of a robot's ``anti_windup`` field besides null (the paper's (6)).
 ANTI_WINDUP_SCHEMES = ("conditional", "back_calculation")
