@@ -51,7 +51,8 @@ model). The summary: per number, the
 median over the draws of each run and of the paired ratios ``<run> / momentum_free``, with
 their range, and for the circle's squeeze ratio the median's 95 % bootstrap interval
 (:func:`~drake_coop.studies.reference_table.bootstrap_interval`); the paired ratios
-``<run>_aw / <run>``; ``unsaturated_lift_draws``, the draws whose limit clips only on the
+``<run>_aw / <run>`` and ``<run>_bc / <run>``, and ``residual_bc / momentum``;
+``unsaturated_lift_draws``, the draws whose limit clips only on the
 approach, before the grasp. Strict JSON: a number undefined in a run (an RMS over no tick) is
 null. Process CPU seconds are recorded.
 """
@@ -291,6 +292,13 @@ def summarize(draws: list[dict], free: dict) -> dict:
                   and d["residual"].get(k) is not None and d["momentum"].get(k)])
         for k in ("squeeze_circle", "estimate_circle", "squeeze_lift", "estimate_lift",
                   "estimate_saturated")}
+    # Back-calculation at K_aw = k_F on the residual against the commanded-torque observer
+    # with (6), whose integral the term reproduces up to the observer's lag (the module
+    # docstring of drake_coop.control.anti_windup).
+    out["residual_bc_over_momentum"] = {
+        k: stats([d["residual_bc"][k] / d["momentum"][k] for d in draws
+                  if d["residual_bc"]["status"] == d["momentum"]["status"] == "ok"])
+        for k in ("squeeze_circle", "DF_lift_end")}
     for run in PAIRED:
         out[f"{run}_saturated_over_free_same_ticks"] = stats(
             [d[run]["estimate_saturated"] / d["free_over_saturated"] for d in draws
