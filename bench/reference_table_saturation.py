@@ -2,7 +2,8 @@
 during and after it, on paired draws (the reference table's short segment, 8 s).
 
 ``python bench/reference_table_saturation.py --out docs/results/reference_table_saturation.json
-[--draws 20]`` (resumable: each finished draw is kept in ``OUT.draws.jsonl``).
+[--draws 20] [--sweep]`` (resumable: each finished draw is kept in ``OUT.draws.jsonl``, and a
+run added to the bench later is run for the stored draws only).
 
 The saturation: robot 1's elbow limited at ``11.5 × U(0.98, 1.02)`` N·m per draw (its peak
 on the lift is 11.7 N·m, on the approach 11.8: saturated on the approach and the lift, not
