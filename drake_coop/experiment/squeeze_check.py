@@ -20,7 +20,7 @@ import numpy as np
 from drake_coop.experiment.plan import RobotPlan, RunPlan
 from drake_coop.scenario.schema import ScenarioError
 
-__all__ = ["check_squeeze_limits", "torque_limits"]
+__all__ = ["check_squeeze_limits", "required_torques", "torque_limits"]
 
 
 def torque_limits(robot: RobotPlan) -> np.ndarray:
@@ -46,29 +46,15 @@ def torque_limits(robot: RobotPlan) -> np.ndarray:
     return effort_limits(make_arm_controller_plant(arm.urdf_path, arm.base_frame))
 
 
-def check_squeeze_limits(plan: RunPlan) -> None:
-    """Refuse a grasp the arms cannot hold within their torque limits (see the module).
-
-    Only in ``contact`` mode (the other modes hold the object by constraints, not friction).
-    The references are the plan's (:attr:`~drake_coop.experiment.plan.RobotPlan.samples`,
-    computed once, to the run's end).
-
-    Parameters
-    ----------
-    plan : RunPlan
-        The run's plan.
-
-    Raises
-    ------
-    ScenarioError
-        ``robots[i] (name): at t = ... s the squeeze ... N with the object's load needs ...
-        at <joint>, beyond its torque limit ...; they allow ... N there``.
-    """
+def _path_torques(plan: RunPlan, every_robot: bool = False):
+    """Per robot with finite limits (``every_robot``: every robot), on the held ticks: ``(t,
+    τ_0, c, λ_d, limits, name, label, joint names)`` of the module's check (nothing outside
+    ``contact`` mode)."""
     scenario = plan.scenario
     if scenario.plant.object_mode != "contact":
         return
     from drake_coop.control.object import load_distribution
-    from drake_coop.control.squeeze_limits import check_squeeze_path, squeeze_torques
+    from drake_coop.control.squeeze_limits import squeeze_torques
     from drake_coop.experiment.object_blocks import acceleration_samples
     from drake_coop.experiment.plan import grasp_object
     from drake_coop.plant.arms import arm_model
@@ -77,7 +63,7 @@ def check_squeeze_limits(plan: RunPlan) -> None:
     for i, resolved in enumerate(plan.robots):
         robot = resolved.robot
         limits = torque_limits(resolved)
-        if not np.isfinite(limits).any():
+        if not every_robot and not np.isfinite(limits).any():
             continue
         t, r = resolved.samples
         arm = resolved.arm
@@ -103,8 +89,54 @@ def check_squeeze_limits(plan: RunPlan) -> None:
                                                 offset)
         joints = [model.plant.get_joint(j).name() for j in model.plant.GetJointIndices()
                   if model.plant.get_joint(j).num_velocities() == 1]
+        yield (t[ticks], tau0, c, lam[ticks], limits, robot.name, f"robots[{i}] ({robot.name})",
+               joints if len(joints) == n else None)
+
+
+def check_squeeze_limits(plan: RunPlan) -> None:
+    """Refuse a grasp the arms cannot hold within their torque limits (see the module).
+
+    Only in ``contact`` mode (the other modes hold the object by constraints, not friction).
+    The references are the plan's (:attr:`~drake_coop.experiment.plan.RobotPlan.samples`,
+    computed once, to the run's end).
+
+    Parameters
+    ----------
+    plan : RunPlan
+        The run's plan.
+
+    Raises
+    ------
+    ScenarioError
+        ``robots[i] (name): at t = ... s the squeeze ... N with the object's load needs ...
+        at <joint>, beyond its torque limit ...; they allow ... N there``.
+    """
+    from drake_coop.control.squeeze_limits import check_squeeze_path
+
+    for t, tau0, c, lam, limits, _, label, joints in _path_torques(plan):
         try:
-            check_squeeze_path(t[ticks], tau0, c, lam[ticks], limits, f"robots[{i}] ({robot.name})",
-                               joints if len(joints) == n else None)
+            check_squeeze_path(t, tau0, c, lam, limits, label, joints)
         except ValueError as exc:
             raise ScenarioError(str(exc)) from None
+
+
+def required_torques(plan: RunPlan) -> dict[str, list[float]]:
+    """Per robot, the largest ``|τ_0 + c λ_d|`` per joint over the held ticks: the torque the
+    module's check needs within the limits (N·m; ``contact`` mode only, else empty), whatever
+    the robot's limits.
+
+    Parameters
+    ----------
+    plan : RunPlan
+        The run's plan.
+
+    Returns
+    -------
+    dict
+        Robot name -> its needed torque per joint (n,), N·m.
+    """
+    out = {}
+    for _, tau0, c, lam, _, name, _, _ in _path_torques(plan, every_robot=True):
+        tau = np.abs(tau0 + c * lam[:, None])
+        out[name] = (tau.max(axis=0) if tau.size else np.zeros(tau0.shape[1])).tolist()
+    return out

@@ -107,7 +107,9 @@ def _batch_died(message: str) -> list:
 
 def calibrate(out: Path, base, t_end: float) -> dict:
     """The saturation column's peaks: the exact model with observer (22), run once and kept
-    in ``out/calibration.json`` (read back on a resume).
+    in ``out/calibration.json`` (read back on a resume); on a base in ``contact`` mode each
+    robot's also carries ``need``, the torque the grasp check needs per joint
+    (:func:`~drake_coop.experiment.squeeze_check.required_torques`).
 
     Parameters
     ----------
@@ -123,18 +125,30 @@ def calibrate(out: Path, base, t_end: float) -> dict:
     dict
         :func:`~drake_coop.studies.reference_table.torque_peaks` of that run.
     """
-    path = out / "calibration.json"
-    if path.exists():
-        return json.loads(path.read_text())["peaks"]
-    from drake_coop.experiment.simulate import simulate
     from drake_coop.studies.reference_table import compress
 
-    result = simulate(compress(base), t_end=t_end)
-    if not result.ok:
-        raise RuntimeError(f"the calibration run (exact model) did not complete: "
-                           f"{result.meta['message']}")
-    peaks = torque_peaks(result.logs, result.meta)
-    atomic_write_text(path, json.dumps({"t_end": t_end, "peaks": peaks}, indent=1) + "\n")
+    path = out / "calibration.json"
+    write = not path.exists()
+    if not write:
+        peaks = json.loads(path.read_text())["peaks"]
+    else:
+        from drake_coop.experiment.simulate import simulate
+
+        result = simulate(compress(base), t_end=t_end)
+        if not result.ok:
+            raise RuntimeError(f"the calibration run (exact model) did not complete: "
+                               f"{result.meta['message']}")
+        peaks = torque_peaks(result.logs, result.meta)
+    if base.plant.object_mode == "contact" and any("need" not in p for p in peaks.values()):
+        # the box held by friction: what the grasp check needs (a floor of the limits)
+        from drake_coop.experiment.plan import plan_run
+        from drake_coop.experiment.squeeze_check import required_torques
+
+        for robot, need in required_torques(plan_run(compress(base), t_end)).items():
+            peaks[robot]["need"] = need
+        write = True
+    if write:
+        atomic_write_text(path, json.dumps({"t_end": t_end, "peaks": peaks}, indent=1) + "\n")
     return peaks
 
 

@@ -86,3 +86,74 @@ def test_the_friction_table_gives_the_same_numbers_on_a_rerun_with_the_same_seed
     assert a["n"] == 1 and a["diverged"] == 0
     assert a["slips"] == 0 and a["dropped"] == 0 and 0 <= a["slide"]["median"][0] < 2e-3
     assert math.isfinite(a["squeeze"]["median"][0])
+
+
+def _contact_base():
+    from drake_coop.scenario.resources import find_scenario
+
+    return load_scenario(find_scenario("contact"))
+
+
+def test_the_grasp_checks_need_is_the_limit_it_accepts_and_no_less():
+    """``required_torques`` against the check it floors: limits at 1.001 × the need pass the
+    grasp check; 0.5 % below it on the most loaded joint of either arm, it refuses."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.experiment.squeeze_check import check_squeeze_limits, required_torques
+    from drake_coop.scenario.schema import ScenarioError
+    from drake_coop.studies.reference_table import compress
+
+    base = compress(_contact_base())
+    need = required_torques(plan_run(base, 8.0))
+    assert set(need) == {r.name for r in base.robots}
+    assert all(max(v) > 1.0 for v in need.values())      # the box's weight: a need that can fail
+    for robot in base.robots:
+        robot.actuators.torque_limits = [1.001 * v for v in need[robot.name]]
+    check_squeeze_limits(plan_run(base, 8.0))              # accepted
+    for i, robot in enumerate(base.robots):
+        tight = load_scenario(data=dump_scenario(base))
+        j = int(np.argmax(need[robot.name]))
+        limits = list(tight.robots[i].actuators.torque_limits)
+        limits[j] = 0.995 * need[robot.name][j]
+        tight.robots[i].actuators.torque_limits = limits
+        with pytest.raises(ScenarioError, match=robot.name):
+            check_squeeze_limits(plan_run(tight, 8.0))
+    ideal = compress(load_scenario())
+    assert required_torques(plan_run(ideal, 8.0)) == {}   # no grasp check on the constraint
+
+
+def test_the_saturation_column_on_a_box_held_by_friction_is_the_tightest_the_check_accepts():
+    """On a friction base every saturation draw's limits are at least ``NEED_MARGIN`` × the
+    grasp check's need (its runs are not refused), and on the joint whose lift peak exceeds
+    that floor the limit stays below the peak (the lift still clips); on the ideal constraint
+    the need plays no part (the column's limits are the fraction of the peaks alone)."""
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.experiment.squeeze_check import check_squeeze_limits, required_torques
+    from drake_coop.studies.reference_table import (
+        NEED_MARGIN,
+        SATURATION_FRACTION,
+        compress,
+        expand_table,
+    )
+
+    base = _contact_base()
+    need = required_torques(plan_run(compress(base), 8.0))
+    # peaks as a calibration run gives them: the lift's above the need on one joint
+    peaks = {r: {"lift": [1.05 * v for v in need[r]], "other": [0.5 * v for v in need[r]],
+                 "need": need[r]} for r in need}
+    cases = expand_table(base, ["observer"], ["saturation"], 3, peaks=peaks)
+    assert len(cases) == 3
+    for case in cases:
+        scenario = load_scenario(data=case.scenario_yaml)
+        check_squeeze_limits(plan_run(scenario, 8.0))
+        for robot in scenario.robots:
+            limits = np.asarray(robot.actuators.torque_limits)
+            floor = NEED_MARGIN * np.asarray(need[robot.name])
+            assert np.all(limits >= floor - 1e-12)
+            assert np.all(limits < np.asarray(peaks[robot.name]["lift"]))
+    ideal = load_scenario()
+    ideal_peaks = {r.name: {"lift": [10.0] * 3, "other": [1.0] * 3} for r in ideal.robots}
+    for case in expand_table(ideal, ["observer"], ["saturation"], 2, peaks=ideal_peaks):
+        for robot in load_scenario(data=case.scenario_yaml).robots:
+            limits = np.asarray(robot.actuators.torque_limits)
+            assert np.all((limits >= SATURATION_FRACTION * 10 * 0.95 - 1e-12)
+                          & (limits <= SATURATION_FRACTION * 10 * 1.05 + 1e-12))
