@@ -18,6 +18,7 @@ import numpy as np
 
 from drake_coop.identification.regressor import ArmStructure
 from drake_coop.plant.model_error import DRAKE_NS
+from drake_coop.scenario.description import IDENTIFIED_MARK
 
 
 def central_inertia(theta_b: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
@@ -99,7 +100,7 @@ def identified_urdf_text(nominal_text: str, structure: ArmStructure, theta: np.n
             for r in actuator.iter(f"{{{DRAKE_NS}}}rotor_inertia"):
                 r.set("value", repr(float(rotor[k] / structure.gear_ratios[k] ** 2)))
     comment = ET.Comment(
-        " Identified by drake-coop identify. " + note + " Coulomb friction (N·m): "
+        f" {IDENTIFIED_MARK} " + note + " Coulomb friction (N·m): "
         + ", ".join(f"{j} {f:.4g}" for j, f in zip(structure.joints, coulomb)) + " ")
     root.insert(0, comment)
     return ET.tostring(root, encoding="unicode")

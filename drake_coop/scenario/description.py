@@ -18,6 +18,9 @@ error's scaled copy, identification), derived from the package's file and the ro
 * ``tool``: a ``force_sensor`` link welded to ``tool.flange`` by ``flange_sensor_weld`` and a
   ``pad`` link (a compliant-hydroelastic sphere, the end-effector point) welded to the sensor
   by ``sensor_pad_weld`` (:class:`~drake_coop.scenario.schema.Tool`);
+* an identified URDF (``drake-coop identify``'s, marked :data:`IDENTIFIED_MARK`) was identified
+  on the prepared arm: its locked joints are fixed and its tool is on already, so neither is
+  applied again when it is a robot's ``controller_model``;
 * actuators: a ``SimpleTransmission`` for every moving joint without one (the Panda's URDF
   has none, and Drake actuates a URDF joint only through one); the joint's effort limit
   stays the actuator's;
@@ -57,7 +60,13 @@ import numpy as np
 from drake_coop.scenario.bounds import one_line
 from drake_coop.scenario.schema import Robot, ScenarioError
 
-__all__ = ["ROBOTS_EXTRA", "TOOL_NAMES", "cache_dir", "needs_preparation", "prepared_urdf"]
+__all__ = ["IDENTIFIED_MARK", "ROBOTS_EXTRA", "TOOL_NAMES", "cache_dir", "needs_preparation", "prepared_urdf"]
+
+#: The comment an identified URDF starts with (``drake-coop identify``,
+#: :func:`~drake_coop.identification.urdf_writer.identified_urdf_text`): it was identified on
+#: the prepared arm, its locked joints already fixed and its tool already on, so
+#: :func:`prepared_urdf` adds neither again.
+IDENTIFIED_MARK = "Identified by drake-coop identify."
 
 #: How to install the descriptions (named in the error when a package URL cannot be found).
 ROBOTS_EXTRA = 'pip install -e ".[robots]"'
@@ -375,9 +384,10 @@ def prepared_urdf(robot: Robot, source: Path, field: str = "model", resolve=None
         _clean(root)
     _dedupe_materials(root)
     _absolute_meshes(root, resolve, Path(source).parent)
-    for name, value in robot.locked_joints.items():
+    identified = IDENTIFIED_MARK.encode() in raw[:4096]   # prepared already (see the mark)
+    for name, value in ({} if identified else robot.locked_joints).items():
         _lock(root, name, float(value), f"{where}locked_joints")
-    if robot.tool is not None:
+    if robot.tool is not None and not identified:
         _add_tool(root, robot, where)
     _actuate(root)
     body = ET.tostring(root, encoding="unicode")

@@ -132,6 +132,10 @@ def test_written_urdf_of_the_true_parameters_has_the_true_dynamics():
     theta[s.joint_slice("viscous")] = [1.0, 2.0, 3.0]
     theta[s.joint_slice("rotor_inertia")] = [0.5, 0.4, 0.3]
     text = identified_urdf_text(arm.urdf_path.read_text(), s, theta)
+    from drake_coop.scenario.description import IDENTIFIED_MARK
+
+    # the mark the scenario's preparation reads (not prepared twice), within its first 4 kB
+    assert IDENTIFIED_MARK in text[:4096]
     import tempfile
     from pathlib import Path
     with tempfile.TemporaryDirectory() as d:

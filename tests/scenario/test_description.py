@@ -195,3 +195,42 @@ def test_the_controller_plant_reads_the_package_url_and_the_prepared_file():
     plant = make_arm_controller_plant(model_urdf_path(panda_robot()), "panda_link0")
     model = ArmModel(plant, "pad", [[1.0, 0.0, 0.0]], [0.5, 0.0, 0.5])
     assert model.n == 7 and model.H(np.zeros(7)).shape == (7, 7)
+
+
+def test_an_identified_urdf_of_a_prepared_arm_is_not_prepared_twice(tmp_path):
+    """``drake-coop identify`` writes its URDF from the prepared arm (locked joints fixed, the
+    tool on): as the robot's ``controller_model`` it is used with neither applied again — the
+    same 5-joint kinematics as the prepared model — where an unmarked copy of it is refused
+    (the locked joint is no longer a moving joint)."""
+    from drake_coop.scenario.description import IDENTIFIED_MARK, prepared_urdf
+    from drake_coop.scenario.resources import urdf_dir
+
+    robot = Robot(model="coop6", locked_joints={"joint6": 0.3})
+    prepared = model_urdf_path(robot)
+    text = prepared.read_text()
+    root = text.index("<robot")
+    head = text.index(">", root) + 1
+    marked = tmp_path / "coop6_identified.urdf"
+    marked.write_text(text[:head] + f"<!-- {IDENTIFIED_MARK} 5 s -->" + text[head:])
+    again = prepared_urdf(robot, marked, "robots[0].controller_model")
+    plants = []
+    for path in (prepared, again):
+        plant = MultibodyPlant(0.0)
+        Parser(plant).AddModels(str(path))
+        plant.WeldFrames(plant.world_frame(), plant.GetFrameByName("base_link"))
+        plant.Finalize()
+        plants.append(plant)
+    assert [p.num_positions() for p in plants] == [5, 5]
+    q = np.array([0.2, 0.4, 0.9, -0.3, 0.5])
+    poses = []
+    for plant in plants:
+        context = plant.CreateDefaultContext()
+        plant.SetPositions(context, q)
+        poses.append(plant.GetFrameByName("pad").CalcPoseInWorld(context))
+    assert poses[0].IsNearlyEqualTo(poses[1], 1e-12)
+    unmarked = tmp_path / "coop6_copy.urdf"
+    unmarked.write_text(text)
+    with pytest.raises(ScenarioError, match="joint6"):
+        prepared_urdf(robot, unmarked, "robots[0].controller_model")
+    assert (urdf_dir() / "coop6_6dof.urdf").is_file()
+
