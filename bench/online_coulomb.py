@@ -41,29 +41,11 @@ VARIANTS = {"no_friction_prior": (0.0, 0.02), "friction_prior": (0.5, 0.02),
             "plant_smoothing": (0.5, 0.01)}
 
 
-def _replay(block, log, layout) -> tuple[np.ndarray, np.ndarray]:
-    """θ̂ after the log and the block's ``λ̂`` at every tick (the test's feeding)."""
-    context = block.CreateDefaultContext()
-    block.set_initial_state(context, log["q"][0])
-    zero = np.zeros_like(log["q"])
-    ref = layout.pack(zero, zero, zero, log["lambda_d"].reshape(-1, 1), log["lambda_d"] != 0)
-    ports = [block.get_input_port(i) for i in range(4)]
-    lam = np.zeros(len(log["t"]))
-    for k in range(len(log["t"])):
-        for port, value in zip(ports, (log["q"][k], log["qdot_hat"][k], log["tau"][k], ref[k])):
-            port.FixValue(context, value)
-        lam[k] = block.GetOutputPort("lambda_hat").Eval(context)[0]
-        values = block.AllocateDiscreteVariables()
-        block.CalcForcedDiscreteVariableUpdate(context, values)
-        context.SetDiscreteState(values)
-    return context.get_discrete_state(0).value().copy(), lam
-
-
 def one_draw(draw: int) -> dict:
     """The momentum observer's case of ``draw`` and the replays of every variant."""
     from drake_coop.control.reference_layout import ReferenceLayout
     from drake_coop.experiment.simulate import simulate
-    from drake_coop.identification.online import OnlineIdentification
+    from drake_coop.identification.online import OnlineIdentification, replay
     from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
     from drake_coop.plant.arms import Arm
     from drake_coop.plant.model_error import controller_arm_model
@@ -91,10 +73,10 @@ def one_draw(draw: int) -> dict:
             block = OnlineIdentification(Regressor(structure, v_c), theta0, model.J_phi, layout,
                                          scenario.control_period, robot.gains.momentum_gain,
                                          coulomb_prior=prior)
-            theta, lam = _replay(block, log, layout)
+            theta, lam = replay(block, log)
             entry[name] = {"friction": theta[structure.joint_slice("coulomb")].tolist(),
                            "mass_error": float(np.max(np.abs(theta[links] - theta0[links]))),
-                           "estimate": rms(lam)}
+                           "estimate": rms(lam[:, 0])}
         out["robots"][robot.name] = entry
     return out
 
