@@ -103,7 +103,8 @@ def variant_hash(base_hash: str, variant: str) -> str:
 
 
 def _online_builder(scenario: Scenario, feed_controller: bool = True,
-                    prior: dict | None = None, options: dict | None = None):
+                    prior: dict | None = None, options: dict | None = None,
+                    variant: str = "online"):
     """``build(cls, law, h, options)`` making each robot's online identification block (the
     robots' blocks are built in the scenario's order: the i-th call is robot i).
 
@@ -111,14 +112,15 @@ def _online_builder(scenario: Scenario, feed_controller: bool = True,
     (the row), without it only its own estimate uses them (beside a loop closed on the
     sensor). ``prior`` maps a robot's name to its block's ``θ_0`` (default, and for a robot
     it leaves out: the controller's model's parameters); ``options`` are further keyword
-    arguments of every block (e.g. ``v_min=inf``: no update, the prior held).
+    arguments of every block (e.g. ``v_min=inf``: no update, the prior held), over the
+    ``variant``'s own (:data:`ONLINE_OPTIONS`).
     """
     from drake_coop.identification.online import OnlineIdentification
     from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
     from drake_coop.plant.arms import Arm
 
     robots = iter(scenario.robots)
-    prior, extra = prior or {}, options or {}
+    prior, extra = prior or {}, {**ONLINE_OPTIONS[variant], **(options or {})}
 
     def build(cls, law, h, block_options):
         robot = next(robots)
@@ -169,7 +171,7 @@ def variant_built(scenario: Scenario, variant: str | None) -> Iterator[None]:
                 return original(*args, momentum_torque_limits=limits[kwargs["name"]], **kwargs)
             diagram.AddCooperativeController = with_applied_torque
         else:
-            build = _online_builder(scenario, options=ONLINE_OPTIONS[variant])
+            build = _online_builder(scenario, variant=variant)
             swapped = tuple(dataclasses.replace(s, build=build, outputs=("theta_hat",))
                             if (s.kind, s.name) == ("force", "momentum") else s
                             for s in registry.SOURCES)
