@@ -47,6 +47,7 @@ from drake_coop.studies.reference_table import (
     T_SHORT,
     base_scenario,
     cell_statistics,
+    check_optional_rows,
     default_columns,
     expand_table,
     identified_name,
@@ -336,6 +337,7 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
         for name in given:
             if name not in known:
                 raise ValueError(f"{what}: unknown name {name!r}; allowed: {', '.join(known)}")
+    check_optional_rows(rows, cols)
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
         raise ValueError(f"draws: must be an integer >= 1, got {draws!r}")
     out.mkdir(parents=True, exist_ok=True)

@@ -52,8 +52,9 @@ from drake_coop.scenario.schema import Scenario
 from drake_coop.studies.expand import Case, case_hash
 from drake_coop.studies.reference_variants import variant_hash, variant_matters
 
-__all__ = ["ALL_COLUMNS", "ALL_ROWS", "COLUMNS", "FRICTION_COLUMNS", "IDENTIFIED", "OPTIONAL_ROWS", "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval",
-           "cell_statistics", "compress", "default_columns", "expand_table", "identified_name",
+__all__ = ["ALL_COLUMNS", "ALL_ROWS", "COLUMNS", "FRICTION_COLUMNS", "IDENTIFIED", "OPTIONAL_ROWS",
+           "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval", "cell_statistics",
+           "check_optional_rows", "compress", "default_columns", "expand_table", "identified_name",
            "markdown_table", "per_draw"]
 
 #: The compressed task: the paper's phases shortened before the circle (s).
@@ -338,6 +339,26 @@ def compress(scenario: Scenario) -> Scenario:
     return out
 
 
+def check_optional_rows(rows: list[str], cols: list[str]) -> None:
+    """Refuse an optional row (:data:`OPTIONAL_ROWS`) with the open-loop column: its variant
+    has no open-loop case (the open-loop column's estimators are the default rows').
+
+    Parameters
+    ----------
+    rows, cols : list of str
+        Row and column names.
+
+    Raises
+    ------
+    ValueError
+        An optional row and ``open_loop`` together.
+    """
+    optional = [r for r in rows if r in {o.name for o in OPTIONAL_ROWS}]
+    if optional and "open_loop" in cols:
+        raise ValueError(f"columns: open_loop has no case of the optional row {optional[0]!r}; "
+                         "leave one of them out")
+
+
 def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *,
                  seed: int = 1, t_end: float = T_SHORT, peaks: dict | None = None,
                  models: dict | None = None) -> list[Case]:
@@ -388,10 +409,7 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
         if name not in table_cols:
             raise ValueError(f"columns: unknown column {name!r}; allowed: "
                              f"{', '.join(table_cols)}")
-    optional = [r for r in rows if r in {o.name for o in OPTIONAL_ROWS}]
-    if optional and "open_loop" in cols:
-        raise ValueError(f"columns: open_loop has no case of the optional row {optional[0]!r}; "
-                         "leave one of them out")
+    check_optional_rows(rows, cols)
     if "saturation" in cols and peaks is None:
         raise ValueError("columns: saturation needs the calibration run's peaks")
     for col in cols:
