@@ -75,6 +75,10 @@ The force estimate is the momentum observer's, with the model ``Y θ̂``:
 ``r(k) = K_O(Y_p(k)θ̂ − σ(k))``, ``σ(k+1) = σ(k) + h(τ(k) − Y_β(k)θ̂ + r(k))``,
 ``λ̂ = (J_φJ_φᵀ)⁻¹J_φ r`` while held, and the integral (6)
 ``ΔF̃(k+1) = ΔF̃(k) + h(λ̂ − λ_d)`` (reset in free motion).
+
+**Replay.** :func:`replay` feeds a recorded run (a robot's logged encoder, velocity estimate,
+torque and desired force) through a block tick by tick, open loop: what the block would
+have identified and estimated on that motion, without simulating the arm.
 """
 
 from __future__ import annotations
