@@ -19,13 +19,11 @@ Per draw and robot it records the drawn friction, the identified friction, the l
 mass error (kg) and the circle's RMS of ``λ̂ − λ`` (N) of each variant, and the momentum
 observer's own (its model has no friction).
 
-``--merge DIR --out docs/results/reference_table_online_prior.json`` puts the online row's
-exact, ±30 % and Coulomb cells of a finished ``drake-coop reference-table --rows online
---columns exact,model_30,coulomb --draws 20 --out DIR`` into a copy of the table's results
-file (from its finished cases: a cell of fewer draws says so by its ``n``), the table's own
-cells kept under ``replaced``. The committed file's cells were run with the block's
-``coulomb_prior`` at 0.5 N·m (its default when they ran; the command line has no switch for
-it, the table's online row runs the default 0).
+``--cells DIR --before TABLE --out docs/results/reference_table_online_prior.json`` writes
+the cells of the table's optional row ``online_prior`` (the online block with
+``coulomb_prior`` = 0.5 N·m) from a finished ``drake-coop reference-table --rows online_prior
+--columns exact,model_30,coulomb --draws 20 --out DIR``, each column's squeeze error paired
+by draw with the online row's (the block's default) in the table's folder ``TABLE``.
 """
 
 from __future__ import annotations
@@ -41,29 +39,11 @@ VARIANTS = {"no_friction_prior": (0.0, 0.02), "friction_prior": (0.5, 0.02),
             "plant_smoothing": (0.5, 0.01)}
 
 
-def _replay(block, log, layout) -> tuple[np.ndarray, np.ndarray]:
-    """θ̂ after the log and the block's ``λ̂`` at every tick (the test's feeding)."""
-    context = block.CreateDefaultContext()
-    block.set_initial_state(context, log["q"][0])
-    zero = np.zeros_like(log["q"])
-    ref = layout.pack(zero, zero, zero, log["lambda_d"].reshape(-1, 1), log["lambda_d"] != 0)
-    ports = [block.get_input_port(i) for i in range(4)]
-    lam = np.zeros(len(log["t"]))
-    for k in range(len(log["t"])):
-        for port, value in zip(ports, (log["q"][k], log["qdot_hat"][k], log["tau"][k], ref[k])):
-            port.FixValue(context, value)
-        lam[k] = block.GetOutputPort("lambda_hat").Eval(context)[0]
-        values = block.AllocateDiscreteVariables()
-        block.CalcForcedDiscreteVariableUpdate(context, values)
-        context.SetDiscreteState(values)
-    return context.get_discrete_state(0).value().copy(), lam
-
-
 def one_draw(draw: int) -> dict:
     """The momentum observer's case of ``draw`` and the replays of every variant."""
     from drake_coop.control.reference_layout import ReferenceLayout
     from drake_coop.experiment.simulate import simulate
-    from drake_coop.identification.online import OnlineIdentification
+    from drake_coop.identification.online import OnlineIdentification, replay
     from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
     from drake_coop.plant.arms import Arm
     from drake_coop.plant.model_error import controller_arm_model
@@ -91,10 +71,10 @@ def one_draw(draw: int) -> dict:
             block = OnlineIdentification(Regressor(structure, v_c), theta0, model.J_phi, layout,
                                          scenario.control_period, robot.gains.momentum_gain,
                                          coulomb_prior=prior)
-            theta, lam = _replay(block, log, layout)
+            theta, lam = replay(block, log)
             entry[name] = {"friction": theta[structure.joint_slice("coulomb")].tolist(),
                            "mass_error": float(np.max(np.abs(theta[links] - theta0[links]))),
-                           "estimate": rms(lam)}
+                           "estimate": rms(lam[:, 0])}
         out["robots"][robot.name] = entry
     return out
 
@@ -110,67 +90,70 @@ def summary(draws: list[dict]) -> dict:
                                             for r in d["robots"].values())) for k in VARIANTS}}
 
 
-#: The online row's cells run again with the friction prior (``--merge``).
-MERGED = ("exact", "model_30", "coulomb")
+#: The columns of the optional row ``online_prior`` this file's ``--cells`` reads.
+PRIOR_COLUMNS = ("exact", "model_30", "coulomb")
 
 
-def merge(folder: Path, table_file: Path, draws: int = 20, before: Path | None = None) -> dict:
-    """Replace the online row's :data:`MERGED` cells of ``table_file`` (the reference table's
-    results) by the cells of the cases finished in ``folder`` (``drake-coop reference-table
-    --rows online --columns exact,model_30,coulomb --draws 20 --out folder``; a cell of fewer
-    finished draws says so by its ``n``), keeping each replaced cell under
-    ``replaced.online_<column>_before_friction_prior`` and the run's CPU under ``runs``; with
-    ``before`` (the store of the earlier block's run), each column's squeeze error paired by
-    draw under ``paired.online_<column>``."""
+def prior_cells(folder: Path, before: Path, out: Path, draws: int = 20) -> dict:
+    """The optional row ``online_prior``'s cells (the online block with ``coulomb_prior`` =
+    0.5 N·m) of the finished cases in ``folder`` (``drake-coop reference-table --rows
+    online_prior --columns exact,model_30,coulomb --draws 20 --out folder``; a cell of fewer
+    finished draws says so by its ``n``), each column's squeeze error paired by draw with
+    the online row's case of the same draw in ``before`` (the table's folder: the block's
+    default, ``coulomb_prior`` = 0), written to ``out`` with the CPU of the distinct cases."""
     from drake_coop.scenario.loading import load_scenario
     from drake_coop.studies.reference_table import cell_statistics, expand_table, per_draw
     from drake_coop.studies.store import ResultStore
 
-    records = ResultStore(folder).load()
-    table = json.loads(table_file.read_text())
-    replaced = table.setdefault("replaced", {})
-    cases = expand_table(load_scenario(), ["online"], list(MERGED), draws)
-    for col in MERGED:
-        done = [records[c.hash] for c in cases
-                if c.params["column"] == col and c.hash in records]
-        if not done:
+    records, earlier = ResultStore(folder).load(), ResultStore(before).load()
+    cols = list(PRIOR_COLUMNS)
+    cases = {row: expand_table(load_scenario(), [row], cols, draws)
+             for row in ("online_prior", "online")}
+    cells, paired = {}, {}
+    for col in cols:
+        mine = [(a, b) for a, b in zip(cases["online_prior"], cases["online"])
+                if a.params["column"] == col and a.hash in records]
+        if not mine:
             continue
-        replaced.setdefault(f"online_{col}_before_friction_prior", table["cells"]["online"][col])
-        table["cells"]["online"][col] = cell_statistics(done)
-        if before is not None:
-            earlier = ResultStore(before).load()
-            pairs = [(per_draw(earlier[c.hash])["squeeze"], per_draw(records[c.hash])["squeeze"])
-                     for c in cases if c.params["column"] == col and c.hash in records
-                     and c.hash in earlier]
+        cells[col] = cell_statistics([records[a.hash] for a, _ in mine])
+        pairs = [(per_draw(earlier[b.hash])["squeeze"], per_draw(records[a.hash])["squeeze"])
+                 for a, b in mine if b.hash in earlier]
+        if pairs:
             old, new = (np.array(v) for v in zip(*pairs))
-            table.setdefault("paired", {})[f"online_{col}"] = {
-                "n": len(pairs), "before": old.tolist(), "after": new.tolist(),
-                "worse": int(np.sum(new > old)), "largest_increase": float(np.max(new - old)),
-                "largest_after": float(np.max(new)), "median_ratio": float(np.median(new / old))}
-    distinct = {c.hash for c in cases if c.hash in records}
-    table["runs"].append({"log": "online row, friction prior (exact, model_30, coulomb)",
-                          "last_progress": f"{len(distinct)} distinct cases finished",
-                          "cpu_s": float(sum(records[h].get("cpu_time_s", 0.0)
-                                             for h in distinct))})
-    table_file.write_text(json.dumps(table, indent=1) + "\n")
-    return {col: table["cells"]["online"][col]["squeeze"]["median"] for col in MERGED}
+            paired[col] = {"n": len(pairs), "before": old.tolist(), "after": new.tolist(),
+                           "worse": int(np.sum(new > old)),
+                           "largest_increase": float(np.max(new - old)),
+                           "largest_after": float(np.max(new)),
+                           "median_ratio": float(np.median(new / old))}
+    distinct = {a.hash for a in cases["online_prior"] if a.hash in records}
+    table = {"command": "drake-coop reference-table --rows online_prior --columns "
+                        f"{','.join(cols)} --draws {draws}",
+             "rows": ["online_prior"], "columns": cols, "cells": {"online_prior": cells},
+             "draws": draws, "cases": len(cases["online_prior"]),
+             "distinct_cases": len({a.hash for a in cases["online_prior"]}),
+             "distinct_finished": len(distinct),
+             "cpu_s": float(sum(records[h].get("cpu_time_s", 0.0) for h in distinct)),
+             "paired": paired}
+    out.write_text(json.dumps(table, indent=1) + "\n")
+    return {col: cell["squeeze"]["median"] for col, cell in cells.items()}
 
 
 def main() -> None:
-    """Run the draws and write the results file (or merge a rerun of the online row)."""
+    """Run the draws and write the results file (or the online_prior row's cells, ``--cells``)."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--draws", type=int, default=3, help="draws of the Coulomb column")
     parser.add_argument("--workers", type=int, default=2, help="parallel processes")
     parser.add_argument("--out", required=True, help="the results file (JSON)")
-    parser.add_argument("--merge", default=None, metavar="DIR",
-                        help="put the online row's exact, ±30 %% and Coulomb cells of DIR's "
-                             "finished cases (20 draws) into --out (the table's results file)")
+    parser.add_argument("--cells", default=None, metavar="DIR",
+                        help="write the online_prior row's exact, ±30 %% and Coulomb cells of "
+                             "DIR's finished cases (20 draws) to --out instead")
     parser.add_argument("--before", default=None, metavar="DIR",
-                        help="--merge: the earlier block's store, to pair the draws with")
+                        help="--cells: the table's folder, its online row paired by draw")
     args = parser.parse_args()
-    if args.merge:
-        print(json.dumps(merge(Path(args.merge), Path(args.out),
-                               before=Path(args.before) if args.before else None)))
+    if args.cells:
+        if not args.before:
+            parser.error("--before: needed with --cells (the table's folder)")
+        print(json.dumps(prior_cells(Path(args.cells), Path(args.before), Path(args.out))))
         return
     with ProcessPoolExecutor(args.workers) as pool:
         draws = list(pool.map(one_draw, range(args.draws)))

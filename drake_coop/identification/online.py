@@ -75,11 +75,15 @@ The force estimate is the momentum observer's, with the model ``Y θ̂``:
 ``r(k) = K_O(Y_p(k)θ̂ − σ(k))``, ``σ(k+1) = σ(k) + h(τ(k) − Y_β(k)θ̂ + r(k))``,
 ``λ̂ = (J_φJ_φᵀ)⁻¹J_φ r`` while held, and the integral (6)
 ``ΔF̃(k+1) = ΔF̃(k) + h(λ̂ − λ_d)`` (reset in free motion).
+
+**Replay.** :func:`replay` feeds a recorded run (a robot's logged encoder, velocity estimate,
+torque and desired force) through a block tick by tick, open loop: what the block would
+have identified and estimated on that motion, without simulating the arm.
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Callable, Mapping
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -99,7 +103,7 @@ from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.identification.regressor import (ArmStructure, Regressor,
                                                  spatial_inertia_from_theta)
 
-__all__ = ["OnlineIdentification", "apply_parameters", "momentum_rows"]
+__all__ = ["OnlineIdentification", "apply_parameters", "momentum_rows", "replay"]
 
 #: Step of the central difference along ``q̇`` (s): ``q ± ε q̇``.
 DIFFERENCE_STEP = 1e-4
@@ -456,3 +460,86 @@ class OnlineIdentification(ForceSource):
                                   Y_b @ theta, r, lam, ref.lambda_d, ref.held, h)
         discrete_state.set_value(self._sigma, sigma)
         discrete_state.set_value(self._DF, DF)
+
+
+#: The keys :func:`replay` reads from a log.
+REPLAY_KEYS = ("q", "qdot_hat", "tau", "lambda_d")
+
+
+def replay(block: OnlineIdentification, log: Mapping[str, np.ndarray]
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """Feed a recorded run through ``block`` tick by tick, open loop: the block's estimate
+    and parameters on a logged motion, without simulating the arm.
+
+    Sample ``k`` of the log is tick ``k`` (the log's rows one period ``h`` apart, as the
+    experiment's logs are): the inputs are fixed to it, ``λ̂(k)`` is read, then the block's
+    update runs (the periodic update of a simulation, forced). It starts from
+    :meth:`OnlineIdentification.set_initial_state` at ``q(0)``, at rest. The reference the
+    block reads is the log's ``λ_d``, the object held where it is nonzero (the task's
+    reference is zero in free motion); its desired motion is not read by the block.
+
+    Parameters
+    ----------
+    block : OnlineIdentification
+        The block (its prior, gains, options). Given a controller's model it writes ``θ̂`` into
+        it at the start and after each update, as in a simulation.
+    log : mapping of str to numpy.ndarray
+        A robot's log (:func:`~drake_coop.experiment.simulate.simulate`'s ``logs[robot]``):
+        ``q`` (K, n) rad (the encoder), ``qdot_hat`` (K, n) rad/s (the velocity estimate),
+        ``tau`` (K, n) N·m (the commanded torque), ``lambda_d`` (K,) or (K, m) N (the desired
+        contact force); other keys are not read. K ≥ 1 samples, all finite.
+
+    Returns
+    -------
+    theta_hat : numpy.ndarray
+        ``θ̂`` after the last tick (p,).
+    lambda_hat : numpy.ndarray
+        The force estimate ``λ̂(k)`` at every tick (K, m), N.
+
+    Raises
+    ------
+    TypeError
+        ``block`` is not an :class:`OnlineIdentification`.
+    ValueError
+        A key missing, an array of another shape than the block's ``n`` and ``m`` and the
+        log's ``K``, or a value not finite.
+    """
+    if not isinstance(block, OnlineIdentification):
+        raise TypeError(f"block: must be an OnlineIdentification, got {type(block).__name__}")
+    n, m = block._n, block._m
+    missing = [key for key in REPLAY_KEYS if key not in log]
+    if missing:
+        raise ValueError(f"log: missing {', '.join(missing)} (needs {', '.join(REPLAY_KEYS)})")
+    data = {}
+    for key in REPLAY_KEYS:
+        try:
+            data[key] = np.asarray(log[key], float)
+        except (TypeError, ValueError):
+            raise ValueError(f"log: {key} must be an array of numbers") from None
+        if not np.all(np.isfinite(data[key])):
+            raise ValueError(f"log: {key} must be finite")
+    K = len(data["q"]) if data["q"].ndim == 2 else 0
+    for key in ("q", "qdot_hat", "tau"):
+        if K < 1 or data[key].shape != (K, n):
+            raise ValueError(f"log: {key} must be (K, {n}) with K >= 1 the samples of q, got "
+                             f"{data[key].shape}")
+    allowed = [(K, m)] + ([(K,)] if m == 1 else [])
+    if data["lambda_d"].shape not in allowed:
+        raise ValueError(f"log: lambda_d must be {' or '.join(map(str, allowed))}, got "
+                         f"{data['lambda_d'].shape}")
+    lam_d = data["lambda_d"].reshape(K, m)
+    context = block.CreateDefaultContext()
+    block.set_initial_state(context, data["q"][0])
+    zero = np.zeros((K, n))
+    reference = block._layout.pack(zero, zero, zero, lam_d, np.any(lam_d != 0, axis=1))
+    ports = [block.get_input_port(i) for i in range(4)]
+    lam_hat = np.zeros((K, m))
+    values = block.AllocateDiscreteVariables()
+    for k in range(K):
+        for port, value in zip(ports, (data["q"][k], data["qdot_hat"][k], data["tau"][k],
+                                       reference[k])):
+            port.FixValue(context, value)
+        lam_hat[k] = block.GetOutputPort("lambda_hat").Eval(context)
+        block.CalcForcedDiscreteVariableUpdate(context, values)
+        context.SetDiscreteState(values)
+    return context.get_discrete_state(block._theta).value().copy(), lam_hat

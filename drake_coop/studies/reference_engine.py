@@ -38,13 +38,16 @@ from drake_coop.results.io import atomic_write_text
 from drake_coop.studies.expand import Case
 from drake_coop.studies.reference_table import (
     ALL_COLUMNS,
+    ALL_ROWS,
     COLUMNS,
     FRICTION_COLUMNS,
     IDENTIFIED,
+    OPTIONAL_ROWS,
     ROWS,
     T_SHORT,
     base_scenario,
     cell_statistics,
+    check_optional_rows,
     default_columns,
     expand_table,
     identified_name,
@@ -308,7 +311,9 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     out : str or Path
         The table's folder (new, or this table's: resumed).
     rows, cols : list of str or None
-        Rows and columns; None for all rows and the base's default columns
+        Rows and columns; None for the default rows
+        (:data:`~drake_coop.studies.reference_table.ROWS`, not the optional ones) and the base's
+        default columns
         (:func:`~drake_coop.studies.reference_table.default_columns`: a base holding the box
         by friction takes the friction-held part's).
     draws : int
@@ -341,11 +346,12 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     cols = list(cols or default_columns(scenario))
     if batch < 1 or workers < 1:
         raise ValueError(f"batch and workers: must be >= 1, got {batch} and {workers}")
-    for given, known, what in ((rows, [r.name for r in ROWS], "rows"),
+    for given, known, what in ((rows, [r.name for r in ALL_ROWS], "rows"),
                                (cols, list(ALL_COLUMNS), "columns")):
         for name in given:
             if name not in known:
                 raise ValueError(f"{what}: unknown name {name!r}; allowed: {', '.join(known)}")
+    check_optional_rows(rows, cols)
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
         raise ValueError(f"draws: must be an integer >= 1, got {draws!r}")
     out.mkdir(parents=True, exist_ok=True)
@@ -533,8 +539,9 @@ def add_reference_table_parser(sub) -> None:
                                                "segment (resumable)")
     p.add_argument("--out", required=True, help="the table's folder (resumed if it exists)")
     p.add_argument("--draws", type=int, default=20, help="paired draws per cell (default 20)")
-    p.add_argument("--rows", default=None, help="comma-separated rows (default: all: "
-                   + ",".join(r.name for r in ROWS) + ")")
+    p.add_argument("--rows", default=None, help="comma-separated rows (default: "
+                   + ",".join(r.name for r in ROWS) + "; also "
+                   + ",".join(r.name for r in OPTIONAL_ROWS) + ")")
     p.add_argument("--columns", default=None, help="comma-separated columns (default: "
                    + ",".join(COLUMNS) + "; on a base in contact mode "
                    + ",".join(FRICTION_COLUMNS) + "; also " + ",".join(

@@ -52,8 +52,9 @@ from drake_coop.scenario.schema import Scenario
 from drake_coop.studies.expand import Case, case_hash
 from drake_coop.studies.reference_variants import variant_hash, variant_matters
 
-__all__ = ["ALL_COLUMNS", "COLUMNS", "FRICTION_COLUMNS", "IDENTIFIED", "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval",
-           "cell_statistics", "compress", "default_columns", "expand_table", "identified_name",
+__all__ = ["ALL_COLUMNS", "ALL_ROWS", "COLUMNS", "FRICTION_COLUMNS", "IDENTIFIED", "OPTIONAL_ROWS",
+           "ROWS", "SEGMENT", "T_SHORT", "Column", "Row", "bootstrap_interval", "cell_statistics",
+           "check_optional_rows", "compress", "default_columns", "expand_table", "identified_name",
            "markdown_table", "per_draw"]
 
 #: The compressed task: the paper's phases shortened before the circle (s).
@@ -173,6 +174,14 @@ ROWS: tuple[Row, ...] = (
     Row("applied_torque", "applied-torque residual", _source("momentum"), "applied_torque"),
     Row("online", "online identification + momentum", _source("momentum"), "online"),
 )
+#: Rows run only when ``--rows`` names them (not in the default table): an option's variant
+#: of a default row, e.g. the online identification with the friction's prior floor.
+OPTIONAL_ROWS: tuple[Row, ...] = (
+    Row("online_prior", "online identification, Coulomb prior 0.5 N·m + momentum",
+        _source("momentum"), "online_prior"),
+)
+#: Every row, the optional ones included.
+ALL_ROWS: tuple[Row, ...] = ROWS + OPTIONAL_ROWS
 
 
 def _exact(scenario: Scenario, rng: np.random.Generator, draw: int) -> None:
@@ -339,6 +348,26 @@ def compress(scenario: Scenario) -> Scenario:
     return out
 
 
+def check_optional_rows(rows: list[str], cols: list[str]) -> None:
+    """Refuse an optional row (:data:`OPTIONAL_ROWS`) with the open-loop column: its variant
+    has no open-loop case (the open-loop column's estimators are the default rows').
+
+    Parameters
+    ----------
+    rows, cols : list of str
+        Row and column names.
+
+    Raises
+    ------
+    ValueError
+        An optional row and ``open_loop`` together.
+    """
+    optional = [r for r in rows if r in {o.name for o in OPTIONAL_ROWS}]
+    if optional and "open_loop" in cols:
+        raise ValueError(f"columns: open_loop has no case of the optional row {optional[0]!r}; "
+                         "leave one of them out")
+
+
 def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *,
                  seed: int = 1, t_end: float = T_SHORT, peaks: dict | None = None,
                  models: dict | None = None) -> list[Case]:
@@ -349,7 +378,7 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
     base : Scenario
         The base scenario (compressed here).
     rows, cols : list of str
-        Row and column names (of :data:`ROWS` and :data:`COLUMNS`).
+        Row and column names (of :data:`ALL_ROWS` and :data:`ALL_COLUMNS`).
     draws : int
         Draws per cell (>= 1).
     seed : int
@@ -370,7 +399,8 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
     Raises
     ------
     ValueError
-        An unknown row or column, a count below 1, the saturation column without ``peaks``.
+        An unknown row or column, a count below 1, the saturation column without ``peaks``,
+        the open-loop column with an optional row (it has no open-loop case).
     """
     from drake_coop.experiment.ticks import check_run_size, time_grid
     from drake_coop.studies.reference_clock import clock_variant, draw_clock
@@ -378,7 +408,7 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
 
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
         raise ValueError(f"draws: must be an integer >= 1, got {draws!r}")
-    known_rows = {r.name: r for r in ROWS}
+    known_rows = {r.name: r for r in ALL_ROWS}
     table_cols = {c.name: (k, c) for k, c in enumerate(columns(
         peaks if peaks is not None else {}, models if models is not None else {}))}
     for name in rows:
@@ -388,6 +418,7 @@ def expand_table(base: Scenario, rows: list[str], cols: list[str], draws: int, *
         if name not in table_cols:
             raise ValueError(f"columns: unknown column {name!r}; allowed: "
                              f"{', '.join(table_cols)}")
+    check_optional_rows(rows, cols)
     if "saturation" in cols and peaks is None:
         raise ValueError("columns: saturation needs the calibration run's peaks")
     for col in cols:
@@ -581,7 +612,7 @@ def markdown_table(table: dict, key: str = "squeeze") -> str:
         The table as Markdown, one row per force source.
     """
     rows, cols = table["rows"], table["columns"]
-    labels = {r.name: r.label for r in ROWS}
+    labels = {r.name: r.label for r in ALL_ROWS}
     col_labels = {c.name: c.label for c in columns({}, {})}
     head = ["force source", *[col_labels[c] for c in cols], "dominant error source"]
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]

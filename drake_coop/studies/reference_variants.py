@@ -12,6 +12,10 @@ name (the experiment's diagram passes neither option):
   OnlineIdentification`): recursive least squares on the arm's regressor from the prior of
   the controller's model, feeding the momentum observer and the controller's model (the
   control law) with its refined parameters.
+* ``online_prior`` — the same block with its Coulomb friction's prior standard deviation at
+  least :data:`ONLINE_OPTIONS`' 0.5 N·m (the block's ``coulomb_prior``; the batch
+  identification's floor), the identified friction written into the controller's model too.
+  Not a default row of the table (its cells are an option's, not the block's default).
 
 A case of such a row is its scenario with ``force_source: momentum`` and a *variant*
 (:func:`variant_hash` keeps its hash apart from the momentum row's). The worker builds the
@@ -29,13 +33,20 @@ from typing import Iterator
 
 from drake_coop.scenario.schema import Scenario
 
-__all__ = ["VARIANTS", "run_variant_case", "variant_built", "variant_hash", "variant_matters"]
+__all__ = ["ONLINE_OPTIONS", "VARIANTS", "run_variant_case", "variant_built", "variant_hash", "variant_matters"]
 
 #: The variants and what each is.
 VARIANTS = {
     "applied_torque": "the momentum observer integrating the applied (clipped) torque",
     "online": "the momentum observer on the online identification's parameters",
+    "online_prior": "the momentum observer on the online identification's parameters, the "
+                    "friction's prior standard deviation at least 0.5 N·m",
 }
+
+#: The online identification variants: each one's further keyword arguments of
+#: :class:`~drake_coop.identification.online.OnlineIdentification` (its other arguments the
+#: same: the controller's model as the prior, the momentum observer's gain, the run's period).
+ONLINE_OPTIONS: dict[str, dict] = {"online": {}, "online_prior": {"coulomb_prior": 0.5}}
 
 
 def variant_matters(scenario: Scenario, variant: str | None) -> bool:
@@ -92,7 +103,8 @@ def variant_hash(base_hash: str, variant: str) -> str:
 
 
 def _online_builder(scenario: Scenario, feed_controller: bool = True,
-                    prior: dict | None = None, options: dict | None = None):
+                    prior: dict | None = None, options: dict | None = None,
+                    variant: str = "online"):
     """``build(cls, law, h, options)`` making each robot's online identification block (the
     robots' blocks are built in the scenario's order: the i-th call is robot i).
 
@@ -100,14 +112,15 @@ def _online_builder(scenario: Scenario, feed_controller: bool = True,
     (the row), without it only its own estimate uses them (beside a loop closed on the
     sensor). ``prior`` maps a robot's name to its block's ``θ_0`` (default, and for a robot
     it leaves out: the controller's model's parameters); ``options`` are further keyword
-    arguments of every block (e.g. ``v_min=inf``: no update, the prior held).
+    arguments of every block (e.g. ``v_min=inf``: no update, the prior held), over the
+    ``variant``'s own (:data:`ONLINE_OPTIONS`).
     """
     from drake_coop.identification.online import OnlineIdentification
     from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
     from drake_coop.plant.arms import Arm
 
     robots = iter(scenario.robots)
-    prior, extra = prior or {}, options or {}
+    prior, extra = prior or {}, {**ONLINE_OPTIONS[variant], **(options or {})}
 
     def build(cls, law, h, block_options):
         robot = next(robots)
@@ -158,7 +171,7 @@ def variant_built(scenario: Scenario, variant: str | None) -> Iterator[None]:
                 return original(*args, momentum_torque_limits=limits[kwargs["name"]], **kwargs)
             diagram.AddCooperativeController = with_applied_torque
         else:
-            build = _online_builder(scenario)
+            build = _online_builder(scenario, variant=variant)
             swapped = tuple(dataclasses.replace(s, build=build, outputs=("theta_hat",))
                             if (s.kind, s.name) == ("force", "momentum") else s
                             for s in registry.SOURCES)

@@ -8,7 +8,7 @@ import pytest
 
 from drake_coop.control.reference_layout import ReferenceLayout
 from drake_coop.identification.online import (OnlineIdentification, apply_parameters,
-                                              momentum_rows)
+                                              momentum_rows, replay)
 from drake_coop.identification.regressor import Regressor, load_structure, true_parameters
 from drake_coop.plant.arms import Arm
 from drake_coop.plant.model_error import controller_arm_model
@@ -76,22 +76,87 @@ def test_bad_arguments_are_one_line(kwargs, message):
                              0.009, 25.0, **args)
 
 
-def _feed(block, log, layout, h):
-    context = block.CreateDefaultContext()
-    block.set_initial_state(context, log["q"][0])
-    held = log["lambda_d"] != 0
-    ref = layout.pack(np.zeros_like(log["q"]), np.zeros_like(log["q"]), np.zeros_like(log["q"]),
-                      log["lambda_d"].reshape(-1, 1), held)
-    lam_hat = np.zeros(len(log["t"]))
-    ports = [block.get_input_port(i) for i in range(4)]
-    for k in range(len(log["t"])):
-        for port, value in zip(ports, (log["q"][k], log["qdot_hat"][k], log["tau"][k], ref[k])):
-            port.FixValue(context, value)
-        lam_hat[k] = block.GetOutputPort("lambda_hat").Eval(context)[0]
-        values = block.AllocateDiscreteVariables()
-        block.CalcForcedDiscreteVariableUpdate(context, values)
-        context.SetDiscreteState(values)
-    return context, lam_hat
+def _held_log(nominal, structure, h, K=120):
+    """A synthetic free motion with friction the model lacks (:func:`_synthetic_friction_log`)
+    whose second half is held (``λ_d`` = 10 N): both of the block's update paths."""
+    log = _synthetic_friction_log(nominal, structure, np.array([0.3, 0.8, 0.5]), 0.02, h, K)
+    log["lambda_d"] = np.where(np.arange(K) >= K // 2, 10.0, 0.0)
+    return log
+
+
+def test_replay_is_the_blocks_own_simulated_run():
+    """:func:`replay` against the block simulated by Drake: the log's samples played into
+    its ports by zero-order-hold trajectory sources (sample ``k`` held over ``[(k − ½)h,
+    (k + ½)h)``), its periodic update at ``h``, ``λ̂`` logged every ``h``. Sample by sample
+    the same ``λ̂``, and the same ``θ̂`` after the last tick; the prior's friction floor on,
+    so the parameters move."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import LogVectorOutput, TrajectorySource
+    from pydrake.trajectories import PiecewisePolynomial
+
+    _, nominal, structure = _arm(1.0)
+    regressor = Regressor(structure)
+    theta0 = true_parameters(structure, nominal.plant)
+    layout, h = ReferenceLayout(n=3, m=1), 0.009
+    log = _held_log(nominal, structure, h)
+    K = len(log["t"])
+
+    def make():
+        return OnlineIdentification(regressor, theta0, nominal.J_phi, layout, h, 25.0,
+                                    coulomb_prior=0.5)
+    theta_replay, lam_replay = replay(make(), log)
+
+    builder = DiagramBuilder()
+    block = builder.AddSystem(make())
+    zero = np.zeros((K, 3))
+    ref = layout.pack(zero, zero, zero, log["lambda_d"], log["lambda_d"] != 0)
+    breaks = (np.arange(K + 1) - 0.5) * h
+    for i, samples in enumerate((log["q"], log["qdot_hat"], log["tau"], ref)):
+        samples = np.vstack([samples, samples[-1]]).T
+        source = builder.AddSystem(TrajectorySource(
+            PiecewisePolynomial.ZeroOrderHold(breaks, samples)))
+        builder.Connect(source.get_output_port(), block.get_input_port(i))
+    logger = LogVectorOutput(block.GetOutputPort("lambda_hat"), builder, h)
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    root = simulator.get_mutable_context()
+    block.set_initial_state(block.GetMyMutableContextFromRoot(root), log["q"][0])
+    simulator.Initialize()
+    simulator.AdvanceTo((K - 0.5) * h)           # the updates at 0, h, …, (K − 1)h
+    sim_log = logger.FindLog(root)
+    np.testing.assert_allclose(sim_log.sample_times(), np.arange(K) * h, atol=1e-12)
+    lam_sim = sim_log.data().T
+    theta_sim = block.GetOutputPort("theta_hat").Eval(block.GetMyContextFromRoot(root))
+    assert not np.allclose(theta_replay, theta0, rtol=1e-3)      # the parameters moved
+    assert np.ptp(lam_replay[K // 2:]) > 0.0                     # an estimate while held
+    np.testing.assert_allclose(lam_replay, lam_sim, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(theta_replay, theta_sim, rtol=1e-9,
+                               atol=1e-12 * np.abs(theta0).max())
+
+
+@pytest.mark.parametrize("change, error, message", [
+    (lambda log: log.pop("tau"), ValueError, "log: missing tau"),
+    (lambda log: log.update(q=log["q"][:, :2]), ValueError, r"log: q must be \(K, 3\)"),
+    (lambda log: log.update(qdot_hat=log["qdot_hat"][1:]), ValueError,
+     r"log: qdot_hat must be \(K, 3\)"),
+    (lambda log: log.update(q=np.zeros((0, 3))), ValueError, r"log: q must be \(K, 3\)"),
+    (lambda log: log.update(lambda_d=log["lambda_d"][1:]), ValueError,
+     r"log: lambda_d must be \(120, 1\) or \(120,\)"),
+    (lambda log: log["tau"].__setitem__((3, 1), np.nan), ValueError, "log: tau must be finite"),
+    (lambda log: log.update(tau="torques"), ValueError, "log: tau must be an array of numbers"),
+])
+def test_replay_refuses_a_bad_log_in_one_line(change, error, message):
+    _, nominal, structure = _arm(1.0)
+    h = 0.009
+    log = _held_log(nominal, structure, h)
+    change(log)
+    block = OnlineIdentification(Regressor(structure), true_parameters(structure, nominal.plant),
+                                 nominal.J_phi, ReferenceLayout(n=3, m=1), h, 25.0)
+    with pytest.raises(error, match=message):
+        replay(block, log)
+    with pytest.raises(TypeError, match="block: must be an OnlineIdentification"):
+        replay(nominal, _held_log(nominal, structure, h))
 
 
 @pytest.mark.slow
@@ -105,9 +170,8 @@ def test_online_identification_against_the_simulated_truth(run):
     online = OnlineIdentification(regressor, theta0, nominal.J_phi, layout, h, 25.0)
     frozen = OnlineIdentification(regressor, theta0, nominal.J_phi, layout, h, 25.0,
                                   v_min=np.inf)
-    context, lam_online = _feed(online, log, layout, h)
-    _, lam_frozen = _feed(frozen, log, layout, h)
-    theta_hat = context.get_discrete_state(0).value()
+    theta_hat, lam_online = replay(online, log)
+    _, lam_frozen = replay(frozen, log)
     # the model's momentum rows over the circle: the identified parameters predict the truth
     circle = log["t"] >= scenario.task.t_circle_start
     rows = [np.vstack(momentum_rows(regressor, q, v)) for q, v in
@@ -149,7 +213,7 @@ def test_online_identification_against_the_simulated_truth(run):
     # motion, the central difference's error; 0.15 with the velocity estimate)
     # and the force estimate over the circle against the simulated contact force
     truth = log["lambda_meas"][circle]
-    rms = [np.sqrt(np.mean((lam[circle] - truth) ** 2)) for lam in (lam_online, lam_frozen)]
+    rms = [np.sqrt(np.mean((lam[circle, 0] - truth) ** 2)) for lam in (lam_online, lam_frozen)]
     print("force estimate error (N)", rms)
     assert rms[0] < 0.1 * rms[1]       # measured: 1.2 N against 24.2 N (1.78 N, coulomb_prior=0.5)
 
@@ -224,8 +288,7 @@ def test_without_forgetting_the_update_is_the_batch_least_squares():
     held = np.arange(K) >= K // 2
     log = {"t": np.arange(K) * h, "q": q, "qdot_hat": v, "tau": tau,
            "lambda_d": np.where(held, 10.0, 0.0)}
-    context, _ = _feed(block, log, layout, h)
-    theta_hat = context.get_discrete_state(0).value()
+    theta_hat, _ = replay(block, log)
     rows, ys = [], []
     vc = np.full_like(q, np.nan)
     vc[1:-1] = (q[2:] - q[:-2]) / (2 * h)            # the encoder's central difference
@@ -369,8 +432,7 @@ def test_the_coulomb_friction_is_identified_from_synthetic_data():
     for prior in (0.5, 0.0):
         block = OnlineIdentification(regressor, theta0, nominal.J_phi, layout, h, 25.0,
                                      coulomb_prior=prior)
-        context, _ = _feed(block, log, layout, h)
-        found[prior] = context.get_discrete_state(0).value().copy()
+        found[prior], _ = replay(block, log)
     coulomb = structure.joint_slice("coulomb")
     print("friction found", found[0.5][coulomb], found[0.0][coulomb])
     np.testing.assert_allclose(found[0.5][coulomb], f_c, atol=0.02)   # measured: 5e-5 off

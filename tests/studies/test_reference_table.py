@@ -97,6 +97,8 @@ def test_table_end_to_end_resumes_and_matches_the_logs(tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["--rows", "bogus"], "rows: unknown name 'bogus'"),
     (["--columns", "exact,nope"], "columns: unknown name 'nope'"),
+    (["--rows", "online_prior", "--columns", "exact,open_loop"],
+     "columns: open_loop has no case of the optional row 'online_prior'"),
     (["--draws", "0"], "draws: must be an integer >= 1"),
     (["--workers", "0"], "batch and workers: must be >= 1"),
 ])

@@ -307,3 +307,46 @@ def test_the_online_builders_prior_and_options_reach_each_robots_block(monkeypat
     assert first._v_min == second._v_min == np.inf
     np.testing.assert_array_equal(second._theta0, true_parameters(
         structure, exp.robots[1].law.model.plant))
+
+
+def test_the_online_prior_row_is_the_online_row_with_the_friction_prior_only():
+    """The optional row ``online_prior``: its cases are the online row's scenarios, draw by
+    draw (the clock column's drawn clock too), under their own hashes; its blocks are the
+    online row's but for the prior's friction entries (at least 0.5 N·m where the online
+    row's are ``r|f_c0|``, zero on this friction-free model) and the friction written into the
+    model. Not a default row; refused with the open-loop column (it has no case there)."""
+    from drake_coop.experiment.diagram import build_experiment
+    from drake_coop.experiment.plan import plan_run
+    from drake_coop.studies.reference_table import ROWS
+
+    assert "online_prior" not in [r.name for r in ROWS]
+    cols = ["exact", "model_30", "coulomb", "clock"]
+    cases = expand_table(load_scenario(), ["online", "online_prior"], cols, 2, t_end=T_TINY)
+    online, prior = cases[:len(cases) // 2], cases[len(cases) // 2:]
+    for a, b in zip(online, prior):
+        assert {**a.params, "row": "online_prior"} == b.params
+        assert a.scenario_yaml == b.scenario_yaml
+        assert b.values["variant"] == a.values["variant"].replace("online", "online_prior")
+        assert a.hash != b.hash
+    with pytest.raises(ValueError, match="columns: open_loop has no case of the optional row"):
+        expand_table(load_scenario(), ["online_prior"], ["open_loop"], 1, t_end=T_TINY)
+
+    s = _momentum_scenario()
+    blocks = {}
+    for variant in ("online", "online_prior"):
+        with variant_built(s, variant):
+            blocks[variant] = [rs.force_observer for rs in
+                               build_experiment(plan_run(s), log=False).robots]
+    for a, b in zip(blocks["online"], blocks["online_prior"]):
+        coulomb = a._regressor.structure.joint_slice("coulomb")
+        p0_a, p0_b = np.diag(a._P0), np.diag(b._P0)
+        np.testing.assert_array_equal(np.sqrt(p0_b[coulomb]), 0.5)
+        assert np.all(np.sqrt(p0_a[coulomb]) < 1e-3)
+        others = np.ones(p0_a.size, bool)
+        others[coulomb] = False
+        np.testing.assert_array_equal(p0_a[others], p0_b[others])
+        assert (a._free_friction, b._free_friction) == (False, True)
+        np.testing.assert_array_equal(a._theta0, b._theta0)
+        for attr in ("_h", "_gain", "_mu", "_v_min", "_R"):
+            assert getattr(a, attr) == getattr(b, attr)
+        assert a._model is not None and b._model is not None
