@@ -33,16 +33,20 @@ import signal
 import sys
 import threading
 import time
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 from drake_coop.studies.expand import Case
+
+if TYPE_CHECKING:
+    from drake_coop.scenario.schema import Scenario
 
 __all__ = ["died", "die_with_parent", "run_case", "run_in_processes", "run_local", "run_ray"]
 
 OnResult = Callable[[Case, dict], None]
 
 
-def run_case(scenario_yaml: str, t_end: float | None, clocks=None, scenario=None) -> dict:
+def run_case(scenario_yaml: str, t_end: float | None, clocks=None,
+             scenario: Scenario | None = None) -> dict:
     """Simulate one case and return its record (never raises).
 
     Parameters
