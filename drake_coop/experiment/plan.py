@@ -597,8 +597,20 @@ class RunPlan:
         Returns
         -------
         numpy.ndarray
-            The squeeze (K,), N.
+            The squeeze (K,), N (a new array; computed once per distinct ``t`` and plan:
+            every robot's ``λ_d`` samples the same ticks).
         """
+        times = np.asarray(t, dtype=float)
+        key = (times.shape, times.tobytes())
+        if key not in self._squeezes:
+            self._squeezes[key] = self._squeeze(t)
+        return self._squeezes[key].copy()
+
+    @cached_property
+    def _squeezes(self) -> dict:
+        return {}
+
+    def _squeeze(self, t) -> np.ndarray:
         from drake_coop.scenario.task_path import force_reference
 
         profile = force_reference(self.scenario.task, t)

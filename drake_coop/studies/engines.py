@@ -33,16 +33,20 @@ import signal
 import sys
 import threading
 import time
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 from drake_coop.studies.expand import Case
+
+if TYPE_CHECKING:
+    from drake_coop.scenario.schema import Scenario
 
 __all__ = ["died", "die_with_parent", "run_case", "run_in_processes", "run_local", "run_ray"]
 
 OnResult = Callable[[Case, dict], None]
 
 
-def run_case(scenario_yaml: str, t_end: float | None, clocks=None) -> dict:
+def run_case(scenario_yaml: str, t_end: float | None, clocks=None,
+             scenario: Scenario | None = None) -> dict:
     """Simulate one case and return its record (never raises).
 
     Parameters
@@ -54,6 +58,9 @@ def run_case(scenario_yaml: str, t_end: float | None, clocks=None) -> dict:
     clocks : sequence of (Clock or None), optional
         Each robot's controller-side clock (:func:`~drake_coop.studies.sweep.run_one`);
         None: the run's grid.
+    scenario : Scenario, optional
+        The scenario already loaded and validated from ``scenario_yaml``, passed to
+        :func:`~drake_coop.studies.sweep.run_one` (not loaded again); None: loaded there.
 
     Returns
     -------
@@ -66,7 +73,7 @@ def run_case(scenario_yaml: str, t_end: float | None, clocks=None) -> dict:
 
     start = time.perf_counter()
     try:
-        result = run_one(scenario_yaml, t_end, clocks)
+        result = run_one(scenario_yaml, t_end, clocks, scenario)
     except MemoryError:
         return died("the case ran out of memory (MemoryError)")
     except Exception as exc:          # a failure to build or run: recorded, not fatal

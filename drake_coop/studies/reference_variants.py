@@ -35,6 +35,12 @@ from drake_coop.scenario.schema import Scenario
 
 __all__ = ["ONLINE_OPTIONS", "VARIANTS", "run_variant_case", "variant_built", "variant_hash", "variant_matters"]
 
+#: The reachability check's outcomes in this worker process, by what the check reads
+#: (:func:`~drake_coop.scenario.validation.reach_inputs`): a cell's draws that change only
+#: the controller's model, the friction or the limits are checked once per worker. The
+#: outcome is that of an uncached check.
+REACH_CACHE: dict = {}
+
 #: The variants and what each is.
 VARIANTS = {
     "applied_torque": "the momentum observer integrating the applied (clipped) torque",
@@ -185,6 +191,9 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     """Simulate one case of the table with its variant (as
     :func:`~drake_coop.studies.engines.run_case`).
 
+    The scenario is loaded once (the run reuses it), its reachability check answered from
+    :data:`REACH_CACHE` when this worker already checked the same inputs.
+
     Parameters
     ----------
     scenario_yaml : str
@@ -205,7 +214,7 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     from drake_coop.studies.engines import run_case
     from drake_coop.studies.reference_clock import arm_clocks, split_clock
 
-    scenario = load_scenario(data=scenario_yaml)
+    scenario = load_scenario(data=scenario_yaml, cache=REACH_CACHE)
     clock, variant = split_clock(variant)
     if variant is not None and variant.startswith("open_loop:"):
         from drake_coop.studies.reference_open_loop import open_loop_built
@@ -217,4 +226,4 @@ def run_variant_case(scenario_yaml: str, t_end: float, variant: str | None) -> d
     else:
         built = variant_built(scenario, variant)
     with built:
-        return run_case(scenario_yaml, t_end, arm_clocks(scenario, clock))
+        return run_case(scenario_yaml, t_end, arm_clocks(scenario, clock), scenario)

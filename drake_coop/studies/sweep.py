@@ -24,7 +24,8 @@ from drake_coop.scenario.loading import dump_scenario, load_scenario
 from drake_coop.scenario.schema import Scenario
 
 
-def run_one(scenario_yaml: str, t_end: float | None = None, clocks=None) -> dict:
+def run_one(scenario_yaml: str, t_end: float | None = None, clocks=None,
+            scenario: Scenario | None = None) -> dict:
     """Simulate one scenario (given as YAML) and return its metadata and metrics.
 
     Parameters
@@ -36,6 +37,10 @@ def run_one(scenario_yaml: str, t_end: float | None = None, clocks=None) -> dict
     clocks : sequence of (Clock or None), optional
         Each robot's controller-side clock (passed to
         :func:`~drake_coop.experiment.simulate.simulate`); None: the run's grid.
+    scenario : Scenario, optional
+        The scenario already loaded and validated from ``scenario_yaml`` (a caller that
+        needed it first, e.g. the reference table's worker): used as it is, not loaded
+        again; None: loaded from the text.
 
     Returns
     -------
@@ -45,7 +50,8 @@ def run_one(scenario_yaml: str, t_end: float | None = None, clocks=None) -> dict
     from drake_coop.experiment.simulate import simulate
     from drake_coop.results.metrics import compute_metrics
 
-    scenario = load_scenario(data=scenario_yaml)
+    if scenario is None:
+        scenario = load_scenario(data=scenario_yaml)
     result = simulate(scenario, t_end=t_end, clocks=clocks)
     meta = {k: v for k, v in result.meta.items() if k != "scenario_yaml"}
     return {"scenario_yaml": scenario_yaml, "meta": meta,
