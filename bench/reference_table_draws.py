@@ -8,11 +8,14 @@ draw's random numbers are ``numpy.random.default_rng([seed, column, draw])``):
 
 * the median squeeze error at N draws, and whether it lies inside the 20-draw median's 95 %
   interval (the short table's intervals are honest if it does);
+* the other way round, whether the 20-draw median lies inside the N-draw median's 95 %
+  interval (narrower: a 20-draw median outside it is a cell whose short-table value moved);
 * how much narrower the interval got (its width at N draws over its width at 20);
 * the diverged draws, as counts and fractions.
 
-Prints one line per cell; ``--write`` stores the comparison as JSON with the store's case
-count and CPU time.
+A cell with fewer draws than the store's most (a run not finished) is compared at the draws
+it has and listed in ``incomplete``. Prints one line per cell; ``--write`` stores the
+comparison as JSON with the store's case count, CPU time and the command that fills it.
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ import argparse
 import json
 import sys
 from pathlib import Path
+
+from drake_coop.studies.reference_table import COLUMNS, ROWS
 
 COMMITTED = Path("docs/results/reference_table_run.json")
 
@@ -36,10 +41,17 @@ def compare(many: dict, twenty: dict) -> dict:
     Returns
     -------
     dict
-        ``{"cells": {row: {column: {...}}}, "inside": k, "compared": n}``; a cell's ``inside``
-        is None where the 20-draw interval is a point (a column with nothing random).
+        ``{"cells": {row: {column: {...}}}, "inside": k, "compared": n, "outside": [...],
+        "inside_100": k, "compared_100": n, "outside_100": [...], "draws": N,
+        "incomplete": [...]}``: ``inside`` counts the cells whose N-draw median lies in the
+        20-draw interval (``outside`` names the others, as ``"row/column"``), ``inside_100``
+        those whose 20-draw median lies in the N-draw interval; a cell's ``inside_20_interval``
+        (``median_20_inside_interval``) is None where the 20-draw (N-draw) interval is a point
+        (a column with nothing random). ``draws`` is the most draws of a cell; ``incomplete``
+        names the cells with fewer.
     """
     cells, inside, compared = {}, 0, 0
+    inside_100, compared_100, outside, outside_100 = 0, 0, [], []
     for row, columns in many["cells"].items():
         for col, cell in columns.items():
             other = twenty["cells"].get(row, {}).get(col)
@@ -52,16 +64,55 @@ def compare(many: dict, twenty: dict) -> dict:
             if hit is not None:
                 compared += 1
                 inside += hit
+                if not hit:
+                    outside.append(f"{row}/{col}")
+            point_n = hi - lo <= 1e-12 * max(1.0, abs(m))
+            back = None if point_n else bool(lo <= m20 <= hi)
+            if back is not None:
+                compared_100 += 1
+                inside_100 += back
+                if not back:
+                    outside_100.append(f"{row}/{col}")
             cells.setdefault(row, {})[col] = {
                 "draws": cell["n"], "diverged": cell["diverged"],
                 "diverged_fraction": cell["diverged"] / cell["n"],
                 "median": m, "interval": [lo, hi],
                 "median_20": m20, "interval_20": [lo20, hi20],
                 "diverged_20": other["diverged"], "diverged_fraction_20": other["diverged"] / other["n"],
-                "inside_20_interval": hit,
+                "inside_20_interval": hit, "median_20_inside_interval": back,
                 "width_ratio": None if point else (hi - lo) / (hi20 - lo20),
             }
-    return {"cells": cells, "inside": inside, "compared": compared}
+    most = max((c["draws"] for r in cells.values() for c in r.values()), default=0)
+    incomplete = [f"{r}/{k}" for r, cols in cells.items() for k, c in cols.items()
+                  if c["draws"] < most]
+    return {"cells": cells, "inside": inside, "compared": compared, "outside": outside,
+            "inside_100": inside_100, "compared_100": compared_100, "outside_100": outside_100,
+            "draws": most, "incomplete": incomplete}
+
+
+def command(many: dict, draws: int) -> str:
+    """The command that fills a table folder like ``many`` on a cluster.
+
+    Parameters
+    ----------
+    many : dict
+        A ``table.json`` document of ``drake-coop reference-table``.
+    draws : int
+        Its draws per cell.
+
+    Returns
+    -------
+    str
+        ``drake-coop reference-table --out STORE --draws N [--rows ...] [--columns ...] --ray
+        127.0.0.1:PORT``; rows and columns named only where they are not all the rows and the
+        default columns.
+    """
+    parts = ["drake-coop reference-table --out STORE", f"--draws {draws}"]
+    if list(many["rows"]) != [r.name for r in ROWS]:
+        parts.append(f"--rows {','.join(many['rows'])}")
+    if list(many["columns"]) != list(COLUMNS):
+        parts.append(f"--columns {','.join(many['columns'])}")
+    return " ".join(parts + ["--ray 127.0.0.1:PORT"])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -94,13 +145,15 @@ def main(argv: list[str] | None = None) -> int:
                   f"{c['interval'][1]:.4g}] at {c['draws']}; 20 draws {c['median_20']:.4g} "
                   f"[{c['interval_20'][0]:.4g}, {c['interval_20'][1]:.4g}]; diverged "
                   f"{c['diverged']}/{c['draws']} vs {c['diverged_20']}/20")
-    print(f"inside the 20-draw interval: {result['inside']} of {result['compared']} cells")
+    print(f"inside the 20-draw interval: {result['inside']} of {result['compared']} cells; "
+          f"20-draw median inside the {result['draws']}-draw interval: "
+          f"{result['inside_100']} of {result['compared_100']}")
+    if result["incomplete"]:
+        print(f"fewer than {result['draws']} draws: {', '.join(result['incomplete'])}")
     if args.write:
         result.update(rows=many["rows"], columns=many["columns"], cases=many["cases"],
                       finished=many["finished"], cpu_time_s=many.get("cpu_time_s"),
-                      command=f"drake-coop reference-table --out STORE --draws "
-                              f"{max(c['draws'] for r in result['cells'].values() for c in r.values())}"
-                              f" --rows {','.join(many['rows'])} --ray 127.0.0.1:PORT")
+                      command=command(many, result["draws"]))
         Path(args.write).write_text(json.dumps(result, indent=1) + "\n")
     return 0
 

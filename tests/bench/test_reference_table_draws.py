@@ -44,3 +44,39 @@ def test_written_file_names_its_command(tmp_path, monkeypatch):
     assert main([str(store), "--write", str(out)]) == 0
     doc = json.loads(out.read_text())
     assert "--draws 100" in doc["command"] and doc["cases"] == 3
+
+
+def test_both_directions_of_the_interval_check_and_the_unfinished_cells():
+    # "a": the 100-draw median inside the 20-draw interval, but the 20-draw median outside the
+    # (narrower) 100-draw interval; "b": inside both ways; "c": 40 draws of 100 (unfinished).
+    many = _table({"r": {"a": _cell(100, 0, 1.0, 0.95, 1.05), "b": _cell(100, 0, 2.0, 1.9, 2.2),
+                         "c": _cell(40, 0, 3.0, 2.0, 4.0)},
+                   "s": {"a": _cell(100, 0, 0.5, 0.5, 0.5)}})
+    twenty = _table({"r": {"a": _cell(20, 0, 1.2, 0.8, 1.3), "b": _cell(20, 0, 2.1, 1.8, 2.4),
+                           "c": _cell(20, 0, 5.0, 4.5, 6.0)},
+                     "s": {"a": _cell(20, 0, 0.4, 0.3, 0.6)}})
+    result = compare(many, twenty)
+    a, b, c = (result["cells"]["r"][k] for k in "abc")
+    assert a["inside_20_interval"] is True and a["median_20_inside_interval"] is False
+    assert b["inside_20_interval"] is True and b["median_20_inside_interval"] is True
+    assert c["inside_20_interval"] is False
+    assert result["cells"]["s"]["a"]["median_20_inside_interval"] is None   # a point at 100
+    assert result["cells"]["s"]["a"]["inside_20_interval"] is True
+    assert (result["inside"], result["compared"]) == (3, 4)
+    assert result["outside"] == ["r/c"]
+    assert (result["inside_100"], result["compared_100"]) == (1, 3)
+    assert result["outside_100"] == ["r/a", "r/c"]
+    assert result["draws"] == 100 and result["incomplete"] == ["r/c"]
+
+
+def test_the_command_names_rows_and_columns_only_where_not_all():
+    from bench.reference_table_draws import command
+    from drake_coop.studies.reference_table import COLUMNS, ROWS
+
+    every = {"rows": [r.name for r in ROWS], "columns": list(COLUMNS)}
+    assert command(every, 100) == ("drake-coop reference-table --out STORE --draws 100 "
+                                   "--ray 127.0.0.1:PORT")
+    some = {"rows": ["observer", "none"], "columns": list(COLUMNS)[:2]}
+    text = command(some, 60)
+    assert "--rows observer,none" in text and f"--columns {COLUMNS[0]},{COLUMNS[1]}" in text
+    assert "--draws 60" in text
