@@ -28,6 +28,9 @@ from pathlib import Path
 from drake_coop.studies.reference_table import COLUMNS, ROWS
 
 COMMITTED = Path("docs/results/reference_table_run.json")
+#: An interval narrower than this fraction of its median is a point (nothing compared): the
+#: draws differ at the scale the same case's numbers differ between Drake versions.
+POINT = 1e-6
 
 
 def compare(many: dict, twenty: dict) -> dict:
@@ -47,9 +50,15 @@ def compare(many: dict, twenty: dict) -> dict:
         20-draw interval (``outside`` names the others, as ``"row/column"``), ``inside_100``
         those whose 20-draw median lies in the N-draw interval; a cell's ``inside_20_interval``
         (``median_20_inside_interval``) is None where the 20-draw (N-draw) interval is a point
-        (a column with nothing random). ``draws`` is the most draws of a cell; ``incomplete``
+        (narrower than :data:`POINT` of its median: a column with nothing random, or whose
+        draws move the run only at the rounding's scale). ``draws`` is the most draws of a cell; ``incomplete``
         names the cells with fewer.
     """
+    def is_point(lo: float, hi: float, m: float) -> bool:
+        # Narrower than POINT of its median: a column whose draws change the run only at
+        # the rounding's scale (the clock skew with an estimate that ignores it).
+        return hi - lo <= max(POINT * abs(m), 1e-12)
+
     cells, inside, compared = {}, 0, 0
     inside_100, compared_100, outside, outside_100 = 0, 0, [], []
     for row, columns in many["cells"].items():
@@ -59,14 +68,14 @@ def compare(many: dict, twenty: dict) -> dict:
                 continue
             m, lo, hi = cell["squeeze"]["median"]
             m20, lo20, hi20 = other["squeeze"]["median"]
-            point = hi20 - lo20 <= 1e-12 * max(1.0, abs(m20))
+            point = is_point(lo20, hi20, m20)
             hit = None if point else bool(lo20 <= m <= hi20)
             if hit is not None:
                 compared += 1
                 inside += hit
                 if not hit:
                     outside.append(f"{row}/{col}")
-            point_n = hi - lo <= 1e-12 * max(1.0, abs(m))
+            point_n = is_point(lo, hi, m)
             back = None if point_n else bool(lo <= m20 <= hi)
             if back is not None:
                 compared_100 += 1

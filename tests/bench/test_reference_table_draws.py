@@ -80,3 +80,16 @@ def test_the_command_names_rows_and_columns_only_where_not_all():
     text = command(some, 60)
     assert "--rows observer,none" in text and f"--columns {COLUMNS[0]},{COLUMNS[1]}" in text
     assert "--draws 60" in text
+
+
+def test_an_interval_narrower_than_a_millionth_of_its_median_is_a_point():
+    # The clock column under a source that ignores the skew: draws 1e-10 apart.
+    many = _table({"r": {"a": _cell(100, 0, 0.0486885187, 0.04868851871, 0.04868851873),
+                         "b": _cell(100, 0, 1.0, 0.99999, 1.00001)}})
+    twenty = _table({"r": {"a": _cell(20, 0, 0.0486885186, 0.04868851869, 0.04868851872),
+                           "b": _cell(20, 0, 1.0, 0.99, 1.01)}})
+    result = compare(many, twenty)
+    a, b = result["cells"]["r"]["a"], result["cells"]["r"]["b"]
+    assert a["inside_20_interval"] is None and a["median_20_inside_interval"] is None
+    assert b["median_20_inside_interval"] is True      # 2e-5 wide: compared
+    assert (result["compared"], result["compared_100"]) == (1, 1)
