@@ -15,13 +15,15 @@ draw's random numbers are ``numpy.random.default_rng([seed, column, draw])``):
 
 A cell with fewer draws than the store's most (a run not finished) is compared at the draws
 it has and listed in ``incomplete``. Prints one line per cell; ``--write`` stores the
-comparison as JSON with the store's case count, CPU time and the command that fills it.
+comparison as JSON with the store's case count, CPU time and the command that fills it, and
+with ``--runs LOG ...`` what each run of it said (:func:`run_log`).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -124,6 +126,43 @@ def command(many: dict, draws: int) -> str:
     return " ".join(parts + ["--ray 127.0.0.1:PORT"])
 
 
+_PLANNED = re.compile(r"reference table: (\d+) cases, (\d+) already finished, running (\d+)")
+
+
+def run_log(path: Path) -> dict:
+    """What one run of the table's command said, from its ``/usr/bin/time -v`` log.
+
+    Parameters
+    ----------
+    path : Path
+        The log: the command's progress lines and ``/usr/bin/time -v``'s report.
+
+    Returns
+    -------
+    dict
+        ``log`` (the file's name), ``cases``, ``already_finished``, ``running`` (its first
+        line's plan), ``last_progress`` (its last progress line), ``exit`` (the command's
+        exit status; 130 interrupted), ``cpu_s`` (the driver's own process CPU: the Ray
+        workers' is not in it) and ``wall_s``.
+    """
+    found = {"log": Path(path).name}
+    for line in Path(path).read_text().splitlines():
+        line = line.strip()
+        plan = _PLANNED.match(line)
+        if plan:
+            found.update(zip(("cases", "already_finished", "running"), map(int, plan.groups())))
+        elif line.startswith("reference table:"):
+            found["last_progress"] = line
+        elif line.startswith("Exit status:"):
+            found["exit"] = int(line.partition(": ")[2])
+        elif line.startswith(("User time (seconds):", "System time (seconds):")):
+            found["cpu_s"] = found.get("cpu_s", 0.0) + float(line.partition(": ")[2])
+        elif line.startswith("Elapsed (wall clock) time"):
+            parts = [float(v) for v in line.rpartition(": ")[2].split(":")]
+            found["wall_s"] = sum(v * 60 ** i for i, v in enumerate(reversed(parts)))
+    return found
+
+
 def main(argv: list[str] | None = None) -> int:
     """Compare a table folder with the committed 20-draw table (module docstring).
 
@@ -140,10 +179,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("store", help="the table folder (its table.json)")
     parser.add_argument("--write", help="the JSON to write")
+    parser.add_argument("--runs", nargs="+", default=[], metavar="LOG",
+                        help="--write: the runs' /usr/bin/time -v logs, in order (recorded)")
     args = parser.parse_args(argv)
     try:
         many = json.loads((Path(args.store) / "table.json").read_text())
         twenty = json.loads(COMMITTED.read_text())
+        runs = [run_log(Path(p)) for p in args.runs]
     except OSError as exc:
         print(f"reference_table_draws: {exc.strerror}: {exc.filename}", file=sys.stderr)
         return 2
@@ -163,6 +205,8 @@ def main(argv: list[str] | None = None) -> int:
         result.update(rows=many["rows"], columns=many["columns"], cases=many["cases"],
                       finished=many["finished"], cpu_time_s=many.get("cpu_time_s"),
                       command=command(many, result["draws"]))
+        if runs:
+            result["runs"] = runs
         Path(args.write).write_text(json.dumps(result, indent=1) + "\n")
     return 0
 

@@ -93,3 +93,34 @@ def test_an_interval_narrower_than_a_millionth_of_its_median_is_a_point():
     assert a["inside_20_interval"] is None and a["median_20_inside_interval"] is None
     assert b["median_20_inside_interval"] is True      # 2e-5 wide: compared
     assert (result["compared"], result["compared_100"]) == (1, 1)
+
+
+def test_a_run_log_gives_its_plan_its_last_progress_and_its_exit(tmp_path):
+    from bench.reference_table_draws import run_log
+
+    log = tmp_path / "more_1.log"
+    log.write_text(
+        "reference table: 5600 cases, 4600 already finished, running 1000 -> /x\n"
+        "reference table: 4505 of 5600\nreference table: 4825 of 5600\n"
+        "drake-coop: interrupted (Ctrl-C)\nCommand exited with non-zero status 130\n"
+        "\tUser time (seconds): 18.63\n\tSystem time (seconds): 0.98\n"
+        "\tElapsed (wall clock) time (h:mm:ss or m:ss): 1:14:48.12\n\tExit status: 130\n")
+    got = run_log(log)
+    assert (got["cases"], got["already_finished"], got["running"]) == (5600, 4600, 1000)
+    assert got["last_progress"] == "reference table: 4825 of 5600" and got["exit"] == 130
+    assert abs(got["cpu_s"] - 19.61) < 1e-9 and abs(got["wall_s"] - 4488.12) < 1e-9
+    assert got["log"] == "more_1.log"
+
+
+def test_written_file_records_the_runs(tmp_path):
+    store = tmp_path / "store"
+    store.mkdir()
+    (store / "table.json").write_text(json.dumps(
+        _table({"observer": {"model_30": _cell(100, 1, 1.0, 0.9, 1.1)}})))
+    log = tmp_path / "first.log"
+    log.write_text("reference table: 3 cases, 0 already finished, running 3 -> s\n"
+                   "reference table: 3 of 3\n\tExit status: 0\n")
+    out = tmp_path / "cmp.json"
+    assert main([str(store), "--write", str(out), "--runs", str(log)]) == 0
+    runs = json.loads(out.read_text())["runs"]
+    assert [(r["log"], r["running"], r["exit"]) for r in runs] == [("first.log", 3, 0)]
