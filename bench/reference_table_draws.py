@@ -126,6 +126,7 @@ def command(many: dict, draws: int) -> str:
     return " ".join(parts + ["--ray 127.0.0.1:PORT"])
 
 
+_PROGRESS = re.compile(r"reference table: (\d+) of \d+$")
 _PLANNED = re.compile(r"reference table: (\d+) cases, (\d+) already finished, running (\d+)")
 
 
@@ -141,7 +142,8 @@ def run_log(path: Path) -> dict:
     -------
     dict
         ``log`` (the file's name), ``cases``, ``already_finished``, ``running`` (its first
-        line's plan), ``last_progress`` (its last progress line), ``exit`` (the command's
+        line's plan), ``last_progress`` (its last progress line) and ``progress`` (the finished
+        cases it counts), ``exit`` (the command's
         exit status; 130 interrupted), ``cpu_s`` (the driver's own process CPU: the Ray
         workers' is not in it) and ``wall_s``.
     """
@@ -153,6 +155,9 @@ def run_log(path: Path) -> dict:
             found.update(zip(("cases", "already_finished", "running"), map(int, plan.groups())))
         elif line.startswith("reference table:"):
             found["last_progress"] = line
+            done = _PROGRESS.match(line)
+            if done:
+                found["progress"] = int(done.group(1))
         elif line.startswith("Exit status:"):
             found["exit"] = int(line.partition(": ")[2])
         elif line.startswith(("User time (seconds):", "System time (seconds):")):

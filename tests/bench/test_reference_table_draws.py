@@ -108,6 +108,7 @@ def test_a_run_log_gives_its_plan_its_last_progress_and_its_exit(tmp_path):
     got = run_log(log)
     assert (got["cases"], got["already_finished"], got["running"]) == (5600, 4600, 1000)
     assert got["last_progress"] == "reference table: 4825 of 5600" and got["exit"] == 130
+    assert got["progress"] == 4825
     assert abs(got["cpu_s"] - 19.61) < 1e-9 and abs(got["wall_s"] - 4488.12) < 1e-9
     assert got["log"] == "more_1.log"
 
