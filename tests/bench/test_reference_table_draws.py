@@ -125,3 +125,34 @@ def test_written_file_records_the_runs(tmp_path):
     assert main([str(store), "--write", str(out), "--runs", str(log)]) == 0
     runs = json.loads(out.read_text())["runs"]
     assert [(r["log"], r["running"], r["exit"]) for r in runs] == [("first.log", 3, 0)]
+
+
+def test_the_committed_5x_file_covers_the_whole_table_and_matches_the_20_draw_table():
+    """The shipped comparison: every row and default column, its 20-draw side equal to the
+    committed 20-draw table's cells, its counts and lists what its cells say."""
+    from pathlib import Path
+
+    from bench.reference_table_draws import POINT
+    from drake_coop.studies.reference_table import COLUMNS, ROWS
+
+    root = Path(__file__).resolve().parents[2] / "docs" / "results"
+    doc = json.loads((root / "reference_table_5x.json").read_text())
+    twenty = json.loads((root / "reference_table_run.json").read_text())["cells"]
+    assert doc["rows"] == [r.name for r in ROWS] and doc["columns"] == list(COLUMNS)
+    assert {(r, c) for r in doc["cells"] for c in doc["cells"][r]} == {
+        (r.name, c) for r in ROWS for c in COLUMNS}
+    inside = compared = 0
+    for row, cols in doc["cells"].items():
+        for col, c in cols.items():
+            ref = twenty[row][col]
+            assert c["median_20"] == ref["squeeze"]["median"][0]
+            assert c["interval_20"] == ref["squeeze"]["median"][1:]
+            assert c["diverged_20"] == ref["diverged"] and 20 <= c["draws"] <= doc["draws"]
+            lo, hi = c["interval_20"]
+            if hi - lo > max(POINT * abs(c["median_20"]), 1e-12):
+                compared += 1
+                inside += lo <= c["median"] <= hi
+    assert (inside, compared) == (doc["inside"], doc["compared"])
+    assert doc["incomplete"] == [f"{r}/{k}" for r, cols in doc["cells"].items()
+                                 for k, c in cols.items() if c["draws"] < doc["draws"]]
+    assert doc["finished"] <= doc["cases"] == len(ROWS) * len(COLUMNS) * doc["draws"]
