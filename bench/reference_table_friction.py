@@ -216,11 +216,16 @@ def planned_cases(base: Path, draws: int) -> int:
 def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
     """The results file's content from ``folder`` (as the commands on the page leave it:
     ``bases/``, one table folder per base, ``logs/`` of ``/usr/bin/time -v``,
-    ``full_paper.json``, ``rerun.json``): per base the table of ``rows`` × ``cols`` (the cells
-    whose every draw finished), the stages' process CPU and wall, the overlap check and the
-    rerun."""
+    ``full_paper.json``, ``rerun.json``, ``identification_cpu.json``): per base the table of
+    ``rows`` × ``cols`` (the cells whose every draw finished), its planned CPU (the finished
+    distinct cases' own CPU, the unfinished ones at their mean, and the identifications' CPU
+    as ``identification_cpu.json`` gives it per base: a run's process CPU less its cases'),
+    the stages' process CPU and wall, the overlap check and the rerun."""
     from bench.reference_table import time_log
     from drake_coop.studies.reference_table import SEGMENT, T_SHORT
+
+    found = folder / "identification_cpu.json"
+    identification_cpu = json.loads(found.read_text()) if found.is_file() else {}
 
     out: dict = {"draws": draws, "segment": {**SEGMENT, "t_end_case": T_SHORT}, "bases": {}}
     for name, sub in BASES.items():
@@ -233,10 +238,22 @@ def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
         out["bases"][name] = table
         table["scenario_yaml"] = (folder / "bases" / f"{name}.yaml").read_text()
         cpu = [v for v in table["cpu_per_case_s"].values()]
-        table["planned_cases"] = planned_cases(folder / "bases" / f"{name}.yaml", draws)
+        from drake_coop.studies.reference_table import FRICTION_COLUMNS
+
+        every = set(FRICTION_COLUMNS) <= set(table["columns"])
+        # every column expanded (the identified one's models found): its distinct cases, else
+        # the count from the columns' structure
+        table["planned_cases"] = (table["distinct_cases"] if every else
+                                  planned_cases(folder / "bases" / f"{name}.yaml", draws))
+        ident = identification_cpu.get(name)
+        if ident is not None:
+            table["identification_cpu_s"] = ident
         if cpu:
             table["cpu_per_case_mean_s"] = sum(cpu) / len(cpu)
-            table["planned_cpu_s"] = table["planned_cases"] * table["cpu_per_case_mean_s"]
+            left = table["planned_cases"] - table["distinct_finished"]
+            # the finished cases' own CPU, the rest at the mean, and the identifications
+            table["planned_cpu_s"] = (table["cpu_distinct_s"] + left * table["cpu_per_case_mean_s"]
+                                      + (ident or 0.0))
         calibration = folder / sub / "calibration.json"
         if calibration.is_file():
             table["peaks"] = json.loads(calibration.read_text())["peaks"]
@@ -288,6 +305,9 @@ def page_tables(data: dict, base: str, source: str = "reference_table_friction")
     def error(key: str):
         def text(row: str, col: str) -> str:
             c = f"{row}.{col}.{key}"
+            cell = table["cells"][row][col]
+            if cell["diverged"] >= cell["n"]:          # no draw finished: no median
+                return f"— ({role(f'{row}.{col}.diverged', '.0f')} of {cell['n']} diverged)"
             out = (f"{role(c + '.median.0')} [{role(c + '.median.1')}, {role(c + '.median.2')}]"
                    f" / {role(c + '.p90.0')}")
             if table["cells"][row][col]["diverged"]:
