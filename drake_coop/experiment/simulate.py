@@ -437,7 +437,11 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
     try:
         # Stop where the plant changes (grasp, release), at the end, and every guard period,
         # at control ticks (k h, computed as Drake computes event times).
-        for k_stop in guard_chunks(plan, scenario.guards.check_period):
+        stops = guard_chunks(plan, scenario.guards.check_period)
+        # The pads' desired positions at every stop, the task's path evaluated once a robot.
+        x_d = [cartesian_reference(scenario.task, robot, np.asarray(stops) * plan.h)[0]
+               for robot in scenario.robots]
+        for j, k_stop in enumerate(stops):
             try:
                 result = simulator.AdvanceTo(k_stop * plan.h)
             except RuntimeError as exc:   # e.g. the contact solver failing on a blown-up state
@@ -454,7 +458,8 @@ def simulate(scenario: Scenario, *, t_end: float | None = None,
                 status = "diverged"
                 message = f"diverged at t = {context.get_time():.3f} s: {reason}"
                 break
-            failure = failures.check(plant_sample(exp, context, forces))
+            failure = failures.check(plant_sample(exp, context, forces,
+                                                  [x[j] for x in x_d]))
             if failure is not None:
                 status, message = "failed", failure.message
                 break

@@ -15,6 +15,8 @@ joint and the squeezes the limits allow there (``drake-coop run`` exits 2, nothi
 
 from __future__ import annotations
 
+from typing import Iterator, NamedTuple
+
 import numpy as np
 
 from drake_coop.experiment.plan import RobotPlan, RunPlan
@@ -46,10 +48,22 @@ def torque_limits(robot: RobotPlan) -> np.ndarray:
     return effort_limits(make_arm_controller_plant(arm.urdf_path, arm.base_frame))
 
 
-def _path_torques(plan: RunPlan, every_robot: bool = False):
-    """Per robot with finite limits (``every_robot``: every robot), on the held ticks: ``(t,
-    τ_0, c, λ_d, limits, name, label, joint names)`` of the module's check (nothing outside
-    ``contact`` mode)."""
+class _PathTorques(NamedTuple):
+    """One robot's torques along its held ticks (k of them), as the module's check reads them."""
+
+    t: np.ndarray            #: the held ticks' times (k,), s
+    tau0: np.ndarray         #: the torque carrying the load without a squeeze (k, n), N·m
+    c: np.ndarray            #: the torque per newton of squeeze (k, n), N·m/N
+    lam: np.ndarray          #: the commanded squeeze λ_d (k,), N
+    limits: np.ndarray       #: τ_max (n,), N·m (:func:`torque_limits`)
+    name: str                #: the robot's name
+    label: str               #: ``robots[i] (name)``, for a refusal's line
+    joints: list[str] | None  #: the arm's joint names, None when they do not match n
+
+
+def _path_torques(plan: RunPlan, every_robot: bool = False) -> Iterator[_PathTorques]:
+    """Per robot with finite limits (``every_robot``: every robot), its torques on the held
+    ticks (nothing outside ``contact`` mode)."""
     scenario = plan.scenario
     if scenario.plant.object_mode != "contact":
         return
@@ -89,8 +103,8 @@ def _path_torques(plan: RunPlan, every_robot: bool = False):
                                                 offset)
         joints = [model.plant.get_joint(j).name() for j in model.plant.GetJointIndices()
                   if model.plant.get_joint(j).num_velocities() == 1]
-        yield (t[ticks], tau0, c, lam[ticks], limits, robot.name, f"robots[{i}] ({robot.name})",
-               joints if len(joints) == n else None)
+        yield _PathTorques(t[ticks], tau0, c, lam[ticks], limits, robot.name,
+                           f"robots[{i}] ({robot.name})", joints if len(joints) == n else None)
 
 
 def check_squeeze_limits(plan: RunPlan) -> None:
@@ -113,9 +127,9 @@ def check_squeeze_limits(plan: RunPlan) -> None:
     """
     from drake_coop.control.squeeze_limits import check_squeeze_path
 
-    for t, tau0, c, lam, limits, _, label, joints in _path_torques(plan):
+    for p in _path_torques(plan):
         try:
-            check_squeeze_path(t, tau0, c, lam, limits, label, joints)
+            check_squeeze_path(p.t, p.tau0, p.c, p.lam, p.limits, p.label, p.joints)
         except ValueError as exc:
             raise ScenarioError(str(exc)) from None
 
@@ -136,7 +150,7 @@ def required_torques(plan: RunPlan) -> dict[str, list[float]]:
         Robot name -> its needed torque per joint (n,), N·m.
     """
     out = {}
-    for _, tau0, c, lam, _, name, _, _ in _path_torques(plan, every_robot=True):
-        tau = np.abs(tau0 + c * lam[:, None])
-        out[name] = (tau.max(axis=0) if tau.size else np.zeros(tau0.shape[1])).tolist()
+    for p in _path_torques(plan, every_robot=True):
+        tau = np.abs(p.tau0 + p.c * p.lam[:, None])
+        out[p.name] = (tau.max(axis=0) if tau.size else np.zeros(p.tau0.shape[1])).tolist()
     return out

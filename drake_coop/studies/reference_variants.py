@@ -33,7 +33,8 @@ from typing import Iterator
 
 from drake_coop.scenario.schema import Scenario
 
-__all__ = ["ONLINE_OPTIONS", "VARIANTS", "run_variant_case", "variant_built", "variant_hash", "variant_matters"]
+__all__ = ["ONLINE_OPTIONS", "VARIANTS", "run_variant_case", "variant_built", "variant_hash",
+           "variant_matters"]
 
 #: The reachability check's outcomes in this worker process, by what the check reads
 #: (:func:`~drake_coop.scenario.validation.reach_inputs`): a cell's draws that change only
