@@ -143,7 +143,27 @@ def summarize(rows: list[dict]) -> dict:
                       for key in ("online", "nominal", "batch_map_sdp_10s")}}
     if out["median_online"] is not None and out["median_batch"]:
         out["online_over_batch"] = out["median_online"] / out["median_batch"]
+    out["paired"] = paired(rows)
     return out
+
+
+def paired(rows: list[dict]) -> dict:
+    """The online row against the batch row draw by draw: ``ratio`` (the median of the
+    per-draw ratios online / batch, with its 95 % bootstrap interval, as the table's cells),
+    ``within_2x`` of ``compared`` draws (both finished) at most twice the batch's error, the
+    ``worst`` ratio and its ``worst_draw``."""
+    from drake_coop.studies.reference_table import bootstrap_interval
+
+    pairs = [(r["draw"], r["online"]["squeeze"] / r["batch_map_sdp_10s"]["squeeze"])
+             for r in rows if "squeeze" in r.get("online", {})
+             and "squeeze" in r.get("batch_map_sdp_10s", {})]
+    if not pairs:
+        return {"compared": 0}
+    ratios = np.array([x for _, x in pairs])
+    worst = int(np.argmax(ratios))
+    return {"compared": len(pairs), "within_2x": int(np.sum(ratios <= 2.0)),
+            "ratio": list(bootstrap_interval(ratios, 0.5)),
+            "worst": float(ratios[worst]), "worst_draw": pairs[worst][0]}
 
 
 def main() -> None:
