@@ -27,6 +27,7 @@ import argparse
 import csv
 import itertools
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -164,6 +165,48 @@ def rerun(folder: Path, count: int) -> dict:
                     "same": a == b})
         print(json.dumps(out[-1]), flush=True)
     return {"cases": out, "all_same": all(c["same"] for c in out)}
+
+
+def compare_stores(a: Path, b: Path) -> dict:
+    """The cases two table folders both finished, matched by row, column and draw: whether the
+    table's numbers of each (:func:`~drake_coop.studies.reference_table.per_draw`, NaN equal to
+    NaN) are the same to the bit, and whether its hash is (an identified column's model files
+    lie in each folder, so its cases' hashes differ between folders).
+
+    Returns
+    -------
+    dict
+        ``compared``, ``same`` (numbers), ``same_hash``, ``differ`` (the first ten that
+        differ: params and both numbers), ``only_a``/``only_b`` (finished in one folder only),
+        ``cpu_cases_s_a``/``cpu_cases_s_b`` (the finished cases' own CPU in each).
+    """
+    from drake_coop.studies.reference_table import per_draw
+
+    def cases(folder: Path) -> dict:
+        out = {}
+        for path in sorted((folder / "cases").glob("*.json")):
+            r = json.loads(path.read_text())
+            p = r["params"]
+            out[(p["row"], p["column"], p["draw"])] = r
+        return out
+
+    def same(x: dict, y: dict) -> bool:
+        return x.keys() == y.keys() and all(
+            x[k] == y[k] or (math.isnan(x[k]) and math.isnan(y[k])) for k in x)
+
+    ca, cb = cases(a), cases(b)
+    both = sorted(ca.keys() & cb.keys())
+    differ = []
+    for key in both:
+        x, y = per_draw(ca[key]), per_draw(cb[key])
+        if not same(x, y):
+            differ.append({"case": list(key), "a": x, "b": y})
+    return {"compared": len(both), "same": len(both) - len(differ),
+            "same_hash": sum(ca[k]["hash"] == cb[k]["hash"] for k in both),
+            "differ": differ[:10], "only_a": len(ca.keys() - cb.keys()),
+            "only_b": len(cb.keys() - ca.keys()),
+            "cpu_cases_s_a": sum(r.get("cpu_time_s") or 0.0 for r in ca.values()),
+            "cpu_cases_s_b": sum(r.get("cpu_time_s") or 0.0 for r in cb.values())}
 
 
 def page_tables(source: str, table: dict, key: str) -> str:

@@ -18,7 +18,8 @@ mode takes :data:`~drake_coop.studies.reference_table.FRICTION_COLUMNS` by defau
 whole task (to the circle's end), to compare the short segment's order of the sources with the
 full run's. ``--paper-control --out JSON`` runs one short case of ``contact.yaml`` as shipped
 (the paper's control, no object model). ``--rerun DIR --out JSON`` runs finished cases of a
-table again and compares their numbers. ``--results DIR --out JSON`` writes the results file
+table again and compares their numbers; ``--compare A B --out JSON`` compares two folders'
+finished cases of one base (the same table run elsewhere, e.g. on a cluster). ``--results DIR --out JSON`` writes the results file
 from the tables and logs in ``DIR``; ``--page JSON`` prints its tables with ``{result}``
 roles for ``docs/reference_table.md``.
 """
@@ -273,6 +274,9 @@ def results(folder: Path, draws: int, rows: list[str], cols: list[str]) -> dict:
     rerun = folder / "rerun.json"
     if rerun.is_file():
         out["rerun"] = json.loads(rerun.read_text())
+    cluster = folder / "cluster.json"
+    if cluster.is_file():
+        out["cluster"] = json.loads(cluster.read_text())
     return out
 
 
@@ -339,6 +343,8 @@ def main() -> None:
     parser.add_argument("--rerun", default=None, metavar="DIR",
                         help="run --count finished cases of DIR again, compare, into --out")
     parser.add_argument("--count", type=int, default=4)
+    parser.add_argument("--compare", nargs=2, default=None, metavar="DIR",
+                        help="compare two table folders of one base case by case (--out JSON)")
     parser.add_argument("--paper-control", action="store_true",
                         help="one short case of contact.yaml as shipped (object_model none)")
     parser.add_argument("--page", default=None, metavar="JSON",
@@ -366,6 +372,13 @@ def main() -> None:
 
         Path(args.out).write_text(json.dumps(rerun(Path(args.rerun), args.count), indent=1)
                                   + "\n")
+    if args.compare:
+        from bench.reference_table import compare_stores
+
+        result = compare_stores(*map(Path, args.compare))
+        result["folders"] = args.compare
+        Path(args.out).write_text(json.dumps(result, indent=1) + "\n")
+        print({k: v for k, v in result.items() if k != "differ"})
     if args.bases:
         for name, path in write_bases(Path(args.bases)).items():
             print(name, path)

@@ -51,3 +51,35 @@ def test_the_overlap_compares_the_order_of_the_medians():
     assert verdicts[("momentum", "observer")] == "agrees"
     assert verdicts[("momentum", "none")] == "disagrees"
     assert verdicts[("none", "observer")] == "disagrees"
+
+
+def _record(folder, h, row, col, draw, status, squeeze, cpu=1.0):
+    metrics = {} if squeeze is None else {"robot1": {
+        "circle": {"force_error": {"rms": squeeze}, "estimate_error": {"rms": 0.5}},
+        "lift": {"force_error": {"rms": 0.7}}}}
+    (folder / "cases").mkdir(parents=True, exist_ok=True)
+    (folder / "cases" / f"{h}.json").write_text(json.dumps({
+        "hash": h, "params": {"row": row, "column": col, "draw": draw}, "status": status,
+        "metrics": metrics, "cpu_time_s": cpu}))
+
+
+def test_two_folders_are_compared_case_by_case_by_row_column_and_draw(tmp_path):
+    """The same numbers under another hash count as the same; a diverged case (NaN numbers)
+    equals itself; a changed squeeze differs; a case in one folder only is counted apart."""
+    from bench.reference_table import compare_stores
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    _record(a, "h1", "momentum", "exact", 0, "ok", 0.1)
+    _record(b, "h1", "momentum", "exact", 0, "ok", 0.1, cpu=2.0)
+    _record(a, "h2", "momentum", "id_map_sdp_5s", 3, "ok", 0.2)
+    _record(b, "k2", "momentum", "id_map_sdp_5s", 3, "ok", 0.2)    # its model file elsewhere
+    _record(a, "h3", "observer", "coulomb", 1, "diverged", None)
+    _record(b, "h3", "observer", "coulomb", 1, "diverged", None)
+    _record(a, "h4", "observer", "exact", 0, "ok", 0.3)
+    _record(b, "h4", "observer", "exact", 0, "ok", 0.3000000000000001)
+    _record(a, "h5", "none", "exact", 0, "ok", 0.4)
+    c = compare_stores(a, b)
+    assert (c["compared"], c["same"], c["same_hash"]) == (4, 3, 3)
+    assert [d["case"] for d in c["differ"]] == [["observer", "exact", 0]]
+    assert (c["only_a"], c["only_b"]) == (1, 0)
+    assert (c["cpu_cases_s_a"], c["cpu_cases_s_b"]) == (5.0, 5.0)
