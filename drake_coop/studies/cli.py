@@ -13,6 +13,13 @@
     the tables that list it are written in one block no signal cuts, and the tables are
     written once more from the case files on disk when the run stops: ``results.csv`` lists
     every finished case as finished, whenever the study is stopped.
+``drake-coop study STUDY.yaml --out DIR --stale rerun|keep``
+    Resume a folder some of whose finished cases were computed by other code (another
+    version of the package or of Drake, or written before cases carried a code stamp:
+    :mod:`drake_coop.studies.code_stamp`). Without ``--stale`` such a resume is refused
+    (exit 2, one line with the counts); ``rerun`` runs those cases again, replacing their
+    files; ``keep`` keeps their numbers, says so at the start, and records their count in
+    ``study.json`` (``stale_kept``): the results then mix code versions.
 ``drake-coop study STUDY.yaml --out DIR [--t-end S] [--draws N] [--cases N]``
     The study sized from the command line (:mod:`drake_coop.studies.size`): recorded in
     ``DIR``; a resume without these options keeps that size, one with another is refused.
@@ -33,6 +40,7 @@ import time
 from pathlib import Path
 
 from drake_coop.console import error
+from drake_coop.studies.code_stamp import STALE_CHOICES, reusable_records
 from drake_coop.studies.expand import MAX_CASES, Case, expand
 from drake_coop.studies.size import OPTIONS, apply_size, given_size, size_text
 from drake_coop.studies.spec import StudyError, load_study
@@ -276,6 +284,11 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
         died = store.died()
     except OSError as exc:
         return _error(f"--out {out}: cannot read the finished cases ({_one_line(exc)})")
+    try:
+        records, stale = reusable_records(records, (c.hash for c in cases), store.stamp,
+                                          args.stale, f"--out {out}")
+    except ValueError as exc:
+        return _error(str(exc))
     if not args.quiet:
         for warning in store.skipped[:20]:
             print(f"drake-coop study: warning: {warning}", file=sys.stderr)
@@ -296,6 +309,11 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
         return _error(f"--out {out}: writing results.csv failed ({_one_line(exc)})")
     if not args.quiet:
         again = f" ({retried} again: their process died before)" if retried else ""
+        if stale and args.stale == "keep":
+            again += (f"; {stale} of the finished computed by other code, kept (--stale "
+                      "keep): the results mix code versions")
+        elif stale:
+            again += f"; {stale} computed by other code run again (--stale rerun)"
         print(f"drake-coop study: {study.name}: {len(cases)} cases ({unique} distinct), "
               f"{unique - len(todo)} already finished, running {len(todo)}{again} on {engine} "
               f"({args.workers} workers) -> {out}", file=sys.stderr)
@@ -355,7 +373,8 @@ def _run_study(args, study, cases: list[Case], folder) -> int:
         try:
             with _writing(raise_pending=False):
                 for key, record in _reload(store).items():
-                    records.setdefault(key, record)
+                    if record.get("code") == store.stamp:    # not one left to run again
+                        records.setdefault(key, record)
                 store.write_tables(study, cases, records, engine, died)
         except OSError as exc:
             if code != 1:                 # not said already
@@ -484,6 +503,10 @@ def add_study_parser(sub) -> None:
     p.add_argument("--cases", type=int, default=None, metavar="N",
                    help="run only the first N cases (grid outer, samples inner); the size "
                         "given is recorded in --out, and a resume keeps it")
+    p.add_argument("--stale", choices=STALE_CHOICES, default=None,
+                   help="finished cases in --out computed by other code (another version, or "
+                        "unstamped): run them again (rerun) or keep their numbers (keep); "
+                        "default: refuse")
     p.add_argument("--plot", default=None, metavar="DIR", help="only redraw DIR's figures")
     p.add_argument("--quiet", action="store_true", help="no progress bar or messages")
     p.set_defaults(func=cmd_study)

@@ -5,7 +5,10 @@
 skips every case whose file is already in ``DIR/cases/`` (the study store,
 :class:`~drake_coop.studies.store.ResultStore`: one atomic file per case, resumable), runs the
 rest and writes ``DIR/table.json``, ``DIR/table.md`` (the squeeze error and the estimate's
-error) and ``DIR/cases.csv`` (one row per case: its numbers and CPU seconds).
+error) and ``DIR/cases.csv`` (one row per case: its numbers and CPU seconds). A stored case
+computed by other code (:mod:`~drake_coop.studies.code_stamp`) is not reused silently: the
+resume is refused unless ``--stale rerun`` (run it again) or ``--stale keep`` (keep it;
+``table.json`` then counts it in ``stale_kept``).
 
 Per-worker reuse
 ----------------
@@ -35,6 +38,13 @@ import time
 from pathlib import Path
 
 from drake_coop.results.io import atomic_write_text
+from drake_coop.studies.code_stamp import (
+    STALE_CHOICES,
+    check_stale_choice,
+    code_stamp,
+    count_stale,
+    reusable_records,
+)
 from drake_coop.studies.expand import Case
 from drake_coop.studies.reference_table import (
     ALL_COLUMNS,
@@ -303,7 +313,8 @@ def _batches(cases: list[Case], size: int) -> list[Batch]:
 def run_table(out: str | Path, *, rows: list[str] | None = None,
               cols: list[str] | None = None, draws: int = 20, seed: int = 1,
               t_end: float = T_SHORT, workers: int = 2, ray: str | None = None,
-              batch: int = 5, base: str | None = None, quiet: bool = False) -> dict:
+              batch: int = 5, base: str | None = None, quiet: bool = False,
+              stale: str | None = None) -> dict:
     """Run (or resume) the table into ``out`` and write its tables.
 
     Parameters
@@ -332,6 +343,11 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
         Base scenario file; None for the paper's.
     quiet : bool
         No progress messages.
+    stale : str or None
+        Stored cases of this table computed by other code, or carrying no code stamp:
+        None refuses (ValueError, before any case runs), ``"rerun"`` runs them again,
+        ``"keep"`` keeps their numbers (the command's ``--stale``;
+        :func:`~drake_coop.studies.code_stamp.reusable_records`).
 
     Returns
     -------
@@ -354,6 +370,7 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     check_optional_rows(rows, cols)
     if isinstance(draws, bool) or not isinstance(draws, int) or draws < 1:
         raise ValueError(f"draws: must be an integer >= 1, got {draws!r}")
+    check_stale_choice(stale)
     out.mkdir(parents=True, exist_ok=True)
     peaks = calibrate(out, scenario, t_end) if "saturation" in cols else None
     id_cols = [c for c in cols if c.startswith("id_")]
@@ -362,15 +379,20 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
     cases = expand_table(scenario, rows, cols, draws, seed=seed, t_end=t_end, peaks=peaks,
                          models=models)
     store = ResultStore(out)
-    records = store.load()
+    records, n_stale = reusable_records(store.load(), (c.hash for c in cases), store.stamp,
+                                        stale, f"--out {out}")
     todo, queued = [], set()       # a case two rows share (the applied-torque residual
     for c in cases:                # without torque limits is the momentum row's): once
         if c.hash not in records and c.hash not in queued:
             queued.add(c.hash)
             todo.append(c)
     if not quiet:
+        said = ""
+        if n_stale:
+            said = (f" ({n_stale} computed by other code, kept: the table mixes code versions)"
+                    if stale == "keep" else f"; {n_stale} computed by other code run again")
         print(f"reference table: {len(cases)} cases, {len(cases) - len(todo)} already "
-              f"finished, running {len(todo)} -> {out}", file=sys.stderr)
+              f"finished{said}, running {len(todo)} -> {out}", file=sys.stderr)
 
     def on_result(batch_: Batch, results: list) -> None:
         by_hash = {c.hash: c for c in batch_.cases}
@@ -389,7 +411,7 @@ def run_table(out: str | Path, *, rows: list[str] | None = None,
          lambda b: ([(c.hash, c.scenario_yaml, c.values["variant"]) for c in b.cases],
                     t_end), on_result,
          _batch_died, ray=ray, workers=workers)
-    table = write_table(out, cases, records, rows, cols)
+    table = write_table(out, cases, records, rows, cols, store.stamp)
     table["missing"] = [c.hash for c in cases if c.hash not in records]
     status = {c.hash: records[c.hash]["status"] for c in cases if c.hash in records}
     table["errored"] = [c.hash for c in cases if status.get(c.hash) == "error"]
@@ -428,7 +450,7 @@ def _run_ray(tasks: list, work, args_of, on_result, on_death, *, address: str | 
 
 
 def write_table(out: Path, cases: list[Case], records: dict, rows: list[str],
-                cols: list[str]) -> dict:
+                cols: list[str], stamp: str | None = None) -> dict:
     """``table.json``, ``table.md`` and ``cases.csv`` from the finished records.
 
     Parameters
@@ -441,12 +463,18 @@ def write_table(out: Path, cases: list[Case], records: dict, rows: list[str],
         Hash -> finished record.
     rows, cols : list of str
         The table's rows and columns.
+    stamp : str or None
+        The running code's stamp; None:
+        :func:`~drake_coop.studies.code_stamp.code_stamp`.
 
     Returns
     -------
     dict
-        ``{"rows", "columns", "cells": {row: {column: statistics}}, "cpu_time_s"}``.
+        ``{"rows", "columns", "cells": {row: {column: statistics}}, "cpu_time_s",
+        "code", "stale_kept"}``: ``stale_kept`` counts the distinct cases whose record
+        other code wrote (or that carry no stamp), kept by ``--stale keep``.
     """
+    stamp = stamp or code_stamp()
     cells: dict = {}
     for row in rows:
         for col in cols:
@@ -458,6 +486,8 @@ def write_table(out: Path, cases: list[Case], records: dict, rows: list[str],
     cpu = [v for v in cpu if v is not None]
     table = {"rows": rows, "columns": cols, "cells": cells,
              "cases": len(cases), "finished": sum(c.hash in records for c in cases),
+             "code": stamp,
+             "stale_kept": count_stale(records, (c.hash for c in cases), stamp),
              "cpu_time_s": {"sum": float(sum(cpu)), "per_case_mean":
                             float(sum(cpu) / len(cpu)) if cpu else None}}
     atomic_write_text(out / "table.json", json.dumps(table, indent=1) + "\n")
@@ -504,7 +534,7 @@ def cmd_reference_table(args: argparse.Namespace) -> int:
         table = run_table(args.out, rows=split(args.rows), cols=split(args.columns),
                           draws=args.draws, seed=args.seed, t_end=args.t_end,
                           workers=args.workers, ray=args.ray, batch=args.batch,
-                          base=args.base, quiet=args.quiet)
+                          base=args.base, quiet=args.quiet, stale=args.stale)
     except ValueError as exc:
         print(f"drake-coop reference-table: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
@@ -554,5 +584,9 @@ def add_reference_table_parser(sub) -> None:
     p.add_argument("--ray", nargs="?", const="", default=None, metavar="ADDRESS",
                    help="run on Ray: a local instance, or the cluster at ADDRESS")
     p.add_argument("--base", default=None, help="base scenario file (default: the paper's)")
+    p.add_argument("--stale", choices=STALE_CHOICES, default=None,
+                   help="stored cases computed by other code (another version, or "
+                        "unstamped): run them again (rerun) or keep their numbers (keep); "
+                        "default: refuse")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     p.set_defaults(func=cmd_reference_table)

@@ -10,7 +10,10 @@ Layout of ``DIR``::
 
 A case file holds the full metrics (every robot, phase and error of ``metrics.json``), the
 scenario YAML, status (``ok``, ``diverged`` or ``error``: what the case's run said) and
-message. Resuming skips every case whose hash has a valid file; a case that was interrupted,
+message, and ``code``: the stamp of the code that computed it
+(:mod:`drake_coop.studies.code_stamp`). Resuming skips every case whose hash has a valid file
+of the running code's stamp (one of other code is refused, run again or kept, as the command
+is told: :func:`~drake_coop.studies.code_stamp.reusable_records`); a case that was interrupted,
 or whose process died, is never written as a result (a ``.died`` note says so, and the case is
 run again on the next resume). A case file that cannot be read or misses a field is skipped
 with a warning (:attr:`ResultStore.skipped`) and its case runs again. Its metrics must have
@@ -44,6 +47,7 @@ from pathlib import Path
 
 from drake_coop.results.io import atomic_write_text
 from drake_coop.results.object_metrics import EVENT_METRICS
+from drake_coop.studies.code_stamp import code_stamp, count_stale
 from drake_coop.studies.expand import Case
 from drake_coop.studies.spec import Study
 
@@ -152,11 +156,28 @@ class ResultStore:
     ----------
     out : str or Path
         The study's folder.
+    stamp : str or None
+        The stamp every saved record carries (``code``); None: the running code's
+        (:func:`~drake_coop.studies.code_stamp.code_stamp`, computed when first needed).
     """
 
-    def __init__(self, out: str | Path):
+    def __init__(self, out: str | Path, stamp: str | None = None):
         self.out = Path(out)
         self.cases_dir = self.out / "cases"
+        self._stamp = stamp
+
+    @property
+    def stamp(self) -> str:
+        """The code stamp of the records this store saves.
+
+        Returns
+        -------
+        str
+            The stamp.
+        """
+        if self._stamp is None:
+            self._stamp = code_stamp()
+        return self._stamp
 
     def load(self) -> dict[str, dict]:
         """The finished case records by hash.
@@ -229,7 +250,7 @@ class ResultStore:
         if result["status"] not in FINISHED:
             raise ValueError(f"case {case.index}: status {result['status']!r} is not a result")
         record = {"hash": case.hash, "index": case.index, "params": case.params,
-                  "values": case.values, "t_end": t_end, **result,
+                  "values": case.values, "t_end": t_end, **result, "code": self.stamp,
                   "scenario_yaml": case.scenario_yaml}
         text = json.dumps(record, indent=1, allow_nan=False)
         atomic_write_text(self.cases_dir / f"{case.hash}.json", text + "\n")
@@ -251,7 +272,9 @@ class ResultStore:
     def write_tables(self, study: Study, cases: list[Case], records: dict[str, dict],
                      engine: str, died: dict[str, str] | None = None) -> None:
         """Rewrite ``results.csv`` and ``study.json`` (atomically) from the records so far
-        (a case without a record is ``pending``, or ``died`` when ``died`` names it).
+        (a case without a record is ``pending``, or ``died`` when ``died`` names it);
+        ``study.json`` holds the running code's stamp (``code``) and how many of its cases'
+        records other code wrote (``stale_kept``: kept by a resume with ``--stale keep``).
 
         Parameters
         ----------
@@ -298,7 +321,8 @@ class ResultStore:
             "phase": study.phase, "grid": study.grid,
             "monte_carlo": asdict(study.monte_carlo) if study.monte_carlo else None,
             "metrics": study.metrics, "guides": [asdict(g) for g in study.guides],
-            "engine": engine, "n_cases": len(cases), "counts": counts,
+            "engine": engine, "n_cases": len(cases), "counts": counts, "code": self.stamp,
+            "stale_kept": count_stale(records, (c.hash for c in cases), self.stamp),
             "cases": [{"index": c.index, "hash": c.hash, "params": c.params,
                        "values": c.values, "status": (r or _missing(c, died))["status"],
                        "message": (r or _missing(c, died))["message"], "summary": s}
