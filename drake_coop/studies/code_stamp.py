@@ -57,10 +57,14 @@ def _is_plain_string(token: tokenize.TokenInfo) -> bool:
     return "f" not in prefix.lower()
 
 
-def _removed_spans(tokens: list[tokenize.TokenInfo]) -> list[tuple[tuple, tuple]]:
-    """The (start, end) positions of the comments and of the statements made of string
-    literals only (docstrings)."""
-    spans = [(t.start, t.end) for t in tokens if t.type == tokenize.COMMENT]
+def _removed_spans(tokens: list[tokenize.TokenInfo]) -> list[tuple[tuple, int]]:
+    """The start positions and lengths (characters) of the comments and of the statements
+    made of string literals only (docstrings).
+
+    A length, not the token's end: Python 3.12's tokenizer gives the end column of a string
+    spanning lines in UTF-8 bytes, not characters, when its last line holds non-ASCII text.
+    """
+    spans = [(t.start, len(t.string)) for t in tokens if t.type == tokenize.COMMENT]
     previous = None
     i = 0
     while i < len(tokens):
@@ -77,7 +81,7 @@ def _removed_spans(tokens: list[tokenize.TokenInfo]) -> list[tuple[tuple, tuple]
                 j += 1
             ends = j == len(tokens) or tokens[j].type in (tokenize.NEWLINE, tokenize.ENDMARKER)
             if ends and all(_is_plain_string(t) for t in run):
-                spans += [(t.start, t.end) for t in run]
+                spans += [(t.start, len(t.string)) for t in run]
             previous = tokenize.STRING
             i = j
             continue
@@ -117,8 +121,9 @@ def strip_source(text: str) -> str:
     for line in lines:
         starts.append(starts[-1] + len(line))
     pieces, at = [], 0
-    for (r0, c0), (r1, c1) in sorted(_removed_spans(tokens)):
-        a, b = starts[r0 - 1] + c0, starts[r1 - 1] + c1
+    for (r0, c0), length in sorted(_removed_spans(tokens)):
+        a = starts[r0 - 1] + c0
+        b = a + length
         pieces += [text[at:a], "\n" * text.count("\n", a, b)]   # its lines stay lines
         at = b
     pieces.append(text[at:])

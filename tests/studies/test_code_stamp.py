@@ -209,3 +209,18 @@ def test_another_process_in_another_folder_computes_the_same_stamp(tmp_path):
                           "code_stamp; print(code_stamp())"], cwd=tmp_path, env=env,
                          capture_output=True, text=True, check=True).stdout.strip()
     assert out == code_stamp()
+
+
+def test_a_docstring_ending_on_non_ascii_text_leaves_the_next_line_whole():
+    """Python 3.12's tokenizer gives such a string's end column in UTF-8 bytes: the stripping
+    must not eat the characters after it (the next line's indentation)."""
+    text = ('class A:\n'
+            '    def check(self):\n'
+            '        """Each arm at ``t_k``,\n'
+            '        ``λ̂(k)`` and the latched ``τ(k)``)."""\n'
+            '        t = (self.k - 1) * self.h\n'
+            '        return t  # λ̂ too\n')
+    assert strip_source(text) == ('class A:\n'
+                                  '    def check(self):\n'
+                                  '        t = (self.k - 1) * self.h\n'
+                                  '        return t')
