@@ -217,7 +217,7 @@ def test_a_docstring_ending_on_non_ascii_text_leaves_the_next_line_whole():
     text = ('class A:\n'
             '    def check(self):\n'
             '        """Each arm at ``t_k``,\n'
-            '        ``λ̂(k)`` and the latched ``τ(k)``)."""\n'
+            '        ``λ̂(k)``, ``τ(k)`` and ``τ̂(k)`` (ω, θ)."""\n'
             '        t = (self.k - 1) * self.h\n'
             '        return t  # λ̂ too\n')
     assert strip_source(text) == ('class A:\n'
