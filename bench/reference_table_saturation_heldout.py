@@ -28,8 +28,12 @@ observer (``free``, deterministic):
   (11.5 N·m over the elbow's unsaturated lift peak, :func:`nominal_limit`);
 * ``elbow_deep`` — another depth: the elbow's lowest nominal limit on the 0.1 N·m grid below
   11.5 N·m at which the residual with (6) and with back-calculation both keep the grasp at
-  both ends of the draws' range (0.98 and 1.02 × nominal); the scan (:func:`depth_scan`,
-  ``--depth-scan``) stops at the first grid value where one run loses it;
+  both ends of the draws' range (0.98 and 1.02 × nominal); the scan (:func:`depth_scan`)
+  stops at the first grid value where one run loses it. *Amended after the first scan*
+  (``depth``: its first value, 11.4 N·m, lost the grasp at 0.98 × 11.4): the same scan on a
+  0.02 N·m grid (``depth_fine``), its lowest holding value the case's nominal; when that
+  holds nothing either, the case has no draws and ``edge`` (:func:`grasp_edge`) bisects the
+  single limit between the fine grid's first low end and the original draws' lowest limit;
 * ``six_joint`` — another arm pair: ``scenarios/six_joint.yaml`` (robot 1 a 6-joint arm, robot
   2 the paper's A255; the cheapest of the shipped pairs the remedy never saw: one run costs
   about what the paper's does), robot 1's most loaded joint on the lift (largest unsaturated
@@ -49,18 +53,21 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from bench.reference_table_saturation import ELBOW, measure
-from drake_coop.studies.reference_table import bootstrap_interval
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the checkout: bench.*
+from bench.reference_table_saturation import ELBOW, measure  # noqa: E402
+from drake_coop.studies.reference_table import bootstrap_interval  # noqa: E402
 
 #: The claim's bar on the circle's squeeze error over the unsaturated one.
 BAR = 1.10
-#: The depth scan's grid step and its floor (N·m).
-DEPTH_STEP, DEPTH_FLOOR = 0.1, 10.0
+#: The depth scan's grid step and its floor (N·m); the finer step scanned when no value of
+#: the first grid held (added after the first scan: its first value, 11.4 N·m, lost the grasp).
+DEPTH_STEP, DEPTH_FLOOR, DEPTH_FINE = 0.1, 10.0, 0.02
 ORIGINAL = Path(__file__).resolve().parents[1] / "docs/results/reference_table_saturation.json"
 #: The held-out cases (module docstring): scenario (None: the paper's), robot 1's joint (None:
 #: its most loaded on the lift), the nominal limit (None: the elbow's ratio to the joint's
@@ -158,7 +165,7 @@ def _residual(limit: float, scenario: str | None, joint: int, gain: float | None
     return out
 
 
-def depth_scan(scenario: str | None = None, joint: int = 2) -> dict:
+def depth_scan(scenario: str | None = None, joint: int = 2, step: float = DEPTH_STEP) -> dict:
     """The lowest nominal elbow limit that keeps the grasp (module docstring).
 
     Parameters
@@ -167,6 +174,8 @@ def depth_scan(scenario: str | None = None, joint: int = 2) -> dict:
         A scenario file (None: the paper's).
     joint : int
         Robot 1's joint limited.
+    step : float
+        The grid's step below :data:`ELBOW` (N·m).
 
     Returns
     -------
@@ -176,7 +185,7 @@ def depth_scan(scenario: str | None = None, joint: int = 2) -> dict:
     """
     k_F = _k_F(scenario)
     scan, nominal = [], None
-    value = round(ELBOW - DEPTH_STEP, 6)
+    value = round(ELBOW - step, 6)
     while value >= DEPTH_FLOOR - 1e-9:
         runs = {f"{scheme}_{end}": _residual(value * end, scenario, joint, gain)
                 for scheme, gain in (("residual", None), ("residual_bc", k_F))
@@ -186,8 +195,42 @@ def depth_scan(scenario: str | None = None, joint: int = 2) -> dict:
         if any(r["status"] != "ok" for r in runs.values()):
             break
         nominal = value
-        value = round(value - DEPTH_STEP, 6)
+        value = round(value - step, 6)
     return {"nominal": nominal, "scan": scan}
+
+
+def grasp_edge(low: float, high: float, scenario: str | None = None, joint: int = 2,
+               tol: float = 0.004) -> dict:
+    """Bisect a single limit between one that loses the grasp and one that keeps it, with the
+    residual under (6) and under back-calculation at ``k_F`` (both must keep it).
+
+    Parameters
+    ----------
+    low, high : float
+        A limit that loses the grasp and one that keeps it (N·m, ``low < high``).
+    scenario : str or None
+        A scenario file (None: the paper's).
+    joint : int
+        Robot 1's joint limited.
+    tol : float
+        Stop when ``high − low`` is below this (N·m).
+
+    Returns
+    -------
+    dict
+        ``low`` (lost), ``high`` (kept: the lowest limit known to hold) and ``tried``: per
+        limit bisected, each run's status.
+    """
+    if not low < high:
+        raise ValueError(f"grasp_edge: low < high is required (got {low}, {high})")
+    k_F, tried = _k_F(scenario), []
+    while high - low > tol:
+        mid = 0.5 * (low + high)
+        runs = {name: _residual(mid, scenario, joint, gain)["status"]
+                for name, gain in (("residual", None), ("residual_bc", k_F))}
+        tried.append({"limit": mid, **runs})
+        low, high = (mid, high) if any(v != "ok" for v in runs.values()) else (low, mid)
+    return {"low": low, "high": high, "tried": tried}
 
 
 def run_case_draw(case: dict, nominal: float, joint: int, draw: int, k_F: float,
@@ -305,6 +348,17 @@ def _case(name: str, args, done: list[dict], lines: Path, elbow_peak: float) -> 
         done.append(head)
         with lines.open("a") as f:
             f.write(json.dumps(head) + "\n")
+    if case["nominal"] == "depth" and head["nominal"] is None and "depth_fine" not in head:
+        head["depth_fine"] = depth_scan(case["scenario"], head["joint"], DEPTH_FINE)
+        head["nominal"] = head["depth_fine"]["nominal"]
+        lines.write_text("".join(json.dumps(d) + "\n" for d in done))
+    if case["nominal"] == "depth" and head["nominal"] is None and "edge" not in head:
+        # No grid value held: the edge between the fine grid's first low end (lost) and the
+        # original draws' lowest limit (kept by both laws).
+        kept = min(d["elbow_limit"] for d in json.loads(ORIGINAL.read_text())["draws"])
+        head["edge"] = grasp_edge(0.98 * (ELBOW - DEPTH_FINE), kept, case["scenario"],
+                                  head["joint"])
+        lines.write_text("".join(json.dumps(d) + "\n" for d in done))
     original = None
     if case["scenario"] is None and case["joint"] == 2 and case["nominal"] == ELBOW:
         original = {d["draw"]: d for d in json.loads(ORIGINAL.read_text())["draws"]}
@@ -325,12 +379,75 @@ def _case(name: str, args, done: list[dict], lines: Path, elbow_peak: float) -> 
             "draws": draws}
 
 
+def diagnose(name: str, case: dict) -> dict:
+    """Why back-calculation fails on a case: on its worst and best finished draws, the other
+    loops and gains, and the line of the circle's mean squeeze error on ``ΔF̃``.
+
+    Parameters
+    ----------
+    name : str
+        The case's name (:data:`CASES`).
+    case : dict
+        The case's entry of the results file (``joint``, ``k_F``, ``draws``, ``summary``).
+
+    Returns
+    -------
+    dict
+        ``runs``: per run its draw, loop (``residual``, ``momentum`` integrating the commanded
+        torque, ``sensor`` the F/T loop at σ = 0.3 N), scheme, ``K_aw / k_F`` and numbers
+        (:func:`bench.reference_table_saturation.measure`); ``fit``: the least-squares line
+        ``squeeze_circle_mean = a · DF_circle_signed + b`` over the finished runs (``a`` also
+        over ``k_F``; ``DF_star = −b/a``; ``n``); ``windup_removed``: per draw,
+        ``(ΔF̃₍₆₎ − ΔF̃_bc) / (ΔF̃₍₆₎ − ΔF̃_free)`` at the lift's end (1: all of the windup
+        above the unsaturated run removed).
+    """
+    scenario, joint, k_F = CASES[name]["scenario"], case["joint"], case["k_F"]
+    ok = ok_draws(case["draws"], "residual_bc")
+    worst = case["summary"]["residual_bc"]["squeeze_circle_over_free"]["worst_draw"]
+    best = min(ok, key=lambda d: case["draws"][d]["residual_bc"]["squeeze_circle"])
+    runs, removed = [], {}
+    for draw in dict.fromkeys((worst, best)):
+        limit = case["draws"][draw]["limit"]
+        for loop, scheme, m in DIAGNOSIS:
+            row, noise, variant = {"residual": ("momentum", None, "applied_torque"),
+                                   "momentum": ("momentum", None, None),
+                                   "sensor": ("sensor", 0.3, None)}[loop]
+            out = measure(row, noise, limit, variant, draw, anti_windup=scheme or False,
+                          gain=None if m is None else m * k_F, scenario=scenario, joint=joint)
+            out.pop("saturated_times", None)
+            runs.append({"draw": draw, "loop": loop, "scheme": scheme, "gain_over_k_F": m,
+                         **out})
+        plain, back = (next(r for r in runs if r["draw"] == draw and r["loop"] == "residual"
+                            and r["scheme"] == scheme and r["gain_over_k_F"] == m)
+                       for scheme, m in ((None, None), ("back_calculation", 1.0)))
+        if plain["status"] == back["status"] == "ok":
+            removed[str(draw)] = ((plain["DF_lift_end"] - back["DF_lift_end"])
+                                  / (plain["DF_lift_end"] - case["free"]["DF_lift_end"]))
+    fin = [r for r in runs if r["status"] == "ok"]
+    x = np.array([r["DF_circle_signed"] for r in fin])
+    y = np.array([r["squeeze_circle_mean"] for r in fin])
+    a, b = np.polyfit(x, y, 1)
+    return {"runs": runs, "windup_removed": removed,
+            "fit": {"a": float(a), "b": float(b), "a_over_k_F": float(a / k_F),
+                    "DF_star": float(-b / a), "n": len(fin),
+                    "residual_max": float(np.abs(y - (a * x + b)).max())}}
+
+
+#: The diagnosis' runs: loop, anti-windup scheme (None: the paper's (6)), ``K_aw / k_F``.
+DIAGNOSIS = (("residual", None, None), ("residual", "conditional", None),
+             ("residual", "back_calculation", 0.2), ("residual", "back_calculation", 1.0),
+             ("residual", "back_calculation", 5.0), ("residual", "back_calculation", 20.0),
+             ("momentum", None, None), ("sensor", None, None))
+
+
 def main() -> None:
     """Run (or resume) the held-out cases and write the results file."""
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--out", required=True)
     p.add_argument("--draws", type=int, default=20)
     p.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    p.add_argument("--diagnose", nargs="+", default=[], choices=list(CASES),
+                   help="also the diagnosis of these cases, among --cases (diagnose())")
     args = p.parse_args()
     if args.draws < 1:
         p.error(f"--draws must be at least 1, got {args.draws}")
@@ -347,7 +464,12 @@ def main() -> None:
     previous = json.loads(path.read_text()) if path.exists() else {}
     cases = dict(previous.get("cases", {}))
     for name in args.cases:
+        diagnosis = cases.get(name, {}).get("diagnosis")
         cases[name] = _case(name, args, done, lines, elbow_peak)
+        if name in args.diagnose:
+            diagnosis = diagnose(name, cases[name])
+        if diagnosis is not None:
+            cases[name]["diagnosis"] = diagnosis
     result = {"bar": BAR, "elbow_nominal": ELBOW, "elbow_lift_peak": elbow_peak,
               "draws": args.draws, "cases": cases,
               "cpu_s": (previous.get("cpu_s") or 0.0) + time.process_time() - start}
