@@ -30,7 +30,9 @@ residual with (6), with conditional integration and with back-calculation at
 ``λ − λ_d`` over the circle (``squeeze_circle_mean``), the RMS of ``|τ_cmd − τ|`` over
 robot 1's saturated ticks after the grasp (``excess_saturated``, N·m; also in the draws'
 runs added since) and the RMS joint tracking error
-``|q − q_d|`` there (``q_error_circle``, rad); and the least-squares line
+``|q − q_d|`` there (``q_error_circle``, rad), at the grasp (``q_error_grasp``, rad: what the
+saturated approach left) and robot 1's largest ``|λ − λ_d|`` in the first 0.2 s held
+(``squeeze_grasp_max``, N; both in the runs added since); and the least-squares line
 ``squeeze_circle_mean = a · DF_circle_signed + b`` over those that finished (``fit``: ``a``
 against the law's ``k_F``, ``DF_star = −b/a``, the ΔF̃ at which the circle's squeeze error
 vanishes, and the largest distance of a run from the line; ``failed``: the runs that lost
@@ -150,6 +152,12 @@ def measure(row: str, noise: float | None, limit: float | None, variant: str | N
                                                           axis=1)[sat & grasped])
             out["estimate_approach"] = _rms(estimate[sat & ~grasped])
             out["saturated_times"] = t[sat & grasped]
+            # At the grasp: the joint error the approach left, and the constraint force's
+            # largest excess over its reference in the first 0.2 s held.
+            at = np.searchsorted(t, s.task.t_grasp - 1e-9)
+            out["q_error_grasp"] = float(np.linalg.norm(log["q"][at] - log["q_d"][at]))
+            first = grasped & (t < s.task.t_grasp + 0.2 - 1e-9)
+            out["squeeze_grasp_max"] = float(np.abs(squeeze[first]).max())
             if peaks:
                 lift = (t >= LIFT[0] - 1e-9) & (t < LIFT[1] - 1e-9)
                 out["lift_peaks"] = np.abs(log["tau"][lift]).max(axis=0).tolist()

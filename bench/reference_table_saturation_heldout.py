@@ -40,7 +40,8 @@ observer (``free``, deterministic):
   lift peak), nominal at the elbow's ratio as for the shoulder.
 
 Per case (``cases.<name>``): ``nominal`` and the joint's ``lift_peak`` (N·m), and per run
-(``residual``, ``residual_bc``, ``residual_bc_x<m>`` for ``K_aw = m k_F``): ``completed``,
+(``residual``, ``residual_bc``, ``residual_bc_x<m>`` for ``K_aw = m k_F``, ``p`` for a
+decimal point): ``completed``,
 ``lost`` (the draws that lost the grasp, with the run's message), the paired ratio of the
 circle's squeeze error (worst robot's RMS of ``λ − λ_d`` over 5–8 s) over ``free``'s: median
 with its 95 % bootstrap interval (:func:`~drake_coop.studies.reference_table.
@@ -92,9 +93,10 @@ def run_name(multiplier: float) -> str:
     Returns
     -------
     str
-        ``residual_bc`` at 1, else ``residual_bc_x<multiplier>``.
+        ``residual_bc`` at 1, else ``residual_bc_x<multiplier>`` with ``p`` for the decimal
+        point (``residual_bc_x0p5``: a dotted key path reads the results file).
     """
-    return "residual_bc" if multiplier == 1.0 else f"residual_bc_x{multiplier:g}"
+    return "residual_bc" if multiplier == 1.0 else f"residual_bc_x{multiplier:g}".replace(".", "p")
 
 
 def _k_F(scenario: str | None) -> float:

@@ -31,7 +31,7 @@ def test_a_joints_nominal_limit_is_at_the_elbows_ratio():
 
 def test_run_names():
     assert run_name(1.0) == "residual_bc"
-    assert run_name(0.5) == "residual_bc_x0.5" and run_name(2.0) == "residual_bc_x2"
+    assert run_name(0.5) == "residual_bc_x0p5" and run_name(2.0) == "residual_bc_x2"
 
 
 def test_a_draw_refuses_an_original_record_of_another_limit():
