@@ -2,8 +2,9 @@
 1's elbow of the paper's arms hold on gains, joints, depths and an arm it never saw?
 
 ``python bench/reference_table_saturation_heldout.py --out
-docs/results/reference_table_saturation_heldout.json [--draws 20] [--cases NAME ...]``
-(resumable: each finished draw of a case is kept in ``OUT.draws.jsonl``).
+docs/results/reference_table_saturation_heldout.json [--draws 20] [--cases NAME ...]
+[--diagnose NAME ...]`` (resumable: each finished draw of a case is kept in
+``OUT.draws.jsonl``; ``--diagnose``: :func:`diagnose`, stored as the case's ``diagnosis``).
 
 The claim under test: with torque saturation at the lift, the applied-torque residual with
 back-calculation of the force integral (6) at ``K_aw = k_F`` (``anti_windup:
