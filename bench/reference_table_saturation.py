@@ -30,7 +30,9 @@ residual with (6), with conditional integration and with back-calculation at
 ``λ − λ_d`` over the circle (``squeeze_circle_mean``), the RMS of ``|τ_cmd − τ|`` over
 robot 1's saturated ticks after the grasp (``excess_saturated``, N·m; also in the draws'
 runs added since) and the RMS joint tracking error
-``|q − q_d|`` there (``q_error_circle``, rad); and the least-squares line
+``|q − q_d|`` there (``q_error_circle``, rad), at the grasp (``q_error_grasp``, rad: what the
+saturated approach left) and robot 1's largest ``|λ − λ_d|`` in the first 0.2 s held
+(``squeeze_grasp_max``, N; both in the runs added since); and the least-squares line
 ``squeeze_circle_mean = a · DF_circle_signed + b`` over those that finished (``fit``: ``a``
 against the law's ``k_F``, ``DF_star = −b/a``, the ΔF̃ at which the circle's squeeze error
 vanishes, and the largest distance of a run from the line; ``failed``: the runs that lost
@@ -100,15 +102,22 @@ _FREE: dict = {}
 
 def measure(row: str, noise: float | None, limit: float | None, variant: str | None,
             draw: int, keep: bool = False, anti_windup: bool | str = False,
-            gain: float | None = None) -> dict:
+            gain: float | None = None, scenario: str | None = None, joint: int = 2,
+            peaks: bool = False) -> dict:
     """One run's numbers (the module's docstring); ``keep``: also robot 1's estimate error
     per tick (``_FREE``); ``saturated_times``: robot 1's saturated ticks after the grasp (not
     written); ``anti_windup``: robot 1 with ``anti_windup: conditional`` (True) or the
-    scheme named; ``gain``: back-calculation's ``K_aw`` (None: the law's ``k_F``)."""
-    s = compress(load_scenario())
+    scheme named; ``gain``: back-calculation's ``K_aw`` (None: the law's ``k_F``);
+    ``scenario``: a scenario file (None: the paper's); ``joint``: robot 1's joint the
+    ``limit`` (N·m) applies to, every other joint at 100 N·m (above every shipped arm's
+    peak on the segment); ``peaks``: also ``lift_peaks``, robot 1's largest ``|τ|`` per
+    joint over the lift (N·m)."""
+    s = compress(load_scenario(scenario) if scenario else load_scenario())
     _source(row, noise)(s, draw)
     if limit is not None:
-        s.robots[0].actuators.torque_limits = [100.0, 100.0, limit]
+        limits = [100.0] * len(s.robots[0].gains.K_R)
+        limits[joint] = limit
+        s.robots[0].actuators.torque_limits = limits
     scheme = "conditional" if anti_windup is True else (anti_windup or None)
     s.robots[0].anti_windup = scheme
     if scheme == "back_calculation":
@@ -143,6 +152,15 @@ def measure(row: str, noise: float | None, limit: float | None, variant: str | N
                                                           axis=1)[sat & grasped])
             out["estimate_approach"] = _rms(estimate[sat & ~grasped])
             out["saturated_times"] = t[sat & grasped]
+            # At the grasp: the joint error the approach left, and the constraint force's
+            # largest excess over its reference in the first 0.2 s held.
+            at = np.searchsorted(t, s.task.t_grasp - 1e-9)
+            out["q_error_grasp"] = float(np.linalg.norm(log["q"][at] - log["q_d"][at]))
+            first = grasped & (t < s.task.t_grasp + 0.2 - 1e-9)
+            out["squeeze_grasp_max"] = float(np.abs(squeeze[first]).max())
+            if peaks:
+                lift = (t >= LIFT[0] - 1e-9) & (t < LIFT[1] - 1e-9)
+                out["lift_peaks"] = np.abs(log["tau"][lift]).max(axis=0).tolist()
             after = grasped & (t > (t[sat].max() if sat.any() else np.inf))
             lift_after = after & (t < LIFT[1] - 1e-9)
             out["estimate_lift_after_saturation"] = _rms(estimate[lift_after])
