@@ -168,8 +168,8 @@ def rerun(folder: Path, count: int) -> dict:
 
 
 def compare_stores(a: Path, b: Path) -> dict:
-    """The cases two table folders both finished, matched by row, column and draw: whether the
-    table's numbers of each (:func:`~drake_coop.studies.reference_table.per_draw`, NaN equal to
+    """The cases two table folders both finished, matched by row, column and draw (the cases
+    each folder's ``cases.csv`` lists, when it has one): whether the table's numbers of each (:func:`~drake_coop.studies.reference_table.per_draw`, NaN equal to
     NaN) are the same to the bit, and whether its hash is (an identified column's model files
     lie in each folder, so its cases' hashes differ between folders).
 
@@ -183,11 +183,18 @@ def compare_stores(a: Path, b: Path) -> dict:
     from drake_coop.studies.reference_table import per_draw
 
     def cases(folder: Path) -> dict:
+        # The cases of the folder's table (its cases.csv): a folder may also hold records of
+        # an earlier version of a case (another scenario for the same row, column and draw).
+        listed = None
+        if (folder / "cases.csv").is_file():
+            with open(folder / "cases.csv") as f:
+                listed = {r["hash"] for r in csv.DictReader(f)}
         out = {}
         for path in sorted((folder / "cases").glob("*.json")):
             r = json.loads(path.read_text())
             p = r["params"]
-            out[(p["row"], p["column"], p["draw"])] = r
+            if listed is None or r["hash"] in listed:
+                out[(p["row"], p["column"], p["draw"])] = r
         return out
 
     def same(x: dict, y: dict) -> bool:

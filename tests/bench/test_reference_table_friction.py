@@ -80,6 +80,13 @@ def test_two_folders_are_compared_case_by_case_by_row_column_and_draw(tmp_path):
     _record(a, "h5", "none", "exact", 0, "ok", 0.4)
     c = compare_stores(a, b)
     assert (c["compared"], c["same"], c["same_hash"]) == (4, 3, 3)
+    # an earlier version of a case in one folder, which its table (cases.csv) no longer lists
+    _record(b, "h4", "observer", "exact", 0, "ok", 0.3)
+    _record(b, "old4", "observer", "exact", 0, "diverged", None)
+    (b / "cases.csv").write_text("row,column,draw,hash\n" + "".join(
+        f"r,c,0,{h}\n" for h in ("h1", "k2", "h3", "h4")))
+    again = compare_stores(a, b)
+    assert (again["compared"], again["same"]) == (4, 4)    # h4 compared, not old4
     assert [d["case"] for d in c["differ"]] == [["observer", "exact", 0]]
     assert (c["only_a"], c["only_b"]) == (1, 0)
     assert (c["cpu_cases_s_a"], c["cpu_cases_s_b"]) == (5.0, 5.0)
