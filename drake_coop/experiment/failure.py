@@ -460,8 +460,7 @@ def failure_check(exp) -> FailureCheck:
                         sc.plant.object_mode != "none")
 
 
-def plant_sample(exp, context, forces: list | None,
-                 x_d: list[np.ndarray] | None = None) -> GraspSample:
+def plant_sample(exp, context, forces: list | None, x_d: list[np.ndarray]) -> GraspSample:
     """What the guards read at a tick, from the plant's state (the truth).
 
     Parameters
@@ -474,26 +473,22 @@ def plant_sample(exp, context, forces: list | None,
         Each arm's wrist force ``F`` (3,) of the plant step before the tick (the divergence
         guards' read, :func:`~drake_coop.experiment.simulate.simulate`); None without an
         object.
-    x_d : list of numpy.ndarray, optional
-        Each robot's desired pad position (3,) at the context's time, m, when the caller has
-        evaluated the task's path at every stop at once (one evaluation of the path costs as
-        much for one time as for a thousand); None: evaluated here.
+    x_d : list of numpy.ndarray
+        Each robot's desired pad position (3,) at the context's time, m
+        (:func:`~drake_coop.scenario.task_path.cartesian_reference`; the caller evaluates the
+        path at every stop at once: one evaluation costs as much for one time as for a
+        thousand).
 
     Returns
     -------
     GraspSample
         The sample at the context's time.
     """
-    from drake_coop.scenario.task_path import cartesian_reference
-
     sc = exp.scenario
     plant = exp.coop.plant
     pc = plant.GetMyContextFromRoot(context)
     t = float(context.get_time())
     x, lam, lam_d = [], [], []
-    if x_d is None:
-        x_d = [cartesian_reference(sc.task, sc.robots[i], np.array([t]))[0][0]
-               for i in range(len(exp.robots))]
     for i, rs in enumerate(exp.robots):
         q = exp.coop.arm_positions(pc, i)
         x.append(np.asarray(exp.coop.arms[i].arm.fk(q[None, :]), dtype=float).reshape(3))
