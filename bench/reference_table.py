@@ -181,6 +181,7 @@ def compare_stores(a: Path, b: Path) -> dict:
         ``cpu_cases_s_a``/``cpu_cases_s_b`` (the finished cases' own CPU in each).
     """
     from drake_coop.studies.reference_table import per_draw
+    from drake_coop.studies.store import ResultStore
 
     def cases(folder: Path) -> dict:
         # The cases of the folder's table (its cases.csv): a folder may also hold records of
@@ -190,10 +191,9 @@ def compare_stores(a: Path, b: Path) -> dict:
             with open(folder / "cases.csv") as f:
                 listed = {r["hash"] for r in csv.DictReader(f)}
         out = {}
-        for path in sorted((folder / "cases").glob("*.json")):
-            r = json.loads(path.read_text())
+        for h, r in ResultStore(folder).load().items():
             p = r["params"]
-            if listed is None or r["hash"] in listed:
+            if listed is None or h in listed:
                 out[(p["row"], p["column"], p["draw"])] = r
         return out
 

@@ -55,12 +55,14 @@ def test_the_overlap_compares_the_order_of_the_medians():
 
 def _record(folder, h, row, col, draw, status, squeeze, cpu=1.0):
     metrics = {} if squeeze is None else {"robot1": {
-        "circle": {"force_error": {"rms": squeeze}, "estimate_error": {"rms": 0.5}},
-        "lift": {"force_error": {"rms": 0.7}}}}
+        "circle": {"force_error": {"rms": squeeze, "max": 1.0},
+                   "estimate_error": {"rms": 0.5, "max": 1.0}},
+        "lift": {"force_error": {"rms": 0.7, "max": 1.0}}}}
     (folder / "cases").mkdir(parents=True, exist_ok=True)
     (folder / "cases" / f"{h}.json").write_text(json.dumps({
         "hash": h, "params": {"row": row, "column": col, "draw": draw}, "status": status,
-        "metrics": metrics, "cpu_time_s": cpu}))
+        "message": "", "t_reached": 8.0, "wall_time_s": cpu, "metrics": metrics,
+        "cpu_time_s": cpu}))
 
 
 def test_two_folders_are_compared_case_by_case_by_row_column_and_draw(tmp_path):
