@@ -42,6 +42,18 @@ def _restamp(out: Path, key: str, stamp: str | None) -> None:
     path.write_text(json.dumps(record, indent=1) + "\n")
 
 
+def _make_stale(out: Path, capsys, stamps: dict[int, str | None]
+                ) -> tuple[list[str], dict[str, bytes]]:
+    """Restamp the study's ``i``-th case (in hash order) with ``stamps[i]`` (None: unstamped);
+    returns the sorted hashes and the case files as they then are, output read so far
+    dropped."""
+    keys = sorted(_files(out))
+    for i, stamp in stamps.items():
+        _restamp(out, keys[i], stamp)
+    capsys.readouterr()
+    return keys, _files(out)
+
+
 @pytest.fixture
 def study(tmp_path, monkeypatch):
     """A finished tiny study: (its command line without --stale, its folder, the hashes
@@ -81,11 +93,7 @@ def test_a_resume_with_the_same_code_runs_nothing_and_needs_no_flag(study, capsy
 
 def test_cases_of_other_code_or_unstamped_are_refused_in_one_line(study, capsys):
     argv, out, calls = study
-    keys = sorted(_files(out))
-    _restamp(out, keys[0], "0123456789abcdef+drake1.0.0")
-    _restamp(out, keys[2], None)
-    before = _files(out)
-    capsys.readouterr()
+    _, before = _make_stale(out, capsys, {0: "0123456789abcdef+drake1.0.0", 2: None})
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "Traceback" not in err
@@ -97,11 +105,7 @@ def test_cases_of_other_code_or_unstamped_are_refused_in_one_line(study, capsys)
 
 def test_stale_rerun_runs_exactly_those_and_restamps_them(study, capsys):
     argv, out, calls = study
-    keys = sorted(_files(out))
-    _restamp(out, keys[1], "other")
-    _restamp(out, keys[3], None)
-    before = _files(out)
-    capsys.readouterr()
+    keys, before = _make_stale(out, capsys, {1: "other", 3: None})
     assert main([*argv, "--stale", "rerun"]) == 0
     assert "2 computed by other code run again (--stale rerun)" in capsys.readouterr().err
     assert sorted(calls) == sorted([keys[1], keys[3]])
@@ -115,11 +119,7 @@ def test_stale_rerun_runs_exactly_those_and_restamps_them(study, capsys):
 
 def test_stale_keep_keeps_their_numbers_and_records_the_count(study, capsys):
     argv, out, calls = study
-    keys = sorted(_files(out))
-    _restamp(out, keys[0], "other")
-    _restamp(out, keys[3], None)
-    before = _files(out)
-    capsys.readouterr()
+    _, before = _make_stale(out, capsys, {0: "other", 3: None})
     assert main([*argv, "--stale", "keep"]) == 0
     err = capsys.readouterr().err
     assert "2 of the finished computed by other code, kept (--stale keep): the results mix " \
